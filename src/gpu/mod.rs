@@ -1,0 +1,1 @@
+//! The wgpu context: adapter choice and the CPU fallback.

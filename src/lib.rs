@@ -1,0 +1,15 @@
+//! raygun — guided high-quality rendering.
+//!
+//! The pipeline of `DESIGN.md` §1, one module per stage:
+//!
+//! ```text
+//! tracking ──► interaction ──► display ──► roi (DGI) ──► schedule ──► trace ──► filter ──► output
+//! ```
+//!
+//! Every stage that runs on the GPU has a kernel in `shaders/<stage>/` and a CPU twin in
+//! `src/<stage>/` computing the same function; the twin is the test oracle and the fallback
+//! backend when no GPU adapter exists.
+
+pub mod display;
+pub mod gpu;
+pub mod roi;

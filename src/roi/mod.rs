@@ -1,0 +1,1 @@
+//! The region of interest and the distance-guide image (DESIGN.md §4–5).
