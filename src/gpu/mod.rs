@@ -1,1 +1,266 @@
 //! The wgpu context: adapter choice and the CPU fallback.
+//!
+//! "Make a device" is separate from "do the work with this device" (as in wgpu's examples): every
+//! GPU stage takes a `&GpuContext`, so tests inject theirs and the binary picks one with
+//! [`Backend::select`]. When no adapter exists, `--backend auto` falls back to the CPU twins; the
+//! program must run on a machine with no GPU and no Vulkan driver.
+
+use std::fmt;
+
+/// What the user asked for on the command line (`--backend gpu|cpu|auto`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum BackendChoice {
+    /// The best wgpu adapter; an error when there is none.
+    Gpu,
+    /// The CPU twins (f64, rayon).
+    Cpu,
+    /// The GPU when an adapter exists, else the CPU twins.
+    #[default]
+    Auto,
+}
+
+/// The backend a command computes on, after [`Backend::select`].
+pub enum Backend {
+    Gpu(Box<GpuContext>),
+    Cpu,
+}
+
+impl Backend {
+    /// Resolves the user's choice into a backend. `Auto` falls back to the CPU (and says so on
+    /// standard error) when no adapter can be created; `Gpu` turns that into an error.
+    pub fn select(choice: BackendChoice) -> Result<Self, GpuError> {
+        match choice {
+            BackendChoice::Cpu => Ok(Self::Cpu),
+            BackendChoice::Gpu => Ok(Self::Gpu(Box::new(GpuContext::new()?))),
+            BackendChoice::Auto => match GpuContext::new() {
+                Ok(ctx) => Ok(Self::Gpu(Box::new(ctx))),
+                Err(e) => {
+                    eprintln!("raygun: no usable GPU adapter ({e}); using the CPU backend");
+                    Ok(Self::Cpu)
+                }
+            },
+        }
+    }
+
+    /// A human-readable name: the adapter's name and API, or the CPU twin with its thread count.
+    #[must_use]
+    pub fn describe(&self) -> String {
+        match self {
+            Self::Gpu(ctx) => ctx.describe(),
+            Self::Cpu => format!(
+                "CPU twin (f64, rayon, {} threads)",
+                rayon::current_num_threads()
+            ),
+        }
+    }
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum GpuError {
+    #[error(
+        "no GPU adapter found (on Linux without a GPU, install Mesa's software Vulkan driver: \
+         `apt-get install mesa-vulkan-drivers`)"
+    )]
+    NoAdapter,
+    #[error("no adapter's name contains {wanted:?} (RAYGUN_ADAPTER); found: {found}")]
+    NoMatchingAdapter { wanted: String, found: String },
+    #[error("could not create a device on {adapter}: {source}")]
+    RequestDevice {
+        adapter: String,
+        #[source]
+        source: wgpu::RequestDeviceError,
+    },
+    #[error("GPU buffer read-back failed: {0}")]
+    Map(#[from] wgpu::BufferAsyncError),
+    #[error("GPU poll failed: {0}")]
+    Poll(#[from] wgpu::PollError),
+}
+
+/// A device and queue on the chosen adapter, with what the stages need to know about it.
+pub struct GpuContext {
+    pub device: wgpu::Device,
+    pub queue: wgpu::Queue,
+    pub info: wgpu::AdapterInfo,
+    pub limits: wgpu::Limits,
+    /// Whether GPU timestamp queries are enabled (benchmarks use them for per-kernel times).
+    pub timestamps: bool,
+}
+
+impl fmt::Debug for GpuContext {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.describe())
+    }
+}
+
+/// Ranks adapters: real GPUs first, then virtual, then software rasterisers; among equals the
+/// native APIs (Vulkan, Metal, DX12) before GL, whose compute support is the weakest.
+fn adapter_rank(device_type: wgpu::DeviceType, backend: wgpu::Backend) -> (u8, u8) {
+    let kind = match device_type {
+        wgpu::DeviceType::DiscreteGpu => 0,
+        wgpu::DeviceType::IntegratedGpu => 1,
+        wgpu::DeviceType::VirtualGpu => 2,
+        wgpu::DeviceType::Other => 3,
+        wgpu::DeviceType::Cpu => 4,
+    };
+    let api = match backend {
+        wgpu::Backend::Vulkan | wgpu::Backend::Metal | wgpu::Backend::Dx12 => 0,
+        _ => 1,
+    };
+    (kind, api)
+}
+
+impl GpuContext {
+    /// Picks the best adapter (see [`adapter_rank`]); the environment variable `RAYGUN_ADAPTER`
+    /// restricts the choice to adapters whose name contains its value.
+    pub fn new() -> Result<Self, GpuError> {
+        pollster::block_on(Self::new_async())
+    }
+
+    async fn new_async() -> Result<Self, GpuError> {
+        let instance =
+            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        let mut adapters = instance.enumerate_adapters(wgpu::Backends::all()).await;
+        // GL adapters cannot run our storage-buffer compute kernels reliably; keep them only
+        // when nothing else exists.
+        if adapters
+            .iter()
+            .any(|a| a.get_info().backend != wgpu::Backend::Gl)
+        {
+            adapters.retain(|a| a.get_info().backend != wgpu::Backend::Gl);
+        }
+        if let Ok(wanted) = std::env::var("RAYGUN_ADAPTER") {
+            let found: Vec<String> = adapters.iter().map(|a| a.get_info().name).collect();
+            adapters.retain(|a| a.get_info().name.contains(&wanted));
+            if adapters.is_empty() {
+                return Err(GpuError::NoMatchingAdapter {
+                    wanted,
+                    found: found.join(", "),
+                });
+            }
+        }
+        adapters.sort_by_key(|a| {
+            let info = a.get_info();
+            adapter_rank(info.device_type, info.backend)
+        });
+        let adapter = adapters.into_iter().next().ok_or(GpuError::NoAdapter)?;
+        let info = adapter.get_info();
+        let supported = adapter.features();
+        let timestamps = supported.contains(wgpu::Features::TIMESTAMP_QUERY);
+        let mut features = wgpu::Features::empty();
+        if timestamps {
+            features |= wgpu::Features::TIMESTAMP_QUERY;
+        }
+        // Ask for everything the adapter offers: big images need big storage bindings
+        // (3840×2160 RGBA f32 is 133 MB, over lavapipe's 128 MiB binding limit but far under
+        // an H100's 2 GiB), and stages check the limits they need themselves.
+        let limits = adapter.limits();
+        let (device, queue) = adapter
+            .request_device(&wgpu::DeviceDescriptor {
+                label: Some("raygun"),
+                required_features: features,
+                required_limits: limits.clone(),
+                ..Default::default()
+            })
+            .await
+            .map_err(|source| GpuError::RequestDevice {
+                adapter: info.name.clone(),
+                source,
+            })?;
+        Ok(Self {
+            device,
+            queue,
+            info,
+            limits,
+            timestamps,
+        })
+    }
+
+    /// For tests: the context, or a panic that says how to get an adapter. A GPU test never
+    /// passes silently without one.
+    #[must_use]
+    pub fn for_tests() -> Self {
+        match Self::new() {
+            Ok(ctx) => ctx,
+            Err(e) => panic!(
+                "GPU tests need a wgpu adapter: {e}. CI installs lavapipe (`.ci/run`); \
+                 locally run `apt-get install mesa-vulkan-drivers`."
+            ),
+        }
+    }
+
+    /// "NAME (API, driver DRIVER INFO)".
+    #[must_use]
+    pub fn describe(&self) -> String {
+        format!(
+            "{} ({:?}, {:?}, driver {} {})",
+            self.info.name,
+            self.info.backend,
+            self.info.device_type,
+            self.info.driver,
+            self.info.driver_info
+        )
+    }
+
+    /// Blocks until all submitted work is done.
+    pub fn wait(&self) -> Result<(), GpuError> {
+        self.device.poll(wgpu::PollType::wait_indefinitely())?;
+        Ok(())
+    }
+
+    /// Copies `src` (which needs `COPY_SRC`) into a fresh mappable buffer and reads it back.
+    pub fn read_buffer<T: bytemuck::Pod>(&self, src: &wgpu::Buffer) -> Result<Vec<T>, GpuError> {
+        let size = src.size();
+        let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("raygun read-back"),
+            size,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut enc = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("raygun read-back"),
+            });
+        enc.copy_buffer_to_buffer(src, 0, &staging, 0, size);
+        self.queue.submit([enc.finish()]);
+        let slice = staging.slice(..);
+        let (tx, rx) = std::sync::mpsc::channel();
+        slice.map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tx.send(r);
+        });
+        self.wait()?;
+        rx.recv()
+            .expect("map_async callback runs during poll")
+            .map_err(GpuError::Map)?;
+        let data = {
+            let view = slice
+                .get_mapped_range()
+                .expect("buffer was just mapped for reading");
+            bytemuck::cast_slice(&view).to_vec()
+        };
+        staging.unmap();
+        Ok(data)
+    }
+}
+
+/// Loads a WGSL module from `shaders/`, concatenating the given files in order (our shaders
+/// share functions by concatenation: WGSL has no includes). The sources are embedded at build
+/// time so the binary runs from any directory.
+#[must_use]
+pub fn shader_source(parts: &[&str]) -> String {
+    parts.join("\n")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn software_adapters_rank_after_real_gpus() {
+        use wgpu::{Backend as B, DeviceType as D};
+        assert!(adapter_rank(D::DiscreteGpu, B::Vulkan) < adapter_rank(D::DiscreteGpu, B::Gl));
+        assert!(adapter_rank(D::DiscreteGpu, B::Gl) < adapter_rank(D::IntegratedGpu, B::Vulkan));
+        assert!(adapter_rank(D::VirtualGpu, B::Vulkan) < adapter_rank(D::Cpu, B::Vulkan));
+    }
+}
