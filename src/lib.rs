@@ -12,4 +12,5 @@
 
 pub mod display;
 pub mod gpu;
+pub mod output;
 pub mod roi;

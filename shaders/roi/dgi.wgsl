@@ -17,10 +17,12 @@ struct Params {
     inv_falloff: f32,
     px_per_radian: f32,
     tan_hv: vec2<f32>,
-    _pad: vec2<u32>,
+    // L in canvas px (distances are capped there), or f32 max for raw distances.
+    cap: f32,
+    _pad: u32,
 }
 
-// Layout mirrored by `GpuPiece` in src/roi/gpu.rs (64 bytes).
+// Layout mirrored by `GpuPiece` in src/roi/gpu.rs (80 bytes).
 struct Piece {
     // Rectangle centre in image-pixel-index space: integer part and fraction.
     center_i: vec2<i32>,
@@ -35,9 +37,11 @@ struct Piece {
     edge_start: u32,
     edge_count: u32,
     _pad: u32,
+    // Bounding box of the piece relative to the rectangle centre: (min.xy, max.xy).
+    bounds: vec4<f32>,
 }
 
-// Layout mirrored by `GpuAngularTile` (64 bytes): w(l) = w0 + l.x·ex + l.y·ey in the cone's
+// Layout mirrored by `GpuAngularTile` (80 bytes): w(l) = w0 + l.x·ex + l.y·ey in the cone's
 // (R, U, D) frame, l relative to the rectangle centre.
 struct AngularTile {
     center_i: vec2<i32>,
@@ -59,7 +63,6 @@ const KIND_EMPTY: u32 = 0u;
 const KIND_ELLIPSE: u32 = 1u;
 const KIND_HYPERBOLA: u32 = 2u;
 const KIND_PARABOLA: u32 = 3u;
-const INF: f32 = 3.4e38;
 // Safeguarded Newton on the epigraph problem: bisection alone needs 24 halvings for f32's
 // mantissa from a bracket that the Newton steps shrink; 40 bounds the worst case.
 const EPIGRAPH_ITERATIONS: u32 = 40u;
@@ -194,13 +197,13 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if gid.x >= params.size.x || gid.y >= params.size.y {
         return;
     }
-    var best = INF;
+    var best = params.cap;
     if params.mode == 0u {
         for (var k = 0u; k < params.count; k++) {
             let pc = pieces[k];
             let rel = relative(gid.xy, pc.center_i, pc.center_f);
-            // The rectangle's distance bounds the piece's from below.
-            let outside = max(abs(rel) - pc.half, vec2<f32>(0.0));
+            // The bounding box's distance bounds the piece's from below.
+            let outside = max(max(pc.bounds.xy - rel, rel - pc.bounds.zw), vec2<f32>(0.0));
             if length(outside) >= best {
                 continue;
             }
@@ -215,7 +218,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             let rel = relative(gid.xy, t.center_i, t.center_f);
             if all(abs(rel) <= t.half) {
                 let w = t.w0.xyz + rel.x * t.ex.xyz + rel.y * t.ey.xyz;
-                best = angular_excess(w) * params.px_per_radian;
+                best = min(angular_excess(w) * params.px_per_radian, params.cap);
                 break;
             }
         }

@@ -377,6 +377,9 @@ pub struct Piece {
     pub rect: CanvasRect,
     pub conic: PlacedConic,
     pub edges: Vec<Segment>,
+    /// A box around the piece (inside `rect`): its distance bounds the piece's from below, so
+    /// pixels far from every piece skip the solvers.
+    pub bounds: CanvasRect,
 }
 
 impl Piece {
@@ -406,7 +409,27 @@ impl Piece {
                 .closest_local(l)
                 .is_some_and(|(_, q)| rect.contains(conic.to_canvas(q)))
         };
-        inside_somewhere.then_some(Self { rect, conic, edges })
+        let bounds = match conic.kind {
+            ConicKind::Ellipse { a, b } => {
+                // Axis-aligned box of the rotated ellipse, clipped to the rectangle.
+                let (u, v) = (conic.axis_u, conic.axis_v());
+                let half = DVec2::new(
+                    (a * u.x).hypot(b * v.x),
+                    (a * u.y).hypot(b * v.y),
+                );
+                CanvasRect {
+                    min: (conic.origin - half).max(rect.min),
+                    max: (conic.origin + half).min(rect.max),
+                }
+            }
+            _ => rect,
+        };
+        inside_somewhere.then_some(Self {
+            rect,
+            conic,
+            edges,
+            bounds,
+        })
     }
 
     /// Exact canvas distance from `c` to this piece (rect ∩ conic region).

@@ -110,6 +110,74 @@ impl DgiParams {
     }
 }
 
+/// The falloff length L of the DGI normalisation d = clamp(d_raw / L, 0, 1).
+///
+/// The paper normalises to [0, 1] without saying how. DESIGN.md §5 asks that the default draws
+/// about 2–4 % of the pixels per iteration at 10° FOV and 35–45 % at 60° in the paper's setup
+/// (HORNET, viewer 1 m from the centre), as its speed-ups imply. No single length does both:
+/// on HORNET a fixed L = 0.63 m gives 2.9 % at 10° but only 12.5 % at 60°, and L proportional
+/// to the ROI's size gives 40 % at 60° but 1.2 % at 10°. So L grows with the ROI:
+/// L = base + scale · ρ, with ρ the ROI's radius on the wall (metres; for the ray gun the
+/// distance to the wall along the axis times √(tan(α_h/2)·tan(α_v/2)), for the mouse √(a·b)).
+/// The defaults were fitted on HORNET (the calibration test in `tests/dgi_calibration.rs`
+/// checks the shares they give).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct Falloff {
+    /// Metres along the wall.
+    pub base_m: f64,
+    /// Multiple of the ROI radius.
+    pub scale: f64,
+}
+
+impl Default for Falloff {
+    fn default() -> Self {
+        Self {
+            base_m: Self::DEFAULT_BASE_M,
+            scale: Self::DEFAULT_SCALE,
+        }
+    }
+}
+
+/// A falloff setting that cannot give a positive length.
+#[derive(Clone, Copy, Debug, thiserror::Error, PartialEq)]
+#[error("falloff base {base_m} m and scale {scale} must be finite and non-negative, with a positive base")]
+pub struct FalloffError {
+    pub base_m: f64,
+    pub scale: f64,
+}
+
+impl Falloff {
+    pub const DEFAULT_BASE_M: f64 = 0.33;
+    pub const DEFAULT_SCALE: f64 = 3.4;
+
+    pub fn new(base_m: f64, scale: f64) -> Result<Self, FalloffError> {
+        if base_m.is_finite() && scale.is_finite() && base_m > 0.0 && scale >= 0.0 {
+            Ok(Self { base_m, scale })
+        } else {
+            Err(FalloffError { base_m, scale })
+        }
+    }
+
+    /// L in canvas pixels for an ROI of radius `roi_radius_m` on a wall of pitch `pitch_m`.
+    #[must_use]
+    pub fn length_px(&self, roi_radius_m: f64, pitch_m: f64) -> f64 {
+        (self.base_m + self.scale * roi_radius_m) / pitch_m
+    }
+}
+
+/// The ROI's radius on the wall in metres (see [`Falloff`]); 0 when the ray gun's axis misses.
+#[must_use]
+pub fn roi_radius_m(surface: &Surface, roi: &Roi) -> f64 {
+    match roi {
+        Roi::Cone(cone) => surface
+            .hit(cone.apex, cone.axis)
+            .map_or(0.0, |(_, t)| t * (cone.tan_h * cone.tan_v).sqrt()),
+        Roi::CanvasEllipse { semi_axes, .. } => {
+            (semi_axes.x.abs() * semi_axes.y.abs()).sqrt() * surface.pitch_m
+        }
+    }
+}
+
 /// Why a guide cannot be built.
 #[derive(Clone, Copy, Debug, thiserror::Error, PartialEq)]
 pub enum GuideError {
@@ -170,12 +238,18 @@ impl Guide {
     /// is empty).
     #[must_use]
     pub fn distance(&self, surface: &Surface, c: DVec2) -> f64 {
+        self.distance_capped(surface, c, f64::INFINITY)
+    }
+
+    /// min(d_raw, cap): pieces whose bounding box is `cap` or farther away are skipped (with
+    /// cap = L every such pixel has d = 1 anyway).
+    #[must_use]
+    pub fn distance_capped(&self, surface: &Surface, c: DVec2, cap: f64) -> f64 {
         match self {
             Self::Pieces(pieces) => {
-                let mut best = f64::INFINITY;
+                let mut best = cap;
                 for p in pieces {
-                    // The rectangle's distance bounds the piece's from below.
-                    if p.rect.distance(c) >= best {
+                    if p.bounds.distance(c) >= best {
                         continue;
                     }
                     best = best.min(p.distance(c));
@@ -189,8 +263,8 @@ impl Guide {
                 cone,
                 px_per_radian,
             } => match surface.patch_at(c) {
-                Some(p) => cone.angular_excess(p.point(c)) * px_per_radian,
-                None => f64::INFINITY,
+                Some(p) => (cone.angular_excess(p.point(c)) * px_per_radian).min(cap),
+                None => cap,
             },
         }
     }
@@ -255,7 +329,7 @@ pub fn compute_cpu(surface: &Surface, guide: &Guide, params: &DgiParams) -> Vec<
     out.par_chunks_mut(w).enumerate().for_each(|(j, row)| {
         for (i, v) in row.iter_mut().enumerate() {
             let c = params.pixel_to_canvas(&surface.canvas, i as u32, j as u32);
-            let d = guide.distance(surface, c);
+            let d = guide.distance_capped(surface, c, params.falloff_px.unwrap_or(f64::INFINITY));
             *v = normalise(d, params.falloff_px) as f32;
         }
     });

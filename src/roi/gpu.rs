@@ -26,7 +26,10 @@ pub struct GpuParams {
     pub inv_falloff: f32,
     pub px_per_radian: f32,
     pub tan_hv: [f32; 2],
-    pub _pad: [u32; 2],
+    /// L in canvas px (the distance cap), or f32::MAX for raw distances (WGSL need not honour
+    /// infinities).
+    pub cap: f32,
+    pub _pad: u32,
 }
 
 /// Mirrors `Piece` in shaders/roi/dgi.wgsl.
@@ -43,6 +46,8 @@ pub struct GpuPiece {
     pub edge_start: u32,
     pub edge_count: u32,
     pub _pad: u32,
+    /// The piece's bounding box relative to the rectangle centre (min.xy, max.xy).
+    pub bounds: [f32; 4],
 }
 
 /// Mirrors `AngularTile` in shaders/roi/dgi.wgsl.
@@ -98,7 +103,8 @@ impl GpuGuide {
                 inv_falloff: params.falloff_px.map_or(0.0, |l| (1.0 / l) as f32),
                 px_per_radian: 0.0,
                 tan_hv: [1.0, 1.0],
-                _pad: [0; 2],
+                cap: params.falloff_px.map_or(f32::MAX, |l| l as f32),
+                _pad: 0,
             },
             pieces: Vec::new(),
             edges: Vec::new(),
@@ -126,6 +132,12 @@ impl GpuGuide {
                         edge_start: out.edges.len() as u32,
                         edge_count: p.edges.len() as u32,
                         _pad: 0,
+                        bounds: [
+                            (p.bounds.min.x - rc.x) as f32,
+                            (p.bounds.min.y - rc.y) as f32,
+                            (p.bounds.max.x - rc.x) as f32,
+                            (p.bounds.max.y - rc.y) as f32,
+                        ],
                     });
                     for e in &p.edges {
                         let (a, b) = (e.a - rc, e.b - rc);
