@@ -50,6 +50,40 @@ pub struct Surface {
 }
 
 impl Surface {
+    /// The planar patches of a display model: one per tile, its active area and bezels.
+    #[must_use]
+    pub fn from_model(model: &crate::display::DisplayModel) -> Self {
+        let rect = |r: crate::display::Rect| CanvasRect {
+            min: r.min,
+            max: r.max,
+        };
+        let patches = model
+            .tiles()
+            .iter()
+            .enumerate()
+            .map(|(i, tile)| {
+                // Built from the corners rather than by differencing mapped points: exact to
+                // rounding of the corner coordinates.
+                let [tl, tr, bl] = tile.corners();
+                let [w, h] = tile.resolution();
+                let ex = (tr - tl) / f64::from(w);
+                let ey = (bl - tl) / f64::from(h);
+                let c0 = tile.canvas_origin();
+                Patch {
+                    rect: rect(model.tile_canvas_rect(i)),
+                    origin: tl - c0.x * ex - c0.y * ey,
+                    ex,
+                    ey,
+                }
+            })
+            .collect();
+        Self {
+            canvas: rect(model.canvas_rect()),
+            patches,
+            pitch_m: model.pitch_m(),
+        }
+    }
+
     /// The patch containing canvas point `c` (the first, on shared edges).
     #[must_use]
     pub fn patch_at(&self, c: DVec2) -> Option<&Patch> {
