@@ -1,0 +1,4 @@
+//! Command-line front ends: argument types (clap) and the command logic, kept in the library so
+//! tests can run a command without spawning the binary. `main.rs` wires them into subcommands.
+
+pub mod display;
