@@ -102,25 +102,52 @@ mod tests {
     use super::*;
 
     #[test]
-    fn lists_parse_and_name_what_is_wrong() {
-        assert_eq!(parse_vec3(" 1, -2.5,3e-3").unwrap(), DVec3::new(1.0, -2.5, 3e-3));
+    fn vec3_accepts_negatives_spaces_and_exponents() {
+        assert_eq!(
+            parse_vec3("-1, 2.5 ,3e-1").unwrap(),
+            DVec3::new(-1.0, 2.5, 0.3)
+        );
+    }
+
+    #[test]
+    fn vec3_rejects_wrong_count_naming_what_was_found() {
+        let e = parse_vec3("1,2").unwrap_err();
+        assert_eq!(
+            e,
+            ListParseError::Count {
+                text: "1,2".into(),
+                expected: 3,
+                found: 2,
+                form: "X,Y,Z"
+            }
+        );
+        assert!(e.to_string().contains("X,Y,Z"), "{e}");
+        assert!(matches!(parse_vec3("1,2,3,4"), Err(ListParseError::Count { found: 4, .. })));
+    }
+
+    #[test]
+    fn vec3_names_the_bad_item() {
+        let e = parse_vec3("1,x,3").unwrap_err();
+        assert!(matches!(e, ListParseError::NotANumber { index: 2, .. }), "{e:?}");
+        assert!(matches!(parse_vec3("1,,3"), Err(ListParseError::NotANumber { index: 2, .. })));
+        assert!(matches!(parse_vec3("nan,0,0"), Err(ListParseError::NonFinite { index: 1, .. })));
+        assert!(matches!(parse_vec3("0,0,inf"), Err(ListParseError::NonFinite { index: 3, .. })));
+    }
+
+    #[test]
+    fn size_needs_two_positive_integers() {
         assert_eq!(parse_size("3840,2160").unwrap(), [3840, 2160]);
-        assert!(matches!(parse_vec3("1,2"), Err(ListParseError::Count { found: 2, .. })));
-        assert!(matches!(
-            parse_pair("1,x"),
-            Err(ListParseError::NotANumber { index: 2, .. })
-        ));
-        assert!(matches!(
-            parse_pair("1,inf"),
-            Err(ListParseError::NonFinite { index: 2, .. })
-        ));
-        assert!(matches!(
-            parse_size("0,5"),
-            Err(ListParseError::NotAPositiveInteger { index: 1, .. })
-        ));
-        assert!(matches!(
-            parse_size("-1,5"),
-            Err(ListParseError::NotAPositiveInteger { .. })
-        ));
+        assert!(matches!(parse_size("0,2160"), Err(ListParseError::NotAPositiveInteger { index: 1, .. })));
+        assert!(matches!(parse_size("3840,-1"), Err(ListParseError::NotAPositiveInteger { index: 2, .. })));
+        assert!(matches!(parse_size("3840.5,2160"), Err(ListParseError::NotAPositiveInteger { .. })));
+        assert!(matches!(parse_size("3840"), Err(ListParseError::Count { found: 1, .. })));
+    }
+
+    #[test]
+    fn pair_parses_and_names_the_bad_item() {
+        assert_eq!(parse_pair("1,-2").unwrap(), DVec2::new(1.0, -2.0));
+        assert!(matches!(parse_pair("1,x"), Err(ListParseError::NotANumber { index: 2, .. })));
+        assert!(matches!(parse_pair("1,inf"), Err(ListParseError::NonFinite { index: 2, .. })));
+        assert!(matches!(parse_pair("1"), Err(ListParseError::Count { found: 1, .. })));
     }
 }

@@ -1,5 +1,7 @@
-//! The command line: one module per command, each with its clap arguments and a `run`.
+//! Command-line front ends: argument types (clap) and the command logic, kept in the library so
+//! tests can run a command without spawning the binary. `main.rs` wires them into subcommands.
 
 pub mod args;
 pub mod bench;
 pub mod dgi;
+pub mod display;
