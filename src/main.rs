@@ -22,6 +22,8 @@ enum Command {
     /// Display-model tools.
     #[command(subcommand)]
     Display(DisplayCommand),
+    /// Closest points on ellipses: `a,b,x,y` lines on stdin → `distance,cx,cy` on stdout.
+    EllipseDistance,
     /// Benchmarks: speed and error, with the hardware they ran on.
     #[command(subcommand)]
     Bench(cli::bench::BenchCommand),
@@ -41,10 +43,24 @@ fn main() {
         Command::Display(DisplayCommand::Expand(args)) => {
             cli::display::expand(args).map(|text| println!("{text}"))
         }
+        Command::EllipseDistance => ellipse_distance(),
         Command::Bench(cmd) => cli::bench::run(cmd),
     };
     if let Err(e) = result {
         eprintln!("raygun: error: {e:#}");
         std::process::exit(1);
     }
+}
+
+/// Streams stdin to stdout; exits 1 after the whole stream if any line was bad.
+fn ellipse_distance() -> anyhow::Result<()> {
+    let stats = cli::ellipse_distance::run(
+        std::io::stdin().lock(),
+        std::io::BufWriter::new(std::io::stdout().lock()),
+        std::io::stderr().lock(),
+    )?;
+    if stats.errors > 0 {
+        anyhow::bail!("{} of {} lines were rejected", stats.errors, stats.queries);
+    }
+    Ok(())
 }

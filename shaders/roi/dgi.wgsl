@@ -67,6 +67,15 @@ const KIND_PARABOLA: u32 = 3u;
 // mantissa from a bracket that the Newton steps shrink; 40 bounds the worst case.
 const EPIGRAPH_ITERATIONS: u32 = 40u;
 
+// Distance from p to the filled ellipse and the nearest point of it: (distance, point).
+fn ellipse_filled_closest(a: f32, b: f32, p: vec2<f32>) -> vec3<f32> {
+    if ellipse_inside(a, b, p) {
+        return vec3<f32>(0.0, p);
+    }
+    let c = ellipse_closest_point(a, b, p);
+    return vec3<f32>(c.distance, c.point);
+}
+
 fn perp(v: vec2<f32>) -> vec2<f32> {
     return vec2<f32>(-v.y, v.x);
 }

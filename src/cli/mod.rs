@@ -5,3 +5,4 @@ pub mod args;
 pub mod bench;
 pub mod dgi;
 pub mod display;
+pub mod ellipse_distance;
