@@ -46,8 +46,15 @@ fn curved_wall(yaw_deg: f64) -> Surface {
     }
 }
 
+/// Raw-distance agreement: |d_GPU − d_CPU| ≤ RAW_ABS_PX + RAW_REL · d_CPU. The kernel's pixel
+/// offsets are exact to f32 rounding of the local offset (≤ ~1e-7 × 3000 px here), the solvers
+/// reach ~1e-6 of their scale in f32 (tests/ellipse_hard_cases.rs), and far distances grow
+/// with the conic's size; measured worst on lavapipe: ~1e-4 relative.
+const RAW_ABS_PX: f64 = 2e-3;
+const RAW_REL: f64 = 5e-4;
+
 #[test]
-fn gpu_matches_cpu_twin() {
+fn gpu_matches_cpu_twin_on_ellipses_hyperbolas_and_parabolas() {
     let ctx = GpuContext::for_tests();
     let kernel = DgiKernel::new(&ctx);
     let surface = curved_wall(30.0);
@@ -56,20 +63,37 @@ fn gpu_matches_cpu_twin() {
         (DVec3::new(0.0, 0.0, 1.0), DVec3::new(0.0, 0.0, -1.0), 20.0, 20.0),
         (DVec3::new(0.2, 0.1, 0.8), DVec3::new(0.6, 0.0, -1.0), 60.0, 40.0),
         (DVec3::new(-0.4, 0.0, 0.3), DVec3::new(1.0, 0.0, -0.35), 60.0, 60.0),
+        // 60° off the centre column's normal with a 60° cone: a generator parallel to it.
+        (
+            DVec3::new(-0.9, 0.0, 0.6),
+            DVec3::new(60f64.to_radians().sin(), 0.0, -60f64.to_radians().cos()),
+            60.0,
+            60.0,
+        ),
     ];
+    let mut kinds = std::collections::BTreeSet::new();
     for (o, d, fh, fv) in poses {
         let cone = Cone::from_pose(o, d, DVec3::Y, fh, fv).unwrap();
+        if let Guide::Pieces(pieces) = Guide::new(&surface, &Roi::Cone(cone), Metric::Exact).unwrap() {
+            for p in pieces {
+                kinds.insert(format!("{:?}", p.conic.kind).split([' ', '{']).next().unwrap().to_owned());
+            }
+        }
         for metric in [Metric::Exact, Metric::Ellipse, Metric::Angular] {
             let guide = Guide::new(&surface, &Roi::Cone(cone), metric).unwrap();
             let cpu = compute_cpu(&surface, &guide, &params);
             let gpu = kernel.compute(&ctx, &surface, &guide, &params).unwrap();
-            let mut worst = 0f64;
-            for (c, g) in cpu.iter().zip(&gpu) {
+            for (i, (c, g)) in cpu.iter().zip(&gpu).enumerate() {
                 let (c, g) = (f64::from(*c), f64::from(*g));
-                let err = (c - g).abs() / (1.0 + c.abs());
-                worst = worst.max(err);
+                assert!(
+                    (c - g).abs() <= RAW_ABS_PX + RAW_REL * c,
+                    "{metric:?} from {o}: pixel {i}: CPU {c} GPU {g}"
+                );
             }
-            eprintln!("{metric:?} {o} worst {worst:e}");
         }
+    }
+    // The poses were chosen to exercise every solver path of the kernel.
+    for kind in ["Ellipse", "Hyperbola", "Parabola"] {
+        assert!(kinds.contains(kind), "no {kind} among {kinds:?}");
     }
 }
