@@ -181,7 +181,10 @@ fn sheared_corners_are_not_perpendicular() {
     // Bottom-left moved 1 cm sideways over a 0.5 m edge: cos ≈ 0.02, far over 1e-3.
     v["tiles"][0]["bottom_left"][0] = json!(-1.54 + 0.01);
     let (tile, field, problem) = invalid(parse(&v));
-    assert_eq!((tile.as_deref(), field.as_str()), (Some("a"), "bottom_left"));
+    assert_eq!(
+        (tile.as_deref(), field.as_str()),
+        (Some("a"), "bottom_left")
+    );
     assert!(matches!(problem, Problem::NotPerpendicular { cos } if (cos - 0.02).abs() < 1e-3));
 }
 
@@ -276,13 +279,19 @@ fn duplicate_id_and_grid_position() {
     let mut v = three_tiles();
     v["tiles"][2]["id"] = json!("a");
     let (tile, field, problem) = invalid(parse(&v));
-    assert_eq!((tile.as_deref(), field.as_str(), problem), (Some("a"), "id", Problem::DuplicateId));
+    assert_eq!(
+        (tile.as_deref(), field.as_str(), problem),
+        (Some("a"), "id", Problem::DuplicateId)
+    );
 
     let mut v = three_tiles();
     v["tiles"][2]["column"] = json!(0);
     let (tile, field, problem) = invalid(parse(&v));
     assert_eq!((tile.as_deref(), field.as_str()), (Some("c"), "column"));
-    assert_eq!(problem, Problem::DuplicateGridPosition { other: "a".into() });
+    assert_eq!(
+        problem,
+        Problem::DuplicateGridPosition { other: "a".into() }
+    );
 
     let mut v = three_tiles();
     v["tiles"][1]["id"] = json!("");
@@ -337,7 +346,11 @@ fn generator_errors_name_the_generator_field() {
         g[key] = value.clone();
         let v = json!({"name": "g", "generator": g});
         let (tile, got, problem) = invalid(parse(&v));
-        assert_eq!((tile, got.as_str()), (None, field), "{key} = {value}: {problem}");
+        assert_eq!(
+            (tile, got.as_str()),
+            (None, field),
+            "{key} = {value}: {problem}"
+        );
     }
 }
 
@@ -356,12 +369,18 @@ const HINGE_TOL_M: f64 = 1e-6;
 fn hornet_expands_to_35_tiles_with_one_pitch() {
     let m = load("hornet.json");
     assert_eq!(m.tiles().len(), 35);
-    assert!(m.notes().contains("ASSUMPTIONS"), "HORNET's panel size must be marked as assumed");
+    assert!(
+        m.notes().contains("ASSUMPTIONS"),
+        "HORNET's panel size must be marked as assumed"
+    );
     let expected_pitch = (HORNET_W / 1920.0 + HORNET_H / 1080.0) / 2.0;
     assert!((m.pitch_m() - expected_pitch).abs() < 1e-15);
     for (i, t) in m.tiles().iter().enumerate() {
         let (c, r) = (i as u32 % 7, i as u32 / 7);
-        assert_eq!((t.column(), t.row(), t.id()), (c, r, format!("c{c}r{r}").as_str()));
+        assert_eq!(
+            (t.column(), t.row(), t.id()),
+            (c, r, format!("c{c}r{r}").as_str())
+        );
         assert_eq!(t.resolution(), [1920, 1080]);
         let p = t.pitch();
         assert!((p.x - HORNET_W / 1920.0).abs() < 1e-15 && (p.y - HORNET_H / 1080.0).abs() < 1e-15);
@@ -401,13 +420,19 @@ fn hornet_neighbouring_columns_are_10_degrees_apart_and_mirror_symmetric() {
     for r in 0..5 {
         for c in 0..6 {
             let angle = tile(c, r).normal().angle_between(tile(c + 1, r).normal());
-            assert!((angle.to_degrees() - 10.0).abs() < 1e-9, "c{c}r{r}: {angle}");
+            assert!(
+                (angle.to_degrees() - 10.0).abs() < 1e-9,
+                "c{c}r{r}: {angle}"
+            );
         }
         for c in 0..7 {
             // Mirror in x: the top-left of column c is the top-right of column 6 − c.
             let a = tile(c, r).corners()[0];
             let b = tile(6 - c, r).corners()[1];
-            assert!(a.abs_diff_eq(b * DVec3::new(-1.0, 1.0, 1.0), 1e-12), "{a} vs {b}");
+            assert!(
+                a.abs_diff_eq(b * DVec3::new(-1.0, 1.0, 1.0), 1e-12),
+                "{a} vs {b}"
+            );
         }
     }
 }
@@ -422,15 +447,20 @@ fn hornet_shared_edges_coincide_in_3d() {
             let (ri, rj) = (m.tile_canvas_rect(i), m.tile_canvas_rect(j));
             let (ti, tj) = (&m.tiles()[i], &m.tiles()[j]);
             // i's right edge against j's left, and i's bottom against j's top.
-            let pairs: Vec<(DVec2, DVec2)> = if (ri.max.x - rj.min.x).abs() < 1e-6
-                && (ri.min.y - rj.min.y).abs() < 1e-6
-            {
-                vec![(ri.max, DVec2::new(rj.min.x, rj.max.y)), (DVec2::new(ri.max.x, ri.min.y), rj.min)]
-            } else if (ri.max.y - rj.min.y).abs() < 1e-6 && (ri.min.x - rj.min.x).abs() < 1e-6 {
-                vec![(ri.max, DVec2::new(rj.max.x, rj.min.y)), (DVec2::new(ri.min.x, ri.max.y), rj.min)]
-            } else {
-                continue;
-            };
+            let pairs: Vec<(DVec2, DVec2)> =
+                if (ri.max.x - rj.min.x).abs() < 1e-6 && (ri.min.y - rj.min.y).abs() < 1e-6 {
+                    vec![
+                        (ri.max, DVec2::new(rj.min.x, rj.max.y)),
+                        (DVec2::new(ri.max.x, ri.min.y), rj.min),
+                    ]
+                } else if (ri.max.y - rj.min.y).abs() < 1e-6 && (ri.min.x - rj.min.x).abs() < 1e-6 {
+                    vec![
+                        (ri.max, DVec2::new(rj.max.x, rj.min.y)),
+                        (DVec2::new(ri.min.x, ri.max.y), rj.min),
+                    ]
+                } else {
+                    continue;
+                };
             shared += 1;
             for (ci, cj) in pairs {
                 let gap = ti.canvas_to_point(ci).distance(tj.canvas_to_point(cj));
@@ -454,17 +484,29 @@ fn hornet_canvas_distance_is_distance_along_the_wall() {
     let h34 = DVec2::new(m.tile_canvas_rect(i3).max.x, y);
     let b = DVec2::new(m.tile_canvas_rect(i4).center().x, y);
     let t = m.tiles();
-    let path_3d = t[i2].canvas_to_point(a).distance(t[i2].canvas_to_point(h23))
-        + t[i3].canvas_to_point(h23).distance(t[i3].canvas_to_point(h34))
-        + t[i4].canvas_to_point(h34).distance(t[i4].canvas_to_point(b));
-    assert!((path_3d - 2.0 * (HORNET_W + 2.0 * HORNET_BEZEL)).abs() < HINGE_TOL_M, "{path_3d}");
+    let path_3d = t[i2]
+        .canvas_to_point(a)
+        .distance(t[i2].canvas_to_point(h23))
+        + t[i3]
+            .canvas_to_point(h23)
+            .distance(t[i3].canvas_to_point(h34))
+        + t[i4]
+            .canvas_to_point(h34)
+            .distance(t[i4].canvas_to_point(b));
+    assert!(
+        (path_3d - 2.0 * (HORNET_W + 2.0 * HORNET_BEZEL)).abs() < HINGE_TOL_M,
+        "{path_3d}"
+    );
     // The straight line is shorter: the wall is not flat.
     assert!(t[i2].canvas_to_point(a).distance(t[i4].canvas_to_point(b)) < path_3d - 0.01);
     // On the canvas the same path is a straight line, as long as the wall path up to the model
     // pitch: HORNET's assumed panel has x and y pitches 3.3e-5 apart (relative), and the model
     // pitch is their mean, 1.65e-5 from the x pitch that measures this path.
     let along_canvas = (b - a).length() * m.pitch_m();
-    assert!(((along_canvas - path_3d) / path_3d).abs() < 2e-5, "{along_canvas} vs {path_3d}");
+    assert!(
+        ((along_canvas - path_3d) / path_3d).abs() < 2e-5,
+        "{along_canvas} vs {path_3d}"
+    );
 }
 
 #[test]
@@ -494,21 +536,35 @@ fn single_displays_load_with_their_stated_sizes() {
         assert_eq!(t.resolution(), [3840, 2160]);
         assert!((t.pitch() * DVec2::new(3840.0, 2160.0)).abs_diff_eq(DVec2::new(w, h), 1e-12));
         assert!(t.normal().abs_diff_eq(DVec3::Z, 1e-15));
-        assert!(t.tile_px_to_point(DVec2::new(1920.0, 1080.0)).abs_diff_eq(DVec3::ZERO, 1e-12));
-        assert_eq!(m.canvas_rect().size(), DVec2::new(3840.0, 2160.0), "{file}: no bezels");
+        assert!(
+            t.tile_px_to_point(DVec2::new(1920.0, 1080.0))
+                .abs_diff_eq(DVec3::ZERO, 1e-12)
+        );
+        assert_eq!(
+            m.canvas_rect().size(),
+            DVec2::new(3840.0, 2160.0),
+            "{file}: no bezels"
+        );
     }
 }
 
 #[test]
 fn expand_round_trips_through_the_loader() {
-    for file in ["hornet.json", "desktop-27in-4k.json", "projection-4m-4k.json"] {
+    for file in [
+        "hornet.json",
+        "desktop-27in-4k.json",
+        "projection-4m-4k.json",
+    ] {
         let model = load(file);
         let text = expand(&ExpandArgs {
             file: model_path(file),
         })
         .unwrap();
         let spec: DisplayModelSpec = serde_json::from_str(&text).unwrap();
-        assert!(spec.generator.is_none() && spec.tiles.is_some(), "{file}: explicit form");
+        assert!(
+            spec.generator.is_none() && spec.tiles.is_some(),
+            "{file}: explicit form"
+        );
         let back = DisplayModel::from_json(&text, "expanded").unwrap();
         assert_eq!(back, model, "{file}");
         // And serde on the model itself is the same explicit form.

@@ -55,7 +55,10 @@ pub enum ListParseError {
         index: usize,
         item: String,
     },
-    #[error("{text:?}: item {index} ({item:?}) is not a whole number from 1 to {}", u32::MAX)]
+    #[error(
+        "{text:?}: item {index} ({item:?}) is not a whole number from 1 to {}",
+        u32::MAX
+    )]
     NotAPositiveInteger {
         text: String,
         index: usize,
@@ -69,12 +72,14 @@ fn split_n<'a, const N: usize>(
     form: &'static str,
 ) -> Result<[&'a str; N], ListParseError> {
     let items: Vec<&str> = text.split(',').map(str::trim).collect();
-    items.try_into().map_err(|items: Vec<&str>| ListParseError::Count {
-        text: text.to_owned(),
-        expected: N,
-        found: items.len(),
-        form,
-    })
+    items
+        .try_into()
+        .map_err(|items: Vec<&str>| ListParseError::Count {
+            text: text.to_owned(),
+            expected: N,
+            found: items.len(),
+            form,
+        })
 }
 
 /// Parses "X,Y,Z" (spaces around the numbers allowed) into finite f64s.
@@ -104,15 +109,13 @@ pub fn parse_size(text: &str) -> Result<[u32; 2], ListParseError> {
     let items = split_n::<2>(text, "W,H")?;
     let mut v = [0; 2];
     for (i, item) in items.iter().enumerate() {
-        v[i] = item
-            .parse::<u32>()
-            .ok()
-            .filter(|&n| n > 0)
-            .ok_or_else(|| ListParseError::NotAPositiveInteger {
+        v[i] = item.parse::<u32>().ok().filter(|&n| n > 0).ok_or_else(|| {
+            ListParseError::NotAPositiveInteger {
                 text: text.to_owned(),
                 index: i + 1,
                 item: (*item).to_owned(),
-            })?;
+            }
+        })?;
     }
     Ok(v)
 }
@@ -190,25 +193,52 @@ mod tests {
             }
         );
         assert!(e.to_string().contains("X,Y,Z"), "{e}");
-        assert!(matches!(parse_vec3("1,2,3,4"), Err(ListParseError::Count { found: 4, .. })));
+        assert!(matches!(
+            parse_vec3("1,2,3,4"),
+            Err(ListParseError::Count { found: 4, .. })
+        ));
     }
 
     #[test]
     fn vec3_names_the_bad_item() {
         let e = parse_vec3("1,x,3").unwrap_err();
-        assert!(matches!(e, ListParseError::NotANumber { index: 2, .. }), "{e:?}");
-        assert!(matches!(parse_vec3("1,,3"), Err(ListParseError::NotANumber { index: 2, .. })));
-        assert!(matches!(parse_vec3("nan,0,0"), Err(ListParseError::NonFinite { index: 1, .. })));
-        assert!(matches!(parse_vec3("0,0,inf"), Err(ListParseError::NonFinite { index: 3, .. })));
+        assert!(
+            matches!(e, ListParseError::NotANumber { index: 2, .. }),
+            "{e:?}"
+        );
+        assert!(matches!(
+            parse_vec3("1,,3"),
+            Err(ListParseError::NotANumber { index: 2, .. })
+        ));
+        assert!(matches!(
+            parse_vec3("nan,0,0"),
+            Err(ListParseError::NonFinite { index: 1, .. })
+        ));
+        assert!(matches!(
+            parse_vec3("0,0,inf"),
+            Err(ListParseError::NonFinite { index: 3, .. })
+        ));
     }
 
     #[test]
     fn size_needs_two_positive_integers() {
         assert_eq!(parse_size("3840,2160").unwrap(), [3840, 2160]);
-        assert!(matches!(parse_size("0,2160"), Err(ListParseError::NotAPositiveInteger { index: 1, .. })));
-        assert!(matches!(parse_size("3840,-1"), Err(ListParseError::NotAPositiveInteger { index: 2, .. })));
-        assert!(matches!(parse_size("3840.5,2160"), Err(ListParseError::NotAPositiveInteger { .. })));
-        assert!(matches!(parse_size("3840"), Err(ListParseError::Count { found: 1, .. })));
+        assert!(matches!(
+            parse_size("0,2160"),
+            Err(ListParseError::NotAPositiveInteger { index: 1, .. })
+        ));
+        assert!(matches!(
+            parse_size("3840,-1"),
+            Err(ListParseError::NotAPositiveInteger { index: 2, .. })
+        ));
+        assert!(matches!(
+            parse_size("3840.5,2160"),
+            Err(ListParseError::NotAPositiveInteger { .. })
+        ));
+        assert!(matches!(
+            parse_size("3840"),
+            Err(ListParseError::Count { found: 1, .. })
+        ));
     }
 
     #[derive(clap::Parser)]
@@ -221,14 +251,26 @@ mod tests {
     fn clap_takes_negative_triples_and_defaults_the_size() {
         use clap::Parser;
         let cli = Cli::try_parse_from([
-            "pick", "--display", "m.json", "--origin", "-1,0,1", "--dir", "0,-0.5,-1",
+            "pick",
+            "--display",
+            "m.json",
+            "--origin",
+            "-1,0,1",
+            "--dir",
+            "0,-0.5,-1",
         ])
         .unwrap();
         assert_eq!(cli.pick.origin, DVec3::new(-1.0, 0.0, 1.0));
         assert_eq!(cli.pick.dir, DVec3::new(0.0, -0.5, -1.0));
         assert_eq!(cli.pick.size, [3840, 2160]);
         let err = Cli::try_parse_from([
-            "pick", "--display", "m.json", "--origin", "1,0", "--dir", "0,0,-1",
+            "pick",
+            "--display",
+            "m.json",
+            "--origin",
+            "1,0",
+            "--dir",
+            "0,0,-1",
         ])
         .err()
         .unwrap()

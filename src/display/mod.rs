@@ -153,8 +153,10 @@ impl DisplayModel {
     pub fn load(path: impl AsRef<Path>) -> Result<Self, DisplayModelError> {
         let path = path.as_ref();
         let file = path.display().to_string();
-        let text = std::fs::read_to_string(path)
-            .map_err(|source| DisplayModelError::Io { file: file.clone(), source })?;
+        let text = std::fs::read_to_string(path).map_err(|source| DisplayModelError::Io {
+            file: file.clone(),
+            source,
+        })?;
         Self::from_json(&text, &file)
     }
 
@@ -167,15 +169,17 @@ impl DisplayModel {
     }
 
     /// Validates a spec (expanding a generator).
-    pub fn from_spec(spec: &DisplayModelSpec, source_name: &str) -> Result<Self, DisplayModelError> {
-        let invalid = |tile: Option<String>, field: String, problem: Problem| {
-            DisplayModelError::Invalid {
+    pub fn from_spec(
+        spec: &DisplayModelSpec,
+        source_name: &str,
+    ) -> Result<Self, DisplayModelError> {
+        let invalid =
+            |tile: Option<String>, field: String, problem: Problem| DisplayModelError::Invalid {
                 file: source_name.to_owned(),
                 tile,
                 field,
                 problem,
-            }
-        };
+            };
         if spec.name.trim().is_empty() {
             return Err(invalid(None, "name".into(), Problem::Empty));
         }
@@ -294,7 +298,8 @@ impl DisplayModel {
     /// The room-frame point of a canvas point (bezels included); `None` outside every tile.
     #[must_use]
     pub fn canvas_to_point(&self, c: DVec2) -> Option<DVec3> {
-        self.tile_at_canvas(c).map(|i| self.tiles[i].canvas_to_point(c))
+        self.tile_at_canvas(c)
+            .map(|i| self.tiles[i].canvas_to_point(c))
     }
 
     /// Image pixel coordinates (pixel centres at `i + 0.5`) → canvas point. Each axis is scaled

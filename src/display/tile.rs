@@ -47,7 +47,11 @@ impl Tile {
         let step_y = (bottom_left - top_left) / f64::from(resolution[1]);
         // Tile x runs right and y down as seen from the front, so y × x points at the viewer.
         let normal = step_y.cross(step_x).normalize();
-        let (a, b, c) = (step_x.length_squared(), step_x.dot(step_y), step_y.length_squared());
+        let (a, b, c) = (
+            step_x.length_squared(),
+            step_x.dot(step_y),
+            step_y.length_squared(),
+        );
         let det = a * c - b * b;
         Self {
             id: spec.id.clone(),
