@@ -7,7 +7,7 @@ use std::sync::LazyLock;
 
 use glam::{DVec2, DVec3};
 use proptest::prelude::*;
-use raygun::cli::display::pick_on;
+use raygun::cli::display::{PickArgs, pick, pick_on};
 use raygun::display::DisplayModel;
 
 fn load(name: &str) -> DisplayModel {
@@ -322,6 +322,7 @@ fn non_finite_and_zero_rays_miss() {
         (DVec3::new(f64::INFINITY, 0.0, 1.0), DVec3::NEG_Z),
         (DVec3::splat(f64::NAN), DVec3::NEG_Z),
         (VIEWER, DVec3::new(0.0, 0.0, -1e-320)), // subnormal: normalising fails
+        (DVec3::new(1e300, 0.0, 1.0), DVec3::NEG_Z), // overflows on the way: a miss, no NaN
     ] {
         assert_eq!(m.intersect(o, d), None, "{o} {d}");
     }
@@ -394,6 +395,32 @@ fn pick_reports_the_centre_hit_as_json() {
     }
     let c = HORNET.canvas_rect().center();
     assert!((num("canvas_px", 0) - c.x).abs() < 1e-9);
+}
+
+#[test]
+fn pick_loads_the_model_file() {
+    let args = PickArgs {
+        display: PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+            .join("display-models/desktop-27in-4k.json"),
+        origin: DVec3::new(0.1, 0.0, 0.6),
+        dir: DVec3::NEG_Z,
+        size: [1920, 1080],
+    };
+    let v = pick(&args).unwrap();
+    // 0.1 m right of centre on a 597.9 mm / 3840 px screen: 0.1 / 0.5979 · 3840 px right of
+    // pixel column 1920, and half that on the half-size image.
+    let x = 1920.0 + 0.1 / 0.5979 * 3840.0;
+    assert!((v["tile_px"][0].as_f64().unwrap() - x).abs() < 1e-6, "{v}");
+    assert!(
+        (v["image_px"][0].as_f64().unwrap() - x / 2.0).abs() < 1e-6,
+        "{v}"
+    );
+    assert!((v["t"].as_f64().unwrap() - 0.6).abs() < 1e-12);
+    let missing = PickArgs {
+        display: PathBuf::from("/nonexistent/m.json"),
+        ..args
+    };
+    assert!(format!("{:#}", pick(&missing).unwrap_err()).contains("/nonexistent/m.json"));
 }
 
 #[test]

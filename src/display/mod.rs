@@ -84,7 +84,7 @@ use std::path::Path;
 use glam::{DVec2, DVec3};
 
 pub use error::{DisplayModelError, Problem};
-pub use intersect::Hit;
+pub use intersect::{EDGE_SLACK_PX, Hit, PARALLEL_COS, T_MIN_M, T_TIE_M};
 pub use rect::Rect;
 pub use spec::{Bezel, DisplayModelSpec, GeneratorSpec, TileSpec};
 pub use tile::Tile;
