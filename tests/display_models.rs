@@ -572,8 +572,24 @@ fn expand_round_trips_through_the_loader() {
         let back = DisplayModel::from_json(&text, "expanded").unwrap();
         assert_eq!(back, model, "{file}");
         // And serde on the model itself is the same explicit form.
-        assert_eq!(serde_json::to_string_pretty(&model).unwrap(), text);
+        let via_serde = serde_json::to_value(&model).unwrap();
+        assert_eq!(via_serde, serde_json::from_str::<Value>(&text).unwrap());
     }
+}
+
+#[test]
+fn model_deserialises_through_validation() {
+    let m: DisplayModel = serde_json::from_value(three_tiles()).unwrap();
+    assert_eq!(m, parse(&three_tiles()).unwrap());
+    let mut v = three_tiles();
+    v["tiles"][1]["canvas"] = json!([100.0, 2.0]);
+    let e = serde_json::from_value::<DisplayModel>(v)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("<serde>") && e.contains("tile \"b\"") && e.contains("overlaps"),
+        "{e}"
+    );
 }
 
 #[test]

@@ -2,7 +2,6 @@
 
 use std::path::PathBuf;
 
-use anyhow::Context;
 use glam::{DVec2, DVec3};
 use serde_json::{Value, json};
 
@@ -163,9 +162,8 @@ pub fn pick_on(
 /// `raygun display expand`: the model's explicit form as pretty JSON (no trailing newline). It
 /// loads back into the same model.
 pub fn expand(args: &ExpandArgs) -> anyhow::Result<String> {
-    let model = DisplayModel::load(&args.file)
-        .with_context(|| format!("expanding {}", args.file.display()))?;
-    Ok(model.to_json_pretty())
+    // The loader's errors already name the file, tile and field.
+    Ok(DisplayModel::load(&args.file)?.to_json_pretty())
 }
 
 #[cfg(test)]

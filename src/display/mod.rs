@@ -135,9 +135,11 @@ fn resolution_u32(v: i64) -> Result<u32, Problem> {
 }
 
 /// A validated display model. Construct with [`DisplayModel::load`], [`DisplayModel::from_json`]
-/// or [`DisplayModel::from_spec`]; serialises to the explicit file form.
-#[derive(Clone, Debug, PartialEq, serde::Serialize)]
-#[serde(into = "DisplayModelSpec")]
+/// or [`DisplayModel::from_spec`]. Serde goes through the file form: serialising writes the
+/// explicit form, deserialising validates (errors then name the source `<serde>`), so a model can
+/// sit inside another configuration file.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(into = "DisplayModelSpec", try_from = "DisplayModelSpec")]
 pub struct DisplayModel {
     name: String,
     notes: String,
@@ -225,12 +227,42 @@ impl DisplayModel {
         }
     }
 
-    /// The explicit form as pretty JSON; f64 values print in shortest round-trip form, so
-    /// [`Self::from_json`] gives back exactly this model.
+    /// The explicit form as JSON laid out for people (one line per field of a tile, numbers
+    /// in serde_json's shortest round-trip form), so [`Self::from_json`] gives back exactly this
+    /// model.
     #[must_use]
     pub fn to_json_pretty(&self) -> String {
-        // Serialising plain strings, integers and finite floats cannot fail.
-        serde_json::to_string_pretty(&self.to_spec()).unwrap_or_default()
+        // Serialising strings, integers and finite floats cannot fail.
+        fn js<T: serde::Serialize + ?Sized>(v: &T) -> String {
+            serde_json::to_string(v).unwrap_or_default()
+        }
+        let tiles: Vec<String> = self
+            .tiles
+            .iter()
+            .map(|t| {
+                let s = t.to_spec();
+                format!(
+                    "    {{\n      \"id\": {}, \"column\": {}, \"row\": {}, \"resolution\": {},\n      \
+                     \"top_left\": {},\n      \"top_right\": {},\n      \"bottom_left\": {},\n      \
+                     \"bezel\": {},\n      \"canvas\": {}\n    }}",
+                    js(&s.id),
+                    s.column,
+                    s.row,
+                    js(&s.resolution),
+                    js(&s.top_left),
+                    js(&s.top_right),
+                    js(&s.bottom_left),
+                    js(&s.bezel),
+                    js(&s.canvas),
+                )
+            })
+            .collect();
+        format!(
+            "{{\n  \"name\": {},\n  \"notes\": {},\n  \"tiles\": [\n{}\n  ]\n}}",
+            js(&self.name),
+            js(&self.notes),
+            tiles.join(",\n")
+        )
     }
 
     #[must_use]
@@ -315,6 +347,14 @@ impl DisplayModel {
     pub fn canvas_to_image(&self, c: DVec2, image_size: [u32; 2]) -> DVec2 {
         let size = DVec2::new(f64::from(image_size[0]), f64::from(image_size[1]));
         (c - self.canvas.min) * (size / self.canvas.size())
+    }
+}
+
+impl TryFrom<DisplayModelSpec> for DisplayModel {
+    type Error = DisplayModelError;
+
+    fn try_from(spec: DisplayModelSpec) -> Result<Self, Self::Error> {
+        Self::from_spec(&spec, "<serde>")
     }
 }
 
