@@ -2,7 +2,6 @@
 
 use std::path::PathBuf;
 
-use anyhow::Context;
 use glam::{DVec2, DVec3};
 use serde_json::{Value, json};
 
@@ -77,9 +76,8 @@ pub fn pick_on(
 /// `raygun display expand`: the model's explicit form as pretty JSON (no trailing newline). It
 /// loads back into the same model.
 pub fn expand(args: &ExpandArgs) -> anyhow::Result<String> {
-    let model = DisplayModel::load(&args.file)
-        .with_context(|| format!("expanding {}", args.file.display()))?;
-    Ok(model.to_json_pretty())
+    // The loader's errors already name the file, tile and field.
+    Ok(DisplayModel::load(&args.file)?.to_json_pretty())
 }
 
 #[cfg(test)]
@@ -96,14 +94,26 @@ mod tests {
     fn clap_takes_negative_triples_and_defaults_the_size() {
         use clap::Parser;
         let cli = Cli::try_parse_from([
-            "pick", "--display", "m.json", "--origin", "-1,0,1", "--dir", "0,-0.5,-1",
+            "pick",
+            "--display",
+            "m.json",
+            "--origin",
+            "-1,0,1",
+            "--dir",
+            "0,-0.5,-1",
         ])
         .unwrap();
         assert_eq!(cli.pick.origin, DVec3::new(-1.0, 0.0, 1.0));
         assert_eq!(cli.pick.dir, DVec3::new(0.0, -0.5, -1.0));
         assert_eq!(cli.pick.size, [3840, 2160]);
         let err = Cli::try_parse_from([
-            "pick", "--display", "m.json", "--origin", "1,0", "--dir", "0,0,-1",
+            "pick",
+            "--display",
+            "m.json",
+            "--origin",
+            "1,0",
+            "--dir",
+            "0,0,-1",
         ])
         .err()
         .unwrap()

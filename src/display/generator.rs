@@ -80,10 +80,12 @@ pub(crate) fn expand(g: &GeneratorSpec) -> Result<Vec<TileSpec>, FieldError> {
     let center = finite3("center", g.center)?;
     let normal = finite3("normal", g.normal)?;
     let up = finite3("up", g.up)?;
-    let z_axis = normal.try_normalize().ok_or_else(|| field("normal", Problem::DegenerateDirection))?;
+    let z_axis = normal
+        .try_normalize()
+        .ok_or_else(|| field("normal", Problem::DegenerateDirection))?;
     // Up may lean (it is made perpendicular to the normal) but must not be (nearly) parallel.
     let up_rejected = up - z_axis * up.dot(z_axis);
-    if !(up_rejected.length() > 1e-9 * up.length()) {
+    if up_rejected.length() <= 1e-9 * up.length() {
         return Err(field("up", Problem::DegenerateDirection));
     }
     let y_axis = up_rejected.normalize();
@@ -102,7 +104,10 @@ pub(crate) fn expand(g: &GeneratorSpec) -> Result<Vec<TileSpec>, FieldError> {
     }
     // The model pitch the validator will compute (every tile has the same one).
     let p = (pitch.x + pitch.y) * 0.5;
-    let cell_canvas = DVec2::new((b.left + b.right) / p + res_f.x, (b.top + b.bottom) / p + res_f.y);
+    let cell_canvas = DVec2::new(
+        (b.left + b.right) / p + res_f.x,
+        (b.top + b.bottom) / p + res_f.y,
+    );
     let cell_m = DVec2::new(b.left + size.x + b.right, b.top + size.y + b.bottom);
 
     // Plan view: left outer edge and rightward unit vector of every column.
@@ -126,7 +131,8 @@ pub(crate) fn expand(g: &GeneratorSpec) -> Result<Vec<TileSpec>, FieldError> {
     let mid = canvas_size * 0.5;
     let kc = ((mid.x / cell_canvas.x).floor() as u32).min(g.columns - 1);
     let kr = ((mid.y / cell_canvas.y).floor() as u32).min(g.rows - 1);
-    let off_px = mid - cell_canvas * DVec2::new(f64::from(kc), f64::from(kr))
+    let off_px = mid
+        - cell_canvas * DVec2::new(f64::from(kc), f64::from(kr))
         - DVec2::new(b.left, b.top) / p;
     let u_c = columns[kc as usize].1;
     let centre_local =

@@ -60,8 +60,7 @@ impl DisplayModel {
                 continue;
             }
             let t = (tile.corners()[0] - origin).dot(n) / cos;
-            // `!(t > ..)` also drops a NaN.
-            if !(t > T_MIN_M) {
+            if t.is_nan() || t <= T_MIN_M {
                 continue;
             }
             if best.is_some_and(|(bt, ..)| t >= bt - T_TIE_M) {

@@ -84,7 +84,7 @@ use std::path::Path;
 use glam::{DVec2, DVec3};
 
 pub use error::{DisplayModelError, Problem};
-pub use intersect::Hit;
+pub use intersect::{EDGE_SLACK_PX, Hit, PARALLEL_COS, T_MIN_M, T_TIE_M};
 pub use rect::Rect;
 pub use spec::{Bezel, DisplayModelSpec, GeneratorSpec, TileSpec};
 pub use tile::Tile;
@@ -135,9 +135,11 @@ fn resolution_u32(v: i64) -> Result<u32, Problem> {
 }
 
 /// A validated display model. Construct with [`DisplayModel::load`], [`DisplayModel::from_json`]
-/// or [`DisplayModel::from_spec`]; serialises to the explicit file form.
-#[derive(Clone, Debug, PartialEq, serde::Serialize)]
-#[serde(into = "DisplayModelSpec")]
+/// or [`DisplayModel::from_spec`]. Serde goes through the file form: serialising writes the
+/// explicit form, deserialising validates (errors then name the source `<serde>`), so a model can
+/// sit inside another configuration file.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(into = "DisplayModelSpec", try_from = "DisplayModelSpec")]
 pub struct DisplayModel {
     name: String,
     notes: String,
@@ -153,8 +155,10 @@ impl DisplayModel {
     pub fn load(path: impl AsRef<Path>) -> Result<Self, DisplayModelError> {
         let path = path.as_ref();
         let file = path.display().to_string();
-        let text = std::fs::read_to_string(path)
-            .map_err(|source| DisplayModelError::Io { file: file.clone(), source })?;
+        let text = std::fs::read_to_string(path).map_err(|source| DisplayModelError::Io {
+            file: file.clone(),
+            source,
+        })?;
         Self::from_json(&text, &file)
     }
 
@@ -167,15 +171,17 @@ impl DisplayModel {
     }
 
     /// Validates a spec (expanding a generator).
-    pub fn from_spec(spec: &DisplayModelSpec, source_name: &str) -> Result<Self, DisplayModelError> {
-        let invalid = |tile: Option<String>, field: String, problem: Problem| {
-            DisplayModelError::Invalid {
+    pub fn from_spec(
+        spec: &DisplayModelSpec,
+        source_name: &str,
+    ) -> Result<Self, DisplayModelError> {
+        let invalid =
+            |tile: Option<String>, field: String, problem: Problem| DisplayModelError::Invalid {
                 file: source_name.to_owned(),
                 tile,
                 field,
                 problem,
-            }
-        };
+            };
         if spec.name.trim().is_empty() {
             return Err(invalid(None, "name".into(), Problem::Empty));
         }
@@ -221,12 +227,42 @@ impl DisplayModel {
         }
     }
 
-    /// The explicit form as pretty JSON; f64 values print in shortest round-trip form, so
-    /// [`Self::from_json`] gives back exactly this model.
+    /// The explicit form as JSON laid out for people (one line per field of a tile, numbers
+    /// in serde_json's shortest round-trip form), so [`Self::from_json`] gives back exactly this
+    /// model.
     #[must_use]
     pub fn to_json_pretty(&self) -> String {
-        // Serialising plain strings, integers and finite floats cannot fail.
-        serde_json::to_string_pretty(&self.to_spec()).unwrap_or_default()
+        // Serialising strings, integers and finite floats cannot fail.
+        fn js<T: serde::Serialize + ?Sized>(v: &T) -> String {
+            serde_json::to_string(v).unwrap_or_default()
+        }
+        let tiles: Vec<String> = self
+            .tiles
+            .iter()
+            .map(|t| {
+                let s = t.to_spec();
+                format!(
+                    "    {{\n      \"id\": {}, \"column\": {}, \"row\": {}, \"resolution\": {},\n      \
+                     \"top_left\": {},\n      \"top_right\": {},\n      \"bottom_left\": {},\n      \
+                     \"bezel\": {},\n      \"canvas\": {}\n    }}",
+                    js(&s.id),
+                    s.column,
+                    s.row,
+                    js(&s.resolution),
+                    js(&s.top_left),
+                    js(&s.top_right),
+                    js(&s.bottom_left),
+                    js(&s.bezel),
+                    js(&s.canvas),
+                )
+            })
+            .collect();
+        format!(
+            "{{\n  \"name\": {},\n  \"notes\": {},\n  \"tiles\": [\n{}\n  ]\n}}",
+            js(&self.name),
+            js(&self.notes),
+            tiles.join(",\n")
+        )
     }
 
     #[must_use]
@@ -294,7 +330,8 @@ impl DisplayModel {
     /// The room-frame point of a canvas point (bezels included); `None` outside every tile.
     #[must_use]
     pub fn canvas_to_point(&self, c: DVec2) -> Option<DVec3> {
-        self.tile_at_canvas(c).map(|i| self.tiles[i].canvas_to_point(c))
+        self.tile_at_canvas(c)
+            .map(|i| self.tiles[i].canvas_to_point(c))
     }
 
     /// Image pixel coordinates (pixel centres at `i + 0.5`) → canvas point. Each axis is scaled
@@ -310,6 +347,14 @@ impl DisplayModel {
     pub fn canvas_to_image(&self, c: DVec2, image_size: [u32; 2]) -> DVec2 {
         let size = DVec2::new(f64::from(image_size[0]), f64::from(image_size[1]));
         (c - self.canvas.min) * (size / self.canvas.size())
+    }
+}
+
+impl TryFrom<DisplayModelSpec> for DisplayModel {
+    type Error = DisplayModelError;
+
+    fn try_from(spec: DisplayModelSpec) -> Result<Self, Self::Error> {
+        Self::from_spec(&spec, "<serde>")
     }
 }
 

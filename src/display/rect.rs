@@ -37,7 +37,10 @@ impl Rect {
     /// The rectangle grown by `margin` on every side (shrunk for a negative margin).
     #[must_use]
     pub fn expand(&self, margin: f64) -> Self {
-        Self::new(self.min - DVec2::splat(margin), self.max + DVec2::splat(margin))
+        Self::new(
+            self.min - DVec2::splat(margin),
+            self.max + DVec2::splat(margin),
+        )
     }
 
     /// Euclidean distance from `p` to the rectangle; 0 inside and on the boundary.

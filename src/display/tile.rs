@@ -47,7 +47,11 @@ impl Tile {
         let step_y = (bottom_left - top_left) / f64::from(resolution[1]);
         // Tile x runs right and y down as seen from the front, so y × x points at the viewer.
         let normal = step_y.cross(step_x).normalize();
-        let (a, b, c) = (step_x.length_squared(), step_x.dot(step_y), step_y.length_squared());
+        let (a, b, c) = (
+            step_x.length_squared(),
+            step_x.dot(step_y),
+            step_y.length_squared(),
+        );
         let det = a * c - b * b;
         Self {
             id: spec.id.clone(),
@@ -196,5 +200,85 @@ impl Tile {
 impl From<Tile> for TileSpec {
     fn from(t: Tile) -> Self {
         t.to_spec()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn spec(top_left: [f64; 3], top_right: [f64; 3], bottom_left: [f64; 3]) -> TileSpec {
+        TileSpec {
+            id: "t".into(),
+            column: 0,
+            row: 0,
+            resolution: [200, 100],
+            top_left,
+            top_right,
+            bottom_left,
+            bezel: Bezel::default(),
+            canvas: [10.0, 20.0],
+        }
+    }
+
+    #[test]
+    fn normal_faces_the_side_the_corners_are_seen_from() {
+        // Seen from +Z: +Z normal. The same corners mirrored (seen from −Z): −Z normal.
+        let front = Tile::from_checked(
+            &spec([-1.0, 0.5, 0.0], [1.0, 0.5, 0.0], [-1.0, -0.5, 0.0]),
+            [200, 100],
+        );
+        assert_eq!(front.normal(), DVec3::Z);
+        let back = Tile::from_checked(
+            &spec([1.0, 0.5, 0.0], [-1.0, 0.5, 0.0], [1.0, -0.5, 0.0]),
+            [200, 100],
+        );
+        assert_eq!(back.normal(), DVec3::NEG_Z);
+    }
+
+    #[test]
+    fn projection_inverts_the_map_on_a_slightly_sheared_tile() {
+        // Bottom-left pushed 0.5 mm sideways over a 1 m edge (cos ≈ 5e-4, inside the
+        // validator's tolerance): a plain dot-product projection would be off by up to 0.05 px
+        // here; the Gram inverse is exact.
+        let t = Tile::from_checked(
+            &spec([-1.0, 0.5, 0.0], [1.0, 0.5, 0.0], [-1.0 + 5e-4, -0.5, 0.0]),
+            [200, 100],
+        );
+        for c in [
+            DVec2::new(10.0, 20.0),
+            DVec2::new(210.0, 120.0),
+            DVec2::new(-5.0, 130.0),
+            DVec2::new(123.456, 78.9),
+        ] {
+            let back = t.point_to_canvas(t.canvas_to_point(c));
+            assert!(back.abs_diff_eq(c, 1e-10), "{c} -> {back}");
+        }
+        assert_eq!(
+            t.tile_px_to_point(DVec2::new(0.0, 100.0)),
+            DVec3::new(-1.0 + 5e-4, -0.5, 0.0)
+        );
+    }
+
+    #[test]
+    fn active_and_canvas_rects() {
+        let mut s = spec([-1.0, 0.5, 0.0], [1.0, 0.5, 0.0], [-1.0, -0.5, 0.0]);
+        s.bezel = Bezel {
+            left: 0.02,
+            right: 0.01,
+            top: 0.0,
+            bottom: 0.03,
+        };
+        let t = Tile::from_checked(&s, [200, 100]);
+        assert_eq!(
+            t.active_rect(),
+            Rect::new(DVec2::new(10.0, 20.0), DVec2::new(210.0, 120.0))
+        );
+        // 1 cm pitch: bezels of 2, 1, 0 and 3 px.
+        assert_eq!(
+            t.canvas_rect(0.01),
+            Rect::new(DVec2::new(8.0, 20.0), DVec2::new(211.0, 123.0))
+        );
+        assert_eq!(t.pitch(), DVec2::splat(0.01));
     }
 }

@@ -60,7 +60,10 @@ pub(crate) fn validate(specs: &[TileSpec]) -> Result<(Vec<Tile>, f64), Failure> 
 
     // One canvas, one pitch. The median (not the mean) is the reference so that the odd tile out
     // is the one blamed; for a uniform wall all three agree exactly.
-    let mut pitches: Vec<f64> = tiles.iter().map(|t| t.pitch().element_sum() * 0.5).collect();
+    let mut pitches: Vec<f64> = tiles
+        .iter()
+        .map(|t| t.pitch().element_sum() * 0.5)
+        .collect();
     pitches.sort_by(f64::total_cmp);
     let n = pitches.len();
     let pitch = if n % 2 == 1 {
@@ -162,7 +165,8 @@ fn check_pair(a: &Tile, ra: &Rect, b: &Tile, rb: &Rect) -> Result<(), Failure> {
     // Touching (or within half a pixel of touching, so a placement that is slightly off is still
     // compared in 3D rather than silently treated as "not neighbours") along a stretch of
     // positive length: the shared edge must be the same line in the room.
-    let vertical_edge = ov.x <= OVERLAP_TOL_PX && ov.x >= -SEAM_GAP_TOL_PX && ov.y > SEAM_GAP_TOL_PX;
+    let vertical_edge =
+        ov.x <= OVERLAP_TOL_PX && ov.x >= -SEAM_GAP_TOL_PX && ov.y > SEAM_GAP_TOL_PX;
     let horizontal_edge =
         ov.y <= OVERLAP_TOL_PX && ov.y >= -SEAM_GAP_TOL_PX && ov.x > SEAM_GAP_TOL_PX;
     let endpoints: [(DVec2, DVec2); 2] = if vertical_edge {
@@ -196,7 +200,7 @@ fn check_pair(a: &Tile, ra: &Rect, b: &Tile, rb: &Rect) -> Result<(), Failure> {
         .iter()
         .map(|&(ca, cb)| a.canvas_to_point(ca).distance(b.canvas_to_point(cb)))
         .fold(0.0, f64::max);
-    if !(gap_m <= SEAM_TOL_M) {
+    if gap_m.is_nan() || gap_m > SEAM_TOL_M {
         return Err(fail(
             b.id(),
             "canvas",
