@@ -190,6 +190,12 @@ fn relative(gid: vec2<u32>, center_i: vec2<i32>, center_f: vec2<f32>) -> vec2<f3
     return (vec2<f32>(vec2<i32>(gid) - center_i) - center_f) * params.scale;
 }
 
+// Distance from the pixel to the piece's bounding box: a lower bound of its distance.
+fn box_distance(pc: Piece, gid: vec2<u32>) -> f32 {
+    let rel = relative(gid, pc.center_i, pc.center_f);
+    return length(max(max(pc.bounds.xy - rel, rel - pc.bounds.zw), vec2<f32>(0.0)));
+}
+
 fn angular_excess(w: vec3<f32>) -> f32 {
     let lateral = length(w.xy);
     if lateral == 0.0 {
@@ -208,17 +214,26 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     var best = params.cap;
     if params.mode == 0u {
+        // Solve the piece with the nearest bounding box first (it usually holds the nearest
+        // point), then prune the others by their boxes. Twin: `Guide::distance_capped`.
+        var first = params.count;
+        var first_box = best;
         for (var k = 0u; k < params.count; k++) {
-            let pc = pieces[k];
-            let rel = relative(gid.xy, pc.center_i, pc.center_f);
-            // The bounding box's distance bounds the piece's from below.
-            let outside = max(max(pc.bounds.xy - rel, rel - pc.bounds.zw), vec2<f32>(0.0));
-            if length(outside) >= best {
-                continue;
+            let b = box_distance(pieces[k], gid.xy);
+            if b < first_box {
+                first = k;
+                first_box = b;
             }
-            best = piece_distance(pc, rel, best);
-            if best == 0.0 {
-                break;
+        }
+        if first < params.count {
+            let pf = pieces[first];
+            best = piece_distance(pf, relative(gid.xy, pf.center_i, pf.center_f), best);
+            for (var k = 0u; k < params.count && best > 0.0; k++) {
+                let pc = pieces[k];
+                if k == first || box_distance(pc, gid.xy) >= best {
+                    continue;
+                }
+                best = piece_distance(pc, relative(gid.xy, pc.center_i, pc.center_f), best);
             }
         }
     } else {

@@ -277,13 +277,31 @@ impl Guide {
 
     /// min(d_raw, cap): pieces whose bounding box is `cap` or farther away are skipped (with
     /// cap = L every such pixel has d = 1 anyway).
+    ///
+    /// The piece with the nearest bounding box is solved first: it usually holds the nearest
+    /// point (or the pixel itself), and its distance then prunes the other pieces by their
+    /// boxes. On HORNET at 60° this cuts the solves per pixel from ~10 to ~1.
     #[must_use]
     pub fn distance_capped(&self, surface: &Surface, c: DVec2, cap: f64) -> f64 {
         match self {
             Self::Pieces(pieces) => {
-                let mut best = cap;
-                for p in pieces {
-                    if p.bounds.distance(c) >= best {
+                let mut first = None;
+                let mut first_box = cap;
+                for (k, p) in pieces.iter().enumerate() {
+                    let b = p.bounds.distance(c);
+                    if b < first_box {
+                        (first, first_box) = (Some(k), b);
+                    }
+                }
+                let Some(first) = first else {
+                    return cap;
+                };
+                let mut best = cap.min(pieces[first].distance(c));
+                if best == 0.0 {
+                    return 0.0;
+                }
+                for (k, p) in pieces.iter().enumerate() {
+                    if k == first || p.bounds.distance(c) >= best {
                         continue;
                     }
                     best = best.min(p.distance(c));
