@@ -73,7 +73,7 @@ fn main() {
                 (r.iterations, cat, *c)
             })
             .collect();
-        v.sort_by(|a, b| b.0.cmp(&a.0));
+        v.sort_by_key(|e| std::cmp::Reverse(e.0));
         for (it, cat, c) in v.iter().take(15) {
             println!("{it:>3} {cat:<32} {c:?}");
         }

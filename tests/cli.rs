@@ -34,8 +34,20 @@ fn dgi_writes_exr_on_both_backends_and_they_agree() {
     for backend in ["cpu", "gpu"] {
         let out = tmp(&format!("dgi-{backend}.exr"));
         let o = raygun(&[
-            "dgi", "--display", "display-models/hornet.json", "--origin", "0,0,1", "--dir",
-            "0,0,-1", "--fov", "30,20", "--size", "192,108", "--backend", backend, "--out",
+            "dgi",
+            "--display",
+            "display-models/hornet.json",
+            "--origin",
+            "0,0,1",
+            "--dir",
+            "0,0,-1",
+            "--fov",
+            "30,20",
+            "--size",
+            "192,108",
+            "--backend",
+            backend,
+            "--out",
             out.to_str().unwrap(),
         ]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -47,7 +59,11 @@ fn dgi_writes_exr_on_both_backends_and_they_agree() {
         assert_eq!(v[0], 1.0);
         results.push(v);
     }
-    let worst = results[0].iter().zip(&results[1]).map(|(a, b)| (a - b).abs()).fold(0.0, f32::max);
+    let worst = results[0]
+        .iter()
+        .zip(&results[1])
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f32::max);
     assert!(worst < 1e-4, "GPU vs CPU: {worst}");
 }
 
@@ -55,8 +71,18 @@ fn dgi_writes_exr_on_both_backends_and_they_agree() {
 fn dgi_mouse_variant_and_png() {
     let out = tmp("mouse.png");
     let o = raygun(&[
-        "dgi", "--display", "display-models/desktop-27in-4k.json", "--center-px", "1920,1080",
-        "--axes-px", "400,200", "--size", "384,216", "--backend", "cpu", "--out",
+        "dgi",
+        "--display",
+        "display-models/desktop-27in-4k.json",
+        "--center-px",
+        "1920,1080",
+        "--axes-px",
+        "400,200",
+        "--size",
+        "384,216",
+        "--backend",
+        "cpu",
+        "--out",
         out.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -72,46 +98,131 @@ fn dgi_raw_distances_are_canvas_pixels() {
     // Mouse ellipse with semi-axes 100 × 100 image px on a 3840×2160 image of the 4K monitor:
     // image px = canvas px, so the raw distance at 300 px right of the centre is 200.
     let o = raygun(&[
-        "dgi", "--display", "display-models/desktop-27in-4k.json", "--center-px", "1920.5,1080.5",
-        "--axes-px", "100,100", "--raw", "--backend", "cpu", "--out", out.to_str().unwrap(),
+        "dgi",
+        "--display",
+        "display-models/desktop-27in-4k.json",
+        "--center-px",
+        "1920.5,1080.5",
+        "--axes-px",
+        "100,100",
+        "--raw",
+        "--backend",
+        "cpu",
+        "--out",
+        out.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let (w, _, v) = read_exr_gray(&out);
-    assert!((v[1080 * w + 2220] - 200.0).abs() < 1e-3, "{}", v[1080 * w + 2220]);
+    assert!(
+        (v[1080 * w + 2220] - 200.0).abs() < 1e-3,
+        "{}",
+        v[1080 * w + 2220]
+    );
 }
 
 #[test]
 fn errors_name_what_is_wrong_and_exit_non_zero() {
-    let o = raygun(&["dgi", "--display", "no/such/model.json", "--origin", "0,0,1", "--dir", "0,0,-1",
-        "--fov", "30,30", "--out", "x.png", "--backend", "cpu"]);
+    let o = raygun(&[
+        "dgi",
+        "--display",
+        "no/such/model.json",
+        "--origin",
+        "0,0,1",
+        "--dir",
+        "0,0,-1",
+        "--fov",
+        "30,30",
+        "--out",
+        "x.png",
+        "--backend",
+        "cpu",
+    ]);
     assert_eq!(o.status.code(), Some(1));
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("no/such/model.json"), "{err}");
 
-    let o = raygun(&["dgi", "--display", "display-models/hornet.json", "--origin", "0,0,1",
-        "--dir", "0,0,-1", "--fov", "200,30", "--out", "x.png", "--backend", "cpu"]);
+    let o = raygun(&[
+        "dgi",
+        "--display",
+        "display-models/hornet.json",
+        "--origin",
+        "0,0,1",
+        "--dir",
+        "0,0,-1",
+        "--fov",
+        "200,30",
+        "--out",
+        "x.png",
+        "--backend",
+        "cpu",
+    ]);
     assert_eq!(o.status.code(), Some(1));
-    assert!(String::from_utf8_lossy(&o.stderr).contains("180"), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("180"),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
 
-    let o = raygun(&["dgi", "--display", "display-models/hornet.json", "--origin", "0,0",
-        "--dir", "0,0,-1", "--fov", "30,30", "--out", "x.png"]);
+    let o = raygun(&[
+        "dgi",
+        "--display",
+        "display-models/hornet.json",
+        "--origin",
+        "0,0",
+        "--dir",
+        "0,0,-1",
+        "--fov",
+        "30,30",
+        "--out",
+        "x.png",
+    ]);
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("X,Y,Z"));
 
-    let o = raygun(&["dgi", "--display", "display-models/hornet.json", "--origin", "0,0,1",
-        "--dir", "0,0,-1", "--fov", "30,30", "--raw", "--out", "x.png", "--backend", "cpu"]);
+    let o = raygun(&[
+        "dgi",
+        "--display",
+        "display-models/hornet.json",
+        "--origin",
+        "0,0,1",
+        "--dir",
+        "0,0,-1",
+        "--fov",
+        "30,30",
+        "--raw",
+        "--out",
+        "x.png",
+        "--backend",
+        "cpu",
+    ]);
     assert_eq!(o.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&o.stderr).contains(".exr"));
 }
 
 #[test]
 fn pick_prints_the_hit_as_json() {
-    let o = raygun(&["pick", "--display", "display-models/hornet.json", "--origin", "0,0,1", "--dir", "0,0,-1"]);
+    let o = raygun(&[
+        "pick",
+        "--display",
+        "display-models/hornet.json",
+        "--origin",
+        "0,0,1",
+        "--dir",
+        "0,0,-1",
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(v["hit"], true);
     assert!((v["t"].as_f64().unwrap() - 1.0).abs() < 1e-12);
-    let o = raygun(&["pick", "--display", "display-models/hornet.json", "--origin", "0,0,1", "--dir", "0,0,1"]);
+    let o = raygun(&[
+        "pick",
+        "--display",
+        "display-models/hornet.json",
+        "--origin",
+        "0,0,1",
+        "--dir",
+        "0,0,1",
+    ]);
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(v, serde_json::json!({"hit": false}));
 }

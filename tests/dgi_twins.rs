@@ -3,7 +3,7 @@
 use glam::{DVec2, DVec3};
 use raygun::gpu::GpuContext;
 use raygun::roi::cone::Cone;
-use raygun::roi::conic::{CanvasRect, Patch};
+use raygun::roi::conic::{Patch, Rect};
 use raygun::roi::dgi::{DgiParams, Guide, Metric, Roi, Surface, compute_cpu};
 use raygun::roi::gpu::DgiKernel;
 
@@ -16,7 +16,10 @@ fn curved_wall(yaw_deg: f64) -> Surface {
     let yaw = yaw_deg.to_radians();
     // Centre column: canvas x ∈ [1000, 2000] ↔ room x ∈ [−0.5, 0.5].
     let centre = Patch {
-        rect: CanvasRect { min: DVec2::new(w, 0.0), max: DVec2::new(2.0 * w, h) },
+        rect: Rect {
+            min: DVec2::new(w, 0.0),
+            max: DVec2::new(2.0 * w, h),
+        },
         origin: DVec3::new(-1.5, 0.3, 0.0),
         ex: DVec3::new(pitch, 0.0, 0.0),
         ey: DVec3::new(0.0, -pitch, 0.0),
@@ -25,7 +28,10 @@ fn curved_wall(yaw_deg: f64) -> Surface {
     let ex_r = DVec3::new(yaw.cos(), 0.0, yaw.sin()) * pitch;
     let hinge_r = DVec3::new(0.5, 0.3, 0.0);
     let right = Patch {
-        rect: CanvasRect { min: DVec2::new(2.0 * w, 0.0), max: DVec2::new(3.0 * w, h) },
+        rect: Rect {
+            min: DVec2::new(2.0 * w, 0.0),
+            max: DVec2::new(3.0 * w, h),
+        },
         origin: hinge_r - 2.0 * w * ex_r,
         ex: ex_r,
         ey: centre.ey,
@@ -33,14 +39,20 @@ fn curved_wall(yaw_deg: f64) -> Surface {
     let ex_l = DVec3::new(yaw.cos(), 0.0, -yaw.sin()) * pitch;
     let hinge_l = DVec3::new(-0.5, 0.3, 0.0);
     let left = Patch {
-        rect: CanvasRect { min: DVec2::new(0.0, 0.0), max: DVec2::new(w, h) },
+        rect: Rect {
+            min: DVec2::new(0.0, 0.0),
+            max: DVec2::new(w, h),
+        },
         origin: hinge_l - w * ex_l,
         ex: ex_l,
         ey: centre.ey,
     };
     patches.extend([left, centre, right]);
     Surface {
-        canvas: CanvasRect { min: DVec2::ZERO, max: DVec2::new(3.0 * w, h) },
+        canvas: Rect {
+            min: DVec2::ZERO,
+            max: DVec2::new(3.0 * w, h),
+        },
         patches,
         pitch_m: pitch,
     }
@@ -58,11 +70,30 @@ fn gpu_matches_cpu_twin_on_ellipses_hyperbolas_and_parabolas() {
     let ctx = GpuContext::for_tests();
     let kernel = DgiKernel::new(&ctx);
     let surface = curved_wall(30.0);
-    let params = DgiParams { width: 300, height: 60, falloff_px: None };
+    let params = DgiParams {
+        width: 300,
+        height: 60,
+        falloff_px: None,
+    };
     let poses = [
-        (DVec3::new(0.0, 0.0, 1.0), DVec3::new(0.0, 0.0, -1.0), 20.0, 20.0),
-        (DVec3::new(0.2, 0.1, 0.8), DVec3::new(0.6, 0.0, -1.0), 60.0, 40.0),
-        (DVec3::new(-0.4, 0.0, 0.3), DVec3::new(1.0, 0.0, -0.35), 60.0, 60.0),
+        (
+            DVec3::new(0.0, 0.0, 1.0),
+            DVec3::new(0.0, 0.0, -1.0),
+            20.0,
+            20.0,
+        ),
+        (
+            DVec3::new(0.2, 0.1, 0.8),
+            DVec3::new(0.6, 0.0, -1.0),
+            60.0,
+            40.0,
+        ),
+        (
+            DVec3::new(-0.4, 0.0, 0.3),
+            DVec3::new(1.0, 0.0, -0.35),
+            60.0,
+            60.0,
+        ),
         // 60° off the centre column's normal with a 60° cone: a generator parallel to it.
         (
             DVec3::new(-0.9, 0.0, 0.6),
@@ -74,9 +105,17 @@ fn gpu_matches_cpu_twin_on_ellipses_hyperbolas_and_parabolas() {
     let mut kinds = std::collections::BTreeSet::new();
     for (o, d, fh, fv) in poses {
         let cone = Cone::from_pose(o, d, DVec3::Y, fh, fv).unwrap();
-        if let Guide::Pieces(pieces) = Guide::new(&surface, &Roi::Cone(cone), Metric::Exact).unwrap() {
+        if let Guide::Pieces(pieces) =
+            Guide::new(&surface, &Roi::Cone(cone), Metric::Exact).unwrap()
+        {
             for p in pieces {
-                kinds.insert(format!("{:?}", p.conic.kind).split([' ', '{']).next().unwrap().to_owned());
+                kinds.insert(
+                    format!("{:?}", p.conic.kind)
+                        .split([' ', '{'])
+                        .next()
+                        .unwrap()
+                        .to_owned(),
+                );
             }
         }
         for metric in [Metric::Exact, Metric::Ellipse, Metric::Angular] {

@@ -214,7 +214,8 @@ pub fn run(
                     .zip(&cpu_d)
                     .map(|(g, c)| (f64::from(*g) - f64::from(*c)).abs())
                     .fold(0.0, f64::max);
-                let (times, stamped) = time_gpu(ctx, kernel, surface, &guide, &norm, config.gpu_reps)?;
+                let (times, stamped) =
+                    time_gpu(ctx, kernel, surface, &guide, &norm, config.gpu_reps)?;
                 rows.push(DgiBenchRow {
                     backend: "gpu",
                     ms_median: median(times.clone()),

@@ -24,7 +24,10 @@ pub enum ListParseError {
         index: usize,
         item: String,
     },
-    #[error("{text:?}: item {index} ({item:?}) is not a whole number from 1 to {}", u32::MAX)]
+    #[error(
+        "{text:?}: item {index} ({item:?}) is not a whole number from 1 to {}",
+        u32::MAX
+    )]
     NotAPositiveInteger {
         text: String,
         index: usize,
@@ -84,15 +87,13 @@ pub fn parse_size(text: &str) -> Result<[u32; 2], ListParseError> {
     }
     let mut out = [0u32; 2];
     for (index, (slot, item)) in out.iter_mut().zip(&items).enumerate() {
-        *slot = item
-            .parse::<u32>()
-            .ok()
-            .filter(|&v| v > 0)
-            .ok_or_else(|| ListParseError::NotAPositiveInteger {
+        *slot = item.parse::<u32>().ok().filter(|&v| v > 0).ok_or_else(|| {
+            ListParseError::NotAPositiveInteger {
                 text: text.to_owned(),
                 index: index + 1,
                 item: (*item).to_owned(),
-            })?;
+            }
+        })?;
     }
     Ok(out)
 }
@@ -122,32 +123,68 @@ mod tests {
             }
         );
         assert!(e.to_string().contains("X,Y,Z"), "{e}");
-        assert!(matches!(parse_vec3("1,2,3,4"), Err(ListParseError::Count { found: 4, .. })));
+        assert!(matches!(
+            parse_vec3("1,2,3,4"),
+            Err(ListParseError::Count { found: 4, .. })
+        ));
     }
 
     #[test]
     fn vec3_names_the_bad_item() {
         let e = parse_vec3("1,x,3").unwrap_err();
-        assert!(matches!(e, ListParseError::NotANumber { index: 2, .. }), "{e:?}");
-        assert!(matches!(parse_vec3("1,,3"), Err(ListParseError::NotANumber { index: 2, .. })));
-        assert!(matches!(parse_vec3("nan,0,0"), Err(ListParseError::NonFinite { index: 1, .. })));
-        assert!(matches!(parse_vec3("0,0,inf"), Err(ListParseError::NonFinite { index: 3, .. })));
+        assert!(
+            matches!(e, ListParseError::NotANumber { index: 2, .. }),
+            "{e:?}"
+        );
+        assert!(matches!(
+            parse_vec3("1,,3"),
+            Err(ListParseError::NotANumber { index: 2, .. })
+        ));
+        assert!(matches!(
+            parse_vec3("nan,0,0"),
+            Err(ListParseError::NonFinite { index: 1, .. })
+        ));
+        assert!(matches!(
+            parse_vec3("0,0,inf"),
+            Err(ListParseError::NonFinite { index: 3, .. })
+        ));
     }
 
     #[test]
     fn size_needs_two_positive_integers() {
         assert_eq!(parse_size("3840,2160").unwrap(), [3840, 2160]);
-        assert!(matches!(parse_size("0,2160"), Err(ListParseError::NotAPositiveInteger { index: 1, .. })));
-        assert!(matches!(parse_size("3840,-1"), Err(ListParseError::NotAPositiveInteger { index: 2, .. })));
-        assert!(matches!(parse_size("3840.5,2160"), Err(ListParseError::NotAPositiveInteger { .. })));
-        assert!(matches!(parse_size("3840"), Err(ListParseError::Count { found: 1, .. })));
+        assert!(matches!(
+            parse_size("0,2160"),
+            Err(ListParseError::NotAPositiveInteger { index: 1, .. })
+        ));
+        assert!(matches!(
+            parse_size("3840,-1"),
+            Err(ListParseError::NotAPositiveInteger { index: 2, .. })
+        ));
+        assert!(matches!(
+            parse_size("3840.5,2160"),
+            Err(ListParseError::NotAPositiveInteger { .. })
+        ));
+        assert!(matches!(
+            parse_size("3840"),
+            Err(ListParseError::Count { found: 1, .. })
+        ));
     }
 
     #[test]
     fn pair_parses_and_names_the_bad_item() {
         assert_eq!(parse_pair("1,-2").unwrap(), DVec2::new(1.0, -2.0));
-        assert!(matches!(parse_pair("1,x"), Err(ListParseError::NotANumber { index: 2, .. })));
-        assert!(matches!(parse_pair("1,inf"), Err(ListParseError::NonFinite { index: 2, .. })));
-        assert!(matches!(parse_pair("1"), Err(ListParseError::Count { found: 1, .. })));
+        assert!(matches!(
+            parse_pair("1,x"),
+            Err(ListParseError::NotANumber { index: 2, .. })
+        ));
+        assert!(matches!(
+            parse_pair("1,inf"),
+            Err(ListParseError::NonFinite { index: 2, .. })
+        ));
+        assert!(matches!(
+            parse_pair("1"),
+            Err(ListParseError::Count { found: 1, .. })
+        ));
     }
 }

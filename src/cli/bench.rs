@@ -18,13 +18,22 @@ pub enum BenchCommand {
 #[derive(Clone, Debug, clap::Args)]
 pub struct DgiBenchArgs {
     /// Display model (the paper's setup: HORNET).
-    #[arg(long, value_name = "FILE", default_value = "display-models/hornet.json")]
+    #[arg(
+        long,
+        value_name = "FILE",
+        default_value = "display-models/hornet.json"
+    )]
     pub display: PathBuf,
     /// Image size.
     #[arg(long, value_name = "W,H", value_parser = crate::cli::args::parse_size, default_value = "3840,2160")]
     pub size: [u32; 2],
     /// Fields of view to measure, degrees (square cones).
-    #[arg(long, value_name = "DEG,…", value_delimiter = ',', default_value = "10,30,60")]
+    #[arg(
+        long,
+        value_name = "DEG,…",
+        value_delimiter = ',',
+        default_value = "10,30,60"
+    )]
     pub fov: Vec<f64>,
     /// GPU repetitions per measurement (median reported).
     #[arg(long, default_value_t = 50)]

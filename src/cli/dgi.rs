@@ -9,9 +9,7 @@ use crate::cli::args::{parse_pair, parse_size, parse_vec3};
 use crate::display::DisplayModel;
 use crate::gpu::{Backend, BackendChoice};
 use crate::roi::cone::Cone;
-use crate::roi::dgi::{
-    DgiParams, Falloff, Guide, Metric, Roi, Surface, compute_cpu, roi_radius_m,
-};
+use crate::roi::dgi::{DgiParams, Falloff, Guide, Metric, Roi, Surface, compute_cpu, roi_radius_m};
 use crate::roi::gpu::DgiKernel;
 
 #[derive(Clone, Debug, clap::Args)]
@@ -69,21 +67,30 @@ pub fn roi_from_args(args: &DgiArgs, model: &DisplayModel) -> anyhow::Result<Roi
             let (Some(dir), Some(fov)) = (args.dir, args.fov) else {
                 bail!("--origin needs --dir and --fov");
             };
-            Ok(Roi::Cone(Cone::from_pose(origin, dir, args.up, fov.x, fov.y)?))
+            Ok(Roi::Cone(Cone::from_pose(
+                origin, dir, args.up, fov.x, fov.y,
+            )?))
         }
         (None, Some(center)) => {
             let axes = args.axes_px.context("--center-px needs --axes-px")?;
             if !(axes.x >= 0.0 && axes.y >= 0.0) {
-                bail!("--axes-px must be two non-negative numbers, got {},{}", axes.x, axes.y);
+                bail!(
+                    "--axes-px must be two non-negative numbers, got {},{}",
+                    axes.x,
+                    axes.y
+                );
             }
             let canvas = model.canvas_rect();
-            let scale = canvas.size() / DVec2::new(f64::from(args.size[0]), f64::from(args.size[1]));
+            let scale =
+                canvas.size() / DVec2::new(f64::from(args.size[0]), f64::from(args.size[1]));
             Ok(Roi::CanvasEllipse {
                 center: model.image_to_canvas(center, args.size),
                 semi_axes: axes * scale,
             })
         }
-        _ => bail!("give either a ray-gun pose (--origin, --dir, --fov) or a mouse ROI (--center-px, --axes-px)"),
+        _ => bail!(
+            "give either a ray-gun pose (--origin, --dir, --fov) or a mouse ROI (--center-px, --axes-px)"
+        ),
     }
 }
 
@@ -98,7 +105,12 @@ pub fn run(args: &DgiArgs) -> anyhow::Result<()> {
         height: args.size[1],
         falloff_px: (!args.raw).then_some(length_px),
     };
-    if args.raw && !args.out.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr")) {
+    if args.raw
+        && !args
+            .out
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("exr"))
+    {
         bail!("--raw distances need an .exr output");
     }
     let guide = Guide::new(&surface, &roi, args.metric)?;

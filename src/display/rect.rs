@@ -50,6 +50,17 @@ impl Rect {
         d.length()
     }
 
+    /// The four corners in order: top-left, top-right, bottom-right, bottom-left.
+    #[must_use]
+    pub fn corners(&self) -> [DVec2; 4] {
+        [
+            self.min,
+            DVec2::new(self.max.x, self.min.y),
+            self.max,
+            DVec2::new(self.min.x, self.max.y),
+        ]
+    }
+
     /// The smallest rectangle holding both.
     #[must_use]
     pub fn union(&self, other: &Self) -> Self {

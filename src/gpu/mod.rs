@@ -258,19 +258,6 @@ pub fn shader_source(parts: &[&str]) -> String {
     parts.join("\n")
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn software_adapters_rank_after_real_gpus() {
-        use wgpu::{Backend as B, DeviceType as D};
-        assert!(adapter_rank(D::DiscreteGpu, B::Vulkan) < adapter_rank(D::DiscreteGpu, B::Gl));
-        assert!(adapter_rank(D::DiscreteGpu, B::Gl) < adapter_rank(D::IntegratedGpu, B::Vulkan));
-        assert!(adapter_rank(D::VirtualGpu, B::Vulkan) < adapter_rank(D::Cpu, B::Vulkan));
-    }
-}
-
 /// GPU time of compute passes from timestamp queries, where the adapter has them.
 ///
 /// Each measured pass writes a begin and an end timestamp; [`PassTimer::read_ms`] resolves
@@ -332,5 +319,18 @@ impl PassTimer {
             .chunks_exact(2)
             .map(|p| p[1].wrapping_sub(p[0]) as f64 * self.period_ns * 1e-6)
             .collect())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn software_adapters_rank_after_real_gpus() {
+        use wgpu::{Backend as B, DeviceType as D};
+        assert!(adapter_rank(D::DiscreteGpu, B::Vulkan) < adapter_rank(D::DiscreteGpu, B::Gl));
+        assert!(adapter_rank(D::DiscreteGpu, B::Gl) < adapter_rank(D::IntegratedGpu, B::Vulkan));
+        assert!(adapter_rank(D::VirtualGpu, B::Vulkan) < adapter_rank(D::Cpu, B::Vulkan));
     }
 }

@@ -216,7 +216,13 @@ mod tests {
             Err(ConeError::FovOutOfRange { .. })
         ));
         assert!(matches!(
-            Cone::from_pose(DVec3::new(f64::NAN, 0.0, 0.0), DVec3::NEG_Z, DVec3::Y, 10.0, 10.0),
+            Cone::from_pose(
+                DVec3::new(f64::NAN, 0.0, 0.0),
+                DVec3::NEG_Z,
+                DVec3::Y,
+                10.0,
+                10.0
+            ),
             Err(ConeError::NotFinite { .. })
         ));
     }

@@ -19,52 +19,17 @@
 
 use glam::{DMat2, DVec2, DVec3};
 
+pub use crate::display::Rect;
+
 use super::cone::Cone;
 use super::ellipse;
-
-/// An axis-aligned rectangle on the canvas (canvas pixels, x right, y down).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct CanvasRect {
-    pub min: DVec2,
-    pub max: DVec2,
-}
-
-impl CanvasRect {
-    #[must_use]
-    pub fn contains(&self, c: DVec2) -> bool {
-        c.cmpge(self.min).all() && c.cmple(self.max).all()
-    }
-
-    /// Euclidean distance from `c` to the rectangle (0 inside).
-    #[must_use]
-    pub fn distance(&self, c: DVec2) -> f64 {
-        let d = (self.min - c).max(c - self.max).max(DVec2::ZERO);
-        d.length()
-    }
-
-    #[must_use]
-    pub fn center(&self) -> DVec2 {
-        0.5 * (self.min + self.max)
-    }
-
-    /// The four corners in order (top-left, top-right, bottom-right, bottom-left).
-    #[must_use]
-    pub fn corners(&self) -> [DVec2; 4] {
-        [
-            self.min,
-            DVec2::new(self.max.x, self.min.y),
-            self.max,
-            DVec2::new(self.min.x, self.max.y),
-        ]
-    }
-}
 
 /// A planar part of the display surface: canvas point c ↦ room point
 /// `origin + c.x·ex + c.y·ey`, for canvas points in `rect` (a tile's active area with its
 /// bezels, which lie in the tile's plane).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Patch {
-    pub rect: CanvasRect,
+    pub rect: Rect,
     /// Room point of canvas point (0, 0) on this patch's plane.
     pub origin: DVec3,
     /// Room displacement per canvas pixel along x.
@@ -165,7 +130,11 @@ impl PlacedConic {
                     },
                     d2f: |u: f64| {
                         let r2 = b2 + (s * u).powi(2);
-                        if r2 == 0.0 { 0.0 } else { s * s * b2 / (r2 * r2.sqrt()) }
+                        if r2 == 0.0 {
+                            0.0
+                        } else {
+                            s * s * b2 / (r2 * r2.sqrt())
+                        }
                     },
                 };
                 Some(closest_on_epigraph(&f, l))
@@ -232,7 +201,11 @@ where
         if hu == 0.0 {
             break;
         }
-        if hu < 0.0 { lo = u } else { hi = u }
+        if hu < 0.0 {
+            lo = u
+        } else {
+            hi = u
+        }
         let dh = 1.0 + (f.df)(u).powi(2) + ((f.f)(u) - pv).max(0.0) * (f.d2f)(u);
         let mut next = u - hu / dh;
         if !(next > lo && next < hi) {
@@ -259,7 +232,11 @@ pub fn section(cone: &Cone, patch: &Patch) -> PlacedConic {
     let a_r = DVec2::new(patch.ex.dot(cone.right), patch.ey.dot(cone.right)) / th;
     let a_u = DVec2::new(patch.ex.dot(cone.up), patch.ey.dot(cone.up)) / tv;
     let a_d = DVec2::new(patch.ex.dot(cone.axis), patch.ey.dot(cone.axis));
-    let (r, u, d) = (w0.dot(cone.right) / th, w0.dot(cone.up) / tv, w0.dot(cone.axis));
+    let (r, u, d) = (
+        w0.dot(cone.right) / th,
+        w0.dot(cone.up) / tv,
+        w0.dot(cone.axis),
+    );
     // Q(q) = qᵀMq + 2gᵀq + k with q = c − c0.
     let outer = |v: DVec2| DMat2::from_cols(v * v.x, v * v.y);
     let m = outer(a_r) + outer(a_u) - outer(a_d);
@@ -374,18 +351,18 @@ impl Segment {
 /// on the rectangle's boundary).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Piece {
-    pub rect: CanvasRect,
+    pub rect: Rect,
     pub conic: PlacedConic,
     pub edges: Vec<Segment>,
     /// A box around the piece (inside `rect`): its distance bounds the piece's from below, so
     /// pixels far from every piece skip the solvers.
-    pub bounds: CanvasRect,
+    pub bounds: Rect,
 }
 
 impl Piece {
     /// Clips `conic` to `rect`. Returns `None` when the clipped region is empty.
     #[must_use]
-    pub fn new(rect: CanvasRect, conic: PlacedConic) -> Option<Self> {
+    pub fn new(rect: Rect, conic: PlacedConic) -> Option<Self> {
         if conic.kind == ConicKind::Empty {
             return None;
         }
@@ -413,11 +390,8 @@ impl Piece {
             ConicKind::Ellipse { a, b } => {
                 // Axis-aligned box of the rotated ellipse, clipped to the rectangle.
                 let (u, v) = (conic.axis_u, conic.axis_v());
-                let half = DVec2::new(
-                    (a * u.x).hypot(b * v.x),
-                    (a * u.y).hypot(b * v.y),
-                );
-                CanvasRect {
+                let half = DVec2::new((a * u.x).hypot(b * v.x), (a * u.y).hypot(b * v.y));
+                Rect {
                     min: (conic.origin - half).max(rect.min),
                     max: (conic.origin + half).min(rect.max),
                 }
@@ -546,7 +520,7 @@ mod tests {
     /// A 2000×1000 px patch in the plane z = 0 with 1 mm pixels, canvas (0,0) at room (−1, 0.5, 0).
     fn flat_patch() -> Patch {
         Patch {
-            rect: CanvasRect {
+            rect: Rect {
                 min: DVec2::ZERO,
                 max: DVec2::new(2000.0, 1000.0),
             },
@@ -580,14 +554,20 @@ mod tests {
     fn check_against_brute_force(cone: &Cone, patch: &Patch, piece: &Piece, c: DVec2) {
         let (exact, q) = piece.closest(c);
         assert!(((q - c).length() - exact).abs() < 1e-9);
-        assert!(patch.rect.contains(q), "{c}: nearest point {q} outside the rect");
+        assert!(
+            patch.rect.contains(q),
+            "{c}: nearest point {q} outside the rect"
+        );
         // On the boundary: the cone's normalised radius there is 1 up to rounding.
         let w = patch.point(q) - cone.apex;
         let z = w.dot(cone.axis);
         let rad = ((w.dot(cone.right) / (z * cone.tan_h)).powi(2)
             + (w.dot(cone.up) / (z * cone.tan_v)).powi(2))
         .sqrt();
-        assert!(z > 0.0 && rad <= 1.0 + 1e-9, "{c}: nearest point {q} not in the cone ({rad})");
+        assert!(
+            z > 0.0 && rad <= 1.0 + 1e-9,
+            "{c}: nearest point {q} not in the cone ({rad})"
+        );
         let brute = brute_distance(cone, patch, c, 2.0);
         assert!(exact <= brute + 1e-9, "{c}: {exact} > sampled {brute}");
     }
@@ -595,13 +575,22 @@ mod tests {
     #[test]
     fn head_on_circle_is_a_circle_of_the_right_radius() {
         let patch = flat_patch();
-        let cone = Cone::from_pose(DVec3::new(0.0, 0.0, 1.0), DVec3::NEG_Z, DVec3::Y, 20.0, 20.0)
-            .unwrap();
+        let cone = Cone::from_pose(
+            DVec3::new(0.0, 0.0, 1.0),
+            DVec3::NEG_Z,
+            DVec3::Y,
+            20.0,
+            20.0,
+        )
+        .unwrap();
         let conic = section(&cone, &patch);
         let r_px = (10f64).to_radians().tan() * 1000.0;
         match conic.kind {
             ConicKind::Ellipse { a, b } => {
-                assert!((a - r_px).abs() < 1e-9 && (b - r_px).abs() < 1e-9, "{a} {b}");
+                assert!(
+                    (a - r_px).abs() < 1e-9 && (b - r_px).abs() < 1e-9,
+                    "{a} {b}"
+                );
             }
             k => panic!("expected an ellipse, got {k:?}"),
         }
@@ -627,7 +616,10 @@ mod tests {
         let dir = DVec3::new((70f64).to_radians().sin(), 0.0, -(70f64).to_radians().cos());
         let cone = Cone::from_pose(DVec3::new(-1.2, 0.0, 0.4), dir, DVec3::Y, 60.0, 40.0).unwrap();
         let conic = section(&cone, &patch);
-        assert!(matches!(conic.kind, ConicKind::Hyperbola { .. }), "{conic:?}");
+        assert!(
+            matches!(conic.kind, ConicKind::Hyperbola { .. }),
+            "{conic:?}"
+        );
         let piece = Piece::new(patch.rect, conic).unwrap();
         for c in [
             DVec2::new(10.0, 500.0),
@@ -652,7 +644,11 @@ mod tests {
             "expected a parabola, got {conic:?}"
         );
         let piece = Piece::new(patch.rect, conic).unwrap();
-        for c in [DVec2::new(10.0, 500.0), DVec2::new(300.0, 100.0), DVec2::new(1900.0, 990.0)] {
+        for c in [
+            DVec2::new(10.0, 500.0),
+            DVec2::new(300.0, 100.0),
+            DVec2::new(1900.0, 990.0),
+        ] {
             check_against_brute_force(&cone, &patch, &piece, c);
         }
     }

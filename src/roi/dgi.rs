@@ -15,7 +15,7 @@ use glam::{DVec2, DVec3};
 use rayon::prelude::*;
 
 use super::cone::Cone;
-use super::conic::{CanvasRect, ConicKind, Patch, Piece, PlacedConic, section};
+use super::conic::{ConicKind, Patch, Piece, PlacedConic, Rect, section};
 
 /// Which distance the DGI measures.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
@@ -43,7 +43,7 @@ pub enum Roi {
 /// The display surface as the DGI sees it: planar patches covering the canvas.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Surface {
-    pub canvas: CanvasRect,
+    pub canvas: Rect,
     pub patches: Vec<Patch>,
     /// Metres per canvas pixel (for the angular metric's conversion).
     pub pitch_m: f64,
@@ -53,10 +53,6 @@ impl Surface {
     /// The planar patches of a display model: one per tile, its active area and bezels.
     #[must_use]
     pub fn from_model(model: &crate::display::DisplayModel) -> Self {
-        let rect = |r: crate::display::Rect| CanvasRect {
-            min: r.min,
-            max: r.max,
-        };
         let patches = model
             .tiles()
             .iter()
@@ -70,7 +66,7 @@ impl Surface {
                 let ey = (bl - tl) / f64::from(h);
                 let c0 = tile.canvas_origin();
                 Patch {
-                    rect: rect(model.tile_canvas_rect(i)),
+                    rect: model.tile_canvas_rect(i),
                     origin: tl - c0.x * ex - c0.y * ey,
                     ex,
                     ey,
@@ -78,7 +74,7 @@ impl Surface {
             })
             .collect();
         Self {
-            canvas: rect(model.canvas_rect()),
+            canvas: model.canvas_rect(),
             patches,
             pitch_m: model.pitch_m(),
         }
@@ -133,13 +129,13 @@ pub struct DgiParams {
 impl DgiParams {
     /// Canvas pixels per image pixel along x and y (the image covers the canvas).
     #[must_use]
-    pub fn scale(&self, canvas: &CanvasRect) -> DVec2 {
+    pub fn scale(&self, canvas: &Rect) -> DVec2 {
         (canvas.max - canvas.min) / DVec2::new(f64::from(self.width), f64::from(self.height))
     }
 
     /// Canvas point of image pixel (i, j)'s centre.
     #[must_use]
-    pub fn pixel_to_canvas(&self, canvas: &CanvasRect, i: u32, j: u32) -> DVec2 {
+    pub fn pixel_to_canvas(&self, canvas: &Rect, i: u32, j: u32) -> DVec2 {
         canvas.min + (DVec2::new(f64::from(i), f64::from(j)) + 0.5) * self.scale(canvas)
     }
 }
@@ -174,7 +170,9 @@ impl Default for Falloff {
 
 /// A falloff setting that cannot give a positive length.
 #[derive(Clone, Copy, Debug, thiserror::Error, PartialEq)]
-#[error("falloff base {base_m} m and scale {scale} must be finite and non-negative, with a positive base")]
+#[error(
+    "falloff base {base_m} m and scale {scale} must be finite and non-negative, with a positive base"
+)]
 pub struct FalloffError {
     pub base_m: f64,
     pub scale: f64,
@@ -243,7 +241,9 @@ impl Guide {
                     origin: *center,
                     axis_u: DVec2::X,
                 };
-                Ok(Self::Pieces(Piece::new(surface.canvas, conic).into_iter().collect()))
+                Ok(Self::Pieces(
+                    Piece::new(surface.canvas, conic).into_iter().collect(),
+                ))
             }
             (Roi::CanvasEllipse { .. }, Metric::Angular) => Err(GuideError::AngularNeedsCone),
             (Roi::Cone(cone), Metric::Exact) => Ok(Self::Pieces(
@@ -253,9 +253,9 @@ impl Guide {
                     .filter_map(|p| Piece::new(p.rect, section(cone, p)))
                     .collect(),
             )),
-            (Roi::Cone(cone), Metric::Ellipse) => {
-                Ok(Self::Pieces(paper_ellipse(surface, cone)?.into_iter().collect()))
-            }
+            (Roi::Cone(cone), Metric::Ellipse) => Ok(Self::Pieces(
+                paper_ellipse(surface, cone)?.into_iter().collect(),
+            )),
             (Roi::Cone(cone), Metric::Angular) => {
                 let (_, t) = surface
                     .hit(cone.apex, cone.axis)
@@ -288,7 +288,7 @@ impl Guide {
                 let mut first = None;
                 let mut first_box = cap;
                 for (k, p) in pieces.iter().enumerate() {
-                    let b = p.bounds.distance(c);
+                    let b = p.bounds.distance_to(c);
                     if b < first_box {
                         (first, first_box) = (Some(k), b);
                     }
@@ -301,7 +301,7 @@ impl Guide {
                     return 0.0;
                 }
                 for (k, p) in pieces.iter().enumerate() {
-                    if k == first || p.bounds.distance(c) >= best {
+                    if k == first || p.bounds.distance_to(c) >= best {
                         continue;
                     }
                     best = best.min(p.distance(c));
@@ -336,7 +336,7 @@ fn paper_ellipse(surface: &Surface, cone: &Cone) -> Result<Option<Piece>, GuideE
         let plane = Surface {
             canvas: surface.canvas,
             patches: vec![Patch {
-                rect: CanvasRect {
+                rect: Rect {
                     min: DVec2::splat(f64::NEG_INFINITY),
                     max: DVec2::splat(f64::INFINITY),
                 },

@@ -4,7 +4,7 @@ use bytemuck::{Pod, Zeroable};
 use glam::DVec2;
 use wgpu::util::DeviceExt;
 
-use super::conic::{CanvasRect, ConicKind};
+use super::conic::{ConicKind, Rect};
 use super::dgi::{DgiParams, Guide, Surface};
 use crate::gpu::{GpuContext, GpuError, PassTimer};
 
@@ -65,16 +65,13 @@ pub struct GpuAngularTile {
 
 /// A rectangle centre split into an integer image-pixel index and a fraction (f64 → i32 + f32),
 /// so the kernel forms pixel offsets without losing f32 precision to the canvas's size.
-fn split_center(canvas: &CanvasRect, params: &DgiParams, rect: &CanvasRect) -> ([i32; 2], [f32; 2]) {
+fn split_center(canvas: &Rect, params: &DgiParams, rect: &Rect) -> ([i32; 2], [f32; 2]) {
     let r = (rect.center() - canvas.min) / params.scale(canvas) - 0.5;
     // Clamp keeps infinite (mouse/ellipse) rectangles representable; their centre is finite
     // anyway because they are clipped to the canvas.
     let ri = r.floor().clamp(DVec2::splat(-1e9), DVec2::splat(1e9));
     let rf = r - ri;
-    (
-        [ri.x as i32, ri.y as i32],
-        [rf.x as f32, rf.y as f32],
-    )
+    ([ri.x as i32, ri.y as i32], [rf.x as f32, rf.y as f32])
 }
 
 fn f2(v: DVec2) -> [f32; 2] {
@@ -237,7 +234,10 @@ impl DgiKernel {
     ) -> Result<DgiRun, GpuError> {
         let g = GpuGuide::new(surface, guide, params);
         let bytes = u64::from(params.width) * u64::from(params.height) * VALUE_BYTES;
-        let max = ctx.limits.max_storage_buffer_binding_size.min(ctx.limits.max_buffer_size);
+        let max = ctx
+            .limits
+            .max_storage_buffer_binding_size
+            .min(ctx.limits.max_buffer_size);
         if bytes > max {
             return Err(GpuError::TooLarge {
                 what: "DGI output",
@@ -258,7 +258,10 @@ impl DgiKernel {
             "roi/dgi pieces",
             bytemuck::cast_slice(&nonempty(g.pieces, GpuPiece::zeroed())),
         );
-        let edges = storage("roi/dgi edges", bytemuck::cast_slice(&nonempty(g.edges, [0.0; 4])));
+        let edges = storage(
+            "roi/dgi edges",
+            bytemuck::cast_slice(&nonempty(g.edges, [0.0; 4])),
+        );
         let tiles = storage(
             "roi/dgi tiles",
             bytemuck::cast_slice(&nonempty(g.tiles, GpuAngularTile::zeroed())),
