@@ -73,9 +73,21 @@ fn main() {
                 (r.iterations, cat, *c)
             })
             .collect();
-        v.sort_by(|a, b| b.0.cmp(&a.0));
-        for (it, cat, c) in v.iter().take(15) {
-            println!("{it:>3} {cat:<32} {c:?}");
+        v.sort_by_key(|e| std::cmp::Reverse(e.0));
+        for (it, cat, c) in v.iter().take(8) {
+            println!("f64 {it:>3} {cat:<32} {c:?}");
+        }
+        let mut v: Vec<(u32, &String, [f32; 4])> = cases
+            .iter()
+            .map(|(cat, c)| {
+                let c = c.map(|v| v as f32);
+                let r = closest_point_on_ellipse_f32(c[0], c[1], [c[2], c[3]]);
+                (r.iterations, cat, c)
+            })
+            .collect();
+        v.sort_by_key(|e| std::cmp::Reverse(e.0));
+        for (it, cat, c) in v.iter().take(8) {
+            println!("f32 {it:>3} {cat:<32} {c:?}");
         }
     }
     let hard: Vec<[f64; 4]> = cases.iter().map(|(_, c)| *c).collect();

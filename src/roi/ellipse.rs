@@ -278,7 +278,7 @@ fn far_field_f64(a: f64, e: f64, b: f64, x: f64, y: f64) -> (f64, f64, u32) {
     let m = x.max(y);
     let (ux, uy) = (x / m, y / m);
     let n = ux.hypot(e * uy);
-    if !(n > 0.0) {
+    if n.is_nan() || n <= 0.0 {
         // A segment seen broadside: its midpoint.
         return (0.0, 0.0, 0);
     }
@@ -329,7 +329,7 @@ fn first_quadrant_f32(a: f32, b: f32, x: f32, y: f32) -> ([f32; 2], u32) {
         let ux = x / m;
         let uy = y / m;
         let n = hypot_f32(ux, e * uy);
-        if !(n > 0.0) {
+        if n.is_nan() || n <= 0.0 {
             return ([0.0, 0.0], 0);
         }
         return ([a * (ux / n), b * (e * uy / n)], 0);
@@ -466,4 +466,226 @@ pub fn distance_to_filled_ellipse_f32(a: f32, b: f32, p: [f32; 2]) -> f32 {
         return 0.0;
     }
     closest_point_on_ellipse_f32(a, b, p).distance
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    const EPS: f64 = f64::EPSILON;
+
+    fn cp(a: f64, b: f64, x: f64, y: f64) -> ClosestPoint {
+        closest_point_on_ellipse(a, b, DVec2::new(x, y))
+    }
+
+    fn close(got: f64, want: f64, tol: f64) -> bool {
+        (got - want).abs() <= tol
+    }
+
+    #[test]
+    fn circle_point_outside_projects_radially() {
+        let c = cp(2.0, 2.0, 3.0, -4.0);
+        assert!(close(c.distance, 3.0, 4.0 * EPS), "{c:?}");
+        assert!(
+            (c.point - DVec2::new(1.2, -1.6)).length() <= 4.0 * EPS,
+            "{c:?}"
+        );
+        assert!(!c.inside);
+    }
+
+    #[test]
+    fn circle_centre_returns_the_top_point() {
+        let c = cp(0.5, 0.5, 0.0, 0.0);
+        assert_eq!(
+            (c.distance, c.point, c.inside),
+            (0.5, DVec2::new(0.0, 0.5), true)
+        );
+    }
+
+    #[test]
+    fn ellipse_centre_returns_the_minor_vertex_on_the_positive_side() {
+        assert_eq!(cp(3.0, 1.0, 0.0, 0.0).point, DVec2::new(0.0, 1.0));
+        assert_eq!(cp(3.0, 1.0, -0.0, -0.0).point, DVec2::new(0.0, 1.0));
+        // b > a: the major axis is y, so the tie is broken towards +x.
+        assert_eq!(cp(1.0, 3.0, 0.0, 0.0).point, DVec2::new(1.0, 0.0));
+    }
+
+    #[test]
+    fn major_axis_outside_the_evolute_goes_to_the_vertex() {
+        // Evolute reach (a² − b²)/a = 8/3; x = 2.9 is past it, inside the ellipse.
+        let c = cp(3.0, 1.0, -2.9, 0.0);
+        assert_eq!(c.point, DVec2::new(-3.0, 0.0));
+        assert!(close(c.distance, 0.1, 4.0 * EPS), "{c:?}");
+        let c = cp(3.0, 1.0, 7.0, -0.0);
+        assert_eq!((c.point, c.distance), (DVec2::new(3.0, 0.0), 4.0));
+    }
+
+    #[test]
+    fn major_axis_inside_the_evolute_picks_the_positive_minor_side() {
+        // X = a²x/(a² − b²), Y = b√(1 − X²/a²): the two closest points (X, ±Y).
+        let (a, b, x) = (3.0_f64, 1.0_f64, 1.6_f64);
+        let cx = a * a * x / (a * a - b * b);
+        let cy = b * (1.0 - (cx / a).powi(2)).sqrt();
+        for y in [0.0, -0.0] {
+            let c = cp(a, b, x, y);
+            assert!(
+                (c.point - DVec2::new(cx, cy)).length() <= 4.0 * EPS,
+                "{c:?}"
+            );
+            assert!(close(c.distance, (x - cx).hypot(cy), 4.0 * EPS), "{c:?}");
+            assert_eq!(c.iterations, 0);
+        }
+    }
+
+    #[test]
+    fn minor_axis_points_go_to_the_minor_vertex() {
+        let c = cp(3.0, 1.0, 0.0, -0.25);
+        assert_eq!(
+            (c.point, c.distance, c.inside),
+            (DVec2::new(0.0, -1.0), 0.75, true)
+        );
+        let c = cp(3.0, 1.0, 0.0, 5.0);
+        assert_eq!(
+            (c.point, c.distance, c.inside),
+            (DVec2::new(0.0, 1.0), 4.0, false)
+        );
+    }
+
+    #[test]
+    fn segment_clamps_along_its_length() {
+        let c = cp(1.0, 0.0, 0.3, 2.0);
+        assert_eq!((c.point, c.distance), (DVec2::new(0.3, 0.0), 2.0));
+        let c = cp(1.0, 0.0, -5.0, 2.0);
+        assert_eq!(c.point, DVec2::new(-1.0, 0.0));
+        assert!(close(c.distance, 4.0_f64.hypot(2.0), 4.0 * EPS));
+        let c = cp(0.0, 2.5, 0.0, -1.0);
+        assert_eq!(
+            (c.point, c.distance, c.inside),
+            (DVec2::new(0.0, -1.0), 0.0, true)
+        );
+        assert_eq!(
+            distance_to_filled_ellipse(1.0, 0.0, DVec2::new(0.5, 1e-300)),
+            1e-300
+        );
+    }
+
+    #[test]
+    fn point_ellipse_is_its_centre() {
+        let c = cp(0.0, 0.0, 3.0, -4.0);
+        assert_eq!((c.point, c.distance), (DVec2::ZERO, 5.0));
+    }
+
+    #[test]
+    fn tiny_ellipse_seen_from_1e300_uses_the_far_field_without_overflow() {
+        let c = cp(1e-300, 5e-301, 1e300, 0.0);
+        assert_eq!(c.point, DVec2::new(1e-300, 0.0));
+        assert_eq!(c.distance, 1e300);
+        let c = cp(1e-300, 1e-300, 1e300, 1e300);
+        assert!(c.distance.is_finite() && c.point.is_finite(), "{c:?}");
+        assert!(
+            close(c.point.x.hypot(c.point.y), 1e-300, 4.0 * EPS * 1e-300),
+            "{c:?}"
+        );
+    }
+
+    #[test]
+    fn negative_semi_axes_mean_the_same_ellipse() {
+        assert_eq!(cp(-3.0, -1.0, 2.0, 2.0), cp(3.0, 1.0, 2.0, 2.0));
+    }
+
+    #[test]
+    fn subnormal_inputs_scale_like_normal_ones() {
+        // The same case at scale 1 and at 2^-1070: the answer scales exactly up to the
+        // subnormal spacing.
+        let s = 2.0_f64.powi(-1070);
+        let big = cp(12.0, 5.0, 17.0, 9.0);
+        let small = cp(12.0 * s, 5.0 * s, 17.0 * s, 9.0 * s);
+        assert!(
+            close(small.distance, big.distance * s, 4.0 * f64::from_bits(1)),
+            "{small:?}"
+        );
+    }
+
+    #[test]
+    fn f32_mirror_agrees_with_f64_on_pixel_scale_points() {
+        for (a, b, x, y) in [(600.0, 250.0, 800.0, 300.0), (250.0, 600.0, -3.5, 610.0)] {
+            let d64 = cp(a, b, x, y).distance;
+            let d32 = closest_point_on_ellipse_f32(a as f32, b as f32, [x as f32, y as f32]);
+            let scale = 800.0_f64.hypot(300.0);
+            assert!(
+                close(f64::from(d32.distance), d64, F32_DISTANCE_BOUND * scale),
+                "{d32:?}"
+            );
+        }
+        assert_eq!(
+            distance_to_filled_ellipse_f32(600.0, 250.0, [100.0, -100.0]),
+            0.0
+        );
+    }
+
+    /// Any finite f64, sign included: normal, subnormal, zero.
+    fn any_finite() -> impl Strategy<Value = f64> {
+        prop::num::f64::NORMAL | prop::num::f64::SUBNORMAL | prop::num::f64::ZERO
+    }
+
+    proptest! {
+        #[test]
+        fn finite_inputs_never_give_nan(a in any_finite(), b in any_finite(),
+                                        x in any_finite(), y in any_finite()) {
+            let c = closest_point_on_ellipse(a, b, DVec2::new(x, y));
+            prop_assert!(!c.distance.is_nan() && c.distance >= 0.0, "{:?}", c);
+            prop_assert!(c.point.is_finite(), "{:?}", c);
+            prop_assert!(c.iterations <= MAX_ITERATIONS_F64);
+            let filled = distance_to_filled_ellipse(a, b, DVec2::new(x, y));
+            prop_assert_eq!(filled, if c.inside { 0.0 } else { c.distance });
+        }
+
+        #[test]
+        fn finite_f32_inputs_never_give_nan(a in -1e30f32..1e30, b in -1e30f32..1e30,
+                                            x in -1e30f32..1e30, y in -1e30f32..1e30) {
+            let c = closest_point_on_ellipse_f32(a, b, [x, y]);
+            prop_assert!(c.distance.is_finite() && c.point.iter().all(|v| v.is_finite()), "{:?}", c);
+            prop_assert!(c.iterations <= MAX_ITERATIONS_F32);
+        }
+
+        #[test]
+        fn distance_is_attained_and_no_sampled_point_is_closer(
+            a in 1e-3f64..1e3, b in 1e-3f64..1e3, x in -1e4f64..1e4, y in -1e4f64..1e4,
+        ) {
+            let p = DVec2::new(x, y);
+            let c = closest_point_on_ellipse(a, b, p);
+            let scale = a.max(b).max(p.length());
+            prop_assert!((c.distance - (p - c.point).length()).abs() <= 8.0 * EPS * scale);
+            let (u, v) = (c.point.x / a, c.point.y / b);
+            prop_assert!((u * u + v * v - 1.0).abs() <= 16.0 * EPS, "{:?}", c);
+            for i in 0..256 {
+                let t = std::f64::consts::TAU * f64::from(i) / 256.0;
+                let s = DVec2::new(a * t.cos(), b * t.sin());
+                prop_assert!(c.distance <= (p - s).length() + 1e-12 * scale, "{:?} vs {:?}", c, s);
+            }
+        }
+
+        #[test]
+        fn filled_distance_is_zero_inside(a in 1e-3f64..1e3, b in 1e-3f64..1e3,
+                                          r in 0.0f64..0.999_999, t in 0.0f64..std::f64::consts::TAU) {
+            let p = DVec2::new(r * a * t.cos(), r * b * t.sin());
+            prop_assert_eq!(distance_to_filled_ellipse(a, b, p), 0.0);
+            prop_assert_eq!(distance_to_filled_ellipse_f32(a as f32, b as f32,
+                                                           [p.x as f32, p.y as f32]), 0.0);
+            prop_assert!(closest_point_on_ellipse(a, b, p).inside);
+        }
+
+        #[test]
+        fn f32_mirror_is_within_its_bound_at_pixel_scale(
+            a in 0.0f32..4000.0, b in 0.0f32..4000.0, x in -4000.0f32..4000.0, y in -4000.0f32..4000.0,
+        ) {
+            let got = distance_to_filled_ellipse_f32(a, b, [x, y]);
+            let p = DVec2::new(f64::from(x), f64::from(y));
+            let want = distance_to_filled_ellipse(f64::from(a), f64::from(b), p);
+            let scale = f64::from(a.max(b)).max(p.length());
+            prop_assert!((f64::from(got) - want).abs() <= F32_DISTANCE_BOUND * scale,
+                         "{} vs {}", got, want);
+        }
+    }
 }
