@@ -34,17 +34,24 @@ struct Stats {
     ns_per_call: f64,
 }
 
-fn measure<F: Fn(&[f64; 4]) -> u32>(cases: &[[f64; 4]], repeats: usize, f: F) -> Stats {
+/// `iterations` gives the solver's iteration count for a case (0 where it does not run);
+/// `timed` is the call whose time is measured.
+fn measure<I: Fn(&[f64; 4]) -> u32, T: Fn(&[f64; 4]) -> f64>(
+    cases: &[[f64; 4]],
+    repeats: usize,
+    iterations: I,
+    timed: T,
+) -> Stats {
     let (mut sum, mut max) = (0u64, 0u32);
     for c in cases {
-        let it = f(c);
+        let it = iterations(c);
         sum += u64::from(it);
         max = max.max(it);
     }
     let t = Instant::now();
     for _ in 0..repeats {
         for c in cases {
-            black_box(f(black_box(c)));
+            black_box(timed(black_box(c)));
         }
     }
     let ns = t.elapsed().as_nanos() as f64 / (repeats * cases.len()) as f64;
@@ -91,6 +98,23 @@ fn main() {
         }
     }
     let hard: Vec<[f64; 4]> = cases.iter().map(|(_, c)| *c).collect();
+    // Accuracy of the f32 mirror against f64 on its own (f32-rounded) inputs, relative to scale.
+    let mut worst32 = 0.0_f64;
+    for c in &hard {
+        let v = c.map(|x| x as f32);
+        if !v
+            .iter()
+            .all(|&x| x == 0.0 || (x.is_normal() && x.abs() < 1e30))
+        {
+            continue;
+        }
+        let w = v.map(f64::from);
+        let d64 = closest_point_on_ellipse(w[0], w[1], DVec2::new(w[2], w[3])).distance;
+        let d32 = closest_point_on_ellipse_f32(v[0], v[1], [v[2], v[3]]).distance;
+        let scale = w[0].max(w[1]).max(w[2].hypot(w[3]));
+        worst32 = worst32.max((f64::from(d32) - d64).abs() / scale);
+    }
+    println!("f32 mirror: max |d32 - d64| / scale on the hard cases = {worst32:.2e}");
     let hard32: Vec<[f64; 4]> = hard
         .iter()
         .copied()
@@ -101,18 +125,43 @@ fn main() {
         hard.len(),
         hard32.len()
     );
+    let it64 =
+        |c: &[f64; 4]| closest_point_on_ellipse(c[0], c[1], DVec2::new(c[2], c[3])).iterations;
+    let d64 = |c: &[f64; 4]| closest_point_on_ellipse(c[0], c[1], DVec2::new(c[2], c[3])).distance;
+    let f32s = |c: &[f64; 4]| (c[0] as f32, c[1] as f32, [c[2] as f32, c[3] as f32]);
+    let it32 = |c: &[f64; 4]| {
+        let (a, b, p) = f32s(c);
+        closest_point_on_ellipse_f32(a, b, p).iterations
+    };
+    let d32 = |c: &[f64; 4]| {
+        let (a, b, p) = f32s(c);
+        f64::from(closest_point_on_ellipse_f32(a, b, p).distance)
+    };
+    // The filled variants run the curve solver only outside; inside points cost 0 iterations.
+    let filled_it64 = |c: &[f64; 4]| {
+        let r = closest_point_on_ellipse(c[0], c[1], DVec2::new(c[2], c[3]));
+        if r.inside { 0 } else { r.iterations }
+    };
+    let filled64 = |c: &[f64; 4]| distance_to_filled_ellipse(c[0], c[1], DVec2::new(c[2], c[3]));
+    let filled_it32 = |c: &[f64; 4]| {
+        let (a, b, p) = f32s(c);
+        if distance_to_filled_ellipse_f32(a, b, p) == 0.0 {
+            0
+        } else {
+            it32(c)
+        }
+    };
+    let filled32 = |c: &[f64; 4]| {
+        let (a, b, p) = f32s(c);
+        f64::from(distance_to_filled_ellipse_f32(a, b, p))
+    };
     print(
         "f64 closest point, hard cases",
-        &measure(&hard, 200, |c| {
-            closest_point_on_ellipse(c[0], c[1], DVec2::new(c[2], c[3])).iterations
-        }),
+        &measure(&hard, 200, it64, d64),
     );
     print(
         "f32 closest point, hard cases",
-        &measure(&hard32, 200, |c| {
-            closest_point_on_ellipse_f32(c[0] as f32, c[1] as f32, [c[2] as f32, c[3] as f32])
-                .iterations
-        }),
+        &measure(&hard32, 200, it32, d32),
     );
 
     // A typical mouse ROI on a 4K canvas: semi-axes 600 × 250 px centred at (1700, 1000); the
@@ -128,33 +177,18 @@ fn main() {
     println!("grid: {w}×{h} pixel centres around a {a}×{b} px ellipse");
     print(
         "f64 closest point (curve), grid",
-        &measure(&grid, 1, |c| {
-            closest_point_on_ellipse(c[0], c[1], DVec2::new(c[2], c[3])).iterations
-        }),
+        &measure(&grid, 1, it64, d64),
     );
     print(
         "f64 filled distance, grid",
-        &measure(&grid, 1, |c| {
-            u32::from(distance_to_filled_ellipse(c[0], c[1], DVec2::new(c[2], c[3])) > 0.0)
-        }),
+        &measure(&grid, 1, filled_it64, filled64),
     );
     print(
         "f32 closest point (curve), grid",
-        &measure(&grid, 1, |c| {
-            closest_point_on_ellipse_f32(c[0] as f32, c[1] as f32, [c[2] as f32, c[3] as f32])
-                .iterations
-        }),
+        &measure(&grid, 1, it32, d32),
     );
     print(
         "f32 filled distance, grid",
-        &measure(&grid, 1, |c| {
-            u32::from(
-                distance_to_filled_ellipse_f32(
-                    c[0] as f32,
-                    c[1] as f32,
-                    [c[2] as f32, c[3] as f32],
-                ) > 0.0,
-            )
-        }),
+        &measure(&grid, 1, filled_it32, filled32),
     );
 }

@@ -7,9 +7,10 @@
 // mirrors this file op for op; the method and its justification are documented there
 // (DESIGN.md §5). In short: first quadrant, major axis along x, scale by the major semi-axis,
 // Newton on the concave increasing h(w) = S(w)^(-1/2) in the pole-relative unknown w = t + e^2
-// from a certified lower bound (never overshoots), bisection on the bit pattern of w as the
-// guaranteed fallback (at most 31 steps). Pass points relative to the ellipse centre (computed in
-// f64 or integer pixels): the subtraction is where f32 loses most.
+// from a certified lower bound (never overshoots), one probe at the frozen-term estimate where
+// Newton would crawl, bisection on the bit pattern of w as the guaranteed fallback (at most 31
+// steps). Pass points relative to the ellipse centre (computed in f64 or integer pixels): the
+// subtraction is where f32 loses most.
 //
 // Iteration bound: ELLIPSE_NEWTON_STEPS + 31 = 47 evaluations of the secular function; the
 // hard-case set needs at most a handful. Every sqrt argument is clamped or provably >= 1.
