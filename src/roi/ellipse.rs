@@ -83,9 +83,9 @@ pub const MAX_ITERATIONS_F32: u32 = MAX_NEWTON_STEPS_F32 + MAX_BISECTION_STEPS_F
 
 /// The f32 solver's distance error bound, relative to the scale `max(a, b, |p|)`, for inputs that
 /// are f32-normal: `|d_f32 − d| ≤ F32_DISTANCE_BOUND · scale`. DESIGN.md §5 says about 1e-6 is
-/// reachable; the measured maximum of the CPU mirror on the hard-case set is 1.65e-7 (1.4 f32 ulps at the
-/// scale), and GPU division and square root may be 2.5 ulp off instead of 0.5, so 1e-6 keeps a
-/// margin of four. At a 4K canvas scale (4000 px) this is 0.004 px.
+/// reachable. Measured on the hard-case set: 1.65e-7 for the CPU mirror (a couple of f32 ulps
+/// at the scale); GPU division and square root may be 2.5 ulp off instead of 0.5 (WGSL spec), so
+/// 1e-6 keeps a margin of six. At a 4K canvas scale (4000 px) this is 0.004 px.
 pub const F32_DISTANCE_BOUND: f64 = 1e-6;
 
 /// The WGSL source of the f32 solver (no bindings, no entry point): prepend or append it to a
