@@ -12,6 +12,18 @@ use raygun::roi::ellipse::{
     distance_to_filled_ellipse_f32,
 };
 
+fn reference_distances() -> Vec<f64> {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/data/ellipse_hard_cases.csv"
+    );
+    let text = std::fs::read_to_string(path).expect("hard-case file");
+    text.lines()
+        .filter(|l| !l.starts_with('#') && !l.starts_with("a,"))
+        .map(|l| l.split(',').nth(4).expect("d_ref").parse().expect("number"))
+        .collect()
+}
+
 fn hard_cases() -> Vec<(String, [f64; 4])> {
     let path = concat!(
         env!("CARGO_MANIFEST_DIR"),
@@ -72,6 +84,7 @@ fn print(name: &str, s: &Stats) {
 fn main() {
     let worst = std::env::args().any(|a| a == "--worst");
     let cases = hard_cases();
+    let refs = reference_distances();
     if worst {
         let mut v: Vec<(u32, &String, [f64; 4])> = cases
             .iter()
@@ -115,6 +128,22 @@ fn main() {
         worst32 = worst32.max((f64::from(d32) - d64).abs() / scale);
     }
     println!("f32 mirror: max |d32 - d64| / scale on the hard cases = {worst32:.2e}");
+    // Accuracy of the f64 solver against the 80-digit reference (column d_ref), normal range.
+    let (mut worst64, mut worst_rel) = (0.0_f64, 0.0_f64);
+    for (c, d_ref) in cases.iter().map(|(_, c)| c).zip(&refs) {
+        if c[0].max(c[1]) < f64::MIN_POSITIVE * 1e20 {
+            continue;
+        }
+        let d = closest_point_on_ellipse(c[0], c[1], DVec2::new(c[2], c[3])).distance;
+        let scale = c[0].max(c[1]).max(c[2].hypot(c[3]));
+        worst64 = worst64.max((d - d_ref).abs() / scale);
+        if scale <= 1e3 * d_ref {
+            worst_rel = worst_rel.max((d - d_ref).abs() / d_ref);
+        }
+    }
+    println!(
+        "f64: max |d - d_ref| / scale = {worst64:.2e}, max relative error (scale/d <= 1e3) = {worst_rel:.2e}"
+    );
     let hard32: Vec<[f64; 4]> = hard
         .iter()
         .copied()
