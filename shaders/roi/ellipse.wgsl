@@ -103,14 +103,15 @@ fn ellipse_first_quadrant(a: f32, b: f32, x: f32, y: f32) -> EllipseQuadrant {
     var hi = r;
     var w = lo;
     var probing = false;
-    // Start at the Lagrange multiplier of the radial projection when it lies in the bracket
-    // (guarded: WGSL may assume no infinities).
+    // Start at the Lagrange multiplier of the radial projection when it lies in the bracket.
+    // Guarded so that nothing overflows (WGSL may assume no infinities): q/e <= 2^100 and
+    // |rho - 1| < den * 2^100 keep every quotient below 2^101.
     if (q <= e * ELLIPSE_FAR) {
         let rho = ellipse_hypot(p, q / e);
         let x0 = p / rho;
         let b0 = q / (e * rho);
         let den = e * e * x0 * x0 + b0 * b0;
-        if (den > 0.0) {
+        if (abs(rho - 1.0) < den * ELLIPSE_FAR) {
             let est = e * e * ((rho - 1.0) / den + 1.0);
             if (est > lo && est < hi) {
                 w = est;
@@ -167,7 +168,7 @@ fn ellipse_first_quadrant(a: f32, b: f32, x: f32, y: f32) -> EllipseQuadrant {
         let first = w;
         w = lo;
         probing = false;
-        if (iterations == 1u) {
+        if (iterations == 1u && s >= 1.0) {
             // Freeze one term and solve for the other: an estimate from above, exact near a
             // vertex of an eccentric ellipse where Newton alone crawls. Try it once.
             var frozen = hi;
@@ -177,7 +178,7 @@ fn ellipse_first_quadrant(a: f32, b: f32, x: f32, y: f32) -> EllipseQuadrant {
             if (gb < 1.0) {
                 frozen = min(frozen, p / sqrt((1.0 - gb) * (1.0 + gb)) - c);
             }
-            if (lo - first < 0.25 * (frozen - first)) {
+            if (frozen > lo && lo - first < 0.25 * (frozen - first)) {
                 w = frozen;
                 probing = true;
             }

@@ -271,9 +271,9 @@ fn first_quadrant_f64(a: f64, b: f64, x: f64, y: f64) -> (f64, f64, u32) {
         let first = w;
         w = lo;
         probing = false;
-        if iterations == 1 {
-            // Freezing one term at its value at `first` and solving for the other gives an
-            // estimate from above that is exact where one term hardly varies: near a vertex of
+        if iterations == 1 && s >= 1.0 {
+            // Freezing one term at its value at `first` (a lower bound: S ≥ 1 there) and
+            // solving for the other gives an estimate from above that is exact where one term hardly varies: near a vertex of
             // an eccentric ellipse, where Newton alone crawls (module docs, step 6).
             // Evaluate there once when Newton's first step covers less than a quarter of the way.
             let mut frozen = hi;
@@ -283,7 +283,7 @@ fn first_quadrant_f64(a: f64, b: f64, x: f64, y: f64) -> (f64, f64, u32) {
             if gb < 1.0 {
                 frozen = frozen.min(p / ((1.0 - gb) * (1.0 + gb)).sqrt() - c);
             }
-            if lo - first < 0.25 * (frozen - first) {
+            if frozen > lo && lo - first < 0.25 * (frozen - first) {
                 w = frozen;
                 probing = true;
             }
@@ -387,13 +387,14 @@ fn first_quadrant_f32(a: f32, b: f32, x: f32, y: f32) -> ([f32; 2], u32) {
     let mut hi = r;
     let mut w = lo;
     let mut probing = false;
-    // WGSL may assume no infinities, so the estimate is guarded instead of checked afterwards.
+    // WGSL may assume no infinities, so the estimate is guarded instead of checked afterwards:
+    // q/e ≤ 2¹⁰⁰ and |rho − 1| < den·2¹⁰⁰ keep every quotient below 2¹⁰¹.
     if q <= e * FAR_F32 {
         let rho = hypot_f32(p, q / e);
         let x0 = p / rho;
         let b0 = q / (e * rho);
         let den = e * e * x0 * x0 + b0 * b0;
-        if den > 0.0 {
+        if (rho - 1.0).abs() < den * FAR_F32 {
             let est = e * e * ((rho - 1.0) / den + 1.0);
             if est > lo && est < hi {
                 w = est;
@@ -447,7 +448,7 @@ fn first_quadrant_f32(a: f32, b: f32, x: f32, y: f32) -> ([f32; 2], u32) {
         let first = w;
         w = lo;
         probing = false;
-        if iterations == 1 {
+        if iterations == 1 && s >= 1.0 {
             let mut frozen = hi;
             if ga < 1.0 {
                 frozen = frozen.min(eq / ((1.0 - ga) * (1.0 + ga)).sqrt());
@@ -455,7 +456,7 @@ fn first_quadrant_f32(a: f32, b: f32, x: f32, y: f32) -> ([f32; 2], u32) {
             if gb < 1.0 {
                 frozen = frozen.min(p / ((1.0 - gb) * (1.0 + gb)).sqrt() - c);
             }
-            if lo - first < 0.25 * (frozen - first) {
+            if frozen > lo && lo - first < 0.25 * (frozen - first) {
                 w = frozen;
                 probing = true;
             }
@@ -732,6 +733,29 @@ mod tests {
             prop_assert_eq!(distance_to_filled_ellipse_f32(a as f32, b as f32,
                                                            [p.x as f32, p.y as f32]), 0.0);
             prop_assert!(closest_point_on_ellipse(a, b, p).inside);
+        }
+
+        #[test]
+        fn f32_mirror_is_within_its_bound_near_eccentric_boundaries(
+            a in 1.0f64..4000.0, k in 0.0f64..8.0, t in 0.0f64..std::f64::consts::TAU,
+            off in -1e-3f64..1e-3, swap in any::<bool>(),
+        ) {
+            // Points near the boundary of ellipses with a/b up to 1e8: where the start estimate,
+            // the frozen-term probe and the stopping rule all come into play.
+            let b = a * 10f64.powf(-k);
+            let (c, s) = (t.cos(), t.sin());
+            let n = DVec2::new(c / a, s / b).normalize();
+            let p = DVec2::new(a * c, b * s) + off * a * n;
+            let (a, b, p) = if swap { (b, a, DVec2::new(p.y, p.x)) } else { (a, b, p) };
+            let v = [a as f32, b as f32, p.x as f32, p.y as f32];
+            let got = closest_point_on_ellipse_f32(v[0], v[1], [v[2], v[3]]);
+            let w = v.map(f64::from);
+            let want = closest_point_on_ellipse(w[0], w[1], DVec2::new(w[2], w[3]));
+            let scale = w[0].max(w[1]).max(w[2].hypot(w[3]));
+            prop_assert!(got.point.iter().all(|x| x.is_finite()), "{:?}", got);
+            prop_assert!((f64::from(got.distance) - want.distance).abs() <= F32_DISTANCE_BOUND * scale,
+                         "{:?} vs {:?}", got, want);
+            prop_assert!(got.iterations <= MAX_ITERATIONS_F32);
         }
 
         #[test]
