@@ -12,6 +12,18 @@ use raygun::roi::ellipse::{
     distance_to_filled_ellipse_f32,
 };
 
+fn reference_distances() -> Vec<f64> {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/data/ellipse_hard_cases.csv"
+    );
+    let text = std::fs::read_to_string(path).expect("hard-case file");
+    text.lines()
+        .filter(|l| !l.starts_with('#') && !l.starts_with("a,"))
+        .map(|l| l.split(',').nth(4).expect("d_ref").parse().expect("number"))
+        .collect()
+}
+
 fn hard_cases() -> Vec<(String, [f64; 4])> {
     let path = concat!(
         env!("CARGO_MANIFEST_DIR"),
@@ -34,17 +46,24 @@ struct Stats {
     ns_per_call: f64,
 }
 
-fn measure<F: Fn(&[f64; 4]) -> u32>(cases: &[[f64; 4]], repeats: usize, f: F) -> Stats {
+/// `iterations` gives the solver's iteration count for a case (0 where it does not run);
+/// `timed` is the call whose time is measured.
+fn measure<I: Fn(&[f64; 4]) -> u32, T: Fn(&[f64; 4]) -> f64>(
+    cases: &[[f64; 4]],
+    repeats: usize,
+    iterations: I,
+    timed: T,
+) -> Stats {
     let (mut sum, mut max) = (0u64, 0u32);
     for c in cases {
-        let it = f(c);
+        let it = iterations(c);
         sum += u64::from(it);
         max = max.max(it);
     }
     let t = Instant::now();
     for _ in 0..repeats {
         for c in cases {
-            black_box(f(black_box(c)));
+            black_box(timed(black_box(c)));
         }
     }
     let ns = t.elapsed().as_nanos() as f64 / (repeats * cases.len()) as f64;
@@ -65,6 +84,7 @@ fn print(name: &str, s: &Stats) {
 fn main() {
     let worst = std::env::args().any(|a| a == "--worst");
     let cases = hard_cases();
+    let refs = reference_distances();
     if worst {
         let mut v: Vec<(u32, &String, [f64; 4])> = cases
             .iter()
@@ -74,11 +94,56 @@ fn main() {
             })
             .collect();
         v.sort_by_key(|e| std::cmp::Reverse(e.0));
-        for (it, cat, c) in v.iter().take(15) {
-            println!("{it:>3} {cat:<32} {c:?}");
+        for (it, cat, c) in v.iter().take(8) {
+            println!("f64 {it:>3} {cat:<32} {c:?}");
+        }
+        let mut v: Vec<(u32, &String, [f32; 4])> = cases
+            .iter()
+            .map(|(cat, c)| {
+                let c = c.map(|v| v as f32);
+                let r = closest_point_on_ellipse_f32(c[0], c[1], [c[2], c[3]]);
+                (r.iterations, cat, c)
+            })
+            .collect();
+        v.sort_by_key(|e| std::cmp::Reverse(e.0));
+        for (it, cat, c) in v.iter().take(8) {
+            println!("f32 {it:>3} {cat:<32} {c:?}");
         }
     }
     let hard: Vec<[f64; 4]> = cases.iter().map(|(_, c)| *c).collect();
+    // Accuracy of the f32 mirror against f64 on its own (f32-rounded) inputs, relative to scale.
+    let mut worst32 = 0.0_f64;
+    for c in &hard {
+        let v = c.map(|x| x as f32);
+        if !v
+            .iter()
+            .all(|&x| x == 0.0 || (x.is_normal() && x.abs() < 1e30))
+        {
+            continue;
+        }
+        let w = v.map(f64::from);
+        let d64 = closest_point_on_ellipse(w[0], w[1], DVec2::new(w[2], w[3])).distance;
+        let d32 = closest_point_on_ellipse_f32(v[0], v[1], [v[2], v[3]]).distance;
+        let scale = w[0].max(w[1]).max(w[2].hypot(w[3]));
+        worst32 = worst32.max((f64::from(d32) - d64).abs() / scale);
+    }
+    println!("f32 mirror: max |d32 - d64| / scale on the hard cases = {worst32:.2e}");
+    // Accuracy of the f64 solver against the 80-digit reference (column d_ref), normal range.
+    let (mut worst64, mut worst_rel) = (0.0_f64, 0.0_f64);
+    for (c, d_ref) in cases.iter().map(|(_, c)| c).zip(&refs) {
+        if c[0].max(c[1]) < f64::MIN_POSITIVE * 1e20 {
+            continue;
+        }
+        let d = closest_point_on_ellipse(c[0], c[1], DVec2::new(c[2], c[3])).distance;
+        let scale = c[0].max(c[1]).max(c[2].hypot(c[3]));
+        worst64 = worst64.max((d - d_ref).abs() / scale);
+        if scale <= 1e3 * d_ref {
+            worst_rel = worst_rel.max((d - d_ref).abs() / d_ref);
+        }
+    }
+    println!(
+        "f64: max |d - d_ref| / scale = {worst64:.2e}, max relative error (scale/d <= 1e3) = {worst_rel:.2e}"
+    );
     let hard32: Vec<[f64; 4]> = hard
         .iter()
         .copied()
@@ -89,18 +154,43 @@ fn main() {
         hard.len(),
         hard32.len()
     );
+    let it64 =
+        |c: &[f64; 4]| closest_point_on_ellipse(c[0], c[1], DVec2::new(c[2], c[3])).iterations;
+    let d64 = |c: &[f64; 4]| closest_point_on_ellipse(c[0], c[1], DVec2::new(c[2], c[3])).distance;
+    let f32s = |c: &[f64; 4]| (c[0] as f32, c[1] as f32, [c[2] as f32, c[3] as f32]);
+    let it32 = |c: &[f64; 4]| {
+        let (a, b, p) = f32s(c);
+        closest_point_on_ellipse_f32(a, b, p).iterations
+    };
+    let d32 = |c: &[f64; 4]| {
+        let (a, b, p) = f32s(c);
+        f64::from(closest_point_on_ellipse_f32(a, b, p).distance)
+    };
+    // The filled variants run the curve solver only outside; inside points cost 0 iterations.
+    let filled_it64 = |c: &[f64; 4]| {
+        let r = closest_point_on_ellipse(c[0], c[1], DVec2::new(c[2], c[3]));
+        if r.inside { 0 } else { r.iterations }
+    };
+    let filled64 = |c: &[f64; 4]| distance_to_filled_ellipse(c[0], c[1], DVec2::new(c[2], c[3]));
+    let filled_it32 = |c: &[f64; 4]| {
+        let (a, b, p) = f32s(c);
+        if distance_to_filled_ellipse_f32(a, b, p) == 0.0 {
+            0
+        } else {
+            it32(c)
+        }
+    };
+    let filled32 = |c: &[f64; 4]| {
+        let (a, b, p) = f32s(c);
+        f64::from(distance_to_filled_ellipse_f32(a, b, p))
+    };
     print(
         "f64 closest point, hard cases",
-        &measure(&hard, 200, |c| {
-            closest_point_on_ellipse(c[0], c[1], DVec2::new(c[2], c[3])).iterations
-        }),
+        &measure(&hard, 200, it64, d64),
     );
     print(
         "f32 closest point, hard cases",
-        &measure(&hard32, 200, |c| {
-            closest_point_on_ellipse_f32(c[0] as f32, c[1] as f32, [c[2] as f32, c[3] as f32])
-                .iterations
-        }),
+        &measure(&hard32, 200, it32, d32),
     );
 
     // A typical mouse ROI on a 4K canvas: semi-axes 600 × 250 px centred at (1700, 1000); the
@@ -116,33 +206,18 @@ fn main() {
     println!("grid: {w}×{h} pixel centres around a {a}×{b} px ellipse");
     print(
         "f64 closest point (curve), grid",
-        &measure(&grid, 1, |c| {
-            closest_point_on_ellipse(c[0], c[1], DVec2::new(c[2], c[3])).iterations
-        }),
+        &measure(&grid, 1, it64, d64),
     );
     print(
         "f64 filled distance, grid",
-        &measure(&grid, 1, |c| {
-            u32::from(distance_to_filled_ellipse(c[0], c[1], DVec2::new(c[2], c[3])) > 0.0)
-        }),
+        &measure(&grid, 1, filled_it64, filled64),
     );
     print(
         "f32 closest point (curve), grid",
-        &measure(&grid, 1, |c| {
-            closest_point_on_ellipse_f32(c[0] as f32, c[1] as f32, [c[2] as f32, c[3] as f32])
-                .iterations
-        }),
+        &measure(&grid, 1, it32, d32),
     );
     print(
         "f32 filled distance, grid",
-        &measure(&grid, 1, |c| {
-            u32::from(
-                distance_to_filled_ellipse_f32(
-                    c[0] as f32,
-                    c[1] as f32,
-                    [c[2] as f32, c[3] as f32],
-                ) > 0.0,
-            )
-        }),
+        &measure(&grid, 1, filled_it32, filled32),
     );
 }

@@ -26,7 +26,7 @@ const RESIDUAL_TOL: f64 = 16.0 * f64::EPSILON;
 const POINT_KAPPA_MAX: f64 = 1e4;
 /// The spacing of subnormal doubles (2⁻¹⁰⁷⁴): a subnormal result cannot be closer to the truth
 /// than half of it, and each rounding on the way may cost one; the absolute bound allows four.
-const SUBNORMAL_SLACK: f64 = 4.0 * f64::from_bits(1); // four of the smallest subnormals
+const SUBNORMAL_SLACK: f64 = 4.0 * f64::from_bits(1);
 
 /// `|u − v|` without overflow in the squares.
 fn dist(u: DVec2, v: DVec2) -> f64 {

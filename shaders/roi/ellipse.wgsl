@@ -7,16 +7,19 @@
 // mirrors this file op for op; the method and its justification are documented there
 // (DESIGN.md §5). In short: first quadrant, major axis along x, scale by the major semi-axis,
 // Newton on the concave increasing h(w) = S(w)^(-1/2) in the pole-relative unknown w = t + e^2
-// from a certified lower bound (never overshoots), bisection on the bit pattern of w as the
+// (every tangent zero is a lower bound: no overshoot), started at the radial projection's
+// multiplier inside a certified bracket, one probe at the frozen-term estimate where Newton would
+// crawl, a stop predicted from quadratic convergence, and bisection on the bit pattern of w as the
 // guaranteed fallback (at most 31 steps). Pass points relative to the ellipse centre (computed in
 // f64 or integer pixels): the subtraction is where f32 loses most.
 //
 // Iteration bound: ELLIPSE_NEWTON_STEPS + 31 = 47 evaluations of the secular function; the
-// hard-case set needs at most a handful. Every sqrt argument is clamped or provably >= 1.
+// hard-case set needs at most 8. Every sqrt argument is clamped, guarded positive, or >= 1.
 
 const ELLIPSE_NEWTON_STEPS: u32 = 16u;
 const ELLIPSE_BISECTION_STEPS: u32 = 31u;
-// 4 * 2^-23: a Newton step below this fraction of w is rounding noise.
+// f32 machine epsilon 2^-23; a Newton step below 4 * 2^-23 of w is rounding noise.
+const ELLIPSE_EPS: f32 = 1.1920928955078125e-7;
 const ELLIPSE_NEWTON_TOL: f32 = 4.76837158203125e-7;
 // 2^100: beyond this many semi-axes away the far-field point is exact to f32 rounding.
 const ELLIPSE_FAR: f32 = 1.2676506002282294e30;
@@ -99,9 +102,26 @@ fn ellipse_first_quadrant(a: f32, b: f32, x: f32, y: f32) -> EllipseQuadrant {
     var lo = max(eq, r - c);
     var hi = r;
     var w = lo;
+    var probing = false;
+    // Start at the Lagrange multiplier of the radial projection when it lies in the bracket.
+    // Guarded so that nothing overflows (WGSL may assume no infinities): q/e <= 2^100 and
+    // |rho - 1| < den * 2^100 keep every quotient below 2^101.
+    if (q <= e * ELLIPSE_FAR) {
+        let rho = ellipse_hypot(p, q / e);
+        let x0 = p / rho;
+        let b0 = q / (e * rho);
+        let den = e * e * x0 * x0 + b0 * b0;
+        if (abs(rho - 1.0) < den * ELLIPSE_FAR) {
+            let est = e * e * ((rho - 1.0) / den + 1.0);
+            if (est > lo && est < hi) {
+                w = est;
+                probing = true;
+            }
+        }
+    }
     var iterations = 0u;
     var converged = false;
-    var probing = false;
+    var prev_rel = 1.0;
     for (var k = 0u; k < ELLIPSE_NEWTON_STEPS; k++) {
         iterations += 1u;
         let ga = p / (w + c);
@@ -124,10 +144,20 @@ fn ellipse_first_quadrant(a: f32, b: f32, x: f32, y: f32) -> EllipseQuadrant {
         if (newton > lo) {
             lo = min(newton, hi);
         }
-        if (abs(step) <= ELLIPSE_NEWTON_TOL * w) {
+        // Quadratic convergence: the error left after this step is about K * step^2, with K
+        // estimated from the last two steps.
+        let rel = abs(step) / w;
+        if (rel <= ELLIPSE_NEWTON_TOL
+            || (!probing && prev_rel <= 1e-3
+                && rel * rel * rel <= 0.25 * ELLIPSE_EPS * prev_rel * prev_rel)) {
             w = min(max(newton, lo), hi);
             converged = true;
             break;
+        }
+        if (probing) {
+            prev_rel = 1.0;
+        } else {
+            prev_rel = rel;
         }
         if (s >= 1.0 && lo <= w) {
             // Rounding stalls the climb: w is the root to working precision.
@@ -138,7 +168,7 @@ fn ellipse_first_quadrant(a: f32, b: f32, x: f32, y: f32) -> EllipseQuadrant {
         let first = w;
         w = lo;
         probing = false;
-        if (iterations == 1u) {
+        if (iterations == 1u && s >= 1.0) {
             // Freeze one term and solve for the other: an estimate from above, exact near a
             // vertex of an eccentric ellipse where Newton alone crawls. Try it once.
             var frozen = hi;
@@ -148,7 +178,7 @@ fn ellipse_first_quadrant(a: f32, b: f32, x: f32, y: f32) -> EllipseQuadrant {
             if (gb < 1.0) {
                 frozen = min(frozen, p / sqrt((1.0 - gb) * (1.0 + gb)) - c);
             }
-            if (lo - first < 0.25 * (frozen - first)) {
+            if (frozen > lo && lo - first < 0.25 * (frozen - first)) {
                 w = frozen;
                 probing = true;
             }
