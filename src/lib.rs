@@ -13,3 +13,5 @@
 pub mod display;
 pub mod gpu;
 pub mod roi;
+
+pub mod tracking;
