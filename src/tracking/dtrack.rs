@@ -977,7 +977,7 @@ mod tests {
 
     #[test]
     fn non_rotation_matrix_fails_the_frame() {
-        let e = parse(&format!("fr 1\n6d 1 [0 1.0][0 0 0][2 0 0 0 1 0 0 0 1]")).unwrap_err();
+        let e = parse("fr 1\n6d 1 [0 1.0][0 0 0][2 0 0 0 1 0 0 0 1]").unwrap_err();
         assert!(matches!(e.kind, DtrackErrorKind::NotRotation { id: 0, .. }));
     }
 

@@ -11,3 +11,4 @@
 
 pub mod dtrack;
 pub mod event;
+pub mod osc;
