@@ -11,4 +11,7 @@
 
 pub mod dtrack;
 pub mod event;
+pub mod ingest;
 pub mod osc;
+pub mod problems;
+pub mod replay;
