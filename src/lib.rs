@@ -12,6 +12,7 @@
 
 pub mod display;
 pub mod gpu;
+pub mod interaction;
 pub mod roi;
 
 pub mod tracking;
