@@ -10,6 +10,7 @@
 //! `src/<stage>/` computing the same function; the twin is the test oracle and the fallback
 //! backend when no GPU adapter exists.
 
+pub mod cli;
 pub mod display;
 pub mod gpu;
 pub mod interaction;

@@ -92,8 +92,9 @@ pub struct RoiReport {
     pub filter: bool,
 }
 
-fn round_to(v: f64, step: f64) -> f64 {
-    let r = (v / step).round() * step;
+/// `v` rounded to `decimals` places, as the f64 nearest that decimal (so it prints short).
+fn round_to(v: f64, decimals: usize) -> f64 {
+    let r: f64 = format!("{v:.decimals$}").parse().unwrap_or(v);
     // Avoid printing "-0.0".
     if r == 0.0 { 0.0 } else { r }
 }
@@ -102,13 +103,13 @@ impl RoiChange {
     /// The printed form, with times relative to `t_origin`.
     #[must_use]
     pub fn report(&self, t_origin: f64) -> RoiReport {
-        let px = |v: DVec2| [round_to(v.x, 1e-3), round_to(v.y, 1e-3)];
+        let px = |v: DVec2| [round_to(v.x, 3), round_to(v.y, 3)];
         RoiReport {
-            t: round_to(self.t - t_origin, 1e-6),
+            t: round_to(self.t - t_origin, 6),
             kind: self.cause,
             centre_canvas_px: self.roi.centre.map(|c| px(c.canvas_px)),
             centre_image_px: self.roi.centre.map(|c| px(c.image_px)),
-            fov_deg: self.roi.fov_deg.map(|f| round_to(f, 1e-4)),
+            fov_deg: self.roi.fov_deg.map(|f| round_to(f, 4)),
             tile: self.roi.centre.map(|c| c.tile_id),
             filter: self.roi.filter,
         }

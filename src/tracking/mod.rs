@@ -15,3 +15,5 @@ pub mod ingest;
 pub mod osc;
 pub mod problems;
 pub mod replay;
+pub mod synth;
+pub mod udp;

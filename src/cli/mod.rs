@@ -1,0 +1,3 @@
+//! Command-line front ends; `main.rs` parses and dispatches.
+
+pub mod tracking;

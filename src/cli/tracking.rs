@@ -1,0 +1,296 @@
+//! `raygun replay`, `raygun record` and `raygun synth-replays`: clap arguments and run
+//! functions. Arguments are turned into a validated configuration before any work starts.
+//!
+//! `raygun replay FILE` prints one JSON line per ROI change (and per failed shot, with
+//! `"kind":"miss"` or `"untracked"`):
+//!
+//! ```text
+//! {"t":1.516667,"kind":"shoot","centre_canvas_px":[6403.121,2210.5],"centre_image_px":[1819.2,872.6],"fov_deg":[30.0,30.0],"tile":17,"filter":true}
+//! ```
+//!
+//! `t` is seconds since the session's first event; pixels are rounded to 1e-3, degrees to
+//! 1e-4, so the output is deterministic and can be compared with a golden file.
+
+use std::io::{self, Write};
+use std::net::{IpAddr, Ipv4Addr, SocketAddr};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+use std::time::Duration;
+
+use anyhow::{Context, bail};
+use clap::{ArgGroup, Args};
+
+use crate::interaction::{HingedWall, Interaction, InteractionConfig, RoiChange};
+use crate::tracking::event::DeviceId;
+use crate::tracking::ingest::{Ingest, Protocol};
+use crate::tracking::problems::ProblemLog;
+use crate::tracking::replay::{
+    Playback, ReplayHeader, ReplayPayload, ReplayReader, ReplayWriter, play,
+};
+use crate::tracking::udp::{ListenerConfig, UdpSource, record};
+
+/// `raygun replay`.
+#[derive(Args, Debug, Clone)]
+pub struct ReplayArgs {
+    /// Replay file (JSON Lines).
+    pub file: PathBuf,
+    /// Display to shoot at: `hornet` or `desktop` (analytic stand-ins until display models
+    /// are wired in); default: the replay header's `display`.
+    #[arg(long)]
+    pub display: Option<String>,
+    /// Interaction mapping (JSON); default: the documented defaults.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Device to follow, e.g. `flystick:0`; default: the header's, else the config's.
+    #[arg(long)]
+    pub device: Option<DeviceId>,
+    /// Play at recorded speed instead of as fast as possible.
+    #[arg(long)]
+    pub realtime: bool,
+}
+
+/// `raygun record`.
+#[derive(Args, Debug, Clone)]
+#[command(group(ArgGroup::new("source").required(true).args(["dtrack", "osc"])))]
+pub struct RecordArgs {
+    /// Listen for DTrack ASCII on this UDP port.
+    #[arg(long)]
+    pub dtrack: Option<u16>,
+    /// Listen for OSC on this UDP port.
+    #[arg(long)]
+    pub osc: Option<u16>,
+    /// Replay file to write.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Address to bind; anything but loopback needs `--allow-network`.
+    #[arg(long, default_value_t = IpAddr::V4(Ipv4Addr::LOCALHOST))]
+    pub bind: IpAddr,
+    /// Allow binding a non-loopback address.
+    #[arg(long)]
+    pub allow_network: bool,
+    /// Accept datagrams only from these sources (repeatable); default: any.
+    #[arg(long = "allow-from")]
+    pub allow_from: Vec<IpAddr>,
+    /// Stop after this many seconds; default: run until killed.
+    #[arg(long)]
+    pub seconds: Option<f64>,
+}
+
+/// `raygun synth-replays`.
+#[derive(Args, Debug, Clone)]
+pub struct SynthArgs {
+    /// Directory to write into.
+    #[arg(long, default_value = "tracking-replays")]
+    pub out: PathBuf,
+}
+
+/// A surface by name.
+pub fn surface_by_name(name: &str) -> anyhow::Result<HingedWall> {
+    HingedWall::preset(name).with_context(|| {
+        format!("unknown display {name:?}: the replay command knows the stand-ins `hornet` and `desktop`")
+    })
+}
+
+/// Everything a replay run needs, validated.
+pub struct ReplayPlan {
+    pub header: ReplayHeader,
+    pub surface: HingedWall,
+    pub interaction: InteractionConfig,
+    pub playback: Playback,
+}
+
+impl ReplayPlan {
+    /// Reads the header and resolves display, device and mapping.
+    pub fn new(
+        args: &ReplayArgs,
+    ) -> anyhow::Result<(Self, ReplayReader<io::BufReader<std::fs::File>>)> {
+        let reader = ReplayReader::open(&args.file)?;
+        let header = reader.header().clone();
+        let mut interaction = match &args.config {
+            Some(p) => InteractionConfig::load(p)?,
+            None => InteractionConfig::default(),
+        };
+        if let Some(d) = args.device.or(header.device) {
+            interaction.device = d;
+        }
+        interaction.validate()?;
+        let display = args
+            .display
+            .clone()
+            .or_else(|| header.display.clone())
+            .with_context(|| {
+                format!(
+                    "{}: no --display given and the header names none",
+                    args.file.display()
+                )
+            })?;
+        let surface = surface_by_name(&display)?;
+        if let Some(d) = &header.dtrack {
+            d.tracker_to_room
+                .validate()
+                .with_context(|| format!("{}: header `dtrack`", args.file.display()))?;
+        }
+        let playback = if args.realtime {
+            Playback::RealTime
+        } else {
+            Playback::AsFastAsPossible
+        };
+        Ok((
+            Self {
+                header,
+                surface,
+                interaction,
+                playback,
+            },
+            reader,
+        ))
+    }
+
+    /// A fresh ingest path configured from the header.
+    #[must_use]
+    pub fn ingest(&self) -> Ingest {
+        Ingest::new(
+            self.header.dtrack.clone().unwrap_or_default(),
+            self.header.osc.clone().unwrap_or_default(),
+            self.header.time_source,
+        )
+    }
+}
+
+/// Writes ROI changes as JSON lines, times relative to the first event seen.
+pub struct ChangePrinter<W: Write> {
+    out: W,
+    t_origin: Option<f64>,
+}
+
+impl<W: Write> ChangePrinter<W> {
+    pub fn new(out: W) -> Self {
+        Self {
+            out,
+            t_origin: None,
+        }
+    }
+
+    /// Sets the time origin if unset (call with each event's time).
+    pub fn saw_event(&mut self, t: f64) {
+        self.t_origin.get_or_insert(t);
+    }
+
+    pub fn print(&mut self, c: &RoiChange) -> io::Result<()> {
+        let origin = *self.t_origin.get_or_insert(c.t);
+        serde_json::to_writer(&mut self.out, &c.report(origin))?;
+        self.out.write_all(b"\n")
+    }
+
+    pub fn into_inner(self) -> W {
+        self.out
+    }
+}
+
+/// Runs a replay, printing changes to `out`; returns the problem counts (reader and decoders).
+pub fn run_replay(args: &ReplayArgs, out: impl Write) -> anyhow::Result<ProblemLog> {
+    let (plan, reader) = ReplayPlan::new(args)?;
+    let mut ingest = plan.ingest();
+    let mut machine = Interaction::new(plan.interaction.clone());
+    let mut printer = ChangePrinter::new(out);
+    let mut changes = Vec::new();
+    let mut io_result = Ok(());
+    let reader_problems = play(reader, plan.playback, |item| {
+        changes.clear();
+        match &item.payload {
+            ReplayPayload::Datagram(protocol, bytes) => {
+                for e in ingest.datagram(*protocol, bytes, item.t) {
+                    if e.device == machine.config().device {
+                        printer.saw_event(e.t);
+                    }
+                    machine.handle(e, &plan.surface, &mut changes);
+                }
+            }
+            ReplayPayload::Event(e) => {
+                if let Some(e) = ingest.event(e.clone()) {
+                    if e.device == machine.config().device {
+                        printer.saw_event(e.t);
+                    }
+                    machine.handle(&e, &plan.surface, &mut changes);
+                }
+            }
+        }
+        for c in &changes {
+            if io_result.is_ok() {
+                io_result = printer.print(c);
+            }
+        }
+    });
+    io_result.context("writing ROI changes")?;
+    let mut problems = reader_problems;
+    problems.merge(&ingest.problems);
+    Ok(problems)
+}
+
+/// Validated recorder settings.
+pub fn listener_config(args: &RecordArgs) -> anyhow::Result<(ListenerConfig, Protocol)> {
+    let (port, protocol) = match (args.dtrack, args.osc) {
+        (Some(p), None) => (p, Protocol::Dtrack),
+        (None, Some(p)) => (p, Protocol::Osc),
+        _ => bail!("give exactly one of --dtrack PORT and --osc PORT"),
+    };
+    if let Some(s) = args.seconds
+        && !(s.is_finite() && s > 0.0)
+    {
+        bail!("--seconds must be a positive number of seconds, not {s}");
+    }
+    let config = ListenerConfig {
+        bind: SocketAddr::new(args.bind, port),
+        allow_non_loopback: args.allow_network,
+        allow_from: args.allow_from.clone(),
+        ..ListenerConfig::loopback(port)
+    };
+    Ok((config, protocol))
+}
+
+/// Records live traffic into a replay file; returns the number of datagrams written.
+pub fn run_record(args: &RecordArgs, stop: &AtomicBool) -> anyhow::Result<u64> {
+    let (config, protocol) = listener_config(args)?;
+    let mut source = UdpSource::bind(config)?;
+    let file = std::fs::File::create(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
+    let mut header = ReplayHeader::new(format!(
+        "recorded by raygun record from {:?} on {}",
+        protocol,
+        source.local_addr()?
+    ));
+    header.display = None;
+    let mut writer = ReplayWriter::new(io::BufWriter::new(file), &header)?;
+    let mut problems = ProblemLog::default();
+    let n = record(
+        &mut source,
+        protocol,
+        &mut writer,
+        stop,
+        args.seconds.map(Duration::from_secs_f64),
+        &mut problems,
+    )
+    .with_context(|| format!("recording into {}", args.out.display()))?;
+    Ok(n)
+}
+
+/// Writes the synthetic sessions.
+pub fn run_synth(args: &SynthArgs) -> anyhow::Result<Vec<PathBuf>> {
+    crate::tracking::synth::write_all(&args.out)
+        .with_context(|| format!("writing into {}", args.out.display()))
+}
+
+/// The golden file of a replay: `tracking-replays/golden/<stem>.roi.jsonl`.
+#[must_use]
+pub fn golden_path(replay: &Path) -> PathBuf {
+    let name = replay
+        .file_name()
+        .and_then(|n| n.to_str())
+        .unwrap_or("replay.jsonl");
+    let stem = name.strip_suffix(".jsonl").unwrap_or(name);
+    replay
+        .parent()
+        .unwrap_or(Path::new("."))
+        .join("golden")
+        .join(format!("{stem}.roi.jsonl"))
+}
