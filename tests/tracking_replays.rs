@@ -10,7 +10,6 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use raygun::cli::tracking::{ChangePrinter, ReplayArgs, ReplayPlan, golden_path, run_replay};
-use raygun::interaction::Interaction;
 use raygun::tracking::replay::ReplayPayload;
 use raygun::tracking::synth;
 use raygun::tracking::udp::{ListenerConfig, Live, UdpSource, run_live};
@@ -147,14 +146,12 @@ fn run_over_udp(file: &Path) -> String {
     let listener = {
         let (stop, live) = (stop.clone(), live.clone());
         std::thread::spawn(move || {
-            let mut ingest = plan.ingest();
-            let mut machine = Interaction::new(plan.interaction.clone());
+            let mut pipeline = plan.pipeline();
             let mut printer = ChangePrinter::new(Vec::new());
             run_live(
                 &mut source,
                 protocol,
-                &mut ingest,
-                &mut machine,
+                &mut pipeline,
                 &plan.surface,
                 &stop,
                 &live,
@@ -168,7 +165,7 @@ fn run_over_udp(file: &Path) -> String {
                 },
             )
             .unwrap();
-            (printer.into_inner(), ingest.problems)
+            (printer.into_inner(), pipeline.ingest.problems)
         })
     };
     let sender = UdpSocket::bind("127.0.0.1:0").unwrap();

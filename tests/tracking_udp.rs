@@ -11,7 +11,7 @@ use raygun::cli::tracking::{RecordArgs, listener_config};
 use raygun::interaction::{ChangeCause, HingedWall, Interaction, InteractionConfig, RoiChange};
 use raygun::tracking::dtrack::{DtrackConfig, TimeSource};
 use raygun::tracking::event::{DeviceId, DeviceKind};
-use raygun::tracking::ingest::{Ingest, Protocol};
+use raygun::tracking::ingest::{Ingest, Pipeline, Protocol};
 use raygun::tracking::osc::{OscConfig, encode};
 use raygun::tracking::problems::ProblemLog;
 use raygun::tracking::replay::{ReplayHeader, ReplayPayload, ReplayReader, ReplayWriter};
@@ -47,17 +47,17 @@ fn feed(
                 TimeSource::Receive,
             );
             ingest.problems.quiet = true;
-            let mut machine = Interaction::new(InteractionConfig {
+            let machine = Interaction::new(InteractionConfig {
                 device,
                 ..InteractionConfig::default()
             });
+            let mut pipeline = Pipeline::new(ingest, machine);
             let wall = HingedWall::hornet();
             let mut changes = Vec::new();
             run_live(
                 &mut source,
                 protocol,
-                &mut ingest,
-                &mut machine,
+                &mut pipeline,
                 &wall,
                 &stop,
                 &live,
@@ -66,7 +66,7 @@ fn feed(
                 },
             )
             .unwrap();
-            (changes, ingest.problems)
+            (changes, pipeline.ingest.problems)
         })
     };
     let sender = UdpSocket::bind("127.0.0.1:0").unwrap();
@@ -101,7 +101,7 @@ fn bad_dtrack_input_of_every_kind_is_counted_and_never_reaches_the_roi() {
         format!("6df2 1 1 [0 1.0 6 2][inf 0 1000]{ID_ROT}[1 0 0]").into_bytes(),
         b"6d 4294967295 [0 1.0]".to_vec(),
         oversized,
-        format!("6df2 1 1 [0 1.0 6 2][0 0 1000][9 9 9 9 9 9 9 9 9][1 0 0]").into_bytes(),
+        b"6df2 1 1 [0 1.0 6 2][0 0 1000][9 9 9 9 9 9 9 9 9][1 0 0]".to_vec(),
         format!("6df2 1 1 [0 1.0 6 2][0 0 1000]{ID_ROT}[1 7.0 0]").into_bytes(),
     ];
     let mut all = bad.clone();

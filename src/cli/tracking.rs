@@ -22,7 +22,7 @@ use clap::{ArgGroup, Args};
 
 use crate::interaction::{HingedWall, Interaction, InteractionConfig, RoiChange};
 use crate::tracking::event::DeviceId;
-use crate::tracking::ingest::{Ingest, Protocol};
+use crate::tracking::ingest::{Ingest, Pipeline, Protocol};
 use crate::tracking::problems::ProblemLog;
 use crate::tracking::replay::{
     Playback, ReplayHeader, ReplayPayload, ReplayReader, ReplayWriter, play,
@@ -146,14 +146,15 @@ impl ReplayPlan {
         ))
     }
 
-    /// A fresh ingest path configured from the header.
+    /// A fresh pipeline configured from the header and the mapping.
     #[must_use]
-    pub fn ingest(&self) -> Ingest {
-        Ingest::new(
+    pub fn pipeline(&self) -> Pipeline {
+        let ingest = Ingest::new(
             self.header.dtrack.clone().unwrap_or_default(),
             self.header.osc.clone().unwrap_or_default(),
             self.header.time_source,
-        )
+        );
+        Pipeline::new(ingest, Interaction::new(self.interaction.clone()))
     }
 }
 
@@ -190,32 +191,27 @@ impl<W: Write> ChangePrinter<W> {
 /// Runs a replay, printing changes to `out`; returns the problem counts (reader and decoders).
 pub fn run_replay(args: &ReplayArgs, out: impl Write) -> anyhow::Result<ProblemLog> {
     let (plan, reader) = ReplayPlan::new(args)?;
-    let mut ingest = plan.ingest();
-    let mut machine = Interaction::new(plan.interaction.clone());
+    let mut pipeline = plan.pipeline();
+    let device = plan.interaction.device;
     let mut printer = ChangePrinter::new(out);
-    let mut changes = Vec::new();
     let mut io_result = Ok(());
     let reader_problems = play(reader, plan.playback, |item| {
-        changes.clear();
-        match &item.payload {
+        let changes = match &item.payload {
             ReplayPayload::Datagram(protocol, bytes) => {
-                for e in ingest.datagram(*protocol, bytes, item.t) {
-                    if e.device == machine.config().device {
-                        printer.saw_event(e.t);
-                    }
-                    machine.handle(e, &plan.surface, &mut changes);
+                let (events, changes) = pipeline.datagram(*protocol, bytes, item.t, &plan.surface);
+                if let Some(e) = events.iter().find(|e| e.device == device) {
+                    printer.saw_event(e.t);
                 }
+                changes
             }
             ReplayPayload::Event(e) => {
-                if let Some(e) = ingest.event(e.clone()) {
-                    if e.device == machine.config().device {
-                        printer.saw_event(e.t);
-                    }
-                    machine.handle(&e, &plan.surface, &mut changes);
+                if e.device == device && e.is_valid() {
+                    printer.saw_event(e.t);
                 }
+                pipeline.event(e.clone(), &plan.surface)
             }
-        }
-        for c in &changes {
+        };
+        for c in changes {
             if io_result.is_ok() {
                 io_result = printer.print(c);
             }
@@ -223,7 +219,7 @@ pub fn run_replay(args: &ReplayArgs, out: impl Write) -> anyhow::Result<ProblemL
     });
     io_result.context("writing ROI changes")?;
     let mut problems = reader_problems;
-    problems.merge(&ingest.problems);
+    problems.merge(&pipeline.ingest.problems);
     Ok(problems)
 }
 

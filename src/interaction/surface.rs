@@ -156,7 +156,7 @@ impl RaySurface for HingedWall {
                 continue;
             }
             let t = (left - origin).dot(n) / denom;
-            if !(t > 1e-9) || best.is_some_and(|b| b.t <= t) {
+            if t.is_nan() || t <= 1e-9 || best.is_some_and(|b| b.t <= t) {
                 continue;
             }
             let p = origin + dir * t;

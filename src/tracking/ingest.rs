@@ -6,6 +6,7 @@ use super::dtrack::{DtrackConfig, DtrackDecoder, TimeSource};
 use super::event::TrackingEvent;
 use super::osc::{OscConfig, OscDecoder};
 use super::problems::ProblemLog;
+use crate::interaction::{Interaction, RaySurface, RoiChange};
 
 /// The protocol of a raw datagram.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -13,6 +14,51 @@ use super::problems::ProblemLog;
 pub enum Protocol {
     Dtrack,
     Osc,
+}
+
+/// Decoder and state machine together: raw input in, ROI changes out. Live listeners and
+/// replays both drive this, so a replay reproduces what the live run did.
+#[derive(Clone, Debug)]
+pub struct Pipeline {
+    pub ingest: Ingest,
+    pub interaction: Interaction,
+    changes: Vec<RoiChange>,
+}
+
+impl Pipeline {
+    #[must_use]
+    pub fn new(ingest: Ingest, interaction: Interaction) -> Self {
+        Self {
+            ingest,
+            interaction,
+            changes: Vec::new(),
+        }
+    }
+
+    /// One raw datagram: its events and the ROI changes they caused.
+    pub fn datagram(
+        &mut self,
+        protocol: Protocol,
+        data: &[u8],
+        receive_t: f64,
+        surface: &dyn RaySurface,
+    ) -> (&[TrackingEvent], &[RoiChange]) {
+        self.changes.clear();
+        let events = self.ingest.datagram(protocol, data, receive_t);
+        for e in events {
+            self.interaction.handle(e, surface, &mut self.changes);
+        }
+        (events, &self.changes)
+    }
+
+    /// One normalised event (validated first).
+    pub fn event(&mut self, event: TrackingEvent, surface: &dyn RaySurface) -> &[RoiChange] {
+        self.changes.clear();
+        if let Some(e) = self.ingest.event(event) {
+            self.interaction.handle(&e, surface, &mut self.changes);
+        }
+        &self.changes
+    }
 }
 
 /// Decoders for both protocols plus the problem counters.

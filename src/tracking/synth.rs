@@ -240,7 +240,7 @@ pub fn simulate(spec: &SessionSpec) -> Vec<Sample> {
         };
         if spec.targets == Targets::SomeOffWall && k % 3 == 2 {
             // Above the top edge, or past the left end of the wall.
-            return if k % 2 == 0 {
+            return if k.is_multiple_of(2) {
                 DVec3::new(rng.range(-1.0, 1.0), rng.range(1.8, 2.3), 0.0)
             } else {
                 DVec3::new(-4.5, rng.range(-0.5, 0.5), 1.5)

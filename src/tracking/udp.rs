@@ -17,10 +17,10 @@ use std::time::{Duration, Instant};
 use socket2::{Domain, Protocol as SockProtocol, Socket, Type};
 
 use super::event::TrackingEvent;
-use super::ingest::{Ingest, Protocol};
+use super::ingest::{Pipeline, Protocol};
 use super::problems::ProblemLog;
 use super::replay::ReplayWriter;
-use crate::interaction::{Interaction, RaySurface, RoiChange, RoiState};
+use crate::interaction::{RaySurface, RoiChange, RoiState};
 
 /// Smallest kernel receive buffer accepted: one maximal OSC bundle must fit.
 pub const MIN_RECV_BUFFER: usize = 64 * 1024;
@@ -187,53 +187,50 @@ impl Live {
     }
 }
 
-/// Receives on `source` until `stop` is set: every datagram goes through `ingest` and
-/// `interaction`; its events and the ROI changes they caused are passed to `on_datagram`, and
-/// the latest ROI is published in `live`.
+/// Receives on `source` until `stop` is set: every datagram goes through `pipeline`; its
+/// events and the ROI changes they caused are passed to `on_datagram`, and the latest ROI is
+/// published in `live`.
 pub fn run_live(
     source: &mut UdpSource,
     protocol: Protocol,
-    ingest: &mut Ingest,
-    interaction: &mut Interaction,
+    pipeline: &mut Pipeline,
     surface: &dyn RaySurface,
     stop: &AtomicBool,
     live: &Live,
     mut on_datagram: impl FnMut(&[TrackingEvent], &[RoiChange]),
 ) -> io::Result<()> {
     let start = Instant::now();
-    let mut changes = Vec::new();
     while !stop.load(Ordering::Relaxed) {
-        let problems_before = ingest.problems.total();
+        let problems_before = pipeline.ingest.problems.total();
         let t = start.elapsed().as_secs_f64();
+        let mut latest: Option<RoiState> = None;
+        let mut n_changes = 0;
         match source.recv()? {
             Received::Idle => continue,
             Received::Rejected(from) => {
-                ingest.problems.report(
+                pipeline.ingest.problems.report(
                     "udp_rejected_source",
                     format_args!("datagram from {from} is not on the allow-list"),
                 );
             }
             Received::Datagram(bytes, _) => {
-                changes.clear();
-                let events = ingest.datagram(protocol, bytes, t);
-                for e in events {
-                    interaction.handle(e, surface, &mut changes);
-                }
-                on_datagram(events, &changes);
+                let (events, changes) = pipeline.datagram(protocol, bytes, t, surface);
+                on_datagram(events, changes);
+                latest = changes.last().map(|c| c.roi);
+                n_changes = changes.len();
             }
         }
         let Ok(mut snap) = live.snapshot.lock() else {
             return Err(io::Error::other("live state lock poisoned"));
         };
         snap.datagrams += 1;
-        if let Some(last) = changes.last() {
-            snap.roi = Some(last.roi);
-            snap.version += changes.len() as u64;
+        if latest.is_some() {
+            snap.roi = latest;
+            snap.version += n_changes as u64;
         }
-        if ingest.problems.total() != problems_before {
-            snap.problems = ingest.problems.clone();
+        if pipeline.ingest.problems.total() != problems_before {
+            snap.problems = pipeline.ingest.problems.clone();
         }
-        changes.clear();
     }
     Ok(())
 }
