@@ -9,6 +9,7 @@
 //! Raw datagrams from a replay file and from a live socket take the same path
 //! ([`ingest::Ingest`]), so a recorded session reproduces exactly what the live run did.
 
+pub mod bench;
 pub mod dtrack;
 pub mod event;
 pub mod ingest;
