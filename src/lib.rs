@@ -10,10 +10,11 @@
 //! `src/<stage>/` computing the same function; the twin is the test oracle and the fallback
 //! backend when no GPU adapter exists.
 
+pub mod bench;
 pub mod cli;
 pub mod display;
 pub mod gpu;
 pub mod interaction;
+pub mod output;
 pub mod roi;
-
 pub mod tracking;

@@ -1,1 +1,66 @@
-fn main() {}
+//! The `raygun` command. Arguments are parsed into each command's typed configuration before any
+//! work starts; errors are printed once, with their cause chain.
+
+use clap::{Parser, Subcommand};
+
+use raygun::cli;
+
+/// raygun — guided high-quality rendering on display walls.
+#[derive(Parser)]
+#[command(version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Write the distance-guide image for a ray-gun pose or a mouse ROI.
+    Dgi(cli::dgi::DgiArgs),
+    /// Where a ray meets the display, as one JSON object.
+    Pick(cli::display::PickArgs),
+    /// Display-model tools.
+    #[command(subcommand)]
+    Display(DisplayCommand),
+    /// Closest points on ellipses: `a,b,x,y` lines on stdin → `distance,cx,cy` on stdout.
+    EllipseDistance,
+    /// Benchmarks: speed and error, with the hardware they ran on.
+    #[command(subcommand)]
+    Bench(cli::bench::BenchCommand),
+}
+
+#[derive(Subcommand)]
+enum DisplayCommand {
+    /// Print the model's explicit form (generators expanded), as the loader sees it.
+    Expand(cli::display::ExpandArgs),
+}
+
+fn main() {
+    let cli = Cli::parse();
+    let result = match &cli.command {
+        Command::Dgi(args) => cli::dgi::run(args),
+        Command::Pick(args) => cli::display::pick(args).map(|v| println!("{v}")),
+        Command::Display(DisplayCommand::Expand(args)) => {
+            cli::display::expand(args).map(|text| println!("{text}"))
+        }
+        Command::EllipseDistance => ellipse_distance(),
+        Command::Bench(cmd) => cli::bench::run(cmd),
+    };
+    if let Err(e) = result {
+        eprintln!("raygun: error: {e:#}");
+        std::process::exit(1);
+    }
+}
+
+/// Streams stdin to stdout; exits 1 after the whole stream if any line was bad.
+fn ellipse_distance() -> anyhow::Result<()> {
+    let stats = cli::ellipse_distance::run(
+        std::io::stdin().lock(),
+        std::io::BufWriter::new(std::io::stdout().lock()),
+        std::io::stderr().lock(),
+    )?;
+    if stats.errors > 0 {
+        anyhow::bail!("{} of {} lines were rejected", stats.errors, stats.queries);
+    }
+    Ok(())
+}

@@ -1,3 +1,9 @@
-//! Command-line front ends; `main.rs` parses and dispatches.
+//! Command-line front ends: argument types (clap) and the command logic, kept in the library so
+//! tests can run a command without spawning the binary. `main.rs` wires them into subcommands.
 
+pub mod args;
+pub mod bench;
+pub mod dgi;
+pub mod display;
+pub mod ellipse_distance;
 pub mod tracking;

@@ -5,7 +5,7 @@
 //! `"kind":"miss"` or `"untracked"`):
 //!
 //! ```text
-//! {"t":1.516667,"kind":"shoot","centre_canvas_px":[6403.121,2210.5],"centre_image_px":[1819.2,872.6],"fov_deg":[30.0,30.0],"tile":17,"filter":true}
+//! {"t":1.916667,"kind":"shoot","centre_canvas_px":[5870.74,3779.658],"centre_image_px":[1667.527,1496.188],"fov_deg":[30.0,30.0],"tile":"c3r3","filter":true}
 //! ```
 //!
 //! `t` is seconds since the session's first event; pixels are rounded to 1e-3, degrees to
@@ -20,7 +20,8 @@ use std::time::Duration;
 use anyhow::{Context, bail};
 use clap::{ArgGroup, Args};
 
-use crate::interaction::{HingedWall, Interaction, InteractionConfig, RoiChange};
+use crate::display::DisplayModel;
+use crate::interaction::{Interaction, InteractionConfig, RoiChange};
 use crate::tracking::event::DeviceId;
 use crate::tracking::ingest::{Ingest, Pipeline, Protocol};
 use crate::tracking::problems::ProblemLog;
@@ -34,10 +35,11 @@ use crate::tracking::udp::{ListenerConfig, UdpSource, record};
 pub struct ReplayArgs {
     /// Replay file (JSON Lines).
     pub file: PathBuf,
-    /// Display to shoot at: `hornet` or `desktop` (analytic stand-ins until display models
-    /// are wired in); default: the replay header's `display`.
+    /// Display model to shoot at (`display-models/*.json`); default: the replay header's
+    /// `display`, looked up relative to the working directory, then to the replay's folder's
+    /// parent (where the shipped replays' models live).
     #[arg(long)]
-    pub display: Option<String>,
+    pub display: Option<PathBuf>,
     /// Interaction mapping (JSON); default: the documented defaults.
     #[arg(long)]
     pub config: Option<PathBuf>,
@@ -84,17 +86,23 @@ pub struct SynthArgs {
     pub out: PathBuf,
 }
 
-/// A surface by name.
-pub fn surface_by_name(name: &str) -> anyhow::Result<HingedWall> {
-    HingedWall::preset(name).with_context(|| {
-        format!("unknown display {name:?}: the replay command knows the stand-ins `hornet` and `desktop`")
-    })
+/// The display model file a replay names: as given, else next to the replay's folder.
+fn resolve_display(named: &str, replay: &Path) -> PathBuf {
+    let direct = PathBuf::from(named);
+    if direct.exists() {
+        return direct;
+    }
+    let beside = replay
+        .parent()
+        .and_then(Path::parent)
+        .map(|p| p.join(named));
+    beside.filter(|p| p.exists()).unwrap_or(direct)
 }
 
 /// Everything a replay run needs, validated.
 pub struct ReplayPlan {
     pub header: ReplayHeader,
-    pub surface: HingedWall,
+    pub surface: DisplayModel,
     pub interaction: InteractionConfig,
     pub playback: Playback,
 }
@@ -114,17 +122,15 @@ impl ReplayPlan {
             interaction.device = d;
         }
         interaction.validate()?;
-        let display = args
-            .display
-            .clone()
-            .or_else(|| header.display.clone())
-            .with_context(|| {
-                format!(
-                    "{}: no --display given and the header names none",
-                    args.file.display()
-                )
-            })?;
-        let surface = surface_by_name(&display)?;
+        let display = match (&args.display, &header.display) {
+            (Some(p), _) => p.clone(),
+            (None, Some(named)) => resolve_display(named, &args.file),
+            (None, None) => bail!(
+                "{}: no --display given and the header names none",
+                args.file.display()
+            ),
+        };
+        let surface = DisplayModel::load(&display)?;
         if let Some(d) = &header.dtrack {
             d.tracker_to_room
                 .validate()

@@ -71,6 +71,12 @@ pub enum GpuError {
         #[source]
         source: wgpu::RequestDeviceError,
     },
+    #[error("{what} needs {bytes} bytes in one binding; this adapter allows {max}")]
+    TooLarge {
+        what: &'static str,
+        bytes: u64,
+        max: u64,
+    },
     #[error("GPU buffer read-back failed: {0}")]
     Map(#[from] wgpu::BufferAsyncError),
     #[error("GPU poll failed: {0}")]
@@ -262,5 +268,69 @@ mod tests {
         assert!(adapter_rank(D::DiscreteGpu, B::Vulkan) < adapter_rank(D::DiscreteGpu, B::Gl));
         assert!(adapter_rank(D::DiscreteGpu, B::Gl) < adapter_rank(D::IntegratedGpu, B::Vulkan));
         assert!(adapter_rank(D::VirtualGpu, B::Vulkan) < adapter_rank(D::Cpu, B::Vulkan));
+    }
+}
+
+/// GPU time of compute passes from timestamp queries, where the adapter has them.
+///
+/// Each measured pass writes a begin and an end timestamp; [`PassTimer::read_ms`] resolves
+/// them after the work has been submitted and returns one duration per pass in milliseconds.
+pub struct PassTimer {
+    set: wgpu::QuerySet,
+    resolve: wgpu::Buffer,
+    passes: u32,
+    period_ns: f64,
+}
+
+impl PassTimer {
+    /// `None` when the adapter has no timestamp queries (callers then time on the CPU).
+    #[must_use]
+    pub fn new(ctx: &GpuContext, passes: u32) -> Option<Self> {
+        if !ctx.timestamps || passes == 0 {
+            return None;
+        }
+        let count = passes * 2;
+        let set = ctx.device.create_query_set(&wgpu::QuerySetDescriptor {
+            label: Some("raygun pass timer"),
+            ty: wgpu::QueryType::Timestamp,
+            count,
+        });
+        let resolve = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("raygun pass timer resolve"),
+            size: u64::from(count) * 8,
+            usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        Some(Self {
+            set,
+            resolve,
+            passes,
+            period_ns: f64::from(ctx.queue.get_timestamp_period()),
+        })
+    }
+
+    /// The timestamp writes for pass number `pass`.
+    #[must_use]
+    pub fn writes(&self, pass: u32) -> wgpu::ComputePassTimestampWrites<'_> {
+        assert!(pass < self.passes, "pass {pass} out of {}", self.passes);
+        wgpu::ComputePassTimestampWrites {
+            query_set: &self.set,
+            beginning_of_pass_write_index: Some(2 * pass),
+            end_of_pass_write_index: Some(2 * pass + 1),
+        }
+    }
+
+    /// Resolves the queries into the read-back buffer (record after the measured passes).
+    pub fn resolve(&self, encoder: &mut wgpu::CommandEncoder) {
+        encoder.resolve_query_set(&self.set, 0..self.passes * 2, &self.resolve, 0);
+    }
+
+    /// Reads the pass durations (ms) after the encoder with [`Self::resolve`] was submitted.
+    pub fn read_ms(&self, ctx: &GpuContext) -> Result<Vec<f64>, GpuError> {
+        let ticks: Vec<u64> = ctx.read_buffer(&self.resolve)?;
+        Ok(ticks
+            .chunks_exact(2)
+            .map(|p| p[1].wrapping_sub(p[0]) as f64 * self.period_ns * 1e-6)
+            .collect())
     }
 }

@@ -33,16 +33,16 @@ pub struct Cone {
 }
 
 /// Where the ROI is centred.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct RoiCentre {
     pub point: DVec3,
     pub canvas_px: DVec2,
     pub image_px: DVec2,
-    pub tile_id: u32,
+    pub tile_id: String,
 }
 
 /// The ROI as the rest of the pipeline needs it: one immutable snapshot per change.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct RoiState {
     /// `None` before the first shot, and for mouse ROIs.
     pub cone: Option<Cone>,
@@ -71,7 +71,7 @@ pub enum ChangeCause {
 }
 
 /// One ROI change (or a reported failed shot).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct RoiChange {
     pub t: f64,
     pub cause: ChangeCause,
@@ -88,7 +88,7 @@ pub struct RoiReport {
     pub centre_canvas_px: Option<[f64; 2]>,
     pub centre_image_px: Option<[f64; 2]>,
     pub fov_deg: [f64; 2],
-    pub tile: Option<u32>,
+    pub tile: Option<String>,
     pub filter: bool,
 }
 
@@ -107,10 +107,10 @@ impl RoiChange {
         RoiReport {
             t: round_to(self.t - t_origin, 6),
             kind: self.cause,
-            centre_canvas_px: self.roi.centre.map(|c| px(c.canvas_px)),
-            centre_image_px: self.roi.centre.map(|c| px(c.image_px)),
+            centre_canvas_px: self.roi.centre.as_ref().map(|c| px(c.canvas_px)),
+            centre_image_px: self.roi.centre.as_ref().map(|c| px(c.image_px)),
             fov_deg: self.roi.fov_deg.map(|f| round_to(f, 4)),
-            tile: self.roi.centre.map(|c| c.tile_id),
+            tile: self.roi.centre.as_ref().map(|c| c.tile_id.clone()),
             filter: self.roi.filter,
         }
     }
@@ -168,7 +168,7 @@ impl Interaction {
         out.push(RoiChange {
             t,
             cause,
-            roi: self.roi,
+            roi: self.roi.clone(),
         });
     }
 
@@ -278,7 +278,7 @@ impl Interaction {
             point: hit.point,
             canvas_px: hit.canvas_px,
             image_px: surface.canvas_to_image(hit.canvas_px, self.config.image_size),
-            tile_id: hit.tile_id,
+            tile_id: hit.tile_id.clone(),
         }
     }
 

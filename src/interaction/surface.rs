@@ -1,19 +1,25 @@
 //! What the interaction needs from a display: ray intersection and canvas look-ups.
 //!
-//! The real implementation is `raygun::display::DisplayModel`; until it is wired in, the state
-//! machine is written against [`RaySurface`] and tested with [`HingedWall`], an analytic
-//! stand-in for walls of planar columns hinged along vertical edges (HORNET, a flat monitor).
+//! The real implementation is [`DisplayModel`] (display models with bezels and an exact
+//! canvas); the state machine is written against [`RaySurface`] so that its tests can use
+//! [`HingedWall`], an analytic wall of planar columns hinged along vertical edges whose answers
+//! are easy to write down, and so that the synthetic-session generator can aim without a file.
 
 use glam::{DVec2, DVec3};
 
+use crate::display::DisplayModel;
+
 /// Where a ray (or a canvas point) lands on a display.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct SurfaceHit {
     /// Room-frame point, metres.
     pub point: DVec3,
     /// Canvas pixel (x right, y down, origin at the canvas's top-left corner).
     pub canvas_px: DVec2,
-    pub tile_id: u32,
+    /// Index of the tile in the display's tile list.
+    pub tile: usize,
+    /// The tile's id as the display names it.
+    pub tile_id: String,
     /// Ray parameter (distance along the unit direction); 0 for canvas look-ups.
     pub t: f64,
 }
@@ -135,7 +141,9 @@ impl HingedWall {
         SurfaceHit {
             point: self.point(c, u, y),
             canvas_px,
-            tile_id: row * self.columns + c as u32,
+            tile: (row * self.columns) as usize + c,
+            // Named like the display models name their generated tiles.
+            tile_id: format!("c{c}r{row}"),
             t,
         }
     }
@@ -156,7 +164,7 @@ impl RaySurface for HingedWall {
                 continue;
             }
             let t = (left - origin).dot(n) / denom;
-            if t.is_nan() || t <= 1e-9 || best.is_some_and(|b| b.t <= t) {
+            if t.is_nan() || t <= 1e-9 || best.as_ref().is_some_and(|b| b.t <= t) {
                 continue;
             }
             let p = origin + dir * t;
@@ -191,6 +199,34 @@ impl RaySurface for HingedWall {
     }
 }
 
+impl RaySurface for DisplayModel {
+    fn hit(&self, origin: DVec3, dir: DVec3) -> Option<SurfaceHit> {
+        self.intersect(origin, dir).map(|h| SurfaceHit {
+            point: h.point,
+            canvas_px: h.canvas_px,
+            tile: h.tile,
+            tile_id: h.tile_id,
+            t: h.t,
+        })
+    }
+
+    fn locate(&self, canvas_px: DVec2) -> Option<SurfaceHit> {
+        let i = self.tile_at_canvas(canvas_px)?;
+        let tile = &self.tiles()[i];
+        Some(SurfaceHit {
+            point: tile.canvas_to_point(canvas_px),
+            canvas_px,
+            tile: i,
+            tile_id: tile.id().to_owned(),
+            t: 0.0,
+        })
+    }
+
+    fn canvas_to_image(&self, canvas_px: DVec2, image_size: [u32; 2]) -> DVec2 {
+        DisplayModel::canvas_to_image(self, canvas_px, image_size)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -203,7 +239,7 @@ mod tests {
         assert!((h.canvas_px - w.canvas_size() / 2.0).length() < 1e-9);
         assert!((h.t - 1.0).abs() < 1e-12);
         // Column 3 (the middle), row 2 (the middle).
-        assert_eq!(h.tile_id, 2 * 7 + 3);
+        assert_eq!((h.tile, h.tile_id.as_str()), (2 * 7 + 3, "c3r2"));
     }
 
     #[test]
@@ -261,5 +297,27 @@ mod tests {
         assert!((s.x - 3840.0).abs() < 1e-9);
         let i = w.canvas_to_image(s / 2.0, [1920, 1080]);
         assert!((i - DVec2::new(960.0, 540.0)).length() < 1e-9);
+    }
+
+    #[test]
+    fn hinged_wall_agrees_with_the_shipped_hornet_model() {
+        // The stand-in and display-models/hornet.json describe the same wall: rays hit the same
+        // points on the same tiles (canvas pixels differ: the model's canvas has bezel pixels).
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/display-models/hornet.json");
+        let model = DisplayModel::load(path).unwrap();
+        let wall = HingedWall::hornet();
+        let eye = DVec3::new(0.0, 0.0, 1.0);
+        for (x, y) in [
+            (0.1, 0.2),
+            (-2.5, 1.0),
+            (3.0, -1.2),
+            (-3.3, 0.0),
+            (1.7, 0.9),
+        ] {
+            let target = wall.hit(eye, DVec3::new(x, y, -1.0)).unwrap();
+            let h = RaySurface::hit(&model, eye, target.point - eye).unwrap();
+            assert!((h.point - target.point).length() < 1e-9, "{x} {y}");
+            assert_eq!(h.tile_id, target.tile_id, "{x} {y}");
+        }
     }
 }

@@ -20,9 +20,9 @@
 //!   interaction mapping does, the FOV goes 30° → 10°, then 10° → 60°, 60° → 10°, …
 //!   At rest the stick reads small noise inside the dead zone.
 //!
-//! Geometry: the HORNET stand-in ([`HingedWall::hornet`]: 7 columns of 1.024 m, 10° apart,
-//! 2.9 m high, centred at the origin, middle column in z = 0) with the viewer 1 m in front of
-//! the centre; the stick is held 25 cm right of, 35 cm below and 25 cm in front of the eyes.
+//! Geometry: HORNET (`display-models/hornet.json`; the generator aims with the identical
+//! analytic [`HingedWall::hornet`]: 7 columns of 1.024 m, 10° apart, 2.9 m high, centred at the
+//! origin, middle column in z = 0) with the viewer 1 m in front of the centre; the stick is held 25 cm right of, 35 cm below and 25 cm in front of the eyes.
 //! DTrack datagrams are written in a Z-up tracker frame whose origin is on the floor 1.45 m
 //! below the wall centre (the header carries the matching tracker→room transform).
 
@@ -487,7 +487,7 @@ fn header(spec: &SessionSpec, device: DeviceId, form: &str) -> ReplayHeader {
         spec.dropouts
     ));
     h.synthetic = true;
-    h.display = Some("hornet".into());
+    h.display = Some("display-models/hornet.json".into());
     h.device = Some(device);
     h
 }
@@ -602,7 +602,7 @@ pub fn mouse_replay() -> io::Result<Vec<u8>> {
          raygun::tracking::synth: 12 s at 60 Hz, min-jerk pointer moves, 8 clicks. Not recorded from a person.",
     );
     h.synthetic = true;
-    h.display = Some("desktop".into());
+    h.display = Some("display-models/desktop-27in-4k.json".into());
     h.device = Some(device);
     let mut w = ReplayWriter::new(Vec::new(), &h)?;
     let size = HingedWall::desktop().canvas_size();

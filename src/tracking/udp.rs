@@ -216,7 +216,7 @@ pub fn run_live(
             Received::Datagram(bytes, _) => {
                 let (events, changes) = pipeline.datagram(protocol, bytes, t, surface);
                 on_datagram(events, changes);
-                latest = changes.last().map(|c| c.roi);
+                latest = changes.last().map(|c| c.roi.clone());
                 n_changes = changes.len();
             }
         }

@@ -1,0 +1,4 @@
+//! Benchmarks (`raygun bench …`): speed and error, measured in the repository, reported with
+//! the hardware they ran on. Never timed tests.
+
+pub mod dgi;

@@ -1,0 +1,190 @@
+//! Parsers for the command line's comma-separated lists ("X,Y,Z", "W,H", "A,B").
+
+use glam::{DVec2, DVec3};
+
+/// Why a command-line list did not parse.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ListParseError {
+    #[error("{text:?}: expected {expected} comma-separated numbers ({form}), found {found}")]
+    Count {
+        text: String,
+        expected: usize,
+        found: usize,
+        form: &'static str,
+    },
+    #[error("{text:?}: item {index} ({item:?}) is not a number")]
+    NotANumber {
+        text: String,
+        index: usize,
+        item: String,
+    },
+    #[error("{text:?}: item {index} ({item:?}) is not finite")]
+    NonFinite {
+        text: String,
+        index: usize,
+        item: String,
+    },
+    #[error(
+        "{text:?}: item {index} ({item:?}) is not a whole number from 1 to {}",
+        u32::MAX
+    )]
+    NotAPositiveInteger {
+        text: String,
+        index: usize,
+        item: String,
+    },
+}
+
+fn floats<const N: usize>(text: &str, form: &'static str) -> Result<[f64; N], ListParseError> {
+    let items: Vec<&str> = text.split(',').map(str::trim).collect();
+    if items.len() != N {
+        return Err(ListParseError::Count {
+            text: text.to_owned(),
+            expected: N,
+            found: items.len(),
+            form,
+        });
+    }
+    let mut out = [0.0; N];
+    for (index, (slot, item)) in out.iter_mut().zip(&items).enumerate() {
+        let v: f64 = item.parse().map_err(|_| ListParseError::NotANumber {
+            text: text.to_owned(),
+            index: index + 1,
+            item: (*item).to_owned(),
+        })?;
+        if !v.is_finite() {
+            return Err(ListParseError::NonFinite {
+                text: text.to_owned(),
+                index: index + 1,
+                item: (*item).to_owned(),
+            });
+        }
+        *slot = v;
+    }
+    Ok(out)
+}
+
+/// "X,Y,Z" → a finite vector.
+pub fn parse_vec3(text: &str) -> Result<DVec3, ListParseError> {
+    floats::<3>(text, "X,Y,Z").map(DVec3::from_array)
+}
+
+/// "A,B" → a finite pair.
+pub fn parse_pair(text: &str) -> Result<DVec2, ListParseError> {
+    floats::<2>(text, "A,B").map(DVec2::from_array)
+}
+
+/// "W,H" → two whole numbers ≥ 1.
+pub fn parse_size(text: &str) -> Result<[u32; 2], ListParseError> {
+    let items: Vec<&str> = text.split(',').map(str::trim).collect();
+    if items.len() != 2 {
+        return Err(ListParseError::Count {
+            text: text.to_owned(),
+            expected: 2,
+            found: items.len(),
+            form: "W,H",
+        });
+    }
+    let mut out = [0u32; 2];
+    for (index, (slot, item)) in out.iter_mut().zip(&items).enumerate() {
+        *slot = item.parse::<u32>().ok().filter(|&v| v > 0).ok_or_else(|| {
+            ListParseError::NotAPositiveInteger {
+                text: text.to_owned(),
+                index: index + 1,
+                item: (*item).to_owned(),
+            }
+        })?;
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn vec3_accepts_negatives_spaces_and_exponents() {
+        assert_eq!(
+            parse_vec3("-1, 2.5 ,3e-1").unwrap(),
+            DVec3::new(-1.0, 2.5, 0.3)
+        );
+    }
+
+    #[test]
+    fn vec3_rejects_wrong_count_naming_what_was_found() {
+        let e = parse_vec3("1,2").unwrap_err();
+        assert_eq!(
+            e,
+            ListParseError::Count {
+                text: "1,2".into(),
+                expected: 3,
+                found: 2,
+                form: "X,Y,Z"
+            }
+        );
+        assert!(e.to_string().contains("X,Y,Z"), "{e}");
+        assert!(matches!(
+            parse_vec3("1,2,3,4"),
+            Err(ListParseError::Count { found: 4, .. })
+        ));
+    }
+
+    #[test]
+    fn vec3_names_the_bad_item() {
+        let e = parse_vec3("1,x,3").unwrap_err();
+        assert!(
+            matches!(e, ListParseError::NotANumber { index: 2, .. }),
+            "{e:?}"
+        );
+        assert!(matches!(
+            parse_vec3("1,,3"),
+            Err(ListParseError::NotANumber { index: 2, .. })
+        ));
+        assert!(matches!(
+            parse_vec3("nan,0,0"),
+            Err(ListParseError::NonFinite { index: 1, .. })
+        ));
+        assert!(matches!(
+            parse_vec3("0,0,inf"),
+            Err(ListParseError::NonFinite { index: 3, .. })
+        ));
+    }
+
+    #[test]
+    fn size_needs_two_positive_integers() {
+        assert_eq!(parse_size("3840,2160").unwrap(), [3840, 2160]);
+        assert!(matches!(
+            parse_size("0,2160"),
+            Err(ListParseError::NotAPositiveInteger { index: 1, .. })
+        ));
+        assert!(matches!(
+            parse_size("3840,-1"),
+            Err(ListParseError::NotAPositiveInteger { index: 2, .. })
+        ));
+        assert!(matches!(
+            parse_size("3840.5,2160"),
+            Err(ListParseError::NotAPositiveInteger { .. })
+        ));
+        assert!(matches!(
+            parse_size("3840"),
+            Err(ListParseError::Count { found: 1, .. })
+        ));
+    }
+
+    #[test]
+    fn pair_parses_and_names_the_bad_item() {
+        assert_eq!(parse_pair("1,-2").unwrap(), DVec2::new(1.0, -2.0));
+        assert!(matches!(
+            parse_pair("1,x"),
+            Err(ListParseError::NotANumber { index: 2, .. })
+        ));
+        assert!(matches!(
+            parse_pair("1,inf"),
+            Err(ListParseError::NonFinite { index: 2, .. })
+        ));
+        assert!(matches!(
+            parse_pair("1"),
+            Err(ListParseError::Count { found: 1, .. })
+        ));
+    }
+}

@@ -1,0 +1,84 @@
+//! `raygun bench …` arguments.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+
+use crate::bench::dgi::{self, DgiBenchConfig};
+use crate::display::DisplayModel;
+use crate::gpu::{Backend, BackendChoice};
+use crate::roi::dgi::{Falloff, Surface};
+
+#[derive(Clone, Debug, clap::Subcommand)]
+pub enum BenchCommand {
+    /// DGI time per metric and backend, and the cheaper metrics' error against the exact one.
+    Dgi(DgiBenchArgs),
+}
+
+#[derive(Clone, Debug, clap::Args)]
+pub struct DgiBenchArgs {
+    /// Display model (the paper's setup: HORNET).
+    #[arg(
+        long,
+        value_name = "FILE",
+        default_value = "display-models/hornet.json"
+    )]
+    pub display: PathBuf,
+    /// Image size.
+    #[arg(long, value_name = "W,H", value_parser = crate::cli::args::parse_size, default_value = "3840,2160")]
+    pub size: [u32; 2],
+    /// Fields of view to measure, degrees (square cones).
+    #[arg(
+        long,
+        value_name = "DEG,…",
+        value_delimiter = ',',
+        default_value = "10,30,60"
+    )]
+    pub fov: Vec<f64>,
+    /// GPU repetitions per measurement (median reported).
+    #[arg(long, default_value_t = 50)]
+    pub reps: u32,
+    /// CPU repetitions per measurement.
+    #[arg(long, default_value_t = 3)]
+    pub cpu_reps: u32,
+    #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
+    pub backend: BackendChoice,
+    /// Print JSON instead of a Markdown table.
+    #[arg(long)]
+    pub json: bool,
+    /// Also write the output to this file.
+    #[arg(long, value_name = "FILE")]
+    pub out: Option<PathBuf>,
+}
+
+pub fn run(cmd: &BenchCommand) -> anyhow::Result<()> {
+    match cmd {
+        BenchCommand::Dgi(args) => {
+            let model = DisplayModel::load(&args.display)?;
+            let surface = Surface::from_model(&model);
+            let backend = Backend::select(args.backend)?;
+            let config = DgiBenchConfig {
+                size: args.size,
+                fovs_deg: args.fov.clone(),
+                gpu_reps: args.reps.max(1),
+                cpu_reps: args.cpu_reps.max(1),
+                falloff: Falloff::default(),
+                ..DgiBenchConfig::default()
+            };
+            let report = dgi::run(&surface, model.name(), &backend, &config, |what| {
+                eprintln!("raygun bench dgi: {what}");
+            })?;
+            let text = if args.json {
+                serde_json::to_string_pretty(&report)?
+            } else {
+                report.to_markdown()
+            };
+            println!("{text}");
+            if let Some(path) = &args.out {
+                std::fs::write(path, &text)
+                    .with_context(|| format!("writing {}", path.display()))?;
+            }
+            Ok(())
+        }
+    }
+}

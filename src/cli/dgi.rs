@@ -1,0 +1,138 @@
+//! `raygun dgi`: the distance-guide image for a pose (ray gun) or a click (mouse).
+
+use std::path::PathBuf;
+
+use anyhow::{Context, bail};
+use glam::{DVec2, DVec3};
+
+use crate::cli::args::{parse_pair, parse_size, parse_vec3};
+use crate::display::DisplayModel;
+use crate::gpu::{Backend, BackendChoice};
+use crate::roi::cone::Cone;
+use crate::roi::dgi::{DgiParams, Falloff, Guide, Metric, Roi, Surface, compute_cpu, roi_radius_m};
+use crate::roi::gpu::DgiKernel;
+
+#[derive(Clone, Debug, clap::Args)]
+pub struct DgiArgs {
+    /// Display model file (e.g. display-models/hornet.json).
+    #[arg(long, value_name = "FILE")]
+    pub display: PathBuf,
+    /// Ray-gun apex in the room frame, metres.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true,
+          requires_all = ["dir", "fov"], conflicts_with_all = ["center_px", "axes_px"])]
+    pub origin: Option<DVec3>,
+    /// Pointing direction in the room frame.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub dir: Option<DVec3>,
+    /// Up hint: the ROI's vertical axis is this vector made perpendicular to the direction.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true,
+          default_value = "0,1,0")]
+    pub up: DVec3,
+    /// Full horizontal and vertical field of view, degrees.
+    #[arg(long, value_name = "H,V", value_parser = parse_pair)]
+    pub fov: Option<DVec2>,
+    /// Mouse ROI: centre in image pixels.
+    #[arg(long = "center-px", value_name = "X,Y", value_parser = parse_pair,
+          requires = "axes_px", allow_hyphen_values = true)]
+    pub center_px: Option<DVec2>,
+    /// Mouse ROI: semi-axes in image pixels.
+    #[arg(long = "axes-px", value_name = "A,B", value_parser = parse_pair)]
+    pub axes_px: Option<DVec2>,
+    /// Distance measure.
+    #[arg(long, value_enum, default_value_t = Metric::Exact)]
+    pub metric: Metric,
+    /// Image size (the image covers the display's canvas).
+    #[arg(long, value_name = "W,H", value_parser = parse_size, default_value = "3840,2160")]
+    pub size: [u32; 2],
+    /// Falloff L = BASE + SCALE × ROI radius: the base, metres along the wall.
+    #[arg(long, value_name = "METRES", default_value_t = Falloff::DEFAULT_BASE_M)]
+    pub falloff_base: f64,
+    /// Falloff L = BASE + SCALE × ROI radius: the scale.
+    #[arg(long, value_name = "K", default_value_t = Falloff::DEFAULT_SCALE)]
+    pub falloff_scale: f64,
+    /// Write the raw canvas distance (canvas pixels) instead of d (EXR only).
+    #[arg(long)]
+    pub raw: bool,
+    /// Output file: .exr (32-bit float, one channel) or .png (8-bit view of d).
+    #[arg(long, value_name = "FILE")]
+    pub out: PathBuf,
+    #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
+    pub backend: BackendChoice,
+}
+
+/// Builds the ROI the arguments describe.
+pub fn roi_from_args(args: &DgiArgs, model: &DisplayModel) -> anyhow::Result<Roi> {
+    match (args.origin, args.center_px) {
+        (Some(origin), None) => {
+            let (Some(dir), Some(fov)) = (args.dir, args.fov) else {
+                bail!("--origin needs --dir and --fov");
+            };
+            Ok(Roi::Cone(Cone::from_pose(
+                origin, dir, args.up, fov.x, fov.y,
+            )?))
+        }
+        (None, Some(center)) => {
+            let axes = args.axes_px.context("--center-px needs --axes-px")?;
+            if !(axes.x >= 0.0 && axes.y >= 0.0) {
+                bail!(
+                    "--axes-px must be two non-negative numbers, got {},{}",
+                    axes.x,
+                    axes.y
+                );
+            }
+            let canvas = model.canvas_rect();
+            let scale =
+                canvas.size() / DVec2::new(f64::from(args.size[0]), f64::from(args.size[1]));
+            Ok(Roi::CanvasEllipse {
+                center: model.image_to_canvas(center, args.size),
+                semi_axes: axes * scale,
+            })
+        }
+        _ => bail!(
+            "give either a ray-gun pose (--origin, --dir, --fov) or a mouse ROI (--center-px, --axes-px)"
+        ),
+    }
+}
+
+pub fn run(args: &DgiArgs) -> anyhow::Result<()> {
+    let model = DisplayModel::load(&args.display)?;
+    let roi = roi_from_args(args, &model)?;
+    let surface = Surface::from_model(&model);
+    let falloff = Falloff::new(args.falloff_base, args.falloff_scale)?;
+    let length_px = falloff.length_px(roi_radius_m(&surface, &roi), model.pitch_m());
+    let params = DgiParams {
+        width: args.size[0],
+        height: args.size[1],
+        falloff_px: (!args.raw).then_some(length_px),
+    };
+    if args.raw
+        && !args
+            .out
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("exr"))
+    {
+        bail!("--raw distances need an .exr output");
+    }
+    let guide = Guide::new(&surface, &roi, args.metric)?;
+    let backend = Backend::select(args.backend)?;
+    let values = match &backend {
+        Backend::Gpu(ctx) => DgiKernel::new(ctx).compute(ctx, &surface, &guide, &params)?,
+        Backend::Cpu => compute_cpu(&surface, &guide, &params),
+    };
+    crate::output::write_gray(
+        &args.out,
+        params.width,
+        params.height,
+        &values,
+        if args.raw { "distance" } else { "dgi" },
+    )?;
+    eprintln!(
+        "raygun dgi: {}×{} {:?} on {} → {}",
+        params.width,
+        params.height,
+        args.metric,
+        backend.describe(),
+        args.out.display()
+    );
+    Ok(())
+}

@@ -1,0 +1,125 @@
+//! `raygun pick` and `raygun display expand`: arguments and command logic.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use glam::{DVec2, DVec3};
+use serde_json::{Value, json};
+
+use crate::cli::args::{parse_size, parse_vec3};
+use crate::display::DisplayModel;
+
+/// `raygun pick`: where does a ray meet the display?
+#[derive(Clone, Debug, clap::Args)]
+pub struct PickArgs {
+    /// Display model file (e.g. display-models/hornet.json).
+    #[arg(long, value_name = "FILE")]
+    pub display: PathBuf,
+    /// Ray origin in the room frame, metres.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub origin: DVec3,
+    /// Ray direction in the room frame (any length but zero).
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub dir: DVec3,
+    /// Rendered image size, for `image_px`.
+    #[arg(long, value_name = "W,H", value_parser = parse_size, default_value = "3840,2160")]
+    pub size: [u32; 2],
+}
+
+/// `raygun display expand`: print a model's explicit form.
+#[derive(Clone, Debug, clap::Args)]
+pub struct ExpandArgs {
+    /// Display model file (explicit or generator form).
+    #[arg(value_name = "FILE")]
+    pub file: PathBuf,
+}
+
+/// `raygun pick`: loads the model and reports the first hit as one JSON object (see
+/// [`pick_on`]).
+pub fn pick(args: &PickArgs) -> anyhow::Result<Value> {
+    let model = DisplayModel::load(&args.display)?;
+    pick_on(&model, args.origin, args.dir, args.size)
+}
+
+/// The hit of the ray `origin + t·dir` on `model` as
+/// `{"hit":true,"tile":ID,"tile_index":I,"tile_px":[x,y],"canvas_px":[x,y],"image_px":[x,y],
+/// "point":[x,y,z],"t":T,"on_bezel":B}` (`t` in metres, pixel centres at `i + 0.5`), or
+/// `{"hit":false}`. Rejects non-finite input, a zero direction and an empty image size.
+pub fn pick_on(
+    model: &DisplayModel,
+    origin: DVec3,
+    dir: DVec3,
+    size: [u32; 2],
+) -> anyhow::Result<Value> {
+    anyhow::ensure!(origin.is_finite(), "--origin must be finite, got {origin}");
+    anyhow::ensure!(
+        dir.is_finite() && dir.length_squared() > 0.0,
+        "--dir must be a finite, non-zero direction, got {dir}"
+    );
+    anyhow::ensure!(size[0] > 0 && size[1] > 0, "--size must be positive");
+    let Some(hit) = model.intersect(origin, dir) else {
+        return Ok(json!({ "hit": false }));
+    };
+    let image_px: DVec2 = model.canvas_to_image(hit.canvas_px, size);
+    Ok(json!({
+        "hit": true,
+        "tile": hit.tile_id,
+        "tile_index": hit.tile,
+        "tile_px": hit.tile_px.to_array(),
+        "canvas_px": hit.canvas_px.to_array(),
+        "image_px": image_px.to_array(),
+        "point": hit.point.to_array(),
+        "t": hit.t,
+        "on_bezel": hit.on_bezel,
+    }))
+}
+
+/// `raygun display expand`: the model's explicit form as pretty JSON (no trailing newline). It
+/// loads back into the same model.
+pub fn expand(args: &ExpandArgs) -> anyhow::Result<String> {
+    let model = DisplayModel::load(&args.file)
+        .with_context(|| format!("expanding {}", args.file.display()))?;
+    Ok(model.to_json_pretty())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[derive(clap::Parser)]
+    struct Cli {
+        #[command(flatten)]
+        pick: PickArgs,
+    }
+
+    #[test]
+    fn clap_takes_negative_triples_and_defaults_the_size() {
+        use clap::Parser;
+        let cli = Cli::try_parse_from([
+            "pick",
+            "--display",
+            "m.json",
+            "--origin",
+            "-1,0,1",
+            "--dir",
+            "0,-0.5,-1",
+        ])
+        .unwrap();
+        assert_eq!(cli.pick.origin, DVec3::new(-1.0, 0.0, 1.0));
+        assert_eq!(cli.pick.dir, DVec3::new(0.0, -0.5, -1.0));
+        assert_eq!(cli.pick.size, [3840, 2160]);
+        let err = Cli::try_parse_from([
+            "pick",
+            "--display",
+            "m.json",
+            "--origin",
+            "1,0",
+            "--dir",
+            "0,0,-1",
+        ])
+        .err()
+        .unwrap()
+        .to_string();
+        assert!(err.contains("expected 3 comma-separated numbers"), "{err}");
+    }
+}

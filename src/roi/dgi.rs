@@ -1,0 +1,384 @@
+//! The distance-guide image (DESIGN.md §5), CPU twin of `shaders/roi/dgi.wgsl`.
+//!
+//! One value per image pixel: d = clamp(d_raw / L, 0, 1), where d_raw is the canvas distance (in
+//! canvas pixels) from the pixel centre's canvas point to the projected ROI region, under one of
+//! three metrics:
+//! * `Exact`: the region is the cone's exact projection on every tile ([`super::conic`]);
+//! * `Ellipse`: the paper's approximation, one canvas ellipse through the projected centre and
+//!   the projected ends of the horizontal and vertical FOV;
+//! * `Angular`: the angle between the direction apex→P and the cone, converted to canvas pixels
+//!   at the ROI centre's viewing distance.
+//!
+//! Both backends consume the same [`Guide`], built once per ROI change in f64 on the CPU.
+
+use glam::{DVec2, DVec3};
+use rayon::prelude::*;
+
+use super::cone::Cone;
+use super::conic::{CanvasRect, ConicKind, Patch, Piece, PlacedConic, section};
+
+/// Which distance the DGI measures.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Metric {
+    /// Exact canvas distance to the cone's projection on the exact wall geometry.
+    #[default]
+    Exact,
+    /// The paper-style canvas ellipse through the projected centre and FOV ends.
+    Ellipse,
+    /// Angle to the cone, scaled to canvas pixels at the ROI centre's distance.
+    Angular,
+}
+
+/// The region of interest, as the interaction stage hands it over.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Roi {
+    /// The ray gun's frozen cone.
+    Cone(Cone),
+    /// The mouse fallback: an axis-aligned ellipse on the canvas (orthogonal projection, no
+    /// viewer distance known), centre and semi-axes in canvas pixels.
+    CanvasEllipse { center: DVec2, semi_axes: DVec2 },
+}
+
+/// The display surface as the DGI sees it: planar patches covering the canvas.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Surface {
+    pub canvas: CanvasRect,
+    pub patches: Vec<Patch>,
+    /// Metres per canvas pixel (for the angular metric's conversion).
+    pub pitch_m: f64,
+}
+
+impl Surface {
+    /// The planar patches of a display model: one per tile, its active area and bezels.
+    #[must_use]
+    pub fn from_model(model: &crate::display::DisplayModel) -> Self {
+        let rect = |r: crate::display::Rect| CanvasRect {
+            min: r.min,
+            max: r.max,
+        };
+        let patches = model
+            .tiles()
+            .iter()
+            .enumerate()
+            .map(|(i, tile)| {
+                // Built from the corners rather than by differencing mapped points: exact to
+                // rounding of the corner coordinates.
+                let [tl, tr, bl] = tile.corners();
+                let [w, h] = tile.resolution();
+                let ex = (tr - tl) / f64::from(w);
+                let ey = (bl - tl) / f64::from(h);
+                let c0 = tile.canvas_origin();
+                Patch {
+                    rect: rect(model.tile_canvas_rect(i)),
+                    origin: tl - c0.x * ex - c0.y * ey,
+                    ex,
+                    ey,
+                }
+            })
+            .collect();
+        Self {
+            canvas: rect(model.canvas_rect()),
+            patches,
+            pitch_m: model.pitch_m(),
+        }
+    }
+
+    /// The patch containing canvas point `c` (the first, on shared edges).
+    #[must_use]
+    pub fn patch_at(&self, c: DVec2) -> Option<&Patch> {
+        self.patches.iter().find(|p| p.rect.contains(c))
+    }
+
+    /// Intersects a ray with the surface: the nearest positive hit over all patches, as
+    /// (canvas point, distance along the unit ray).
+    #[must_use]
+    pub fn hit(&self, origin: DVec3, dir: DVec3) -> Option<(DVec2, f64)> {
+        let dir = dir.try_normalize()?;
+        let mut best: Option<(DVec2, f64)> = None;
+        for p in &self.patches {
+            let n = p.ex.cross(p.ey);
+            let denom = dir.dot(n);
+            if denom == 0.0 || !denom.is_finite() {
+                continue;
+            }
+            let t = (p.origin - origin).dot(n) / denom;
+            if !(t > 0.0) || best.is_some_and(|(_, bt)| bt <= t) {
+                continue;
+            }
+            // Solve origin + t·dir = p.origin + cx·ex + cy·ey for (cx, cy) by least squares
+            // (ex ⟂ ey up to the tile's tolerance; use the 2×2 normal equations).
+            let r = origin + t * dir - p.origin;
+            let (exx, exy, eyy) = (p.ex.dot(p.ex), p.ex.dot(p.ey), p.ey.dot(p.ey));
+            let (bx, by) = (r.dot(p.ex), r.dot(p.ey));
+            let det = exx * eyy - exy * exy;
+            let c = DVec2::new((bx * eyy - by * exy) / det, (by * exx - bx * exy) / det);
+            if p.rect.contains(c) {
+                best = Some((c, t));
+            }
+        }
+        best
+    }
+}
+
+/// The image the DGI is computed for and its normalisation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DgiParams {
+    pub width: u32,
+    pub height: u32,
+    /// Falloff length L in canvas pixels; `None` writes the raw distance d_raw instead.
+    pub falloff_px: Option<f64>,
+}
+
+impl DgiParams {
+    /// Canvas pixels per image pixel along x and y (the image covers the canvas).
+    #[must_use]
+    pub fn scale(&self, canvas: &CanvasRect) -> DVec2 {
+        (canvas.max - canvas.min) / DVec2::new(f64::from(self.width), f64::from(self.height))
+    }
+
+    /// Canvas point of image pixel (i, j)'s centre.
+    #[must_use]
+    pub fn pixel_to_canvas(&self, canvas: &CanvasRect, i: u32, j: u32) -> DVec2 {
+        canvas.min + (DVec2::new(f64::from(i), f64::from(j)) + 0.5) * self.scale(canvas)
+    }
+}
+
+/// The falloff length L of the DGI normalisation d = clamp(d_raw / L, 0, 1).
+///
+/// The paper normalises to [0, 1] without saying how. DESIGN.md §5 asks that the default draws
+/// about 2–4 % of the pixels per iteration at 10° FOV and 35–45 % at 60° in the paper's setup
+/// (HORNET, viewer 1 m from the centre), as its speed-ups imply. No single length does both:
+/// on HORNET a fixed L = 0.63 m gives 2.9 % at 10° but only 12.5 % at 60°, and L proportional
+/// to the ROI's size gives 40 % at 60° but 1.2 % at 10°. So L grows with the ROI:
+/// L = base + scale · ρ, with ρ the ROI's radius on the wall (metres; for the ray gun the
+/// distance to the wall along the axis times √(tan(α_h/2)·tan(α_v/2)), for the mouse √(a·b)).
+/// The defaults were fitted on HORNET (the calibration test in `tests/dgi_calibration.rs`
+/// checks the shares they give).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct Falloff {
+    /// Metres along the wall.
+    pub base_m: f64,
+    /// Multiple of the ROI radius.
+    pub scale: f64,
+}
+
+impl Default for Falloff {
+    fn default() -> Self {
+        Self {
+            base_m: Self::DEFAULT_BASE_M,
+            scale: Self::DEFAULT_SCALE,
+        }
+    }
+}
+
+/// A falloff setting that cannot give a positive length.
+#[derive(Clone, Copy, Debug, thiserror::Error, PartialEq)]
+#[error(
+    "falloff base {base_m} m and scale {scale} must be finite and non-negative, with a positive base"
+)]
+pub struct FalloffError {
+    pub base_m: f64,
+    pub scale: f64,
+}
+
+impl Falloff {
+    pub const DEFAULT_BASE_M: f64 = 0.33;
+    pub const DEFAULT_SCALE: f64 = 3.4;
+
+    pub fn new(base_m: f64, scale: f64) -> Result<Self, FalloffError> {
+        if base_m.is_finite() && scale.is_finite() && base_m > 0.0 && scale >= 0.0 {
+            Ok(Self { base_m, scale })
+        } else {
+            Err(FalloffError { base_m, scale })
+        }
+    }
+
+    /// L in canvas pixels for an ROI of radius `roi_radius_m` on a wall of pitch `pitch_m`.
+    #[must_use]
+    pub fn length_px(&self, roi_radius_m: f64, pitch_m: f64) -> f64 {
+        (self.base_m + self.scale * roi_radius_m) / pitch_m
+    }
+}
+
+/// The ROI's radius on the wall in metres (see [`Falloff`]); 0 when the ray gun's axis misses.
+#[must_use]
+pub fn roi_radius_m(surface: &Surface, roi: &Roi) -> f64 {
+    match roi {
+        Roi::Cone(cone) => surface
+            .hit(cone.apex, cone.axis)
+            .map_or(0.0, |(_, t)| t * (cone.tan_h * cone.tan_v).sqrt()),
+        Roi::CanvasEllipse { semi_axes, .. } => {
+            (semi_axes.x.abs() * semi_axes.y.abs()).sqrt() * surface.pitch_m
+        }
+    }
+}
+
+/// Why a guide cannot be built.
+#[derive(Clone, Copy, Debug, thiserror::Error, PartialEq)]
+pub enum GuideError {
+    #[error("the {metric:?} metric needs the pointing ray to hit the display, and it misses")]
+    CentreMisses { metric: Metric },
+    #[error("the angular metric needs a ray-gun cone; the mouse ROI has no viewer position")]
+    AngularNeedsCone,
+}
+
+/// Everything a backend needs to compute a DGI, precomputed in f64 once per ROI change.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Guide {
+    /// Distance to a union of clipped conic pieces (exact and ellipse metrics, mouse ROI).
+    Pieces(Vec<Piece>),
+    /// Angular distance to the cone, `px_per_radian` canvas pixels per radian.
+    Angular { cone: Cone, px_per_radian: f64 },
+}
+
+impl Guide {
+    /// Builds the guide for `roi` on `surface` under `metric`.
+    pub fn new(surface: &Surface, roi: &Roi, metric: Metric) -> Result<Self, GuideError> {
+        match (roi, metric) {
+            (Roi::CanvasEllipse { center, semi_axes }, Metric::Exact | Metric::Ellipse) => {
+                let conic = PlacedConic {
+                    kind: ConicKind::Ellipse {
+                        a: semi_axes.x.abs(),
+                        b: semi_axes.y.abs(),
+                    },
+                    origin: *center,
+                    axis_u: DVec2::X,
+                };
+                Ok(Self::Pieces(
+                    Piece::new(surface.canvas, conic).into_iter().collect(),
+                ))
+            }
+            (Roi::CanvasEllipse { .. }, Metric::Angular) => Err(GuideError::AngularNeedsCone),
+            (Roi::Cone(cone), Metric::Exact) => Ok(Self::Pieces(
+                surface
+                    .patches
+                    .iter()
+                    .filter_map(|p| Piece::new(p.rect, section(cone, p)))
+                    .collect(),
+            )),
+            (Roi::Cone(cone), Metric::Ellipse) => Ok(Self::Pieces(
+                paper_ellipse(surface, cone)?.into_iter().collect(),
+            )),
+            (Roi::Cone(cone), Metric::Angular) => {
+                let (_, t) = surface
+                    .hit(cone.apex, cone.axis)
+                    .ok_or(GuideError::CentreMisses { metric })?;
+                Ok(Self::Angular {
+                    cone: *cone,
+                    px_per_radian: t / surface.pitch_m,
+                })
+            }
+        }
+    }
+
+    /// The raw canvas distance d_raw at canvas point `c` (f64 reference; `+∞` when the region
+    /// is empty).
+    #[must_use]
+    pub fn distance(&self, surface: &Surface, c: DVec2) -> f64 {
+        self.distance_capped(surface, c, f64::INFINITY)
+    }
+
+    /// min(d_raw, cap): pieces whose bounding box is `cap` or farther away are skipped (with
+    /// cap = L every such pixel has d = 1 anyway).
+    #[must_use]
+    pub fn distance_capped(&self, surface: &Surface, c: DVec2, cap: f64) -> f64 {
+        match self {
+            Self::Pieces(pieces) => {
+                let mut best = cap;
+                for p in pieces {
+                    if p.bounds.distance(c) >= best {
+                        continue;
+                    }
+                    best = best.min(p.distance(c));
+                    if best == 0.0 {
+                        break;
+                    }
+                }
+                best
+            }
+            Self::Angular {
+                cone,
+                px_per_radian,
+            } => match surface.patch_at(c) {
+                Some(p) => (cone.angular_excess(p.point(c)) * px_per_radian).min(cap),
+                None => cap,
+            },
+        }
+    }
+}
+
+/// The paper's canvas ellipse: centred at the projected ROI centre, with semi-axes reaching the
+/// projected ends of the horizontal and vertical FOV (the mean of each pair, since the two ends
+/// are not symmetric on an oblique or curved wall), its major direction along the projected
+/// horizontal FOV. The FOV ends are projected onto the plane of the tile the centre hits.
+fn paper_ellipse(surface: &Surface, cone: &Cone) -> Result<Option<Piece>, GuideError> {
+    let miss = GuideError::CentreMisses {
+        metric: Metric::Ellipse,
+    };
+    let (centre, _) = surface.hit(cone.apex, cone.axis).ok_or(miss)?;
+    let patch = surface.patch_at(centre).ok_or(miss)?;
+    let on_plane = |dir: DVec3| -> Option<DVec2> {
+        let plane = Surface {
+            canvas: surface.canvas,
+            patches: vec![Patch {
+                rect: CanvasRect {
+                    min: DVec2::splat(f64::NEG_INFINITY),
+                    max: DVec2::splat(f64::INFINITY),
+                },
+                ..*patch
+            }],
+            pitch_m: surface.pitch_m,
+        };
+        plane.hit(cone.apex, dir).map(|(c, _)| c)
+    };
+    let end = |along: DVec3, tan: f64| -> f64 {
+        let reach = |sign: f64| {
+            on_plane(cone.axis + sign * tan * along)
+                .map_or(f64::INFINITY, |c| (c - centre).length())
+        };
+        0.5 * (reach(1.0) + reach(-1.0))
+    };
+    let a = end(cone.right, cone.tan_h);
+    let b = end(cone.up, cone.tan_v);
+    // Direction of the projected horizontal axis on the canvas.
+    let axis_u = on_plane(cone.axis + 1e-3 * cone.tan_h * cone.right)
+        .and_then(|c| (c - centre).try_normalize())
+        .unwrap_or(DVec2::X);
+    // A FOV end that misses the plane (very wide cones at grazing angles) makes the ellipse
+    // unbounded: cap it at the canvas size, which covers every pixel anyway.
+    let cap = (surface.canvas.max - surface.canvas.min).length();
+    let conic = PlacedConic {
+        kind: ConicKind::Ellipse {
+            a: a.min(cap),
+            b: b.min(cap),
+        },
+        origin: centre,
+        axis_u,
+    };
+    Ok(Piece::new(surface.canvas, conic))
+}
+
+/// Computes the DGI on the CPU (f64, rayon): row-major, `width × height` values.
+#[must_use]
+pub fn compute_cpu(surface: &Surface, guide: &Guide, params: &DgiParams) -> Vec<f32> {
+    let w = params.width as usize;
+    let mut out = vec![0f32; w * params.height as usize];
+    out.par_chunks_mut(w).enumerate().for_each(|(j, row)| {
+        for (i, v) in row.iter_mut().enumerate() {
+            let c = params.pixel_to_canvas(&surface.canvas, i as u32, j as u32);
+            let d = guide.distance_capped(surface, c, params.falloff_px.unwrap_or(f64::INFINITY));
+            *v = normalise(d, params.falloff_px) as f32;
+        }
+    });
+    out
+}
+
+/// d = clamp(d_raw / L, 0, 1), or d_raw itself when no falloff is given.
+#[must_use]
+pub fn normalise(d_raw: f64, falloff_px: Option<f64>) -> f64 {
+    match falloff_px {
+        Some(l) => (d_raw / l).clamp(0.0, 1.0),
+        None => d_raw,
+    }
+}

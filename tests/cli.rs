@@ -1,0 +1,242 @@
+//! The `raygun` binary end to end: arguments, outputs and error messages.
+
+use std::path::PathBuf;
+use std::process::Command;
+
+fn raygun(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_raygun"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .output()
+        .expect("the raygun binary runs")
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("raygun-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+fn read_exr_gray(path: &PathBuf) -> (usize, usize, Vec<f32>) {
+    let img = exr::prelude::read_first_flat_layer_from_file(path).unwrap();
+    let size = img.layer_data.size;
+    let values = img.layer_data.channel_data.list[0]
+        .sample_data
+        .values_as_f32()
+        .collect();
+    (size.0, size.1, values)
+}
+
+#[test]
+fn dgi_writes_exr_on_both_backends_and_they_agree() {
+    let mut results = Vec::new();
+    for backend in ["cpu", "gpu"] {
+        let out = tmp(&format!("dgi-{backend}.exr"));
+        let o = raygun(&[
+            "dgi",
+            "--display",
+            "display-models/hornet.json",
+            "--origin",
+            "0,0,1",
+            "--dir",
+            "0,0,-1",
+            "--fov",
+            "30,20",
+            "--size",
+            "192,108",
+            "--backend",
+            backend,
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let (w, h, v) = read_exr_gray(&out);
+        assert_eq!((w, h), (192, 108));
+        assert!(v.iter().all(|d| (0.0..=1.0).contains(d)));
+        // The centre pixel is in the ROI; a corner is far outside it.
+        assert_eq!(v[54 * 192 + 96], 0.0);
+        assert_eq!(v[0], 1.0);
+        results.push(v);
+    }
+    let worst = results[0]
+        .iter()
+        .zip(&results[1])
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f32::max);
+    assert!(worst < 1e-4, "GPU vs CPU: {worst}");
+}
+
+#[test]
+fn dgi_mouse_variant_and_png() {
+    let out = tmp("mouse.png");
+    let o = raygun(&[
+        "dgi",
+        "--display",
+        "display-models/desktop-27in-4k.json",
+        "--center-px",
+        "1920,1080",
+        "--axes-px",
+        "400,200",
+        "--size",
+        "384,216",
+        "--backend",
+        "cpu",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let png = image::open(&out).unwrap().to_luma8();
+    assert_eq!(png.dimensions(), (384, 216));
+    assert_eq!(png.get_pixel(192, 108)[0], 0);
+    assert_eq!(png.get_pixel(0, 0)[0], 255);
+}
+
+#[test]
+fn dgi_raw_distances_are_canvas_pixels() {
+    let out = tmp("raw.exr");
+    // Mouse ellipse with semi-axes 100 × 100 image px on a 3840×2160 image of the 4K monitor:
+    // image px = canvas px, so the raw distance at 300 px right of the centre is 200.
+    let o = raygun(&[
+        "dgi",
+        "--display",
+        "display-models/desktop-27in-4k.json",
+        "--center-px",
+        "1920.5,1080.5",
+        "--axes-px",
+        "100,100",
+        "--raw",
+        "--backend",
+        "cpu",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (w, _, v) = read_exr_gray(&out);
+    assert!(
+        (v[1080 * w + 2220] - 200.0).abs() < 1e-3,
+        "{}",
+        v[1080 * w + 2220]
+    );
+}
+
+#[test]
+fn errors_name_what_is_wrong_and_exit_non_zero() {
+    let o = raygun(&[
+        "dgi",
+        "--display",
+        "no/such/model.json",
+        "--origin",
+        "0,0,1",
+        "--dir",
+        "0,0,-1",
+        "--fov",
+        "30,30",
+        "--out",
+        "x.png",
+        "--backend",
+        "cpu",
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("no/such/model.json"), "{err}");
+
+    let o = raygun(&[
+        "dgi",
+        "--display",
+        "display-models/hornet.json",
+        "--origin",
+        "0,0,1",
+        "--dir",
+        "0,0,-1",
+        "--fov",
+        "200,30",
+        "--out",
+        "x.png",
+        "--backend",
+        "cpu",
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("180"),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+
+    let o = raygun(&[
+        "dgi",
+        "--display",
+        "display-models/hornet.json",
+        "--origin",
+        "0,0",
+        "--dir",
+        "0,0,-1",
+        "--fov",
+        "30,30",
+        "--out",
+        "x.png",
+    ]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("X,Y,Z"));
+
+    let o = raygun(&[
+        "dgi",
+        "--display",
+        "display-models/hornet.json",
+        "--origin",
+        "0,0,1",
+        "--dir",
+        "0,0,-1",
+        "--fov",
+        "30,30",
+        "--raw",
+        "--out",
+        "x.png",
+        "--backend",
+        "cpu",
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains(".exr"));
+}
+
+#[test]
+fn pick_prints_the_hit_as_json() {
+    let o = raygun(&[
+        "pick",
+        "--display",
+        "display-models/hornet.json",
+        "--origin",
+        "0,0,1",
+        "--dir",
+        "0,0,-1",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["hit"], true);
+    assert!((v["t"].as_f64().unwrap() - 1.0).abs() < 1e-12);
+    let o = raygun(&[
+        "pick",
+        "--display",
+        "display-models/hornet.json",
+        "--origin",
+        "0,0,1",
+        "--dir",
+        "0,0,1",
+    ]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v, serde_json::json!({"hit": false}));
+}
+
+#[test]
+fn display_expand_round_trips_through_the_loader() {
+    let o = raygun(&["display", "expand", "display-models/hornet.json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8(o.stdout).unwrap();
+    let expanded = raygun::display::DisplayModel::from_json(&text, "expanded").unwrap();
+    let original = raygun::display::DisplayModel::load(
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("display-models/hornet.json"),
+    )
+    .unwrap();
+    assert_eq!(expanded.tiles().len(), 35);
+    assert_eq!(expanded.to_json_pretty(), original.to_json_pretty());
+}
