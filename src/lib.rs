@@ -18,5 +18,7 @@ pub mod bench;
 pub mod cli;
 pub mod display;
 pub mod gpu;
+pub mod interaction;
 pub mod output;
 pub mod roi;
+pub mod tracking;

@@ -6,3 +6,4 @@ pub mod bench;
 pub mod dgi;
 pub mod display;
 pub mod ellipse_distance;
+pub mod tracking;

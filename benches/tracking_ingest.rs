@@ -1,0 +1,5 @@
+//! `cargo bench --bench tracking_ingest`: see `raygun::tracking::bench`.
+
+fn main() {
+    println!("{}", raygun::tracking::bench::run());
+}

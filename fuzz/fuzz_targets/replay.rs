@@ -1,0 +1,36 @@
+//! Replay files through the whole pipeline (reader, decoders, interaction): never panic, and
+//! every ROI change is finite.
+#![no_main]
+
+use std::path::Path;
+
+use libfuzzer_sys::fuzz_target;
+use raygun::interaction::{HingedWall, Interaction, InteractionConfig};
+use raygun::tracking::dtrack::{DtrackConfig, TimeSource};
+use raygun::tracking::ingest::{Ingest, Pipeline};
+use raygun::tracking::osc::OscConfig;
+use raygun::tracking::replay::{ReplayPayload, ReplayReader};
+
+fuzz_target!(|data: &[u8]| {
+    // A valid header, so the fuzzer spends its time on the records.
+    let mut file = b"{\"raygun_replay\":1}\n".to_vec();
+    file.extend_from_slice(data);
+    let Ok(mut reader) = ReplayReader::new(&file[..], Path::new("fuzz")) else {
+        return;
+    };
+    reader.problems.quiet = true;
+    let mut ingest = Ingest::new(DtrackConfig::default(), OscConfig::default(), TimeSource::Tracker);
+    ingest.problems.quiet = true;
+    let mut pipeline = Pipeline::new(ingest, Interaction::new(InteractionConfig::default()));
+    let wall = HingedWall::hornet();
+    while let Some(item) = reader.next_item() {
+        let changes = match item.payload {
+            ReplayPayload::Datagram(p, bytes) => pipeline.datagram(p, &bytes, item.t, &wall).1.to_vec(),
+            ReplayPayload::Event(e) => pipeline.event(e, &wall).to_vec(),
+        };
+        for c in changes {
+            assert!(c.roi.fov_deg.iter().all(|f| f.is_finite()));
+            assert!(c.roi.centre.is_none_or(|m| m.canvas_px.is_finite() && m.point.is_finite()));
+        }
+    }
+});

@@ -1,0 +1,216 @@
+//! The shipped replays: up to date with their generator, and every one gives its golden ROI
+//! sequence both offline and through the live UDP path.
+//!
+//! `RAYGUN_BLESS=1 cargo test --test tracking_replays` rewrites the replays and golden files.
+
+use std::net::UdpSocket;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use raygun::cli::tracking::{ChangePrinter, ReplayArgs, ReplayPlan, golden_path, run_replay};
+use raygun::tracking::replay::ReplayPayload;
+use raygun::tracking::synth;
+use raygun::tracking::udp::{ListenerConfig, Live, UdpSource, run_live};
+
+fn replay_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tracking-replays")
+}
+
+fn bless() -> bool {
+    std::env::var_os("RAYGUN_BLESS").is_some()
+}
+
+fn replay_files() -> Vec<PathBuf> {
+    let mut v: Vec<PathBuf> = std::fs::read_dir(replay_dir())
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "jsonl"))
+        .collect();
+    v.sort();
+    v
+}
+
+fn args(file: &Path) -> ReplayArgs {
+    ReplayArgs {
+        file: file.to_owned(),
+        display: None,
+        config: None,
+        device: None,
+        realtime: false,
+    }
+}
+
+#[test]
+fn shipped_replays_are_what_the_generator_makes() {
+    let dir = replay_dir();
+    let all = synth::all_replays().unwrap();
+    assert!(all.len() >= 13, "six FlySticks in two forms and a mouse");
+    for (name, bytes) in all {
+        let path = dir.join(&name);
+        if bless() {
+            std::fs::write(&path, &bytes).unwrap();
+        }
+        let on_disk = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        assert!(
+            on_disk == bytes,
+            "{name} differs from the generator's output; run with RAYGUN_BLESS=1"
+        );
+    }
+}
+
+#[test]
+fn every_replay_matches_its_golden_roi_sequence() {
+    let files = replay_files();
+    assert!(files.len() >= 13);
+    for file in files {
+        let mut out = Vec::new();
+        let problems = run_replay(&args(&file), &mut out).unwrap();
+        assert_eq!(
+            problems.total(),
+            0,
+            "{}: {:?}",
+            file.display(),
+            problems.counts()
+        );
+        let golden = golden_path(&file);
+        if bless() {
+            std::fs::create_dir_all(golden.parent().unwrap()).unwrap();
+            std::fs::write(&golden, &out).unwrap();
+        }
+        let expect = std::fs::read_to_string(&golden)
+            .unwrap_or_else(|e| panic!("{}: {e}", golden.display()));
+        let got = String::from_utf8(out).unwrap();
+        assert!(
+            got == expect,
+            "{}: ROI changes differ from {}",
+            file.display(),
+            golden.display()
+        );
+        // Every session shoots, and the FlySticks sweep the FOV over the 10°–60° range.
+        assert!(got.contains("\"kind\":\"shoot\""), "{}", file.display());
+        let name = file.file_name().unwrap().to_string_lossy().into_owned();
+        if name.starts_with("flystick") {
+            let fovs: Vec<f64> = got
+                .lines()
+                .map(|l| {
+                    serde_json::from_str::<serde_json::Value>(l).unwrap()["fov_deg"][0]
+                        .as_f64()
+                        .unwrap()
+                })
+                .collect();
+            let lo = fovs.iter().copied().fold(f64::INFINITY, f64::min);
+            let hi = fovs.iter().copied().fold(0.0, f64::max);
+            assert!(lo < 11.5 && hi > 58.5, "{name}: FOV range {lo}..{hi}");
+        }
+    }
+}
+
+#[test]
+fn sessions_report_their_misses_and_untracked_shots() {
+    let golden = |stem: &str| {
+        std::fs::read_to_string(
+            replay_dir()
+                .join("golden")
+                .join(format!("{stem}.roi.jsonl")),
+        )
+        .unwrap()
+    };
+    assert!(golden("flystick-4-misses.dtrack").contains("\"kind\":\"miss\""));
+    assert!(golden("flystick-3-dropouts.dtrack").contains("\"kind\":\"untracked\""));
+    assert!(golden("flystick-5-plus-extra-devices.dtrack").contains("\"kind\":\"toggle_filter\""));
+}
+
+/// Sends every datagram of `file` to a live listener over loopback and returns what it printed.
+fn run_over_udp(file: &Path) -> String {
+    let (plan, mut reader) = ReplayPlan::new(&args(file)).unwrap();
+    let mut datagrams = Vec::new();
+    let mut protocol = None;
+    while let Some(item) = reader.next_item() {
+        if let ReplayPayload::Datagram(p, bytes) = item.payload {
+            protocol = Some(p);
+            datagrams.push(bytes);
+        }
+    }
+    let protocol = protocol.unwrap();
+    let mut source = UdpSource::bind(ListenerConfig {
+        poll: Duration::from_millis(5),
+        ..ListenerConfig::loopback(0)
+    })
+    .unwrap();
+    let addr = source.local_addr().unwrap();
+    let stop = Arc::new(AtomicBool::new(false));
+    let live = Arc::new(Live::default());
+    let device = plan.interaction.device;
+    let listener = {
+        let (stop, live) = (stop.clone(), live.clone());
+        std::thread::spawn(move || {
+            let mut pipeline = plan.pipeline();
+            let mut printer = ChangePrinter::new(Vec::new());
+            run_live(
+                &mut source,
+                protocol,
+                &mut pipeline,
+                &plan.surface,
+                &stop,
+                &live,
+                |events, changes| {
+                    if let Some(e) = events.iter().find(|e| e.device == device) {
+                        printer.saw_event(e.t);
+                    }
+                    for c in changes {
+                        printer.print(c).unwrap();
+                    }
+                },
+            )
+            .unwrap();
+            (printer.into_inner(), pipeline.ingest.problems)
+        })
+    };
+    let sender = UdpSocket::bind("127.0.0.1:0").unwrap();
+    let wait_for = |n: u64| {
+        let deadline = Instant::now() + Duration::from_secs(10);
+        while live.datagrams() < n {
+            assert!(
+                Instant::now() < deadline,
+                "listener stalled at {} of {n}",
+                live.datagrams()
+            );
+            std::thread::yield_now();
+        }
+    };
+    for (i, d) in datagrams.iter().enumerate() {
+        sender.send_to(d, addr).unwrap();
+        // Flow control: never more than 64 datagrams in flight, so loopback never drops one.
+        if i % 64 == 63 {
+            wait_for(i as u64 + 1);
+        }
+    }
+    wait_for(datagrams.len() as u64);
+    stop.store(true, Ordering::Relaxed);
+    let (out, problems) = listener.join().unwrap();
+    assert_eq!(problems.total(), 0, "{:?}", problems.counts());
+    String::from_utf8(out).unwrap()
+}
+
+#[test]
+fn every_raw_replay_gives_its_golden_sequence_through_the_live_udp_listener() {
+    let raw: Vec<PathBuf> = replay_files()
+        .into_iter()
+        .filter(|p| {
+            let n = p.to_string_lossy();
+            n.ends_with(".dtrack.jsonl") || n.ends_with(".osc.jsonl")
+        })
+        .collect();
+    assert_eq!(raw.len(), 12);
+    for file in raw {
+        let got = run_over_udp(&file);
+        let expect = std::fs::read_to_string(golden_path(&file)).unwrap();
+        assert!(
+            got == expect,
+            "{}: live ROI changes differ from the golden file",
+            file.display()
+        );
+    }
+}
