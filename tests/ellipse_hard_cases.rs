@@ -304,8 +304,8 @@ fn wgsl_on_the_gpu_meets_the_f32_bound_on_the_hard_cases() {
             // e = b/a and e·q must stay normal too.
             let (lo, hi) = (v[0].min(v[1]), v[0].max(v[1]));
             lo == 0.0
-                || (lo / hi).is_normal() && lo / hi * (v[2].abs().max(v[3].abs()) / hi) >= 1e-30
-                || v[2] == 0.0 && v[3] == 0.0
+                || ((lo / hi).is_normal() && lo / hi * (v[2].abs().max(v[3].abs()) / hi) >= 1e-30)
+                || (v[2] == 0.0 && v[3] == 0.0)
         })
         .collect();
     let input: Vec<[f32; 4]> = cases.iter().map(|(_, v)| *v).collect();
