@@ -22,6 +22,12 @@ enum Command {
     /// Display-model tools.
     #[command(subcommand)]
     Display(DisplayCommand),
+    /// Replay a tracking session: one JSON line per ROI change.
+    Replay(cli::tracking::ReplayArgs),
+    /// Record live DTrack or OSC traffic into a replay file (Ctrl-C stops and saves).
+    Record(cli::tracking::RecordArgs),
+    /// Regenerate the synthetic FlyStick and mouse sessions in `tracking-replays/`.
+    SynthReplays(cli::tracking::SynthArgs),
     /// Closest points on ellipses: `a,b,x,y` lines on stdin → `distance,cx,cy` on stdout.
     EllipseDistance,
     /// Benchmarks: speed and error, with the hardware they ran on.
@@ -43,6 +49,13 @@ fn main() {
         Command::Display(DisplayCommand::Expand(args)) => {
             cli::display::expand(args).map(|text| println!("{text}"))
         }
+        Command::Replay(args) => replay(args),
+        Command::Record(args) => record(args),
+        Command::SynthReplays(args) => cli::tracking::run_synth(args).map(|files| {
+            for f in files {
+                println!("{}", f.display());
+            }
+        }),
         Command::EllipseDistance => ellipse_distance(),
         Command::Bench(cmd) => cli::bench::run(cmd),
     };
@@ -62,5 +75,31 @@ fn ellipse_distance() -> anyhow::Result<()> {
     if stats.errors > 0 {
         anyhow::bail!("{} of {} lines were rejected", stats.errors, stats.queries);
     }
+    Ok(())
+}
+
+fn replay(args: &cli::tracking::ReplayArgs) -> anyhow::Result<()> {
+    let problems =
+        cli::tracking::run_replay(args, std::io::BufWriter::new(std::io::stdout().lock()))?;
+    if problems.total() > 0 {
+        let kinds: Vec<String> = problems
+            .counts()
+            .iter()
+            .map(|(kind, n)| format!("{n} × {kind}"))
+            .collect();
+        eprintln!("raygun replay: input problems: {}", kinds.join(", "));
+    }
+    Ok(())
+}
+
+/// Records until Ctrl-C (or `--seconds`); the stop flag lets the writer flush everything.
+fn record(args: &cli::tracking::RecordArgs) -> anyhow::Result<()> {
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicBool, Ordering};
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = Arc::clone(&stop);
+    ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst))?;
+    let n = cli::tracking::run_record(args, &stop)?;
+    eprintln!("raygun record: {n} datagrams written to {}", args.out.display());
     Ok(())
 }
