@@ -598,7 +598,7 @@ pub fn mouse_replay() -> io::Result<Vec<u8>> {
     let mut rng = Rng::new(77);
     let device = DeviceId::new(DeviceKind::Mouse, 0);
     let mut h = ReplayHeader::new(
-        "SYNTHETIC mouse session on the desktop stand-in (27-inch 3840x2160), made by \
+        "SYNTHETIC mouse session on display-models/desktop-27in-4k.json (27-inch 3840x2160), made by \
          raygun::tracking::synth: 12 s at 60 Hz, min-jerk pointer moves, 8 clicks. Not recorded from a person.",
     );
     h.synthetic = true;
