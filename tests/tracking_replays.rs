@@ -266,3 +266,43 @@ fn bad_replay_lines_are_counted_once_per_kind_and_never_change_the_roi() {
             .contains("bad.jsonl:")
     );
 }
+
+#[test]
+fn replay_needs_a_display_and_says_which_file_lacks_one() {
+    let dir = std::env::temp_dir().join(format!("raygun-no-display-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("s.jsonl");
+    std::fs::write(
+        &file,
+        "{\"raygun_replay\":1}\n{\"t\":0.0,\"dtrack\":\"fr 1\"}\n",
+    )
+    .unwrap();
+    let err = run_replay(&args(&file), Vec::new()).unwrap_err();
+    std::fs::remove_dir_all(&dir).unwrap();
+    let msg = format!("{err:#}");
+    assert!(
+        msg.contains("s.jsonl") && msg.contains("--display"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn replay_applies_a_mapping_file() {
+    // With no buttons mapped, the session can only change the FOV.
+    let dir = std::env::temp_dir().join(format!("raygun-mapping-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let config = dir.join("mapping.json");
+    std::fs::write(&config, r#"{"buttons":{},"stick":{"signs":[-1,-1]}}"#).unwrap();
+    let file = replay_dir().join("flystick-1-centre-sweeps.osc.jsonl");
+    let mut a = args(&file);
+    a.config = Some(config);
+    let mut out = Vec::new();
+    run_replay(&a, &mut out).unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+    let text = String::from_utf8(out).unwrap();
+    assert!(!text.is_empty());
+    assert!(text.lines().all(|l| l.contains("\"kind\":\"fov\"")));
+    // The first sweep pushes the stick down (towards 10°); with flipped signs the FOV grows.
+    let first: serde_json::Value = serde_json::from_str(text.lines().next().unwrap()).unwrap();
+    assert!(first["fov_deg"][0].as_f64().unwrap() > 30.0, "{first}");
+}
