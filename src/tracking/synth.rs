@@ -49,6 +49,7 @@ impl Rng {
         Self(seed)
     }
 
+    #[must_use]
     pub fn next_u64(&mut self) -> u64 {
         self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
         let mut z = self.0;
@@ -58,15 +59,18 @@ impl Rng {
     }
 
     /// Uniform in [0, 1).
+    #[must_use]
     pub fn unit(&mut self) -> f64 {
         (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
     }
 
+    #[must_use]
     pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
         lo + (hi - lo) * self.unit()
     }
 
     /// Standard normal (Box–Muller).
+    #[must_use]
     pub fn gauss(&mut self) -> f64 {
         let u1 = self.unit().max(1e-300);
         let u2 = self.unit();
