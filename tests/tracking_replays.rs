@@ -214,3 +214,95 @@ fn every_raw_replay_gives_its_golden_sequence_through_the_live_udp_listener() {
         );
     }
 }
+
+#[test]
+fn bad_replay_lines_are_counted_once_per_kind_and_never_change_the_roi() {
+    // A shipped replay with garbage mixed in must print exactly its golden sequence.
+    let file = replay_dir().join("flystick-1-centre-sweeps.dtrack.jsonl");
+    let text = std::fs::read_to_string(&file).unwrap();
+    let mut lines: Vec<String> = text.lines().map(str::to_owned).collect();
+
+    // Appended after the last record (t = 19.98 s): every kind of bad line once.
+    let garbage = [
+        "this is not json",
+        r#"{"t":1e999,"dtrack":"fr 1"}"#,
+        // Back in time, with a trigger press that must not fire.
+        r#"{"t":0.0,"dtrack":"fr 1\nts 36000.0\n6df2 1 1 [0 1.0 6 2][0 0 0][1 0 0 0 1 0 0 0 1][1 0 0]"}"#,
+        r#"{"t":100.0,"osc_hex":"zz"}"#,
+        // Good lines whose datagrams are bad: counted by the decoder.
+        r#"{"t":100.0,"dtrack":"6df2 1 1 [0 1.0 6 2][nan 0 0][1 0 0 0 1 0 0 0 1][1 0 0]"}"#,
+        r#"{"t":100.0,"dtrack":"6d 99999999 [0 1.0]"}"#,
+    ];
+    lines.extend(garbage.iter().map(|g| (*g).to_owned()));
+    let dir = std::env::temp_dir().join(format!("raygun-bad-replay-{}", std::process::id()));
+    let bad = dir.join("tracking-replays").join("bad.jsonl");
+    std::fs::create_dir_all(bad.parent().unwrap()).unwrap();
+    std::fs::write(&bad, lines.join("\n") + "\n").unwrap();
+    let mut a = args(&bad);
+    a.display = Some(Path::new(env!("CARGO_MANIFEST_DIR")).join("display-models/hornet.json"));
+    let mut out = Vec::new();
+    let problems = run_replay(&a, &mut out).unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+    let expect = std::fs::read_to_string(golden_path(&file)).unwrap();
+    assert!(
+        String::from_utf8(out).unwrap() == expect,
+        "garbage changed the ROI sequence"
+    );
+    for kind in [
+        "replay_not_json",
+        "replay_back_in_time",
+        "replay_bad_payload",
+        "dtrack_non_finite",
+        "dtrack_out_of_range",
+    ] {
+        assert!(problems.count(kind) >= 1, "{kind}: {:?}", problems.counts());
+    }
+    assert_eq!(problems.count("replay_not_json"), 2);
+    assert_eq!(problems.total(), 6, "{:?}", problems.counts());
+    assert!(
+        problems
+            .logged("replay_back_in_time")
+            .unwrap()
+            .contains("bad.jsonl:")
+    );
+}
+
+#[test]
+fn replay_needs_a_display_and_says_which_file_lacks_one() {
+    let dir = std::env::temp_dir().join(format!("raygun-no-display-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("s.jsonl");
+    std::fs::write(
+        &file,
+        "{\"raygun_replay\":1}\n{\"t\":0.0,\"dtrack\":\"fr 1\"}\n",
+    )
+    .unwrap();
+    let err = run_replay(&args(&file), Vec::new()).unwrap_err();
+    std::fs::remove_dir_all(&dir).unwrap();
+    let msg = format!("{err:#}");
+    assert!(
+        msg.contains("s.jsonl") && msg.contains("--display"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn replay_applies_a_mapping_file() {
+    // With no buttons mapped, the session can only change the FOV.
+    let dir = std::env::temp_dir().join(format!("raygun-mapping-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let config = dir.join("mapping.json");
+    std::fs::write(&config, r#"{"buttons":{},"stick":{"signs":[-1,-1]}}"#).unwrap();
+    let file = replay_dir().join("flystick-1-centre-sweeps.osc.jsonl");
+    let mut a = args(&file);
+    a.config = Some(config);
+    let mut out = Vec::new();
+    run_replay(&a, &mut out).unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+    let text = String::from_utf8(out).unwrap();
+    assert!(!text.is_empty());
+    assert!(text.lines().all(|l| l.contains("\"kind\":\"fov\"")));
+    // The first sweep pushes the stick down (towards 10°); with flipped signs the FOV grows.
+    let first: serde_json::Value = serde_json::from_str(text.lines().next().unwrap()).unwrap();
+    assert!(first["fov_deg"][0].as_f64().unwrap() > 30.0, "{first}");
+}

@@ -171,6 +171,7 @@ pub struct ChangePrinter<W: Write> {
 }
 
 impl<W: Write> ChangePrinter<W> {
+    #[must_use]
     pub fn new(out: W) -> Self {
         Self {
             out,
@@ -189,6 +190,8 @@ impl<W: Write> ChangePrinter<W> {
         self.out.write_all(b"\n")
     }
 
+    /// The underlying writer.
+    #[must_use]
     pub fn into_inner(self) -> W {
         self.out
     }

@@ -124,6 +124,7 @@ impl Ingest {
     }
 
     /// Passes a normalised event (from a replay file) through the same validation.
+    #[must_use]
     pub fn event(&mut self, event: TrackingEvent) -> Option<TrackingEvent> {
         if event.is_valid() {
             self.accepted += 1;

@@ -7,7 +7,13 @@
 //! ```
 //!
 //! Raw datagrams from a replay file and from a live socket take the same path
-//! ([`ingest::Ingest`]), so a recorded session reproduces exactly what the live run did.
+//! ([`ingest::Pipeline`]: decoders, validation, interaction), so a recorded session reproduces
+//! exactly what the live run did; `tests/tracking_replays.rs` checks that for every shipped
+//! replay.
+//!
+//! Modules: [`event`] (normalised events), [`dtrack`] and [`osc`] (parsers), [`replay`]
+//! (JSON Lines files), [`udp`] (listeners, recorder), [`problems`] (bad-input counters),
+//! [`synth`] (synthetic sessions), [`bench`] (ingest benchmark).
 
 pub mod bench;
 pub mod dtrack;

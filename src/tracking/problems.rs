@@ -8,6 +8,8 @@ use std::fmt::Display;
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct ProblemLog {
     counts: BTreeMap<&'static str, u64>,
+    /// The one message logged per kind: the first problem's detail.
+    first: BTreeMap<&'static str, String>,
     /// When set, nothing is printed (tests, benchmarks); counting is unaffected.
     pub quiet: bool,
 }
@@ -16,8 +18,8 @@ impl ProblemLog {
     #[must_use]
     pub fn quiet() -> Self {
         Self {
-            counts: BTreeMap::new(),
             quiet: true,
+            ..Self::default()
         }
     }
 
@@ -25,8 +27,14 @@ impl ProblemLog {
     pub fn report(&mut self, kind: &'static str, detail: impl Display) {
         let n = self.counts.entry(kind).or_insert(0);
         *n += 1;
-        if *n == 1 && !self.quiet {
-            eprintln!("raygun: {kind}: {detail} (further problems of this kind are only counted)");
+        if *n == 1 {
+            let message = detail.to_string();
+            if !self.quiet {
+                eprintln!(
+                    "raygun: {kind}: {message} (further problems of this kind are only counted)"
+                );
+            }
+            self.first.insert(kind, message);
         }
     }
 
@@ -34,6 +42,12 @@ impl ProblemLog {
     #[must_use]
     pub fn count(&self, kind: &str) -> u64 {
         self.counts.get(kind).copied().unwrap_or(0)
+    }
+
+    /// The message logged for `kind` (its first problem), if any was reported.
+    #[must_use]
+    pub fn logged(&self, kind: &str) -> Option<&str> {
+        self.first.get(kind).map(String::as_str)
     }
 
     /// All problems reported.
@@ -53,6 +67,9 @@ impl ProblemLog {
         for (k, v) in &other.counts {
             *self.counts.entry(k).or_insert(0) += v;
         }
+        for (k, m) in &other.first {
+            self.first.entry(k).or_insert_with(|| m.clone());
+        }
     }
 }
 
@@ -67,6 +84,8 @@ mod tests {
         log.report("a", "y");
         log.report("b", "z");
         assert_eq!((log.count("a"), log.count("b"), log.count("c")), (2, 1, 0));
+        // Logged once per kind: the first detail is kept, later ones are only counted.
+        assert_eq!((log.logged("a"), log.logged("c")), (Some("x"), None));
         assert_eq!(log.total(), 3);
         let mut other = ProblemLog::quiet();
         other.merge(&log);

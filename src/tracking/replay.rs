@@ -308,6 +308,7 @@ pub enum Playback {
 }
 
 /// Plays every good record into `f`, pacing as asked. Returns the reader's problem counts.
+#[must_use]
 pub fn play<R: BufRead>(
     mut reader: ReplayReader<R>,
     playback: Playback,
@@ -382,6 +383,7 @@ impl<W: Write> ReplayWriter<W> {
     }
 
     /// The underlying writer.
+    #[must_use]
     pub fn into_inner(self) -> W {
         self.out
     }
@@ -492,12 +494,13 @@ mod tests {
         let text = "{\"raygun_replay\":1}\n{\"t\":10.0,\"dtrack\":\"a\"}\n{\"t\":10.05,\"dtrack\":\"b\"}\n";
         let start = Instant::now();
         let mut n = 0;
-        play(reader(text), Playback::RealTime, |_| n += 1);
+        let problems = play(reader(text), Playback::RealTime, |_| n += 1);
         let slow = start.elapsed();
+        assert_eq!(problems.total(), 0);
         assert_eq!(n, 2);
         assert!(slow >= Duration::from_millis(50), "{slow:?}");
         let start = Instant::now();
-        play(reader(text), Playback::AsFastAsPossible, |_| {});
+        let _ = play(reader(text), Playback::AsFastAsPossible, |_| {});
         assert!(start.elapsed() < Duration::from_millis(50));
     }
 }

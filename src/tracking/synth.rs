@@ -49,6 +49,7 @@ impl Rng {
         Self(seed)
     }
 
+    #[must_use]
     pub fn next_u64(&mut self) -> u64 {
         self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
         let mut z = self.0;
@@ -58,15 +59,18 @@ impl Rng {
     }
 
     /// Uniform in [0, 1).
+    #[must_use]
     pub fn unit(&mut self) -> f64 {
         (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
     }
 
+    #[must_use]
     pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
         lo + (hi - lo) * self.unit()
     }
 
     /// Standard normal (Box–Muller).
+    #[must_use]
     pub fn gauss(&mut self) -> f64 {
         let u1 = self.unit().max(1e-300);
         let u2 = self.unit();
@@ -598,7 +602,7 @@ pub fn mouse_replay() -> io::Result<Vec<u8>> {
     let mut rng = Rng::new(77);
     let device = DeviceId::new(DeviceKind::Mouse, 0);
     let mut h = ReplayHeader::new(
-        "SYNTHETIC mouse session on the desktop stand-in (27-inch 3840x2160), made by \
+        "SYNTHETIC mouse session on display-models/desktop-27in-4k.json (27-inch 3840x2160), made by \
          raygun::tracking::synth: 12 s at 60 Hz, min-jerk pointer moves, 8 clicks. Not recorded from a person.",
     );
     h.synthetic = true;
