@@ -100,6 +100,9 @@ fn record(args: &cli::tracking::RecordArgs) -> anyhow::Result<()> {
     let flag = Arc::clone(&stop);
     ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst))?;
     let n = cli::tracking::run_record(args, &stop)?;
-    eprintln!("raygun record: {n} datagrams written to {}", args.out.display());
+    eprintln!(
+        "raygun record: {n} datagrams written to {}",
+        args.out.display()
+    );
     Ok(())
 }

@@ -56,6 +56,31 @@ pub struct RoiState {
     pub filter: bool,
 }
 
+impl RoiState {
+    /// The region the DGI stage measures distances to: the frozen cone with the current FOV
+    /// (ray gun), or the canvas ellipse (mouse); `None` before the first shot or click.
+    pub fn to_roi(&self) -> Result<Option<crate::roi::dgi::Roi>, crate::roi::cone::ConeError> {
+        use crate::roi::dgi::Roi;
+        if let (Some(centre), Some([a, b])) = (&self.centre, self.ellipse_px) {
+            return Ok(Some(Roi::CanvasEllipse {
+                center: centre.canvas_px,
+                semi_axes: DVec2::new(a, b),
+            }));
+        }
+        let (Some(cone), Some(_)) = (&self.cone, &self.centre) else {
+            return Ok(None);
+        };
+        crate::roi::cone::Cone::from_pose(
+            cone.apex,
+            cone.axis,
+            cone.up,
+            self.fov_deg[0],
+            self.fov_deg[1],
+        )
+        .map(|c| Some(Roi::Cone(c)))
+    }
+}
+
 /// Why a change was reported.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]

@@ -302,3 +302,29 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn roi_state_hands_the_dgi_stage_the_shot_cone_with_the_current_fov() {
+    assert_eq!(
+        Interaction::new(InteractionConfig::default())
+            .roi()
+            .to_roi(),
+        Ok(None)
+    );
+    let q = DQuat::from_rotation_y(std::f64::consts::FRAC_PI_4);
+    let p = pose_at(0.5, 0.2, 1.0, q);
+    let (m, _) = run(
+        &[ev(0.0, p, 0, [0.0; 2]), ev(0.1, p, 1, [0.0; 2])],
+        InteractionConfig::default(),
+    );
+    let Some(crate::roi::dgi::Roi::Cone(cone)) = m.roi().to_roi().unwrap() else {
+        panic!("a shot gives a cone ROI");
+    };
+    assert!((cone.apex - DVec3::new(0.5, 0.2, 1.0)).length() < 1e-15);
+    assert!((cone.axis - q * DVec3::NEG_Z).length() < 1e-12);
+    let (h, v) = cone.fov_deg();
+    let [fh, fv] = m.roi().fov_deg;
+    assert!((h - fh).abs() < 1e-9 && (v - fv).abs() < 1e-9);
+    // The ROI centre the interaction found is inside the cone it hands over.
+    assert!(cone.contains(m.roi().centre.clone().unwrap().point));
+}
