@@ -140,7 +140,7 @@ pub fn closest_point_on_ellipse(a: f64, b: f64, p: DVec2) -> ClosestPoint {
         (a, b, p.x.abs(), p.y.abs())
     };
     let (cx, cy, iterations) = first_quadrant_f64(major, minor, x, y);
-    let distance = (x - cx).hypot(y - cy);
+    let distance = hypot(x - cx, y - cy);
     let (cx, cy) = if swap { (cy, cx) } else { (cx, cy) };
     // `< 0.0` keeps −0.0 on the positive side: the documented choice for the non-unique case.
     let point = DVec2::new(
@@ -209,14 +209,14 @@ fn first_quadrant_f64(a: f64, b: f64, x: f64, y: f64) -> (f64, f64, u32) {
         let (ga, gb) = (p / (w + c), eq / w);
         (ga, gb, ga * ga + gb * gb)
     };
-    let r = p.hypot(eq);
+    let r = hypot(p, eq);
     let mut lo = eq.max(r - c);
     let mut hi = r;
     let mut w = lo;
     let mut probing = false;
     {
         // Start at the Lagrange multiplier of the radial projection when it lies in the bracket.
-        let rho = p.hypot(q / e);
+        let rho = hypot(p, q / e);
         let (x0, b0) = (p / rho, q / (e * rho));
         let est = e * e * ((rho - 1.0) / (e * e * x0 * x0 + b0 * b0) + 1.0);
         if est > lo && est < hi {
@@ -310,7 +310,7 @@ fn first_quadrant_f64(a: f64, b: f64, x: f64, y: f64) -> (f64, f64, u32) {
 fn far_field_f64(a: f64, e: f64, b: f64, x: f64, y: f64) -> (f64, f64, u32) {
     let m = x.max(y);
     let (ux, uy) = (x / m, y / m);
-    let n = ux.hypot(e * uy);
+    let n = hypot(ux, e * uy);
     if n.is_nan() || n <= 0.0 {
         // A segment seen broadside: its midpoint.
         return (0.0, 0.0, 0);
@@ -322,6 +322,20 @@ fn far_field_f64(a: f64, e: f64, b: f64, x: f64, y: f64) -> (f64, f64, u32) {
 // f32: mirror of shaders/roi/ellipse.wgsl, op for op (same order, same constants), so that CPU
 // tests check the bound the GPU kernel is held to. Keep the two in step.
 // ---------------------------------------------------------------------------------------------
+
+/// `hypot` without overflow or underflow: max·√(1 + (min/max)²). Within ~1 ulp, and several
+/// times faster than libm's correctly rounded `f64::hypot`, which took 17 % of the CPU DGI's
+/// time (perf, HORNET 60°).
+#[inline]
+fn hypot(x: f64, y: f64) -> f64 {
+    let (ax, ay) = (x.abs(), y.abs());
+    let (hi, lo) = if ax >= ay { (ax, ay) } else { (ay, ax) };
+    if hi == 0.0 || hi.is_infinite() {
+        return hi + lo;
+    }
+    let r = lo / hi;
+    hi * (1.0 + r * r).sqrt()
+}
 
 /// `hypot` without overflow for finite inputs below `f32::MAX/√2` (WGSL has no `hypot`).
 /// Mirrors `ellipse_hypot`.
