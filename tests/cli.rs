@@ -244,3 +244,47 @@ fn display_expand_round_trips_through_the_loader() {
     assert_eq!(expanded.tiles().len(), 35);
     assert_eq!(expanded.to_json_pretty(), original.to_json_pretty());
 }
+
+#[test]
+fn record_stops_on_ctrl_c_and_keeps_every_datagram() {
+    let out = tmp("recorded.jsonl");
+    let port = 40000 + (std::process::id() % 20000) as u16;
+    let mut child = Command::new(env!("CARGO_BIN_EXE_raygun"))
+        .args([
+            "record",
+            "--dtrack",
+            &port.to_string(),
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let sock = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    // Send until the recorder has bound (it starts in well under a second).
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
+    let mut sent = 0;
+    while std::time::Instant::now() < deadline && sent < 40 {
+        sock.send_to(format!("fr {sent}\n").as_bytes(), ("127.0.0.1", port))
+            .unwrap();
+        sent += 1;
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    let status = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let o = child.wait_with_output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = std::fs::read_to_string(&out).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    assert!(
+        lines[0].contains("raygun_replay"),
+        "header first: {}",
+        lines[0]
+    );
+    // The last datagram sent before Ctrl-C is in the file (nothing lost in a buffer).
+    assert!(lines.len() > 10, "{} lines", lines.len());
+    assert!(text.contains(&format!("fr {}", sent - 1)), "{text}");
+}

@@ -131,7 +131,8 @@ impl UdpSource {
         socket2::SockRef::from(&self.socket).recv_buffer_size()
     }
 
-    /// Waits up to the poll interval for one datagram.
+    /// Waits up to the poll interval for one datagram (`Idle` when none came or a signal
+    /// interrupted the wait).
     pub fn recv(&mut self) -> io::Result<Received<'_>> {
         match self.socket.recv_from(&mut self.buf) {
             Ok((n, from)) => {
@@ -146,7 +147,11 @@ impl UdpSource {
             Err(e)
                 if matches!(
                     e.kind(),
-                    io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut
+                    io::ErrorKind::WouldBlock
+                        | io::ErrorKind::TimedOut
+                        // A signal (Ctrl-C asking the recorder to stop) interrupted the wait:
+                        // the caller's loop checks its stop flag next.
+                        | io::ErrorKind::Interrupted
                 ) =>
             {
                 Ok(Received::Idle)
