@@ -249,7 +249,7 @@ fn display_expand_round_trips_through_the_loader() {
 fn record_stops_on_ctrl_c_and_keeps_every_datagram() {
     let out = tmp("recorded.jsonl");
     let port = 40000 + (std::process::id() % 20000) as u16;
-    let mut child = Command::new(env!("CARGO_BIN_EXE_raygun"))
+    let child = Command::new(env!("CARGO_BIN_EXE_raygun"))
         .args([
             "record",
             "--dtrack",

@@ -15,7 +15,8 @@ pub enum BackendChoice {
     Gpu,
     /// The CPU twins (f64, rayon).
     Cpu,
-    /// The GPU when an adapter exists, else the CPU twins.
+    /// The GPU when a hardware adapter exists, else the CPU twins (a software rasteriser such
+    /// as lavapipe is slower than the twins; `Gpu` still selects it).
     #[default]
     Auto,
 }
@@ -28,12 +29,24 @@ pub enum Backend {
 
 impl Backend {
     /// Resolves the user's choice into a backend. `Auto` falls back to the CPU (and says so on
-    /// standard error) when no adapter can be created; `Gpu` turns that into an error.
+    /// standard error) when no hardware adapter can be created; `Gpu` takes any adapter and
+    /// turns having none into an error.
     pub fn select(choice: BackendChoice) -> Result<Self, GpuError> {
         match choice {
             BackendChoice::Cpu => Ok(Self::Cpu),
             BackendChoice::Gpu => Ok(Self::Gpu(Box::new(GpuContext::new()?))),
             BackendChoice::Auto => match GpuContext::new() {
+                // A software rasteriser (lavapipe) runs our kernels several times slower than
+                // the CPU twins on the same cores (DGI 3840×2160 at 10°: 966 ms on llvmpipe,
+                // 120 ms on the f64 twin, 2 cores; BENCHMARKS.md), so `auto` takes the twins.
+                Ok(ctx) if ctx.info.device_type == wgpu::DeviceType::Cpu => {
+                    eprintln!(
+                        "raygun: the only adapter is a software rasteriser ({}); using the CPU \
+                         backend (--backend gpu forces it)",
+                        ctx.info.name
+                    );
+                    Ok(Self::Cpu)
+                }
                 Ok(ctx) => Ok(Self::Gpu(Box::new(ctx))),
                 Err(e) => {
                     eprintln!("raygun: no usable GPU adapter ({e}); using the CPU backend");

@@ -361,6 +361,9 @@ mod tests {
         };
         assert_eq!(size_of("Params"), size_of_val(&GpuParams::zeroed()));
         assert_eq!(size_of("Piece"), size_of_val(&GpuPiece::zeroed()));
-        assert_eq!(size_of("AngularTile"), size_of_val(&GpuAngularTile::zeroed()));
+        assert_eq!(
+            size_of("AngularTile"),
+            size_of_val(&GpuAngularTile::zeroed())
+        );
     }
 }
