@@ -1,61 +1,24 @@
-//! GPU DGI kernel against its CPU twin (f64) on walls built in code.
+//! GPU DGI kernel against its CPU twin (f64) on a wall generated in code.
 
-use glam::{DVec2, DVec3};
+use glam::DVec3;
+use raygun::display::DisplayModel;
 use raygun::gpu::GpuContext;
 use raygun::roi::cone::Cone;
-use raygun::roi::conic::{Patch, Rect};
 use raygun::roi::dgi::{DgiParams, Guide, Metric, Roi, Surface, compute_cpu};
 use raygun::roi::gpu::DgiKernel;
 
 /// Three columns of 1000×600 px at 1 mm pitch, hinged at their edges with `yaw_deg` between
-/// neighbours, curving towards a viewer on +Z; the centre column in z = 0.
+/// neighbours, curving towards a viewer on +Z; the centre column in z = 0, centred at the origin.
 fn curved_wall(yaw_deg: f64) -> Surface {
-    let pitch = 1e-3;
-    let (w, h) = (1000.0, 600.0);
-    let mut patches = Vec::new();
-    let yaw = yaw_deg.to_radians();
-    // Centre column: canvas x ∈ [1000, 2000] ↔ room x ∈ [−0.5, 0.5].
-    let centre = Patch {
-        rect: Rect {
-            min: DVec2::new(w, 0.0),
-            max: DVec2::new(2.0 * w, h),
-        },
-        origin: DVec3::new(-1.5, 0.3, 0.0),
-        ex: DVec3::new(pitch, 0.0, 0.0),
-        ey: DVec3::new(0.0, -pitch, 0.0),
-    };
-    // Right column: hinged at room x = 0.5, turned towards the viewer.
-    let ex_r = DVec3::new(yaw.cos(), 0.0, yaw.sin()) * pitch;
-    let hinge_r = DVec3::new(0.5, 0.3, 0.0);
-    let right = Patch {
-        rect: Rect {
-            min: DVec2::new(2.0 * w, 0.0),
-            max: DVec2::new(3.0 * w, h),
-        },
-        origin: hinge_r - 2.0 * w * ex_r,
-        ex: ex_r,
-        ey: centre.ey,
-    };
-    let ex_l = DVec3::new(yaw.cos(), 0.0, -yaw.sin()) * pitch;
-    let hinge_l = DVec3::new(-0.5, 0.3, 0.0);
-    let left = Patch {
-        rect: Rect {
-            min: DVec2::new(0.0, 0.0),
-            max: DVec2::new(w, h),
-        },
-        origin: hinge_l - w * ex_l,
-        ex: ex_l,
-        ey: centre.ey,
-    };
-    patches.extend([left, centre, right]);
-    Surface {
-        canvas: Rect {
-            min: DVec2::ZERO,
-            max: DVec2::new(3.0 * w, h),
-        },
-        patches,
-        pitch_m: pitch,
-    }
+    let json = format!(
+        r#"{{"name": "test wall", "notes": "built in tests/dgi_twins.rs",
+            "generator": {{"columns": 3, "rows": 1, "resolution": [1000, 600],
+            "active_size": [1.0, 0.6],
+            "bezel": {{"left": 0.0, "right": 0.0, "top": 0.0, "bottom": 0.0}},
+            "yaw_step_deg": {yaw_deg}, "center": [0.0, 0.0, 0.0], "normal": [0.0, 0.0, 1.0],
+            "up": [0.0, 1.0, 0.0]}}}}"#
+    );
+    Surface::from_model(&DisplayModel::from_json(&json, "curved_wall").unwrap())
 }
 
 /// Raw-distance agreement: |d_GPU − d_CPU| ≤ RAW_ABS_PX + RAW_REL · d_CPU. The kernel's pixel

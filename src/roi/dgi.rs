@@ -40,13 +40,15 @@ pub enum Roi {
     CanvasEllipse { center: DVec2, semi_axes: DVec2 },
 }
 
-/// The display surface as the DGI sees it: planar patches covering the canvas.
+/// The display surface as the DGI sees it: planar patches covering the canvas, one per tile.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Surface {
     pub canvas: Rect,
     pub patches: Vec<Patch>,
     /// Metres per canvas pixel (for the angular metric's conversion).
     pub pitch_m: f64,
+    /// The model the patches come from (ray hits use its intersection).
+    model: crate::display::DisplayModel,
 }
 
 impl Surface {
@@ -77,6 +79,7 @@ impl Surface {
             canvas: model.canvas_rect(),
             patches,
             pitch_m: model.pitch_m(),
+            model: model.clone(),
         }
     }
 
@@ -86,35 +89,40 @@ impl Surface {
         self.patches.iter().find(|p| p.rect.contains(c))
     }
 
-    /// Intersects a ray with the surface: the nearest positive hit over all patches, as
-    /// (canvas point, distance along the unit ray).
+    /// The first hit of a ray on the display, as (canvas point, distance along the ray in
+    /// metres): the display model's own intersection, so the DGI agrees with `raygun pick` and
+    /// the interaction stage (backs of panels block the ray).
     #[must_use]
     pub fn hit(&self, origin: DVec3, dir: DVec3) -> Option<(DVec2, f64)> {
-        let dir = dir.try_normalize()?;
-        let mut best: Option<(DVec2, f64)> = None;
-        for p in &self.patches {
-            let n = p.ex.cross(p.ey);
-            let denom = dir.dot(n);
-            if denom == 0.0 || !denom.is_finite() {
-                continue;
-            }
-            let t = (p.origin - origin).dot(n) / denom;
-            if !(t > 0.0) || best.is_some_and(|(_, bt)| bt <= t) {
-                continue;
-            }
-            // Solve origin + t·dir = p.origin + cx·ex + cy·ey for (cx, cy) by least squares
-            // (ex ⟂ ey up to the tile's tolerance; use the 2×2 normal equations).
-            let r = origin + t * dir - p.origin;
-            let (exx, exy, eyy) = (p.ex.dot(p.ex), p.ex.dot(p.ey), p.ey.dot(p.ey));
-            let (bx, by) = (r.dot(p.ex), r.dot(p.ey));
-            let det = exx * eyy - exy * exy;
-            let c = DVec2::new((bx * eyy - by * exy) / det, (by * exx - bx * exy) / det);
-            if p.rect.contains(c) {
-                best = Some((c, t));
-            }
-        }
-        best
+        self.model
+            .intersect(origin, dir)
+            .map(|h| (h.canvas_px, h.t))
     }
+}
+
+/// Where the ray meets the *unbounded* plane of `patch` in front of its origin, as a canvas
+/// point of that plane's parametrisation.
+fn ray_plane(patch: &Patch, origin: DVec3, dir: DVec3) -> Option<DVec2> {
+    let n = patch.ex.cross(patch.ey);
+    let denom = dir.dot(n);
+    let t = (patch.origin - origin).dot(n) / denom;
+    if !(t > 0.0) || !t.is_finite() {
+        return None;
+    }
+    // origin + t·dir = patch.origin + cx·ex + cy·ey, solved by the 2×2 normal equations (ex and
+    // ey are perpendicular up to the model's tolerance).
+    let r = origin + t * dir - patch.origin;
+    let (exx, exy, eyy) = (
+        patch.ex.dot(patch.ex),
+        patch.ex.dot(patch.ey),
+        patch.ey.dot(patch.ey),
+    );
+    let (bx, by) = (r.dot(patch.ex), r.dot(patch.ey));
+    let det = exx * eyy - exy * exy;
+    Some(DVec2::new(
+        (bx * eyy - by * exy) / det,
+        (by * exx - bx * exy) / det,
+    ))
 }
 
 /// The image the DGI is computed for and its normalisation.
@@ -332,20 +340,7 @@ fn paper_ellipse(surface: &Surface, cone: &Cone) -> Result<Option<Piece>, GuideE
     };
     let (centre, _) = surface.hit(cone.apex, cone.axis).ok_or(miss)?;
     let patch = surface.patch_at(centre).ok_or(miss)?;
-    let on_plane = |dir: DVec3| -> Option<DVec2> {
-        let plane = Surface {
-            canvas: surface.canvas,
-            patches: vec![Patch {
-                rect: Rect {
-                    min: DVec2::splat(f64::NEG_INFINITY),
-                    max: DVec2::splat(f64::INFINITY),
-                },
-                ..*patch
-            }],
-            pitch_m: surface.pitch_m,
-        };
-        plane.hit(cone.apex, dir).map(|(c, _)| c)
-    };
+    let on_plane = |dir: DVec3| ray_plane(patch, cone.apex, dir);
     let end = |along: DVec3, tan: f64| -> f64 {
         let reach = |sign: f64| {
             on_plane(cone.axis + sign * tan * along)
