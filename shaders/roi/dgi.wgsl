@@ -190,10 +190,13 @@ fn relative(gid: vec2<u32>, center_i: vec2<i32>, center_f: vec2<f32>) -> vec2<f3
     return (vec2<f32>(vec2<i32>(gid) - center_i) - center_f) * params.scale;
 }
 
-// Distance from the pixel to the piece's bounding box: a lower bound of its distance.
-fn box_distance(pc: Piece, gid: vec2<u32>) -> f32 {
-    let rel = relative(gid, pc.center_i, pc.center_f);
-    return length(max(max(pc.bounds.xy - rel, rel - pc.bounds.zw), vec2<f32>(0.0)));
+// Distance from the pixel to piece k's bounding box: a lower bound of its distance. Reads only
+// the three fields it needs (a whole-struct copy per piece and pixel is what software
+// rasterisers pay for most).
+fn box_distance(k: u32, gid: vec2<u32>) -> f32 {
+    let rel = relative(gid, pieces[k].center_i, pieces[k].center_f);
+    let b = pieces[k].bounds;
+    return length(max(max(b.xy - rel, rel - b.zw), vec2<f32>(0.0)));
 }
 
 fn angular_excess(w: vec3<f32>) -> f32 {
@@ -219,7 +222,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         var first = params.count;
         var first_box = best;
         for (var k = 0u; k < params.count; k++) {
-            let b = box_distance(pieces[k], gid.xy);
+            let b = box_distance(k, gid.xy);
             if b < first_box {
                 first = k;
                 first_box = b;
@@ -229,18 +232,18 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             let pf = pieces[first];
             best = piece_distance(pf, relative(gid.xy, pf.center_i, pf.center_f), best);
             for (var k = 0u; k < params.count && best > 0.0; k++) {
-                let pc = pieces[k];
-                if k == first || box_distance(pc, gid.xy) >= best {
+                if k == first || box_distance(k, gid.xy) >= best {
                     continue;
                 }
+                let pc = pieces[k];
                 best = piece_distance(pc, relative(gid.xy, pc.center_i, pc.center_f), best);
             }
         }
     } else {
         for (var k = 0u; k < params.count; k++) {
-            let t = tiles[k];
-            let rel = relative(gid.xy, t.center_i, t.center_f);
-            if all(abs(rel) <= t.half) {
+            let rel = relative(gid.xy, tiles[k].center_i, tiles[k].center_f);
+            if all(abs(rel) <= tiles[k].half) {
+                let t = tiles[k];
                 let w = t.w0.xyz + rel.x * t.ex.xyz + rel.y * t.ey.xyz;
                 best = min(angular_excess(w) * params.px_per_radian, params.cap);
                 break;
