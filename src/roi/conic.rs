@@ -67,10 +67,13 @@ pub struct PlacedConic {
     pub axis_u: DVec2,
 }
 
-/// |λ_small| / λ_large below which a section is treated as a parabola. At this ratio the
-/// centred form of an ellipse or hyperbola would put the centre ~1e9× the patch size away and
-/// lose ~1e-5 px to cancellation, while the parabola's neglected quadratic term moves the
-/// boundary by under ~1e-6 px over a tile (both measured on HORNET's tiles); see the tests.
+/// |λ_small| / λ_large below which a section is treated as a parabola. An estimate, not a
+/// measurement: for a parabola-like section with focal scale f (~1000 px on a wall tile) the
+/// centred form puts the centre about f/ratio away, so in f64 it loses ~1e-16·f/ratio ≈ 1e-4 px
+/// to cancellation at this ratio, while dropping the λ_small term moves the boundary by about
+/// ratio·(patch size)²/f ≈ 1e-6 px over a 2000 px patch. Exact tangency (a generator parallel to
+/// the tile) is the case that needs it; the `grazing_cone_…` and `parabola_at_exact_tangency`
+/// tests cover both sides.
 pub const PARABOLA_RATIO: f64 = 1e-9;
 
 impl PlacedConic {

@@ -288,7 +288,7 @@ impl Guide {
     ///
     /// The piece with the nearest bounding box is solved first: it usually holds the nearest
     /// point (or the pixel itself), and its distance then prunes the other pieces by their
-    /// boxes. On HORNET at 60° this cuts the solves per pixel from ~10 to ~1.
+    /// boxes. Measured on HORNET at 60° (5 pieces): 1.73 solves per pixel in the falloff band.
     #[must_use]
     pub fn distance_capped(&self, surface: &Surface, c: DVec2, cap: f64) -> f64 {
         match self {
