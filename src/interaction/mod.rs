@@ -23,9 +23,11 @@ pub use surface::{HingedWall, RaySurface, SurfaceHit};
 
 use crate::tracking::event::{DeviceKind, Pose, Tracking, TrackingEvent};
 
-/// The frozen cone of a shot (room frame, unit vectors).
+/// The device's frame frozen by a shot (room frame, unit vectors): the apex and axes of the
+/// ray-gun cone. Its opening comes from the current FOV, which the stick keeps changing;
+/// [`RoiState::to_roi`] combines the two into a [`crate::roi::cone::Cone`].
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Cone {
+pub struct ShotFrame {
     pub apex: DVec3,
     pub axis: DVec3,
     pub right: DVec3,
@@ -45,7 +47,7 @@ pub struct RoiCentre {
 #[derive(Clone, Debug, PartialEq)]
 pub struct RoiState {
     /// `None` before the first shot, and for mouse ROIs.
-    pub cone: Option<Cone>,
+    pub cone: Option<ShotFrame>,
     /// `None` before the first successful shot.
     pub centre: Option<RoiCentre>,
     /// Full opening angles (horizontal, vertical), degrees.
@@ -326,7 +328,7 @@ impl Interaction {
         };
         let (d, r, u) = self.config.axes();
         let q = pose.orientation;
-        let cone = Cone {
+        let cone = ShotFrame {
             apex: pose.position,
             axis: q * d,
             right: q * r,
