@@ -8,11 +8,10 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use raygun::cli::tracking::{RecordArgs, listener_config};
-use raygun::interaction::{ChangeCause, HingedWall, Interaction, InteractionConfig, RoiChange};
-use raygun::tracking::dtrack::{DtrackConfig, TimeSource};
+use raygun::interaction::{ChangeCause, HingedWall, RoiChange};
 use raygun::tracking::event::{DeviceId, DeviceKind};
-use raygun::tracking::ingest::{Ingest, Pipeline, Protocol};
-use raygun::tracking::osc::{OscConfig, encode};
+use raygun::tracking::ingest::{Pipeline, Protocol};
+use raygun::tracking::osc::encode;
 use raygun::tracking::problems::ProblemLog;
 use raygun::tracking::replay::{ReplayHeader, ReplayPayload, ReplayReader, ReplayWriter};
 use raygun::tracking::udp::{ListenerConfig, Live, UdpError, UdpSource, record, run_live};
@@ -41,17 +40,7 @@ fn feed(
     let handle = {
         let (stop, live) = (stop.clone(), live.clone());
         std::thread::spawn(move || {
-            let mut ingest = Ingest::new(
-                DtrackConfig::default(),
-                OscConfig::default(),
-                TimeSource::Receive,
-            );
-            ingest.problems.quiet = true;
-            let machine = Interaction::new(InteractionConfig {
-                device,
-                ..InteractionConfig::default()
-            });
-            let mut pipeline = Pipeline::new(ingest, machine);
+            let mut pipeline = Pipeline::quiet_live(device);
             let wall = HingedWall::hornet();
             let mut changes = Vec::new();
             run_live(

@@ -163,17 +163,7 @@ pub fn stream_10khz(duration: Duration) -> String {
     let listener = {
         let (stop, live) = (stop.clone(), live.clone());
         std::thread::spawn(move || {
-            let mut ingest = Ingest::new(
-                DtrackConfig::default(),
-                OscConfig::default(),
-                TimeSource::Receive,
-            );
-            ingest.problems.quiet = true;
-            let machine = Interaction::new(InteractionConfig {
-                device: DeviceId::new(DeviceKind::Flystick, 0),
-                ..InteractionConfig::default()
-            });
-            let mut pipeline = Pipeline::new(ingest, machine);
+            let mut pipeline = Pipeline::quiet_live(DeviceId::new(DeviceKind::Flystick, 0));
             let wall = HingedWall::hornet();
             let _ = run_live(
                 &mut source,

@@ -3,10 +3,11 @@
 use serde::{Deserialize, Serialize};
 
 use super::dtrack::{DtrackConfig, DtrackDecoder, TimeSource};
+use super::event::DeviceId;
 use super::event::TrackingEvent;
 use super::osc::{OscConfig, OscDecoder};
 use super::problems::ProblemLog;
-use crate::interaction::{Interaction, RaySurface, RoiChange};
+use crate::interaction::{Interaction, InteractionConfig, RaySurface, RoiChange};
 
 /// The protocol of a raw datagram.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -33,6 +34,24 @@ impl Pipeline {
             interaction,
             changes: Vec::new(),
         }
+    }
+
+    /// A pipeline for live traffic with the default parsers and mapping, stamped with receive
+    /// times, following `device`, with problems counted but not logged (load and loopback runs,
+    /// where a logged line per bad datagram would be noise).
+    #[must_use]
+    pub fn quiet_live(device: DeviceId) -> Self {
+        let mut ingest = Ingest::new(
+            DtrackConfig::default(),
+            OscConfig::default(),
+            TimeSource::Receive,
+        );
+        ingest.problems.quiet = true;
+        let interaction = Interaction::new(InteractionConfig {
+            device,
+            ..InteractionConfig::default()
+        });
+        Self::new(ingest, interaction)
     }
 
     /// One raw datagram: its events and the ROI changes they caused.
