@@ -373,10 +373,14 @@ fn paper_ellipse(surface: &Surface, cone: &Cone) -> Result<Option<Piece>, GuideE
 pub fn compute_cpu(surface: &Surface, guide: &Guide, params: &DgiParams) -> Vec<f32> {
     let w = params.width as usize;
     let mut out = vec![0f32; w * params.height as usize];
+    // Per-image constants hoisted out of the per-pixel loop (same arithmetic as
+    // `pixel_to_canvas`, so the canvas points are bit-identical).
+    let (min, scale) = (surface.canvas.min, params.scale(&surface.canvas));
+    let cap = params.falloff_px.unwrap_or(f64::INFINITY);
     out.par_chunks_mut(w).enumerate().for_each(|(j, row)| {
         for (i, v) in row.iter_mut().enumerate() {
-            let c = params.pixel_to_canvas(&surface.canvas, i as u32, j as u32);
-            let d = guide.distance_capped(surface, c, params.falloff_px.unwrap_or(f64::INFINITY));
+            let c = min + (DVec2::new(i as f64, j as f64) + 0.5) * scale;
+            let d = guide.distance_capped(surface, c, cap);
             *v = normalise(d, params.falloff_px) as f32;
         }
     });
