@@ -44,5 +44,8 @@ pub mod display;
 pub mod gpu;
 pub mod interaction;
 pub mod output;
+pub mod random;
 pub mod roi;
+pub mod scene;
+pub mod trace;
 pub mod tracking;

@@ -1,0 +1,118 @@
+//! Scenes: glTF 2.0 loading, the generated paper scenes, and the environment light.
+//!
+//! A [`Scene`] is what the path tracer needs and nothing more (DESIGN.md §7): world-space
+//! triangles with shading normals and texture coordinates, glTF metallic-roughness materials,
+//! base-colour textures, cameras and the environment. Everything a file uses that raygun does
+//! not model is listed by name in [`Scene::unsupported`] instead of being dropped silently.
+//!
+//! Frames and units follow glTF: right-handed, +Y up, metres.
+
+use glam::{Vec2, Vec3, Vec4};
+
+/// One triangle in world space.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Triangle {
+    /// Vertex positions.
+    pub p: [Vec3; 3],
+    /// Shading normals (unit length; the geometric normal where the file has none).
+    pub n: [Vec3; 3],
+    /// Texture coordinates (TEXCOORD_0; zero where the file has none).
+    pub uv: [Vec2; 3],
+    /// Index into [`Scene::materials`].
+    pub material: u32,
+}
+
+/// A glTF metallic-roughness material, reduced to what the integrator shades.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Material {
+    pub name: String,
+    /// Linear RGBA base colour factor (alpha is ignored by the integrator: opaque only).
+    pub base_color: Vec4,
+    /// Index into [`Scene::textures`] multiplying `base_color`, if any.
+    pub base_color_texture: Option<u32>,
+    pub metallic: f32,
+    /// Perceptual roughness in [0, 1].
+    pub roughness: f32,
+    /// Emitted radiance (W·sr⁻¹·m⁻² in linear RGB): emissive factor × KHR_materials_emissive_strength.
+    pub emission: Vec3,
+}
+
+impl Default for Material {
+    /// glTF's default material: white, fully metallic, fully rough, not emissive.
+    fn default() -> Self {
+        Self {
+            name: "default".into(),
+            base_color: Vec4::ONE,
+            base_color_texture: None,
+            metallic: 1.0,
+            roughness: 1.0,
+            emission: Vec3::ZERO,
+        }
+    }
+}
+
+/// A base-colour texture: 8-bit sRGB-encoded RGBA texels, row 0 at the top (v = 0), sampled
+/// bilinearly with wrap-around (glTF's default sampler).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Texture {
+    pub name: String,
+    pub width: u32,
+    pub height: u32,
+    /// `width * height` texels, row-major.
+    pub texels: Vec<[u8; 4]>,
+}
+
+/// A perspective pinhole camera.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Camera {
+    pub name: String,
+    pub position: Vec3,
+    /// Unit viewing direction (glTF: the node's −Z).
+    pub forward: Vec3,
+    /// Unit up vector, orthogonal to `forward` (glTF: the node's +Y).
+    pub up: Vec3,
+    /// Vertical field of view in radians.
+    pub yfov: f32,
+}
+
+/// An equirectangular environment image in linear RGB.
+///
+/// Direction ↔ image: with +Y up, u = 0.5 + atan2(d.x, −d.z) / 2π and v = acos(d.y) / π,
+/// pixel (u·width, v·height), row 0 at the top (the zenith).
+#[derive(Clone, Debug, PartialEq)]
+pub struct EnvironmentMap {
+    pub name: String,
+    pub width: u32,
+    pub height: u32,
+    /// `width * height` linear RGB texels, row-major.
+    pub texels: Vec<Vec3>,
+}
+
+/// The light arriving from infinitely far away.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Environment {
+    /// The same radiance from every direction.
+    Constant(Vec3),
+    /// An equirectangular image.
+    Map(EnvironmentMap),
+}
+
+impl Default for Environment {
+    /// A white sky of radiance 1: the paper lit both scenes by the environment only.
+    fn default() -> Self {
+        Self::Constant(Vec3::ONE)
+    }
+}
+
+/// Everything the renderer needs to draw one picture.
+#[derive(Clone, Debug, Default)]
+pub struct Scene {
+    pub triangles: Vec<Triangle>,
+    pub materials: Vec<Material>,
+    pub textures: Vec<Texture>,
+    pub cameras: Vec<Camera>,
+    pub environment: Environment,
+    /// Features the file uses that raygun does not model, by name, each once
+    /// (e.g. "KHR_materials_transmission", "orthographic camera 'top'", "skin 'arm'").
+    pub unsupported: Vec<String>,
+}

@@ -1,0 +1,101 @@
+//! Per-pixel progressive accumulation, shared by the tracer, the scheduler and the filter.
+//!
+//! On the GPU it is two storage buffers indexed by pixel `y * width + x` (row 0 at the top):
+//! `accum: array<vec4<f32>>` — `.xyz` the sum of the sample radiances (linear RGB), `.w` the
+//! sum of the squared sample luminances — and `counts: array<u32>`, the number of samples.
+//! [`Accumulation`] is the same data on the CPU (and what a read-back returns).
+
+use glam::Vec3;
+
+/// Rec. 709 luminance of linear RGB.
+#[inline]
+#[must_use]
+pub fn luminance(rgb: Vec3) -> f32 {
+    0.2126 * rgb.x + 0.7152 * rgb.y + 0.0722 * rgb.z
+}
+
+/// Per-pixel sums and sample counts of a progressive render.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Accumulation {
+    pub width: u32,
+    pub height: u32,
+    /// Per pixel: RGB sum in `[0..3]`, sum of squared luminance in `[3]`.
+    pub sum: Vec<[f32; 4]>,
+    /// Per pixel: samples taken.
+    pub count: Vec<u32>,
+}
+
+impl Accumulation {
+    /// An empty accumulation (no samples anywhere).
+    #[must_use]
+    pub fn new(width: u32, height: u32) -> Self {
+        let n = width as usize * height as usize;
+        Self {
+            width,
+            height,
+            sum: vec![[0.0; 4]; n],
+            count: vec![0; n],
+        }
+    }
+
+    /// Adds one sample of radiance `rgb` to pixel `i`.
+    #[inline]
+    pub fn add(&mut self, i: usize, rgb: Vec3) {
+        let l = luminance(rgb);
+        let s = &mut self.sum[i];
+        s[0] += rgb.x;
+        s[1] += rgb.y;
+        s[2] += rgb.z;
+        s[3] += l * l;
+        self.count[i] += 1;
+    }
+
+    /// The pixel's mean radiance (black where it has no sample yet).
+    #[must_use]
+    pub fn mean(&self, i: usize) -> Vec3 {
+        let n = self.count[i];
+        if n == 0 {
+            return Vec3::ZERO;
+        }
+        Vec3::new(self.sum[i][0], self.sum[i][1], self.sum[i][2]) / n as f32
+    }
+
+    /// The estimated variance of the pixel's mean luminance, s²/n with the unbiased sample
+    /// variance s²; `None` with fewer than two samples.
+    #[must_use]
+    pub fn luminance_variance_of_mean(&self, i: usize) -> Option<f32> {
+        let n = self.count[i];
+        if n < 2 {
+            return None;
+        }
+        let nf = n as f64;
+        let s = self.sum[i];
+        let mean_l = f64::from(luminance(Vec3::new(s[0], s[1], s[2]))) / nf;
+        let var = ((f64::from(s[3]) - nf * mean_l * mean_l) / (nf - 1.0)).max(0.0);
+        Some((var / nf) as f32)
+    }
+
+    /// The mean image, row-major linear RGB.
+    #[must_use]
+    pub fn mean_image(&self) -> Vec<Vec3> {
+        (0..self.count.len()).map(|i| self.mean(i)).collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn variance_of_mean_matches_the_textbook_formula() {
+        let mut a = Accumulation::new(1, 1);
+        for v in [1.0f32, 2.0, 3.0, 4.0] {
+            a.add(0, Vec3::splat(v));
+        }
+        // Luminance of grey v is v (the weights sum to 1). Sample variance of 1..4 is 5/3.
+        let got = a.luminance_variance_of_mean(0).unwrap();
+        assert!((got - 5.0 / 12.0).abs() < 1e-6, "{got}");
+        assert_eq!(a.mean(0), Vec3::splat(2.5));
+        assert_eq!(Accumulation::new(1, 1).luminance_variance_of_mean(0), None);
+    }
+}
