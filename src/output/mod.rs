@@ -97,6 +97,72 @@ pub fn write_gray(
     }
 }
 
+/// Writes a linear RGB image (row-major): EXR keeps 32-bit float R, G, B channels; PNG shows
+/// it as 8-bit sRGB after scaling by 2^`exposure` and clamping to [0, 1] (NaN is black).
+pub fn write_rgb(
+    path: &Path,
+    width: u32,
+    height: u32,
+    pixels: &[glam::Vec3],
+    exposure: f32,
+) -> Result<(), OutputError> {
+    check_len(path, width, height, 1, pixels.len())?;
+    match Format::from_path(path)? {
+        Format::Exr => {
+            use exr::prelude::*;
+            let channel = |name: &str, k: usize| {
+                AnyChannel::new(
+                    name,
+                    FlatSamples::F32(pixels.iter().map(|p| p[k]).collect()),
+                )
+            };
+            let layer = Layer::new(
+                (width as usize, height as usize),
+                LayerAttributes::named("rgb"),
+                Encoding::FAST_LOSSLESS,
+                AnyChannels::sort(SmallVec::from_vec(vec![
+                    channel("R", 0),
+                    channel("G", 1),
+                    channel("B", 2),
+                ])),
+            );
+            Image::from_layer(layer)
+                .write()
+                .to_file(path)
+                .map_err(|source| OutputError::Exr {
+                    path: path.to_owned(),
+                    source,
+                })
+        }
+        Format::Png => {
+            let scale = exposure.exp2();
+            let bytes: Vec<u8> = pixels
+                .iter()
+                .flat_map(|p| p.to_array())
+                .map(|v| unit_to_u8(linear_to_srgb(v * scale)))
+                .collect();
+            image::RgbImage::from_raw(width, height, bytes)
+                .expect("length checked above")
+                .save(path)
+                .map_err(|source| OutputError::Png {
+                    path: path.to_owned(),
+                    source,
+                })
+        }
+    }
+}
+
+/// The sRGB transfer function (linear [0, 1] → encoded [0, 1]); values outside are clamped.
+#[must_use]
+pub fn linear_to_srgb(v: f32) -> f32 {
+    let v = v.clamp(0.0, 1.0);
+    if v <= 0.003_130_8 {
+        12.92 * v
+    } else {
+        1.055 * v.powf(1.0 / 2.4) - 0.055
+    }
+}
+
 fn check_len(
     path: &Path,
     width: u32,

@@ -33,6 +33,9 @@ pub struct Material {
     pub metallic: f32,
     /// Perceptual roughness in [0, 1].
     pub roughness: f32,
+    /// KHR_materials_specular's `specularFactor` (1 without the extension): scales the
+    /// dielectric Fresnel reflectance; 0 makes a non-metal a pure Lambertian reflector.
+    pub specular: f32,
     /// Emitted radiance (W·sr⁻¹·m⁻² in linear RGB): emissive factor × KHR_materials_emissive_strength.
     pub emission: Vec3,
 }
@@ -46,6 +49,7 @@ impl Default for Material {
             base_color_texture: None,
             metallic: 1.0,
             roughness: 1.0,
+            specular: 1.0,
             emission: Vec3::ZERO,
         }
     }

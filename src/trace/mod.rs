@@ -1,5 +1,11 @@
 //! Path tracing (DESIGN.md §7): the BVH, the WGSL integrator and its CPU twin.
 
 pub mod accum;
+pub mod bvh;
+pub mod camera;
+pub mod cpu;
+pub mod gpu;
+pub mod pack;
+pub mod shading;
 
 pub use accum::{Accumulation, luminance};

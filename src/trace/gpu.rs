@@ -1,0 +1,391 @@
+//! Dispatch of `shaders/trace/*.wgsl`, the GPU twin of [`super::cpu::render_cpu`].
+//!
+//! Bind group 0 is the scene ([`GpuScene`], uploaded once), bind group 1 the frame: the
+//! parameters, the accumulation ([`GpuAccum`]) and, for guided rendering, the scheduler's pixel
+//! list and its indirect-dispatch arguments `(x, y, z, count)`.
+
+use bytemuck::{Pod, Zeroable};
+use wgpu::util::DeviceExt;
+
+use super::accum::Accumulation;
+use super::cpu::TraceSettings;
+use super::pack::PackedScene;
+use crate::gpu::{GpuContext, GpuError, PassTimer};
+
+/// The kernel source (WGSL has no includes).
+pub const TRACE_WGSL: &str = concat!(
+    include_str!("../../shaders/common/random.wgsl"),
+    "\n",
+    include_str!("../../shaders/trace/bvh.wgsl"),
+    "\n",
+    include_str!("../../shaders/trace/shading.wgsl"),
+    "\n",
+    include_str!("../../shaders/trace/path.wgsl")
+);
+
+/// Threads per workgroup of the trace kernel (`WORKGROUP` in path.wgsl).
+pub const WORKGROUP: u32 = 64;
+/// The most workgroups in one dimension of a dispatch.
+const MAX_GROUPS_X: u32 = 65_535;
+
+/// Mirrors `Params` in shaders/trace/path.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct GpuTraceParams {
+    pub size: [u32; 2],
+    pub count: u32,
+    pub mode: u32,
+    pub seed: u32,
+    pub max_depth: u32,
+    pub light_count: u32,
+    pub groups_x: u32,
+    pub env_size: [u32; 2],
+    pub env_marginal: u32,
+    pub env_conditional: u32,
+    pub env_constant: [f32; 3],
+    pub env_select: f32,
+    pub cam_pos: [f32; 3],
+    pub tan_half_y: f32,
+    pub cam_fwd: [f32; 3],
+    pub aspect: f32,
+    pub cam_right: [f32; 3],
+    pub node_count: u32,
+    pub cam_up: [f32; 3],
+    pub _pad: u32,
+}
+
+/// The full-frame grid: threads (8 × 8 tiles, padded) and a 2D workgroup grid within the
+/// per-dimension dispatch limit.
+#[must_use]
+pub fn full_frame_grid(width: u32, height: u32) -> (u32, [u32; 2]) {
+    let threads = width.div_ceil(8) * height.div_ceil(8) * 64;
+    let groups = threads.div_ceil(WORKGROUP);
+    let gx = groups.min(MAX_GROUPS_X);
+    (threads, [gx, groups.div_ceil(gx)])
+}
+
+impl GpuTraceParams {
+    #[must_use]
+    pub fn new(scene: &PackedScene, s: &TraceSettings, list_mode: bool) -> Self {
+        let (threads, [gx, _]) = full_frame_grid(s.width, s.height);
+        let c = &s.camera;
+        Self {
+            size: [s.width, s.height],
+            count: threads,
+            mode: u32::from(list_mode),
+            seed: s.seed,
+            max_depth: s.max_depth,
+            light_count: scene.light_count,
+            groups_x: gx,
+            env_size: scene.env_size,
+            env_marginal: scene.env_marginal,
+            env_conditional: scene.env_conditional,
+            env_constant: scene.env_constant.to_array(),
+            env_select: scene.env_select,
+            cam_pos: c.position.to_array(),
+            tan_half_y: c.tan_half_y,
+            cam_fwd: c.forward.to_array(),
+            aspect: c.aspect,
+            cam_right: c.right.to_array(),
+            node_count: scene.bvh.cwbvh.nodes.len() as u32,
+            cam_up: c.up.to_array(),
+            _pad: 0,
+        }
+    }
+}
+
+/// The compiled kernel.
+pub struct TraceKernel {
+    pipeline: wgpu::ComputePipeline,
+}
+
+impl TraceKernel {
+    #[must_use]
+    pub fn new(ctx: &GpuContext) -> Self {
+        let module = ctx
+            .device
+            .create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("trace/path.wgsl"),
+                source: wgpu::ShaderSource::Wgsl(TRACE_WGSL.into()),
+            });
+        let pipeline = ctx
+            .device
+            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some("trace/path"),
+                layout: None,
+                module: &module,
+                entry_point: Some("trace"),
+                compilation_options: Default::default(),
+                cache: None,
+            });
+        Self { pipeline }
+    }
+}
+
+fn check_binding(ctx: &GpuContext, what: &'static str, bytes: u64) -> Result<(), GpuError> {
+    let max = ctx
+        .limits
+        .max_storage_buffer_binding_size
+        .min(ctx.limits.max_buffer_size);
+    if bytes > max {
+        return Err(GpuError::TooLarge { what, bytes, max });
+    }
+    Ok(())
+}
+
+fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
+    wgpu::BindGroupEntry {
+        binding,
+        resource: buffer.as_entire_binding(),
+    }
+}
+
+/// The scene on the GPU.
+pub struct GpuScene {
+    bind: wgpu::BindGroup,
+    /// Bytes uploaded (for reports).
+    pub bytes: u64,
+}
+
+impl GpuScene {
+    /// Uploads `scene`; fails with a clear error when an array exceeds the adapter's limits.
+    pub fn upload(
+        ctx: &GpuContext,
+        kernel: &TraceKernel,
+        scene: &PackedScene,
+    ) -> Result<Self, GpuError> {
+        let nodes: &[u8] = if scene.bvh.cwbvh.nodes.is_empty() {
+            &[0u8; 80]
+        } else {
+            bytemuck::cast_slice(&scene.bvh.cwbvh.nodes)
+        };
+        let arrays: [(&'static str, &[u8]); 8] = [
+            ("BVH nodes", nodes),
+            ("BVH primitives", bytemuck::cast_slice(&scene.bvh.prims)),
+            ("triangle shading data", bytemuck::cast_slice(&scene.shade)),
+            ("materials", bytemuck::cast_slice(&scene.materials)),
+            ("textures", bytemuck::cast_slice(&scene.texels)),
+            ("emissive triangles", bytemuck::cast_slice(&scene.lights)),
+            ("sampling distributions", bytemuck::cast_slice(&scene.dist)),
+            ("environment map", bytemuck::cast_slice(&scene.env)),
+        ];
+        let mut bytes = 0;
+        let mut buffers = Vec::with_capacity(arrays.len());
+        for (what, data) in arrays {
+            check_binding(ctx, what, data.len() as u64)?;
+            bytes += data.len() as u64;
+            buffers.push(
+                ctx.device
+                    .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                        label: Some(what),
+                        contents: data,
+                        usage: wgpu::BufferUsages::STORAGE,
+                    }),
+            );
+        }
+        let entries: Vec<_> = buffers
+            .iter()
+            .enumerate()
+            .map(|(i, b)| entry(i as u32, b))
+            .collect();
+        let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("trace scene"),
+            layout: &kernel.pipeline.get_bind_group_layout(0),
+            entries: &entries,
+        });
+        Ok(Self { bind, bytes })
+    }
+}
+
+/// The accumulation on the GPU (layout: `super::accum`).
+pub struct GpuAccum {
+    pub width: u32,
+    pub height: u32,
+    pub accum: wgpu::Buffer,
+    pub counts: wgpu::Buffer,
+}
+
+impl GpuAccum {
+    /// Zeroed buffers for a `width × height` image.
+    pub fn new(ctx: &GpuContext, width: u32, height: u32) -> Result<Self, GpuError> {
+        let n = u64::from(width) * u64::from(height);
+        check_binding(ctx, "accumulation (16 bytes per pixel)", n * 16)?;
+        let make = |label, size| {
+            ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size,
+                usage: wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::COPY_SRC
+                    | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        };
+        Ok(Self {
+            width,
+            height,
+            accum: make("trace accum", n * 16),
+            counts: make("trace counts", n * 4),
+        })
+    }
+
+    /// Records clearing both buffers (a new render).
+    pub fn clear(&self, enc: &mut wgpu::CommandEncoder) {
+        enc.clear_buffer(&self.accum, 0, None);
+        enc.clear_buffer(&self.counts, 0, None);
+    }
+
+    /// Reads the accumulation back.
+    pub fn read(&self, ctx: &GpuContext) -> Result<Accumulation, GpuError> {
+        Ok(Accumulation {
+            width: self.width,
+            height: self.height,
+            sum: ctx.read_buffer::<[f32; 4]>(&self.accum)?,
+            count: ctx.read_buffer::<u32>(&self.counts)?,
+        })
+    }
+}
+
+/// A prepared trace dispatch over one accumulation, full frame or from a pixel list.
+pub struct TraceRun {
+    pipeline: wgpu::ComputePipeline,
+    params: wgpu::Buffer,
+    bind: wgpu::BindGroup,
+    /// The scheduler's `(x, y, z, count)` buffer in list mode.
+    args: Option<wgpu::Buffer>,
+    groups: [u32; 2],
+}
+
+impl TraceRun {
+    /// Full frame when `schedule` is `None`; otherwise one path per entry of the scheduler's
+    /// `list` (pixel indices), launched indirectly from `args` = `(x, y, z, count)` (which
+    /// needs `INDIRECT | STORAGE` usage).
+    pub fn new(
+        ctx: &GpuContext,
+        kernel: &TraceKernel,
+        scene: &PackedScene,
+        settings: &TraceSettings,
+        accum: &GpuAccum,
+        schedule: Option<(&wgpu::Buffer, &wgpu::Buffer)>,
+    ) -> Self {
+        let params = ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("trace params"),
+                contents: bytemuck::bytes_of(&GpuTraceParams::new(
+                    scene,
+                    settings,
+                    schedule.is_some(),
+                )),
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            });
+        let dummy = || {
+            ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("trace: no list"),
+                size: 16,
+                usage: wgpu::BufferUsages::STORAGE,
+                mapped_at_creation: false,
+            })
+        };
+        let (list_owned, args_owned);
+        let (list, args) = match schedule {
+            Some((l, a)) => (l, a),
+            None => {
+                list_owned = dummy();
+                args_owned = dummy();
+                (&list_owned, &args_owned)
+            }
+        };
+        let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("trace frame"),
+            layout: &kernel.pipeline.get_bind_group_layout(1),
+            entries: &[
+                entry(0, &params),
+                entry(1, &accum.accum),
+                entry(2, &accum.counts),
+                entry(3, list),
+                entry(4, args),
+            ],
+        });
+        let (_, groups) = full_frame_grid(settings.width, settings.height);
+        Self {
+            pipeline: kernel.pipeline.clone(),
+            params,
+            bind,
+            args: schedule.map(|(_, a)| a.clone()),
+            groups,
+        }
+    }
+
+    /// Rewrites the parameters (a new camera, seed or depth) before the next submit.
+    pub fn set_settings(&self, ctx: &GpuContext, scene: &PackedScene, settings: &TraceSettings) {
+        let p = GpuTraceParams::new(scene, settings, self.args.is_some());
+        ctx.queue
+            .write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
+    }
+
+    /// Records one iteration (one path per pixel, or per listed pixel).
+    pub fn record(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        scene: &GpuScene,
+        timer: Option<(&PassTimer, u32)>,
+    ) {
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("trace/path"),
+            timestamp_writes: timer.map(|(t, i)| t.writes(i)),
+        });
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, &scene.bind, &[]);
+        pass.set_bind_group(1, &self.bind, &[]);
+        match &self.args {
+            Some(args) => pass.dispatch_workgroups_indirect(args, 0),
+            None => pass.dispatch_workgroups(self.groups[0], self.groups[1], 1),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use wgpu::naga;
+
+    #[test]
+    fn kernel_validates_and_params_match_their_rust_twin() {
+        let module = naga::front::wgsl::parse_str(TRACE_WGSL)
+            .unwrap_or_else(|e| panic!("{}", e.emit_to_string(TRACE_WGSL)));
+        naga::valid::Validator::new(
+            naga::valid::ValidationFlags::all(),
+            naga::valid::Capabilities::empty(),
+        )
+        .validate(&module)
+        .unwrap_or_else(|e| panic!("{}", e.emit_to_string(TRACE_WGSL)));
+        let (_, ty) = module
+            .types
+            .iter()
+            .find(|(_, t)| t.name.as_deref() == Some("Params"))
+            .expect("Params in path.wgsl");
+        assert_eq!(
+            ty.inner.size(module.to_ctx()) as usize,
+            std::mem::size_of::<GpuTraceParams>()
+        );
+        let (_, node) = module
+            .types
+            .iter()
+            .find(|(_, t)| t.name.as_deref() == Some("Node"))
+            .expect("Node in bvh.wgsl");
+        assert_eq!(
+            node.inner.size(module.to_ctx()) as usize,
+            std::mem::size_of::<obvhs::cwbvh::node::CwBvhNode>()
+        );
+    }
+
+    #[test]
+    fn full_frame_grid_stays_within_dispatch_limits() {
+        for (w, h) in [(1, 1), (7, 9), (128, 72), (3840, 2160), (7680, 4320)] {
+            let (threads, [gx, gy]) = full_frame_grid(w, h);
+            assert!(gx <= MAX_GROUPS_X);
+            assert!(u64::from(gx) * u64::from(gy) * u64::from(WORKGROUP) >= u64::from(threads));
+            assert!(u64::from(threads) >= u64::from(w) * u64::from(h));
+        }
+    }
+}
