@@ -107,6 +107,7 @@ fn intersect_triangle(o: vec3<f32>, d: vec3<f32>, v0: vec3<f32>, e1: vec3<f32>, 
 // Closest hit (any_hit = false) or the first hit found (any_hit = true, shadow rays).
 fn traverse(o: vec3<f32>, d: vec3<f32>, tmax_in: f32, any_hit: bool) -> Hit {
     var hit = Hit(tmax_in, 0.0, 0.0, NO_HIT);
+    rays_traced += 1u;
     if params.node_count == 0u {
         return hit;
     }

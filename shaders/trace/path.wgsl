@@ -41,6 +41,11 @@ const WORKGROUP: u32 = 64u;
 @group(1) @binding(2) var<storage, read_write> counts: array<u32>;
 @group(1) @binding(3) var<storage, read> list: array<u32>;
 @group(1) @binding(4) var<storage, read> args: array<u32>; // (x, y, z, count)
+// [0]: rays traced (closest-hit and shadow), summed per workgroup then added once.
+@group(1) @binding(5) var<storage, read_write> stats: array<atomic<u32>>;
+
+var<private> rays_traced: u32;
+var<workgroup> workgroup_rays: atomic<u32>;
 
 fn rand4(pixel: u32, sample: u32, dim: u32) -> vec4<f32> {
     let r = pcg4d(vec4<u32>(pixel, sample, params.seed, STREAM_TRACE + dim));
@@ -321,32 +326,39 @@ fn trace_sample(pixel: u32, sample: u32) -> vec3<f32> {
 
 @compute @workgroup_size(64)
 fn trace(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
-    var pixel: u32;
+    // No early return: the ray count is reduced per workgroup behind a barrier.
+    var pixel = 0u;
+    var live = false;
     if params.mode == 1u {
         let linear = (wg.y * args[0] + wg.x) * WORKGROUP + li;
-        if linear >= args[3] {
-            return;
+        if linear < args[3] {
+            pixel = list[linear];
+            live = true;
         }
-        pixel = list[linear];
     } else {
         let linear = (wg.y * params.groups_x + wg.x) * WORKGROUP + li;
-        if linear >= params.count {
-            return;
-        }
         // 8 × 8 tiles in row-major tile order: neighbouring threads trace neighbouring pixels.
         let tiles_x = (params.size.x + 7u) / 8u;
         let tile = linear / 64u;
         let l = linear % 64u;
         let x = (tile % tiles_x) * 8u + l % 8u;
         let y = (tile / tiles_x) * 8u + l / 8u;
-        if x >= params.size.x || y >= params.size.y {
-            return;
+        if linear < params.count && x < params.size.x && y < params.size.y {
+            pixel = y * params.size.x + x;
+            live = true;
         }
-        pixel = y * params.size.x + x;
     }
-    let sample = counts[pixel];
-    let rgb = trace_sample(pixel, sample);
-    let l = lum(rgb);
-    accum[pixel] += vec4<f32>(rgb, l * l);
-    counts[pixel] = sample + 1u;
+    rays_traced = 0u;
+    if live {
+        let sample = counts[pixel];
+        let rgb = trace_sample(pixel, sample);
+        let l = lum(rgb);
+        accum[pixel] += vec4<f32>(rgb, l * l);
+        counts[pixel] = sample + 1u;
+    }
+    atomicAdd(&workgroup_rays, rays_traced);
+    workgroupBarrier();
+    if li == 0u {
+        atomicAdd(&stats[0], atomicLoad(&workgroup_rays));
+    }
 }

@@ -14,6 +14,17 @@ pub fn luminance(rgb: Vec3) -> f32 {
     0.2126 * rgb.x + 0.7152 * rgb.y + 0.0722 * rgb.z
 }
 
+/// Adds one sample of radiance `rgb` to a pixel's sums and count (the kernel's arithmetic).
+#[inline]
+pub fn accumulate(sum: &mut [f32; 4], count: &mut u32, rgb: Vec3) {
+    let l = luminance(rgb);
+    sum[0] += rgb.x;
+    sum[1] += rgb.y;
+    sum[2] += rgb.z;
+    sum[3] += l * l;
+    *count += 1;
+}
+
 /// Per-pixel sums and sample counts of a progressive render.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Accumulation {
@@ -41,13 +52,7 @@ impl Accumulation {
     /// Adds one sample of radiance `rgb` to pixel `i`.
     #[inline]
     pub fn add(&mut self, i: usize, rgb: Vec3) {
-        let l = luminance(rgb);
-        let s = &mut self.sum[i];
-        s[0] += rgb.x;
-        s[1] += rgb.y;
-        s[2] += rgb.z;
-        s[3] += l * l;
-        self.count[i] += 1;
+        accumulate(&mut self.sum[i], &mut self.count[i], rgb);
     }
 
     /// The pixel's mean radiance (black where it has no sample yet).

@@ -16,7 +16,7 @@ use std::f32::consts::PI;
 use glam::{Vec2, Vec3, Vec4};
 use rayon::prelude::*;
 
-use super::accum::Accumulation;
+use super::accum::{Accumulation, accumulate};
 use super::camera::RenderCamera;
 use super::pack::{NO_TEXTURE, PackedScene};
 use super::shading::{
@@ -164,6 +164,13 @@ fn sample_env(sc: &PackedScene, u1: f32, u2: f32) -> (Vec3, Vec3, f32) {
 /// non-finite estimate is returned as black).
 #[must_use]
 pub fn trace_sample(sc: &PackedScene, s: &TraceSettings, pixel: u32, sample: u32) -> Vec3 {
+    trace_counted(sc, s, pixel, sample).0
+}
+
+/// [`trace_sample`] and the number of rays it traced (closest-hit and shadow rays).
+#[must_use]
+pub fn trace_counted(sc: &PackedScene, s: &TraceSettings, pixel: u32, sample: u32) -> (Vec3, u32) {
+    let mut rays = 0u32;
     let (x, y) = (pixel % s.width, pixel / s.width);
     let r0 = rand4(pixel, sample, s.seed, 0);
     let mut d = s
@@ -176,6 +183,7 @@ pub fn trace_sample(sc: &PackedScene, s: &TraceSettings, pixel: u32, sample: u32
     let mut prev_pdf = 0.0f32;
     let bvh = &sc.bvh;
     for depth in 0..s.max_depth {
+        rays += 1;
         let Some(hit) = bvh.closest_hit(o, d, f32::INFINITY) else {
             let (le, pdf_env) = env_eval(sc, d);
             let w = if prev_pdf == 0.0 {
@@ -273,8 +281,11 @@ pub fn trace_sample(sc: &PackedScene, s: &TraceSettings, pixel: u32, sample: u32
             if pdf_l > 0.0 && pdf_l.is_finite() && wi.dot(ng) > 0.0 {
                 let (f, pdf_b) = bsdf.eval(ns, wo, wi);
                 let contrib = throughput * f * le * (ns.dot(wi) / pdf_l) * mis(pdf_l, pdf_b);
-                if contrib != Vec3::ZERO && !bvh.occluded(po, wi, tmax) {
-                    radiance += contrib;
+                if contrib != Vec3::ZERO {
+                    rays += 1;
+                    if !bvh.occluded(po, wi, tmax) {
+                        radiance += contrib;
+                    }
                 }
             }
         }
@@ -300,20 +311,22 @@ pub fn trace_sample(sc: &PackedScene, s: &TraceSettings, pixel: u32, sample: u32
         o = po;
         d = wi;
     }
-    if radiance.is_finite() {
+    let radiance = if radiance.is_finite() {
         radiance
     } else {
         Vec3::ZERO
-    }
+    };
+    (radiance, rays)
 }
 
 /// One iteration: one sample for each pixel of `list` (every pixel when `None`), accumulated.
+/// Returns the number of rays traced.
 pub fn render_cpu(
     sc: &PackedScene,
     s: &TraceSettings,
     accum: &mut Accumulation,
     list: Option<&[u32]>,
-) {
+) -> u64 {
     match list {
         None => {
             let w = s.width as usize;
@@ -322,33 +335,30 @@ pub fn render_cpu(
                 .par_chunks_mut(w)
                 .zip(accum.count.par_chunks_mut(w))
                 .enumerate()
-                .for_each(|(y, (sums, counts))| {
+                .map(|(y, (sums, counts))| {
+                    let mut rays = 0u64;
                     for x in 0..w {
                         let pixel = (y * w + x) as u32;
-                        let rgb = trace_sample(sc, s, pixel, counts[x]);
-                        add(&mut sums[x], &mut counts[x], rgb);
+                        let (rgb, r) = trace_counted(sc, s, pixel, counts[x]);
+                        accumulate(&mut sums[x], &mut counts[x], rgb);
+                        rays += u64::from(r);
                     }
-                });
+                    rays
+                })
+                .sum()
         }
         Some(list) => {
-            let samples: Vec<Vec3> = list
+            let samples: Vec<(Vec3, u32)> = list
                 .par_iter()
-                .map(|&p| trace_sample(sc, s, p, accum.count[p as usize]))
+                .map(|&p| trace_counted(sc, s, p, accum.count[p as usize]))
                 .collect();
-            for (&p, rgb) in list.iter().zip(samples) {
+            let mut rays = 0u64;
+            for (&p, (rgb, r)) in list.iter().zip(samples) {
                 let i = p as usize;
-                add(&mut accum.sum[i], &mut accum.count[i], rgb);
+                accumulate(&mut accum.sum[i], &mut accum.count[i], rgb);
+                rays += u64::from(r);
             }
+            rays
         }
     }
-}
-
-#[inline]
-fn add(sum: &mut [f32; 4], count: &mut u32, rgb: Vec3) {
-    let l = super::accum::luminance(rgb);
-    sum[0] += rgb.x;
-    sum[1] += rgb.y;
-    sum[2] += rgb.z;
-    sum[3] += l * l;
-    *count += 1;
 }

@@ -197,12 +197,14 @@ impl GpuScene {
     }
 }
 
-/// The accumulation on the GPU (layout: `super::accum`).
+/// The accumulation on the GPU (layout: `super::accum`), and the tracer's statistics.
 pub struct GpuAccum {
     pub width: u32,
     pub height: u32,
     pub accum: wgpu::Buffer,
     pub counts: wgpu::Buffer,
+    /// `[rays traced]` since the last [`GpuAccum::clear_stats`].
+    pub stats: wgpu::Buffer,
 }
 
 impl GpuAccum {
@@ -225,13 +227,25 @@ impl GpuAccum {
             height,
             accum: make("trace accum", n * 16),
             counts: make("trace counts", n * 4),
+            stats: make("trace stats", 16),
         })
+    }
+
+    /// Records zeroing the statistics.
+    pub fn clear_stats(&self, enc: &mut wgpu::CommandEncoder) {
+        enc.clear_buffer(&self.stats, 0, None);
+    }
+
+    /// Rays traced since the statistics were last cleared (a read-back: for benchmarks).
+    pub fn rays(&self, ctx: &GpuContext) -> Result<u64, GpuError> {
+        Ok(u64::from(ctx.read_buffer::<u32>(&self.stats)?[0]))
     }
 
     /// Records clearing both buffers (a new render).
     pub fn clear(&self, enc: &mut wgpu::CommandEncoder) {
         enc.clear_buffer(&self.accum, 0, None);
         enc.clear_buffer(&self.counts, 0, None);
+        enc.clear_buffer(&self.stats, 0, None);
     }
 
     /// Reads the accumulation back.
@@ -304,6 +318,7 @@ impl TraceRun {
                 entry(2, &accum.counts),
                 entry(3, list),
                 entry(4, args),
+                entry(5, &accum.stats),
             ],
         });
         let (_, groups) = full_frame_grid(settings.width, settings.height);
