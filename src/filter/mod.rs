@@ -50,6 +50,7 @@
 pub mod exact;
 pub mod fast;
 pub mod gpu;
+pub mod synth;
 
 use glam::DVec3;
 use serde::Serialize;
