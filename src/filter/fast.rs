@@ -306,12 +306,11 @@ fn read_level(level: &Level, grid: &Grid, x: u32, y: u32) -> ([f64; 4], f64) {
     let (iy, fy) = coord(y, level.size[1]);
     let w = level.size[0] as usize;
     let at = |i: usize, j: usize| grid[j * w + i];
-    let mut out = [0.0; 4];
-    for c in 0..4 {
+    let out = std::array::from_fn(|c| {
         let top = at(ix, iy)[c] * (1.0 - fx) + at(ix + 1, iy)[c] * fx;
         let bottom = at(ix, iy + 1)[c] * (1.0 - fx) + at(ix + 1, iy + 1)[c] * fx;
-        out[c] = top * (1.0 - fy) + bottom * fy;
-    }
+        top * (1.0 - fy) + bottom * fy
+    });
     let var = level.sigma2 + r * r * (fx * (1.0 - fx) + fy * (1.0 - fy)) / 2.0;
     (out, var)
 }

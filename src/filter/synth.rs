@@ -7,6 +7,7 @@
 //! the reference and its variance of the mean is ref²/s.
 
 use glam::Vec3;
+use rayon::prelude::*;
 
 use crate::random::{pcg4d, stream, unit_f32};
 use crate::trace::accum::Accumulation;
@@ -61,24 +62,37 @@ pub fn accumulate(
     reference: &[Vec3],
     width: u32,
     height: u32,
-    probability: impl Fn(usize) -> f32,
+    probability: impl Fn(usize) -> f32 + Sync,
     iterations: u32,
     seed: u32,
 ) -> Accumulation {
-    let mut acc = Accumulation::new(width, height);
-    for (i, r) in reference.iter().enumerate() {
-        let p = probability(i);
-        for it in 0..iterations {
-            let h = pcg4d([i as u32, it, seed, stream::SCHEDULE]);
-            if unit_f32(h[0]) >= p {
-                continue;
+    // Pixels are independent: accumulate each on its own (same order of additions as
+    // `Accumulation::add` in a round-by-round loop).
+    let pixels: Vec<([f32; 4], u32)> = reference
+        .par_iter()
+        .enumerate()
+        .map(|(i, r)| {
+            let p = probability(i);
+            let mut one = Accumulation::new(1, 1);
+            for it in 0..iterations {
+                let h = pcg4d([i as u32, it, seed, stream::SCHEDULE]);
+                if unit_f32(h[0]) >= p {
+                    continue;
+                }
+                // Exponential variate of mean 1: −ln(1 − U), U ∈ [0, 1).
+                let u = unit_f32(pcg4d([i as u32, it, seed, stream::TRACE])[0]);
+                one.add(0, *r * -(1.0 - u).ln());
             }
-            // Exponential variate of mean 1: −ln(1 − U), U ∈ [0, 1).
-            let u = unit_f32(pcg4d([i as u32, it, seed, stream::TRACE])[0]);
-            acc.add(i, *r * -(1.0 - u).ln());
-        }
+            (one.sum[0], one.count[0])
+        })
+        .collect();
+    let (sum, count) = pixels.into_iter().unzip();
+    Accumulation {
+        width,
+        height,
+        sum,
+        count,
     }
-    acc
 }
 
 #[cfg(test)]
