@@ -2,4 +2,5 @@
 //! the hardware they ran on. Never timed tests.
 
 pub mod dgi;
+pub mod filter;
 pub mod trace;

@@ -13,6 +13,8 @@ use crate::roi::dgi::{Falloff, Surface};
 pub enum BenchCommand {
     /// DGI time per metric and backend, and the cheaper metrics' error against the exact one.
     Dgi(DgiBenchArgs),
+    /// Filter time (exact and fast) and error against a reference inside and outside the ROI.
+    Filter(crate::cli::filter::FilterBenchArgs),
 }
 
 #[derive(Clone, Debug, clap::Args)]
@@ -53,6 +55,7 @@ pub struct DgiBenchArgs {
 
 pub fn run(cmd: &BenchCommand) -> anyhow::Result<()> {
     match cmd {
+        BenchCommand::Filter(args) => crate::cli::filter::run_bench(args),
         BenchCommand::Dgi(args) => {
             let model = DisplayModel::load(&args.display)?;
             let surface = Surface::from_model(&model);

@@ -1,0 +1,190 @@
+//! The filter's command-line settings (`#[command(flatten)]` them into `render`, `view`, …) and
+//! `raygun bench filter`.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+
+use crate::bench::filter::{self as bench, FilterBenchConfig};
+use crate::display::DisplayModel;
+use crate::filter::{Blend, FilterKind, FilterParams, FilterParamsError, synth};
+use crate::gpu::{Backend, BackendChoice};
+use crate::roi::dgi::Surface;
+
+/// Sparse-sample filter settings (DESIGN.md §8; definitions in `src/filter/mod.rs`).
+#[derive(Clone, Debug, clap::Args)]
+pub struct FilterArgs {
+    /// Filter of the sparsely sampled pixels: off, exact (the paper's, slow at large k-max) or
+    /// fast (pyramid approximation, interactive).
+    #[arg(long = "filter", value_enum, default_value_t = FilterKind::Fast)]
+    pub filter: FilterKind,
+    /// How the filtered value gives way to the pixel's own: count (the paper, w = 1 − s/c) or
+    /// variance (its estimated variance of the mean against --variance-threshold).
+    #[arg(long = "filter-blend", value_enum, default_value_t = Blend::Count)]
+    pub blend: Blend,
+    /// Largest kernel radius, pixels (0 to 64); a pixel's radius is w · k-max · d.
+    #[arg(long = "k-max", value_name = "PX", default_value_t = FilterParams::DEFAULT_K_MAX)]
+    pub k_max: f32,
+    /// Samples at which the count blend shows the pixel's own value only.
+    #[arg(long = "filter-c", value_name = "SAMPLES", default_value_t = FilterParams::DEFAULT_C)]
+    pub c: f32,
+    /// Variance of the mean luminance at and under which the variance blend shows the pixel's
+    /// own value only.
+    #[arg(long = "variance-threshold", value_name = "VAR",
+          default_value_t = FilterParams::DEFAULT_VARIANCE_THRESHOLD)]
+    pub variance_threshold: f32,
+}
+
+impl FilterArgs {
+    /// The validated parameters.
+    pub fn params(&self) -> Result<FilterParams, FilterParamsError> {
+        let p = FilterParams {
+            kind: self.filter,
+            blend: self.blend,
+            k_max: self.k_max,
+            c: self.c,
+            variance_threshold: self.variance_threshold,
+        };
+        p.validate()?;
+        Ok(p)
+    }
+}
+
+#[derive(Clone, Debug, clap::Args)]
+pub struct FilterBenchArgs {
+    /// Display model (the paper's setup: HORNET).
+    #[arg(
+        long,
+        value_name = "FILE",
+        default_value = "display-models/hornet.json"
+    )]
+    pub display: PathBuf,
+    /// Image size.
+    #[arg(long, value_name = "W,H", value_parser = crate::cli::args::parse_size, default_value = "3840,2160")]
+    pub size: [u32; 2],
+    /// Fields of view, degrees (square cones).
+    #[arg(
+        long,
+        value_name = "DEG,…",
+        value_delimiter = ',',
+        default_value = "10,60"
+    )]
+    pub fov: Vec<f64>,
+    /// k_max values to time.
+    #[arg(
+        long = "time-k-max",
+        value_name = "PX,…",
+        value_delimiter = ',',
+        default_value = "8,16,32"
+    )]
+    pub time_k_max: Vec<f32>,
+    /// Repetitions per timing (median reported; the CPU twins run at most 3).
+    #[arg(long, default_value_t = 20)]
+    pub reps: u32,
+    /// Rounds of the synthetic render.
+    #[arg(long, default_value_t = 16)]
+    pub rounds: u32,
+    /// Reference image of the synthetic render.
+    #[arg(long, value_enum, default_value_t = synth::Pattern::Edges)]
+    pub pattern: synth::Pattern,
+    /// Filter settings of the error table (--filter and --filter-blend are ignored: every
+    /// variant is measured).
+    #[command(flatten)]
+    pub filter: FilterArgs,
+    #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
+    pub backend: BackendChoice,
+    /// Print JSON instead of Markdown tables.
+    #[arg(long)]
+    pub json: bool,
+    /// Also write the output to this file.
+    #[arg(long, value_name = "FILE")]
+    pub out: Option<PathBuf>,
+}
+
+/// `raygun bench filter`.
+pub fn run_bench(args: &FilterBenchArgs) -> anyhow::Result<()> {
+    let error_params = args.filter.params()?;
+    for &k in &args.time_k_max {
+        FilterParams {
+            k_max: k,
+            ..error_params
+        }
+        .validate()?;
+    }
+    let model = DisplayModel::load(&args.display)?;
+    let surface = Surface::from_model(&model);
+    let backend = Backend::select(args.backend)?;
+    let config = FilterBenchConfig {
+        size: args.size,
+        fovs_deg: args.fov.clone(),
+        k_maxes: args.time_k_max.clone(),
+        reps: args.reps.max(1),
+        rounds: args.rounds,
+        pattern: args.pattern,
+        error_params,
+        ..FilterBenchConfig::default()
+    };
+    let report = bench::run(&surface, model.name(), &backend, &config, |what| {
+        eprintln!("raygun bench filter: {what}");
+    })?;
+    let text = if args.json {
+        serde_json::to_string_pretty(&report)?
+    } else {
+        report.to_markdown()
+    };
+    println!("{text}");
+    if let Some(path) = &args.out {
+        std::fs::write(path, &text).with_context(|| format!("writing {}", path.display()))?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Cli {
+        #[command(flatten)]
+        filter: FilterArgs,
+    }
+
+    #[test]
+    fn flags_become_validated_parameters() {
+        let p = Cli::parse_from(["x"]).filter.params().unwrap();
+        assert_eq!(p, FilterParams::default());
+        let p = Cli::parse_from([
+            "x",
+            "--filter",
+            "exact",
+            "--filter-blend",
+            "variance",
+            "--k-max",
+            "32",
+            "--filter-c",
+            "8",
+            "--variance-threshold",
+            "0.5",
+        ])
+        .filter
+        .params()
+        .unwrap();
+        assert_eq!(
+            p,
+            FilterParams {
+                kind: FilterKind::Exact,
+                blend: Blend::Variance,
+                k_max: 32.0,
+                c: 8.0,
+                variance_threshold: 0.5
+            }
+        );
+        let e = Cli::parse_from(["x", "--k-max", "100"])
+            .filter
+            .params()
+            .unwrap_err();
+        assert!(e.to_string().contains("--k-max"), "{e}");
+        assert!(Cli::try_parse_from(["x", "--filter", "paper"]).is_err());
+    }
+}

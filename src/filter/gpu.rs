@@ -1,0 +1,497 @@
+//! Dispatch of the filter kernels: `shaders/filter/exact.wgsl` (also the `off` pass-through),
+//! and `shaders/filter/pyramid.wgsl` + `shaders/filter/fast.wgsl` for the fast filter. CPU
+//! twins: [`super::exact::filter_cpu`], [`super::fast::filter_cpu`].
+//!
+//! A frame prepares a [`FilterRun`] once (buffers, bind groups) and records it into its own
+//! encoder; all dispatches of one run share one compute pass, so one timestamp pair times the
+//! whole filter (wgpu orders the dispatches' storage accesses inside a pass).
+
+use bytemuck::{Pod, Zeroable};
+use wgpu::util::DeviceExt;
+
+use super::fast::{MAX_LEVELS, MAX_TAPS, Plan, Source, Target};
+use super::{Blend, FilterInputError, FilterKind, FilterParams, check_inputs};
+use crate::gpu::{GpuContext, GpuError, PassTimer};
+use crate::trace::accum::Accumulation;
+
+/// The exact kernel: the shared part, then the per-pixel window loop.
+pub const EXACT_WGSL: &str = concat!(
+    include_str!("../../shaders/filter/common.wgsl"),
+    "\n",
+    include_str!("../../shaders/filter/exact.wgsl")
+);
+/// The fast filter's final pass.
+pub const FAST_WGSL: &str = concat!(
+    include_str!("../../shaders/filter/common.wgsl"),
+    "\n",
+    include_str!("../../shaders/filter/fast.wgsl")
+);
+/// The fast filter's separable pyramid passes.
+pub const PYRAMID_WGSL: &str = include_str!("../../shaders/filter/pyramid.wgsl");
+
+/// Mirrors `LevelDesc` in shaders/filter/common.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct GpuLevel {
+    pub size: [u32; 2],
+    pub origin: f32,
+    pub step: f32,
+    pub sigma2: f32,
+    pub _pad: [f32; 3],
+}
+
+/// Mirrors `Params` in shaders/filter/common.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct GpuParams {
+    pub size: [u32; 2],
+    pub mode: u32,
+    pub blend: u32,
+    pub level_count: u32,
+    pub k_max: f32,
+    pub c: f32,
+    pub variance_threshold: f32,
+    pub levels: [GpuLevel; MAX_LEVELS],
+}
+
+/// Mirrors `Pass` in shaders/filter/pyramid.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct GpuPass {
+    pub src_size: [u32; 2],
+    pub dst_size: [u32; 2],
+    pub axis: u32,
+    pub dec: u32,
+    pub first: i32,
+    pub taps: u32,
+    pub weights: [[f32; 4]; MAX_TAPS / 4],
+}
+
+/// Storage buffers the fast filter's final pass binds: accumulation, counts, DGI, output and
+/// one per level.
+pub const FAST_STORAGE_BINDINGS: u32 = 4 + MAX_LEVELS as u32;
+
+/// Why the GPU filter could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum FilterGpuError {
+    #[error(transparent)]
+    Gpu(#[from] GpuError),
+    #[error(transparent)]
+    Input(#[from] FilterInputError),
+    #[error(
+        "the fast filter binds {need} storage buffers in one kernel; this adapter allows {max} \
+         (--filter exact works with 5)"
+    )]
+    TooManyBindings { need: u32, max: u32 },
+    #[error("the {what} buffer holds {bytes} bytes; a {width}×{height} image needs {need}")]
+    InputBuffer {
+        what: &'static str,
+        bytes: u64,
+        need: u64,
+        width: u32,
+        height: u32,
+    },
+}
+
+/// The GPU inputs: the accumulation (`accum`: vec4<f32> per pixel, `counts`: u32 per pixel) and
+/// the DGI (f32 per pixel), row-major, all with `STORAGE` usage.
+#[derive(Clone, Copy)]
+pub struct GpuFilterInputs<'a> {
+    pub width: u32,
+    pub height: u32,
+    pub accum: &'a wgpu::Buffer,
+    pub counts: &'a wgpu::Buffer,
+    pub dgi: &'a wgpu::Buffer,
+}
+
+/// CPU-side inputs uploaded to the GPU (tests and benchmarks; the renderer has its own buffers).
+pub struct UploadedInputs {
+    pub width: u32,
+    pub height: u32,
+    pub accum: wgpu::Buffer,
+    pub counts: wgpu::Buffer,
+    pub dgi: wgpu::Buffer,
+}
+
+/// The largest buffer this adapter can bind.
+fn binding_limit(ctx: &GpuContext) -> u64 {
+    ctx.limits
+        .max_storage_buffer_binding_size
+        .min(ctx.limits.max_buffer_size)
+}
+
+fn check_size(ctx: &GpuContext, what: &'static str, bytes: u64) -> Result<(), GpuError> {
+    let max = binding_limit(ctx);
+    if bytes > max {
+        return Err(GpuError::TooLarge { what, bytes, max });
+    }
+    Ok(())
+}
+
+impl UploadedInputs {
+    pub fn new(ctx: &GpuContext, acc: &Accumulation, dgi: &[f32]) -> Result<Self, GpuError> {
+        check_size(
+            ctx,
+            "filter input accumulation",
+            size_of_val(&acc.sum[..]) as u64,
+        )?;
+        let storage = |label: &str, data: &[u8]| {
+            ctx.device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some(label),
+                    contents: data,
+                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                })
+        };
+        Ok(Self {
+            width: acc.width,
+            height: acc.height,
+            accum: storage("filter accum", bytemuck::cast_slice(&acc.sum)),
+            counts: storage("filter counts", bytemuck::cast_slice(&acc.count)),
+            dgi: storage("filter dgi", bytemuck::cast_slice(dgi)),
+        })
+    }
+
+    #[must_use]
+    pub fn inputs(&self) -> GpuFilterInputs<'_> {
+        GpuFilterInputs {
+            width: self.width,
+            height: self.height,
+            accum: &self.accum,
+            counts: &self.counts,
+            dgi: &self.dgi,
+        }
+    }
+}
+
+/// The compiled filter kernels.
+pub struct FilterKernels {
+    exact: wgpu::ComputePipeline,
+    fast: wgpu::ComputePipeline,
+    blur_accumulation: wgpu::ComputePipeline,
+    blur: wgpu::ComputePipeline,
+}
+
+fn pipeline(
+    ctx: &GpuContext,
+    module: &wgpu::ShaderModule,
+    label: &str,
+    entry: &str,
+) -> wgpu::ComputePipeline {
+    ctx.device
+        .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(label),
+            layout: None,
+            module,
+            entry_point: Some(entry),
+            compilation_options: Default::default(),
+            cache: None,
+        })
+}
+
+fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
+    wgpu::BindGroupEntry {
+        binding,
+        resource: buffer.as_entire_binding(),
+    }
+}
+
+struct Dispatch {
+    pipeline: wgpu::ComputePipeline,
+    bind: wgpu::BindGroup,
+    groups: [u32; 2],
+}
+
+/// A prepared filter: record it once per frame (benchmarks repeat it).
+pub struct FilterRun {
+    dispatches: Vec<Dispatch>,
+    /// The filtered image: vec4<f32> per pixel (linear RGB, alpha 1), row-major.
+    pub output: wgpu::Buffer,
+}
+
+impl FilterRun {
+    /// Records every dispatch into one compute pass; with a timer, pass `pass` of it measures
+    /// the whole filter.
+    pub fn record(&self, enc: &mut wgpu::CommandEncoder, timer: Option<(&PassTimer, u32)>) {
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("filter"),
+            timestamp_writes: timer.map(|(t, i)| t.writes(i)),
+        });
+        for d in &self.dispatches {
+            pass.set_pipeline(&d.pipeline);
+            pass.set_bind_group(0, &d.bind, &[]);
+            pass.dispatch_workgroups(d.groups[0], d.groups[1], 1);
+        }
+    }
+}
+
+fn groups(size: [u32; 2]) -> [u32; 2] {
+    [size[0].div_ceil(16), size[1].div_ceil(16)]
+}
+
+impl FilterKernels {
+    #[must_use]
+    pub fn new(ctx: &GpuContext) -> Self {
+        let module = |label: &str, src: &str| {
+            ctx.device
+                .create_shader_module(wgpu::ShaderModuleDescriptor {
+                    label: Some(label),
+                    source: wgpu::ShaderSource::Wgsl(src.into()),
+                })
+        };
+        let exact = module("filter/exact.wgsl", EXACT_WGSL);
+        let fast = module("filter/fast.wgsl", FAST_WGSL);
+        let pyramid = module("filter/pyramid.wgsl", PYRAMID_WGSL);
+        Self {
+            exact: pipeline(ctx, &exact, "filter/exact", "main"),
+            fast: pipeline(ctx, &fast, "filter/fast", "main"),
+            blur_accumulation: pipeline(
+                ctx,
+                &pyramid,
+                "filter/pyramid blur_accumulation",
+                "blur_accumulation",
+            ),
+            blur: pipeline(ctx, &pyramid, "filter/pyramid blur", "blur"),
+        }
+    }
+
+    /// Uploads the inputs, filters and reads the result back (row-major RGBA).
+    pub fn filter(
+        &self,
+        ctx: &GpuContext,
+        params: &FilterParams,
+        acc: &Accumulation,
+        dgi: &[f32],
+    ) -> Result<Vec<[f32; 4]>, FilterGpuError> {
+        check_inputs(params, acc, dgi)?;
+        let uploaded = UploadedInputs::new(ctx, acc, dgi)?;
+        let run = self.prepare(ctx, params, &uploaded.inputs())?;
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        run.record(&mut enc, None);
+        ctx.queue.submit([enc.finish()]);
+        Ok(ctx.read_buffer(&run.output)?)
+    }
+
+    /// Allocates the output (and the pyramid for `fast`) and binds everything: all but the
+    /// dispatches.
+    pub fn prepare(
+        &self,
+        ctx: &GpuContext,
+        params: &FilterParams,
+        inputs: &GpuFilterInputs<'_>,
+    ) -> Result<FilterRun, FilterGpuError> {
+        params.validate().map_err(FilterInputError::from)?;
+        let (w, h) = (inputs.width, inputs.height);
+        let n = u64::from(w) * u64::from(h);
+        for (what, buffer, need) in [
+            ("accum", inputs.accum, n * 16),
+            ("counts", inputs.counts, n * 4),
+            ("dgi", inputs.dgi, n * 4),
+        ] {
+            if buffer.size() < need {
+                return Err(FilterGpuError::InputBuffer {
+                    what,
+                    bytes: buffer.size(),
+                    need,
+                    width: w,
+                    height: h,
+                });
+            }
+        }
+        check_size(ctx, "filter output", n * 16)?;
+        let output = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("filter output"),
+            size: n * 16,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let plan = match params.kind {
+            FilterKind::Fast => Plan::new(w, h, params.k_max),
+            FilterKind::Off | FilterKind::Exact => Plan::new(w, h, 0.0),
+        };
+        let mut gpu_params = GpuParams {
+            size: [w, h],
+            mode: u32::from(params.kind != FilterKind::Off),
+            blend: match params.blend {
+                Blend::Count => 0,
+                Blend::Variance => 1,
+            },
+            level_count: plan.levels.len() as u32,
+            k_max: params.k_max,
+            c: params.c,
+            variance_threshold: params.variance_threshold,
+            levels: [GpuLevel::zeroed(); MAX_LEVELS],
+        };
+        for (g, l) in gpu_params.levels.iter_mut().zip(&plan.levels) {
+            *g = GpuLevel {
+                size: l.size,
+                origin: l.origin as f32,
+                step: l.step as f32,
+                sigma2: l.sigma2 as f32,
+                _pad: [0.0; 3],
+            };
+        }
+        let uniform = |label: &str, bytes: &[u8]| {
+            ctx.device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some(label),
+                    contents: bytes,
+                    usage: wgpu::BufferUsages::UNIFORM,
+                })
+        };
+        let params_buffer = uniform("filter params", bytemuck::bytes_of(&gpu_params));
+        let mut dispatches = Vec::new();
+        let final_pipeline = if params.kind == FilterKind::Fast {
+            let max = ctx.limits.max_storage_buffers_per_shader_stage;
+            if max < FAST_STORAGE_BINDINGS {
+                return Err(FilterGpuError::TooManyBindings {
+                    need: FAST_STORAGE_BINDINGS,
+                    max,
+                });
+            }
+            &self.fast
+        } else {
+            &self.exact
+        };
+        let mut final_entries = vec![
+            entry(0, &params_buffer),
+            entry(1, inputs.accum),
+            entry(2, inputs.counts),
+            entry(3, inputs.dgi),
+            entry(4, &output),
+        ];
+        // Kept alive until the bind groups are made.
+        let levels: Vec<wgpu::Buffer>;
+        let dummy;
+        if params.kind == FilterKind::Fast {
+            let storage = |label: &str, texels: u64| -> Result<wgpu::Buffer, GpuError> {
+                check_size(ctx, "filter pyramid level", texels * 16)?;
+                Ok(ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some(label),
+                    size: texels.max(1) * 16,
+                    usage: wgpu::BufferUsages::STORAGE,
+                    mapped_at_creation: false,
+                }))
+            };
+            levels = plan
+                .levels
+                .iter()
+                .map(|l| storage("filter level", u64::from(l.size[0]) * u64::from(l.size[1])))
+                .collect::<Result<_, _>>()?;
+            let temp = storage("filter temp", plan.temp_texels())?;
+            dummy = storage("filter unused level", 1)?;
+            for p in &plan.passes {
+                let mut weights = [[0.0f32; 4]; MAX_TAPS / 4];
+                for (t, wt) in p.weights.iter().enumerate() {
+                    weights[t / 4][t % 4] = *wt;
+                }
+                let gp = GpuPass {
+                    src_size: p.src_size,
+                    dst_size: p.dst_size,
+                    axis: p.axis,
+                    dec: p.dec,
+                    first: p.first,
+                    taps: p.weights.len() as u32,
+                    weights,
+                };
+                let pass_uniform = uniform("filter pass", bytemuck::bytes_of(&gp));
+                let dst = match p.target {
+                    Target::Temp => &temp,
+                    Target::Level(l) => &levels[l],
+                };
+                let (pipeline, bind) = match p.source {
+                    Source::Accumulation => (
+                        &self.blur_accumulation,
+                        vec![
+                            entry(0, &pass_uniform),
+                            entry(1, inputs.accum),
+                            entry(2, inputs.counts),
+                            entry(4, dst),
+                        ],
+                    ),
+                    Source::Level(l) => (
+                        &self.blur,
+                        vec![entry(0, &pass_uniform), entry(3, &levels[l]), entry(4, dst)],
+                    ),
+                    Source::Temp => (
+                        &self.blur,
+                        vec![entry(0, &pass_uniform), entry(3, &temp), entry(4, dst)],
+                    ),
+                };
+                dispatches.push(Dispatch {
+                    pipeline: pipeline.clone(),
+                    bind: ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                        label: Some("filter pass"),
+                        layout: &pipeline.get_bind_group_layout(0),
+                        entries: &bind,
+                    }),
+                    groups: groups(p.dst_size),
+                });
+            }
+            for l in 0..MAX_LEVELS {
+                final_entries.push(entry(5 + l as u32, levels.get(l).unwrap_or(&dummy)));
+            }
+        }
+        dispatches.push(Dispatch {
+            pipeline: final_pipeline.clone(),
+            bind: ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("filter"),
+                layout: &final_pipeline.get_bind_group_layout(0),
+                entries: &final_entries,
+            }),
+            groups: groups([w, h]),
+        });
+        Ok(FilterRun { dispatches, output })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use wgpu::naga;
+
+    fn validated(src: &str, name: &str) -> naga::Module {
+        let module = naga::front::wgsl::parse_str(src).unwrap_or_else(|e| {
+            panic!("{name} does not parse: {}", e.emit_to_string(src));
+        });
+        naga::valid::Validator::new(
+            naga::valid::ValidationFlags::all(),
+            naga::valid::Capabilities::empty(),
+        )
+        .validate(&module)
+        .unwrap_or_else(|e| panic!("{name} does not validate: {e:?}"));
+        module
+    }
+
+    fn struct_size(module: &naga::Module, name: &str) -> usize {
+        let (_, ty) = module
+            .types
+            .iter()
+            .find(|(_, t)| t.name.as_deref() == Some(name))
+            .unwrap_or_else(|| panic!("no struct {name}"));
+        ty.inner.size(module.to_ctx()) as usize
+    }
+
+    /// The kernels parse and validate without a GPU, and every struct shared with Rust has the
+    /// same size on both sides.
+    #[test]
+    fn kernels_validate_and_shared_structs_match_their_rust_twins() {
+        for (src, name) in [(EXACT_WGSL, "exact.wgsl"), (FAST_WGSL, "fast.wgsl")] {
+            let m = validated(src, name);
+            assert_eq!(struct_size(&m, "Params"), size_of::<GpuParams>());
+            assert_eq!(struct_size(&m, "LevelDesc"), size_of::<GpuLevel>());
+        }
+        let m = validated(PYRAMID_WGSL, "pyramid.wgsl");
+        assert_eq!(struct_size(&m, "Pass"), size_of::<GpuPass>());
+    }
+
+    /// The WGSL constants repeat the Rust ones.
+    #[test]
+    fn shader_constants_match_rust() {
+        use super::super::fast::{K_DIRECT, RIM_WEIGHT};
+        assert!(FAST_WGSL.contains(&format!("const K_DIRECT: f32 = {K_DIRECT:.1};")));
+        assert!(FAST_WGSL.contains(&format!("const RIM_WEIGHT: f32 = {RIM_WEIGHT};")));
+        assert!(PYRAMID_WGSL.contains(&format!("weights: array<vec4<f32>, {}>", MAX_TAPS / 4)));
+        assert!(FAST_WGSL.contains(&format!("levels: array<LevelDesc, {MAX_LEVELS}>")));
+    }
+}
