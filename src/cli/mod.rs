@@ -6,4 +6,5 @@ pub mod bench;
 pub mod dgi;
 pub mod display;
 pub mod ellipse_distance;
+pub mod scene;
 pub mod tracking;

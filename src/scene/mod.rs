@@ -6,8 +6,20 @@
 //! not model is listed by name in [`Scene::unsupported`] instead of being dropped silently.
 //!
 //! Frames and units follow glTF: right-handed, +Y up, metres.
+//!
+//! * [`load`]: `.gltf` / `.glb` files and in-memory GLB bytes → [`Scene`].
+//! * [`environment`]: the `--env` argument (a constant colour, `.hdr` or `.exr`).
+//! * [`generate`]: the deterministic paper scenes (Cornell box, procedural city) as GLB.
+
+mod accessor;
+pub mod environment;
+pub mod generate;
+pub mod load;
 
 use glam::{Vec2, Vec3, Vec4};
+
+pub use environment::EnvironmentError;
+pub use load::{MAX_COORDINATE, SceneError};
 
 /// One triangle in world space.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -115,4 +127,58 @@ pub struct Scene {
     /// Features the file uses that raygun does not model, by name, each once
     /// (e.g. "KHR_materials_transmission", "orthographic camera 'top'", "skin 'arm'").
     pub unsupported: Vec<String>,
+    /// Problems with the file's data that the loader repaired, each once, e.g.
+    /// "mesh 'Tower': dropped 3 zero-area triangles" or "image 'bricks': cannot decode (…);
+    /// materials use their base colour factor".
+    pub warnings: Vec<String>,
+}
+
+/// An axis-aligned box in world space.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Bounds {
+    pub min: Vec3,
+    pub max: Vec3,
+}
+
+impl Bounds {
+    /// The box's extent along each axis.
+    #[must_use]
+    pub fn size(&self) -> Vec3 {
+        self.max - self.min
+    }
+
+    #[must_use]
+    pub fn center(&self) -> Vec3 {
+        0.5 * (self.min + self.max)
+    }
+}
+
+impl Scene {
+    /// The world-space box around every triangle, `None` for a scene without triangles.
+    #[must_use]
+    pub fn bounds(&self) -> Option<Bounds> {
+        let mut it = self.triangles.iter().flat_map(|t| t.p);
+        let first = it.next()?;
+        let (min, max) = it.fold((first, first), |(lo, hi), p| (lo.min(p), hi.max(p)));
+        Some(Bounds { min, max })
+    }
+
+    /// How many triangles carry a material with non-zero emission (the scene's area lights).
+    #[must_use]
+    pub fn emissive_triangle_count(&self) -> usize {
+        self.triangles
+            .iter()
+            .filter(|t| {
+                self.materials
+                    .get(t.material as usize)
+                    .is_some_and(|m| m.emission.max_element() > 0.0)
+            })
+            .count()
+    }
+
+    /// The camera called `name`, if the scene has one.
+    #[must_use]
+    pub fn camera(&self, name: &str) -> Option<&Camera> {
+        self.cameras.iter().find(|c| c.name == name)
+    }
 }
