@@ -164,7 +164,7 @@ fn read_exr(path: &Path) -> Result<(u32, u32, Vec<Vec3>), String> {
     .map_err(|e| e.to_string())?;
     let size = image.layer_data.size;
     let pixels = image.layer_data.channel_data.pixels;
-    if pixels.width == 0 {
+    if pixels.texels.len() != size.width() * size.height() {
         return Err(format!(
             "{}×{} texels is more than the {MAX_ENVIRONMENT_BYTES} bytes allowed",
             size.width(),

@@ -445,20 +445,19 @@ impl Loader<'_> {
                 self.report
                     .unsupported(format!("vertex colours COLOR_0 ({mesh_label})"));
             }
-            let read =
-                |semantic: Semantic, dims: Dimensions| -> Result<Option<Vec<f32>>, SceneError> {
-                    prim.get(&semantic)
-                        .map(|acc| {
-                            read_floats(&acc, &self.buffers, dims).map_err(|e| {
-                                self.element_error(element.clone(), format!("{semantic:?}: {e}"))
-                            })
+            let read = |semantic: Semantic, what: &str, dims: Dimensions| {
+                prim.get(&semantic)
+                    .map(|acc| {
+                        read_floats(&acc, &self.buffers, dims).map_err(|e| {
+                            self.element_error(element.clone(), format!("{what}: {e}"))
                         })
-                        .transpose()
-                };
-            let positions = read(Semantic::Positions, Dimensions::Vec3)?
+                    })
+                    .transpose()
+            };
+            let positions = read(Semantic::Positions, "POSITION", Dimensions::Vec3)?
                 .expect("precheck: every primitive has POSITION");
-            let normals = read(Semantic::Normals, Dimensions::Vec3)?;
-            let uvs = read(Semantic::TexCoords(0), Dimensions::Vec2)?;
+            let normals = read(Semantic::Normals, "NORMAL", Dimensions::Vec3)?;
+            let uvs = read(Semantic::TexCoords(0), "TEXCOORD_0", Dimensions::Vec2)?;
             let vertex_count = positions.len() / 3;
             for (what, data, n) in [("NORMAL", &normals, 3), ("TEXCOORD_0", &uvs, 2)] {
                 if let Some(d) = data

@@ -182,3 +182,56 @@ impl Scene {
         self.cameras.iter().find(|c| c.name == name)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tri(p: [Vec3; 3], material: u32) -> Triangle {
+        Triangle {
+            p,
+            n: [Vec3::Z; 3],
+            uv: [Vec2::ZERO; 3],
+            material,
+        }
+    }
+
+    #[test]
+    fn bounds_cover_every_vertex_and_empty_scenes_have_none() {
+        assert_eq!(Scene::default().bounds(), None);
+        let scene = Scene {
+            triangles: vec![
+                tri([Vec3::ZERO, Vec3::X, Vec3::Y], 0),
+                tri(
+                    [
+                        Vec3::new(-2.0, 5.0, 1.0),
+                        Vec3::X,
+                        Vec3::new(0.0, 0.0, -3.0),
+                    ],
+                    0,
+                ),
+            ],
+            ..Default::default()
+        };
+        let b = scene.bounds().unwrap();
+        assert_eq!(b.min, Vec3::new(-2.0, 0.0, -3.0));
+        assert_eq!(b.max, Vec3::new(1.0, 5.0, 1.0));
+        assert_eq!(b.size(), Vec3::new(3.0, 5.0, 4.0));
+        assert_eq!(b.center(), Vec3::new(-0.5, 2.5, -1.0));
+    }
+
+    #[test]
+    fn emissive_triangles_are_those_with_any_positive_emission() {
+        let lamp = Material {
+            emission: Vec3::new(0.0, 0.0, 2.0),
+            ..Default::default()
+        };
+        let t = [Vec3::ZERO, Vec3::X, Vec3::Y];
+        let scene = Scene {
+            triangles: vec![tri(t, 0), tri(t, 1), tri(t, 1), tri(t, 0)],
+            materials: vec![Material::default(), lamp],
+            ..Default::default()
+        };
+        assert_eq!(scene.emissive_triangle_count(), 2);
+    }
+}
