@@ -855,6 +855,14 @@ fn errors_name_the_file_and_the_element() {
         "test.gltf: mesh 'Tower' primitive 0: POSITION accessor is missing"
     );
 
+    let e = err(
+        br#"{"asset":{"version":"2.0"},"meshes":[{"primitives":[{"attributes":{"POSITION":9}}]}]}"#,
+    );
+    assert_eq!(
+        e,
+        "test.gltf: mesh 0 primitive 0: POSITION accessor 9 does not exist"
+    );
+
     let e = err(b"{\"asset\": {\"version\": \"2.0\"}, ");
     assert!(
         e.starts_with("test.gltf: not a glTF 2.0 file:") && e.contains("line 1"),

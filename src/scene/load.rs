@@ -193,7 +193,8 @@ fn load_bytes(bytes: &[u8], file: &str, base: Option<&Path>) -> Result<Scene, Sc
 }
 
 /// Checks made before the `gltf` crate's validation, for clearer messages than its
-/// JSON-path reports: unsupported required extensions and primitives without positions.
+/// JSON-path reports (unsupported required extensions, primitives without positions) and
+/// because that validation panics on a POSITION index past the accessors.
 fn precheck(root: &gltf::json::Root, file: &str) -> Result<(), SceneError> {
     if let Some(ext) = root
         .extensions_required
@@ -208,13 +209,19 @@ fn precheck(root: &gltf::json::Root, file: &str) -> Result<(), SceneError> {
     for (mi, mesh) in root.meshes.iter().enumerate() {
         for (pi, prim) in mesh.primitives.iter().enumerate() {
             let key = Checked::Valid(gltf::json::mesh::Semantic::Positions);
-            if !prim.attributes.contains_key(&key) {
-                return Err(SceneError::Element {
-                    file: file.into(),
-                    element: format!("{} primitive {pi}", label("mesh", mesh.name.as_deref(), mi)),
-                    problem: "POSITION accessor is missing".into(),
-                });
-            }
+            let problem = match prim.attributes.get(&key) {
+                None => "POSITION accessor is missing".to_string(),
+                // gltf-json's own validation indexes this accessor unchecked (a panic).
+                Some(i) if i.value() >= root.accessors.len() => {
+                    format!("POSITION accessor {} does not exist", i.value())
+                }
+                Some(_) => continue,
+            };
+            return Err(SceneError::Element {
+                file: file.into(),
+                element: format!("{} primitive {pi}", label("mesh", mesh.name.as_deref(), mi)),
+                problem,
+            });
         }
     }
     Ok(())
