@@ -155,6 +155,7 @@ struct Loader<'a> {
 }
 
 fn load_bytes(bytes: &[u8], file: &str, base: Option<&Path>) -> Result<Scene, SceneError> {
+    check_glb_header(bytes, file)?;
     let gltf::Gltf { document, blob } =
         gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| SceneError::Parse {
             file: file.into(),
@@ -190,6 +191,24 @@ fn load_bytes(bytes: &[u8], file: &str, base: Option<&Path>) -> Result<Scene, Sc
     };
     loader.run()?;
     Ok(loader.finish())
+}
+
+/// The GLB header's declared length must cover the header itself: `gltf::binary::Glb` subtracts
+/// 12 from it unchecked (an overflow panic, found by fuzzing).
+fn check_glb_header(bytes: &[u8], file: &str) -> Result<(), SceneError> {
+    let Some(rest) = bytes.strip_prefix(b"glTF") else {
+        return Ok(());
+    };
+    let declared = rest
+        .get(4..8)
+        .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]));
+    match declared {
+        Some(n) if n >= 12 => Ok(()),
+        _ => Err(SceneError::Parse {
+            file: file.into(),
+            reason: "the GLB header is truncated or declares less than its own 12 bytes".into(),
+        }),
+    }
 }
 
 /// Checks made before the `gltf` crate's validation, for clearer messages than its
@@ -819,5 +838,45 @@ fn mode_name(mode: Mode) -> &'static str {
         Mode::Triangles => "TRIANGLES",
         Mode::TriangleStrip => "TRIANGLE_STRIP",
         Mode::TriangleFan => "TRIANGLE_FAN",
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn percent_decoding_accepts_utf8_and_rejects_broken_escapes() {
+        assert_eq!(percent_decode("a%20b%C3%A9.png").unwrap(), "a bé.png");
+        assert_eq!(percent_decode("plain.bin").unwrap(), "plain.bin");
+        // The gltf crate unwraps this decoding and panics; here it is an error.
+        assert!(percent_decode("%FF.png").unwrap_err().contains("UTF-8"));
+        assert!(
+            percent_decode("%G1")
+                .unwrap_err()
+                .contains("percent-escape")
+        );
+        assert!(percent_decode("end%2").is_err());
+    }
+
+    #[test]
+    fn uris_resolve_data_and_relative_paths_and_refuse_the_rest() {
+        assert_eq!(
+            read_uri("data:application/octet-stream;base64,AAEC", None).unwrap(),
+            [0, 1, 2]
+        );
+        assert!(
+            read_uri("data:text/plain,hello", None)
+                .unwrap_err()
+                .contains("base64")
+        );
+        assert!(read_uri("https://example.com/a.bin", Some(Path::new("."))).is_err());
+        assert!(read_uri("a.bin", None).unwrap_err().contains("in-memory"));
+        assert!(
+            read_uri("file:///etc/hostname", None)
+                .unwrap_err()
+                .contains("in-memory")
+        );
+        assert_eq!(short_uri("data:image/png;base64,AAAA"), "data:image/png…");
     }
 }
