@@ -387,65 +387,16 @@ fn indexed_and_sparse_accessors_read_correctly() {
 fn degenerate_nan_and_huge_triangles_are_dropped_and_counted_per_mesh() {
     let mut d = Doc::default();
     let nan = f32::NAN;
-    let pos = d.floats(
-        &[
-            0.0,
-            0.0,
-            0.0,
-            1.0,
-            0.0,
-            0.0,
-            0.0,
-            1.0,
-            0.0, // good
-            0.0,
-            0.0,
-            0.0,
-            1.0,
-            1.0,
-            1.0,
-            2.0,
-            2.0,
-            2.0, // collinear: zero area
-            0.0,
-            0.0,
-            0.0,
-            1.0,
-            1.0,
-            1.0,
-            1.0,
-            1.0,
-            1.0, // repeated vertex: zero area
-            0.0,
-            0.0,
-            0.0,
-            nan,
-            0.0,
-            0.0,
-            0.0,
-            1.0,
-            0.0, // NaN
-            0.0,
-            0.0,
-            0.0,
-            1e30,
-            0.0,
-            0.0,
-            0.0,
-            1.0,
-            0.0, // beyond MAX_COORDINATE
-            f32::INFINITY,
-            0.0,
-            0.0,
-            1.0,
-            0.0,
-            0.0,
-            0.0,
-            1.0,
-            0.0, // inf
-        ],
-        "VEC3",
-    );
+    let triangles: [[f32; 9]; 7] = [
+        [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0],  // good
+        [0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 2.0, 2.0, 2.0],  // collinear: zero area
+        [0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0],  // repeated vertex: zero area
+        [0.0, 0.0, 0.0, nan, 0.0, 0.0, 0.0, 1.0, 0.0],  // NaN
+        [0.0, 0.0, 0.0, 1e30, 0.0, 0.0, 0.0, 1.0, 0.0], // beyond MAX_COORDINATE
+        [f32::INFINITY, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0], // inf
+        [0.0, 0.0, 0.0, 1e-20, 0.0, 0.0, 0.0, 1e-20, 0.0], // |e1×e2|² underflows: zero area
+    ];
+    let pos = d.floats(triangles.as_flattened(), "VEC3");
     let small = d.floats(&TRI, "VEC3");
     let bytes = d.finish(json!({
         "meshes": [
@@ -470,7 +421,7 @@ fn degenerate_nan_and_huge_triangles_are_dropped_and_counted_per_mesh() {
     }
     let w = scene.warnings.join("\n");
     assert!(
-        w.contains("mesh 'Junk': 2 zero-area triangles dropped"),
+        w.contains("mesh 'Junk': 3 zero-area triangles dropped"),
         "{w}"
     );
     assert!(
@@ -495,7 +446,11 @@ fn degenerate_nan_and_huge_triangles_are_dropped_and_counted_per_mesh() {
 fn bad_normals_and_uvs_are_repaired_not_passed_on() {
     let mut d = Doc::default();
     let pos = d.floats(&TRI, "VEC3");
-    let nor = d.floats(&[0.0, 0.0, 0.0, f32::NAN, 0.0, 1.0, 0.0, 0.0, 1.0], "VEC3");
+    // Zero, NaN, and a tiny but usable normal (squaring it would underflow).
+    let nor = d.floats(
+        &[0.0, 0.0, 0.0, f32::NAN, 0.0, 1.0, 0.0, 0.0, 1e-30],
+        "VEC3",
+    );
     let uv = d.floats(&[f32::INFINITY, 0.0, 1.0, 0.0, 0.0, 1.0], "VEC2");
     let bytes = d.finish(json!({
         "meshes": [{ "name": "M", "primitives": [{ "attributes": { "POSITION": pos, "NORMAL": nor, "TEXCOORD_0": uv } }] }],

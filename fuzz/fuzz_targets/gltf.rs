@@ -14,7 +14,8 @@ fuzz_target!(|data: &[u8]| {
         for p in t.p {
             assert!(p.is_finite() && p.abs().max_element() <= MAX_COORDINATE);
         }
-        assert!((t.p[1] - t.p[0]).cross(t.p[2] - t.p[0]).try_normalize().is_some());
+        let area2 = (t.p[1] - t.p[0]).cross(t.p[2] - t.p[0]).length_squared();
+        assert!(area2 >= f32::MIN_POSITIVE && area2.is_finite());
         for n in t.n {
             assert!(n.is_finite() && (n.length() - 1.0).abs() < 1e-3);
         }

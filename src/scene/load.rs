@@ -425,10 +425,10 @@ impl Loader<'_> {
                 format!("position {position} is not finite or beyond ±{MAX_COORDINATE} m"),
             ));
         }
-        let forward = world.transform_vector3(Vec3::NEG_Z).try_normalize();
+        let forward = unit(world.transform_vector3(Vec3::NEG_Z));
         let up = forward.and_then(|f| {
             let u = world.transform_vector3(Vec3::Y);
-            (u - f * u.dot(f)).try_normalize()
+            unit(u - f * u.dot(f))
         });
         let (Some(forward), Some(up)) = (forward, up) else {
             return Err(self.element_error(
@@ -542,13 +542,13 @@ impl Loader<'_> {
                     stats.too_far += 1;
                     continue;
                 }
-                let Some(geometric) = (p[1] - p[0]).cross(p[2] - p[0]).try_normalize() else {
+                let Some(geometric) = geometric_normal(p) else {
                     stats.zero_area += 1;
                     continue;
                 };
                 let n = match (&normals, normal_matrix) {
                     (Some(ns), Some(m)) => idx.map(|i| {
-                        (m * vec3(ns, i)).try_normalize().unwrap_or_else(|| {
+                        unit(m * vec3(ns, i)).unwrap_or_else(|| {
                             stats.bad_normals += 1;
                             geometric
                         })
@@ -826,6 +826,24 @@ fn decode_rgba8(bytes: &[u8], format: image::ImageFormat) -> Result<image::RgbaI
         return Err("the image is empty".into());
     }
     Ok(img.to_rgba8())
+}
+
+/// `v` scaled to unit length, or `None` for a zero or non-finite vector. Dividing by the largest
+/// component first keeps tiny vectors exact: glam's `try_normalize` squares them into
+/// subnormals and returns vectors up to a few per cent off unit length (found by fuzzing).
+fn unit(v: Vec3) -> Option<Vec3> {
+    let m = v.abs().max_element();
+    (m > 0.0 && m.is_finite()).then(|| (v / m).normalize())
+}
+
+/// The unit normal of a counter-clockwise triangle, or `None` where the triangle is too small
+/// for the tracer to form it: |e1 × e2|² below the smallest normal f32 would be flushed to
+/// zero on a GPU (subnormals are not guaranteed in WGSL), making its `normalize` divide by
+/// zero. Such triangles have areas under 1e-19 m² and are dropped as zero-area.
+fn geometric_normal(p: [Vec3; 3]) -> Option<Vec3> {
+    let c = (p[1] - p[0]).cross(p[2] - p[0]);
+    let len2 = c.length_squared();
+    (len2 >= f32::MIN_POSITIVE && len2.is_finite()).then(|| c / len2.sqrt())
 }
 
 /// A primitive mode as the glTF specification spells it.
