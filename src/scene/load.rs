@@ -6,6 +6,10 @@
 //! had to repair go to [`Scene::warnings`]. It never hands the tracer a non-finite or
 //! degenerate triangle: such triangles are dropped and counted per mesh.
 //!
+//! `Scene::materials` holds the materials the drawn triangles use, in order of first use (glTF's
+//! default material — white, metallic 1, roughness 1 — where a primitive names none);
+//! `Scene::textures` the base-colour textures those materials use.
+//!
 //! Resources are resolved here rather than with `gltf::import`, which is all-or-nothing: one
 //! undecodable image would fail the whole scene, where raygun falls back to the material's
 //! base colour factor and says so. A missing file, though, is an error naming its URI.
