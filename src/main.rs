@@ -30,6 +30,9 @@ enum Command {
     SynthReplays(cli::tracking::SynthArgs),
     /// Closest points on ellipses: `a,b,x,y` lines on stdin → `distance,cx,cy` on stdout.
     EllipseDistance,
+    /// Scenes: write the generated paper scenes (.glb), summarise a scene file.
+    #[command(subcommand)]
+    Scene(cli::scene::SceneCommand),
     /// Benchmarks: speed and error, with the hardware they ran on.
     #[command(subcommand)]
     Bench(cli::bench::BenchCommand),
@@ -57,6 +60,7 @@ fn main() {
             }
         }),
         Command::EllipseDistance => ellipse_distance(),
+        Command::Scene(cmd) => cli::scene::run(cmd).map(|text| println!("{text}")),
         Command::Bench(cmd) => cli::bench::run(cmd),
     };
     if let Err(e) = result {

@@ -7,4 +7,6 @@ pub mod dgi;
 pub mod display;
 pub mod ellipse_distance;
 pub mod filter;
+pub mod render;
+pub mod scene;
 pub mod tracking;

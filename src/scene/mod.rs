@@ -6,8 +6,20 @@
 //! not model is listed by name in [`Scene::unsupported`] instead of being dropped silently.
 //!
 //! Frames and units follow glTF: right-handed, +Y up, metres.
+//!
+//! * [`load`]: `.gltf` / `.glb` files and in-memory GLB bytes → [`Scene`].
+//! * [`environment`]: the `--env` argument (a constant colour, `.hdr` or `.exr`).
+//! * [`generate`]: the deterministic paper scenes (Cornell box, procedural city) as GLB.
+
+mod accessor;
+pub mod environment;
+pub mod generate;
+pub mod load;
 
 use glam::{Vec2, Vec3, Vec4};
+
+pub use environment::EnvironmentError;
+pub use load::{MAX_COORDINATE, SceneError};
 
 /// One triangle in world space.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -119,4 +131,111 @@ pub struct Scene {
     /// Features the file uses that raygun does not model, by name, each once
     /// (e.g. "KHR_materials_transmission", "orthographic camera 'top'", "skin 'arm'").
     pub unsupported: Vec<String>,
+    /// Problems with the file's data that the loader repaired, each once, e.g.
+    /// "mesh 'Tower': dropped 3 zero-area triangles" or "image 'bricks': cannot decode (…);
+    /// materials use their base colour factor".
+    pub warnings: Vec<String>,
+}
+
+/// An axis-aligned box in world space.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Bounds {
+    pub min: Vec3,
+    pub max: Vec3,
+}
+
+impl Bounds {
+    /// The box's extent along each axis.
+    #[must_use]
+    pub fn size(&self) -> Vec3 {
+        self.max - self.min
+    }
+
+    #[must_use]
+    pub fn center(&self) -> Vec3 {
+        0.5 * (self.min + self.max)
+    }
+}
+
+impl Scene {
+    /// The world-space box around every triangle, `None` for a scene without triangles.
+    #[must_use]
+    pub fn bounds(&self) -> Option<Bounds> {
+        let mut it = self.triangles.iter().flat_map(|t| t.p);
+        let first = it.next()?;
+        let (min, max) = it.fold((first, first), |(lo, hi), p| (lo.min(p), hi.max(p)));
+        Some(Bounds { min, max })
+    }
+
+    /// How many triangles carry a material with non-zero emission (the scene's area lights).
+    #[must_use]
+    pub fn emissive_triangle_count(&self) -> usize {
+        self.triangles
+            .iter()
+            .filter(|t| {
+                self.materials
+                    .get(t.material as usize)
+                    .is_some_and(|m| m.emission.max_element() > 0.0)
+            })
+            .count()
+    }
+
+    /// The camera called `name`, if the scene has one.
+    #[must_use]
+    pub fn camera(&self, name: &str) -> Option<&Camera> {
+        self.cameras.iter().find(|c| c.name == name)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tri(p: [Vec3; 3], material: u32) -> Triangle {
+        Triangle {
+            p,
+            n: [Vec3::Z; 3],
+            uv: [Vec2::ZERO; 3],
+            material,
+        }
+    }
+
+    #[test]
+    fn bounds_cover_every_vertex_and_empty_scenes_have_none() {
+        assert_eq!(Scene::default().bounds(), None);
+        let scene = Scene {
+            triangles: vec![
+                tri([Vec3::ZERO, Vec3::X, Vec3::Y], 0),
+                tri(
+                    [
+                        Vec3::new(-2.0, 5.0, 1.0),
+                        Vec3::X,
+                        Vec3::new(0.0, 0.0, -3.0),
+                    ],
+                    0,
+                ),
+            ],
+            ..Default::default()
+        };
+        let b = scene.bounds().unwrap();
+        assert_eq!(b.min, Vec3::new(-2.0, 0.0, -3.0));
+        assert_eq!(b.max, Vec3::new(1.0, 5.0, 1.0));
+        assert_eq!(b.size(), Vec3::new(3.0, 5.0, 4.0));
+        assert_eq!(b.center(), Vec3::new(-0.5, 2.5, -1.0));
+    }
+
+    #[test]
+    fn emissive_triangles_are_those_with_any_positive_emission() {
+        let lamp = Material {
+            emission: Vec3::new(0.0, 0.0, 2.0),
+            ..Default::default()
+        };
+        let t = [Vec3::ZERO, Vec3::X, Vec3::Y];
+        let scene = Scene {
+            triangles: vec![tri(t, 0), tri(t, 1), tri(t, 1), tri(t, 0)],
+            materials: vec![Material::default(), lamp],
+            ..Default::default()
+        };
+        assert_eq!(scene.emissive_triangle_count(), 2);
+    }
 }

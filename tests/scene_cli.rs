@@ -1,0 +1,86 @@
+//! `raygun scene …` end to end: the generators write what the library generates, and `info`
+//! summarises files and built-ins.
+
+use std::path::PathBuf;
+use std::process::Command;
+
+fn raygun(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_raygun"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .expect("the raygun binary runs")
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("raygun-scene-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+#[test]
+fn scene_generators_write_the_shipped_files_and_print_triangle_counts() {
+    for (cmd, golden, triangles) in [
+        (vec!["scene", "cornell"], "cornell.glb", 30),
+        (vec!["scene", "cornell-light"], "cornell-light.glb", 32),
+        (
+            vec!["scene", "city", "--blocks", "4"],
+            "city-small.glb",
+            3862,
+        ),
+    ] {
+        let out = tmp(golden);
+        let mut args = cmd.clone();
+        args.extend(["--out", out.to_str().unwrap()]);
+        let o = raygun(&args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let stdout = String::from_utf8(o.stdout).unwrap();
+        assert!(
+            stdout.contains(&format!(": {triangles} triangles")),
+            "{stdout}"
+        );
+        let shipped = std::fs::read(format!("tests/data/scenes/{golden}")).unwrap();
+        assert!(std::fs::read(&out).unwrap() == shipped, "{golden}");
+    }
+    let o = raygun(&["scene", "city", "--blocks", "0", "--out", "x.glb"]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--blocks must be in 1..="));
+}
+
+#[test]
+fn scene_info_prints_counts_bounds_cameras_and_problems() {
+    let o = raygun(&[
+        "scene",
+        "info",
+        "tests/data/scenes/cornell-light.glb",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["triangles"], 32);
+    assert_eq!(v["emissive_triangles"], 2);
+    assert_eq!(v["materials"], 4);
+    assert_eq!(v["textures"], 0);
+    assert_eq!(v["cameras"][0]["name"], "front");
+    assert_eq!(v["bounds"]["max"][1].as_f64().unwrap() as f32, 0.5488);
+    assert_eq!(v["unsupported"], serde_json::json!([]));
+
+    let o = raygun(&["scene", "info", "builtin:city-small"]);
+    let text = String::from_utf8(o.stdout).unwrap();
+    assert!(
+        text.starts_with("builtin:city-small: 3862 triangles"),
+        "{text}"
+    );
+    assert!(
+        text.contains("camera 'street'") && text.contains("camera 'aerial'"),
+        "{text}"
+    );
+
+    let o = raygun(&["scene", "info", "tests/data/scenes/missing.glb"]);
+    assert_eq!(o.status.code(), Some(1));
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        e.contains("tests/data/scenes/missing.glb: cannot read the file"),
+        "{e}"
+    );
+}
