@@ -324,12 +324,12 @@ pub fn schedule_cpu(
 /// to `shaders/schedule/args.wgsl`.
 #[must_use]
 pub fn indirect_grid(count: u32, workgroup_size: u32, max_per_dim: u32) -> [u32; 3] {
-    let groups = count / workgroup_size + u32::from(count % workgroup_size != 0);
+    let groups = count.div_ceil(workgroup_size);
     if groups == 0 {
         return [0, 1, 1];
     }
-    let gy = groups / max_per_dim + u32::from(groups % max_per_dim != 0);
-    let gx = groups / gy + u32::from(groups % gy != 0);
+    let gy = groups.div_ceil(max_per_dim);
+    let gx = groups.div_ceil(gy);
     [gx, gy, 1]
 }
 
