@@ -62,7 +62,9 @@ impl Order {
 
 #[derive(Debug, thiserror::Error)]
 pub enum ScheduleError {
-    #[error("p_min {p_min} is outside [0, 1] (the lowest sampling probability of a pixel)")]
+    #[error(
+        "p_min {p_min} must be 0 or a normal f32 in [f32::MIN_POSITIVE, 1] (the lowest sampling probability of a pixel)"
+    )]
     PMin { p_min: f32 },
     #[error(
         "image size {width}×{height}: both sides must be in 1..={max_side} and the image at most {max_pixels} pixels"
@@ -104,9 +106,10 @@ pub enum ScheduleError {
     Gpu(#[from] crate::gpu::GpuError),
 }
 
-/// Checks that `p_min` is a probability (NaN is rejected too).
+/// Checks that `p_min` is a probability (NaN is rejected too). Subnormal values are rejected
+/// as well: GPUs may flush them to 0, and the twins would then disagree.
 pub fn validate_p_min(p_min: f32) -> Result<f32, ScheduleError> {
-    if (0.0..=1.0).contains(&p_min) {
+    if (0.0..=1.0).contains(&p_min) && (p_min == 0.0 || p_min.is_normal()) {
         Ok(p_min)
     } else {
         Err(ScheduleError::PMin { p_min })
@@ -339,7 +342,7 @@ mod tests {
 
     #[test]
     fn p_min_outside_the_unit_interval_is_rejected_by_name() {
-        for bad in [-0.01, 1.01, f32::NAN, f32::INFINITY] {
+        for bad in [-0.01, 1.01, f32::NAN, f32::INFINITY, 1e-40] {
             let err = validate_p_min(bad).unwrap_err();
             assert!(err.to_string().contains("p_min"), "{err}");
         }
