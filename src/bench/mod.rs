@@ -2,3 +2,4 @@
 //! the hardware they ran on. Never timed tests.
 
 pub mod dgi;
+pub mod schedule;

@@ -13,6 +13,8 @@ use crate::roi::dgi::{Falloff, Surface};
 pub enum BenchCommand {
     /// DGI time per metric and backend, and the cheaper metrics' error against the exact one.
     Dgi(DgiBenchArgs),
+    /// Scheduling (mask, compaction, indirect arguments) per FOV, GPU and CPU twin.
+    Schedule(crate::bench::schedule::ScheduleBenchArgs),
 }
 
 #[derive(Clone, Debug, clap::Args)]
@@ -53,6 +55,7 @@ pub struct DgiBenchArgs {
 
 pub fn run(cmd: &BenchCommand) -> anyhow::Result<()> {
     match cmd {
+        BenchCommand::Schedule(args) => crate::bench::schedule::run_command(args),
         BenchCommand::Dgi(args) => {
             let model = DisplayModel::load(&args.display)?;
             let surface = Surface::from_model(&model);
