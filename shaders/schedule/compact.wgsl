@@ -10,6 +10,9 @@
 // runs follows the atomics. One atomic per 1024 pixels keeps contention low (8 160 at
 // 3840 × 2160), and no pass waits on another workgroup (WGSL gives no forward-progress
 // guarantee, which a decoupled look-back scan would need for a deterministic order).
+// The scan is plain shared memory (8 steps of two barriers); subgroup operations could shorten
+// it behind a Features::SUBGROUP check, but whether that pays on a real GPU is unmeasured (no
+// GPU was available when this was written), so the portable version is the only one.
 
 // Mirrors `GpuParams` in src/schedule/gpu.rs (32 bytes).
 struct Params {

@@ -10,8 +10,15 @@ fn probability(d: f32, p_min: f32) -> f32 {
     return max(p_min, 1.0 - d);
 }
 
-// The Bernoulli decision: a number in [0, 1) below p. p = 1 always selects, p = 0 never.
+// The Bernoulli decision: a number in [0, 1) below p. p ≥ 1 always selects and p ≤ 0 never,
+// so those skip the hash (the same results; most pixels of a small ROI's DGI have p = 0).
 fn selected(pixel: u32, iteration: u32, seed: u32, p: f32) -> bool {
+    if p >= 1.0 {
+        return true;
+    }
+    if p <= 0.0 {
+        return false;
+    }
     return unit_f32(pcg4d(vec4<u32>(pixel, iteration, seed, STREAM_SCHEDULE)).x) < p;
 }
 

@@ -127,11 +127,15 @@ pub fn probability(d: f32, p_min: f32) -> f32 {
 }
 
 /// The Bernoulli decision of `pixel` in `iteration`: a uniform number in [0, 1) from the shared
-/// hash below `p`. p = 1 always selects (the number is below 1), p = 0 never does.
+/// hash below `p`. p ≥ 1 always selects (the number is below 1) and p ≤ 0 never does, so those
+/// skip the hash (most pixels of a small ROI's DGI have p = 0).
 #[inline]
 #[must_use]
 pub fn selected(pixel: u32, iteration: u32, seed: u32, p: f32) -> bool {
-    unit_f32(pcg4d([pixel, iteration, seed, stream::SCHEDULE])[0]) < p
+    if p >= 1.0 {
+        return true;
+    }
+    p > 0.0 && unit_f32(pcg4d([pixel, iteration, seed, stream::SCHEDULE])[0]) < p
 }
 
 /// Morton (Z-order) index inside a tile → (x, y): even bits are x, odd bits are y.
@@ -278,6 +282,52 @@ fn check_dgi(dgi: &[f32], layout: &Layout) -> Result<(), ScheduleError> {
     Ok(())
 }
 
+/// One iteration's draw over a validated DGI: what a compaction workgroup knows.
+struct Draw<'a> {
+    dgi: &'a [f32],
+    layout: Layout,
+    p_min: f32,
+    iteration: u32,
+    seed: u32,
+    order: Order,
+}
+
+impl<'a> Draw<'a> {
+    fn new(
+        dgi: &'a [f32],
+        (width, height): (u32, u32),
+        p_min: f32,
+        iteration: u32,
+        seed: u32,
+        order: Order,
+    ) -> Result<Self, ScheduleError> {
+        let p_min = validate_p_min(p_min)?;
+        let layout = Layout::new(width, height)?;
+        check_dgi(dgi, &layout)?;
+        Ok(Self {
+            dgi,
+            layout,
+            p_min,
+            iteration,
+            seed,
+            order,
+        })
+    }
+
+    /// Appends block `block`'s selected pixels to `out` in slot order.
+    #[inline]
+    fn block(&self, block: u32, out: &mut Vec<u32>) {
+        out.extend(
+            (0..BLOCK_PIXELS)
+                .filter_map(|slot| self.layout.pixel(self.order, block, slot))
+                .filter(|&px| {
+                    let p = probability(self.dgi[px as usize], self.p_min);
+                    selected(px, self.iteration, self.seed, p)
+                }),
+        );
+    }
+}
+
 /// The selected pixels of each block, in slot order (blocks in index order; empty blocks
 /// included). The GPU list is these runs, non-empty ones only, in some order.
 pub fn schedule_cpu_blocks(
@@ -289,16 +339,13 @@ pub fn schedule_cpu_blocks(
     seed: u32,
     order: Order,
 ) -> Result<Vec<Vec<u32>>, ScheduleError> {
-    let p_min = validate_p_min(p_min)?;
-    let layout = Layout::new(width, height)?;
-    check_dgi(dgi, &layout)?;
-    Ok((0..layout.blocks())
+    let draw = Draw::new(dgi, (width, height), p_min, iteration, seed, order)?;
+    Ok((0..draw.layout.blocks())
         .into_par_iter()
         .map(|block| {
-            (0..BLOCK_PIXELS)
-                .filter_map(|slot| layout.pixel(order, block, slot))
-                .filter(|&px| selected(px, iteration, seed, probability(dgi[px as usize], p_min)))
-                .collect()
+            let mut out = Vec::new();
+            draw.block(block, &mut out);
+            out
         })
         .collect())
 }
@@ -314,7 +361,20 @@ pub fn schedule_cpu(
     seed: u32,
     order: Order,
 ) -> Result<Vec<u32>, ScheduleError> {
-    Ok(schedule_cpu_blocks(dgi, width, height, p_min, iteration, seed, order)?.concat())
+    let draw = Draw::new(dgi, (width, height), p_min, iteration, seed, order)?;
+    let [tiles_x, tiles_y] = draw.layout.tiles;
+    // One task per row of blocks: few allocations, and rows balance well across threads.
+    let rows: Vec<Vec<u32>> = (0..tiles_y)
+        .into_par_iter()
+        .map(|row| {
+            let mut out = Vec::new();
+            for block in row * tiles_x..(row + 1) * tiles_x {
+                draw.block(block, &mut out);
+            }
+            out
+        })
+        .collect();
+    Ok(rows.concat())
 }
 
 /// The indirect dispatch grid for `count` listed pixels and a tracer workgroup of
