@@ -290,6 +290,8 @@ struct Draw<'a> {
     iteration: u32,
     seed: u32,
     order: Order,
+    /// Coherent order: `ly · width + lx` of each Morton slot, for tiles inside the image.
+    offsets: Vec<u32>,
 }
 
 impl<'a> Draw<'a> {
@@ -304,6 +306,12 @@ impl<'a> Draw<'a> {
         let p_min = validate_p_min(p_min)?;
         let layout = Layout::new(width, height)?;
         check_dgi(dgi, &layout)?;
+        let offsets = (0..BLOCK_PIXELS)
+            .map(|m| {
+                let (x, y) = morton_decode(m);
+                y * width + x
+            })
+            .collect();
         Ok(Self {
             dgi,
             layout,
@@ -311,19 +319,41 @@ impl<'a> Draw<'a> {
             iteration,
             seed,
             order,
+            offsets,
         })
+    }
+
+    #[inline]
+    fn take(&self, px: u32) -> bool {
+        let p = probability(self.dgi[px as usize], self.p_min);
+        selected(px, self.iteration, self.seed, p)
     }
 
     /// Appends block `block`'s selected pixels to `out` in slot order.
     #[inline]
     fn block(&self, block: u32, out: &mut Vec<u32>) {
+        let (tx, ty) = (block % self.layout.tiles[0], block / self.layout.tiles[0]);
+        let (x0, y0) = (tx * TILE_EDGE, ty * TILE_EDGE);
+        if self.order == Order::Coherent
+            && x0 + TILE_EDGE <= self.layout.width
+            && y0 + TILE_EDGE <= self.layout.height
+        {
+            // A tile inside the image: the same slots as `Layout::pixel` without its per-slot
+            // Morton decode and bounds checks (3840×2160 on 2 cores: 10° 29 → 18–22 ms,
+            // 60° 58 → 41–45 ms; what remains is mostly cache misses of the Z walk).
+            let base = y0 * self.layout.width + x0;
+            out.extend(
+                self.offsets
+                    .iter()
+                    .map(|&o| base + o)
+                    .filter(|&px| self.take(px)),
+            );
+            return;
+        }
         out.extend(
             (0..BLOCK_PIXELS)
                 .filter_map(|slot| self.layout.pixel(self.order, block, slot))
-                .filter(|&px| {
-                    let p = probability(self.dgi[px as usize], self.p_min);
-                    selected(px, self.iteration, self.seed, p)
-                }),
+                .filter(|&px| self.take(px)),
         );
     }
 }
