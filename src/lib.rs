@@ -48,5 +48,6 @@ pub mod output;
 pub mod random;
 pub mod roi;
 pub mod scene;
+pub mod schedule;
 pub mod trace;
 pub mod tracking;

@@ -3,4 +3,5 @@
 
 pub mod dgi;
 pub mod filter;
+pub mod schedule;
 pub mod trace;

@@ -15,6 +15,8 @@ pub enum BenchCommand {
     Dgi(DgiBenchArgs),
     /// Filter time (exact and fast) and error against a reference inside and outside the ROI.
     Filter(crate::cli::filter::FilterBenchArgs),
+    /// Scheduling (mask, compaction, indirect arguments) per FOV, GPU and CPU twin.
+    Schedule(crate::bench::schedule::ScheduleBenchArgs),
 }
 
 #[derive(Clone, Debug, clap::Args)]
@@ -56,6 +58,7 @@ pub struct DgiBenchArgs {
 pub fn run(cmd: &BenchCommand) -> anyhow::Result<()> {
     match cmd {
         BenchCommand::Filter(args) => crate::cli::filter::run_bench(args),
+        BenchCommand::Schedule(args) => crate::bench::schedule::run_command(args),
         BenchCommand::Dgi(args) => {
             let model = DisplayModel::load(&args.display)?;
             let surface = Surface::from_model(&model);

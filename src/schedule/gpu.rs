@@ -1,0 +1,505 @@
+//! Dispatch of the scheduling kernels, the GPU twin of [`super::schedule_cpu`].
+//!
+//! One iteration is one compute pass of two dispatches, recorded by [`ScheduleRun::record`]
+//! into the frame's encoder ahead of the tracer:
+//!
+//! 1. `shaders/schedule/compact.wgsl` — mask and compaction: one workgroup per 32 × 32 block,
+//!    Bernoulli decisions, a workgroup prefix sum, one `atomicAdd` per block to reserve its
+//!    output range (see that file for why not a decoupled scan).
+//! 2. `shaders/schedule/args.wgsl` — one thread turns the count into the tracer's indirect
+//!    dispatch grid and resets the counter to 0 for the next iteration.
+//!
+//! Nothing is read back: the tracer is dispatched with `dispatch_workgroups_indirect`.
+//!
+//! # Buffers the tracer reads
+//!
+//! * [`ScheduleRun::list`] — `array<u32>`, capacity `width × height`: the selected pixel
+//!   indices `y * width + x`; entries `0..count` are valid.
+//! * [`ScheduleRun::args`] — `array<u32, 4>` with `INDIRECT | STORAGE` usage: `(gx, gy, 1)`
+//!   for `dispatch_workgroups_indirect(args, 0)`, then `count`. The grid is 2D because
+//!   3840 × 2160 / 64 = 129 600 workgroups exceeds the 65 535 per dimension; gx·gy workgroups
+//!   of the tracer's size cover `count` (see [`super::indirect_grid`]). Bind it read-only
+//!   (indirect and read-only storage may share a dispatch) and index as
+//!
+//! ```wgsl
+//! @group(0) @binding(0) var<storage, read> schedule_args: array<u32, 4>;
+//! @group(0) @binding(1) var<storage, read> schedule_list: array<u32>;
+//!
+//! @compute @workgroup_size(64) // = ScheduleConfig::trace_workgroup_size
+//! fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
+//!     let i = (wg.y * schedule_args[0] + wg.x) * 64u + li;
+//!     if i >= schedule_args[3] { return; }
+//!     let pixel = schedule_list[i];
+//!     // … trace one path for `pixel` and accumulate it …
+//! }
+//! ```
+//!
+//! # Per-iteration parameters
+//!
+//! The iteration number and seed change every iteration. `queue.write_buffer` would apply
+//! the last value written before a submit to every iteration recorded in it (writes are
+//! staged ahead of the submit's command buffers), so a frame that records several iterations
+//! in one encoder, or a benchmark's repetitions, would all draw the same coin flips. Instead
+//! [`ScheduleRun::record`] copies a 32-byte buffer with this iteration's parameters into the
+//! uniform inside the encoder, ordered with the passes around it. The copy is one small
+//! transfer per iteration; [`ScheduleRun::params`] exposes the uniform so the tracer can read
+//! the same iteration and seed instead of uploading its own.
+
+use bytemuck::{Pod, Zeroable};
+use wgpu::util::DeviceExt;
+
+use super::{Layout, Order, ScheduleError, validate_p_min};
+use crate::gpu::{GpuContext, GpuError, PassTimer};
+
+/// Decision functions alone (pcg4d, probability, selected, the pixel orders), for kernels and
+/// tests that need the scheduler's per-pixel rule.
+pub const SELECT_WGSL: &str = concat!(
+    include_str!("../../shaders/common/random.wgsl"),
+    "\n",
+    include_str!("../../shaders/schedule/select.wgsl")
+);
+
+/// The mask-and-compaction kernel (WGSL has no includes: the shared files come first).
+pub const COMPACT_WGSL: &str = concat!(
+    include_str!("../../shaders/common/random.wgsl"),
+    "\n",
+    include_str!("../../shaders/schedule/select.wgsl"),
+    "\n",
+    include_str!("../../shaders/schedule/compact.wgsl")
+);
+
+/// The indirect-arguments kernel.
+pub const ARGS_WGSL: &str = include_str!("../../shaders/schedule/args.wgsl");
+
+/// Mirrors `Params` in shaders/schedule/compact.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct GpuParams {
+    pub size: [u32; 2],
+    pub tiles_x: u32,
+    pub order: u32,
+    pub iteration: u32,
+    pub seed: u32,
+    pub p_min: f32,
+    pub scatter_half_bits: u32,
+}
+
+/// Mirrors `ArgsParams` in shaders/schedule/args.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct GpuArgsParams {
+    pub workgroup_size: u32,
+    pub max_per_dim: u32,
+    pub _pad: [u32; 2],
+}
+
+/// What a [`ScheduleRun`] schedules.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ScheduleConfig {
+    pub width: u32,
+    pub height: u32,
+    /// Lowest sampling probability, in [0, 1] (paper preset 0).
+    pub p_min: f32,
+    pub order: Order,
+    /// Threads per workgroup of the tracer that consumes the list (the indirect grid's unit).
+    pub trace_workgroup_size: u32,
+}
+
+/// The compiled scheduling kernels.
+pub struct ScheduleKernel {
+    compact: wgpu::ComputePipeline,
+    args: wgpu::ComputePipeline,
+}
+
+fn pipeline(ctx: &GpuContext, label: &str, source: &str) -> wgpu::ComputePipeline {
+    let module = ctx
+        .device
+        .create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some(label),
+            source: wgpu::ShaderSource::Wgsl(source.into()),
+        });
+    ctx.device
+        .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(label),
+            layout: None,
+            module: &module,
+            entry_point: Some("main"),
+            compilation_options: Default::default(),
+            cache: None,
+        })
+}
+
+fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
+    wgpu::BindGroupEntry {
+        binding,
+        resource: buffer.as_entire_binding(),
+    }
+}
+
+impl ScheduleKernel {
+    #[must_use]
+    pub fn new(ctx: &GpuContext) -> Self {
+        Self {
+            compact: pipeline(ctx, "schedule/compact", COMPACT_WGSL),
+            args: pipeline(ctx, "schedule/args", ARGS_WGSL),
+        }
+    }
+
+    /// Binds the kernels to a DGI buffer (`width × height` f32 with `STORAGE` usage, e.g.
+    /// [`crate::roi::gpu::DgiRun::output`]) and allocates the list, counter and arguments.
+    pub fn prepare(
+        &self,
+        ctx: &GpuContext,
+        dgi: &wgpu::Buffer,
+        config: &ScheduleConfig,
+    ) -> Result<ScheduleRun, ScheduleError> {
+        let p_min = validate_p_min(config.p_min)?;
+        let layout = Layout::new(config.width, config.height)?;
+        let list_bytes = u64::from(layout.pixels()) * 4;
+        if dgi.size() < list_bytes || !dgi.usage().contains(wgpu::BufferUsages::STORAGE) {
+            return Err(ScheduleError::DgiBuffer {
+                bytes: dgi.size(),
+                needed: list_bytes,
+                storage: dgi.usage().contains(wgpu::BufferUsages::STORAGE),
+            });
+        }
+        let max = ctx
+            .limits
+            .max_storage_buffer_binding_size
+            .min(ctx.limits.max_buffer_size);
+        if list_bytes > max {
+            return Err(GpuError::TooLarge {
+                what: "schedule list",
+                bytes: list_bytes,
+                max,
+            }
+            .into());
+        }
+        let list = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("schedule list"),
+            size: list_bytes,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        // wgpu zero-initialises buffers; afterwards the args kernel resets it every iteration.
+        let counter = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("schedule counter"),
+            size: 4,
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        });
+        let params = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("schedule params"),
+            size: size_of::<GpuParams>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("schedule/compact"),
+            layout: &self.compact.get_bind_group_layout(0),
+            entries: &[
+                entry(0, &params),
+                entry(1, dgi),
+                entry(2, &list),
+                entry(3, &counter),
+            ],
+        });
+        let args =
+            self.prepare_args(ctx, &counter, config.trace_workgroup_size, layout.pixels())?;
+        Ok(ScheduleRun {
+            device: ctx.device.clone(),
+            compact: self.compact.clone(),
+            bind,
+            params,
+            list,
+            args,
+            layout,
+            order: config.order,
+            p_min,
+        })
+    }
+
+    /// The arguments pass alone, reading the count from any `counter` buffer (a u32 with
+    /// `STORAGE` usage, reset to 0 by every run) for up to `max_count` entries. [`Self::prepare`]
+    /// uses it for the list's counter; tests feed it synthetic counts.
+    pub fn prepare_args(
+        &self,
+        ctx: &GpuContext,
+        counter: &wgpu::Buffer,
+        workgroup_size: u32,
+        max_count: u32,
+    ) -> Result<ArgsRun, ScheduleError> {
+        let max_threads = ctx.limits.max_compute_invocations_per_workgroup;
+        if workgroup_size == 0 || workgroup_size > max_threads {
+            return Err(ScheduleError::WorkgroupSize {
+                size: workgroup_size,
+                max: max_threads,
+            });
+        }
+        let max_per_dim = ctx.limits.max_compute_workgroups_per_dimension;
+        let groups = u64::from(max_count).div_ceil(u64::from(workgroup_size));
+        if groups > u64::from(max_per_dim).pow(2) {
+            return Err(ScheduleError::TooManyGroups {
+                count: max_count,
+                workgroup_size,
+                max_per_dim,
+            });
+        }
+        let uniform = ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("schedule/args params"),
+                contents: bytemuck::bytes_of(&GpuArgsParams {
+                    workgroup_size,
+                    max_per_dim,
+                    _pad: [0; 2],
+                }),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+        let args = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("schedule args"),
+            size: 16,
+            usage: wgpu::BufferUsages::INDIRECT
+                | wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("schedule/args"),
+            layout: &self.args.get_bind_group_layout(0),
+            entries: &[entry(0, &uniform), entry(1, counter), entry(2, &args)],
+        });
+        Ok(ArgsRun {
+            pipeline: self.args.clone(),
+            bind,
+            args,
+            workgroup_size,
+        })
+    }
+}
+
+/// A prepared arguments pass (see [`ScheduleKernel::prepare_args`]).
+pub struct ArgsRun {
+    pipeline: wgpu::ComputePipeline,
+    bind: wgpu::BindGroup,
+    args: wgpu::Buffer,
+    workgroup_size: u32,
+}
+
+impl ArgsRun {
+    /// Records the one-thread dispatch into an open pass.
+    pub fn dispatch(&self, pass: &mut wgpu::ComputePass<'_>) {
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, &self.bind, &[]);
+        pass.dispatch_workgroups(1, 1, 1);
+    }
+
+    /// Records the dispatch in a pass of its own.
+    pub fn record(&self, enc: &mut wgpu::CommandEncoder) {
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("schedule/args"),
+            timestamp_writes: None,
+        });
+        self.dispatch(&mut pass);
+    }
+
+    /// `(gx, gy, 1, count)`.
+    #[must_use]
+    pub fn buffer(&self) -> &wgpu::Buffer {
+        &self.args
+    }
+
+    #[must_use]
+    pub fn workgroup_size(&self) -> u32 {
+        self.workgroup_size
+    }
+
+    /// Reads `[gx, gy, gz, count]` back (tests and benchmarks; the frame never does).
+    pub fn read(&self, ctx: &GpuContext) -> Result<[u32; 4], GpuError> {
+        let v: Vec<u32> = ctx.read_buffer(&self.args)?;
+        Ok([v[0], v[1], v[2], v[3]])
+    }
+}
+
+/// A prepared schedule: record one iteration per [`Self::record`], as often as needed.
+pub struct ScheduleRun {
+    device: wgpu::Device,
+    compact: wgpu::ComputePipeline,
+    bind: wgpu::BindGroup,
+    params: wgpu::Buffer,
+    list: wgpu::Buffer,
+    args: ArgsRun,
+    layout: Layout,
+    order: Order,
+    p_min: f32,
+}
+
+impl ScheduleRun {
+    /// Records iteration `iteration` with `seed`: the parameter upload, then one compute pass
+    /// with the compaction and the arguments dispatch (the timer, if any, measures that pass as
+    /// its pass number `.1`). Afterwards [`Self::list`] and [`Self::args`] hold this
+    /// iteration's schedule for every pass recorded after it.
+    pub fn record(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        iteration: u32,
+        seed: u32,
+        timer: Option<(&PassTimer, u32)>,
+    ) {
+        let upload = self
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("schedule params upload"),
+                contents: bytemuck::bytes_of(&self.gpu_params(iteration, seed)),
+                usage: wgpu::BufferUsages::COPY_SRC,
+            });
+        enc.copy_buffer_to_buffer(&upload, 0, &self.params, 0, self.params.size());
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("schedule"),
+            timestamp_writes: timer.map(|(t, i)| t.writes(i)),
+        });
+        pass.set_pipeline(&self.compact);
+        pass.set_bind_group(0, &self.bind, &[]);
+        pass.dispatch_workgroups(self.layout.tiles[0], self.layout.tiles[1], 1);
+        // wgpu orders dispatches in a pass that write the same storage buffer (the counter).
+        self.args.dispatch(&mut pass);
+    }
+
+    /// The kernel's parameters for one iteration.
+    #[must_use]
+    pub fn gpu_params(&self, iteration: u32, seed: u32) -> GpuParams {
+        GpuParams {
+            size: [self.layout.width, self.layout.height],
+            tiles_x: self.layout.tiles[0],
+            order: self.order.code(),
+            iteration,
+            seed,
+            p_min: self.p_min,
+            scatter_half_bits: self.layout.scatter_half_bits,
+        }
+    }
+
+    /// Changes p_min for the iterations recorded from now on.
+    pub fn set_p_min(&mut self, p_min: f32) -> Result<(), ScheduleError> {
+        self.p_min = validate_p_min(p_min)?;
+        Ok(())
+    }
+
+    /// The selected pixel indices (`array<u32>`, capacity width × height).
+    #[must_use]
+    pub fn list(&self) -> &wgpu::Buffer {
+        &self.list
+    }
+
+    /// `(gx, gy, 1, count)`: the tracer's indirect dispatch and the list's length.
+    #[must_use]
+    pub fn args(&self) -> &wgpu::Buffer {
+        self.args.buffer()
+    }
+
+    /// The uniform with the iteration's `GpuParams` (size, iteration, seed, …).
+    #[must_use]
+    pub fn params(&self) -> &wgpu::Buffer {
+        &self.params
+    }
+
+    #[must_use]
+    pub fn layout(&self) -> &Layout {
+        &self.layout
+    }
+
+    #[must_use]
+    pub fn order(&self) -> Order {
+        self.order
+    }
+
+    #[must_use]
+    pub fn trace_workgroup_size(&self) -> u32 {
+        self.args.workgroup_size()
+    }
+
+    /// Reads back `[gx, gy, gz, count]`.
+    pub fn read_args(&self, ctx: &GpuContext) -> Result<[u32; 4], GpuError> {
+        self.args.read(ctx)
+    }
+
+    /// Reads back the list's valid entries (tests and benchmarks; the frame never does).
+    pub fn read_list(&self, ctx: &GpuContext) -> Result<Vec<u32>, GpuError> {
+        let count = self.read_args(ctx)?[3] as usize;
+        let mut list: Vec<u32> = ctx.read_buffer(&self.list)?;
+        list.truncate(count);
+        Ok(list)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use wgpu::naga;
+
+    fn module(name: &str, source: &str) -> naga::Module {
+        let module = naga::front::wgsl::parse_str(source)
+            .unwrap_or_else(|e| panic!("{name} parses: {}", e.emit_to_string(source)));
+        naga::valid::Validator::new(
+            naga::valid::ValidationFlags::all(),
+            naga::valid::Capabilities::empty(),
+        )
+        .validate(&module)
+        .unwrap_or_else(|e| panic!("{name} validates: {e:?}"));
+        module
+    }
+
+    fn struct_size(module: &naga::Module, name: &str) -> usize {
+        let (_, ty) = module
+            .types
+            .iter()
+            .find(|(_, t)| t.name.as_deref() == Some(name))
+            .unwrap_or_else(|| panic!("no struct {name}"));
+        ty.inner.size(module.to_ctx()) as usize
+    }
+
+    /// The kernels parse and validate without a GPU, and the structs shared with Rust have the
+    /// same size on both sides.
+    #[test]
+    fn kernels_validate_and_shared_structs_match_their_rust_twins() {
+        module("select.wgsl", SELECT_WGSL);
+        let compact = module("compact.wgsl", COMPACT_WGSL);
+        assert_eq!(
+            struct_size(&compact, "Params"),
+            size_of_val(&GpuParams::zeroed())
+        );
+        let args = module("args.wgsl", ARGS_WGSL);
+        assert_eq!(
+            struct_size(&args, "ArgsParams"),
+            size_of_val(&GpuArgsParams::zeroed())
+        );
+    }
+
+    /// The kernel's stream constant and tile shape are the CPU twin's.
+    #[test]
+    fn kernel_constants_match_the_cpu_twin() {
+        let m = module("compact.wgsl", COMPACT_WGSL);
+        let constant = |name: &str| {
+            let (_, c) = m
+                .constants
+                .iter()
+                .find(|(_, c)| c.name.as_deref() == Some(name))
+                .unwrap_or_else(|| panic!("no constant {name}"));
+            match m.global_expressions[c.init] {
+                naga::Expression::Literal(naga::Literal::U32(v)) => v,
+                ref e => panic!("{name} is {e:?}, not a u32 literal"),
+            }
+        };
+        assert_eq!(constant("STREAM_SCHEDULE"), crate::random::stream::SCHEDULE);
+        assert_eq!(constant("TILE_EDGE"), super::super::TILE_EDGE);
+        assert_eq!(constant("THREADS"), super::super::BLOCK_THREADS);
+        assert_eq!(constant("SLOTS"), super::super::SLOTS_PER_THREAD);
+        let wg = m
+            .entry_points
+            .iter()
+            .find(|e| e.name == "main")
+            .expect("compact.wgsl has main")
+            .workgroup_size;
+        assert_eq!(wg, [super::super::BLOCK_THREADS, 1, 1]);
+    }
+}
