@@ -15,6 +15,8 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Path-trace a glTF scene progressively and write EXR (linear) and/or PNG (sRGB).
+    Render(cli::render::RenderArgs),
     /// Write the distance-guide image for a ray-gun pose or a mouse ROI.
     Dgi(cli::dgi::DgiArgs),
     /// Where a ray meets the display, as one JSON object.
@@ -47,6 +49,7 @@ enum DisplayCommand {
 fn main() {
     let cli = Cli::parse();
     let result = match &cli.command {
+        Command::Render(args) => cli::render::run(args),
         Command::Dgi(args) => cli::dgi::run(args),
         Command::Pick(args) => cli::display::pick(args).map(|v| println!("{v}")),
         Command::Display(DisplayCommand::Expand(args)) => {

@@ -17,6 +17,75 @@ pub enum BenchCommand {
     Filter(crate::cli::filter::FilterBenchArgs),
     /// Scheduling (mask, compaction, indirect arguments) per FOV, GPU and CPU twin.
     Schedule(crate::bench::schedule::ScheduleBenchArgs),
+    /// Full-frame path tracing: ms per frame, ms per megasample and rays per second.
+    Trace(TraceBenchArgs),
+}
+
+#[derive(Clone, Debug, clap::Args)]
+pub struct TraceBenchArgs {
+    /// Scenes to measure (files or builtin:NAME).
+    #[arg(
+        long,
+        value_name = "SCENE,…",
+        value_delimiter = ',',
+        default_value = "builtin:cornell,builtin:city"
+    )]
+    pub scene: Vec<String>,
+    /// Image size.
+    #[arg(long, value_name = "W,H", value_parser = crate::cli::args::parse_size, default_value = "3840,2160")]
+    pub size: [u32; 2],
+    /// Timed frames of one sample per pixel (median reported).
+    #[arg(long, value_name = "N", default_value_t = 20)]
+    pub spp: u32,
+    /// Maximum path vertices.
+    #[arg(long, value_name = "N", default_value_t = crate::trace::cpu::DEFAULT_MAX_DEPTH)]
+    pub max_depth: u32,
+    /// Environment (R,G,B or an .hdr/.exr file); default white.
+    #[arg(long, value_name = "R,G,B|FILE")]
+    pub env: Option<String>,
+    #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
+    pub backend: BackendChoice,
+    /// Print JSON instead of a Markdown table.
+    #[arg(long)]
+    pub json: bool,
+    /// Also write the output to this file.
+    #[arg(long, value_name = "FILE")]
+    pub out: Option<PathBuf>,
+}
+
+fn run_trace_bench(args: &TraceBenchArgs) -> anyhow::Result<()> {
+    let backend = Backend::select(args.backend)?;
+    let mut scenes = Vec::new();
+    for s in &args.scene {
+        scenes.push((
+            s.trim_start_matches("builtin:").to_string(),
+            crate::cli::render::load_scene(s, args.env.as_deref())?,
+        ));
+    }
+    let cfg = crate::bench::trace::TraceBenchConfig {
+        size: args.size,
+        frames: args.spp.max(1),
+        max_depth: args.max_depth.max(1),
+        ..Default::default()
+    };
+    let rows = crate::bench::trace::run(&backend, &scenes, &cfg, |name| {
+        eprintln!("raygun bench trace: {name}")
+    })?;
+    let device = backend.describe();
+    let text = if args.json {
+        serde_json::to_string_pretty(&serde_json::json!({
+            "device": device,
+            "config": cfg,
+            "rows": rows,
+        }))?
+    } else {
+        crate::bench::trace::markdown(&rows, &device)
+    };
+    println!("{text}");
+    if let Some(out) = &args.out {
+        std::fs::write(out, &text).with_context(|| format!("writing {}", out.display()))?;
+    }
+    Ok(())
 }
 
 #[derive(Clone, Debug, clap::Args)]
@@ -59,6 +128,7 @@ pub fn run(cmd: &BenchCommand) -> anyhow::Result<()> {
     match cmd {
         BenchCommand::Filter(args) => crate::cli::filter::run_bench(args),
         BenchCommand::Schedule(args) => crate::bench::schedule::run_command(args),
+        BenchCommand::Trace(args) => run_trace_bench(args),
         BenchCommand::Dgi(args) => {
             let model = DisplayModel::load(&args.display)?;
             let surface = Surface::from_model(&model);

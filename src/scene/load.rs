@@ -36,10 +36,8 @@ use super::{Camera, Environment, Material, Scene, Texture, Triangle};
 pub const MAX_COORDINATE: f32 = 1.0e9;
 
 /// glTF extensions the loader implements; every other one in `extensionsUsed` is reported.
-pub const SUPPORTED_EXTENSIONS: &[&str] = &[
-    "KHR_materials_emissive_strength",
-    "KHR_materials_specular",
-];
+pub const SUPPORTED_EXTENSIONS: &[&str] =
+    &["KHR_materials_emissive_strength", "KHR_materials_specular"];
 
 /// Images larger than this (bytes of decoded RGBA8) are refused by the decoder: a 16k × 8k
 /// texture is 512 MiB, more than any base-colour texture the tracer can bind.
@@ -679,16 +677,19 @@ impl Loader<'_> {
         let mut specular = 1.0;
         if let Some(sp) = m.specular() {
             let f = sp.specular_factor();
-            specular = if f.is_finite() { f.clamp(0.0, 1.0) } else { 1.0 };
+            specular = if f.is_finite() {
+                f.clamp(0.0, 1.0)
+            } else {
+                1.0
+            };
             if sp.specular_color_factor() != [1.0; 3] {
                 self.report.unsupported(format!(
                     "KHR_materials_specular specularColorFactor ({element}; white is used)"
                 ));
             }
             if sp.specular_texture().is_some() || sp.specular_color_texture().is_some() {
-                self.report.unsupported(format!(
-                    "KHR_materials_specular textures ({element})"
-                ));
+                self.report
+                    .unsupported(format!("KHR_materials_specular textures ({element})"));
             }
         }
         Ok(Material {
