@@ -42,6 +42,7 @@ pub mod bench;
 pub mod cli;
 pub mod display;
 pub mod filter;
+pub mod frame;
 pub mod gpu;
 pub mod interaction;
 pub mod output;

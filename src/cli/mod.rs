@@ -7,6 +7,7 @@ pub mod dgi;
 pub mod display;
 pub mod ellipse_distance;
 pub mod filter;
+pub mod guided;
 pub mod render;
 pub mod scene;
 pub mod tracking;

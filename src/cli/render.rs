@@ -56,6 +56,65 @@ pub struct RenderArgs {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+    /// Guided rendering (DESIGN.md §6): the ROI from a tracking replay (spread evenly over the
+    /// iterations), a ray-gun pose `pose:X,Y,Z:DX,DY,DZ:FOV[,FOV_V]` (room frame, degrees) or
+    /// a mouse ROI `mouse:X,Y:A,B` (image pixels). Writes the image, the DGI and the per-pixel
+    /// sample counts.
+    #[arg(
+        long,
+        value_name = "REPLAY|pose:…|mouse:…",
+        requires = "iterations",
+        allow_hyphen_values = true
+    )]
+    pub guide: Option<String>,
+    /// Guided iterations (each traces one path per scheduled pixel); replaces --spp.
+    #[arg(long, value_name = "N", requires = "guide")]
+    pub iterations: Option<u32>,
+    /// Display model whose canvas the image covers (guided rendering).
+    #[arg(
+        long,
+        value_name = "FILE",
+        default_value = "display-models/hornet.json"
+    )]
+    pub display: PathBuf,
+    /// Lowest sampling probability (paper preset 0).
+    #[arg(long, value_name = "P", default_value_t = 0.0)]
+    pub p_min: f32,
+    /// Distance measure of the DGI.
+    #[arg(long, value_enum, default_value_t = crate::roi::dgi::Metric::Exact)]
+    pub metric: crate::roi::dgi::Metric,
+    /// Falloff L = BASE + SCALE × ROI radius: the base, metres along the wall.
+    #[arg(long, value_name = "METRES", default_value_t = crate::roi::dgi::Falloff::DEFAULT_BASE_M)]
+    pub falloff_base: f64,
+    /// Falloff L = BASE + SCALE × ROI radius: the scale.
+    #[arg(long, value_name = "K", default_value_t = crate::roi::dgi::Falloff::DEFAULT_SCALE)]
+    pub falloff_scale: f64,
+    /// Order of the scheduled pixel list.
+    #[arg(long, value_enum, default_value_t = crate::schedule::Order::Coherent)]
+    pub order: crate::schedule::Order,
+    #[command(flatten)]
+    pub filter: crate::cli::filter::FilterArgs,
+    /// Where to write the DGI (EXR or PNG; default `<out stem>.dgi.exr`).
+    #[arg(long, value_name = "FILE")]
+    pub dgi_out: Option<PathBuf>,
+    /// Where to write the per-pixel sample counts (EXR; default `<out stem>.counts.exr`).
+    #[arg(long, value_name = "FILE")]
+    pub counts_out: Option<PathBuf>,
+}
+
+/// A progress bar over `len` units (hidden when `quiet`).
+#[must_use]
+pub fn progress(quiet: bool, len: u64, unit: &str) -> ProgressBar {
+    if quiet {
+        return ProgressBar::hidden();
+    }
+    ProgressBar::new(len).with_style(
+        ProgressStyle::with_template(&format!(
+            "{{msg}} [{{bar:40}}] {{pos}}/{{len}} {unit}, {{elapsed}} (eta {{eta}})"
+        ))
+        .expect("static template")
+        .progress_chars("=> "),
+    )
 }
 
 /// Loads the scene named by `--scene`, with `--env` applied and its unsupported features
@@ -93,16 +152,14 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
         max_depth: args.max_depth,
         camera,
     };
+    if let (Some(guide), Some(iterations)) = (&args.guide, args.iterations) {
+        if iterations == 0 {
+            anyhow::bail!("--iterations must be at least 1");
+        }
+        return crate::cli::guided::run(args, &scene, settings, &backend, guide, iterations);
+    }
     let mut renderer = Renderer::new(&backend, &scene, settings)?;
-    let bar = if args.quiet {
-        ProgressBar::hidden()
-    } else {
-        ProgressBar::new(u64::from(args.spp)).with_style(
-            ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} spp, {elapsed} (eta {eta})")
-                .expect("static template")
-                .progress_chars("=> "),
-        )
-    };
+    let bar = progress(args.quiet, u64::from(args.spp), "spp");
     bar.set_message("rendering");
     // Batches of about a quarter second keep the bar moving without starving the GPU.
     let t0 = Instant::now();

@@ -199,34 +199,53 @@ impl<W: Write> ChangePrinter<W> {
 
 /// Runs a replay, printing changes to `out`; returns the problem counts (reader and decoders).
 pub fn run_replay(args: &ReplayArgs, out: impl Write) -> anyhow::Result<ProblemLog> {
+    let mut printer = ChangePrinter::new(out);
+    let mut io_result = Ok(());
+    let printer_ref = std::cell::RefCell::new(&mut printer);
+    let problems = replay_changes(
+        args,
+        |t| printer_ref.borrow_mut().saw_event(t),
+        |c| {
+            if io_result.is_ok() {
+                io_result = printer_ref.borrow_mut().print(c);
+            }
+        },
+    )?;
+    io_result.context("writing ROI changes")?;
+    Ok(problems)
+}
+
+/// Plays a replay through the live parsers and the interaction state machine: `saw_event` gets
+/// the time of each event of the configured device, `on_change` each ROI change. Returns the
+/// problem counts (reader and decoders).
+pub fn replay_changes(
+    args: &ReplayArgs,
+    mut saw_event: impl FnMut(f64),
+    mut on_change: impl FnMut(&RoiChange),
+) -> anyhow::Result<ProblemLog> {
     let (plan, reader) = ReplayPlan::new(args)?;
     let mut pipeline = plan.pipeline();
     let device = plan.interaction.device;
-    let mut printer = ChangePrinter::new(out);
-    let mut io_result = Ok(());
     let reader_problems = play(reader, plan.playback, |item| {
         let changes = match &item.payload {
             ReplayPayload::Datagram(protocol, bytes) => {
                 let (events, changes) = pipeline.datagram(*protocol, bytes, item.t, &plan.surface);
                 if let Some(e) = events.iter().find(|e| e.device == device) {
-                    printer.saw_event(e.t);
+                    saw_event(e.t);
                 }
                 changes
             }
             ReplayPayload::Event(e) => {
                 if e.device == device && e.is_valid() {
-                    printer.saw_event(e.t);
+                    saw_event(e.t);
                 }
                 pipeline.event(e.clone(), &plan.surface)
             }
         };
         for c in changes {
-            if io_result.is_ok() {
-                io_result = printer.print(c);
-            }
+            on_change(c);
         }
     });
-    io_result.context("writing ROI changes")?;
     let mut problems = reader_problems;
     problems.merge(&pipeline.ingest.problems);
     Ok(problems)

@@ -1,0 +1,181 @@
+//! Guided rendering (issue 5): the frame function's DGI → schedule → trace on both backends.
+
+use glam::DVec3;
+use raygun::display::DisplayModel;
+use raygun::frame::{GuideConfig, GuidedRenderer};
+use raygun::gpu::{Backend, GpuContext};
+use raygun::roi::cone::Cone;
+use raygun::roi::dgi::Roi;
+use raygun::scene::{Environment, Scene};
+use raygun::trace::accum::{Accumulation, luminance};
+use raygun::trace::camera::RenderCamera;
+use raygun::trace::cpu::{TraceSettings, render_cpu};
+use raygun::trace::pack::PackedScene;
+
+const W: u32 = 64;
+const H: u32 = 36;
+
+fn hornet() -> DisplayModel {
+    DisplayModel::load(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/display-models/hornet.json"
+    ))
+    .unwrap()
+}
+
+fn cornell() -> Scene {
+    let mut s = Scene::load(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/data/scenes/cornell-light.glb"
+    ))
+    .unwrap();
+    s.environment = Environment::Constant(glam::Vec3::splat(0.5));
+    s
+}
+
+fn settings(scene: &Scene, seed: u32) -> TraceSettings {
+    TraceSettings {
+        width: W,
+        height: H,
+        seed,
+        max_depth: 6,
+        camera: RenderCamera::choose(scene, None, W, H).unwrap(),
+    }
+}
+
+fn cone(fov: f64) -> Roi {
+    Roi::Cone(Cone::from_pose(DVec3::new(0.0, 0.0, 1.0), DVec3::NEG_Z, DVec3::Y, fov, fov).unwrap())
+}
+
+fn gpu_backend() -> Backend {
+    Backend::Gpu(Box::new(GpuContext::for_tests()))
+}
+
+fn guided(
+    backend: &Backend,
+    scene: &Scene,
+    seed: u32,
+    p_min: f32,
+    plan: &[(Option<Roi>, u32)],
+) -> (Accumulation, Vec<f32>) {
+    let config = GuideConfig {
+        p_min,
+        ..Default::default()
+    };
+    let mut r =
+        GuidedRenderer::new(backend, scene, settings(scene, seed), &hornet(), config).unwrap();
+    for (roi, n) in plan {
+        r.set_roi(*roi).unwrap();
+        for _ in 0..*n {
+            r.run_frame(false).unwrap();
+        }
+    }
+    (r.accumulation().unwrap(), r.dgi().unwrap())
+}
+
+/// Inside the ROI (d = 0, p = 1) every pixel is sampled in every iteration; far outside
+/// (d = 1, p = p_min = 0) never; counts persist across ROI changes and add up.
+#[test]
+fn roi_pixels_are_sampled_every_iteration_and_counts_persist_across_roi_changes() {
+    let scene = cornell();
+    for backend in [Backend::Cpu, gpu_backend()] {
+        let narrow = cone(30.0);
+        let plan = [(Some(narrow), 4), (None, 3), (Some(narrow), 2)];
+        let (acc, dgi) = guided(&backend, &scene, 3, 0.0, &plan);
+        for (i, (&c, &d)) in acc.count.iter().zip(&dgi).enumerate() {
+            // The None phase samples everything (d = 0): 3 samples each.
+            if d == 0.0 {
+                assert_eq!(c, 9, "{}: ROI pixel {i}", backend.describe());
+            } else if d == 1.0 {
+                assert_eq!(c, 3, "{}: far pixel {i}", backend.describe());
+            } else {
+                assert!(
+                    (3..=9).contains(&c),
+                    "{}: pixel {i} has {c}",
+                    backend.describe()
+                );
+            }
+        }
+        assert!(
+            dgi.contains(&0.0) && dgi.contains(&1.0),
+            "the test must cover both kinds of pixel"
+        );
+    }
+}
+
+/// Both backends take the same scheduling decisions: their per-pixel sample counts agree,
+/// except where the f32 and f64 DGIs straddle a coin (expected ~1e-4 of the decisions).
+#[test]
+fn gpu_and_cpu_schedule_the_same_pixels() {
+    let scene = cornell();
+    let plan = [(Some(cone(30.0)), 12)];
+    let (cpu, _) = guided(&Backend::Cpu, &scene, 5, 0.05, &plan);
+    let (gpu, _) = guided(&gpu_backend(), &scene, 5, 0.05, &plan);
+    let differing: u32 = cpu
+        .count
+        .iter()
+        .zip(&gpu.count)
+        .map(|(a, b)| a.abs_diff(*b))
+        .sum();
+    let decisions = W * H * 12;
+    assert!(
+        differing * 1000 <= decisions,
+        "{differing} of {decisions} decisions differ"
+    );
+    let total: u32 = cpu.count.iter().sum();
+    assert!(
+        total < decisions && total > decisions / 10,
+        "a partial selection ({total})"
+    );
+}
+
+/// Guided rendering is unbiased: with p_min > 0 every pixel converges to the same mean as a
+/// uniform render. Welch Z-test per 4 × 4 block of pooled samples, |z| < 5 (Bonferroni over
+/// the 144 blocks at family-wise 1e-4).
+#[test]
+fn guided_render_converges_to_the_uniform_render() {
+    let scene = cornell();
+    let (guided_acc, _) = guided(&Backend::Cpu, &scene, 7, 0.3, &[(Some(cone(20.0)), 96)]);
+    let packed = PackedScene::new(&scene);
+    let s = settings(&scene, 8);
+    let mut uniform = Accumulation::new(W, H);
+    for _ in 0..48 {
+        render_cpu(&packed, &s, &mut uniform, None);
+    }
+    let (a, b) = (pool(&guided_acc, 4), pool(&uniform, 4));
+    let check = |scale: f32| -> Result<(), String> {
+        for i in 0..a.count.len() {
+            let (ma, mb) = (luminance(a.mean(i)), luminance(b.mean(i)) * scale);
+            let v = a.luminance_variance_of_mean(i).unwrap()
+                + b.luminance_variance_of_mean(i).unwrap() * scale * scale;
+            let z = (ma - mb) / v.sqrt().max(1e-6);
+            if z.is_nan() || z.abs() >= 5.0 {
+                return Err(format!("block {i}: guided {ma}, uniform {mb}, z = {z}"));
+            }
+        }
+        Ok(())
+    };
+    check(1.0).unwrap();
+    assert!(
+        check(1.15).is_err(),
+        "a 15 % brightness error must be detected"
+    );
+}
+
+fn pool(acc: &Accumulation, block: u32) -> Accumulation {
+    let (w, h) = (acc.width / block, acc.height / block);
+    let mut out = Accumulation::new(w, h);
+    for y in 0..h * block {
+        for x in 0..w * block {
+            let (i, o) = (
+                (y * acc.width + x) as usize,
+                ((y / block) * w + x / block) as usize,
+            );
+            for k in 0..4 {
+                out.sum[o][k] += acc.sum[i][k];
+            }
+            out.count[o] += acc.count[i];
+        }
+    }
+    out
+}
