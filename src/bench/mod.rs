@@ -3,5 +3,6 @@
 
 pub mod dgi;
 pub mod filter;
+pub mod guided;
 pub mod schedule;
 pub mod trace;

@@ -19,6 +19,109 @@ pub enum BenchCommand {
     Schedule(crate::bench::schedule::ScheduleBenchArgs),
     /// Full-frame path tracing: ms per frame, ms per megasample and rays per second.
     Trace(TraceBenchArgs),
+    /// The paper's benchmark: guided vs full-frame per FOV (share sampled, ms per iteration,
+    /// speed-up, equal-time RMSE in the ROI) and the Figure 5 plot.
+    Guided(GuidedBenchArgs),
+}
+
+#[derive(Clone, Debug, clap::Args)]
+pub struct GuidedBenchArgs {
+    /// Scenes (files or builtin:NAME).
+    #[arg(
+        long,
+        value_name = "SCENE,…",
+        value_delimiter = ',',
+        default_value = "builtin:cornell,builtin:city"
+    )]
+    pub scene: Vec<String>,
+    /// Display model (the paper's setup: HORNET).
+    #[arg(
+        long,
+        value_name = "FILE",
+        default_value = "display-models/hornet.json"
+    )]
+    pub display: PathBuf,
+    /// Image size.
+    #[arg(long, value_name = "W,H", value_parser = crate::cli::args::parse_size, default_value = "3840,2160")]
+    pub size: [u32; 2],
+    /// Fields of view, degrees.
+    #[arg(
+        long,
+        value_name = "DEG,…",
+        value_delimiter = ',',
+        default_value = "10,20,30,40,50,60"
+    )]
+    pub fov: Vec<f64>,
+    /// Guided iterations per FOV.
+    #[arg(long, value_name = "N", default_value_t = 100)]
+    pub iterations: u32,
+    /// Samples per pixel of the converged reference.
+    #[arg(long, value_name = "N", default_value_t = 1024)]
+    pub reference_spp: u32,
+    /// Lowest sampling probability (paper preset 0).
+    #[arg(long, value_name = "P", default_value_t = 0.0)]
+    pub p_min: f32,
+    /// List orders to measure (coherent, scattered).
+    #[arg(long, value_enum, value_delimiter = ',', default_value = "coherent")]
+    pub order: Vec<crate::schedule::Order>,
+    /// Environment (R,G,B or an .hdr/.exr file); default white.
+    #[arg(long, value_name = "R,G,B|FILE")]
+    pub env: Option<String>,
+    #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
+    pub backend: BackendChoice,
+    /// Print JSON instead of Markdown.
+    #[arg(long)]
+    pub json: bool,
+    /// Also write the output to this file.
+    #[arg(long, value_name = "FILE")]
+    pub out: Option<PathBuf>,
+    /// Write the Figure 5 plot (PNG) here.
+    #[arg(long, value_name = "FILE.png")]
+    pub plot: Option<PathBuf>,
+}
+
+fn run_guided_bench(args: &GuidedBenchArgs) -> anyhow::Result<()> {
+    let backend = Backend::select(args.backend)?;
+    let display = DisplayModel::load(&args.display)?;
+    let mut scenes = Vec::new();
+    for s in &args.scene {
+        scenes.push((
+            s.trim_start_matches("builtin:").to_string(),
+            crate::cli::render::load_scene(s, args.env.as_deref())?,
+        ));
+    }
+    let cfg = crate::bench::guided::GuidedBenchConfig {
+        size: args.size,
+        fovs_deg: args.fov.clone(),
+        iterations: args.iterations.max(1),
+        reference_spp: args.reference_spp.max(1),
+        p_min: args.p_min,
+        orders: args.order.clone(),
+        ..Default::default()
+    };
+    let bar = crate::cli::render::progress(
+        false,
+        (scenes.len() * (2 + cfg.fovs_deg.len() * cfg.orders.len())) as u64,
+        "steps",
+    );
+    let report = crate::bench::guided::run(&backend, &display, &scenes, &cfg, |what| {
+        bar.set_message(what.to_string());
+        bar.inc(1);
+    })?;
+    bar.finish_and_clear();
+    let text = if args.json {
+        serde_json::to_string_pretty(&report)?
+    } else {
+        crate::bench::guided::markdown(&report)
+    };
+    println!("{text}");
+    if let Some(out) = &args.out {
+        std::fs::write(out, &text).with_context(|| format!("writing {}", out.display()))?;
+    }
+    if let Some(plot) = &args.plot {
+        crate::bench::guided::plot(&report, plot)?;
+    }
+    Ok(())
 }
 
 #[derive(Clone, Debug, clap::Args)]
@@ -129,6 +232,7 @@ pub fn run(cmd: &BenchCommand) -> anyhow::Result<()> {
         BenchCommand::Filter(args) => crate::cli::filter::run_bench(args),
         BenchCommand::Schedule(args) => crate::bench::schedule::run_command(args),
         BenchCommand::Trace(args) => run_trace_bench(args),
+        BenchCommand::Guided(args) => run_guided_bench(args),
         BenchCommand::Dgi(args) => {
             let model = DisplayModel::load(&args.display)?;
             let surface = Surface::from_model(&model);
