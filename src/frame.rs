@@ -102,7 +102,8 @@ enum Engine<'a> {
     Cpu {
         accum: Accumulation,
         dgi: Vec<f32>,
-        pending: Option<Vec<f32>>,
+        /// The next DGI and the ms it took.
+        pending: Option<(Vec<f32>, f64)>,
     },
 }
 
@@ -248,10 +249,12 @@ impl<'a> GuidedRenderer<'a> {
                 });
             }
             Engine::Cpu { pending, .. } => {
-                *pending = Some(match prepared {
+                let t0 = Instant::now();
+                let dgi = match prepared {
                     Some((guide, params)) => compute_cpu(&self.surface, &guide, &params),
                     None => vec![0.0; w as usize * h as usize],
-                });
+                };
+                *pending = Some((dgi, t0.elapsed().as_secs_f64() * 1e3));
             }
         }
         self.roi = roi;
@@ -322,9 +325,12 @@ impl<'a> GuidedRenderer<'a> {
                 dgi,
                 pending,
             } => {
-                if let Some(new) = pending.take() {
+                if let Some((new, ms)) = pending.take() {
                     *dgi = new;
                     stats.dgi_recomputed = true;
+                    if timed {
+                        stats.ms_dgi = Some(ms);
+                    }
                 }
                 let t0 = Instant::now();
                 let list = schedule_cpu(

@@ -179,3 +179,51 @@ fn pool(acc: &Accumulation, block: u32) -> Accumulation {
     }
     out
 }
+
+/// `bench guided` at a tiny size on the CPU twin: its report is internally consistent — the
+/// share sampled matches the schedule's expectation and grows with the FOV, guided iterations
+/// are faster than full frames, and at 10° the ROI is closer to the reference than an
+/// equal-time full-frame render. (Speed itself is not asserted.)
+#[test]
+fn bench_guided_report_is_consistent() {
+    use raygun::bench::guided::{GuidedBenchConfig, run};
+    let scene = cornell();
+    let cfg = GuidedBenchConfig {
+        size: [96, 54],
+        fovs_deg: vec![10.0, 60.0],
+        iterations: 16,
+        full_frames: 3,
+        reference_spp: 256,
+        ..Default::default()
+    };
+    let report = run(
+        &Backend::Cpu,
+        &hornet(),
+        &[("cornell".into(), scene)],
+        &cfg,
+        |_| {},
+    )
+    .unwrap();
+    let (narrow, wide) = (&report.rows[0], &report.rows[1]);
+    // The calibrated falloff: ~3 % of the pixels at 10°, ~40 % at 60° (within pixel rounding
+    // of a 96 × 54 image).
+    assert!(
+        (0.01..0.06).contains(&narrow.share_sampled),
+        "{}",
+        narrow.share_sampled
+    );
+    assert!(
+        (0.3..0.5).contains(&wide.share_sampled),
+        "{}",
+        wide.share_sampled
+    );
+    assert!(narrow.speedup > 1.0 && wide.speedup > 1.0);
+    assert!(narrow.roi_pixels > 0 && wide.roi_pixels > narrow.roi_pixels);
+    assert!(narrow.ms_dgi.is_some());
+    assert!(
+        narrow.rmse_roi_guided < narrow.rmse_roi_full,
+        "guided {} vs full frame {}",
+        narrow.rmse_roi_guided,
+        narrow.rmse_roi_full
+    );
+}
