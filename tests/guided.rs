@@ -226,4 +226,10 @@ fn bench_guided_report_is_consistent() {
         narrow.rmse_roi_guided,
         narrow.rmse_roi_full
     );
+    // The Figure 5 plot is a 1200 × 500 PNG.
+    let path = std::env::temp_dir().join(format!("raygun-fig5-{}.png", std::process::id()));
+    raygun::bench::guided::plot(&report, &path).unwrap();
+    let png = image::open(&path).unwrap();
+    assert_eq!((png.width(), png.height()), (1200, 500));
+    std::fs::remove_file(&path).ok();
 }
