@@ -362,3 +362,74 @@ pub fn render_cpu(
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::{Environment, EnvironmentMap, Scene};
+
+    fn map_scene() -> PackedScene {
+        // A dim sky with one bright patch (a "sun") near the zenith and a coloured band.
+        let (w, h) = (32u32, 16u32);
+        let texels = (0..w * h)
+            .map(|i| {
+                let (x, y) = (i % w, i / w);
+                if (x, y) == (5, 3) {
+                    Vec3::new(200.0, 180.0, 150.0)
+                } else if y == 10 {
+                    Vec3::new(0.1, 0.4, 0.9)
+                } else {
+                    Vec3::splat(0.2)
+                }
+            })
+            .collect();
+        PackedScene::new(&Scene {
+            environment: Environment::Map(EnvironmentMap {
+                name: "test".into(),
+                width: w,
+                height: h,
+                texels,
+            }),
+            ..Default::default()
+        })
+    }
+
+    /// The environment sampler's density is the one `env_eval` reports for the sampled
+    /// direction, and it integrates to 1 over the sphere (Monte Carlo with uniform directions).
+    #[test]
+    fn environment_sampling_density_is_consistent_and_normalised() {
+        let sc = map_scene();
+        for i in 0..2000u32 {
+            let r = pcg4d([i, 1, 2, 3]).map(unit_f32);
+            let (d, le, pdf) = sample_env(&sc, r[0], r[1]);
+            let (le2, pdf2) = env_eval(&sc, d);
+            assert!((d.length() - 1.0).abs() < 1e-5);
+            if pdf > 0.0 {
+                assert!(
+                    (pdf - pdf2).abs() <= 2e-3 * pdf,
+                    "pdf {pdf} vs {pdf2} at {d}"
+                );
+                assert_eq!(le, le2);
+            }
+        }
+        let n = 400_000u32;
+        let mut integral = 0f64;
+        for i in 0..n {
+            let r = pcg4d([i, 9, 9, 9]).map(unit_f32);
+            let d = uniform_sphere(r[0], r[1]);
+            integral += f64::from(env_eval(&sc, d).1) * 4.0 * std::f64::consts::PI;
+        }
+        let integral = integral / f64::from(n);
+        assert!((integral - 1.0).abs() < 0.02, "∫ pdf dω = {integral}");
+        // Importance: the sun's texel is chosen far more often than its solid angle share.
+        let sun = (0..20_000u32)
+            .filter(|&i| {
+                let r = pcg4d([i, 4, 4, 4]).map(unit_f32);
+                let (d, _, _) = sample_env(&sc, r[0], r[1]);
+                let (u, v) = direction_to_equirect(d);
+                ((u * 32.0) as u32, (v * 16.0) as u32) == (5, 3)
+            })
+            .count();
+        assert!(sun > 10_000, "the sun was sampled {sun} times of 20 000");
+    }
+}
