@@ -353,7 +353,9 @@ pub fn plot(r: &GuidedBenchReport, path: &Path) -> Result<(), GuidedBenchError> 
         fovs.iter().copied().fold(f64::INFINITY, f64::min) - 2.0,
         fovs.iter().copied().fold(f64::NEG_INFINITY, f64::max) + 2.0,
     );
-    let mut series: Vec<(String, Vec<(f64, f64, f64)>)> = Vec::new();
+    // (label, [(FOV, share %, ms per megasample)])
+    type Series = (String, Vec<(f64, f64, f64)>);
+    let mut series: Vec<Series> = Vec::new();
     for row in &r.rows {
         let key = if r.config.orders.len() > 1 {
             format!("{} ({:?})", row.scene, row.order)
