@@ -233,3 +233,40 @@ fn bench_guided_report_is_consistent() {
     assert_eq!((png.width(), png.height()), (1200, 500));
     std::fs::remove_file(&path).ok();
 }
+
+/// The filter benchmark on a real guided render (not synthetic): in the falloff band the
+/// paper's filter and the fast filter both reduce the brightness error of the raw render,
+/// whose unsampled pixels are black, and its RMSE (k_max scaled to the tiny 96 × 54 image).
+#[test]
+fn filters_reduce_the_band_error_of_a_guided_render() {
+    use raygun::bench::filter::error_rows;
+    use raygun::filter::FilterParams;
+    let scene = cornell();
+    let input = raygun::bench::guided::filter_input(
+        &Backend::Cpu,
+        &hornet(),
+        "cornell",
+        &scene,
+        [96, 54],
+        60.0,
+        16,
+        128,
+        3,
+    )
+    .unwrap();
+    let params = FilterParams {
+        k_max: 4.0,
+        ..FilterParams::default()
+    };
+    let rows = error_rows(&Backend::Cpu, None, &params, 60.0, &input).unwrap();
+    let get = |v: &str| rows.iter().find(|r| r.variant == v).unwrap();
+    let raw = get("unfiltered").brightness_err_band.abs();
+    for v in ["paper (exact)", "fast"] {
+        assert!(
+            get(v).brightness_err_band.abs() < raw,
+            "{v}: {} vs unfiltered {raw}",
+            get(v).brightness_err_band
+        );
+        assert!(get(v).rmse_band < get("unfiltered").rmse_band, "{v}");
+    }
+}

@@ -144,6 +144,9 @@ pub enum FilterBenchError {
     Guide(#[from] crate::roi::dgi::GuideError),
     #[error(transparent)]
     Cone(#[from] crate::roi::cone::ConeError),
+    /// Making a rendered input failed.
+    #[error("rendering the filter's input: {0}")]
+    Render(String),
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -293,7 +296,37 @@ pub fn run(
     display_name: &str,
     backend: &Backend,
     config: &FilterBenchConfig,
+    progress: impl FnMut(&str),
+) -> Result<FilterBenchReport, FilterBenchError> {
+    run_with_inputs(
+        surface,
+        display_name,
+        backend,
+        config,
+        progress,
+        |_fov, dgi| {
+            let [w, h] = config.size;
+            Ok(FilterBenchInput::synthetic(
+                config.pattern,
+                dgi,
+                w,
+                h,
+                config.rounds,
+                config.seed,
+            ))
+        },
+    )
+}
+
+/// [`run`] with the renders to judge made by `input(fov, paper_dgi)` — e.g. guided renders of
+/// a scene (`raygun bench filter --scene …`).
+pub fn run_with_inputs(
+    surface: &Surface,
+    display_name: &str,
+    backend: &Backend,
+    config: &FilterBenchConfig,
     mut progress: impl FnMut(&str),
+    mut input: impl FnMut(f64, Vec<f32>) -> Result<FilterBenchInput, FilterBenchError>,
 ) -> Result<FilterBenchReport, FilterBenchError> {
     config
         .error_params
@@ -322,10 +355,9 @@ pub fn run(
         errors: Vec::new(),
     };
     for &fov in &config.fovs_deg {
-        progress(&format!("{fov}°: DGI and synthetic render"));
+        progress(&format!("{fov}°: DGI and the render to filter"));
         let dgi = paper_dgi(surface, w, h, fov)?;
-        let input =
-            FilterBenchInput::synthetic(config.pattern, dgi, w, h, config.rounds, config.seed);
+        let input = input(fov, dgi)?;
         report.input.clone_from(&input.label);
         let n = input.dgi.len() as f64;
         let sampled = input.accumulation.count.iter().filter(|&&c| c > 0).count() as f64;
@@ -420,8 +452,7 @@ impl FilterBenchReport {
             ));
         }
         s.push_str(&format!(
-            "\nError against the reference — SYNTHETIC renders ({}; the guided renderer does not \
-             exist yet), k_max {}, c {}, τ {:e}:\n\n",
+            "\nError against the reference ({}), k_max {}, c {}, τ {:e}:\n\n",
             self.input, c.error_params.k_max, c.error_params.c, c.error_params.variance_threshold
         ));
         for (fov, sampled, roi, band) in &self.coverage {

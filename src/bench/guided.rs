@@ -427,3 +427,70 @@ pub fn plot(r: &GuidedBenchReport, path: &Path) -> Result<(), GuidedBenchError> 
     root.present().map_err(|e| err(e.to_string()))?;
     Ok(())
 }
+
+/// A guided render of `scene` in the paper's setup (viewer 1 m in front of the wall centre,
+/// square cone of `fov` degrees, p_min 0), for the filter benchmark's error table: `iterations`
+/// guided iterations and a full-frame reference of `reference_spp` samples per pixel.
+#[allow(clippy::too_many_arguments)]
+pub fn filter_input(
+    backend: &Backend,
+    display: &DisplayModel,
+    name: &str,
+    scene: &Scene,
+    size: [u32; 2],
+    fov: f64,
+    iterations: u32,
+    reference_spp: u32,
+    seed: u32,
+) -> Result<crate::bench::filter::FilterBenchInput, GuidedBenchError> {
+    let [w, h] = size;
+    let camera =
+        RenderCamera::choose(scene, None, w, h).map_err(|source| GuidedBenchError::Camera {
+            scene: name.to_string(),
+            source,
+        })?;
+    let settings = |seed: u32| TraceSettings {
+        width: w,
+        height: h,
+        seed,
+        max_depth: crate::trace::cpu::DEFAULT_MAX_DEPTH,
+        camera,
+    };
+    let roi = Roi::Cone(Cone::from_pose(
+        DVec3::new(0.0, 0.0, 1.0),
+        DVec3::NEG_Z,
+        DVec3::Y,
+        fov,
+        fov,
+    )?);
+    let mut g = GuidedRenderer::new(
+        backend,
+        scene,
+        settings(seed),
+        display,
+        GuideConfig::default(),
+    )?;
+    g.set_roi(Some(roi))?;
+    for _ in 0..iterations.max(1) {
+        g.run_frame(false)?;
+    }
+    let accumulation = g.accumulation()?;
+    let dgi = g.dgi()?;
+    drop(g);
+    let reference = full_frame_image(
+        backend,
+        scene,
+        settings(seed ^ 0x5eed),
+        reference_spp.max(1),
+    )?;
+    let roi_mask = dgi.iter().map(|&d| d == 0.0).collect();
+    Ok(crate::bench::filter::FilterBenchInput {
+        label: format!(
+            "guided render of {name}, {iterations} iterations; reference {reference_spp} spp full frame"
+        ),
+        reference,
+        accumulation,
+        dgi,
+        roi_mask,
+    })
+}

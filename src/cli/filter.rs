@@ -87,6 +87,13 @@ pub struct FilterBenchArgs {
     /// Reference image of the synthetic render.
     #[arg(long, value_enum, default_value_t = synth::Pattern::Edges)]
     pub pattern: synth::Pattern,
+    /// Judge the filters on guided renders of this scene (file or builtin:NAME; `--rounds`
+    /// guided iterations each) instead of synthetic renders.
+    #[arg(long, value_name = "SCENE")]
+    pub scene: Option<String>,
+    /// Samples per pixel of the full-frame reference of `--scene`.
+    #[arg(long, value_name = "N", default_value_t = 256)]
+    pub reference_spp: u32,
     /// Filter settings of the error table (--filter and --filter-blend are ignored: every
     /// variant is measured).
     #[command(flatten)]
@@ -124,9 +131,35 @@ pub fn run_bench(args: &FilterBenchArgs) -> anyhow::Result<()> {
         error_params,
         ..FilterBenchConfig::default()
     };
-    let report = bench::run(&surface, model.name(), &backend, &config, |what| {
-        eprintln!("raygun bench filter: {what}");
-    })?;
+    let progress = |what: &str| eprintln!("raygun bench filter: {what}");
+    let report = match &args.scene {
+        None => bench::run(&surface, model.name(), &backend, &config, progress)?,
+        Some(scene_arg) => {
+            let scene = crate::cli::render::load_scene(scene_arg, None)?;
+            let name = scene_arg.trim_start_matches("builtin:");
+            bench::run_with_inputs(
+                &surface,
+                model.name(),
+                &backend,
+                &config,
+                progress,
+                |fov, _| {
+                    crate::bench::guided::filter_input(
+                        &backend,
+                        &model,
+                        name,
+                        &scene,
+                        args.size,
+                        fov,
+                        args.rounds,
+                        args.reference_spp,
+                        config.seed,
+                    )
+                    .map_err(|e| bench::FilterBenchError::Render(e.to_string()))
+                },
+            )?
+        }
+    };
     let text = if args.json {
         serde_json::to_string_pretty(&report)?
     } else {
