@@ -62,7 +62,7 @@ impl Backend {
         match self {
             Self::Gpu(ctx) => ctx.describe(),
             Self::Cpu => format!(
-                "CPU twin (f64, rayon, {} threads)",
+                "CPU twins (rayon, {} threads)",
                 rayon::current_num_threads()
             ),
         }
