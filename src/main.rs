@@ -15,6 +15,9 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// The whole pipeline on embedded defaults: the Cornell box on the HORNET wall, guided by a
+    /// bundled FlyStick session (headless without a display: writes images and a report).
+    Demo(cli::demo::DemoArgs),
     /// Path-trace a glTF scene progressively and write EXR (linear) and/or PNG (sRGB).
     Render(cli::render::RenderArgs),
     /// Write the distance-guide image for a ray-gun pose or a mouse ROI.
@@ -49,6 +52,7 @@ enum DisplayCommand {
 fn main() {
     let cli = Cli::parse();
     let result = match &cli.command {
+        Command::Demo(args) => cli::demo::run(args),
         Command::Render(args) => cli::render::run(args),
         Command::Dgi(args) => cli::dgi::run(args),
         Command::Pick(args) => cli::display::pick(args).map(|v| println!("{v}")),

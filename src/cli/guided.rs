@@ -10,12 +10,13 @@ use crate::cli::args::{parse_pair, parse_vec3};
 use crate::cli::render::RenderArgs;
 use crate::cli::tracking::{ReplayArgs, replay_changes};
 use crate::display::DisplayModel;
-use crate::filter::FilterKind;
+use crate::filter::{FilterKind, FilterParams};
 use crate::frame::{GuideConfig, GuidedRenderer};
 use crate::gpu::Backend;
 use crate::roi::cone::Cone;
 use crate::roi::dgi::{Falloff, Roi};
 use crate::scene::Scene;
+use crate::trace::accum::Accumulation;
 use crate::trace::cpu::TraceSettings;
 
 /// Where the ROI comes from.
@@ -135,6 +136,115 @@ fn beside(out: &Path, what: &str) -> PathBuf {
     out.with_file_name(format!("{stem}.{what}.exr"))
 }
 
+/// What a guided render produced.
+pub struct GuidedResult {
+    pub size: [u32; 2],
+    pub iterations: u32,
+    /// The filtered mean image (linear RGB, row-major).
+    pub image: Vec<Vec3>,
+    /// The DGI of the last iteration.
+    pub dgi: Vec<f32>,
+    /// Samples per pixel.
+    pub counts: Vec<u32>,
+    /// Wall-clock seconds of the iterations (read-back and filter excluded).
+    pub seconds: f64,
+}
+
+impl GuidedResult {
+    /// Samples taken in all.
+    #[must_use]
+    pub fn samples(&self) -> u64 {
+        self.counts.iter().map(|&c| u64::from(c)).sum()
+    }
+
+    /// Samples as a share of `iterations` full frames.
+    #[must_use]
+    pub fn sample_share(&self) -> f64 {
+        self.samples() as f64
+            / (f64::from(self.size[0]) * f64::from(self.size[1]) * f64::from(self.iterations))
+    }
+}
+
+/// The mean image of `acc`, filtered by `filter` on `backend` (the GPU kernels or the CPU twin).
+pub fn filtered_image(
+    backend: &Backend,
+    filter: &FilterParams,
+    acc: &Accumulation,
+    dgi: &[f32],
+) -> anyhow::Result<Vec<Vec3>> {
+    Ok(match (backend, filter.kind) {
+        (_, FilterKind::Off) => acc.mean_image(),
+        (Backend::Gpu(ctx), _) => crate::filter::gpu::FilterKernels::new(ctx)
+            .filter(ctx, filter, acc, dgi)?
+            .iter()
+            .map(|p| Vec3::new(p[0], p[1], p[2]))
+            .collect(),
+        (Backend::Cpu, _) => crate::filter::filter_cpu(filter, acc, dgi)?
+            .iter()
+            .map(|p| p.as_vec3())
+            .collect(),
+    })
+}
+
+/// Runs `iterations` guided frames with the ROI from `source`, then reads back and filters.
+/// `on_iteration` is called after each frame with the number done.
+#[allow(clippy::too_many_arguments)]
+pub fn render_guided(
+    backend: &Backend,
+    scene: &Scene,
+    settings: TraceSettings,
+    model: &DisplayModel,
+    config: GuideConfig,
+    filter: &FilterParams,
+    source: &GuideSource,
+    iterations: u32,
+    mut on_iteration: impl FnMut(u32),
+) -> anyhow::Result<GuidedResult> {
+    let mut r = GuidedRenderer::new(backend, scene, settings, model, config)?;
+    let t0 = std::time::Instant::now();
+    let mut current: Option<Roi> = None;
+    for k in 0..iterations {
+        let roi = source.roi_at(k, iterations);
+        if k == 0 || roi != current {
+            r.set_roi(roi)?;
+            current = roi;
+        }
+        r.run_frame(false)?;
+        on_iteration(k + 1);
+    }
+    let acc = r.accumulation()?;
+    let seconds = t0.elapsed().as_secs_f64();
+    let dgi = r.dgi()?;
+    let image = filtered_image(backend, filter, &acc, &dgi)?;
+    Ok(GuidedResult {
+        size: [settings.width, settings.height],
+        iterations,
+        image,
+        dgi,
+        counts: acc.count,
+        seconds,
+    })
+}
+
+/// Writes the DGI and the sample counts (EXR or PNG by extension).
+pub fn write_guides(res: &GuidedResult, dgi_out: &Path, counts_out: &Path) -> anyhow::Result<()> {
+    let [w, h] = res.size;
+    crate::output::write_gray(dgi_out, w, h, &res.dgi, "d")?;
+    let counts: Vec<f32> = res.counts.iter().map(|&c| c as f32).collect();
+    crate::output::write_gray(counts_out, w, h, &counts, "samples")?;
+    Ok(())
+}
+
+/// The guide arguments of `render` as a [`GuideConfig`].
+pub fn guide_config(args: &RenderArgs) -> anyhow::Result<GuideConfig> {
+    Ok(GuideConfig {
+        metric: args.metric,
+        falloff: Falloff::new(args.falloff_base, args.falloff_scale)?,
+        p_min: args.p_min,
+        order: args.order,
+    })
+}
+
 pub fn run(
     args: &RenderArgs,
     scene: &Scene,
@@ -146,60 +256,39 @@ pub fn run(
     let model = DisplayModel::load(&args.display)?;
     let source = GuideSource::parse(guide, &model, &args.display, args.size)?;
     let filter = args.filter.params()?;
-    let config = GuideConfig {
-        metric: args.metric,
-        falloff: Falloff::new(args.falloff_base, args.falloff_scale)?,
-        p_min: args.p_min,
-        order: args.order,
-    };
-    let mut r = GuidedRenderer::new(backend, scene, settings, &model, config)?;
+    let config = guide_config(args)?;
     let bar = crate::cli::render::progress(args.quiet, u64::from(iterations), "iterations");
-    let t0 = std::time::Instant::now();
-    let mut current: Option<Roi> = None;
-    for k in 0..iterations {
-        let roi = source.roi_at(k, iterations);
-        if k == 0 || roi != current {
-            r.set_roi(roi)?;
-            current = roi;
-        }
-        r.run_frame(false)?;
-        bar.set_position(u64::from(k + 1));
-    }
-    let acc = r.accumulation()?;
-    let seconds = t0.elapsed().as_secs_f64();
+    let res = render_guided(
+        backend,
+        scene,
+        settings,
+        &model,
+        config,
+        &filter,
+        &source,
+        iterations,
+        |k| bar.set_position(u64::from(k)),
+    )?;
     bar.finish_and_clear();
-    let dgi = r.dgi()?;
-    let (w, h) = (settings.width, settings.height);
-    let image: Vec<Vec3> = match (backend, filter.kind) {
-        (_, FilterKind::Off) => acc.mean_image(),
-        (Backend::Gpu(ctx), _) => crate::filter::gpu::FilterKernels::new(ctx)
-            .filter(ctx, &filter, &acc, &dgi)?
-            .iter()
-            .map(|p| Vec3::new(p[0], p[1], p[2]))
-            .collect(),
-        (Backend::Cpu, _) => crate::filter::filter_cpu(&filter, &acc, &dgi)?
-            .iter()
-            .map(|p| p.as_vec3())
-            .collect(),
-    };
+    let [w, h] = res.size;
     for out in &args.out {
-        crate::output::write_rgb(out, w, h, &image, args.exposure)?;
+        crate::output::write_rgb(out, w, h, &res.image, args.exposure)?;
     }
+    crate::cli::render::write_wall_tiles(args, &model, &res.image)?;
     let first = &args.out[0];
     let dgi_out = args.dgi_out.clone().unwrap_or_else(|| beside(first, "dgi"));
     let counts_out = args
         .counts_out
         .clone()
         .unwrap_or_else(|| beside(first, "counts"));
-    crate::output::write_gray(&dgi_out, w, h, &dgi, "d")?;
-    let counts: Vec<f32> = acc.count.iter().map(|&c| c as f32).collect();
-    crate::output::write_gray(&counts_out, w, h, &counts, "samples")?;
-    let samples: u64 = acc.count.iter().map(|&c| u64::from(c)).sum();
+    write_guides(&res, &dgi_out, &counts_out)?;
+    let samples = res.samples();
     eprintln!(
-        "raygun: guided render, {iterations} iterations in {seconds:.2} s on {}: {samples} samples ({:.2} % of full frame), {:.2} ms per megasample; wrote {}, {}",
+        "raygun: guided render, {iterations} iterations in {:.2} s on {}: {samples} samples ({:.2} % of full frame), {:.2} ms per megasample; wrote {}, {}",
+        res.seconds,
         backend.describe(),
-        100.0 * samples as f64 / (f64::from(w) * f64::from(h) * f64::from(iterations)),
-        seconds * 1e3 / (samples as f64 / 1e6),
+        100.0 * res.sample_share(),
+        res.seconds * 1e3 / (samples as f64 / 1e6),
         dgi_out.display(),
         counts_out.display(),
     );

@@ -3,6 +3,7 @@
 
 pub mod args;
 pub mod bench;
+pub mod demo;
 pub mod dgi;
 pub mod display;
 pub mod ellipse_distance;

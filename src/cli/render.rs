@@ -8,8 +8,9 @@ use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::cli::args::parse_size;
+use crate::display::DisplayModel;
 use crate::gpu::{Backend, BackendChoice};
-use crate::output::write_rgb;
+use crate::output::{Format, write_rgb};
 use crate::scene::{Environment, Scene};
 use crate::trace::camera::RenderCamera;
 use crate::trace::cpu::{DEFAULT_MAX_DEPTH, TraceSettings};
@@ -100,6 +101,57 @@ pub struct RenderArgs {
     /// Where to write the per-pixel sample counts (EXR; default `<out stem>.counts.exr`).
     #[arg(long, value_name = "FILE")]
     pub counts_out: Option<PathBuf>,
+    /// Wall output: one image per tile of --display, `DIR/<tile id>.<exr|png>`, cut from the
+    /// image (which covers the canvas) with the pixels behind bezels left out. Render at the
+    /// canvas size for an exact cut; other sizes are resampled by nearest neighbour.
+    #[arg(long, value_name = "DIR")]
+    pub tiles: Option<PathBuf>,
+    /// Format of the tile images (default: the first --out file's).
+    #[arg(long, value_name = "exr|png", requires = "tiles", value_parser = parse_format)]
+    pub tiles_format: Option<Format>,
+}
+
+fn parse_format(s: &str) -> Result<Format, String> {
+    match s.to_ascii_lowercase().as_str() {
+        "exr" => Ok(Format::Exr),
+        "png" => Ok(Format::Png),
+        _ => Err(format!("'{s}': the tile format is exr or png")),
+    }
+}
+
+/// `--tiles DIR`: writes one image per display tile, cut from `image` (at `args.size`).
+pub fn write_wall_tiles(
+    args: &RenderArgs,
+    model: &DisplayModel,
+    image: &[glam::Vec3],
+) -> anyhow::Result<()> {
+    let Some(dir) = &args.tiles else {
+        return Ok(());
+    };
+    let format = match args.tiles_format {
+        Some(f) => f,
+        None => Format::from_path(&args.out[0])?,
+    };
+    let canvas = crate::output::tiles::canvas_pixel_size(model);
+    if canvas != args.size {
+        eprintln!(
+            "raygun: --tiles: the {}×{} image is resampled (nearest neighbour) to the {}×{} canvas of {}",
+            args.size[0],
+            args.size[1],
+            canvas[0],
+            canvas[1],
+            args.display.display()
+        );
+    }
+    let paths =
+        crate::output::tiles::write_tiles(dir, model, image, args.size, format, args.exposure)
+            .with_context(|| format!("--tiles {}", dir.display()))?;
+    eprintln!(
+        "raygun: wrote {} tile images to {}",
+        paths.len(),
+        dir.display()
+    );
+    Ok(())
 }
 
 /// A progress bar over `len` units (hidden when `quiet`).
@@ -140,6 +192,11 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     for out in &args.out {
         crate::output::Format::from_path(out)?;
     }
+    // Load the model before the render so a bad --display fails at once.
+    let wall = match &args.tiles {
+        Some(_) => Some(DisplayModel::load(&args.display)?),
+        None => None,
+    };
     let scene = load_scene(&args.scene, args.env.as_deref())?;
     let [w, h] = args.size;
     let camera = RenderCamera::choose(&scene, args.camera.as_deref(), w, h)
@@ -181,6 +238,9 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     let image = acc.mean_image();
     for out in &args.out {
         write_rgb(out, w, h, &image, args.exposure)?;
+    }
+    if let Some(model) = &wall {
+        write_wall_tiles(args, model, &image)?;
     }
     let megasamples = f64::from(w) * f64::from(h) * f64::from(args.spp) / 1e6;
     eprintln!(

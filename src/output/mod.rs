@@ -2,6 +2,8 @@
 
 use std::path::{Path, PathBuf};
 
+pub mod tiles;
+
 /// Why an image could not be written.
 #[derive(Debug, thiserror::Error)]
 pub enum OutputError {

@@ -1,0 +1,274 @@
+//! Wall output: one image per display tile, cut from a rendered image that covers the canvas.
+//!
+//! The rendered image covers the canvas bounding rectangle, each axis scaled on its own
+//! ([`DisplayModel::image_to_canvas`]). Tile pixel `(x, y)` shows the image pixel whose square
+//! holds the tile pixel's centre on the canvas: **nearest-neighbour** resampling. When the image
+//! is rendered at the canvas's own resolution ([`canvas_pixel_size`]) that is a plain cut: each
+//! tile pixel is the one canvas pixel it covers. Image pixels behind bezels (and in gaps between
+//! tiles) belong to no tile and are not shown.
+
+use std::path::{Path, PathBuf};
+
+use glam::{DVec2, Vec3};
+
+use super::{Format, OutputError};
+use crate::display::DisplayModel;
+
+/// The canvas bounding rectangle in whole pixels (each axis rounded to nearest, at least 1):
+/// the render size at which tile output is a cut without resampling.
+#[must_use]
+pub fn canvas_pixel_size(model: &DisplayModel) -> [u32; 2] {
+    let s = model.canvas_rect().size();
+    [(s.x.round() as u32).max(1), (s.y.round() as u32).max(1)]
+}
+
+/// For tile `tile`, the image column of each tile column and the image row of each tile row:
+/// the mapping is separable. At the canvas resolution ([`canvas_pixel_size`]) the first pixel is
+/// the nearest one and the rest follow by translation, a plain cut (the rounded canvas size
+/// differs from the exact one by under half a pixel, so a tile's pixels drift by at most
+/// `tile size × that / canvas size`, 0.03 px on HORNET, from the image pixels they take);
+/// at other sizes every tile pixel takes the image pixel holding its centre.
+#[must_use]
+pub fn tile_axes(
+    model: &DisplayModel,
+    tile: usize,
+    image_size: [u32; 2],
+) -> (Vec<usize>, Vec<usize>) {
+    let t = &model.tiles()[tile];
+    let [tw, th] = t.resolution();
+    let exact = image_size == canvas_pixel_size(model);
+    let nearest = |px: DVec2| {
+        let img = model.canvas_to_image(t.tile_px_to_canvas(px + DVec2::splat(0.5)), image_size);
+        let clamp = |v: f64, n: u32| (v.floor().max(0.0) as usize).min(n as usize - 1);
+        (clamp(img.x, image_size[0]), clamp(img.y, image_size[1]))
+    };
+    let axis = |n: u32, limit: u32, pick: &dyn Fn(u32) -> usize| -> Vec<usize> {
+        if exact {
+            let first = pick(0);
+            (0..n as usize)
+                .map(|i| (first + i).min(limit as usize - 1))
+                .collect()
+        } else {
+            (0..n).map(pick).collect()
+        }
+    };
+    let xs = axis(tw, image_size[0], &|i| {
+        nearest(DVec2::new(f64::from(i), 0.0)).0
+    });
+    let ys = axis(th, image_size[1], &|j| {
+        nearest(DVec2::new(0.0, f64::from(j))).1
+    });
+    (xs, ys)
+}
+
+/// For tile `tile`, the row-major index into an `image_size` image of the pixel each tile
+/// pixel shows ([`tile_axes`]), row by row.
+#[must_use]
+pub fn tile_source_indices(model: &DisplayModel, tile: usize, image_size: [u32; 2]) -> Vec<usize> {
+    let (xs, ys) = tile_axes(model, tile, image_size);
+    let w = image_size[0] as usize;
+    let mut out = Vec::with_capacity(xs.len() * ys.len());
+    for &y in &ys {
+        out.extend(xs.iter().map(|&x| y * w + x));
+    }
+    out
+}
+
+/// Cuts tile `tile`'s pixels from an `image_size` image covering the canvas.
+#[must_use]
+pub fn cut_tile<T: Copy>(
+    model: &DisplayModel,
+    tile: usize,
+    image: &[T],
+    image_size: [u32; 2],
+) -> Vec<T> {
+    tile_source_indices(model, tile, image_size)
+        .into_iter()
+        .map(|i| image[i])
+        .collect()
+}
+
+/// The image as the wall shows it: pixels that no tile shows (behind a bezel, or in a gap)
+/// replaced by `blank`.
+#[must_use]
+pub fn wall_view<T: Copy>(
+    model: &DisplayModel,
+    image: &[T],
+    image_size: [u32; 2],
+    blank: T,
+) -> Vec<T> {
+    let w = image_size[0] as usize;
+    let mut out = vec![blank; image.len()];
+    for t in 0..model.tiles().len() {
+        let (mut xs, mut ys) = tile_axes(model, t, image_size);
+        xs.dedup();
+        ys.dedup();
+        for &y in &ys {
+            for &x in &xs {
+                out[y * w + x] = image[y * w + x];
+            }
+        }
+    }
+    out
+}
+
+/// Writes one image per tile into `dir` (created if missing), named `<tile id>.<ext>` by
+/// `format`; returns the paths in the model's tile order. PNG uses `exposure` (stops).
+pub fn write_tiles(
+    dir: &Path,
+    model: &DisplayModel,
+    image: &[Vec3],
+    image_size: [u32; 2],
+    format: Format,
+    exposure: f32,
+) -> Result<Vec<PathBuf>, TilesError> {
+    let n = image_size[0] as usize * image_size[1] as usize;
+    if image.len() != n {
+        return Err(TilesError::Size {
+            len: image.len(),
+            width: image_size[0],
+            height: image_size[1],
+        });
+    }
+    std::fs::create_dir_all(dir).map_err(|source| TilesError::Dir {
+        dir: dir.to_owned(),
+        source,
+    })?;
+    let ext = match format {
+        Format::Exr => "exr",
+        Format::Png => "png",
+    };
+    let mut paths = Vec::with_capacity(model.tiles().len());
+    for (i, t) in model.tiles().iter().enumerate() {
+        let [w, h] = t.resolution();
+        let path = dir.join(format!("{}.{ext}", t.id()));
+        super::write_rgb(
+            &path,
+            w,
+            h,
+            &cut_tile(model, i, image, image_size),
+            exposure,
+        )?;
+        paths.push(path);
+    }
+    Ok(paths)
+}
+
+/// Why the tile images could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum TilesError {
+    #[error("{len} pixels do not fill a {width}×{height} image")]
+    Size { len: usize, width: u32, height: u32 },
+    #[error("{dir}: cannot create the tile directory: {source}")]
+    Dir {
+        dir: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error(transparent)]
+    Output(#[from] OutputError),
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn hornet() -> DisplayModel {
+        DisplayModel::load(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/display-models/hornet.json"
+        ))
+        .unwrap()
+    }
+
+    /// At the canvas resolution every HORNET tile is a 1920×1080 block of the canvas image
+    /// (a pure translation), the block whose pixels the tile's active area covers, and no
+    /// canvas pixel goes to two tiles.
+    #[test]
+    fn hornet_tiles_are_exact_cuts_of_a_canvas_sized_image() {
+        let m = hornet();
+        let size = canvas_pixel_size(&m);
+        let [w, h] = size;
+        assert_eq!(m.tiles().len(), 35);
+        let mut used = vec![false; w as usize * h as usize];
+        for (i, t) in m.tiles().iter().enumerate() {
+            assert_eq!(t.resolution(), [1920, 1080]);
+            let idx = tile_source_indices(&m, i, size);
+            assert_eq!(idx.len(), 1920 * 1080);
+            let (x0, y0) = (idx[0] % w as usize, idx[0] / w as usize);
+            for y in 0..1080usize {
+                for x in 0..1920usize {
+                    let k = idx[y * 1920 + x];
+                    assert_eq!(
+                        k,
+                        (y0 + y) * w as usize + x0 + x,
+                        "tile {} px {x},{y}",
+                        t.id()
+                    );
+                    assert!(!used[k], "canvas pixel {k} shown by two tiles");
+                    used[k] = true;
+                }
+            }
+            // The image pixel's square covers the tile's first pixel centre.
+            let c = m.image_to_canvas(DVec2::new(x0 as f64, y0 as f64), size);
+            let centre = t.tile_px_to_canvas(DVec2::splat(0.5));
+            let scale = m.canvas_rect().size() / DVec2::new(f64::from(w), f64::from(h));
+            let d = centre - c;
+            assert!(d.x >= 0.0 && d.y >= 0.0 && d.x < scale.x && d.y < scale.y);
+            // The last pixel has drifted by at most 0.05 px from its nearest image pixel.
+            let last = idx[1920 * 1080 - 1];
+            let img_centre = m.image_to_canvas(
+                DVec2::new(
+                    (last % w as usize) as f64 + 0.5,
+                    (last / w as usize) as f64 + 0.5,
+                ),
+                size,
+            );
+            let off = (t.tile_px_to_canvas(DVec2::new(1919.5, 1079.5)) - img_centre).abs();
+            assert!(off.max_element() < 0.55, "tile {}: {off}", t.id());
+        }
+    }
+
+    #[test]
+    fn cut_values_are_the_canvas_values_and_wall_view_blanks_bezels() {
+        let m = hornet();
+        let size = canvas_pixel_size(&m);
+        let [w, _] = size;
+        // A cheap pattern: the value of pixel (x, y) is x + 100 000·y, as u32.
+        let pattern = |k: usize| (k % w as usize + 100_000 * (k / w as usize)) as u32;
+        let i = m.tile_index("c3r2").unwrap();
+        let idx = tile_source_indices(&m, i, size);
+        let image: Vec<u32> = (0..(size[0] * size[1]) as usize).map(pattern).collect();
+        let cut = cut_tile(&m, i, &image, size);
+        assert!(cut.iter().zip(&idx).all(|(&v, &k)| v == pattern(k)));
+        drop(image);
+        // The wall view keeps exactly the pixels some tile shows and blanks the rest (behind
+        // bezels: HORNET's 3 mm bezels are about 5.7 px).
+        let ones = vec![1u8; (size[0] * size[1]) as usize];
+        let wall = wall_view(&m, &ones, size, 0);
+        let mut shown = vec![0u8; ones.len()];
+        for t in 0..m.tiles().len() {
+            for k in tile_source_indices(&m, t, size) {
+                shown[k] = 1;
+            }
+        }
+        assert!(wall == shown);
+        assert_eq!(
+            wall.iter().map(|&v| usize::from(v)).sum::<usize>(),
+            35 * 1920 * 1080
+        );
+    }
+
+    #[test]
+    fn a_smaller_render_is_upsampled_by_nearest_neighbour() {
+        let m = hornet();
+        // 7×5 pixels: one image pixel per tile, roughly.
+        let size = [7, 5];
+        let image: Vec<u32> = (0..35).collect();
+        for (i, t) in m.tiles().iter().enumerate() {
+            let cut = cut_tile(&m, i, &image, size);
+            let want = t.row() * 7 + t.column();
+            assert!(cut.iter().all(|&v| v == want), "tile {}", t.id());
+        }
+    }
+}
