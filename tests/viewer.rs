@@ -227,3 +227,91 @@ fn replay_playback_pauses_scrubs_and_follows_the_session() {
     t.source = RoiSource::Mouse;
     assert_eq!(t.filter_params().kind, t.filter.kind);
 }
+
+/// The same on the GPU backend (lavapipe in CI): the ROI's pixels get every frame's sample and
+/// the timed frames report the pixel count the scheduler listed.
+#[test]
+fn gpu_backend_follows_the_click_and_reports_stats() {
+    let (model, scene) = (hornet(), scene());
+    let backend = Backend::Gpu(Box::new(raygun::gpu::GpuContext::for_tests()));
+    let mut state = ViewerState::new(RoiSource::Mouse, 4);
+    state.mouse_radius_px = 1500.0;
+    state.click(&model, DVec2::new(20.5, 12.5), [W, H]);
+    let mut core = ViewerCore::new(&backend, &scene, &model, base(&scene), state).unwrap();
+    for _ in 0..raygun::viewer::core::TIMED_EVERY + 1 {
+        core.step(ONE).unwrap();
+    }
+    let p = core.picture().unwrap();
+    let n = raygun::viewer::core::TIMED_EVERY + 1;
+    assert_eq!(p.dgi[12 * W as usize + 20], 0.0);
+    for (i, &d) in p.dgi.iter().enumerate() {
+        if d == 0.0 {
+            assert_eq!(p.counts[i], n, "ROI pixel {i}");
+        }
+    }
+    assert_eq!(core.stats.roi_samples, u64::from(n) * core.stats.roi_pixels);
+    // Frame 8 was timed: the pixels it traced, a share of the frame in (0, 1).
+    let share = core
+        .stats
+        .sampled_share
+        .expect("a timed frame reports its pixel count");
+    assert!(share > 0.0 && share < 1.0, "{share}");
+    assert_eq!(core.stats.iterations, n);
+}
+
+/// Live DTrack: datagrams on the listener's port reach the viewer's state — the aim where the
+/// stick points (the wall centre) and, after a trigger press, the ROI there.
+#[test]
+fn live_dtrack_sets_the_aim_and_a_trigger_press_the_roi() {
+    use raygun::tracking::ingest::Protocol;
+    use raygun::viewer::live::LiveTracking;
+    let model = hornet();
+    let mut live = LiveTracking::start(
+        0,
+        Protocol::Dtrack,
+        "flystick:0".parse().unwrap(),
+        model.clone(),
+    )
+    .unwrap();
+    let sender = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    let rot = "[1 0 0 0 1 0 0 0 1]";
+    // The stick 1 m in front of the wall centre, pointing at it; then the trigger.
+    let frame = |t: u32, buttons: u32| {
+        format!("fr {t}\n6df2 1 1 [0 1.0 6 2][0 0 1000]{rot}[{buttons} 0 0]\n").into_bytes()
+    };
+    let mut state = ViewerState::new(RoiSource::Live, 4);
+    let deadline = std::time::Instant::now() + Duration::from_secs(10);
+    let mut k = 0;
+    while state
+        .tracked
+        .as_ref()
+        .and_then(|r| r.centre.as_ref())
+        .is_none()
+    {
+        assert!(std::time::Instant::now() < deadline, "no ROI arrived");
+        // Released, then pressed (repeated in case the first datagrams arrive before the
+        // listener thread polls).
+        sender
+            .send_to(&frame(k, k % 2), ("127.0.0.1", live.port))
+            .unwrap();
+        k += 1;
+        std::thread::sleep(Duration::from_millis(20));
+        live.update(&mut state);
+    }
+    let centre = model.canvas_rect().center();
+    let aim = state.aim.expect("the stick points at the wall");
+    assert!(
+        (aim - centre).length() < 1.0,
+        "aim {aim} vs centre {centre}"
+    );
+    let roi_centre = state
+        .tracked
+        .as_ref()
+        .unwrap()
+        .centre
+        .as_ref()
+        .unwrap()
+        .canvas_px;
+    assert!((roi_centre - centre).length() < 1.0, "{roi_centre}");
+    assert!(matches!(state.roi(), Some(Roi::Cone(_))));
+}
