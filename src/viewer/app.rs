@@ -34,6 +34,9 @@ pub struct ViewerApp<'a> {
     window_shot: Option<(ShotSlot, u32)>,
     last: Instant,
     saves: u32,
+    /// Recording: every UI frame's picture goes to `<save dir>/recording/frame-NNNNN.png`.
+    recording: bool,
+    recorded: u32,
     message: String,
     error: Option<String>,
 }
@@ -57,6 +60,8 @@ impl<'a> ViewerApp<'a> {
             window_shot: None,
             last: Instant::now(),
             saves: 0,
+            recording: false,
+            recorded: 0,
             message: String::new(),
             error: None,
         }
@@ -157,6 +162,7 @@ impl<'a> ViewerApp<'a> {
         if ui.button("save image + overlays").clicked() {
             save = true;
         }
+        ui.checkbox(&mut self.recording, "record (a PNG per frame)");
         ui.separator();
         ui.heading("Statistics");
         let st = &self.core.stats;
@@ -237,6 +243,24 @@ impl eframe::App for ViewerApp<'_> {
                     image,
                     egui::TextureOptions::NEAREST,
                 ));
+            }
+        }
+        if self.recording {
+            let dir = self.save_dir.join("recording");
+            let path = dir.join(format!("frame-{:05}.png", self.recorded));
+            let saved = std::fs::create_dir_all(&dir)
+                .map_err(anyhow::Error::from)
+                .and_then(|()| super::core::save_view_png(&path, &picture));
+            match saved {
+                Ok(()) => {
+                    self.recorded += 1;
+                    self.message =
+                        format!("recording: {} frames in {}", self.recorded, dir.display());
+                }
+                Err(e) => {
+                    self.recording = false;
+                    self.message = format!("recording stopped: {e:#}");
+                }
             }
         }
         if save {

@@ -469,10 +469,16 @@ pub fn save_picture(
     let c: Vec<f32> = p.counts.iter().map(|&c| c as f32).collect();
     crate::output::write_gray(&counts, w, h, &c, "samples")?;
     let view = dir.join(format!("{stem}.view.png"));
-    image::RgbaImage::from_raw(w, h, p.rgba.clone())
-        .ok_or_else(|| anyhow::anyhow!("picture size mismatch"))?
-        .save(&view)
-        .map_err(|e| anyhow::anyhow!("{}: {e}", view.display()))?;
+    save_view_png(&view, p)?;
     files.extend([dgi, counts, view]);
     Ok(files)
+}
+
+/// Writes the picture as shown (RGBA8 PNG).
+pub fn save_view_png(path: &Path, p: &Picture) -> anyhow::Result<()> {
+    let [w, h] = p.size;
+    image::RgbaImage::from_raw(w, h, p.rgba.clone())
+        .ok_or_else(|| anyhow::anyhow!("picture size mismatch"))?
+        .save(path)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
 }
