@@ -315,3 +315,33 @@ fn live_dtrack_sets_the_aim_and_a_trigger_press_the_roi() {
     assert!((roi_centre - centre).length() < 1.0, "{roi_centre}");
     assert!(matches!(state.roi(), Some(Roi::Cone(_))));
 }
+
+/// Tracked ROIs: the panel's FOV override replaces the stick's, and the DGI follows it; the
+/// DGI stage's time is reported after the change.
+#[test]
+fn fov_override_widens_the_tracked_roi() {
+    let root = env!("CARGO_MANIFEST_DIR");
+    let timeline = Timeline::collect(&raygun::cli::tracking::ReplayArgs {
+        file: format!("{root}/tracking-replays/flystick-1-centre-sweeps.dtrack.jsonl").into(),
+        display: Some(format!("{root}/display-models/hornet.json").into()),
+        config: None,
+        device: None,
+        realtime: false,
+    })
+    .unwrap();
+    let (model, scene, backend) = (hornet(), scene(), Backend::Cpu);
+    let mut state = ViewerState::new(RoiSource::Replay, 4);
+    state.playing = false;
+    state.replay_t = timeline.duration;
+    state.advance(0.0, &timeline);
+    let mut core = ViewerCore::new(&backend, &scene, &model, base(&scene), state).unwrap();
+    let mut zeros = Vec::new();
+    for fov in [10.0, 40.0] {
+        core.state.fov_override_deg = Some(fov);
+        core.step(ONE).unwrap();
+        assert!(core.stats.ms_dgi.is_some());
+        let dgi = core.picture().unwrap().dgi;
+        zeros.push(dgi.iter().filter(|&&d| d == 0.0).count());
+    }
+    assert!(zeros[0] > 0 && zeros[1] > 4 * zeros[0], "{zeros:?}");
+}

@@ -110,6 +110,16 @@ impl<'a> ViewerApp<'a> {
                 ui.add(egui::Slider::new(&mut s.replay_t, 0.0..=t.duration).text("s"));
             });
         }
+        let mut fov_override = s.fov_override_deg.is_some();
+        ui.horizontal(|ui| {
+            ui.checkbox(&mut fov_override, "FOV override");
+            let mut f = s.fov_override_deg.unwrap_or(30.0);
+            ui.add_enabled(
+                fov_override,
+                egui::Slider::new(&mut f, 1.0..=120.0).text("FOV (°)"),
+            );
+            s.fov_override_deg = fov_override.then_some(f);
+        });
         if let Some(r) = &s.tracked {
             ui.label(format!(
                 "tracked FOV {:.1}°×{:.1}°, filter {}",
@@ -175,7 +185,7 @@ impl<'a> ViewerApp<'a> {
             let ms = |v: Option<f64>| v.map_or("–".to_owned(), |v| format!("{v:.2}"));
             ui.label(format!(
                 "ms: DGI {} · schedule {} · trace {}",
-                ms(t.ms_dgi),
+                ms(st.ms_dgi),
                 ms(t.ms_schedule),
                 ms(t.ms_trace)
             ));

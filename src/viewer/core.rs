@@ -65,6 +65,8 @@ pub struct ViewerState {
     /// Show the canvas as the wall shows it (pixels behind bezels black).
     pub wall_view: bool,
     pub exposure: f32,
+    /// A full opening angle (degrees, both axes) replacing the tracked ROI's own (the stick's).
+    pub fov_override_deg: Option<f64>,
     /// Replay clock, seconds, and whether it runs.
     pub replay_t: f64,
     pub playing: bool,
@@ -96,6 +98,7 @@ impl ViewerState {
             roi_outline: true,
             wall_view: false,
             exposure: 0.0,
+            fov_override_deg: None,
             replay_t: 0.0,
             playing: true,
             tracked: None,
@@ -119,10 +122,13 @@ impl ViewerState {
                 center: c,
                 semi_axes: DVec2::splat(self.mouse_radius_px),
             }),
-            RoiSource::Replay | RoiSource::Live => self
-                .tracked
-                .as_ref()
-                .and_then(|r| r.to_roi().ok().flatten()),
+            RoiSource::Replay | RoiSource::Live => {
+                let mut r = self.tracked.clone()?;
+                if let Some(f) = self.fov_override_deg {
+                    r.fov_deg = [f, f];
+                }
+                r.to_roi().ok().flatten()
+            }
         }
     }
 
@@ -174,6 +180,9 @@ pub struct Stats {
     /// Share of pixels the last timed frame traced.
     pub sampled_share: Option<f64>,
     pub last_timed: Option<FrameStats>,
+    /// The DGI stage's time when it last ran in a timed frame (the frame after an ROI change
+    /// is always timed).
+    pub ms_dgi: Option<f64>,
     /// Samples in the ROI (pixels with d = 0) and the mean per ROI pixel.
     pub roi_samples: u64,
     pub roi_pixels: u64,
@@ -282,8 +291,9 @@ impl<'a> ViewerCore<'a> {
     }
 
     /// Brings the renderer in line with the state: rebuilds it when the guide settings or the
-    /// path depth changed or a reset was asked for, and hands it a changed ROI.
-    pub fn sync(&mut self) -> anyhow::Result<()> {
+    /// path depth changed or a reset was asked for, and hands it a changed ROI. Returns whether
+    /// the ROI changed.
+    pub fn sync(&mut self) -> anyhow::Result<bool> {
         if self.state.max_depth == 0 {
             anyhow::bail!("max path depth must be at least 1");
         }
@@ -305,21 +315,32 @@ impl<'a> ViewerCore<'a> {
             self.stats = Stats::default();
         }
         let roi = self.state.roi();
-        if self.renderer.roi() != roi.as_ref() {
+        let changed = self.renderer.roi() != roi.as_ref();
+        if changed {
+            let t0 = Instant::now();
             self.renderer.set_roi(roi)?;
+            // The CPU twin computes the DGI right here; the GPU records it into the next frame
+            // (timed by its timestamps).
+            if matches!(self.backend, Backend::Cpu) {
+                self.stats.ms_dgi = Some(t0.elapsed().as_secs_f64() * 1e3);
+            }
         }
-        Ok(())
+        Ok(changed)
     }
 
     /// Syncs, then runs frames for about `budget` (at least one).
     pub fn step(&mut self, budget: Duration) -> anyhow::Result<()> {
-        self.sync()?;
+        let mut roi_changed = self.sync()?;
         let t0 = Instant::now();
         loop {
-            let timed = self.renderer.iteration().is_multiple_of(TIMED_EVERY);
+            let timed = roi_changed || self.renderer.iteration().is_multiple_of(TIMED_EVERY);
+            roi_changed = false;
             let s = self.renderer.run_frame(timed)?;
             if timed {
                 self.stats.last_timed = Some(s);
+                if s.ms_dgi.is_some() {
+                    self.stats.ms_dgi = s.ms_dgi;
+                }
                 let n = f64::from(self.base.width) * f64::from(self.base.height);
                 self.stats.sampled_share = s.pixels.map(|p| f64::from(p) / n);
             }
