@@ -52,3 +52,4 @@ pub mod scene;
 pub mod schedule;
 pub mod trace;
 pub mod tracking;
+pub mod viewer;

@@ -16,10 +16,14 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// The whole pipeline on embedded defaults: the Cornell box on the HORNET wall, guided by a
-    /// bundled FlyStick session (headless without a display: writes images and a report).
+    /// bundled FlyStick session, in the viewer (headless without a display: writes images and
+    /// a report).
     Demo(cli::demo::DemoArgs),
     /// Path-trace a glTF scene progressively and write EXR (linear) and/or PNG (sRGB).
     Render(cli::render::RenderArgs),
+    /// An interactive window showing the guided render as it converges (mouse, replay or live
+    /// DTrack/OSC steering).
+    View(cli::view::ViewArgs),
     /// Write the distance-guide image for a ray-gun pose or a mouse ROI.
     Dgi(cli::dgi::DgiArgs),
     /// Where a ray meets the display, as one JSON object.
@@ -54,6 +58,7 @@ fn main() {
     let result = match &cli.command {
         Command::Demo(args) => cli::demo::run(args),
         Command::Render(args) => cli::render::run(args),
+        Command::View(args) => cli::view::run(args),
         Command::Dgi(args) => cli::dgi::run(args),
         Command::Pick(args) => cli::display::pick(args).map(|v| println!("{v}")),
         Command::Display(DisplayCommand::Expand(args)) => {

@@ -1,5 +1,6 @@
 //! `raygun demo`: the whole pipeline on embedded defaults — the Cornell box (with its ceiling
-//! light) on the HORNET wall, guided by a bundled synthetic FlyStick session: renders and
+//! light) on the HORNET wall, guided by a bundled synthetic FlyStick session. Opens the viewer
+//! (playing the session) where there is a display; otherwise (or with `--headless`) renders and
 //! writes the image, the DGI, the sample counts and a short report.
 
 use std::fmt::Write as _;
@@ -83,6 +84,13 @@ pub struct DemoOutput {
 }
 
 pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
+    if !args.headless && has_display() {
+        let (display, replay) = write_inputs(&args.out)?;
+        return crate::cli::view::run(&crate::cli::view::ViewArgs::demo(args, &display, &replay));
+    }
+    if !args.headless {
+        eprintln!("raygun demo: no display (DISPLAY / WAYLAND_DISPLAY unset): rendering headless");
+    }
     let out = run_headless(args)?;
     eprintln!(
         "raygun demo: {} iterations in {:.2} s, {:.1} % of full-frame samples; wrote {} files and {}",

@@ -12,3 +12,4 @@ pub mod guided;
 pub mod render;
 pub mod scene;
 pub mod tracking;
+pub mod view;

@@ -88,8 +88,10 @@ pub fn cut_tile<T: Copy>(
         .collect()
 }
 
-/// The image as the wall shows it: pixels that no tile shows (behind a bezel, or in a gap)
-/// replaced by `blank`.
+/// The image as the wall shows it: pixels whose centre lies on no tile's active area (behind a
+/// bezel, or in a gap) replaced by `blank`. At the canvas size that blanks the 11–12 columns and
+/// rows between HORNET's tiles; at a smaller size each bezel blanks a line of pixels wherever it
+/// covers their centres, so the viewer shows where the wall's seams are.
 #[must_use]
 pub fn wall_view<T: Copy>(
     model: &DisplayModel,
@@ -97,16 +99,35 @@ pub fn wall_view<T: Copy>(
     image_size: [u32; 2],
     blank: T,
 ) -> Vec<T> {
-    let w = image_size[0] as usize;
+    let [w, h] = image_size;
     let mut out = vec![blank; image.len()];
-    for t in 0..model.tiles().len() {
-        let (mut xs, mut ys) = tile_axes(model, t, image_size);
-        xs.dedup();
-        ys.dedup();
-        for &y in &ys {
-            for &x in &xs {
-                out[y * w + x] = image[y * w + x];
-            }
+    let canvas = model.canvas_rect();
+    let scale = canvas.size() / DVec2::new(f64::from(w), f64::from(h));
+    // At the canvas size a tile's cut follows its first pixel by translation (see
+    // [`tile_axes`]), so its last pixels may sit up to `resolution × |scale − 1|` outside the
+    // active area: the mask allows that drift, so every pixel a tile shows is kept.
+    let exact = image_size == canvas_pixel_size(model);
+    let drift = |res: u32, s: f64| {
+        if exact {
+            f64::from(res) * (s - 1.0).abs()
+        } else {
+            0.0
+        }
+    };
+    // Image pixels whose centre min + (i + 0.5)·scale lies in [lo, hi], per axis.
+    let range = |lo: f64, hi: f64, origin: f64, s: f64, n: u32| {
+        let first = ((lo - origin) / s - 0.5).ceil().clamp(0.0, f64::from(n)) as usize;
+        let end = (((hi - origin) / s - 0.5).floor() + 1.0).clamp(0.0, f64::from(n)) as usize;
+        first..end.max(first)
+    };
+    for t in model.tiles() {
+        let a = t.active_rect();
+        let [rw, rh] = t.resolution();
+        let (dx, dy) = (drift(rw, scale.x), drift(rh, scale.y));
+        let xs = range(a.min.x - dx, a.max.x + dx, canvas.min.x, scale.x, w);
+        for y in range(a.min.y - dy, a.max.y + dy, canvas.min.y, scale.y, h) {
+            let row = y * w as usize;
+            out[row + xs.start..row + xs.end].copy_from_slice(&image[row + xs.start..row + xs.end]);
         }
     }
     out
@@ -242,21 +263,66 @@ mod tests {
         let cut = cut_tile(&m, i, &image, size);
         assert!(cut.iter().zip(&idx).all(|(&v, &k)| v == pattern(k)));
         drop(image);
-        // The wall view keeps exactly the pixels some tile shows and blanks the rest (behind
-        // bezels: HORNET's 3 mm bezels are about 5.7 px).
+        // The wall view keeps every pixel a tile shows; along a row through the middle of row 2
+        // it blanks one run of 11–12 pixels per seam and the outer bezels' 5–6 (HORNET's 3 mm
+        // bezels are 5.66 canvas px), each off by at most one pixel for the 0.2 px the rounded
+        // canvas size drifts.
         let ones = vec![1u8; (size[0] * size[1]) as usize];
         let wall = wall_view(&m, &ones, size, 0);
-        let mut shown = vec![0u8; ones.len()];
         for t in 0..m.tiles().len() {
-            for k in tile_source_indices(&m, t, size) {
-                shown[k] = 1;
+            assert!(
+                tile_source_indices(&m, t, size)
+                    .iter()
+                    .all(|&k| wall[k] == 1)
+            );
+        }
+        let y = m.tiles()[i].active_rect().center().y as usize;
+        let row = &wall[y * w as usize..(y + 1) * w as usize];
+        let mut runs = Vec::new();
+        for (x, &v) in row.iter().enumerate() {
+            match (v, runs.last_mut()) {
+                (0, Some((end, len))) if *end == x => {
+                    *end += 1;
+                    *len += 1;
+                }
+                (0, _) => runs.push((x + 1, 1)),
+                _ => {}
             }
         }
-        assert!(wall == shown);
-        assert_eq!(
-            wall.iter().map(|&v| usize::from(v)).sum::<usize>(),
-            35 * 1920 * 1080
+        let lens: Vec<usize> = runs.iter().map(|r| r.1).collect();
+        assert_eq!(lens.len(), 8, "{lens:?}");
+        assert!(
+            (5..=7).contains(&lens[0]) && (5..=7).contains(&lens[7]),
+            "{lens:?}"
         );
+        assert!(lens[1..7].iter().all(|l| (10..=13).contains(l)), "{lens:?}");
+    }
+
+    /// At the viewer's 992×400 a seam (11.3 canvas px) blanks at most one column of pixels
+    /// (13.6 canvas px each), and only where it covers the column's centre.
+    #[test]
+    fn wall_view_at_a_small_size_blanks_thin_seams() {
+        let m = hornet();
+        let size = [992, 400];
+        let ones = vec![1u8; 992 * 400];
+        let wall = wall_view(&m, &ones, size, 0);
+        let y = 200 * 992;
+        let row = &wall[y..y + 992];
+        let blank: Vec<usize> = (0..992).filter(|&x| row[x] == 0).collect();
+        assert!(!blank.is_empty() && blank.len() <= 8, "{blank:?}");
+        // Blank columns sit where the seams are: canvas x of the column centre within half a
+        // pixel of a gap between two tiles' active areas.
+        let sx = m.canvas_rect().size().x / 992.0;
+        for &x in &blank {
+            let cx = m.canvas_rect().min.x + (x as f64 + 0.5) * sx;
+            assert!(
+                m.tiles().iter().all(|t| {
+                    let a = t.active_rect();
+                    cx < a.min.x || cx > a.max.x
+                }),
+                "column {x} (canvas x {cx}) lies on a tile"
+            );
+        }
     }
 
     #[test]

@@ -1,0 +1,187 @@
+//! `raygun view --scene FILE --display MODEL [--dtrack PORT | --osc PORT | --replay FILE]`.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+
+use crate::cli::args::parse_size;
+use crate::cli::tracking::ReplayArgs;
+use crate::display::DisplayModel;
+use crate::gpu::{Backend, BackendChoice};
+use crate::trace::camera::RenderCamera;
+use crate::trace::cpu::{DEFAULT_MAX_DEPTH, TraceSettings};
+use crate::tracking::event::DeviceId;
+use crate::tracking::ingest::Protocol;
+use crate::viewer::app::ViewerApp;
+use crate::viewer::core::{RoiSource, ViewerCore, ViewerState};
+use crate::viewer::live::LiveTracking;
+use crate::viewer::timeline::Timeline;
+
+#[derive(Clone, Debug, clap::Args)]
+#[command(group(clap::ArgGroup::new("tracking").args(["dtrack", "osc", "replay"])))]
+pub struct ViewArgs {
+    /// Scene: a .gltf/.glb file or builtin:NAME.
+    #[arg(
+        long,
+        value_name = "FILE|builtin:NAME",
+        default_value = "builtin:cornell-light"
+    )]
+    pub scene: String,
+    /// Display model whose canvas the image covers.
+    #[arg(
+        long,
+        value_name = "FILE",
+        default_value = "display-models/hornet.json"
+    )]
+    pub display: PathBuf,
+    /// Image size (the renderer's; the window scales it to fit).
+    #[arg(long, value_name = "W,H", value_parser = parse_size, default_value = "992,400")]
+    pub size: [u32; 2],
+    /// Environment light: linear radiance R,G,B or an equirectangular .hdr/.exr image.
+    #[arg(long, value_name = "R,G,B|FILE")]
+    pub env: Option<String>,
+    /// Camera by name.
+    #[arg(long, value_name = "NAME")]
+    pub camera: Option<String>,
+    /// Maximum path vertices (also a panel slider).
+    #[arg(long, value_name = "N", default_value_t = DEFAULT_MAX_DEPTH)]
+    pub max_depth: u32,
+    #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
+    pub backend: BackendChoice,
+    /// Live DTrack ASCII on this loopback UDP port.
+    #[arg(long, value_name = "PORT")]
+    pub dtrack: Option<u16>,
+    /// Live OSC on this loopback UDP port.
+    #[arg(long, value_name = "PORT")]
+    pub osc: Option<u16>,
+    /// A replay to play, pause and scrub.
+    #[arg(long, value_name = "FILE")]
+    pub replay: Option<PathBuf>,
+    /// Tracked device to follow (live input).
+    #[arg(long, value_name = "KIND:N", default_value = "flystick:0")]
+    pub device: DeviceId,
+    /// A mouse ROI from the start: centre in image pixels (the click position's equivalent).
+    #[arg(long, value_name = "X,Y", value_parser = crate::cli::args::parse_pair)]
+    pub roi_at: Option<glam::DVec2>,
+    /// Radius of the mouse ROI, canvas pixels (also a panel slider).
+    #[arg(long, value_name = "PX", default_value_t = 600.0)]
+    pub roi_radius: f64,
+    /// Initial filter settings (also in the panel).
+    #[command(flatten)]
+    pub filter: crate::cli::filter::FilterArgs,
+    /// Where the save button writes (image EXR/PNG, DGI, counts, the picture as shown).
+    #[arg(long, value_name = "DIR", default_value = "raygun-view")]
+    pub save_dir: PathBuf,
+    /// Save `screenshot.*` to --save-dir after N iterations and close (smoke tests).
+    #[arg(long, value_name = "N")]
+    pub screenshot_after: Option<u32>,
+}
+
+impl ViewArgs {
+    /// The demo's viewer: its scene and size, the embedded display and replay written to disk.
+    #[must_use]
+    pub fn demo(args: &crate::cli::demo::DemoArgs, display: &Path, replay: &Path) -> Self {
+        Self {
+            scene: crate::cli::demo::SCENE.to_owned(),
+            display: display.to_path_buf(),
+            size: args.size,
+            env: Some(crate::cli::demo::ENV.to_owned()),
+            camera: None,
+            max_depth: DEFAULT_MAX_DEPTH,
+            backend: args.backend,
+            dtrack: None,
+            osc: None,
+            replay: Some(replay.to_path_buf()),
+            device: "flystick:0".parse().expect("valid device id"),
+            roi_at: None,
+            roi_radius: 600.0,
+            filter: crate::cli::filter::FilterArgs {
+                filter: crate::filter::FilterKind::Fast,
+                blend: crate::filter::Blend::Count,
+                k_max: crate::filter::FilterParams::DEFAULT_K_MAX,
+                c: crate::filter::FilterParams::DEFAULT_C,
+                variance_threshold: crate::filter::FilterParams::DEFAULT_VARIANCE_THRESHOLD,
+            },
+            save_dir: args.out.clone(),
+            screenshot_after: None,
+        }
+    }
+}
+
+pub fn run(args: &ViewArgs) -> anyhow::Result<()> {
+    if !(args.roi_radius.is_finite() && args.roi_radius > 0.0) {
+        anyhow::bail!("--roi-radius must be a positive number of canvas pixels");
+    }
+    let model = DisplayModel::load(&args.display)?;
+    let scene = crate::cli::render::load_scene(&args.scene, args.env.as_deref())?;
+    let [w, h] = args.size;
+    let camera = RenderCamera::choose(&scene, args.camera.as_deref(), w, h)
+        .with_context(|| format!("scene {}", args.scene))?;
+    let backend = Backend::select(args.backend)?;
+    eprintln!("raygun view: rendering on {}", backend.describe());
+    let base = TraceSettings {
+        width: w,
+        height: h,
+        seed: 1,
+        max_depth: args.max_depth,
+        camera,
+    };
+    let timeline = match &args.replay {
+        Some(file) => Some(Timeline::collect(&ReplayArgs {
+            file: file.clone(),
+            display: Some(args.display.clone()),
+            config: None,
+            device: None,
+            realtime: false,
+        })?),
+        None => None,
+    };
+    let live = match (args.dtrack, args.osc) {
+        (Some(p), _) => Some(LiveTracking::start(
+            p,
+            Protocol::Dtrack,
+            args.device,
+            model.clone(),
+        )?),
+        (_, Some(p)) => Some(LiveTracking::start(
+            p,
+            Protocol::Osc,
+            args.device,
+            model.clone(),
+        )?),
+        _ => None,
+    };
+    let source = if timeline.is_some() {
+        RoiSource::Replay
+    } else if live.is_some() {
+        RoiSource::Live
+    } else {
+        RoiSource::Mouse
+    };
+    let mut state = ViewerState::new(source, args.max_depth);
+    state.filter = args.filter.params()?;
+    state.mouse_radius_px = args.roi_radius;
+    if let Some(c) = args.roi_at {
+        state.click(&model, c, args.size);
+    }
+    let core = ViewerCore::new(&backend, &scene, &model, base, state)?;
+    let app = ViewerApp::new(
+        core,
+        timeline,
+        live,
+        args.save_dir.clone(),
+        args.screenshot_after,
+    );
+    let options = eframe::NativeOptions {
+        viewport: eframe::egui::ViewportBuilder::default()
+            .with_title("raygun view")
+            .with_inner_size([1400.0, 700.0]),
+        ..Default::default()
+    };
+    eframe::run_native(
+        "raygun view",
+        options,
+        Box::new(move |_cc| Ok(Box::new(app))),
+    )
+    .map_err(|e| anyhow::anyhow!("the viewer window failed: {e}"))
+}

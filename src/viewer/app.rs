@@ -1,0 +1,371 @@
+//! The eframe window: a side panel of controls and statistics, and the picture as a texture,
+//! re-uploaded each frame. The renderer runs on its own [`crate::gpu::Backend`] (its own wgpu
+//! device, or the CPU twins), not on eframe's device: the picture reaches the screen as an
+//! egui texture uploaded from host memory. All logic lives in [`ViewerCore`].
+
+use std::path::PathBuf;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use eframe::egui;
+use glam::DVec2;
+
+use super::core::{Overlay, RoiSource, ViewerCore, save_picture};
+use super::live::LiveTracking;
+use super::timeline::Timeline;
+use crate::filter::{Blend, FilterKind};
+
+/// How long one UI frame may spend rendering before it draws.
+pub const FRAME_BUDGET: Duration = Duration::from_millis(30);
+
+/// Where the screenshot callback leaves the window's pixels.
+type ShotSlot = Arc<Mutex<Option<Arc<egui::ColorImage>>>>;
+
+pub struct ViewerApp<'a> {
+    pub core: ViewerCore<'a>,
+    pub timeline: Option<Timeline>,
+    pub live: Option<LiveTracking>,
+    pub save_dir: PathBuf,
+    /// Save the picture after this many iterations and close.
+    pub screenshot_after: Option<u32>,
+    texture: Option<egui::TextureHandle>,
+    /// The window screenshot asked for after `screenshot_after` iterations, when it arrives,
+    /// and the frames waited for it.
+    window_shot: Option<(ShotSlot, u32)>,
+    last: Instant,
+    saves: u32,
+    /// Recording: every UI frame's picture goes to `<save dir>/recording/frame-NNNNN.png`.
+    recording: bool,
+    recorded: u32,
+    message: String,
+    error: Option<String>,
+}
+
+impl<'a> ViewerApp<'a> {
+    #[must_use]
+    pub fn new(
+        core: ViewerCore<'a>,
+        timeline: Option<Timeline>,
+        live: Option<LiveTracking>,
+        save_dir: PathBuf,
+        screenshot_after: Option<u32>,
+    ) -> Self {
+        Self {
+            core,
+            timeline,
+            live,
+            save_dir,
+            screenshot_after,
+            texture: None,
+            window_shot: None,
+            last: Instant::now(),
+            saves: 0,
+            recording: false,
+            recorded: 0,
+            message: String::new(),
+            error: None,
+        }
+    }
+
+    fn save(&mut self, stem: &str, picture: &super::core::Picture) {
+        match save_picture(&self.save_dir, stem, picture, self.core.state.exposure) {
+            Ok(files) => {
+                self.message =
+                    format!("saved {} files to {}", files.len(), self.save_dir.display());
+                eprintln!("raygun view: {}", self.message);
+            }
+            Err(e) => self.message = format!("save failed: {e:#}"),
+        }
+    }
+
+    fn controls(&mut self, ui: &mut egui::Ui) -> bool {
+        let s = &mut self.core.state;
+        let mut save = false;
+        ui.heading("ROI");
+        ui.horizontal(|ui| {
+            ui.radio_value(&mut s.source, RoiSource::Mouse, "mouse");
+            if self.timeline.is_some() {
+                ui.radio_value(&mut s.source, RoiSource::Replay, "replay");
+            }
+            if self.live.is_some() {
+                ui.radio_value(&mut s.source, RoiSource::Live, "live");
+            }
+        });
+        ui.add(
+            egui::Slider::new(&mut s.mouse_radius_px, 20.0..=4000.0)
+                .logarithmic(true)
+                .text("mouse ROI radius (canvas px)"),
+        );
+        if let Some(t) = &self.timeline {
+            ui.horizontal(|ui| {
+                if ui
+                    .button(if s.playing { "pause" } else { "play" })
+                    .clicked()
+                {
+                    if !s.playing && s.replay_t >= t.duration {
+                        s.replay_t = 0.0;
+                    }
+                    s.playing = !s.playing;
+                }
+                ui.add(egui::Slider::new(&mut s.replay_t, 0.0..=t.duration).text("s"));
+            });
+        }
+        let mut fov_override = s.fov_override_deg.is_some();
+        ui.horizontal(|ui| {
+            ui.checkbox(&mut fov_override, "FOV override");
+            let mut f = s.fov_override_deg.unwrap_or(30.0);
+            ui.add_enabled(
+                fov_override,
+                egui::Slider::new(&mut f, 1.0..=120.0).text("FOV (°)"),
+            );
+            s.fov_override_deg = fov_override.then_some(f);
+        });
+        if let Some(r) = &s.tracked {
+            ui.label(format!(
+                "tracked FOV {:.1}°×{:.1}°, filter {}",
+                r.fov_deg[0],
+                r.fov_deg[1],
+                if r.filter { "on" } else { "off" }
+            ));
+        }
+        ui.separator();
+        ui.heading("Guide");
+        ui.add(egui::Slider::new(&mut s.falloff_base_m, 0.01..=2.0).text("falloff base (m)"));
+        ui.add(egui::Slider::new(&mut s.falloff_scale, 0.0..=4.0).text("falloff scale"));
+        ui.add(egui::Slider::new(&mut s.p_min, 0.0..=1.0).text("p_min"));
+        ui.add(egui::Slider::new(&mut s.max_depth, 1..=16).text("max path depth"));
+        if ui.button("reset accumulation").clicked() {
+            s.reset = true;
+        }
+        ui.separator();
+        ui.heading("Filter");
+        ui.horizontal(|ui| {
+            ui.radio_value(&mut s.filter.kind, FilterKind::Off, "off");
+            ui.radio_value(&mut s.filter.kind, FilterKind::Fast, "fast");
+            ui.radio_value(&mut s.filter.kind, FilterKind::Exact, "exact");
+        });
+        ui.add(egui::Slider::new(&mut s.filter.k_max, 0.0..=64.0).text("k_max (px)"));
+        ui.horizontal(|ui| {
+            ui.radio_value(&mut s.filter.blend, Blend::Count, "count");
+            ui.radio_value(&mut s.filter.blend, Blend::Variance, "variance");
+        });
+        ui.add(
+            egui::Slider::new(&mut s.filter.c, 1.0..=1024.0)
+                .logarithmic(true)
+                .text("c (samples)"),
+        );
+        ui.add(
+            egui::Slider::new(&mut s.filter.variance_threshold, 1e-7..=1e-1)
+                .logarithmic(true)
+                .text("variance threshold"),
+        );
+        ui.separator();
+        ui.heading("View");
+        ui.horizontal(|ui| {
+            ui.radio_value(&mut s.overlay, Overlay::Image, "image");
+            ui.radio_value(&mut s.overlay, Overlay::Dgi, "DGI");
+            ui.radio_value(&mut s.overlay, Overlay::Counts, "samples");
+        });
+        ui.checkbox(&mut s.roi_outline, "ROI outline");
+        ui.checkbox(&mut s.wall_view, "wall view (bezels)");
+        ui.add(egui::Slider::new(&mut s.exposure, -6.0..=6.0).text("exposure (EV)"));
+        if ui.button("save image + overlays").clicked() {
+            save = true;
+        }
+        ui.checkbox(&mut self.recording, "record (a PNG per frame)");
+        ui.separator();
+        ui.heading("Statistics");
+        let st = &self.core.stats;
+        ui.label(format!("iterations {}", st.iterations));
+        ui.label(format!("{:.1} iterations/s", st.iterations_per_s));
+        if let Some(share) = st.sampled_share {
+            ui.label(format!("pixels sampled {:.1} %", 100.0 * share));
+        }
+        if let Some(t) = st.last_timed {
+            let ms = |v: Option<f64>| v.map_or("–".to_owned(), |v| format!("{v:.2}"));
+            ui.label(format!(
+                "ms: DGI {} · schedule {} · trace {}",
+                ms(st.ms_dgi),
+                ms(t.ms_schedule),
+                ms(t.ms_trace)
+            ));
+        }
+        if st.roi_pixels > 0 {
+            ui.label(format!(
+                "ROI: {} samples, {:.1} per pixel",
+                st.roi_samples,
+                st.roi_samples as f64 / st.roi_pixels as f64
+            ));
+        }
+        ui.label(self.core.backend_name());
+        if !self.message.is_empty() {
+            ui.label(&self.message);
+        }
+        if let Some(e) = &self.error {
+            ui.colored_label(egui::Color32::RED, e);
+        }
+        save
+    }
+}
+
+impl eframe::App for ViewerApp<'_> {
+    fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
+        let dt = self.last.elapsed().as_secs_f64();
+        self.last = Instant::now();
+        if let Some(t) = &self.timeline
+            && self.core.state.source == RoiSource::Replay
+        {
+            self.core.state.advance(dt, t);
+        }
+        if let Some(l) = &mut self.live
+            && self.core.state.source == RoiSource::Live
+        {
+            l.update(&mut self.core.state);
+        }
+        let save = egui::Panel::left("controls")
+            .show(ui, |ui| {
+                egui::ScrollArea::vertical()
+                    .show(ui, |ui| self.controls(ui))
+                    .inner
+            })
+            .inner;
+        let stepped = self.core.step(FRAME_BUDGET);
+        let picture = stepped.and_then(|()| self.core.picture());
+        let picture = match picture {
+            Ok(p) => {
+                self.error = None;
+                p
+            }
+            Err(e) => {
+                self.error = Some(format!("{e:#}"));
+                ui.ctx().request_repaint_after(Duration::from_millis(200));
+                return;
+            }
+        };
+        let [w, h] = picture.size;
+        let image =
+            egui::ColorImage::from_rgba_unmultiplied([w as usize, h as usize], &picture.rgba);
+        match &mut self.texture {
+            Some(t) => t.set(image, egui::TextureOptions::NEAREST),
+            None => {
+                self.texture = Some(ui.ctx().load_texture(
+                    "raygun picture",
+                    image,
+                    egui::TextureOptions::NEAREST,
+                ));
+            }
+        }
+        if self.recording {
+            let dir = self.save_dir.join("recording");
+            let path = dir.join(format!("frame-{:05}.png", self.recorded));
+            let saved = std::fs::create_dir_all(&dir)
+                .map_err(anyhow::Error::from)
+                .and_then(|()| super::core::save_view_png(&path, &picture));
+            match saved {
+                Ok(()) => {
+                    self.recorded += 1;
+                    self.message =
+                        format!("recording: {} frames in {}", self.recorded, dir.display());
+                }
+                Err(e) => {
+                    self.recording = false;
+                    self.message = format!("recording stopped: {e:#}");
+                }
+            }
+        }
+        if save {
+            self.saves += 1;
+            let stem = format!("view-{:03}", self.saves);
+            self.save(&stem, &picture);
+        }
+        if let Some(n) = self.screenshot_after
+            && self.core.stats.iterations >= n
+        {
+            // The picture files now; the whole window once the integration has read it back.
+            self.save("screenshot", &picture);
+            let slot = Arc::new(Mutex::new(None));
+            let (s, ctx) = (Arc::clone(&slot), ui.ctx().clone());
+            ui.ctx().request_screenshot(move |img| {
+                if let Ok(mut g) = s.lock() {
+                    *g = Some(img);
+                }
+                ctx.request_repaint();
+            });
+            self.window_shot = Some((slot, 0));
+            self.screenshot_after = None;
+        }
+        if let Some((slot, waited)) = &mut self.window_shot {
+            *waited += 1;
+            let shot = slot.lock().ok().and_then(|mut g| g.take());
+            if let Some(img) = shot {
+                let path = self.save_dir.join("screenshot.window.png");
+                let [sw, sh] = img.size;
+                let saved = image::RgbaImage::from_raw(sw as u32, sh as u32, img.as_raw().to_vec())
+                    .map(|i| i.save(&path));
+                match saved {
+                    Some(Ok(())) => eprintln!("raygun view: saved {}", path.display()),
+                    _ => eprintln!("raygun view: could not save {}", path.display()),
+                }
+                ui.ctx().send_viewport_cmd(egui::ViewportCommand::Close);
+            } else if *waited > 300 {
+                eprintln!("raygun view: no window screenshot arrived; closing");
+                ui.ctx().send_viewport_cmd(egui::ViewportCommand::Close);
+            }
+        }
+        let model = self.core.model;
+        let size = picture.size;
+        egui::CentralPanel::default_margins().show(ui, |ui| {
+            let Some(tex) = &self.texture else { return };
+            let avail = ui.available_size();
+            let aspect = w as f32 / h as f32;
+            let fit = if avail.x / aspect <= avail.y {
+                egui::vec2(avail.x, avail.x / aspect)
+            } else {
+                egui::vec2(avail.y * aspect, avail.y)
+            };
+            let r = ui.add(
+                egui::Image::new(tex)
+                    .fit_to_exact_size(fit)
+                    .sense(egui::Sense::click()),
+            );
+            let to_image = |p: egui::Pos2| {
+                DVec2::new(
+                    f64::from((p.x - r.rect.min.x) / r.rect.width() * w as f32),
+                    f64::from((p.y - r.rect.min.y) / r.rect.height() * h as f32),
+                )
+            };
+            let to_screen = |canvas: DVec2| {
+                let px = model.canvas_to_image(canvas, size);
+                egui::pos2(
+                    r.rect.min.x + px.x as f32 / w as f32 * r.rect.width(),
+                    r.rect.min.y + px.y as f32 / h as f32 * r.rect.height(),
+                )
+            };
+            if r.clicked()
+                && let Some(p) = r.interact_pointer_pos()
+            {
+                self.core.state.click(model, to_image(p), size);
+            }
+            let painter = ui.painter_at(r.rect);
+            let cross = |c: egui::Pos2, colour: egui::Color32| {
+                let stroke = egui::Stroke::new(2.0, colour);
+                painter.line_segment(
+                    [c - egui::vec2(10.0, 0.0), c + egui::vec2(10.0, 0.0)],
+                    stroke,
+                );
+                painter.line_segment(
+                    [c - egui::vec2(0.0, 10.0), c + egui::vec2(0.0, 10.0)],
+                    stroke,
+                );
+                painter.circle_stroke(c, 6.0, stroke);
+            };
+            // The ray gun's aim (tracked sources) in cyan.
+            if self.core.state.source != RoiSource::Mouse
+                && let Some(a) = self.core.state.aim
+            {
+                cross(to_screen(a), egui::Color32::from_rgb(0, 230, 255));
+            }
+        });
+        ui.ctx().request_repaint();
+    }
+}

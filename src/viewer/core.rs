@@ -1,0 +1,505 @@
+//! The viewer without a screen: the panel's settings ([`ViewerState`]), what they mean for the
+//! renderer, and [`ViewerCore`], which keeps a [`GuidedRenderer`] in step with them and
+//! composes the picture the window shows. The egui front end (`app.rs`) only maps widgets and
+//! clicks onto these; tests drive them directly.
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use glam::{DVec2, Vec3};
+
+use crate::cli::guided::filtered_image;
+use crate::display::DisplayModel;
+use crate::filter::{FilterKind, FilterParams};
+use crate::frame::{FrameStats, GuideConfig, GuidedRenderer};
+use crate::gpu::Backend;
+use crate::interaction::RoiState;
+use crate::output::tiles::wall_view;
+use crate::roi::dgi::{Falloff, Metric, Roi};
+use crate::scene::Scene;
+use crate::schedule::Order;
+use crate::trace::accum::Accumulation;
+use crate::trace::cpu::TraceSettings;
+
+use super::timeline::Timeline;
+
+/// Where the ROI comes from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RoiSource {
+    /// A click on the image; its size from the panel.
+    Mouse,
+    /// A replay, played / paused / scrubbed in the panel.
+    Replay,
+    /// Live DTrack or OSC traffic.
+    Live,
+}
+
+/// What the image shows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Overlay {
+    /// The (filtered) render.
+    Image,
+    /// The distance-guide image, d in [0, 1] as grey.
+    Dgi,
+    /// Samples per pixel as a heat map (0 black … most samples white).
+    Counts,
+}
+
+/// Every setting of the panel.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ViewerState {
+    pub source: RoiSource,
+    /// Centre of the mouse ROI, canvas pixels.
+    pub mouse_centre: Option<DVec2>,
+    /// Radius of the (circular) mouse ROI, canvas pixels.
+    pub mouse_radius_px: f64,
+    pub falloff_base_m: f64,
+    pub falloff_scale: f64,
+    pub p_min: f32,
+    pub metric: Metric,
+    pub order: Order,
+    pub filter: FilterParams,
+    pub max_depth: u32,
+    pub overlay: Overlay,
+    pub roi_outline: bool,
+    /// Show the canvas as the wall shows it (pixels behind bezels black).
+    pub wall_view: bool,
+    pub exposure: f32,
+    /// A full opening angle (degrees, both axes) replacing the tracked ROI's own (the stick's).
+    pub fov_override_deg: Option<f64>,
+    /// Replay clock, seconds, and whether it runs.
+    pub replay_t: f64,
+    pub playing: bool,
+    /// The latest tracked ROI (replay or live) and the ray gun's aim, canvas pixels.
+    pub tracked: Option<RoiState>,
+    pub aim: Option<DVec2>,
+    /// Set by the "reset accumulation" button; cleared when the renderer has been rebuilt.
+    pub reset: bool,
+}
+
+impl ViewerState {
+    /// The defaults of `render` (guide and filter) with a mouse ROI of 600 canvas pixels
+    /// (about 32 cm on HORNET) not yet placed.
+    #[must_use]
+    pub fn new(source: RoiSource, max_depth: u32) -> Self {
+        let falloff = Falloff::default();
+        Self {
+            source,
+            mouse_centre: None,
+            mouse_radius_px: 600.0,
+            falloff_base_m: falloff.base_m,
+            falloff_scale: falloff.scale,
+            p_min: 0.0,
+            metric: Metric::Exact,
+            order: Order::Coherent,
+            filter: FilterParams::default(),
+            max_depth,
+            overlay: Overlay::Image,
+            roi_outline: true,
+            wall_view: false,
+            exposure: 0.0,
+            fov_override_deg: None,
+            replay_t: 0.0,
+            playing: true,
+            tracked: None,
+            aim: None,
+            reset: false,
+        }
+    }
+
+    /// A click at image pixel `image_px` (centres at `i + 0.5`) of a `size` image: centres the
+    /// mouse ROI there (canvas coordinates) and makes the mouse the ROI source.
+    pub fn click(&mut self, model: &DisplayModel, image_px: DVec2, size: [u32; 2]) {
+        self.mouse_centre = Some(model.image_to_canvas(image_px, size));
+        self.source = RoiSource::Mouse;
+    }
+
+    /// The ROI the renderer should use.
+    #[must_use]
+    pub fn roi(&self) -> Option<Roi> {
+        match self.source {
+            RoiSource::Mouse => self.mouse_centre.map(|c| Roi::CanvasEllipse {
+                center: c,
+                semi_axes: DVec2::splat(self.mouse_radius_px),
+            }),
+            RoiSource::Replay | RoiSource::Live => {
+                let mut r = self.tracked.clone()?;
+                if let Some(f) = self.fov_override_deg {
+                    r.fov_deg = [f, f];
+                }
+                r.to_roi().ok().flatten()
+            }
+        }
+    }
+
+    /// The guide configuration the renderer gets (errors name the bad setting).
+    pub fn guide_config(&self) -> anyhow::Result<GuideConfig> {
+        crate::schedule::validate_p_min(self.p_min)?;
+        Ok(GuideConfig {
+            metric: self.metric,
+            falloff: Falloff::new(self.falloff_base_m, self.falloff_scale)?,
+            p_min: self.p_min,
+            order: self.order,
+        })
+    }
+
+    /// The filter the picture uses: the panel's, off while a tracked device has toggled the
+    /// filter off.
+    #[must_use]
+    pub fn filter_params(&self) -> FilterParams {
+        let tracked_off =
+            self.source != RoiSource::Mouse && self.tracked.as_ref().is_some_and(|r| !r.filter);
+        FilterParams {
+            kind: if tracked_off {
+                FilterKind::Off
+            } else {
+                self.filter.kind
+            },
+            ..self.filter
+        }
+    }
+
+    /// Advances the replay clock by `dt` seconds while playing (stops at the end).
+    pub fn advance(&mut self, dt: f64, timeline: &Timeline) {
+        if self.playing {
+            self.replay_t = (self.replay_t + dt).min(timeline.duration);
+            if self.replay_t >= timeline.duration {
+                self.playing = false;
+            }
+        }
+        self.tracked = timeline.roi_at(self.replay_t).cloned();
+        self.aim = timeline.aim_at(self.replay_t);
+    }
+}
+
+/// Live statistics.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Stats {
+    pub iterations: u32,
+    pub iterations_per_s: f64,
+    /// Share of pixels the last timed frame traced.
+    pub sampled_share: Option<f64>,
+    pub last_timed: Option<FrameStats>,
+    /// The DGI stage's time when it last ran in a timed frame (the frame after an ROI change
+    /// is always timed).
+    pub ms_dgi: Option<f64>,
+    /// Samples in the ROI (pixels with d = 0) and the mean per ROI pixel.
+    pub roi_samples: u64,
+    pub roi_pixels: u64,
+}
+
+/// What the renderer was built with: a change rebuilds it (and restarts the accumulation).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Built {
+    config: GuideConfigKey,
+    max_depth: u32,
+}
+
+/// [`GuideConfig`] compared field by field.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct GuideConfigKey {
+    metric: Metric,
+    falloff: Falloff,
+    p_min: f32,
+    order: Order,
+}
+
+impl From<GuideConfig> for GuideConfigKey {
+    fn from(c: GuideConfig) -> Self {
+        Self {
+            metric: c.metric,
+            falloff: c.falloff,
+            p_min: c.p_min,
+            order: c.order,
+        }
+    }
+}
+
+/// The picture the window shows: RGBA8, row-major, `size`.
+#[derive(Clone, Debug)]
+pub struct Picture {
+    pub size: [u32; 2],
+    pub rgba: Vec<u8>,
+    /// The filtered image (linear RGB), the DGI and the counts it was made from.
+    pub image: Vec<Vec3>,
+    pub dgi: Vec<f32>,
+    pub counts: Vec<u32>,
+}
+
+/// The renderer kept in step with a [`ViewerState`].
+pub struct ViewerCore<'a> {
+    backend: &'a Backend,
+    scene: &'a Scene,
+    pub model: &'a DisplayModel,
+    base: TraceSettings,
+    pub state: ViewerState,
+    renderer: GuidedRenderer<'a>,
+    built: Built,
+    /// Frames since the renderer was built, and when (for iterations per second).
+    window: (u32, Instant),
+    pub stats: Stats,
+}
+
+/// Every this many frames one is timed (stage times, pixel count), which makes the GPU wait.
+pub const TIMED_EVERY: u32 = 8;
+
+impl<'a> ViewerCore<'a> {
+    pub fn new(
+        backend: &'a Backend,
+        scene: &'a Scene,
+        model: &'a DisplayModel,
+        base: TraceSettings,
+        state: ViewerState,
+    ) -> anyhow::Result<Self> {
+        let config = state.guide_config()?;
+        let settings = TraceSettings {
+            max_depth: state.max_depth,
+            ..base
+        };
+        let renderer = GuidedRenderer::new(backend, scene, settings, model, config)?;
+        Ok(Self {
+            backend,
+            scene,
+            model,
+            base,
+            built: Built {
+                config: config.into(),
+                max_depth: state.max_depth,
+            },
+            state,
+            renderer,
+            window: (0, Instant::now()),
+            stats: Stats::default(),
+        })
+    }
+
+    #[must_use]
+    pub fn size(&self) -> [u32; 2] {
+        [self.base.width, self.base.height]
+    }
+
+    /// The backend in words.
+    #[must_use]
+    pub fn backend_name(&self) -> String {
+        self.backend.describe()
+    }
+
+    /// The renderer as it stands (settings it received, iterations, ROI).
+    #[must_use]
+    pub fn renderer(&self) -> &GuidedRenderer<'a> {
+        &self.renderer
+    }
+
+    /// Brings the renderer in line with the state: rebuilds it when the guide settings or the
+    /// path depth changed or a reset was asked for, and hands it a changed ROI. Returns whether
+    /// the ROI changed.
+    pub fn sync(&mut self) -> anyhow::Result<bool> {
+        if self.state.max_depth == 0 {
+            anyhow::bail!("max path depth must be at least 1");
+        }
+        let config = self.state.guide_config()?;
+        let want = Built {
+            config: config.into(),
+            max_depth: self.state.max_depth,
+        };
+        if want != self.built || self.state.reset {
+            let settings = TraceSettings {
+                max_depth: self.state.max_depth,
+                ..self.base
+            };
+            self.renderer =
+                GuidedRenderer::new(self.backend, self.scene, settings, self.model, config)?;
+            self.built = want;
+            self.state.reset = false;
+            self.window = (0, Instant::now());
+            self.stats = Stats::default();
+        }
+        let roi = self.state.roi();
+        let changed = self.renderer.roi() != roi.as_ref();
+        if changed {
+            let t0 = Instant::now();
+            self.renderer.set_roi(roi)?;
+            // The CPU twin computes the DGI right here; the GPU records it into the next frame
+            // (timed by its timestamps).
+            if matches!(self.backend, Backend::Cpu) {
+                self.stats.ms_dgi = Some(t0.elapsed().as_secs_f64() * 1e3);
+            }
+        }
+        Ok(changed)
+    }
+
+    /// Syncs, then runs frames for about `budget` (at least one).
+    pub fn step(&mut self, budget: Duration) -> anyhow::Result<()> {
+        let mut roi_changed = self.sync()?;
+        let t0 = Instant::now();
+        loop {
+            let timed = roi_changed || self.renderer.iteration().is_multiple_of(TIMED_EVERY);
+            roi_changed = false;
+            let s = self.renderer.run_frame(timed)?;
+            if timed {
+                self.stats.last_timed = Some(s);
+                if s.ms_dgi.is_some() {
+                    self.stats.ms_dgi = s.ms_dgi;
+                }
+                let n = f64::from(self.base.width) * f64::from(self.base.height);
+                self.stats.sampled_share = s.pixels.map(|p| f64::from(p) / n);
+            }
+            self.window.0 += 1;
+            if t0.elapsed() >= budget {
+                break;
+            }
+        }
+        self.stats.iterations = self.renderer.iteration();
+        let secs = self.window.1.elapsed().as_secs_f64();
+        if secs > 0.0 {
+            self.stats.iterations_per_s = f64::from(self.window.0) / secs;
+        }
+        Ok(())
+    }
+
+    /// Reads the accumulation and the DGI back, filters, and composes the picture for the
+    /// state's overlay (with the ROI outline and the wall view as asked).
+    pub fn picture(&mut self) -> anyhow::Result<Picture> {
+        let acc = self.renderer.accumulation()?;
+        let dgi = self.renderer.dgi()?;
+        let image = filtered_image(self.backend, &self.state.filter_params(), &acc, &dgi)?;
+        let (roi_samples, roi_pixels) = roi_samples(&acc, &dgi, self.renderer.roi().is_some());
+        self.stats.roi_samples = roi_samples;
+        self.stats.roi_pixels = roi_pixels;
+        let size = self.size();
+        let mut rgba = match self.state.overlay {
+            Overlay::Image => {
+                let scale = self.state.exposure.exp2();
+                image
+                    .iter()
+                    .flat_map(|p| {
+                        let s = |v: f32| {
+                            crate::output::unit_to_u8(crate::output::linear_to_srgb(v * scale))
+                        };
+                        [s(p.x), s(p.y), s(p.z), 255]
+                    })
+                    .collect()
+            }
+            Overlay::Dgi => dgi
+                .iter()
+                .flat_map(|&d| {
+                    let g = crate::output::unit_to_u8(d);
+                    [g, g, g, 255]
+                })
+                .collect(),
+            Overlay::Counts => heat_map(&acc.count),
+        };
+        if self.state.roi_outline && self.renderer.roi().is_some() {
+            for i in roi_outline(&dgi, size) {
+                rgba[4 * i..4 * i + 4].copy_from_slice(&OUTLINE);
+            }
+        }
+        if self.state.wall_view {
+            let px: Vec<[u8; 4]> = rgba
+                .chunks_exact(4)
+                .map(|c| [c[0], c[1], c[2], c[3]])
+                .collect();
+            rgba = wall_view(self.model, &px, size, [0, 0, 0, 255]).concat();
+        }
+        Ok(Picture {
+            size,
+            rgba,
+            image,
+            dgi,
+            counts: acc.count,
+        })
+    }
+}
+
+/// The ROI outline colour (opaque yellow).
+pub const OUTLINE: [u8; 4] = [255, 220, 0, 255];
+
+/// Pixels inside the ROI (d = 0) with a 4-neighbour outside it: the ROI's outline on the wall,
+/// whatever the ROI's kind.
+#[must_use]
+pub fn roi_outline(dgi: &[f32], size: [u32; 2]) -> Vec<usize> {
+    let (w, h) = (size[0] as usize, size[1] as usize);
+    let mut out = Vec::new();
+    for y in 0..h {
+        for x in 0..w {
+            let i = y * w + x;
+            if dgi[i] != 0.0 {
+                continue;
+            }
+            let outside = |j: usize| dgi[j] > 0.0;
+            if (x > 0 && outside(i - 1))
+                || (x + 1 < w && outside(i + 1))
+                || (y > 0 && outside(i - w))
+                || (y + 1 < h && outside(i + w))
+            {
+                out.push(i);
+            }
+        }
+    }
+    out
+}
+
+/// Samples per pixel as RGBA: black (0) through red and yellow to white (the most).
+#[must_use]
+pub fn heat_map(counts: &[u32]) -> Vec<u8> {
+    let max = counts.iter().copied().max().unwrap_or(0).max(1) as f32;
+    counts
+        .iter()
+        .flat_map(|&c| {
+            let t = c as f32 / max * 3.0;
+            let ch = |v: f32| (v.clamp(0.0, 1.0) * 255.0).round() as u8;
+            [ch(t), ch(t - 1.0), ch(t - 2.0), 255]
+        })
+        .collect()
+}
+
+/// Samples taken in the ROI (pixels with d = 0) and how many pixels it covers; (0, 0) without
+/// an ROI.
+#[must_use]
+pub fn roi_samples(acc: &Accumulation, dgi: &[f32], has_roi: bool) -> (u64, u64) {
+    if !has_roi {
+        return (0, 0);
+    }
+    dgi.iter()
+        .zip(&acc.count)
+        .filter(|(d, _)| **d == 0.0)
+        .fold((0, 0), |(s, n), (_, &c)| (s + u64::from(c), n + 1))
+}
+
+/// Writes the picture's image (`<stem>.exr` linear, `<stem>.png` as shown with the exposure),
+/// the DGI (`<stem>.dgi.png`), the counts (`<stem>.counts.exr`) and the window's picture with
+/// its overlay (`<stem>.view.png`) into `dir`; returns the paths.
+pub fn save_picture(
+    dir: &Path,
+    stem: &str,
+    p: &Picture,
+    exposure: f32,
+) -> anyhow::Result<Vec<PathBuf>> {
+    std::fs::create_dir_all(dir)
+        .map_err(|e| anyhow::anyhow!("{}: cannot create the directory: {e}", dir.display()))?;
+    let [w, h] = p.size;
+    let mut files = Vec::new();
+    for ext in ["exr", "png"] {
+        let path = dir.join(format!("{stem}.{ext}"));
+        crate::output::write_rgb(&path, w, h, &p.image, exposure)?;
+        files.push(path);
+    }
+    let dgi = dir.join(format!("{stem}.dgi.png"));
+    crate::output::write_gray(&dgi, w, h, &p.dgi, "d")?;
+    let counts = dir.join(format!("{stem}.counts.exr"));
+    let c: Vec<f32> = p.counts.iter().map(|&c| c as f32).collect();
+    crate::output::write_gray(&counts, w, h, &c, "samples")?;
+    let view = dir.join(format!("{stem}.view.png"));
+    save_view_png(&view, p)?;
+    files.extend([dgi, counts, view]);
+    Ok(files)
+}
+
+/// Writes the picture as shown (RGBA8 PNG).
+pub fn save_view_png(path: &Path, p: &Picture) -> anyhow::Result<()> {
+    let [w, h] = p.size;
+    image::RgbaImage::from_raw(w, h, p.rgba.clone())
+        .ok_or_else(|| anyhow::anyhow!("picture size mismatch"))?
+        .save(path)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
+}

@@ -1,0 +1,347 @@
+//! The viewer's logic without a screen: clicks, panel settings and what the renderer receives,
+//! overlays, replay playback and saving (the egui front end only maps widgets onto these).
+
+use std::time::Duration;
+
+use glam::DVec2;
+use raygun::display::DisplayModel;
+use raygun::filter::FilterKind;
+use raygun::gpu::Backend;
+use raygun::roi::dgi::Roi;
+use raygun::scene::{Environment, Scene};
+use raygun::trace::camera::RenderCamera;
+use raygun::trace::cpu::TraceSettings;
+use raygun::viewer::core::{
+    OUTLINE, Overlay, RoiSource, ViewerCore, ViewerState, heat_map, roi_outline, save_picture,
+};
+use raygun::viewer::timeline::Timeline;
+
+const W: u32 = 64;
+const H: u32 = 26;
+
+fn hornet() -> DisplayModel {
+    DisplayModel::load(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/display-models/hornet.json"
+    ))
+    .unwrap()
+}
+
+fn scene() -> Scene {
+    let mut s = Scene::open("builtin:cornell-light").unwrap();
+    s.environment = Environment::Constant(glam::Vec3::splat(0.5));
+    s
+}
+
+fn base(scene: &Scene) -> TraceSettings {
+    TraceSettings {
+        width: W,
+        height: H,
+        seed: 3,
+        max_depth: 4,
+        camera: RenderCamera::choose(scene, None, W, H).unwrap(),
+    }
+}
+
+/// One frame per step.
+const ONE: Duration = Duration::ZERO;
+
+#[test]
+fn a_click_centres_the_roi_where_it_was_clicked() {
+    let (model, scene, backend) = (hornet(), scene(), Backend::Cpu);
+    let state = ViewerState::new(RoiSource::Mouse, 4);
+    let mut core = ViewerCore::new(&backend, &scene, &model, base(&scene), state).unwrap();
+    core.step(ONE).unwrap();
+    assert!(core.renderer().roi().is_none(), "no ROI before a click");
+    // Click the centre of pixel (40, 10).
+    core.state.mouse_radius_px = 700.0;
+    core.state.click(&model, DVec2::new(40.5, 10.5), [W, H]);
+    core.step(ONE).unwrap();
+    // The canvas point, computed from the canvas rectangle by hand.
+    let c = model.canvas_rect();
+    let want = c.min + DVec2::new(40.5 / f64::from(W), 10.5 / f64::from(H)) * c.size();
+    match core.renderer().roi() {
+        Some(Roi::CanvasEllipse { center, semi_axes }) => {
+            assert!((*center - want).length() < 1e-9, "{center} vs {want}");
+            assert_eq!(*semi_axes, DVec2::splat(700.0));
+        }
+        other => panic!("expected a canvas ellipse, got {other:?}"),
+    }
+    // The DGI the renderer used is 0 at the clicked pixel and its zero region is centred on
+    // it (a circle of 700 canvas px spans about ±3.3 image px across, ±3.3 down).
+    let dgi = core.picture().unwrap().dgi;
+    assert_eq!(dgi[10 * W as usize + 40], 0.0);
+    let zero: Vec<(f64, f64)> = (0..dgi.len())
+        .filter(|&i| dgi[i] == 0.0)
+        .map(|i| ((i % W as usize) as f64 + 0.5, (i / W as usize) as f64 + 0.5))
+        .collect();
+    assert!(
+        zero.len() > 4 && zero.len() < 100,
+        "{} zero pixels",
+        zero.len()
+    );
+    let n = zero.len() as f64;
+    let (mx, my) = zero
+        .iter()
+        .fold((0.0, 0.0), |a, p| (a.0 + p.0 / n, a.1 + p.1 / n));
+    assert!(
+        (mx - 40.5).abs() < 0.6 && (my - 10.5).abs() < 0.6,
+        "({mx}, {my})"
+    );
+    assert!(dgi[0] > 0.0, "a far corner is outside the ROI");
+}
+
+#[test]
+fn panel_settings_reach_the_renderer() {
+    let (model, scene, backend) = (hornet(), scene(), Backend::Cpu);
+    let state = ViewerState::new(RoiSource::Mouse, 4);
+    let mut core = ViewerCore::new(&backend, &scene, &model, base(&scene), state).unwrap();
+    core.state.click(&model, DVec2::new(32.0, 13.0), [W, H]);
+    for _ in 0..3 {
+        core.step(ONE).unwrap();
+    }
+    assert_eq!(core.renderer().iteration(), 3);
+    // Moving the sliders rebuilds the renderer with the new values (accumulation restarts),
+    // keeping the ROI.
+    core.state.p_min = 1.0;
+    core.state.max_depth = 2;
+    core.state.falloff_base_m = 0.5;
+    core.state.falloff_scale = 1.25;
+    core.step(ONE).unwrap();
+    let r = core.renderer();
+    assert_eq!(r.config.p_min, 1.0);
+    assert_eq!(r.settings.max_depth, 2);
+    assert_eq!(
+        (r.config.falloff.base_m, r.config.falloff.scale),
+        (0.5, 1.25)
+    );
+    assert_eq!(r.iteration(), 1);
+    assert_eq!(r.roi().copied(), core.state.roi());
+    // p_min = 1 samples every pixel in every frame: the renderer really uses it.
+    core.step(ONE).unwrap();
+    let p = core.picture().unwrap();
+    assert!(p.counts.iter().all(|&c| c == 2), "{:?}", &p.counts[..8]);
+    // Reset restarts the accumulation with the same settings.
+    core.state.reset = true;
+    core.step(ONE).unwrap();
+    assert_eq!(core.renderer().iteration(), 1);
+    assert!(!core.state.reset);
+    // Filter settings go to the picture's filter, not to the renderer (no rebuild).
+    core.state.filter.k_max = 5.0;
+    core.state.filter.kind = FilterKind::Exact;
+    core.step(ONE).unwrap();
+    assert_eq!(core.renderer().iteration(), 2);
+    let f = core.state.filter_params();
+    assert_eq!((f.kind, f.k_max), (FilterKind::Exact, 5.0));
+    // A bad value is an error naming it, and the renderer is left as it was.
+    core.state.falloff_base_m = 0.0;
+    let e = core.step(ONE).unwrap_err();
+    assert!(format!("{e:#}").contains("falloff"), "{e:#}");
+    assert_eq!(core.renderer().config.falloff.base_m, 0.5);
+}
+
+#[test]
+fn overlays_show_the_dgi_the_counts_and_the_roi_outline() {
+    let (model, scene, backend) = (hornet(), scene(), Backend::Cpu);
+    let mut state = ViewerState::new(RoiSource::Mouse, 4);
+    state.click(&model, DVec2::new(32.0, 13.0), [W, H]);
+    state.mouse_radius_px = 1500.0;
+    let mut core = ViewerCore::new(&backend, &scene, &model, base(&scene), state).unwrap();
+    for _ in 0..4 {
+        core.step(ONE).unwrap();
+    }
+    core.state.roi_outline = false;
+    core.state.overlay = Overlay::Dgi;
+    let p = core.picture().unwrap();
+    for (i, &d) in p.dgi.iter().enumerate() {
+        assert_eq!(p.rgba[4 * i], raygun::output::unit_to_u8(d));
+    }
+    core.state.overlay = Overlay::Counts;
+    let p = core.picture().unwrap();
+    assert_eq!(p.rgba, heat_map(&p.counts));
+    // The most-sampled pixel is white, an unsampled one black.
+    let max = p.counts.iter().copied().max().unwrap();
+    let i = p.counts.iter().position(|&c| c == max).unwrap();
+    assert_eq!(&p.rgba[4 * i..4 * i + 3], &[255, 255, 255]);
+    if let Some(j) = p.counts.iter().position(|&c| c == 0) {
+        assert_eq!(&p.rgba[4 * j..4 * j + 3], &[0, 0, 0]);
+    }
+    // The outline: ROI pixels (d = 0) next to a pixel outside, drawn in the outline colour.
+    core.state.roi_outline = true;
+    core.state.overlay = Overlay::Image;
+    let p = core.picture().unwrap();
+    let outline = roi_outline(&p.dgi, [W, H]);
+    assert!(!outline.is_empty());
+    for &i in &outline {
+        assert_eq!(p.dgi[i], 0.0);
+        assert_eq!(&p.rgba[4 * i..4 * i + 4], &OUTLINE);
+    }
+    // Samples in the ROI: every ROI pixel is sampled in every one of the 4 frames.
+    assert_eq!(core.stats.roi_samples, 4 * core.stats.roi_pixels);
+    // Saving writes the image, the overlays and the picture as shown.
+    let dir = std::env::temp_dir().join(format!("raygun-viewer-{}", std::process::id()));
+    let files = save_picture(&dir, "shot", &p, 0.0).unwrap();
+    assert_eq!(files.len(), 5);
+    let shown = image::open(dir.join("shot.view.png")).unwrap().to_rgba8();
+    assert_eq!(shown.into_raw(), p.rgba);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn replay_playback_pauses_scrubs_and_follows_the_session() {
+    let root = env!("CARGO_MANIFEST_DIR");
+    let timeline = Timeline::collect(&raygun::cli::tracking::ReplayArgs {
+        file: format!("{root}/tracking-replays/flystick-1-centre-sweeps.dtrack.jsonl").into(),
+        display: Some(format!("{root}/display-models/hornet.json").into()),
+        config: None,
+        device: None,
+        realtime: false,
+    })
+    .unwrap();
+    let mut s = ViewerState::new(RoiSource::Replay, 4);
+    s.advance(0.0, &timeline);
+    assert!(s.roi().is_none(), "nothing shot at t = 0");
+    s.advance(timeline.duration / 2.0, &timeline);
+    assert_eq!(s.replay_t, timeline.duration / 2.0);
+    assert_eq!(s.tracked.as_ref(), timeline.roi_at(timeline.duration / 2.0));
+    // Paused: time stands still.
+    s.playing = false;
+    s.advance(1.0, &timeline);
+    assert_eq!(s.replay_t, timeline.duration / 2.0);
+    // Scrubbed to the end: the session's last ROI, a cone from the ray gun.
+    s.replay_t = timeline.duration;
+    s.advance(0.0, &timeline);
+    assert!(matches!(s.roi(), Some(Roi::Cone(_))), "{:?}", s.roi());
+    // Playing past the end stops there.
+    s.replay_t = 0.0;
+    s.playing = true;
+    s.advance(timeline.duration + 5.0, &timeline);
+    assert_eq!(s.replay_t, timeline.duration);
+    assert!(!s.playing);
+    // A device that switched the filter off turns the picture's filter off.
+    let mut t = s.clone();
+    if let Some(r) = &mut t.tracked {
+        r.filter = false;
+    }
+    assert_eq!(t.filter_params().kind, FilterKind::Off);
+    t.source = RoiSource::Mouse;
+    assert_eq!(t.filter_params().kind, t.filter.kind);
+}
+
+/// The same on the GPU backend (lavapipe in CI): the ROI's pixels get every frame's sample and
+/// the timed frames report the pixel count the scheduler listed.
+#[test]
+fn gpu_backend_follows_the_click_and_reports_stats() {
+    let (model, scene) = (hornet(), scene());
+    let backend = Backend::Gpu(Box::new(raygun::gpu::GpuContext::for_tests()));
+    let mut state = ViewerState::new(RoiSource::Mouse, 4);
+    state.mouse_radius_px = 1500.0;
+    state.click(&model, DVec2::new(20.5, 12.5), [W, H]);
+    let mut core = ViewerCore::new(&backend, &scene, &model, base(&scene), state).unwrap();
+    for _ in 0..raygun::viewer::core::TIMED_EVERY + 1 {
+        core.step(ONE).unwrap();
+    }
+    let p = core.picture().unwrap();
+    let n = raygun::viewer::core::TIMED_EVERY + 1;
+    assert_eq!(p.dgi[12 * W as usize + 20], 0.0);
+    for (i, &d) in p.dgi.iter().enumerate() {
+        if d == 0.0 {
+            assert_eq!(p.counts[i], n, "ROI pixel {i}");
+        }
+    }
+    assert_eq!(core.stats.roi_samples, u64::from(n) * core.stats.roi_pixels);
+    // Frame 8 was timed: the pixels it traced, a share of the frame in (0, 1).
+    let share = core
+        .stats
+        .sampled_share
+        .expect("a timed frame reports its pixel count");
+    assert!(share > 0.0 && share < 1.0, "{share}");
+    assert_eq!(core.stats.iterations, n);
+}
+
+/// Live DTrack: datagrams on the listener's port reach the viewer's state — the aim where the
+/// stick points (the wall centre) and, after a trigger press, the ROI there.
+#[test]
+fn live_dtrack_sets_the_aim_and_a_trigger_press_the_roi() {
+    use raygun::tracking::ingest::Protocol;
+    use raygun::viewer::live::LiveTracking;
+    let model = hornet();
+    let mut live = LiveTracking::start(
+        0,
+        Protocol::Dtrack,
+        "flystick:0".parse().unwrap(),
+        model.clone(),
+    )
+    .unwrap();
+    let sender = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    let rot = "[1 0 0 0 1 0 0 0 1]";
+    // The stick 1 m in front of the wall centre, pointing at it; then the trigger.
+    let frame = |t: u32, buttons: u32| {
+        format!("fr {t}\n6df2 1 1 [0 1.0 6 2][0 0 1000]{rot}[{buttons} 0 0]\n").into_bytes()
+    };
+    let mut state = ViewerState::new(RoiSource::Live, 4);
+    let deadline = std::time::Instant::now() + Duration::from_secs(10);
+    let mut k = 0;
+    while state
+        .tracked
+        .as_ref()
+        .and_then(|r| r.centre.as_ref())
+        .is_none()
+    {
+        assert!(std::time::Instant::now() < deadline, "no ROI arrived");
+        // Released, then pressed (repeated in case the first datagrams arrive before the
+        // listener thread polls).
+        sender
+            .send_to(&frame(k, k % 2), ("127.0.0.1", live.port))
+            .unwrap();
+        k += 1;
+        std::thread::sleep(Duration::from_millis(20));
+        live.update(&mut state);
+    }
+    let centre = model.canvas_rect().center();
+    let aim = state.aim.expect("the stick points at the wall");
+    assert!(
+        (aim - centre).length() < 1.0,
+        "aim {aim} vs centre {centre}"
+    );
+    let roi_centre = state
+        .tracked
+        .as_ref()
+        .unwrap()
+        .centre
+        .as_ref()
+        .unwrap()
+        .canvas_px;
+    assert!((roi_centre - centre).length() < 1.0, "{roi_centre}");
+    assert!(matches!(state.roi(), Some(Roi::Cone(_))));
+}
+
+/// Tracked ROIs: the panel's FOV override replaces the stick's, and the DGI follows it; the
+/// DGI stage's time is reported after the change.
+#[test]
+fn fov_override_widens_the_tracked_roi() {
+    let root = env!("CARGO_MANIFEST_DIR");
+    let timeline = Timeline::collect(&raygun::cli::tracking::ReplayArgs {
+        file: format!("{root}/tracking-replays/flystick-1-centre-sweeps.dtrack.jsonl").into(),
+        display: Some(format!("{root}/display-models/hornet.json").into()),
+        config: None,
+        device: None,
+        realtime: false,
+    })
+    .unwrap();
+    let (model, scene, backend) = (hornet(), scene(), Backend::Cpu);
+    let mut state = ViewerState::new(RoiSource::Replay, 4);
+    state.playing = false;
+    state.replay_t = timeline.duration;
+    state.advance(0.0, &timeline);
+    let mut core = ViewerCore::new(&backend, &scene, &model, base(&scene), state).unwrap();
+    let mut zeros = Vec::new();
+    for fov in [10.0, 40.0] {
+        core.state.fov_override_deg = Some(fov);
+        core.step(ONE).unwrap();
+        assert!(core.stats.ms_dgi.is_some());
+        let dgi = core.picture().unwrap().dgi;
+        zeros.push(dgi.iter().filter(|&&d| d == 0.0).count());
+    }
+    assert!(zeros[0] > 0 && zeros[1] > 4 * zeros[0], "{zeros:?}");
+}
