@@ -132,6 +132,11 @@ fn bench_all_quick_writes_a_consistent_report() {
         ] {
             let reached = t["reached"].as_bool().unwrap();
             assert_eq!(reached, num(&t["rmse_roi"]) <= target, "{fov}° {who}");
+            // Extrapolated exactly when not reached, and then beyond the measured time.
+            assert_eq!(t["extrapolated_ms"].is_null(), reached, "{fov}° {who}");
+            if !reached {
+                assert!(num(&t["extrapolated_ms"]) > num(&t["ms"]), "{fov}° {who}");
+            }
         }
         if fov == 10.0 {
             // At 10° a guided iteration traces a few percent of the pixels: at equal time the

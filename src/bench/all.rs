@@ -137,6 +137,8 @@ pub struct Convergence {
     pub full_time_to_target: TimeToTarget,
     /// Full-frame ÷ guided time to the target, when both reached it.
     pub speedup_to_target: Option<f64>,
+    /// The same ratio from the extrapolated times where a curve did not reach the target.
+    pub extrapolated_speedup_to_target: Option<f64>,
 }
 
 /// When a curve first reached the target (unfiltered, inside the ROI), or how close it got.
@@ -147,6 +149,10 @@ pub struct TimeToTarget {
     pub ms: f64,
     /// RMSE at that point.
     pub rmse_roi: f64,
+    /// When not reached: the time at which RMSE ∝ 1/√t through the curve's last point would
+    /// reach the target (an extrapolation, not a measurement; it ignores the reference's own
+    /// noise).
+    pub extrapolated_ms: Option<f64>,
 }
 
 /// Everything `bench all` measured.
@@ -270,8 +276,13 @@ fn time_to_target(curve: &[CurvePoint], target: f64) -> TimeToTarget {
             reached: true,
             ms: p.ms,
             rmse_roi: p.rmse_roi,
+            extrapolated_ms: None,
         };
     }
+    let extrapolated_ms = curve
+        .last()
+        .filter(|p| p.rmse_roi.is_finite() && target > 0.0)
+        .map(|p| p.ms * (p.rmse_roi / target).powi(2));
     let best = curve
         .iter()
         .min_by(|a, b| a.rmse_roi.total_cmp(&b.rmse_roi))
@@ -280,6 +291,7 @@ fn time_to_target(curve: &[CurvePoint], target: f64) -> TimeToTarget {
         reached: false,
         ms: best.map_or(f64::NAN, |p| p.ms),
         rmse_roi: best.map_or(f64::NAN, |p| p.rmse_roi),
+        extrapolated_ms,
     }
 }
 
@@ -411,6 +423,13 @@ pub fn convergence(
             guided: guided_curve,
             full_frame: full_curve,
             speedup_to_target: (gt.reached && ft.reached).then(|| ft.ms / gt.ms),
+            extrapolated_speedup_to_target: match (
+                gt.extrapolated_ms.or(gt.reached.then_some(gt.ms)),
+                ft.extrapolated_ms.or(ft.reached.then_some(ft.ms)),
+            ) {
+                (Some(g), Some(f)) if !(gt.reached && ft.reached) => Some(f / g),
+                _ => None,
+            },
             guided_time_to_target: gt,
             full_time_to_target: ft,
         });
@@ -534,8 +553,10 @@ fn fmt_ttt(t: &TimeToTarget) -> String {
         format!("{:.1} ms (RMSE {:.4})", t.ms, t.rmse_roi)
     } else {
         format!(
-            "not reached (closest: RMSE {:.4} at {:.1} ms)",
-            t.rmse_roi, t.ms
+            "not reached (closest: RMSE {:.4} at {:.1} ms; extrapolated {} ms)",
+            t.rmse_roi,
+            t.ms,
+            t.extrapolated_ms.map_or("–".into(), |x| format!("{x:.0}"))
         )
     }
 }
@@ -578,7 +599,7 @@ pub fn markdown(r: &AllReport) -> String {
     s += "\n\n## Filter\n\n";
     s += &r.filter.to_markdown();
     s += &format!(
-        "\n\n## Convergence\n\n![convergence](convergence.png)\n\nRMSE (linear RGB) against a converged reference ({} spp full frame) versus accumulated frame time (RMSE and read-backs excluded); filtered = the fast filter's CPU twin. Target: ROI RMSE ≤ {} % of the reference's mean in the ROI.\n\n| FOV | ROI px | target RMSE | guided: time to target | full frame: time to target | speed-up to target | guided end ms | guided ROI RMSE at end | full-frame ROI RMSE at equal time (ms) | guided outside RMSE at end (unfiltered / filtered) | full-frame outside RMSE at equal time (unfiltered / filtered) |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "\n\n## Convergence\n\n![convergence](convergence.png)\n\nRMSE (linear RGB) against a converged reference ({} spp full frame) versus accumulated frame time (RMSE and read-backs excluded); filtered = the fast filter's CPU twin. Target: ROI RMSE ≤ {} % of the reference's mean in the ROI; where a curve did not reach it, the time is extrapolated with RMSE ∝ 1/√t through its last point (not measured).\n\n| FOV | ROI px | target RMSE | guided: time to target | full frame: time to target | speed-up to target | guided end ms | guided ROI RMSE at end | full-frame ROI RMSE at equal time (ms) | guided outside RMSE at end (unfiltered / filtered) | full-frame outside RMSE at equal time (unfiltered / filtered) |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
         c.reference_spp,
         100.0 * TARGET_REL_RMSE
     );
@@ -593,8 +614,11 @@ pub fn markdown(r: &AllReport) -> String {
             cv.target_rmse_roi,
             fmt_ttt(&cv.guided_time_to_target),
             fmt_ttt(&cv.full_time_to_target),
-            cv.speedup_to_target
-                .map_or("–".into(), |x| format!("{x:.2}×")),
+            match (cv.speedup_to_target, cv.extrapolated_speedup_to_target) {
+                (Some(x), _) => format!("{x:.2}×"),
+                (None, Some(x)) => format!("{x:.2}× (extrapolated)"),
+                (None, None) => "–".into(),
+            },
             g.ms,
             g.rmse_roi,
             cv.full_rmse_roi_at_guided_end,
