@@ -22,6 +22,57 @@ pub enum BenchCommand {
     /// The paper's benchmark: guided vs full-frame per FOV (share sampled, ms per iteration,
     /// speed-up, equal-time RMSE in the ROI) and the Figure 5 plot.
     Guided(GuidedBenchArgs),
+    /// Every benchmark plus convergence curves (RMSE vs time, guided vs full frame, filtered
+    /// and not) into DIR: report.md, report.json, fig5.png, convergence.png.
+    All(AllBenchArgs),
+}
+
+#[derive(Clone, Debug, clap::Args)]
+pub struct AllBenchArgs {
+    /// Small settings that finish in minutes on the CPU backend (160×90, 10° and 60°).
+    #[arg(long)]
+    pub quick: bool,
+    /// Output directory (created).
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+    /// Image size, overriding the mode's (quick 160×90, full 3840×2160).
+    #[arg(long, value_name = "W,H", value_parser = crate::cli::args::parse_size)]
+    pub size: Option<[u32; 2]>,
+    /// Scene (file or builtin:NAME).
+    #[arg(long, value_name = "SCENE", default_value = "builtin:cornell")]
+    pub scene: String,
+    /// Display model (the paper's setup: HORNET).
+    #[arg(
+        long,
+        value_name = "FILE",
+        default_value = "display-models/hornet.json"
+    )]
+    pub display: PathBuf,
+    #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
+    pub backend: BackendChoice,
+}
+
+fn run_all_bench(args: &AllBenchArgs) -> anyhow::Result<()> {
+    let backend = Backend::select(args.backend)?;
+    let display = DisplayModel::load(&args.display)?;
+    let scene = crate::cli::render::load_scene(&args.scene, None)?;
+    let name = args.scene.trim_start_matches("builtin:");
+    let cfg = crate::bench::all::AllConfig::new(args.quick, args.size);
+    let report = crate::bench::all::run(
+        &backend,
+        &display,
+        display.name(),
+        name,
+        &scene,
+        &cfg,
+        |what| eprintln!("raygun bench all: {what}"),
+    )?;
+    crate::bench::all::write(&report, &args.out)?;
+    eprintln!(
+        "raygun bench all: wrote report.md, report.json, fig5.png, convergence.png to {}",
+        args.out.display()
+    );
+    Ok(())
 }
 
 #[derive(Clone, Debug, clap::Args)]
@@ -233,6 +284,7 @@ pub fn run(cmd: &BenchCommand) -> anyhow::Result<()> {
         BenchCommand::Schedule(args) => crate::bench::schedule::run_command(args),
         BenchCommand::Trace(args) => run_trace_bench(args),
         BenchCommand::Guided(args) => run_guided_bench(args),
+        BenchCommand::All(args) => run_all_bench(args),
         BenchCommand::Dgi(args) => {
             let model = DisplayModel::load(&args.display)?;
             let surface = Surface::from_model(&model);
