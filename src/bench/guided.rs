@@ -9,6 +9,8 @@ use std::path::Path;
 use glam::{DVec3, Vec3};
 use serde::Serialize;
 
+use super::median;
+
 use crate::display::DisplayModel;
 use crate::frame::{FrameError, GuideConfig, GuidedRenderer};
 use crate::gpu::{Backend, GpuError};
@@ -122,19 +124,6 @@ pub enum GuidedBenchError {
     },
     #[error("plot {path}: {reason}")]
     Plot { path: String, reason: String },
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n == 0 {
-        return f64::NAN;
-    }
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
 }
 
 /// RMSE over the masked pixels (linear RGB) and the reference's mean there.

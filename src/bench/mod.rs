@@ -7,3 +7,18 @@ pub mod filter;
 pub mod guided;
 pub mod schedule;
 pub mod trace;
+
+/// The median (mean of the two middle values for an even count; NaN when empty).
+#[must_use]
+pub fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n == 0 {
+        return f64::NAN;
+    }
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}

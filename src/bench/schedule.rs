@@ -11,7 +11,6 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use anyhow::Context;
 use glam::DVec3;
 use serde::Serialize;
 use wgpu::util::DeviceExt;
@@ -362,9 +361,5 @@ pub fn run_command(args: &ScheduleBenchArgs) -> anyhow::Result<()> {
     } else {
         report.to_markdown()
     };
-    println!("{text}");
-    if let Some(path) = &args.out {
-        std::fs::write(path, &text).with_context(|| format!("writing {}", path.display()))?;
-    }
-    Ok(())
+    crate::cli::bench::print_and_save(&text, args.out.as_deref())
 }

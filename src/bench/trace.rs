@@ -4,6 +4,8 @@
 
 use serde::Serialize;
 
+use super::median;
+
 use crate::gpu::{Backend, GpuError};
 use crate::scene::Scene;
 use crate::trace::camera::{CameraError, RenderCamera};
@@ -70,19 +72,6 @@ pub enum TraceBenchError {
     },
 }
 
-fn median(v: &mut [f64]) -> f64 {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n == 0 {
-        return f64::NAN;
-    }
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
-}
-
 /// The paper's full-frame figure and our target for a scene name ("cornell…", "city…").
 fn reference(scene: &str) -> (Option<f64>, Option<f64>) {
     if scene.contains("cornell") {
@@ -120,8 +109,8 @@ pub fn run(
         let mut r = Renderer::new(backend, scene, settings)?;
         r.iterate(cfg.warmup)?;
         let timed = r.timed_iterations(cfg.frames.max(1))?;
-        let mut ms = timed.ms.clone();
-        let med = median(&mut ms);
+        let med = median(timed.ms.clone());
+        let ms_min = timed.ms.iter().copied().fold(f64::NAN, f64::min);
         let megasamples = f64::from(w) * f64::from(h) / 1e6;
         let (paper, target) = reference(name);
         rows.push(TraceBenchRow {
@@ -131,7 +120,7 @@ pub fn run(
             build_s: r.build_seconds,
             size: cfg.size,
             ms_per_frame_median: med,
-            ms_per_frame_min: ms.first().copied().unwrap_or(f64::NAN),
+            ms_per_frame_min: ms_min,
             ms_per_megasample: med / megasamples,
             rays_per_second: timed.rays_per_iteration / (med * 1e-3),
             rays_per_pixel: timed.rays_per_iteration / (megasamples * 1e6),

@@ -134,13 +134,7 @@ pub struct GuidedBenchArgs {
 fn run_guided_bench(args: &GuidedBenchArgs) -> anyhow::Result<()> {
     let backend = Backend::select(args.backend)?;
     let display = DisplayModel::load(&args.display)?;
-    let mut scenes = Vec::new();
-    for s in &args.scene {
-        scenes.push((
-            s.trim_start_matches("builtin:").to_string(),
-            crate::cli::render::load_scene(s, args.env.as_deref())?,
-        ));
-    }
+    let scenes = crate::cli::render::load_scenes(&args.scene, args.env.as_deref())?;
     let cfg = crate::bench::guided::GuidedBenchConfig {
         size: args.size,
         fovs_deg: args.fov.clone(),
@@ -165,10 +159,7 @@ fn run_guided_bench(args: &GuidedBenchArgs) -> anyhow::Result<()> {
     } else {
         crate::bench::guided::markdown(&report)
     };
-    println!("{text}");
-    if let Some(out) = &args.out {
-        std::fs::write(out, &text).with_context(|| format!("writing {}", out.display()))?;
-    }
+    print_and_save(&text, args.out.as_deref())?;
     if let Some(plot) = &args.plot {
         crate::bench::guided::plot(&report, plot)?;
     }
@@ -209,13 +200,7 @@ pub struct TraceBenchArgs {
 
 fn run_trace_bench(args: &TraceBenchArgs) -> anyhow::Result<()> {
     let backend = Backend::select(args.backend)?;
-    let mut scenes = Vec::new();
-    for s in &args.scene {
-        scenes.push((
-            s.trim_start_matches("builtin:").to_string(),
-            crate::cli::render::load_scene(s, args.env.as_deref())?,
-        ));
-    }
+    let scenes = crate::cli::render::load_scenes(&args.scene, args.env.as_deref())?;
     let cfg = crate::bench::trace::TraceBenchConfig {
         size: args.size,
         frames: args.spp.max(1),
@@ -235,10 +220,7 @@ fn run_trace_bench(args: &TraceBenchArgs) -> anyhow::Result<()> {
     } else {
         crate::bench::trace::markdown(&rows, &device)
     };
-    println!("{text}");
-    if let Some(out) = &args.out {
-        std::fs::write(out, &text).with_context(|| format!("writing {}", out.display()))?;
-    }
+    print_and_save(&text, args.out.as_deref())?;
     Ok(())
 }
 
@@ -305,12 +287,16 @@ pub fn run(cmd: &BenchCommand) -> anyhow::Result<()> {
             } else {
                 report.to_markdown()
             };
-            println!("{text}");
-            if let Some(path) = &args.out {
-                std::fs::write(path, &text)
-                    .with_context(|| format!("writing {}", path.display()))?;
-            }
-            Ok(())
+            print_and_save(&text, args.out.as_deref())
         }
     }
+}
+
+/// Prints a benchmark's text and, with `--out`, also writes it to that file.
+pub fn print_and_save(text: &str, out: Option<&std::path::Path>) -> anyhow::Result<()> {
+    println!("{text}");
+    if let Some(path) = out {
+        std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))?;
+    }
+    Ok(())
 }

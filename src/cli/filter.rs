@@ -3,8 +3,6 @@
 
 use std::path::PathBuf;
 
-use anyhow::Context;
-
 use crate::bench::filter::{self as bench, FilterBenchConfig};
 use crate::display::DisplayModel;
 use crate::filter::{Blend, FilterKind, FilterParams, FilterParamsError, synth};
@@ -165,11 +163,7 @@ pub fn run_bench(args: &FilterBenchArgs) -> anyhow::Result<()> {
     } else {
         report.to_markdown()
     };
-    println!("{text}");
-    if let Some(path) = &args.out {
-        std::fs::write(path, &text).with_context(|| format!("writing {}", path.display()))?;
-    }
-    Ok(())
+    crate::cli::bench::print_and_save(&text, args.out.as_deref())
 }
 
 #[cfg(test)]

@@ -182,6 +182,19 @@ pub fn load_scene(scene: &str, env: Option<&str>) -> anyhow::Result<Scene> {
     Ok(s)
 }
 
+/// Loads each of `scenes` with [`load_scene`], named by its argument without `builtin:`.
+pub fn load_scenes(scenes: &[String], env: Option<&str>) -> anyhow::Result<Vec<(String, Scene)>> {
+    scenes
+        .iter()
+        .map(|s| {
+            Ok((
+                s.trim_start_matches("builtin:").to_string(),
+                load_scene(s, env)?,
+            ))
+        })
+        .collect()
+}
+
 pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     if args.spp == 0 {
         anyhow::bail!("--spp must be at least 1");
