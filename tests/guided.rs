@@ -142,7 +142,7 @@ fn guided_render_converges_to_the_uniform_render() {
     for _ in 0..48 {
         render_cpu(&packed, &s, &mut uniform, None);
     }
-    let (a, b) = (pool(&guided_acc, 4), pool(&uniform, 4));
+    let (a, b) = (guided_acc.pooled(4), uniform.pooled(4));
     let check = |scale: f32| -> Result<(), String> {
         for i in 0..a.count.len() {
             let (ma, mb) = (luminance(a.mean(i)), luminance(b.mean(i)) * scale);
@@ -160,24 +160,6 @@ fn guided_render_converges_to_the_uniform_render() {
         check(1.15).is_err(),
         "a 15 % brightness error must be detected"
     );
-}
-
-fn pool(acc: &Accumulation, block: u32) -> Accumulation {
-    let (w, h) = (acc.width / block, acc.height / block);
-    let mut out = Accumulation::new(w, h);
-    for y in 0..h * block {
-        for x in 0..w * block {
-            let (i, o) = (
-                (y * acc.width + x) as usize,
-                ((y / block) * w + x / block) as usize,
-            );
-            for k in 0..4 {
-                out.sum[o][k] += acc.sum[i][k];
-            }
-            out.count[o] += acc.count[i];
-        }
-    }
-    out
 }
 
 /// `bench guided` at a tiny size on the CPU twin: its report is internally consistent — the

@@ -229,26 +229,6 @@ fn converges_to(
     Ok(())
 }
 
-/// Merges `block × block` pixels into one (sums and counts add): the pooled mean is the mean of
-/// all their samples, and its variance estimate uses all of them.
-fn pool(acc: &Accumulation, block: u32) -> Accumulation {
-    let (w, h) = (acc.width / block, acc.height / block);
-    let mut out = Accumulation::new(w, h);
-    for y in 0..h * block {
-        for x in 0..w * block {
-            let (i, o) = (
-                (y * acc.width + x) as usize,
-                ((y / block) * w + x / block) as usize,
-            );
-            for k in 0..4 {
-                out.sum[o][k] += acc.sum[i][k];
-            }
-            out.count[o] += acc.count[i];
-        }
-    }
-    out
-}
-
 fn furnace_scene(rho: f32) -> Scene {
     Scene {
         triangles: icosahedron(Vec3::ZERO, 1.0, 0),
@@ -371,11 +351,11 @@ fn glowing_room_converges_to_the_neumann_series_on_both_backends() {
     let scene = glowing_room();
     let s = settings(&scene, 24, 24, 3, 64);
     let expected = 0.25 / (1.0 - 0.5);
-    let cpu = pool(&render_on_cpu(&scene, &s, 64), 8);
+    let cpu = render_on_cpu(&scene, &s, 64).pooled(8);
     assert_converges_to(&cpu, |_| expected, "CPU glowing room");
     assert!(converges_to(&cpu, |_| expected * 0.97, "CPU glowing room").is_err());
     let ctx = GpuContext::for_tests();
-    let gpu = pool(&render_gpu(&ctx, &scene, &s, 64), 8);
+    let gpu = render_gpu(&ctx, &scene, &s, 64).pooled(8);
     assert_converges_to(&gpu, |_| expected, "GPU glowing room");
 }
 
@@ -453,7 +433,7 @@ fn twin_scene() -> Scene {
 /// mean rests on 4 × spp samples). |z| < 5 per block: two-sided p = 5.7e-7 each, under 1e-3
 /// family-wise over the blocks (Bonferroni).
 fn renders_agree(a: &Accumulation, b: &Accumulation, label: &str) -> Result<(), String> {
-    let (a, b) = (pool(a, 2), pool(b, 2));
+    let (a, b) = (a.pooled(2), b.pooled(2));
     for i in 0..a.count.len() {
         let (ma, mb) = (luminance(a.mean(i)), luminance(b.mean(i)));
         let v = a.luminance_variance_of_mean(i).unwrap() + b.luminance_variance_of_mean(i).unwrap();

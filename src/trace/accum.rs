@@ -85,6 +85,30 @@ impl Accumulation {
     pub fn mean_image(&self) -> Vec<Vec3> {
         (0..self.count.len()).map(|i| self.mean(i)).collect()
     }
+
+    /// Merges each `block × block` square of pixels into one (sums and counts add), dropping
+    /// the partial squares at the right and bottom edges. A pooled pixel's mean is the mean of
+    /// all its samples and its variance estimate uses all of them — what statistical tests need
+    /// when per-pixel sample counts are too small for a trustworthy variance.
+    #[must_use]
+    pub fn pooled(&self, block: u32) -> Self {
+        assert!(block > 0, "pooling block must be at least one pixel");
+        let (w, h) = (self.width / block, self.height / block);
+        let mut out = Self::new(w, h);
+        for y in 0..h * block {
+            for x in 0..w * block {
+                let (i, o) = (
+                    (y * self.width + x) as usize,
+                    ((y / block) * w + x / block) as usize,
+                );
+                for k in 0..4 {
+                    out.sum[o][k] += self.sum[i][k];
+                }
+                out.count[o] += self.count[i];
+            }
+        }
+        out
+    }
 }
 
 #[cfg(test)]
@@ -102,5 +126,27 @@ mod tests {
         assert!((got - 5.0 / 12.0).abs() < 1e-6, "{got}");
         assert_eq!(a.mean(0), Vec3::splat(2.5));
         assert_eq!(Accumulation::new(1, 1).luminance_variance_of_mean(0), None);
+    }
+
+    #[test]
+    fn pooling_adds_sums_and_counts_per_block_and_drops_partial_blocks() {
+        let mut a = Accumulation::new(5, 3);
+        for i in 0..15 {
+            for _ in 0..=i % 3 {
+                a.add(i, Vec3::splat(i as f32));
+            }
+        }
+        let p = a.pooled(2);
+        assert_eq!((p.width, p.height), (2, 1));
+        // Block (0, 0) holds pixels 0, 1, 5, 6; block (1, 0) pixels 2, 3, 7, 8.
+        for (o, pixels) in [(0, [0usize, 1, 5, 6]), (1, [2, 3, 7, 8])] {
+            let count: u32 = pixels.iter().map(|&i| a.count[i]).sum();
+            assert_eq!(p.count[o], count);
+            for k in 0..4 {
+                let sum: f32 = pixels.iter().map(|&i| a.sum[i][k]).sum();
+                assert_eq!(p.sum[o][k], sum);
+            }
+        }
+        assert_eq!(a.pooled(1), a);
     }
 }
