@@ -7,14 +7,21 @@ use glam::DVec2;
 use raygun::display::DisplayModel;
 use raygun::filter::FilterKind;
 use raygun::gpu::Backend;
+use raygun::interaction::CursorMark;
 use raygun::roi::dgi::Roi;
 use raygun::scene::{Environment, Scene};
+use raygun::trace::accum::Accumulation;
 use raygun::trace::camera::RenderCamera;
 use raygun::trace::cpu::TraceSettings;
 use raygun::viewer::core::{
-    OUTLINE, Overlay, RoiSource, ViewerCore, ViewerState, heat_map, roi_outline, save_picture,
+    NOISE_UNDEFINED, NoiseContrast, NoiseRegions, OUTLINE, Overlay, RoiSource, ViewerCore,
+    ViewerState, heat_map, median_finite, noise_image, noise_map, predicted_noise_ratio,
+    roi_outline, save_picture,
 };
 use raygun::viewer::timeline::Timeline;
+
+#[path = "support/xvfb_settings.rs"]
+mod xvfb;
 
 const W: u32 = 64;
 const H: u32 = 26;
@@ -181,7 +188,21 @@ fn overlays_show_the_dgi_the_counts_and_the_roi_outline() {
     // Saving writes the image, the overlays and the picture as shown.
     let dir = std::env::temp_dir().join(format!("raygun-viewer-{}", std::process::id()));
     let files = save_picture(&dir, "shot", &p, 0.0).unwrap();
-    assert_eq!(files.len(), 5);
+    assert_eq!(files.len(), 6);
+    // The noise as saved: the picture's SE, NaN where a pixel has fewer than two samples.
+    let noise = exr::prelude::read_first_flat_layer_from_file(dir.join("shot.noise.exr")).unwrap();
+    let saved: Vec<f32> = noise.layer_data.channel_data.list[0]
+        .sample_data
+        .values_as_f32()
+        .collect();
+    assert_eq!(saved.len(), p.noise.len());
+    for (i, (a, b)) in saved.iter().zip(&p.noise).enumerate() {
+        assert!(
+            a == b || (a.is_nan() && b.is_nan()),
+            "pixel {i}: {a} vs {b}"
+        );
+        assert_eq!(a.is_nan(), p.counts[i] < 2, "pixel {i}");
+    }
     let shown = image::open(dir.join("shot.view.png")).unwrap().to_rgba8();
     assert_eq!(shown.into_raw(), p.rgba);
     std::fs::remove_dir_all(&dir).ok();
@@ -314,6 +335,12 @@ fn live_dtrack_sets_the_aim_and_a_trigger_press_the_roi() {
         .canvas_px;
     assert!((roi_centre - centre).length() < 1.0, "{roi_centre}");
     assert!(matches!(state.roi(), Some(Roi::Cone(_))));
+    // The drawn cursor: live (tracked, recent) at the wall centre, on the events' clock.
+    let mark = state.cursor_mark(live.now().expect("samples arrived"));
+    match mark {
+        Some(CursorMark::Live(p)) => assert!((p - centre).length() < 1.0, "{p}"),
+        other => panic!("{other:?}"),
+    }
 }
 
 /// Tracked ROIs: the panel's FOV override replaces the stick's, and the DGI follows it; the
@@ -344,4 +371,149 @@ fn fov_override_widens_the_tracked_roi() {
         zeros.push(dgi.iter().filter(|&&d| d == 0.0).count());
     }
     assert!(zeros[0] > 0 && zeros[1] > 4 * zeros[0], "{zeros:?}");
+}
+
+/// Known samples → known standard errors of the mean luminance.
+#[test]
+fn noise_is_the_standard_error_of_the_mean_luminance() {
+    let mut acc = Accumulation::new(5, 1);
+    // Pixel 0: greys 1, 2, 3, 4 (luminance = the grey): s² = 5/3, SE = √(5/12).
+    for v in [1.0, 2.0, 3.0, 4.0] {
+        acc.add(0, glam::Vec3::splat(v));
+    }
+    // Pixel 1: one sample; pixel 2: none — no estimate (NaN).
+    acc.add(1, glam::Vec3::ONE);
+    // Pixel 3: pure red then pure green, luminances 0.2126 and 0.7152: SE = |difference| / 2.
+    acc.add(3, glam::Vec3::X);
+    acc.add(3, glam::Vec3::Y);
+    // Pixel 4: three equal samples, no spread.
+    for _ in 0..3 {
+        acc.add(4, glam::Vec3::splat(0.5));
+    }
+    let se = noise_image(&acc);
+    assert!((se[0] - (5.0f32 / 12.0).sqrt()).abs() < 1e-6, "{}", se[0]);
+    assert!(se[1].is_nan() && se[2].is_nan());
+    assert!((se[3] - (0.7152 - 0.2126) / 2.0).abs() < 1e-6, "{}", se[3]);
+    assert_eq!(se[4], 0.0);
+    // Medians skip undefined pixels.
+    assert_eq!(median_finite([3.0, f32::NAN, 1.0, 2.0]), Some(2.0));
+    assert_eq!(median_finite([4.0, 1.0]), Some(2.5));
+    assert_eq!(median_finite([f32::NAN]), None);
+    // The overlay: the largest SE white, zero black, undefined pixels dark blue.
+    let map = noise_map(&se);
+    assert_eq!(&map[0..4], &[255, 255, 255, 255]);
+    assert_eq!(&map[4..8], &NOISE_UNDEFINED);
+    assert_eq!(&map[16..20], &[0, 0, 0, 255]);
+}
+
+/// The viewer's guide at p_min = 1/16 samples the ROI 16× as often as the periphery, so its
+/// SE there is about ¼ of the periphery's. The claim the Xvfb test makes — ROI median SE ≤
+/// 2 × √p_min of the periphery's — holds for it and fails for a viewer that samples every pixel
+/// alike (p_min = 1; the same scene, ROI, regions and frame count).
+#[test]
+fn the_roi_is_less_noisy_than_the_periphery_and_a_uniform_sampler_is_not() {
+    let (model, backend) = (hornet(), Backend::Cpu);
+    // The scene `raygun view` shows by default (the Xvfb test's).
+    let scene = Scene::open("builtin:cornell-light").unwrap();
+    let (w, h) = (xvfb::SIZE[0], xvfb::SIZE[1]);
+    let base = TraceSettings {
+        width: w,
+        height: h,
+        seed: 1,
+        max_depth: raygun::trace::cpu::DEFAULT_MAX_DEPTH,
+        camera: RenderCamera::choose(&scene, None, w, h).unwrap(),
+    };
+    let asked = xvfb::P_MIN;
+    let measure = |p_min: f32| {
+        let mut state = ViewerState::new(RoiSource::Mouse, base.max_depth);
+        state.filter.kind = FilterKind::Off;
+        state.mouse_radius_px = xvfb::ROI_RADIUS;
+        state.p_min = p_min;
+        state.click(&model, DVec2::from_array(xvfb::ROI_AT), [w, h]);
+        let mut core = ViewerCore::new(&backend, &scene, &model, base, state).unwrap();
+        for _ in 0..xvfb::ITERATIONS {
+            core.step(ONE).unwrap();
+        }
+        let p = core.picture().unwrap();
+        let regions = NoiseRegions {
+            dgi: &p.dgi,
+            p_min: asked,
+        };
+        NoiseContrast::measure(&p.noise, &regions).unwrap()
+    };
+    let bound = 2.0 * predicted_noise_ratio(asked);
+    let guided = measure(asked);
+    assert!(
+        guided.roi_pixels > 50 && guided.periphery_pixels > 50,
+        "{guided:?}"
+    );
+    assert!(guided.ratio() <= bound, "guided: {guided:?}, bound {bound}");
+    let uniform = measure(1.0);
+    assert!(
+        uniform.ratio() > bound,
+        "uniform: {uniform:?}, bound {bound}"
+    );
+    // Sampled alike, the two regions are about equally noisy: the bound fails by a margin.
+    assert!(uniform.ratio() > 0.8, "uniform: {uniform:?}");
+}
+
+/// The replay's cursor at 60 frames per second: smoother than the raw aim, never drawn live where
+/// the raw aim is off the wall, and the same after a scrub as when jumped to directly.
+#[test]
+fn replay_cursor_is_smoothed_and_settles_the_same_after_a_scrub() {
+    let root = env!("CARGO_MANIFEST_DIR");
+    let timeline = Timeline::collect(&raygun::cli::tracking::ReplayArgs {
+        file: format!("{root}/tracking-replays/flystick-1-centre-sweeps.dtrack.jsonl").into(),
+        display: Some(format!("{root}/display-models/hornet.json").into()),
+        config: None,
+        device: None,
+        realtime: false,
+    })
+    .unwrap();
+    let mut s = ViewerState::new(RoiSource::Replay, 4);
+    let (mut raw, mut smooth) = (Vec::new(), Vec::new());
+    let mut live_frames = 0;
+    while s.playing {
+        s.advance(1.0 / 60.0, &timeline);
+        let mark = s.cursor_mark(s.replay_t);
+        if let Some(m) = mark {
+            assert!(m.position().is_finite());
+        }
+        match (s.aim, mark) {
+            (Some(a), Some(CursorMark::Live(p))) => {
+                raw.push(a);
+                smooth.push(p);
+                live_frames += 1;
+            }
+            (None, Some(CursorMark::Live(p))) => {
+                panic!("t = {}: drawn live at {p} while off the wall", s.replay_t)
+            }
+            _ => {
+                raw.clear();
+                smooth.clear();
+            }
+        }
+    }
+    assert!(live_frames > 600, "{live_frames} live frames of 20 s");
+    // Roughness: the mean squared second difference per frame of the last live run (the
+    // synthetic session's tracker noise). Smoothed it was 45× lower when written; 10× is
+    // asked.
+    let rough = |p: &[DVec2]| {
+        p.windows(3)
+            .map(|w| (w[2] - 2.0 * w[1] + w[0]).length_squared())
+            .sum::<f64>()
+            / p.len() as f64
+    };
+    assert!(raw.len() > 60, "{}", raw.len());
+    let (r, m) = (rough(&raw), rough(&smooth));
+    assert!(m * 10.0 < r, "roughness {r:.1} raw, {m:.1} smoothed");
+    // Scrubbed back to 5 s: the same cursor as a fresh state jumped to 5 s.
+    s.replay_t = 5.0;
+    s.advance(0.0, &timeline);
+    let mut fresh = ViewerState::new(RoiSource::Replay, 4);
+    fresh.playing = false;
+    fresh.replay_t = 5.0;
+    fresh.advance(0.0, &timeline);
+    assert_eq!(s.cursor_mark(5.0), fresh.cursor_mark(5.0));
+    assert!(s.cursor_mark(5.0).is_some());
 }

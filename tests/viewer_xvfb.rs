@@ -5,9 +5,14 @@
 use std::path::Path;
 use std::process::Command;
 
-const W: u32 = 124;
-const H: u32 = 50;
-const N: u32 = 12;
+use raygun::viewer::core::{NoiseContrast, NoiseRegions, predicted_noise_ratio};
+
+#[path = "support/xvfb_settings.rs"]
+mod xvfb;
+
+const W: u32 = xvfb::SIZE[0];
+const H: u32 = xvfb::SIZE[1];
+const N: u32 = xvfb::ITERATIONS;
 
 fn gray_exr(path: &Path) -> Vec<f32> {
     let img = exr::prelude::read_first_flat_layer_from_file(path).unwrap();
@@ -34,12 +39,10 @@ fn viewer_under_xvfb_renders_and_saves_a_screenshot() {
         .args(["view", "--backend", "cpu", "--size", &format!("{W},{H}")])
         .args([
             "--roi-at",
-            "62,25",
-            "--roi-radius",
-            "1500",
-            "--filter",
-            "off",
+            &format!("{},{}", xvfb::ROI_AT[0], xvfb::ROI_AT[1]),
         ])
+        .args(["--roi-radius", &xvfb::ROI_RADIUS.to_string()])
+        .args(["--p-min", &xvfb::P_MIN.to_string(), "--filter", "off"])
         .args(["--screenshot-after", &N.to_string(), "--save-dir"])
         .arg(&dir)
         .env("XDG_RUNTIME_DIR", std::env::temp_dir())
@@ -65,7 +68,7 @@ fn viewer_under_xvfb_renders_and_saves_a_screenshot() {
         .count();
     assert!(outline > 20, "{outline} outline pixels in the window");
     // The picture after N iterations: every ROI pixel (d = 0) has N samples, and the periphery
-    // (d = 1, p = p_min = 0 there) far fewer.
+    // (d = 1, p = p_min there) far fewer.
     let counts = gray_exr(&dir.join("screenshot.counts.exr"));
     let dgi = image::open(dir.join("screenshot.dgi.png"))
         .unwrap()
@@ -94,6 +97,40 @@ fn viewer_under_xvfb_renders_and_saves_a_screenshot() {
     assert!(
         far_mean < at_least / 2.0,
         "periphery {far_mean} vs ROI {at_least}"
+    );
+    // Measured noise: the standard error of each pixel's mean luminance (absolute: see
+    // NoiseContrast for why). The ROI is sampled every iteration and the periphery with
+    // probability p_min, so its SE should be about √p_min (¼) of the periphery's; the bound
+    // allows twice that for the regions' different content and the spread of an SE estimated
+    // from ~4 samples. A viewer sampling every pixel alike has a ratio near 1 and fails it
+    // (tests/viewer.rs: the_roi_is_less_noisy_than_the_periphery_and_a_uniform_sampler_is_not).
+    let noise = gray_exr(&dir.join("screenshot.noise.exr"));
+    for (i, se) in noise.iter().enumerate() {
+        assert_eq!(
+            se.is_nan(),
+            counts[i] < 2.0,
+            "pixel {i}: SE {se}, {} samples",
+            counts[i]
+        );
+    }
+    let d: Vec<f32> = dgi.pixels().map(|p| f32::from(p.0[0]) / 255.0).collect();
+    let regions = NoiseRegions {
+        dgi: &d,
+        p_min: xvfb::P_MIN,
+    };
+    let contrast = NoiseContrast::measure(&noise, &regions)
+        .expect("the ROI and the periphery have pixels with an SE");
+    assert!(
+        contrast.roi_pixels > 50 && contrast.periphery_pixels > 50,
+        "{contrast:?}"
+    );
+    let bound = 2.0 * predicted_noise_ratio(xvfb::P_MIN);
+    assert!(
+        contrast.ratio() <= bound,
+        "ROI noise {} vs periphery {}: ratio {} > {bound}",
+        contrast.roi,
+        contrast.periphery,
+        contrast.ratio()
     );
     // The saved image is not blank either.
     let shot = image::open(dir.join("screenshot.png")).unwrap().to_rgb8();

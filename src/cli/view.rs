@@ -8,6 +8,7 @@ use crate::cli::args::parse_size;
 use crate::cli::tracking::ReplayArgs;
 use crate::display::DisplayModel;
 use crate::gpu::{Backend, BackendChoice};
+use crate::interaction::{CursorSmoother, InteractionConfig};
 use crate::trace::camera::RenderCamera;
 use crate::trace::cpu::{DEFAULT_MAX_DEPTH, TraceSettings};
 use crate::tracking::event::DeviceId;
@@ -57,9 +58,16 @@ pub struct ViewArgs {
     /// A replay to play, pause and scrub.
     #[arg(long, value_name = "FILE")]
     pub replay: Option<PathBuf>,
-    /// Tracked device to follow (live input).
-    #[arg(long, value_name = "KIND:N", default_value = "flystick:0")]
-    pub device: DeviceId,
+    /// Tracked device to follow (live input); default: the --config's (flystick:0).
+    #[arg(long, value_name = "KIND:N")]
+    pub device: Option<DeviceId>,
+    /// Interaction mapping JSON (buttons, stick, and the cursor's smoothing under `cursor`;
+    /// see `src/interaction/config.rs`) for live input and replays.
+    #[arg(long, value_name = "FILE")]
+    pub config: Option<PathBuf>,
+    /// Lowest sampling probability outside the ROI (also a panel slider; 0: the paper's).
+    #[arg(long, value_name = "P", default_value_t = 0.0)]
+    pub p_min: f32,
     /// A mouse ROI from the start: centre in image pixels (the click position's equivalent).
     #[arg(long, value_name = "X,Y", value_parser = crate::cli::args::parse_pair)]
     pub roi_at: Option<glam::DVec2>,
@@ -92,7 +100,9 @@ impl ViewArgs {
             dtrack: None,
             osc: None,
             replay: Some(replay.to_path_buf()),
-            device: "flystick:0".parse().expect("valid device id"),
+            device: None,
+            config: None,
+            p_min: 0.0,
             roi_at: None,
             roi_radius: 600.0,
             filter: crate::cli::filter::FilterArgs {
@@ -113,6 +123,13 @@ pub fn run(args: &ViewArgs) -> anyhow::Result<()> {
         anyhow::bail!("--roi-radius must be a positive number of canvas pixels");
     }
     let model = DisplayModel::load(&args.display)?;
+    let mut interaction = match &args.config {
+        Some(p) => InteractionConfig::load(p)?,
+        None => InteractionConfig::default(),
+    };
+    if let Some(d) = args.device {
+        interaction.device = d;
+    }
     let scene = crate::cli::render::load_scene(&args.scene, args.env.as_deref())?;
     let [w, h] = args.size;
     let camera = RenderCamera::choose(&scene, args.camera.as_deref(), w, h)
@@ -130,23 +147,23 @@ pub fn run(args: &ViewArgs) -> anyhow::Result<()> {
         Some(file) => Some(Timeline::collect(&ReplayArgs {
             file: file.clone(),
             display: Some(args.display.clone()),
-            config: None,
-            device: None,
+            config: args.config.clone(),
+            device: args.device,
             realtime: false,
         })?),
         None => None,
     };
     let live = match (args.dtrack, args.osc) {
-        (Some(p), _) => Some(LiveTracking::start(
+        (Some(p), _) => Some(LiveTracking::start_with(
             p,
             Protocol::Dtrack,
-            args.device,
+            interaction.clone(),
             model.clone(),
         )?),
-        (_, Some(p)) => Some(LiveTracking::start(
+        (_, Some(p)) => Some(LiveTracking::start_with(
             p,
             Protocol::Osc,
-            args.device,
+            interaction.clone(),
             model.clone(),
         )?),
         _ => None,
@@ -161,6 +178,8 @@ pub fn run(args: &ViewArgs) -> anyhow::Result<()> {
     let mut state = ViewerState::new(source, args.max_depth);
     state.filter = args.filter.params()?;
     state.mouse_radius_px = args.roi_radius;
+    state.p_min = args.p_min;
+    state.cursor = CursorSmoother::new(interaction.cursor.clone());
     if let Some(c) = args.roi_at {
         state.click(&model, c, args.size);
     }

@@ -12,7 +12,9 @@
 //!   "buttons": { "0": "shoot", "1": "reset_fov", "2": "toggle_filter" },
 //!   "debounce_s": 0.03,
 //!   "image_size": [3840, 2160],
-//!   "mouse_ellipse_px": [400, 300]
+//!   "mouse_ellipse_px": [400, 300],
+//!   "cursor": { "smooth": true, "min_cutoff_hz": 1.0, "beta": 0.005, "d_cutoff_hz": 1.0,
+//!               "max_extrapolation_s": 0.02, "stale_after_s": 0.25 }
 //! }
 //! ```
 //!
@@ -25,6 +27,8 @@
 //!   frames, a paused sender) cannot make the FOV jump.
 //! * Edges of a button within `debounce_s` of its last accepted edge are ignored (FlySticks
 //!   bounce for a few milliseconds; 30 ms stays below a deliberate double click).
+//! * `cursor`: the drawn ray-gun cursor's smoothing (a 1€ filter; see
+//!   [`super::cursor::CursorConfig`]). It changes only what the viewer draws, never the ROI.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -88,6 +92,7 @@ pub struct InteractionConfig {
     pub debounce_s: f64,
     pub image_size: [u32; 2],
     pub mouse_ellipse_px: [f64; 2],
+    pub cursor: super::cursor::CursorConfig,
 }
 
 impl Default for InteractionConfig {
@@ -109,6 +114,7 @@ impl Default for InteractionConfig {
             debounce_s: 0.03,
             image_size: [3840, 2160],
             mouse_ellipse_px: [400.0, 300.0],
+            cursor: super::cursor::CursorConfig::default(),
         }
     }
 }
@@ -224,6 +230,9 @@ impl InteractionConfig {
         if self.image_size.contains(&0) {
             return bad("image_size", "image size must be positive".into());
         }
+        if let Err((field, reason)) = self.cursor.validate() {
+            return bad(field, reason);
+        }
         Ok(())
     }
 
@@ -272,6 +281,8 @@ mod tests {
             (r#"{"stick":{"dead_zone":1.0}}"#, "stick.dead_zone"),
             (r#"{"stick":{"signs":[0.5,1]}}"#, "stick.signs"),
             (r#"{"buttons":{"40":"shoot"}}"#, "buttons"),
+            (r#"{"cursor":{"beta":-1}}"#, "cursor.beta"),
+            (r#"{"cursor":{"stale_after_s":0}}"#, "cursor.stale_after_s"),
         ];
         for (json, field) in cases {
             let c: InteractionConfig = serde_json::from_str(json).unwrap();

@@ -13,12 +13,14 @@
 //! sequence however fast it is played.
 
 pub mod config;
+pub mod cursor;
 pub mod surface;
 
 use glam::{DVec2, DVec3};
 use serde::Serialize;
 
 pub use config::{Action, InteractionConfig};
+pub use cursor::{CursorConfig, CursorMark, CursorSmoother};
 pub use surface::{HingedWall, RaySurface, SurfaceHit};
 
 use crate::tracking::event::{DeviceKind, Pose, Tracking, TrackingEvent};

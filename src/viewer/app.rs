@@ -14,9 +14,14 @@ use super::core::{Overlay, RoiSource, ViewerCore, save_picture};
 use super::live::LiveTracking;
 use super::timeline::Timeline;
 use crate::filter::{Blend, FilterKind};
+use crate::interaction::CursorMark;
 
 /// How long one UI frame may spend rendering before it draws.
 pub const FRAME_BUDGET: Duration = Duration::from_millis(30);
+
+/// The ray-gun cursor's colours: tracked, and stale (untracked, off the wall, no data).
+pub const CURSOR_LIVE: egui::Color32 = egui::Color32::from_rgb(0, 230, 255);
+pub const CURSOR_STALE: egui::Color32 = egui::Color32::from_rgb(128, 128, 128);
 
 /// Where the screenshot callback leaves the window's pixels.
 type ShotSlot = Arc<Mutex<Option<Arc<egui::ColorImage>>>>;
@@ -120,6 +125,28 @@ impl<'a> ViewerApp<'a> {
             );
             s.fov_override_deg = fov_override.then_some(f);
         });
+        if self.timeline.is_some() || self.live.is_some() {
+            let c = &mut s.cursor.config;
+            ui.checkbox(&mut c.smooth, "smooth the cursor (1€ filter)");
+            ui.add_enabled(
+                c.smooth,
+                egui::Slider::new(&mut c.min_cutoff_hz, 0.05..=10.0)
+                    .logarithmic(true)
+                    .text("cursor cutoff at rest (Hz)"),
+            );
+            ui.add_enabled(
+                c.smooth,
+                egui::Slider::new(&mut c.beta, 0.0..=0.1)
+                    .logarithmic(true)
+                    .smallest_positive(1e-4)
+                    .text("cursor speed gain β (Hz per px/s)"),
+            );
+            ui.add_enabled(
+                c.smooth,
+                egui::Slider::new(&mut c.max_extrapolation_s, 0.0..=0.1)
+                    .text("cursor extrapolation (s)"),
+            );
+        }
         if let Some(r) = &s.tracked {
             ui.label(format!(
                 "tracked FOV {:.1}°×{:.1}°, filter {}",
@@ -165,6 +192,7 @@ impl<'a> ViewerApp<'a> {
             ui.radio_value(&mut s.overlay, Overlay::Image, "image");
             ui.radio_value(&mut s.overlay, Overlay::Dgi, "DGI");
             ui.radio_value(&mut s.overlay, Overlay::Counts, "samples");
+            ui.radio_value(&mut s.overlay, Overlay::Noise, "noise");
         });
         ui.checkbox(&mut s.roi_outline, "ROI outline");
         ui.checkbox(&mut s.wall_view, "wall view (bezels)");
@@ -195,6 +223,11 @@ impl<'a> ViewerApp<'a> {
                 "ROI: {} samples, {:.1} per pixel",
                 st.roi_samples,
                 st.roi_samples as f64 / st.roi_pixels as f64
+            ));
+        }
+        if let (Some(roi), Some(far)) = (st.roi_noise, st.periphery_noise) {
+            ui.label(format!(
+                "noise (median SE of luminance): ROI {roi:.2e}, periphery {far:.2e}"
             ));
         }
         ui.label(self.core.backend_name());
@@ -314,6 +347,16 @@ impl eframe::App for ViewerApp<'_> {
         }
         let model = self.core.model;
         let size = picture.size;
+        // The cursor at the display's frame time on the events' clock.
+        let cursor = match self.core.state.source {
+            RoiSource::Mouse => None,
+            RoiSource::Replay => self.core.state.cursor_mark(self.core.state.replay_t),
+            RoiSource::Live => self
+                .live
+                .as_ref()
+                .and_then(LiveTracking::now)
+                .and_then(|t| self.core.state.cursor_mark(t)),
+        };
         egui::CentralPanel::default_margins().show(ui, |ui| {
             let Some(tex) = &self.texture else { return };
             let avail = ui.available_size();
@@ -359,11 +402,12 @@ impl eframe::App for ViewerApp<'_> {
                 );
                 painter.circle_stroke(c, 6.0, stroke);
             };
-            // The ray gun's aim (tracked sources) in cyan.
-            if self.core.state.source != RoiSource::Mouse
-                && let Some(a) = self.core.state.aim
-            {
-                cross(to_screen(a), egui::Color32::from_rgb(0, 230, 255));
+            // The ray gun's aim (tracked sources): cyan while tracked, grey where it was last
+            // seen while untracked, off the wall or silent.
+            match cursor {
+                Some(CursorMark::Live(a)) => cross(to_screen(a), CURSOR_LIVE),
+                Some(CursorMark::Stale(a)) => cross(to_screen(a), CURSOR_STALE),
+                None => {}
             }
         });
         ui.ctx().request_repaint();

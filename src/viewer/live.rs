@@ -4,20 +4,28 @@
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
+use std::time::Instant;
 
 use glam::DVec2;
 
 use super::core::ViewerState;
 use crate::display::DisplayModel;
-use crate::interaction::RaySurface;
+use crate::interaction::{Interaction, InteractionConfig, RaySurface};
 use crate::tracking::event::{DeviceId, Tracking};
 use crate::tracking::ingest::{Pipeline, Protocol};
 use crate::tracking::udp::{ListenerConfig, Live, UdpSource, run_live};
 
+/// Aim samples of the followed device: (event time, canvas point or `None` while untracked or
+/// aiming off the wall).
+type AimQueue = Arc<Mutex<Vec<(f64, Option<DVec2>)>>>;
+
 /// A running listener; stops and joins its thread when dropped.
 pub struct LiveTracking {
     live: Arc<Live>,
-    aim: Arc<Mutex<Option<DVec2>>>,
+    aim: AimQueue,
+    /// The newest sample's event time and when the window took it: the events' clock now is
+    /// that time plus the time since.
+    clock: Option<(f64, Instant)>,
     stop: Arc<AtomicBool>,
     thread: Option<JoinHandle<std::io::Result<()>>>,
     version: u64,
@@ -25,19 +33,35 @@ pub struct LiveTracking {
 }
 
 impl LiveTracking {
-    /// Listens on loopback `port` for `protocol`, following `device`.
+    /// Listens on loopback `port` for `protocol`, following `device` with the default mapping.
     pub fn start(
         port: u16,
         protocol: Protocol,
         device: DeviceId,
         model: DisplayModel,
     ) -> anyhow::Result<Self> {
+        let config = InteractionConfig {
+            device,
+            ..InteractionConfig::default()
+        };
+        Self::start_with(port, protocol, config, model)
+    }
+
+    /// Listens on loopback `port` for `protocol` with the mapping `config` (its device).
+    pub fn start_with(
+        port: u16,
+        protocol: Protocol,
+        config: InteractionConfig,
+        model: DisplayModel,
+    ) -> anyhow::Result<Self> {
         let mut source = UdpSource::bind(ListenerConfig::loopback(port))?;
         let port = source.local_addr()?.port();
         let live = Arc::new(Live::default());
-        let aim = Arc::new(Mutex::new(None));
+        let aim: AimQueue = Arc::new(Mutex::new(Vec::new()));
         let stop = Arc::new(AtomicBool::new(false));
+        let device = config.device;
         let mut pipeline = Pipeline::quiet_live(device);
+        pipeline.interaction = Interaction::new(config);
         let (pointing, _, _) = pipeline.interaction.config().axes();
         let (l, a, s) = (Arc::clone(&live), Arc::clone(&aim), Arc::clone(&stop));
         let thread = std::thread::Builder::new()
@@ -60,7 +84,7 @@ impl LiveTracking {
                                 None => continue,
                             };
                             if let Ok(mut g) = a.lock() {
-                                *g = new;
+                                g.push((e.t, new));
                             }
                         }
                     },
@@ -69,6 +93,7 @@ impl LiveTracking {
         Ok(Self {
             live,
             aim,
+            clock: None,
             stop,
             thread: Some(thread),
             version: 0,
@@ -76,14 +101,32 @@ impl LiveTracking {
         })
     }
 
-    /// Copies the latest ROI (when it changed) and aim into `state`.
+    /// Copies the latest ROI (when it changed) and aim into `state`, and feeds the aim
+    /// samples that arrived since the last call to its cursor.
     pub fn update(&mut self, state: &mut ViewerState) {
         let snap = self.live.snapshot();
         if snap.version != self.version {
             self.version = snap.version;
             state.tracked = snap.roi;
         }
-        state.aim = self.aim.lock().map(|g| *g).unwrap_or(None);
+        let samples = self
+            .aim
+            .lock()
+            .map(|mut g| std::mem::take(&mut *g))
+            .unwrap_or_default();
+        for &(t, aim) in &samples {
+            state.cursor.observe(t, aim);
+        }
+        if let Some(&(t, aim)) = samples.last() {
+            state.aim = aim;
+            self.clock = Some((t, Instant::now()));
+        }
+    }
+
+    /// The events' clock now (for drawing the cursor); `None` before the first sample.
+    #[must_use]
+    pub fn now(&self) -> Option<f64> {
+        self.clock.map(|(t, at)| t + at.elapsed().as_secs_f64())
     }
 }
 

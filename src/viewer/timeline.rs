@@ -109,6 +109,14 @@ impl Timeline {
         i.checked_sub(1).map(|i| &self.changes[i].1)
     }
 
+    /// The aim samples with `t0 < t ≤ t1`, in time order.
+    #[must_use]
+    pub fn aim_after(&self, t0: f64, t1: f64) -> &[(f64, Option<DVec2>)] {
+        let a = self.aim.partition_point(|a| a.0 <= t0);
+        let b = self.aim.partition_point(|a| a.0 <= t1).max(a);
+        &self.aim[a..b]
+    }
+
     /// Where the device points at time `t`.
     #[must_use]
     pub fn aim_at(&self, t: f64) -> Option<DVec2> {
