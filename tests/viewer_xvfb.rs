@@ -1,5 +1,5 @@
 //! Smoke test of the real window: `raygun view` under Xvfb (eframe's wgpu on lavapipe) renders
-//! several iterations, saves the picture and a screenshot of the whole window, and exits. Needs
+//! several iterations on its own GPU backend (lavapipe too: the whole guided GPU frame path), saves the picture and a screenshot of the whole window, and exits. Needs
 //! `xvfb-run` (installed by `.ci/run`); it fails, never skips, without it.
 
 use std::path::Path;
@@ -36,7 +36,7 @@ fn viewer_under_xvfb_renders_and_saves_a_screenshot() {
     let o = Command::new("xvfb-run")
         .args(["-a", "-s", "-screen 0 1280x720x24"])
         .arg(env!("CARGO_BIN_EXE_raygun"))
-        .args(["view", "--backend", "cpu", "--size", &format!("{W},{H}")])
+        .args(["view", "--backend", "gpu", "--size", &format!("{W},{H}")])
         .args([
             "--roi-at",
             &format!("{},{}", xvfb::ROI_AT[0], xvfb::ROI_AT[1]),

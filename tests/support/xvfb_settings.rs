@@ -1,7 +1,7 @@
 //! The viewer smoke test's settings (tests/viewer_xvfb.rs), shared with the ViewerCore test that
 //! shows its noise claim fails for a uniform sampler (tests/viewer.rs).
 
-/// Image size: small, for lavapipe and the CPU twins in CI.
+/// Image size: small, for lavapipe in CI (the test renders with `--backend gpu`).
 pub const SIZE: [u32; 2] = [124, 50];
 /// The mouse ROI: centre (image pixels) and radius (canvas pixels; with the default falloff the
 /// DGI reaches 1, the periphery, inside the Cornell box).
