@@ -1149,7 +1149,10 @@ pub fn plot_dgi_metrics(r: &DgiBenchReport, path: &Path) -> Result<(), AllBenchE
     for (area, label, pick) in panels {
         let ymax = r.rows.iter().map(pick).fold(0.0, f64::max) * 1.15 + 1e-3;
         let mut chart = ChartBuilder::on(area)
-            .caption(format!("DGI metrics: time vs {label}"), ("sans-serif", 20))
+            .caption(
+                format!("DGI metrics: time vs {label}; filled GPU, hollow CPU"),
+                ("sans-serif", 18),
+            )
             .margin(12)
             .x_label_area_size(40)
             .y_label_area_size(60)
@@ -1194,7 +1197,7 @@ pub fn plot_dgi_metrics(r: &DgiBenchReport, path: &Path) -> Result<(), AllBenchE
         }
         chart
             .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
+            .position(SeriesLabelPosition::UpperMiddle)
             .background_style(WHITE.mix(0.8))
             .border_style(BLACK)
             .draw()
