@@ -1,8 +1,10 @@
 //! `raygun bench all`: every benchmark in one run (issue 8) — DGI, full-frame tracing, the
 //! paper's guided benchmark and the filter — plus convergence curves: RMSE against a converged
 //! reference inside and outside the ROI versus accumulated frame time, guided vs full frame,
-//! unfiltered vs the fast filter. Writes `report.md`, `report.json` (the same figures),
-//! `fig5.png` and `convergence.png`.
+//! unfiltered vs the fast filter; the DGI metrics' time against their error and the
+//! closest-point solver on the hard-case set; per-stage times per iteration; and the paper's
+//! table (DESIGN.md §9) and the issue's targets beside ours. Writes `report.md`, `report.json`
+//! (the same figures), `fig5.png`, `dgi_metrics.png` and `convergence.png`.
 
 use std::path::Path;
 
@@ -12,6 +14,8 @@ use serde::Serialize;
 use crate::bench::dgi::{self, DgiBenchConfig, DgiBenchReport};
 use crate::bench::filter::{self, FilterBenchConfig, FilterBenchReport};
 use crate::bench::guided::{self, GuidedBenchConfig, GuidedBenchReport};
+use crate::bench::solver::{self, SolverReport};
+use crate::bench::stages::{self, StageRow};
 use crate::bench::trace::{self, TraceBenchConfig, TraceBenchRow};
 use crate::display::DisplayModel;
 use crate::filter::{FilterKind, FilterParams};
@@ -45,6 +49,13 @@ pub struct AllConfig {
     pub dgi_gpu_reps: u32,
     pub dgi_cpu_reps: u32,
     pub filter_reps: u32,
+    /// Timed passes of the closest-point solvers over the hard-case set.
+    pub solver_reps: u32,
+    /// Iterations of the per-stage measurement (per FOV).
+    pub stage_iterations: u32,
+    /// Also time a full frame of `builtin:city` (the paper's second scene) when the report's
+    /// scene is not it.
+    pub city: bool,
     /// Fast filter settings of the filtered curves and the filter benchmark's error table.
     pub filter: FilterParams,
     pub seed: u32,
@@ -74,6 +85,9 @@ impl AllConfig {
                 dgi_gpu_reps: 5,
                 dgi_cpu_reps: 1,
                 filter_reps: 3,
+                solver_reps: 3,
+                stage_iterations: 16,
+                city: true,
                 filter,
                 seed: 1,
             }
@@ -89,6 +103,9 @@ impl AllConfig {
                 dgi_gpu_reps: 50,
                 dgi_cpu_reps: 3,
                 filter_reps: 20,
+                solver_reps: 20,
+                stage_iterations: 100,
+                city: true,
                 filter,
                 seed: 1,
             }
@@ -96,15 +113,95 @@ impl AllConfig {
     }
 }
 
-/// Who ran it where.
+/// Who ran it where, and how to run it again.
 #[derive(Clone, Debug, Serialize)]
 pub struct Header {
+    /// The command line, shell-quoted.
+    pub command: String,
+    /// The backend in words (adapter and API, or the CPU twins and their threads).
     pub device: String,
+    /// The GPU adapter, when the backend is a GPU.
+    pub adapter: Option<String>,
+    /// Processor model and the threads the CPU work ran on.
+    pub cpu: String,
     pub commit: String,
+    /// Whether the working tree differed from the commit (`git status --porcelain`).
+    pub dirty: bool,
+    /// "release" or "debug" (debug builds are several times slower on the CPU).
+    pub profile: String,
     /// UTC, YYYY-MM-DD.
     pub date: String,
     pub scene: String,
     pub display: String,
+}
+
+/// `args` as one shell command line (single quotes where a word needs them).
+#[must_use]
+pub fn shell_join(args: impl IntoIterator<Item = String>) -> String {
+    args.into_iter()
+        .map(|a| {
+            let plain = !a.is_empty()
+                && a.chars()
+                    .all(|c| c.is_ascii_alphanumeric() || "-_./,:=@+".contains(c));
+            if plain {
+                a
+            } else {
+                format!("'{}'", a.replace('\'', r"'\''"))
+            }
+        })
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// The processor model (from `/proc/cpuinfo` where there is one) and rayon's thread count.
+#[must_use]
+pub fn cpu_description() -> String {
+    let model = std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|t| {
+            t.lines()
+                .find(|l| l.starts_with("model name"))
+                .and_then(|l| l.split(':').nth(1))
+                .map(|m| m.trim().to_string())
+        })
+        .unwrap_or_else(|| std::env::consts::ARCH.to_string());
+    format!("{model}, {} threads", rayon::current_num_threads())
+}
+
+fn git_dirty() -> bool {
+    std::process::Command::new("git")
+        .args(["status", "--porcelain", "--untracked-files=no"])
+        .output()
+        .ok()
+        .filter(|o| o.status.success())
+        .is_some_and(|o| !o.stdout.is_empty())
+}
+
+impl Header {
+    /// The header of a run on `backend` now, from this process's command line.
+    #[must_use]
+    pub fn now(backend: &Backend, scene: &str, display: &str) -> Self {
+        Self {
+            command: shell_join(std::env::args()),
+            device: backend.describe(),
+            adapter: match backend {
+                Backend::Gpu(ctx) => Some(ctx.describe()),
+                Backend::Cpu => None,
+            },
+            cpu: cpu_description(),
+            commit: commit(),
+            dirty: git_dirty(),
+            profile: if cfg!(debug_assertions) {
+                "debug"
+            } else {
+                "release"
+            }
+            .into(),
+            date: utc_date(),
+            scene: scene.to_string(),
+            display: display.to_string(),
+        }
+    }
 }
 
 /// One point of a convergence curve.
@@ -165,6 +262,54 @@ pub struct AllReport {
     pub guided: GuidedBenchReport,
     pub filter: FilterBenchReport,
     pub convergence: Vec<Convergence>,
+    pub solver: SolverReport,
+    pub stages: Vec<StageRow>,
+    /// DESIGN.md §9's table, row for row, with ours beside it.
+    pub paper: Vec<PaperRow>,
+    pub targets: Vec<TargetRow>,
+}
+
+/// The paper's image size, at which its figures were measured.
+pub const PAPER_SIZE: [u32; 2] = [3840, 2160];
+
+/// One row of the paper's table (DESIGN.md §9) and ours. Times are ms; a range is `[low, high]`
+/// (equal bounds for a single figure). "Per megapixel" divides by the image's megapixels: for a
+/// full frame at one sample per pixel that is the paper's ms per megasample, and it is the
+/// figure to compare where our run is not at 3840×2160 (nothing is scaled).
+#[derive(Clone, Debug, Serialize)]
+pub struct PaperRow {
+    pub measure: String,
+    pub paper_ms: [f64; 2],
+    pub paper_ms_per_megapixel: [f64; 2],
+    pub paper_speedup: Option<f64>,
+    pub ours_ms: Option<[f64; 2]>,
+    pub ours_ms_per_megapixel: Option<[f64; 2]>,
+    pub ours_speedup: Option<f64>,
+    pub ours_size: [u32; 2],
+    pub ours_device: String,
+    /// Where ours comes from, or why it is missing.
+    pub note: String,
+}
+
+/// Whether a target was met.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TargetStatus {
+    Met,
+    Missed,
+    NotMeasured,
+}
+
+/// One of the issue's targets.
+#[derive(Clone, Debug, Serialize)]
+pub struct TargetRow {
+    pub target: String,
+    /// Our figure on this run's device and size (None: not run).
+    pub measured: Option<f64>,
+    pub unit: String,
+    pub status: TargetStatus,
+    /// What the figure is, and why the status is what it is.
+    pub note: String,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -177,6 +322,10 @@ pub enum AllBenchError {
     Guided(#[from] guided::GuidedBenchError),
     #[error("filter benchmark: {0}")]
     Filter(#[from] filter::FilterBenchError),
+    #[error("closest-point solver benchmark: {0}")]
+    Solver(#[from] solver::SolverBenchError),
+    #[error("scene '{scene}': {reason}")]
+    Scene { scene: String, reason: String },
     #[error("convergence curves: {0}")]
     Frame(#[from] crate::frame::FrameError),
     #[error("convergence curves: {0}")]
@@ -437,8 +586,39 @@ pub fn convergence(
     Ok(out)
 }
 
-/// Runs every benchmark on `scene` (named `name`) and the convergence curves at the first and
-/// last of `cfg.fovs_deg`.
+/// The FOVs of the filter, convergence and per-stage sections: the first and last of the list.
+fn end_fovs(cfg: &AllConfig) -> Vec<f64> {
+    match (cfg.fovs_deg.first(), cfg.fovs_deg.last()) {
+        (Some(&a), Some(&b)) if a != b => vec![a, b],
+        (Some(&a), _) => vec![a],
+        _ => Vec::new(),
+    }
+}
+
+/// Whether `name` is the paper's city scene (the full-frame table's second row).
+fn is_city(name: &str) -> bool {
+    name.contains("city")
+}
+
+/// How many times [`run`] calls its `progress` (for a progress bar's length).
+#[must_use]
+pub fn progress_steps(cfg: &AllConfig, name: &str, gpu: bool) -> u64 {
+    let fovs = cfg.fovs_deg.len() as u64;
+    let ends = end_fovs(cfg).len() as u64;
+    let scenes = 1 + u64::from(cfg.city && !is_city(name));
+    (1 + 3 * fovs) // DGI
+        + (1 + scenes) // trace
+        + (1 + 2 + fovs) // guided
+        + (1 + 4 * ends) // filter (one k_max: exact and fast)
+        + (1 + 2 * ends) // convergence
+        + (2 + u64::from(gpu)) // solver
+        + ends // stages
+}
+
+/// Runs every benchmark on `scene` (named `name`): DGI, full-frame tracing (plus `builtin:city`
+/// when `cfg.city`), the guided benchmark, the filter, the convergence curves and per-stage times
+/// at the first and last of `cfg.fovs_deg`, and the closest-point solver; then lays the paper's
+/// table and the issue's targets beside them.
 pub fn run(
     backend: &Backend,
     display: &DisplayModel,
@@ -448,6 +628,7 @@ pub fn run(
     cfg: &AllConfig,
     mut progress: impl FnMut(&str),
 ) -> Result<AllReport, AllBenchError> {
+    let header = Header::now(backend, name, display_name);
     let surface = Surface::from_model(display);
     progress("DGI");
     let dgi = dgi::run(
@@ -466,9 +647,17 @@ pub fn run(
     )?;
     progress("trace");
     let scenes = vec![(name.to_string(), scene.clone())];
+    let mut trace_scenes = scenes.clone();
+    if cfg.city && !is_city(name) {
+        let city = Scene::open("builtin:city").map_err(|e| AllBenchError::Scene {
+            scene: "builtin:city".into(),
+            reason: e.to_string(),
+        })?;
+        trace_scenes.push(("city".to_string(), city));
+    }
     let trace = trace::run(
         backend,
-        &scenes,
+        &trace_scenes,
         &TraceBenchConfig {
             size: cfg.size,
             frames: cfg.trace_frames.max(1),
@@ -477,6 +666,7 @@ pub fn run(
         },
         &mut progress,
     )?;
+    drop(trace_scenes);
     progress("guided");
     let guided = guided::run(
         backend,
@@ -494,11 +684,7 @@ pub fn run(
         &mut progress,
     )?;
     progress("filter");
-    let fovs = match (cfg.fovs_deg.first(), cfg.fovs_deg.last()) {
-        (Some(&a), Some(&b)) if a != b => vec![a, b],
-        (Some(&a), _) => vec![a],
-        _ => Vec::new(),
-    };
+    let fovs = end_fovs(cfg);
     let fcfg = FilterBenchConfig {
         size: cfg.size,
         fovs_deg: fovs.clone(),
@@ -531,21 +717,238 @@ pub fn run(
         },
     )?;
     let convergence = convergence(backend, display, name, scene, &fovs, cfg, &mut progress)?;
-    Ok(AllReport {
-        header: Header {
-            device: backend.describe(),
-            commit: commit(),
-            date: utc_date(),
-            scene: name.to_string(),
-            display: display_name.to_string(),
-        },
+    let solver = solver::run(backend, cfg.solver_reps, &mut progress)?;
+    let mut stage_rows = Vec::new();
+    for &fov in &fovs {
+        progress(&format!("per-stage times: {fov}°"));
+        stage_rows.push(stages::measure(
+            backend,
+            display,
+            name,
+            scene,
+            cfg.size,
+            fov,
+            cfg.stage_iterations,
+            &cfg.filter,
+            0.0,
+            cfg.seed.wrapping_add(21),
+        )?);
+    }
+    let mut report = AllReport {
+        header,
         config: cfg.clone(),
         dgi,
         trace,
         guided,
         filter,
         convergence,
-    })
+        solver,
+        stages: stage_rows,
+        paper: Vec::new(),
+        targets: Vec::new(),
+    };
+    report.paper = paper_rows(&report);
+    report.targets = target_rows(&report, datacenter_gpu(backend));
+    Ok(report)
+}
+
+/// Adapter names of datacenter GPUs (the targets' class of device).
+const DATACENTER_GPUS: [&str; 12] = [
+    "H100", "H200", "H800", "GH200", "A100", "A800", "B100", "B200", "GB200", "L40", "MI300",
+    "MI250",
+];
+
+/// The adapter's name when the backend is a datacenter GPU.
+#[must_use]
+pub fn datacenter_gpu(backend: &Backend) -> Option<String> {
+    match backend {
+        Backend::Gpu(ctx)
+            if ctx.info.device_type != wgpu::DeviceType::Cpu
+                && DATACENTER_GPUS.iter().any(|g| ctx.info.name.contains(g)) =>
+        {
+            Some(ctx.info.name.clone())
+        }
+        _ => None,
+    }
+}
+
+fn megapixels(size: [u32; 2]) -> f64 {
+    f64::from(size[0]) * f64::from(size[1]) / 1e6
+}
+
+fn same(v: f64) -> [f64; 2] {
+    [v, v]
+}
+
+/// DESIGN.md §9's rows with ours beside them.
+#[must_use]
+pub fn paper_rows(r: &AllReport) -> Vec<PaperRow> {
+    let size = r.config.size;
+    let mp = megapixels(size);
+    let paper_mp = megapixels(PAPER_SIZE);
+    let size_note = if size == PAPER_SIZE {
+        String::new()
+    } else {
+        format!(
+            "; ours at {}×{}, not 3840×2160: compare per megapixel (nothing scaled)",
+            size[0], size[1]
+        )
+    };
+    let mut rows = Vec::new();
+    // DGI: the exact metric on the GPU when there is one, else on the CPU twin; min–max over FOVs.
+    let backend = if r.dgi.adapter.is_some() {
+        "gpu"
+    } else {
+        "cpu"
+    };
+    let dgi_ms: Vec<f64> = r
+        .dgi
+        .rows
+        .iter()
+        .filter(|d| d.metric == crate::roi::dgi::Metric::Exact && d.backend == backend)
+        .map(|d| d.ms_median)
+        .collect();
+    let dgi_range = (!dgi_ms.is_empty()).then(|| {
+        [
+            dgi_ms.iter().copied().fold(f64::INFINITY, f64::min),
+            dgi_ms.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+        ]
+    });
+    rows.push(PaperRow {
+        measure: "DGI generation, 3840×2160".into(),
+        paper_ms: [2.0, 3.0],
+        paper_ms_per_megapixel: [2.0 / paper_mp, 3.0 / paper_mp],
+        paper_speedup: None,
+        ours_ms: dgi_range,
+        ours_ms_per_megapixel: dgi_range.map(|[a, b]| [a / mp, b / mp]),
+        ours_speedup: None,
+        ours_size: size,
+        ours_device: match (&r.dgi.adapter, backend) {
+            (Some(a), "gpu") => a.clone(),
+            _ => format!("CPU twin (f64), {}", r.dgi.cpu),
+        },
+        note: format!(
+            "exact metric, median per FOV, min–max over FOVs {:?}°{size_note}",
+            r.config.fovs_deg
+        ),
+    });
+    for (label, key, paper) in [
+        ("full frame, 1 spp, Cornell box", "cornell", 460.0),
+        ("full frame, 1 spp, city (~350k triangles)", "city", 750.0),
+    ] {
+        let row = r.trace.iter().find(|t| t.scene.contains(key));
+        rows.push(PaperRow {
+            measure: label.into(),
+            paper_ms: same(paper),
+            paper_ms_per_megapixel: same(paper / paper_mp),
+            paper_speedup: None,
+            ours_ms: row.map(|t| same(t.ms_per_frame_median)),
+            ours_ms_per_megapixel: row.map(|t| same(t.ms_per_megasample)),
+            ours_speedup: None,
+            ours_size: size,
+            ours_device: r.header.device.clone(),
+            note: match row {
+                Some(t) => format!(
+                    "scene '{}' ({} triangles), median of {} frames{size_note}",
+                    t.scene, t.triangles, r.config.trace_frames
+                ),
+                None => format!("not run: no '{key}' scene in this report"),
+            },
+        });
+    }
+    for (fov, paper, speedup) in [(10.0, 12.29, 37.43), (60.0, 188.0, 2.44)] {
+        let row = r
+            .guided
+            .rows
+            .iter()
+            .find(|g| g.fov_deg == fov && g.scene == r.header.scene);
+        rows.push(PaperRow {
+            measure: format!("{fov}° FOV iteration, Cornell box"),
+            paper_ms: same(paper),
+            paper_ms_per_megapixel: same(paper / paper_mp),
+            paper_speedup: Some(speedup),
+            ours_ms: row.map(|g| same(g.ms_per_iteration)),
+            ours_ms_per_megapixel: row.map(|g| same(g.ms_per_iteration / mp)),
+            ours_speedup: row.map(|g| g.speedup),
+            ours_size: size,
+            ours_device: r.guided.device.clone(),
+            note: match row {
+                Some(g) => format!(
+                    "scene '{}', schedule + trace, median of {} iterations, {:.2} % of the pixels per iteration; speed-up over our full frame on the same device{size_note}",
+                    g.scene,
+                    r.config.iterations,
+                    100.0 * g.share_sampled
+                ),
+                None => format!("not run: {fov}° is not among the FOVs {:?}", r.config.fovs_deg),
+            },
+        });
+    }
+    rows
+}
+
+/// The issue's targets, judged only on a datacenter GPU at 3840×2160.
+#[must_use]
+pub fn target_rows(r: &AllReport, datacenter: Option<String>) -> Vec<TargetRow> {
+    let size = r.config.size;
+    let why_not = match (&datacenter, size == PAPER_SIZE) {
+        (Some(_), true) => None,
+        (None, _) => Some(format!(
+            "device is not a datacenter GPU ({})",
+            r.header.device
+        )),
+        (Some(_), false) => Some(format!("run at {}×{}, not 3840×2160", size[0], size[1])),
+    };
+    let judge = |value: Option<f64>, ok: &dyn Fn(f64) -> bool| match (&why_not, value) {
+        (None, Some(v)) if v.is_finite() => {
+            if ok(v) {
+                TargetStatus::Met
+            } else {
+                TargetStatus::Missed
+            }
+        }
+        _ => TargetStatus::NotMeasured,
+    };
+    let cv10 = r.convergence.iter().find(|c| c.fov_deg == 10.0);
+    let (speedup, how) = match cv10 {
+        Some(c) => match (c.speedup_to_target, c.extrapolated_speedup_to_target) {
+            (Some(x), _) => (Some(x), "both curves reached the target".to_string()),
+            (None, Some(x)) => (
+                Some(x),
+                "extrapolated (RMSE ∝ 1/√t) where a curve did not reach the target".to_string(),
+            ),
+            (None, None) => (None, "no time to target".to_string()),
+        },
+        None => (None, "10° not among the FOVs".to_string()),
+    };
+    let st10 = r.stages.iter().find(|s| s.fov_deg == 10.0);
+    let iteration = st10.map(|s| s.target_iteration_ms);
+    let reason = |s: &TargetStatus| match (s, &why_not) {
+        (TargetStatus::NotMeasured, Some(w)) => format!("; not judged: {w}"),
+        _ => String::new(),
+    };
+    let s1 = judge(speedup, &|v| v >= 30.0);
+    let s2 = judge(iteration, &|v| v <= 8.0);
+    vec![
+        TargetRow {
+            target: "guided reaches the ROI target RMSE (1 % of the reference mean) ≥ 30× sooner than full frame at 10° FOV".into(),
+            measured: speedup,
+            unit: "×".into(),
+            status: s1,
+            note: format!("full-frame ÷ guided time to target, {how}{}", reason(&s1)),
+        },
+        TargetRow {
+            target: "3840×2160 guided iteration at 10° FOV incl. DGI-if-changed, scheduling, tracing and the fast filter ≤ 8 ms (≥ 120 iterations/s)".into(),
+            measured: iteration,
+            unit: "ms".into(),
+            status: s2,
+            note: format!(
+                "the per-stage table's target iteration (the iteration with an ROI change) at {}×{}{}",
+                size[0],
+                size[1],
+                reason(&s2)
+            ),
+        },
+    ]
 }
 
 fn fmt_ttt(t: &TimeToTarget) -> String {
@@ -568,10 +971,19 @@ pub fn markdown(r: &AllReport) -> String {
     let h = &r.header;
     let c = &r.config;
     let mut s = format!(
-        "# raygun benchmark report\n\n- Device: {}\n- Commit: {}\n- Date: {}\n- Scene: {}; display: {}\n- Mode: {}\n- Settings: {}×{}, FOVs {:?}°, {} guided iterations, reference {} spp, curve point every {} iterations, {} trace frames, DGI reps {} GPU / {} CPU, filter reps {}, filter {:?} k_max {:.2} c {}, seed {}\n\n",
-        h.device,
+        "# raygun benchmark report\n\n- Command: `{}`\n- Commit: {}{}\n- Build: {}\n- Date: {} (UTC)\n- Device: {}\n- Adapter: {}\n- CPU: {}\n- Scene: {}; display: {}\n- Mode: {}\n- Settings: {}×{}, FOVs {:?}°, {} guided iterations, reference {} spp, curve point every {} iterations, {} trace frames{}, DGI reps {} GPU / {} CPU, filter reps {}, filter {:?} k_max {:.2} c {}, solver reps {}, per-stage iterations {}, seed {}\n\n",
+        h.command,
         h.commit,
+        if h.dirty {
+            " (working tree modified)"
+        } else {
+            ""
+        },
+        h.profile,
         h.date,
+        h.device,
+        h.adapter.as_deref().unwrap_or("none (CPU twins)"),
+        h.cpu,
         h.scene,
         h.display,
         if c.quick { "quick" } else { "full" },
@@ -582,16 +994,27 @@ pub fn markdown(r: &AllReport) -> String {
         c.reference_spp,
         c.sample_every,
         c.trace_frames,
+        if c.city { " (plus builtin:city)" } else { "" },
         c.dgi_gpu_reps,
         c.dgi_cpu_reps,
         c.filter_reps,
         c.filter.kind,
         c.filter.k_max,
         c.filter.c,
+        c.solver_reps,
+        c.stage_iterations,
         c.seed,
     );
+    s += &paper_markdown(&r.paper);
+    s += "\n## Targets (issue 8)\n\n";
+    s += &targets_markdown(&r.targets);
+    s += "\n";
     s += "## DGI\n\n";
     s += &r.dgi.to_markdown();
+    s += "\n\n## DGI metrics: time vs error\n\n![DGI metrics](dgi_metrics.png)\n\n";
+    s += &dgi_metrics_markdown(&r.dgi);
+    s += "\n## Closest-point solver\n\n";
+    s += &solver::markdown(&r.solver);
     s += "\n\n## Full-frame path tracing\n\n";
     s += &trace::markdown(&r.trace, &h.device);
     s += "\n\n## Guided vs full frame (the paper's benchmark)\n\n![Figure 5](fig5.png)\n\n";
@@ -629,7 +1052,159 @@ pub fn markdown(r: &AllReport) -> String {
             f.rmse_outside_filtered,
         );
     }
+    s += "\n## Per-stage times per iteration\n\n";
+    s += &stages::markdown(&r.stages, &h.device);
     s
+}
+
+fn fmt_range(v: [f64; 2], digits: usize) -> String {
+    if v[0] == v[1] {
+        format!("{:.*}", digits, v[0])
+    } else {
+        format!("{:.*}–{:.*}", digits, v[0], digits, v[1])
+    }
+}
+
+/// The paper's table with ours beside it.
+#[must_use]
+pub fn paper_markdown(rows: &[PaperRow]) -> String {
+    let mut s = String::from(
+        "## The paper's table beside ours\n\nThe paper (DESIGN.md §9): HORNET, viewer 1 m in front of the wall centre, 3840×2160, GTX 980 with OptiX. Per megapixel = ms ÷ the image's megapixels (for a 1-spp full frame the paper's ms per megasample); where our size is not 3840×2160 it is the comparable figure, and nothing is scaled. Speed-up = full frame ÷ guided iteration on the same device.\n\n| measure | paper ms | paper ms/megapixel | paper speed-up | ours ms | ours ms/megapixel | ours speed-up | our size | our device | note |\n|---|---|---|---|---|---|---|---|---|---|\n",
+    );
+    for r in rows {
+        let sp = |v: Option<f64>| v.map_or("–".into(), |v| format!("{v:.2}×"));
+        s += &format!(
+            "| {} | {} | {} | {} | {} | {} | {} | {}×{} | {} | {} |\n",
+            r.measure,
+            fmt_range(r.paper_ms, 2),
+            fmt_range(r.paper_ms_per_megapixel, 3),
+            sp(r.paper_speedup),
+            r.ours_ms.map_or("not run".into(), |v| fmt_range(v, 3)),
+            r.ours_ms_per_megapixel
+                .map_or("–".into(), |v| fmt_range(v, 3)),
+            sp(r.ours_speedup),
+            r.ours_size[0],
+            r.ours_size[1],
+            r.ours_device,
+            r.note,
+        );
+    }
+    s
+}
+
+/// The targets table.
+#[must_use]
+pub fn targets_markdown(rows: &[TargetRow]) -> String {
+    let mut s = String::from("| target | measured | status | note |\n|---|---|---|---|\n");
+    for t in rows {
+        s += &format!(
+            "| {} | {} | {} | {} |\n",
+            t.target,
+            t.measured
+                .map_or("not run".into(), |v| format!("{v:.3} {}", t.unit)),
+            match t.status {
+                TargetStatus::Met => "**met**",
+                TargetStatus::Missed => "**missed**",
+                TargetStatus::NotMeasured => "not measured",
+            },
+            t.note
+        );
+    }
+    s
+}
+
+/// The DGI metrics' time against their error (the plot's points as a table).
+#[must_use]
+pub fn dgi_metrics_markdown(r: &DgiBenchReport) -> String {
+    let mut s = String::from(
+        "Each cheaper metric's raw distance against the exact metric's (f64, canvas px) over the pixels the falloff reaches; time = median DGI time on each backend.\n\n| FOV | metric | backend | ms (median) | mean error px | max error px |\n|---|---|---|---|---|---|\n",
+    );
+    for d in &r.rows {
+        s += &format!(
+            "| {}° | {:?} | {} | {:.3} | {:.4} | {:.3} |\n",
+            d.fov_deg, d.metric, d.backend, d.ms_median, d.err_mean_px, d.err_max_px
+        );
+    }
+    s
+}
+
+/// DGI metrics as a PNG: time (x) against mean and max error (y, canvas px), one point per
+/// metric, FOV and backend (filled: GPU, hollow: CPU), labelled with the FOV.
+pub fn plot_dgi_metrics(r: &DgiBenchReport, path: &Path) -> Result<(), AllBenchError> {
+    use crate::roi::dgi::Metric;
+    use plotters::prelude::*;
+    let err = |e: String| AllBenchError::Output {
+        path: path.display().to_string(),
+        reason: e,
+    };
+    let root = BitMapBackend::new(path, (1200, 500)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| err(e.to_string()))?;
+    let (left, right) = root.split_horizontally(600);
+    let xmax = r.rows.iter().map(|d| d.ms_median).fold(0.0, f64::max) * 1.15 + 1e-9;
+    type Pick = fn(&crate::bench::dgi::DgiBenchRow) -> f64;
+    let panels: [(&DrawingArea<BitMapBackend, _>, &str, Pick); 2] = [
+        (&left, "mean error (canvas px)", |d| d.err_mean_px),
+        (&right, "max error (canvas px)", |d| d.err_max_px),
+    ];
+    for (area, label, pick) in panels {
+        let ymax = r.rows.iter().map(pick).fold(0.0, f64::max) * 1.15 + 1e-3;
+        let mut chart = ChartBuilder::on(area)
+            .caption(
+                format!("DGI metrics: time vs {label}; filled GPU, hollow CPU"),
+                ("sans-serif", 18),
+            )
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(60)
+            .build_cartesian_2d(0.0..xmax, 0.0..ymax)
+            .map_err(|e| err(e.to_string()))?;
+        chart
+            .configure_mesh()
+            .x_desc("DGI time (ms, median)")
+            .y_desc(label)
+            .draw()
+            .map_err(|e| err(e.to_string()))?;
+        for (metric, colour) in [
+            (Metric::Exact, BLACK),
+            (Metric::Ellipse, BLUE),
+            (Metric::Angular, RED),
+        ] {
+            let pts: Vec<_> = r.rows.iter().filter(|d| d.metric == metric).collect();
+            if pts.is_empty() {
+                continue;
+            }
+            chart
+                .draw_series(pts.iter().map(|d| {
+                    let style = if d.backend == "gpu" {
+                        colour.filled()
+                    } else {
+                        colour.stroke_width(2)
+                    };
+                    Circle::new((d.ms_median, pick(d)), 5, style)
+                }))
+                .map_err(|e| err(e.to_string()))?
+                .label(format!("{metric:?}"))
+                .legend(move |(x, y)| Circle::new((x + 10, y), 5, colour.filled()));
+            chart
+                .draw_series(pts.iter().map(|d| {
+                    Text::new(
+                        format!("{}°", d.fov_deg),
+                        (d.ms_median, pick(d)),
+                        ("sans-serif", 12).into_font().color(&colour),
+                    )
+                }))
+                .map_err(|e| err(e.to_string()))?;
+        }
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperMiddle)
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .draw()
+            .map_err(|e| err(e.to_string()))?;
+    }
+    root.present().map_err(|e| err(e.to_string()))?;
+    Ok(())
 }
 
 fn equal_time_point(cv: &Convergence) -> Option<&CurvePoint> {
@@ -781,7 +1356,8 @@ pub fn plot_convergence(r: &AllReport, path: &Path) -> Result<(), AllBenchError>
     Ok(())
 }
 
-/// Writes `report.md`, `report.json`, `fig5.png` and `convergence.png` into `dir` (created).
+/// Writes `report.md`, `report.json`, `fig5.png`, `dgi_metrics.png` and `convergence.png` into
+/// `dir` (created).
 pub fn write(r: &AllReport, dir: &Path) -> Result<(), AllBenchError> {
     let io = |p: &Path| {
         let path = p.display().to_string();
@@ -797,5 +1373,6 @@ pub fn write(r: &AllReport, dir: &Path) -> Result<(), AllBenchError> {
     })?;
     std::fs::write(&json, text).map_err(io(&json))?;
     guided::plot(&r.guided, &dir.join("fig5.png"))?;
+    plot_dgi_metrics(&r.dgi, &dir.join("dgi_metrics.png"))?;
     plot_convergence(r, &dir.join("convergence.png"))
 }

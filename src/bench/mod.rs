@@ -6,6 +6,8 @@ pub mod dgi;
 pub mod filter;
 pub mod guided;
 pub mod schedule;
+pub mod solver;
+pub mod stages;
 pub mod trace;
 
 /// The median (mean of the two middle values for an even count; NaN when empty).

@@ -353,9 +353,11 @@ pub fn run_command(args: &ScheduleBenchArgs) -> anyhow::Result<()> {
         cpu_reps: args.cpu_reps.max(1),
         ..ScheduleBenchConfig::default()
     };
-    let report = run(&surface, model.name(), &backend, &config, |what| {
-        eprintln!("raygun bench schedule: {what}");
-    })?;
+    let gpu = u64::from(matches!(backend, Backend::Gpu(_)));
+    let steps = config.fovs_deg.len() as u64 * (1 + config.orders.len() as u64 * (1 + gpu));
+    let (bar, progress) = crate::cli::bench::bench_progress(args.json, steps);
+    let report = run(&surface, model.name(), &backend, &config, progress)?;
+    bar.finish_and_clear();
     let text = if args.json {
         serde_json::to_string_pretty(&report)?
     } else {

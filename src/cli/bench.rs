@@ -23,7 +23,9 @@ pub enum BenchCommand {
     /// speed-up, equal-time RMSE in the ROI) and the Figure 5 plot.
     Guided(GuidedBenchArgs),
     /// Every benchmark plus convergence curves (RMSE vs time, guided vs full frame, filtered
-    /// and not) into DIR: report.md, report.json, fig5.png, convergence.png.
+    /// and not), DGI metrics and the closest-point solver (time vs error), per-stage times, and
+    /// the paper's table and the targets beside ours, into DIR: report.md, report.json,
+    /// fig5.png, dgi_metrics.png, convergence.png.
     All(AllBenchArgs),
 }
 
@@ -58,6 +60,8 @@ fn run_all_bench(args: &AllBenchArgs) -> anyhow::Result<()> {
     let scene = crate::cli::render::load_scene(&args.scene, None)?;
     let name = args.scene.trim_start_matches("builtin:");
     let cfg = crate::bench::all::AllConfig::new(args.quick, args.size);
+    let steps = crate::bench::all::progress_steps(&cfg, name, matches!(backend, Backend::Gpu(_)));
+    let (bar, progress) = bench_progress(false, steps);
     let report = crate::bench::all::run(
         &backend,
         &display,
@@ -65,14 +69,31 @@ fn run_all_bench(args: &AllBenchArgs) -> anyhow::Result<()> {
         name,
         &scene,
         &cfg,
-        |what| eprintln!("raygun bench all: {what}"),
+        progress,
     )?;
+    bar.finish_and_clear();
     crate::bench::all::write(&report, &args.out)?;
     eprintln!(
-        "raygun bench all: wrote report.md, report.json, fig5.png, convergence.png to {}",
+        "raygun bench all: wrote report.md, report.json, fig5.png, dgi_metrics.png, convergence.png to {}",
         args.out.display()
     );
     Ok(())
+}
+
+/// A progress bar over a benchmark's `steps` — hidden with `--json`, and (by indicatif) when
+/// standard error is not a terminal — and the callback that advances it, showing each step's
+/// name. A step beyond the count lengthens the bar rather than overrunning it.
+pub fn bench_progress(json: bool, steps: u64) -> (indicatif::ProgressBar, impl FnMut(&str)) {
+    let bar = crate::cli::render::progress(json, steps, "steps");
+    let b = bar.clone();
+    let advance = move |what: &str| {
+        if b.position() >= b.length().unwrap_or(0) {
+            b.inc_length(1);
+        }
+        b.set_message(what.to_string());
+        b.inc(1);
+    };
+    (bar, advance)
 }
 
 #[derive(Clone, Debug, clap::Args)]
@@ -144,15 +165,11 @@ fn run_guided_bench(args: &GuidedBenchArgs) -> anyhow::Result<()> {
         orders: args.order.clone(),
         ..Default::default()
     };
-    let bar = crate::cli::render::progress(
-        false,
+    let (bar, progress) = bench_progress(
+        args.json,
         (scenes.len() * (2 + cfg.fovs_deg.len() * cfg.orders.len())) as u64,
-        "steps",
     );
-    let report = crate::bench::guided::run(&backend, &display, &scenes, &cfg, |what| {
-        bar.set_message(what.to_string());
-        bar.inc(1);
-    })?;
+    let report = crate::bench::guided::run(&backend, &display, &scenes, &cfg, progress)?;
     bar.finish_and_clear();
     let text = if args.json {
         serde_json::to_string_pretty(&report)?
@@ -207,9 +224,9 @@ fn run_trace_bench(args: &TraceBenchArgs) -> anyhow::Result<()> {
         max_depth: args.max_depth.max(1),
         ..Default::default()
     };
-    let rows = crate::bench::trace::run(&backend, &scenes, &cfg, |name| {
-        eprintln!("raygun bench trace: {name}")
-    })?;
+    let (bar, progress) = bench_progress(args.json, scenes.len() as u64);
+    let rows = crate::bench::trace::run(&backend, &scenes, &cfg, progress)?;
+    bar.finish_and_clear();
     let device = backend.describe();
     let text = if args.json {
         serde_json::to_string_pretty(&serde_json::json!({
@@ -279,9 +296,9 @@ pub fn run(cmd: &BenchCommand) -> anyhow::Result<()> {
                 falloff: Falloff::default(),
                 ..DgiBenchConfig::default()
             };
-            let report = dgi::run(&surface, model.name(), &backend, &config, |what| {
-                eprintln!("raygun bench dgi: {what}");
-            })?;
+            let (bar, progress) = bench_progress(args.json, 3 * config.fovs_deg.len() as u64);
+            let report = dgi::run(&surface, model.name(), &backend, &config, progress)?;
+            bar.finish_and_clear();
             let text = if args.json {
                 serde_json::to_string_pretty(&report)?
             } else {

@@ -1,0 +1,291 @@
+//! Per-stage times of a guided iteration (issue 8): DGI (on the iteration after an ROI change,
+//! and spread over the run), mask + compaction, tracing, the fast filter and display, each
+//! measured inside the iteration's own wall-clock interval so that their sum can be checked
+//! against it.
+//!
+//! *Display* is what the viewer does to show the filtered image (`ViewerCore::picture`):
+//! exposure scaling, the sRGB transfer function and 8-bit RGBA packing on the CPU — the bytes it
+//! hands to egui as a texture ([`display_rgba`] is that code; a test checks it against the
+//! viewer's picture). Filter and display run every iteration here, as if each iteration were
+//! shown (the viewer shows one picture per UI frame). On the GPU the renderer's buffers are its
+//! own, so the filter runs on a copy of the read-back accumulation, like the viewer's; its time
+//! is the kernels' (timestamps) and the copies count as *other*, the remainder of the wall
+//! clock.
+
+use std::time::Instant;
+
+use glam::{DVec3, Vec3};
+use serde::Serialize;
+
+use crate::display::DisplayModel;
+use crate::filter::FilterParams;
+use crate::frame::{GuideConfig, GuidedRenderer};
+use crate::gpu::{Backend, PassTimer};
+use crate::roi::cone::Cone;
+use crate::roi::dgi::Roi;
+use crate::scene::Scene;
+use crate::trace::camera::RenderCamera;
+use crate::trace::cpu::TraceSettings;
+
+use super::all::AllBenchError;
+
+/// The viewer's picture of a linear image: `exposure` stops, sRGB, 8 bits, opaque RGBA
+/// (`ViewerCore::picture` with the image overlay).
+#[must_use]
+pub fn display_rgba(image: &[Vec3], exposure: f32) -> Vec<u8> {
+    let scale = exposure.exp2();
+    image
+        .iter()
+        .flat_map(|p| {
+            let s = |v: f32| crate::output::unit_to_u8(crate::output::linear_to_srgb(v * scale));
+            [s(p.x), s(p.y), s(p.z), 255]
+        })
+        .collect()
+}
+
+/// One FOV's stage times (ms). Stage columns are means over the iterations, so that they add
+/// up: the mean of the per-iteration sums is the sum of the means.
+#[derive(Clone, Debug, Serialize)]
+pub struct StageRow {
+    pub fov_deg: f64,
+    pub size: [u32; 2],
+    pub iterations: u32,
+    /// Mean share of the pixels traced per iteration.
+    pub share_sampled: f64,
+    /// The DGI of the iteration after the ROI change (None: the adapter has no timestamps).
+    pub dgi_ms_per_change: Option<f64>,
+    /// That DGI spread over the `iterations` (one change per run).
+    pub dgi_ms_amortised: f64,
+    /// Mask + compaction (+ indirect arguments).
+    pub schedule_ms: f64,
+    pub trace_ms: f64,
+    pub filter_ms: f64,
+    pub display_ms: f64,
+    /// DGI amortised + schedule + trace + filter + display.
+    pub stage_sum_ms: f64,
+    /// Wall clock of whole iterations (ROI change, frame, read-backs, filter, display).
+    pub iteration_ms_mean: f64,
+    pub iteration_ms_median: f64,
+    pub iteration_ms_min: f64,
+    /// iteration_ms_mean − stage_sum_ms: read-backs, uploads, waits, bookkeeping.
+    pub other_ms: f64,
+    /// The issue's target iteration on the iteration with an ROI change: DGI + schedule +
+    /// trace + fast filter (display excluded).
+    pub target_iteration_ms: f64,
+    /// Whether the GPU stages came from timestamps (else wall clock).
+    pub gpu_timestamps: bool,
+}
+
+/// Measures `iterations` guided iterations of `scene` in the paper's setup (viewer at
+/// (0, 0, 1) m pointing at the wall centre, square cone of `fov` degrees) with the ROI set on
+/// the first, filtering with `filter` and converting for display with `exposure` every one.
+#[allow(clippy::too_many_arguments)]
+pub fn measure(
+    backend: &Backend,
+    display: &DisplayModel,
+    name: &str,
+    scene: &Scene,
+    size: [u32; 2],
+    fov: f64,
+    iterations: u32,
+    filter: &FilterParams,
+    exposure: f32,
+    seed: u32,
+) -> Result<StageRow, AllBenchError> {
+    let [w, h] = size;
+    let camera =
+        RenderCamera::choose(scene, None, w, h).map_err(|source| AllBenchError::Camera {
+            scene: name.to_string(),
+            source,
+        })?;
+    let settings = TraceSettings {
+        width: w,
+        height: h,
+        seed,
+        max_depth: crate::trace::cpu::DEFAULT_MAX_DEPTH,
+        camera,
+    };
+    let roi = Roi::Cone(Cone::from_pose(
+        DVec3::new(0.0, 0.0, 1.0),
+        DVec3::NEG_Z,
+        DVec3::Y,
+        fov,
+        fov,
+    )?);
+    let mut g = GuidedRenderer::new(backend, scene, settings, display, GuideConfig::default())?;
+    let gpu = match backend {
+        Backend::Gpu(ctx) => {
+            let kernels = crate::filter::gpu::FilterKernels::new(ctx);
+            let timer = PassTimer::new(ctx, 1);
+            Some((ctx.as_ref(), kernels, timer))
+        }
+        Backend::Cpu => None,
+    };
+    let n = iterations.max(1);
+    let (mut dgi_change, mut stamps) = (None, matches!(backend, Backend::Cpu));
+    let (mut sched, mut trace, mut filt, mut disp) = (0f64, 0f64, 0f64, 0f64);
+    let (mut walls, mut pixels) = (Vec::new(), 0u64);
+    for i in 0..n {
+        let t0 = Instant::now();
+        if i == 0 {
+            // The CPU twin computes the DGI here (its time comes back in the frame's stats);
+            // the GPU records it into the frame.
+            g.set_roi(Some(roi))?;
+        }
+        let s = g.run_frame(true)?;
+        let acc = g.accumulation()?;
+        let dgi = g.dgi()?;
+        let (image, ms_filter) = match &gpu {
+            Some((ctx, kernels, timer)) => {
+                let up = crate::filter::gpu::UploadedInputs::new(ctx, &acc, &dgi)?;
+                let run = kernels.prepare(ctx, filter, &up.inputs()).map_err(|e| {
+                    AllBenchError::Output {
+                        path: "per-stage filter".into(),
+                        reason: e.to_string(),
+                    }
+                })?;
+                let t = Instant::now();
+                let mut enc = ctx.device.create_command_encoder(&Default::default());
+                run.record(&mut enc, timer.as_ref().map(|t| (t, 0)));
+                if let Some(timer) = timer {
+                    timer.resolve(&mut enc);
+                }
+                ctx.queue.submit([enc.finish()]);
+                ctx.wait()?;
+                let wall = t.elapsed().as_secs_f64() * 1e3;
+                let ms = match timer {
+                    Some(timer) => timer.read_ms(ctx)?[0],
+                    None => wall,
+                };
+                let out: Vec<[f32; 4]> = ctx.read_buffer(&run.output)?;
+                (
+                    out.iter().map(|p| Vec3::new(p[0], p[1], p[2])).collect(),
+                    ms,
+                )
+            }
+            None => {
+                let t = Instant::now();
+                let img = crate::filter::filter_cpu(filter, &acc, &dgi)?;
+                let ms = t.elapsed().as_secs_f64() * 1e3;
+                (img.iter().map(|p| p.as_vec3()).collect::<Vec<_>>(), ms)
+            }
+        };
+        let t = Instant::now();
+        let rgba = display_rgba(&image, exposure);
+        std::hint::black_box(&rgba);
+        let ms_display = t.elapsed().as_secs_f64() * 1e3;
+        walls.push(t0.elapsed().as_secs_f64() * 1e3);
+        if s.dgi_recomputed {
+            dgi_change = s.ms_dgi;
+        }
+        if let Some((ctx, ..)) = &gpu {
+            stamps = ctx.timestamps;
+        }
+        pixels += u64::from(s.pixels.unwrap_or(0));
+        sched += s.ms_schedule.unwrap_or(0.0);
+        trace += s.ms_trace.unwrap_or(0.0);
+        filt += ms_filter;
+        disp += ms_display;
+    }
+    let k = f64::from(n);
+    let (sched, trace, filt, disp) = (sched / k, trace / k, filt / k, disp / k);
+    let dgi_amortised = dgi_change.unwrap_or(0.0) / k;
+    let stage_sum = dgi_amortised + sched + trace + filt + disp;
+    let mean = walls.iter().sum::<f64>() / k;
+    Ok(StageRow {
+        fov_deg: fov,
+        size,
+        iterations: n,
+        share_sampled: pixels as f64 / k / (f64::from(w) * f64::from(h)),
+        dgi_ms_per_change: dgi_change,
+        dgi_ms_amortised: dgi_amortised,
+        schedule_ms: sched,
+        trace_ms: trace,
+        filter_ms: filt,
+        display_ms: disp,
+        stage_sum_ms: stage_sum,
+        iteration_ms_median: super::median(walls.clone()),
+        iteration_ms_min: walls.iter().copied().fold(f64::INFINITY, f64::min),
+        iteration_ms_mean: mean,
+        other_ms: mean - stage_sum,
+        target_iteration_ms: dgi_change.unwrap_or(0.0) + sched + trace + filt,
+        gpu_timestamps: stamps,
+    })
+}
+
+/// The stage table as Markdown.
+#[must_use]
+pub fn markdown(rows: &[StageRow], device: &str) -> String {
+    let mut s = format!(
+        "Device: {device}. Means over the iterations (ms), so the stages add up; the wall clock of whole iterations is given as mean, median and min. *Display* = the viewer's conversion of the filtered image to the 8-bit sRGB RGBA texture it uploads (CPU); *other* = the rest of the wall clock (read-backs of the accumulation and DGI, the filter's upload and read-back on the GPU, waits). Filter and display run every iteration here. The *target iteration* is the issue's: DGI on a change + mask/compaction + trace + fast filter.\n\n| FOV | size | iterations | share sampled | DGI per change | DGI amortised | mask+compaction | trace | filter | display | sum of stages | other | iteration (mean / median / min) | target iteration |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n"
+    );
+    for r in rows {
+        s += &format!(
+            "| {}° | {}×{} | {} | {:.2} % | {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} / {:.3} / {:.3} | {:.3} |\n",
+            r.fov_deg,
+            r.size[0],
+            r.size[1],
+            r.iterations,
+            100.0 * r.share_sampled,
+            r.dgi_ms_per_change
+                .map_or("– (no timestamps)".into(), |v| format!("{v:.3}")),
+            r.dgi_ms_amortised,
+            r.schedule_ms,
+            r.trace_ms,
+            r.filter_ms,
+            r.display_ms,
+            r.stage_sum_ms,
+            r.other_ms,
+            r.iteration_ms_mean,
+            r.iteration_ms_median,
+            r.iteration_ms_min,
+            r.target_iteration_ms,
+        );
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::viewer::core::{RoiSource, ViewerCore, ViewerState};
+
+    /// The display stage converts exactly as the viewer's picture does.
+    #[test]
+    fn display_rgba_is_the_viewers_picture() {
+        let model = DisplayModel::load(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/display-models/hornet.json"
+        ))
+        .unwrap();
+        let scene = Scene::open("builtin:cornell").unwrap();
+        let (w, h) = (32, 18);
+        let base = TraceSettings {
+            width: w,
+            height: h,
+            seed: 5,
+            max_depth: 3,
+            camera: RenderCamera::choose(&scene, None, w, h).unwrap(),
+        };
+        let backend = Backend::Cpu;
+        let mut state = ViewerState::new(RoiSource::Mouse, 3);
+        state.roi_outline = false;
+        state.exposure = 0.75;
+        state.click(&model, glam::DVec2::new(16.0, 9.0), [w, h]);
+        let mut core = ViewerCore::new(&backend, &scene, &model, base, state).unwrap();
+        for _ in 0..3 {
+            core.step(std::time::Duration::ZERO).unwrap();
+        }
+        let pic = core.picture().unwrap();
+        assert!(
+            pic.rgba.iter().any(|&v| v != 0 && v != 255),
+            "a flat picture proves nothing"
+        );
+        assert_eq!(display_rgba(&pic.image, 0.75), pic.rgba);
+        assert_ne!(
+            display_rgba(&pic.image, 0.0),
+            pic.rgba,
+            "exposure is applied"
+        );
+    }
+}
