@@ -129,7 +129,9 @@ pub fn run_bench(args: &FilterBenchArgs) -> anyhow::Result<()> {
         error_params,
         ..FilterBenchConfig::default()
     };
-    let progress = |what: &str| eprintln!("raygun bench filter: {what}");
+    // Per FOV: the input, exact and fast per k_max, the error table.
+    let steps = config.fovs_deg.len() * (2 + 2 * config.k_maxes.len());
+    let (bar, progress) = crate::cli::bench::bench_progress(args.json, steps as u64);
     let report = match &args.scene {
         None => bench::run(&surface, model.name(), &backend, &config, progress)?,
         Some(scene_arg) => {
@@ -158,6 +160,7 @@ pub fn run_bench(args: &FilterBenchArgs) -> anyhow::Result<()> {
             )?
         }
     };
+    bar.finish_and_clear();
     let text = if args.json {
         serde_json::to_string_pretty(&report)?
     } else {
