@@ -471,17 +471,32 @@ impl FilterBenchReport {
              brightness err outside | brightness err band |\n",
         );
         s.push_str("|---|---|---|---|---|---|---|---|\n");
+        // A region with no pixels at this image size (a tiny ROI) has no error to report.
+        let rmse = |v: f64| {
+            if v.is_nan() {
+                "– (no pixels)".to_string()
+            } else {
+                format!("{v:.4}")
+            }
+        };
+        let pct = |v: f64| {
+            if v.is_nan() {
+                "– (no pixels)".to_string()
+            } else {
+                format!("{:+.2} %", 100.0 * v)
+            }
+        };
         for r in &self.errors {
             s.push_str(&format!(
-                "| {}° | {} | {:.4} | {:.4} | {:.4} | {:+.2} % | {:+.2} % | {:+.2} % |\n",
+                "| {}° | {} | {} | {} | {} | {} | {} | {} |\n",
                 r.fov_deg,
                 r.variant,
-                r.rmse_roi,
-                r.rmse_outside,
-                r.rmse_band,
-                100.0 * r.brightness_err_roi,
-                100.0 * r.brightness_err_outside,
-                100.0 * r.brightness_err_band
+                rmse(r.rmse_roi),
+                rmse(r.rmse_outside),
+                rmse(r.rmse_band),
+                pct(r.brightness_err_roi),
+                pct(r.brightness_err_outside),
+                pct(r.brightness_err_band)
             ));
         }
         s
