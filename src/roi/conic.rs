@@ -404,6 +404,34 @@ impl Piece {
         self.closest(c).0
     }
 
+    /// [`Self::distance`] with the ellipse solver warm-started from `root`, a nearby query's
+    /// secular root ([`ellipse::closest_point_on_ellipse_hinted`]; NaN for none), which is
+    /// replaced by this query's (NaN where there is none). Other kinds ignore it.
+    #[must_use]
+    pub fn distance_hinted(&self, c: DVec2, root: &mut f64) -> f64 {
+        let ConicKind::Ellipse { a, b } = self.conic.kind else {
+            return self.distance(c);
+        };
+        let l = self.conic.to_local(c);
+        if self.conic.contains_local(l) {
+            if self.rect.contains(c) {
+                return 0.0;
+            }
+        } else {
+            let (cp, w) = ellipse::closest_point_on_ellipse_hinted(a, b, l, *root);
+            *root = w;
+            if self.rect.contains(self.conic.to_canvas(cp.point)) {
+                return self
+                    .edges
+                    .iter()
+                    .fold(cp.distance, |d, e| d.min(e.closest(c).0));
+            }
+        }
+        self.edges
+            .iter()
+            .fold(f64::INFINITY, |d, e| d.min(e.closest(c).0))
+    }
+
     /// Exact canvas distance from `c` to this piece and the nearest point of the piece.
     #[must_use]
     pub fn closest(&self, c: DVec2) -> (f64, DVec2) {

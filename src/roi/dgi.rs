@@ -468,6 +468,43 @@ struct BlockPruner<'a> {
     /// Candidate pieces of the current block as (distance from the block centre, index), nearest
     /// first.
     near: Vec<(f64, usize)>,
+    /// Per candidate, the ellipse solver's last roots along the current row (warm starts).
+    warm: Vec<Warm>,
+}
+
+/// The last two secular roots of one piece along a row: the next pixel's root is predicted by
+/// linear extrapolation from two consecutive pixels, else taken from the last one (the row above
+/// or a pixel further left: any hint is safe, a close one saves evaluations).
+#[derive(Clone, Copy)]
+struct Warm {
+    last: f64,
+    before: f64,
+    /// Column of `last`, `usize::MAX` when not on this row.
+    at: usize,
+    consecutive: bool,
+}
+
+impl Warm {
+    const NONE: Self = Self {
+        last: f64::NAN,
+        before: f64::NAN,
+        at: usize::MAX,
+        consecutive: false,
+    };
+
+    fn hint(&self, i: usize) -> f64 {
+        if self.consecutive && self.at.wrapping_add(1) == i {
+            2.0 * self.last - self.before
+        } else {
+            self.last
+        }
+    }
+
+    fn record(&mut self, i: usize, root: f64) {
+        self.consecutive =
+            self.at.wrapping_add(1) == i && root.is_finite() && self.last.is_finite();
+        (self.before, self.last, self.at) = (self.last, root, i);
+    }
 }
 
 impl<'a> BlockPruner<'a> {
@@ -478,6 +515,7 @@ impl<'a> BlockPruner<'a> {
             cap,
             slack: 1e-9 * (1.0 + if mag.is_finite() { mag } else { 0.0 }),
             near: Vec::with_capacity(pieces.len()),
+            warm: Vec::with_capacity(pieces.len()),
         }
     }
 
@@ -530,12 +568,17 @@ impl<'a> BlockPruner<'a> {
         }) {
             return fill(0.0);
         }
+        self.warm.clear();
+        self.warm.resize(self.near.len(), Warm::NONE);
         for (j, &y) in ys.iter().enumerate() {
+            for w in &mut self.warm {
+                w.at = usize::MAX;
+            }
             for (i, &x) in xs.iter().enumerate() {
                 let c = DVec2::new(x, y);
                 let offset = (c - centre).length() * (1.0 + 1e-12) + self.slack;
                 let mut best = self.cap;
-                for &(dc, k) in &self.near {
+                for (&(dc, k), warm) in self.near.iter().zip(&mut self.warm) {
                     if dc - offset >= best {
                         break; // sorted by dc: every later piece is as far
                     }
@@ -543,7 +586,10 @@ impl<'a> BlockPruner<'a> {
                     if p.bounds.distance_to(c) >= best {
                         continue;
                     }
-                    best = best.min(p.distance(c));
+                    let mut root = warm.hint(i);
+                    let d = p.distance_hinted(c, &mut root);
+                    warm.record(i, root);
+                    best = best.min(d);
                     if best == 0.0 {
                         break;
                     }
