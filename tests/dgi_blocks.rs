@@ -100,7 +100,7 @@ const SIZE: [u32; 2] = [150, 85];
 
 #[test]
 fn block_size_leaves_partial_blocks_in_these_tests() {
-    assert!(SIZE[0] as usize % BLOCK != 0 && SIZE[1] as usize % BLOCK != 0);
+    assert!(!(SIZE[0] as usize).is_multiple_of(BLOCK) && !(SIZE[1] as usize).is_multiple_of(BLOCK));
 }
 
 #[test]
