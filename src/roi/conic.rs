@@ -389,18 +389,7 @@ impl Piece {
                 .closest_local(l)
                 .is_some_and(|(_, q)| rect.contains(conic.to_canvas(q)))
         };
-        let bounds = match conic.kind {
-            ConicKind::Ellipse { a, b } => {
-                // Axis-aligned box of the rotated ellipse, clipped to the rectangle.
-                let (u, v) = (conic.axis_u, conic.axis_v());
-                let half = DVec2::new((a * u.x).hypot(b * v.x), (a * u.y).hypot(b * v.y));
-                Rect {
-                    min: (conic.origin - half).max(rect.min),
-                    max: (conic.origin + half).min(rect.max),
-                }
-            }
-            _ => rect,
-        };
+        let bounds = tight_bounds(&rect, &conic, &edges);
         inside_somewhere.then_some(Self {
             rect,
             conic,
@@ -413,6 +402,34 @@ impl Piece {
     #[must_use]
     pub fn distance(&self, c: DVec2) -> f64 {
         self.closest(c).0
+    }
+
+    /// [`Self::distance`] with the ellipse solver warm-started from `root`, a nearby query's
+    /// secular root ([`ellipse::closest_point_on_ellipse_hinted`]; NaN for none), which is
+    /// replaced by this query's (NaN where there is none). Other kinds ignore it.
+    #[must_use]
+    pub fn distance_hinted(&self, c: DVec2, root: &mut f64) -> f64 {
+        let ConicKind::Ellipse { a, b } = self.conic.kind else {
+            return self.distance(c);
+        };
+        let l = self.conic.to_local(c);
+        if self.conic.contains_local(l) {
+            if self.rect.contains(c) {
+                return 0.0;
+            }
+        } else {
+            let (cp, w) = ellipse::closest_point_on_ellipse_hinted(a, b, l, *root);
+            *root = w;
+            if self.rect.contains(self.conic.to_canvas(cp.point)) {
+                return self
+                    .edges
+                    .iter()
+                    .fold(cp.distance, |d, e| d.min(e.closest(c).0));
+            }
+        }
+        self.edges
+            .iter()
+            .fold(f64::INFINITY, |d, e| d.min(e.closest(c).0))
     }
 
     /// Exact canvas distance from `c` to this piece and the nearest point of the piece.
@@ -435,6 +452,79 @@ impl Piece {
             }
         }
         best
+    }
+}
+
+/// Relative padding of [`tight_bounds`] (times the rectangle's diagonal): covers the rounding of
+/// the extreme points (a few ulps of the canvas coordinates) and the GPU's f32 copy of the box
+/// (relative to the rectangle's centre: ~1e-7 of the half-size), with margin to spare.
+pub const BOUNDS_PAD: f64 = 1e-6;
+
+/// The axis-aligned box of the clipped region rect ∩ K, padded by [`BOUNDS_PAD`] and kept inside
+/// `rect`.
+///
+/// rect ∩ K is compact and convex, so each coordinate's extremes over it are attained at extreme
+/// points: either vertices of its boundary (the endpoints of the rectangle's edge pieces inside K,
+/// which include the rectangle's corners inside K, and the apex of a wedge) or points of the conic
+/// curve inside the rectangle where its tangent is parallel to a canvas axis. All of these are
+/// collected, so the box is the region's own box (before padding), also for the unbounded
+/// hyperbola and parabola pieces, which the rectangle alone would bound far less tightly.
+fn tight_bounds(rect: &Rect, conic: &PlacedConic, edges: &[Segment]) -> Rect {
+    let (u, v) = (conic.axis_u, conic.axis_v());
+    let mut points: Vec<DVec2> = edges.iter().flat_map(|e| [e.a, e.b]).collect();
+    let mut curve = |l: DVec2| {
+        let c = conic.to_canvas(l);
+        if c.is_finite() && rect.contains(c) {
+            points.push(c);
+        }
+    };
+    match conic.kind {
+        ConicKind::Empty => return *rect,
+        ConicKind::Ellipse { a, b } => {
+            // Canvas coordinate k of (a cos t, b sin t) is extreme at t = atan2(b·v_k, a·u_k).
+            for k in 0..2 {
+                let t = (b * v[k]).atan2(a * u[k]);
+                let l = DVec2::new(a * t.cos(), b * t.sin());
+                curve(l);
+                curve(-l);
+            }
+        }
+        ConicKind::Hyperbola { b2, s } => {
+            curve(DVec2::new(0.0, b2.sqrt()));
+            // Along (w, f(w)), canvas coordinate k is extreme where f'(w) = m = −u_k / v_k;
+            // f' = s²w/√(B² + s²w²) takes the value m (|m| < s) at w = m·B / (s·√(s² − m²)).
+            for k in 0..2 {
+                let m = -u[k] / v[k];
+                if m.is_finite() && m.abs() < s {
+                    let w = m * b2.sqrt() / (s * ((s - m.abs()) * (s + m.abs())).sqrt());
+                    curve(DVec2::new(w, (b2 + (s * w).powi(2)).sqrt()));
+                }
+            }
+        }
+        ConicKind::Parabola { c } => {
+            curve(DVec2::ZERO);
+            // f' = 2cw = m at w = m / (2c).
+            for k in 0..2 {
+                let m = -u[k] / v[k];
+                if m.is_finite() && c > 0.0 {
+                    let w = m / (2.0 * c);
+                    curve(DVec2::new(w, c * w * w));
+                }
+            }
+        }
+    }
+    let Some(first) = points.first() else {
+        return *rect;
+    };
+    let (mut lo, mut hi) = (*first, *first);
+    for p in &points {
+        lo = lo.min(*p);
+        hi = hi.max(*p);
+    }
+    let pad = BOUNDS_PAD * rect.size().length().min(f64::MAX) + f64::MIN_POSITIVE;
+    Rect {
+        min: (lo - pad).max(rect.min),
+        max: (hi + pad).min(rect.max),
     }
 }
 
@@ -680,6 +770,79 @@ mod tests {
         ] {
             check_against_brute_force(&cone, &patch, &piece, c);
         }
+    }
+
+    /// Every sampled point of rect ∩ K lies in the piece's box, and the box is tight: each
+    /// side is within a sampling step (plus the padding) of a sampled point.
+    fn check_bounds(piece: &Piece, step: f64) {
+        let (r, b) = (piece.rect, piece.bounds);
+        let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
+        let mut y = r.min.y;
+        while y <= r.max.y {
+            let mut x = r.min.x;
+            while x <= r.max.x {
+                let q = DVec2::new(x, y);
+                if piece.conic.contains_local(piece.conic.to_local(q)) {
+                    assert!(b.contains(q), "{q} in the piece but not in its box {b:?}");
+                    lo = lo.min(q);
+                    hi = hi.max(q);
+                }
+                x += step;
+            }
+            y += step;
+        }
+        let slack = 1.5 * step + BOUNDS_PAD * r.size().length();
+        assert!(
+            (lo - b.min).max_element() <= slack && (b.max - hi).max_element() <= slack,
+            "box {b:?} is loose around the samples {lo}..{hi}"
+        );
+    }
+
+    #[test]
+    fn piece_boxes_are_tight_for_every_kind() {
+        let patch = flat_patch();
+        let poses = [
+            // Clipped ellipse, hyperbola, parabola (the poses of the tests above).
+            (
+                DVec3::new(0.9, 0.2, 1.0),
+                DVec3::new(0.2, -0.1, -1.0),
+                50.0,
+                30.0,
+            ),
+            (
+                DVec3::new(-1.2, 0.0, 0.4),
+                DVec3::new((70f64).to_radians().sin(), 0.0, -(70f64).to_radians().cos()),
+                60.0,
+                40.0,
+            ),
+            (
+                DVec3::new(-1.5, 0.0, 0.6),
+                DVec3::new((60f64).to_radians().sin(), 0.0, -(60f64).to_radians().cos()),
+                60.0,
+                60.0,
+            ),
+            // A rotated hyperbola reaching into the patch from a corner.
+            (
+                DVec3::new(-1.3, 0.7, 0.3),
+                DVec3::new(0.8, -0.5, -0.45),
+                50.0,
+                30.0,
+            ),
+        ];
+        let mut kinds = Vec::new();
+        for (o, d, fh, fv) in poses {
+            let cone = Cone::from_pose(o, d, DVec3::Y, fh, fv).unwrap();
+            let piece = Piece::new(patch.rect, section(&cone, &patch)).unwrap();
+            check_bounds(&piece, 4.0);
+            kinds.push(std::mem::discriminant(&piece.conic.kind));
+        }
+        assert!(kinds.contains(&std::mem::discriminant(&ConicKind::Parabola { c: 1.0 })));
+        assert!(
+            kinds.contains(&std::mem::discriminant(&ConicKind::Hyperbola {
+                b2: 1.0,
+                s: 1.0
+            }))
+        );
     }
 
     #[test]

@@ -130,6 +130,18 @@ pub struct ClosestPointF32 {
 /// The closest point on the ellipse `(x/a)² + (y/b)² = 1` (the curve) to `p`.
 #[must_use]
 pub fn closest_point_on_ellipse(a: f64, b: f64, p: DVec2) -> ClosestPoint {
+    closest_point_on_ellipse_hinted(a, b, p, f64::NAN).0
+}
+
+/// [`closest_point_on_ellipse`] started from `hint`, the secular root returned for a nearby
+/// query on the same ellipse (NaN: no hint), and that query's own root (NaN where the answer
+/// was closed-form). Neighbouring DGI pixels have nearby roots: Newton from the hint lands on a
+/// certified lower bound after one step (the concavity argument of the module docs holds from
+/// any start), and the hint's step counts towards the quadratic-convergence stop, so a close
+/// hint converges in about two evaluations instead of three or four. A hint outside the
+/// certified bracket is ignored; the bisection fallback and the iteration bound are unchanged.
+#[must_use]
+pub fn closest_point_on_ellipse_hinted(a: f64, b: f64, p: DVec2, hint: f64) -> (ClosestPoint, f64) {
     let (a, b) = (a.abs(), b.abs());
     let inside = inside_filled(a, b, p);
     // Orient the major axis along x; the solver needs a ≥ b.
@@ -139,7 +151,7 @@ pub fn closest_point_on_ellipse(a: f64, b: f64, p: DVec2) -> ClosestPoint {
     } else {
         (a, b, p.x.abs(), p.y.abs())
     };
-    let (cx, cy, iterations) = first_quadrant_f64(major, minor, x, y);
+    let (cx, cy, iterations, root) = first_quadrant_f64(major, minor, x, y, hint);
     let distance = hypot(x - cx, y - cy);
     let (cx, cy) = if swap { (cy, cx) } else { (cx, cy) };
     // `< 0.0` keeps −0.0 on the positive side: the documented choice for the non-unique case.
@@ -147,12 +159,15 @@ pub fn closest_point_on_ellipse(a: f64, b: f64, p: DVec2) -> ClosestPoint {
         if p.x < 0.0 { -cx } else { cx },
         if p.y < 0.0 { -cy } else { cy },
     );
-    ClosestPoint {
-        distance,
-        point,
-        iterations,
-        inside,
-    }
+    (
+        ClosestPoint {
+            distance,
+            point,
+            iterations,
+            inside,
+        },
+        root,
+    )
 }
 
 /// Distance from `p` to the filled ellipse: 0 inside or on the boundary, else the distance to the
@@ -183,15 +198,16 @@ fn inside_filled(a: f64, b: f64, p: DVec2) -> bool {
 
 /// Closest point in the first quadrant for `a ≥ b ≥ 0`, `x, y ≥ 0`, in the caller's units, and
 /// the iteration count.
-fn first_quadrant_f64(a: f64, b: f64, x: f64, y: f64) -> (f64, f64, u32) {
+fn first_quadrant_f64(a: f64, b: f64, x: f64, y: f64, hint: f64) -> (f64, f64, u32, f64) {
     if a == 0.0 {
-        return (0.0, 0.0, 0);
+        return (0.0, 0.0, 0, f64::NAN);
     }
     let e = b / a;
     let (p, q) = (x / a, y / a);
     // `!(..)` also routes NaN here, where it stays NaN.
     if !(p <= FAR_F64 && q <= FAR_F64) {
-        return far_field_f64(a, e, b, x, y);
+        let (cx, cy, n) = far_field_f64(a, e, b, x, y);
+        return (cx, cy, n, f64::NAN);
     }
     // 1 − e² without the cancellation of `1.0 - e * e` near circles.
     let c = (1.0 - e) * (1.0 + e);
@@ -201,9 +217,9 @@ fn first_quadrant_f64(a: f64, b: f64, x: f64, y: f64) -> (f64, f64, u32) {
             // Inside the evolute on the major axis (or a segment's interior): the pole root.
             let (xs, cx) = if c > 0.0 { (p / c, x / c) } else { (0.0, 0.0) };
             let cy = b * ((1.0 - xs) * (1.0 + xs)).max(0.0).sqrt();
-            return (cx, cy, 0);
+            return (cx, cy, 0, f64::NAN);
         }
-        return (a, 0.0, 0);
+        return (a, 0.0, 0, f64::NAN);
     }
     let secular = |w: f64| {
         let (ga, gb) = (p / (w + c), eq / w);
@@ -214,7 +230,13 @@ fn first_quadrant_f64(a: f64, b: f64, x: f64, y: f64) -> (f64, f64, u32) {
     let mut hi = r;
     let mut w = lo;
     let mut probing = false;
-    {
+    // A warm start from a nearby query's root (see `closest_point_on_ellipse_hinted`).
+    let hinted = hint > lo && hint < hi;
+    let mut warm = hinted;
+    if hinted {
+        w = hint;
+        probing = true;
+    } else {
         // Start at the Lagrange multiplier of the radial projection when it lies in the bracket.
         let rho = hypot(p, q / e);
         let (x0, b0) = (p / rho, q / (e * rho));
@@ -261,7 +283,8 @@ fn first_quadrant_f64(a: f64, b: f64, x: f64, y: f64) -> (f64, f64, u32) {
             converged = true;
             break;
         }
-        prev_rel = if probing { 1.0 } else { rel };
+        prev_rel = if probing && !warm { 1.0 } else { rel };
+        warm = false;
         if s >= 1.0 && lo <= w {
             // Rounding stalls the climb: w is the root to working precision.
             w = lo;
@@ -271,7 +294,7 @@ fn first_quadrant_f64(a: f64, b: f64, x: f64, y: f64) -> (f64, f64, u32) {
         let first = w;
         w = lo;
         probing = false;
-        if iterations == 1 && s >= 1.0 {
+        if iterations == 1 && s >= 1.0 && !hinted {
             // Freezing one term at its value at `first` (a lower bound: S ≥ 1 there) and
             // solving for the other gives an estimate from above that is exact where one term hardly varies: near a vertex of
             // an eccentric ellipse, where Newton alone crawls (module docs, step 6).
@@ -302,7 +325,7 @@ fn first_quadrant_f64(a: f64, b: f64, x: f64, y: f64) -> (f64, f64, u32) {
         }
         w = f64::from_bits(lb);
     }
-    (x / (w + c), b * (eq / w), iterations)
+    (x / (w + c), b * (eq / w), iterations, w)
 }
 
 /// The point whose outward normal is parallel to `(x, y)`: the closest point to within
@@ -544,6 +567,48 @@ pub fn distance_to_filled_ellipse_f32(a: f32, b: f32, p: [f32; 2]) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A warm start never changes the answer beyond rounding, whatever the hint: the root
+    /// itself, near and far guesses, and invalid ones (ignored), over a grid of ellipses and
+    /// points in every quadrant, inside and out.
+    #[test]
+    fn hinted_solver_agrees_with_the_cold_one_for_any_hint() {
+        for (a, b) in [
+            (1.0, 1.0),
+            (3.0, 1.0),
+            (1.0, 7.0),
+            (900.0, 1.0),
+            (1e3, 999.0),
+        ] {
+            for k in 0..400 {
+                let t = f64::from(k) * 0.0731;
+                let r = 0.05 + 3.0 * f64::from(k % 17) / 16.0;
+                let p = DVec2::new(a * r * t.cos(), b * r * t.sin()) + DVec2::new(0.3, -0.2);
+                let (cold, root) = closest_point_on_ellipse_hinted(a, b, p, f64::NAN);
+                assert_eq!(cold, closest_point_on_ellipse(a, b, p));
+                let scale = a.max(b).max(p.length());
+                for hint in [
+                    root,
+                    root * (1.0 + 1e-3),
+                    root * (1.0 - 1e-6),
+                    0.5 * root,
+                    2.0 * root,
+                    -1.0,
+                    f64::INFINITY,
+                    f64::NAN,
+                ] {
+                    let (warm, _) = closest_point_on_ellipse_hinted(a, b, p, hint);
+                    assert!(
+                        (warm.distance - cold.distance).abs() <= 1e-14 * scale,
+                        "a={a} b={b} p={p} hint={hint}: {} vs {}",
+                        warm.distance,
+                        cold.distance
+                    );
+                    assert!(warm.iterations <= MAX_ITERATIONS_F64);
+                }
+            }
+        }
+    }
     use proptest::prelude::*;
 
     const EPS: f64 = f64::EPSILON;
