@@ -461,6 +461,12 @@ fn compute_into<T: Send>(
         });
 }
 
+/// (1 + 1e-12)²: the relative margin of the Lipschitz bound from the block centre, squared.
+const OFFSET_FACTOR2: f64 = (1.0 + 1e-12) * (1.0 + 1e-12);
+/// 1 + 4ε: a box distance whose square exceeds best² by this factor is above best despite the
+/// rounding of both squares.
+const BOX_FACTOR2: f64 = 1.0 + 4.0 * f64::EPSILON;
+
 /// The per-block pruning of [`compute_cpu`] for a union of pieces (scratch space reused from
 /// block to block).
 struct BlockPruner<'a> {
@@ -580,14 +586,21 @@ impl<'a> BlockPruner<'a> {
             }
             for (i, &x) in xs.iter().enumerate() {
                 let c = DVec2::new(x, y);
-                let offset = (c - centre).length() * (1.0 + 1e-12) + self.slack;
+                // The bounds below compare squares (no square root per pixel and piece): the
+                // factors (1 + 1e-12)² and 1 + 4ε cover the squares' rounding, so a piece is
+                // skipped only when it is provably no nearer than `best`.
+                let offset2 = (c - centre).length_squared() * OFFSET_FACTOR2;
                 let mut best = self.cap;
                 for (&(dc, k), warm) in self.near.iter().zip(&mut self.warm) {
-                    if dc - offset >= best {
+                    // dc − |c − centre|·(1 + 1e-12) − slack ≥ best: no nearer than best.
+                    let gap = dc - best - self.slack;
+                    if gap >= 0.0 && gap * gap >= offset2 {
                         break; // sorted by dc: every later piece is as far
                     }
                     let p = &self.pieces[k];
-                    if p.piece.bounds.distance_to(c) >= best {
+                    let b = p.piece.bounds;
+                    let to_box = (b.min - c).max(c - b.max).max(DVec2::ZERO);
+                    if to_box.length_squared() >= best * best * BOX_FACTOR2 {
                         continue;
                     }
                     let mut root = warm.hint(i);

@@ -437,7 +437,7 @@ fn far_field_f64(a: f64, e: f64, b: f64, x: f64, y: f64) -> (f64, f64, u32) {
 #[inline]
 fn hypot(x: f64, y: f64) -> f64 {
     let sq = x * x + y * y;
-    if sq >= HYPOT_DIRECT_MIN && sq <= HYPOT_DIRECT_MAX {
+    if (HYPOT_DIRECT_MIN..=HYPOT_DIRECT_MAX).contains(&sq) {
         return sq.sqrt();
     }
     let (ax, ay) = (x.abs(), y.abs());
