@@ -432,6 +432,20 @@ impl Piece {
             .fold(f64::INFINITY, |d, e| d.min(e.closest(c).0))
     }
 
+    /// The per-query constants of [`Self::distance_hinted`], computed once (see [`Prepared`]).
+    #[must_use]
+    pub fn prepare(&self) -> Prepared<'_> {
+        let solver = match self.conic.kind {
+            ConicKind::Ellipse { a, b } => Some(ellipse::EllipseSolver::new(a, b)),
+            _ => None,
+        };
+        Prepared {
+            piece: self,
+            axis_v: self.conic.axis_v(),
+            solver,
+        }
+    }
+
     /// Exact canvas distance from `c` to this piece and the nearest point of the piece.
     #[must_use]
     pub fn closest(&self, c: DVec2) -> (f64, DVec2) {
@@ -452,6 +466,50 @@ impl Piece {
             }
         }
         best
+    }
+}
+
+/// A piece with its per-query constants hoisted (the ellipse solver's, the local frame's second
+/// axis), for the CPU DGI's many queries per piece.
+#[derive(Clone, Copy, Debug)]
+pub struct Prepared<'a> {
+    pub piece: &'a Piece,
+    axis_v: DVec2,
+    solver: Option<ellipse::EllipseSolver>,
+}
+
+impl Prepared<'_> {
+    /// [`Piece::distance_hinted`] with one inside test per query and no edge distances when the
+    /// nearest curve point lies in the rectangle: then the query is outside the convex region K,
+    /// whose nearest point to it is that curve point, which lies in the piece rect ∩ K ⊆ K, so
+    /// it is the piece's nearest point too (each edge, a subset of the piece, is no nearer). The
+    /// curve distance is computed by the same operations as in [`Piece::distance_hinted`]; the
+    /// results differ from it at most where an edge point rounds nearer than the curve point
+    /// it coincides with (within the solvers' rounding).
+    #[must_use]
+    #[inline]
+    pub fn distance_hinted(&self, c: DVec2, root: &mut f64) -> f64 {
+        let Some(solver) = &self.solver else {
+            return self.piece.distance(c);
+        };
+        let p = self.piece;
+        let d = c - p.conic.origin;
+        let l = DVec2::new(d.dot(p.conic.axis_u), d.dot(self.axis_v));
+        if p.conic.contains_local(l) {
+            if p.rect.contains(c) {
+                return 0.0;
+            }
+        } else {
+            let (dist, q, w) = solver.closest_hinted(l, *root);
+            *root = w;
+            let qc = p.conic.origin + q.x * p.conic.axis_u + q.y * self.axis_v;
+            if p.rect.contains(qc) {
+                return dist;
+            }
+        }
+        p.edges
+            .iter()
+            .fold(f64::INFINITY, |d, e| d.min(e.closest(c).0))
     }
 }
 
@@ -770,6 +828,44 @@ mod tests {
         ] {
             check_against_brute_force(&cone, &patch, &piece, c);
         }
+    }
+
+    /// The prepared piece's distance (one inside test, no edges when the curve point is in the
+    /// rectangle) equals the reference `Piece::distance` to rounding, on a grid around an
+    /// ellipse piece clipped by the patch's edge, warm-started along each row as the DGI does.
+    #[test]
+    fn prepared_distance_matches_the_reference() {
+        let patch = flat_patch();
+        let cone = Cone::from_pose(
+            DVec3::new(0.9, 0.2, 1.0),
+            DVec3::new(0.2, -0.1, -1.0),
+            DVec3::Y,
+            50.0,
+            30.0,
+        )
+        .unwrap();
+        let piece = Piece::new(patch.rect, section(&cone, &patch)).unwrap();
+        assert!(!piece.edges.is_empty());
+        let prepared = piece.prepare();
+        let (mut zero, mut edge, mut curve) = (0, 0, 0);
+        for j in 0..60 {
+            let mut root = f64::NAN;
+            for i in 0..80 {
+                let c = DVec2::new(-500.0 + 50.0 * f64::from(i), -400.0 + 35.0 * f64::from(j));
+                let got = prepared.distance_hinted(c, &mut root);
+                let want = piece.distance(c);
+                assert!((got - want).abs() <= 1e-14 * 4000.0, "{c}: {got} vs {want}");
+                let (_, q) = piece.closest(c);
+                if want == 0.0 {
+                    zero += 1;
+                } else if piece.edges.iter().any(|e| e.closest(c).1 == q) {
+                    edge += 1;
+                } else {
+                    curve += 1;
+                }
+            }
+        }
+        assert!(zero > 0 && edge > 0 && curve > 0, "{zero} {edge} {curve}");
     }
 
     /// Every sampled point of rect ∩ K lies in the piece's box, and the box is tight: each

@@ -15,7 +15,7 @@ use glam::{DVec2, DVec3};
 use rayon::prelude::*;
 
 use super::cone::Cone;
-use super::conic::{ConicKind, Patch, Piece, PlacedConic, Rect, section};
+use super::conic::{ConicKind, Patch, Piece, PlacedConic, Prepared, Rect, section};
 
 /// Which distance the DGI measures.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
@@ -432,14 +432,18 @@ fn compute_into<T: Send>(
     let ys: Vec<f64> = (0..h).map(|j| min.y + (j as f64 + 0.5) * scale.y).collect();
     let cap = params.falloff_px.unwrap_or(f64::INFINITY);
     let fill = |d: f64| store(normalise(d, params.falloff_px));
+    let prepared: Vec<Prepared<'_>> = match guide {
+        Guide::Pieces(pieces) => pieces.iter().map(Piece::prepare).collect(),
+        Guide::Angular { .. } => Vec::new(),
+    };
     out.par_chunks_mut(w * BLOCK)
         .enumerate()
         .for_each(|(band, rows)| {
             let j0 = band * BLOCK;
             let ys = &ys[j0..(j0 + BLOCK).min(h)];
             match guide {
-                Guide::Pieces(pieces) => {
-                    let mut blocks = BlockPruner::new(pieces, surface.canvas, cap);
+                Guide::Pieces(_) => {
+                    let mut blocks = BlockPruner::new(&prepared, surface.canvas, cap);
                     for i0 in (0..w).step_by(BLOCK) {
                         let xs = &xs[i0..(i0 + BLOCK).min(w)];
                         blocks.run(xs, ys, |i, j, d| rows[j * w + i0 + i] = fill(d));
@@ -457,10 +461,16 @@ fn compute_into<T: Send>(
         });
 }
 
+/// (1 + 1e-12)²: the relative margin of the Lipschitz bound from the block centre, squared.
+const OFFSET_FACTOR2: f64 = (1.0 + 1e-12) * (1.0 + 1e-12);
+/// 1 + 4ε: a box distance whose square exceeds best² by this factor is above best despite the
+/// rounding of both squares.
+const BOX_FACTOR2: f64 = 1.0 + 4.0 * f64::EPSILON;
+
 /// The per-block pruning of [`compute_cpu`] for a union of pieces (scratch space reused from
 /// block to block).
 struct BlockPruner<'a> {
-    pieces: &'a [Piece],
+    pieces: &'a [Prepared<'a>],
     cap: f64,
     /// Margin against the solvers' rounding in the Lipschitz bounds (canvas px): far above the
     /// ~1e-14 of the canvas scale they reach, far below a pixel.
@@ -508,7 +518,7 @@ impl Warm {
 }
 
 impl<'a> BlockPruner<'a> {
-    fn new(pieces: &'a [Piece], canvas: Rect, cap: f64) -> Self {
+    fn new(pieces: &'a [Prepared<'a>], canvas: Rect, cap: f64) -> Self {
         let mag = canvas.min.abs().max(canvas.max.abs()).max_element();
         Self {
             pieces,
@@ -538,7 +548,7 @@ impl<'a> BlockPruner<'a> {
         // box distance also in floating point (subtraction and the norm are monotone).
         self.near.clear();
         let centre = 0.5 * (lo + hi);
-        for (k, p) in self.pieces.iter().enumerate() {
+        for (k, p) in self.pieces.iter().map(|p| p.piece).enumerate() {
             let gap = (p.bounds.min - block.max)
                 .max(block.min - p.bounds.max)
                 .max(DVec2::ZERO)
@@ -560,7 +570,7 @@ impl<'a> BlockPruner<'a> {
         let corners = block.corners();
         if self.near.iter().any(|&(d, k)| {
             d == 0.0 && {
-                let p = &self.pieces[k];
+                let p = self.pieces[k].piece;
                 corners
                     .iter()
                     .all(|&c| p.rect.contains(c) && p.conic.contains_local(p.conic.to_local(c)))
@@ -576,14 +586,21 @@ impl<'a> BlockPruner<'a> {
             }
             for (i, &x) in xs.iter().enumerate() {
                 let c = DVec2::new(x, y);
-                let offset = (c - centre).length() * (1.0 + 1e-12) + self.slack;
+                // The bounds below compare squares (no square root per pixel and piece): the
+                // factors (1 + 1e-12)² and 1 + 4ε cover the squares' rounding, so a piece is
+                // skipped only when it is provably no nearer than `best`.
+                let offset2 = (c - centre).length_squared() * OFFSET_FACTOR2;
                 let mut best = self.cap;
                 for (&(dc, k), warm) in self.near.iter().zip(&mut self.warm) {
-                    if dc - offset >= best {
+                    // dc − |c − centre|·(1 + 1e-12) − slack ≥ best: no nearer than best.
+                    let gap = dc - best - self.slack;
+                    if gap >= 0.0 && gap * gap >= offset2 {
                         break; // sorted by dc: every later piece is as far
                     }
                     let p = &self.pieces[k];
-                    if p.bounds.distance_to(c) >= best {
+                    let b = p.piece.bounds;
+                    let to_box = (b.min - c).max(c - b.max).max(DVec2::ZERO);
+                    if to_box.length_squared() >= best * best * BOX_FACTOR2 {
                         continue;
                     }
                     let mut root = warm.hint(i);
