@@ -157,8 +157,8 @@ impl DgiParams {
 /// to the ROI's size gives 40 % at 60° but 1.2 % at 10°. So L grows with the ROI:
 /// L = base + scale · ρ, with ρ the ROI's radius on the wall (metres; for the ray gun the
 /// distance to the wall along the axis times √(tan(α_h/2)·tan(α_v/2)), for the mouse √(a·b)).
-/// The defaults were fitted on HORNET (the calibration test `default_falloff_meets_the_papers_implied_shares_on_hornet` in `tests/dgi_properties.rs`
-/// checks the shares they give).
+/// The defaults were fitted on HORNET; the calibration test in `tests/dgi_properties.rs`
+/// (`default_falloff_meets_the_papers_implied_shares_on_hornet`) checks the shares they give.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct Falloff {
     /// Metres along the wall.
