@@ -4,9 +4,10 @@
 //! parsed and validated by naga, and run on the GPU (lavapipe in CI) over the same cases.
 
 use glam::DVec2;
+use raygun::bench::solver::{GpuEllipseSolver, gpu_safe};
 use raygun::roi::ellipse::{
     ClosestPoint, F32_DISTANCE_BOUND, MAX_ITERATIONS_F32, MAX_ITERATIONS_F64,
-    MEASURED_MAX_NEWTON_F64, WGSL, closest_point_on_ellipse, closest_point_on_ellipse_f32,
+    MEASURED_MAX_NEWTON_F64, closest_point_on_ellipse, closest_point_on_ellipse_f32,
     distance_to_filled_ellipse, distance_to_filled_ellipse_f32,
 };
 
@@ -262,7 +263,7 @@ fn f32_mirror_meets_its_stated_bound_on_the_hard_cases() {
 #[test]
 fn wgsl_parses_and_validates_with_naga() {
     use wgpu::naga;
-    let source = format!("{WGSL}\n{KERNEL}");
+    let source = GpuEllipseSolver::source();
     let module = naga::front::wgsl::parse_str(&source)
         .unwrap_or_else(|e| panic!("{}", e.emit_to_string(&source)));
     naga::valid::Validator::new(
@@ -273,115 +274,47 @@ fn wgsl_parses_and_validates_with_naga() {
     .unwrap_or_else(|e| panic!("{}", e.emit_to_string(&source)));
 }
 
-/// A tiny kernel around the library functions: one case per invocation.
-const KERNEL: &str = r"
-@group(0) @binding(0) var<storage, read> cases: array<vec4<f32>>;
-@group(0) @binding(1) var<storage, read_write> results: array<vec4<f32>>;
-
-@compute @workgroup_size(64)
-fn main(@builtin(global_invocation_id) id: vec3<u32>) {
-    let i = id.x;
-    if (i >= arrayLength(&cases)) {
-        return;
-    }
-    let c = cases[i];
-    let r = ellipse_closest_point(c.x, c.y, c.zw);
-    let filled = ellipse_filled_distance(c.x, c.y, c.zw);
-    results[i] = vec4<f32>(r.distance, filled, bitcast<f32>(r.iterations), r.point.x);
-}
-";
-
 /// GPU division and square root may be off by 2.5 ulp (WGSL spec), so the kernel is held to the
 /// stated f32 bound against the f64 truth, not to bit equality with the CPU mirror. GPUs may
-/// flush subnormals, so only cases whose f32 intermediate values stay normal run here.
+/// flush subnormals, so only cases whose f32 intermediate values stay normal run here
+/// ([`gpu_safe`]). The kernel is the solver benchmark's batch kernel.
 #[test]
 fn wgsl_on_the_gpu_meets_the_f32_bound_on_the_hard_cases() {
-    use wgpu::util::DeviceExt;
     let ctx = raygun::gpu::GpuContext::for_tests();
     let cases: Vec<(Case, [f32; 4])> = f32_cases()
         .into_iter()
-        .filter(|(_, v)| {
-            // e = b/a and e·q must stay normal too.
-            let (lo, hi) = (v[0].min(v[1]), v[0].max(v[1]));
-            lo == 0.0
-                || ((lo / hi).is_normal() && lo / hi * (v[2].abs().max(v[3].abs()) / hi) >= 1e-30)
-                || (v[2] == 0.0 && v[3] == 0.0)
-        })
+        .filter(|(_, v)| gpu_safe(v))
         .collect();
     let input: Vec<[f32; 4]> = cases.iter().map(|(_, v)| *v).collect();
-    let device = &ctx.device;
-    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some("ellipse test kernel"),
-        source: wgpu::ShaderSource::Wgsl(format!("{WGSL}\n{KERNEL}").into()),
-    });
-    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-        label: Some("ellipse test kernel"),
-        layout: None,
-        module: &module,
-        entry_point: Some("main"),
-        compilation_options: Default::default(),
-        cache: None,
-    });
-    let cases_buf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some("ellipse cases"),
-        contents: bytemuck::cast_slice(&input),
-        usage: wgpu::BufferUsages::STORAGE,
-    });
-    let results_buf = device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("ellipse results"),
-        size: (input.len() * 16) as u64,
-        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-        mapped_at_creation: false,
-    });
-    let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some("ellipse test"),
-        layout: &pipeline.get_bind_group_layout(0),
-        entries: &[
-            wgpu::BindGroupEntry {
-                binding: 0,
-                resource: cases_buf.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 1,
-                resource: results_buf.as_entire_binding(),
-            },
-        ],
-    });
-    let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
-        label: Some("ellipse test"),
-    });
-    {
-        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("ellipse test"),
-            timestamp_writes: None,
-        });
-        pass.set_pipeline(&pipeline);
-        pass.set_bind_group(0, &bind_group, &[]);
-        pass.dispatch_workgroups(input.len().div_ceil(64) as u32, 1, 1);
-    }
-    ctx.queue.submit([enc.finish()]);
-    let out: Vec<[f32; 4]> = ctx.read_buffer(&results_buf).expect("read-back");
+    let out = GpuEllipseSolver::new(&ctx)
+        .solve(&ctx, &input, 1)
+        .expect("GPU solve");
     assert!(cases.len() > 1000, "only {} GPU cases", cases.len());
-    for ((c, v), r) in cases.iter().zip(&out) {
+    for (k, (c, v)) in cases.iter().enumerate() {
         let (scale, filled_ref, curve_ref) = f64_for(*v);
-        let iterations = r[2].to_bits();
-        let msg = format!(
-            "line {} ({}): {v:?}: GPU d={:e} filled={:e} cx={:e} in {iterations} iterations; f64 {curve_ref:?}",
-            c.line, c.category, r[0], r[1], r[3]
+        let (d, filled, iterations, point) = (
+            out.distance[k],
+            out.filled[k],
+            out.iterations[k],
+            out.point[k],
         );
-        let err = (f64::from(r[0]) - curve_ref.distance).abs();
+        let msg = format!(
+            "line {} ({}): {v:?}: GPU d={d:e} filled={filled:e} c={point:?} in {iterations} iterations; f64 {curve_ref:?}",
+            c.line, c.category
+        );
+        let err = (f64::from(d) - curve_ref.distance).abs();
         assert!(
             err <= F32_DISTANCE_BOUND * scale,
             "error {:e} of scale: {msg}",
             err / scale
         );
-        let err = (f64::from(r[1]) - filled_ref).abs();
+        let err = (f64::from(filled) - filled_ref).abs();
         assert!(
             err <= F32_DISTANCE_BOUND * scale,
             "filled error {:e}: {msg}",
             err / scale
         );
         assert!(iterations <= MAX_ITERATIONS_F32, "{msg}");
-        assert!(r[3].is_finite(), "{msg}");
+        assert!(point.iter().all(|x| x.is_finite()), "{msg}");
     }
 }

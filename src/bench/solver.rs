@@ -113,20 +113,20 @@ pub fn f32_inputs(cases: &[HardCase]) -> Vec<[f32; 4]> {
         .collect()
 }
 
-/// The subset of [`f32_inputs`] that the GPU runs: `b/a` and `(b/a)·(y/a)` stay normal, since
-/// GPUs may flush subnormal intermediate values.
+/// Whether the GPU solver can run f32 case `[a, b, x, y]` faithfully: `b/a` and `(b/a)·(y/a)`
+/// stay normal, since GPUs may flush subnormal intermediate values.
+#[must_use]
+pub fn gpu_safe(v: &[f32; 4]) -> bool {
+    let (lo, hi) = (v[0].min(v[1]), v[0].max(v[1]));
+    lo == 0.0
+        || ((lo / hi).is_normal() && lo / hi * (v[2].abs().max(v[3].abs()) / hi) >= 1e-30)
+        || (v[2] == 0.0 && v[3] == 0.0)
+}
+
+/// The subset of [`f32_inputs`] that the GPU runs ([`gpu_safe`]).
 #[must_use]
 pub fn gpu_inputs(f32_cases: &[[f32; 4]]) -> Vec<[f32; 4]> {
-    f32_cases
-        .iter()
-        .filter(|v| {
-            let (lo, hi) = (v[0].min(v[1]), v[0].max(v[1]));
-            lo == 0.0
-                || ((lo / hi).is_normal() && lo / hi * (v[2].abs().max(v[3].abs()) / hi) >= 1e-30)
-                || (v[2] == 0.0 && v[3] == 0.0)
-        })
-        .copied()
-        .collect()
+    f32_cases.iter().filter(|v| gpu_safe(v)).copied().collect()
 }
 
 /// The f64 solver's distance for f32 inputs (the f32 solvers' reference) and the scale.
@@ -143,8 +143,9 @@ fn rel_err(d: f64, d_ref: f64, scale: f64) -> f64 {
     if scale > 0.0 { e / scale } else { e }
 }
 
-/// The closest-point kernel of the WGSL library, one case `[a, b, x, y]` per invocation:
-/// `(distance, iterations as bits, closest x, closest y)`.
+/// The closest-point kernel of the WGSL library, one case `[a, b, x, y]` per invocation, two
+/// vec4 per case: `(distance, filled distance, iterations as bits, 0)` and `(closest x, closest
+/// y, 0, 0)`.
 const KERNEL: &str = r"
 @group(0) @binding(0) var<storage, read> cases: array<vec4<f32>>;
 @group(0) @binding(1) var<storage, read_write> results: array<vec4<f32>>;
@@ -157,20 +158,23 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     let c = cases[i];
     let r = ellipse_closest_point(c.x, c.y, c.zw);
-    results[i] = vec4<f32>(r.distance, bitcast<f32>(r.iterations), r.point.x, r.point.y);
+    let filled = ellipse_filled_distance(c.x, c.y, c.zw);
+    results[2u * i] = vec4<f32>(r.distance, filled, bitcast<f32>(r.iterations), 0.0);
+    results[2u * i + 1u] = vec4<f32>(r.point, 0.0, 0.0);
 }
 ";
 
 /// The WGSL closest-point solver (`shaders/roi/ellipse.wgsl`) as a batch kernel, for the
-/// benchmark (the DGI kernel inlines the same functions).
+/// benchmark and the hard-case test (the DGI kernel inlines the same functions).
 pub struct GpuEllipseSolver {
     pipeline: wgpu::ComputePipeline,
 }
 
 /// What one GPU batch returned.
 pub struct GpuSolveResult {
-    /// Per case: distance, iterations, closest point.
+    /// Per case: distance, distance to the filled ellipse (0 inside), iterations, closest point.
     pub distance: Vec<f32>,
+    pub filled: Vec<f32>,
     pub iterations: Vec<u32>,
     pub point: Vec<[f32; 2]>,
     /// Time of each timed dispatch over the whole batch (ms).
@@ -180,13 +184,19 @@ pub struct GpuSolveResult {
 }
 
 impl GpuEllipseSolver {
+    /// The kernel's whole WGSL source (the library and the batch entry point `main`).
+    #[must_use]
+    pub fn source() -> String {
+        format!("{}\n{KERNEL}", ellipse::WGSL)
+    }
+
     #[must_use]
     pub fn new(ctx: &GpuContext) -> Self {
         let module = ctx
             .device
             .create_shader_module(wgpu::ShaderModuleDescriptor {
                 label: Some("ellipse solver bench"),
-                source: wgpu::ShaderSource::Wgsl(format!("{}\n{KERNEL}", ellipse::WGSL).into()),
+                source: wgpu::ShaderSource::Wgsl(Self::source().into()),
             });
         let pipeline = ctx
             .device
@@ -213,6 +223,7 @@ impl GpuEllipseSolver {
         if cases.is_empty() {
             return Ok(GpuSolveResult {
                 distance: Vec::new(),
+                filled: Vec::new(),
                 iterations: Vec::new(),
                 point: Vec::new(),
                 ms: Vec::new(),
@@ -227,7 +238,7 @@ impl GpuEllipseSolver {
         });
         let output = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("ellipse results"),
-            size: (cases.len() * 16) as u64,
+            size: (cases.len() * 32) as u64,
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         });
@@ -280,10 +291,12 @@ impl GpuEllipseSolver {
             }
             (ms, false)
         };
+        let (head, point): (Vec<_>, Vec<_>) = out.chunks_exact(2).map(|r| (r[0], r[1])).unzip();
         Ok(GpuSolveResult {
-            distance: out.iter().map(|r| r[0]).collect(),
-            iterations: out.iter().map(|r| r[1].to_bits()).collect(),
-            point: out.iter().map(|r| [r[2], r[3]]).collect(),
+            distance: head.iter().map(|r| r[0]).collect(),
+            filled: head.iter().map(|r| r[1]).collect(),
+            iterations: head.iter().map(|r| r[2].to_bits()).collect(),
+            point: point.iter().map(|r| [r[0], r[1]]).collect(),
             ms,
             gpu_timestamps,
         })
