@@ -262,16 +262,8 @@ fn f32_mirror_meets_its_stated_bound_on_the_hard_cases() {
 
 #[test]
 fn wgsl_parses_and_validates_with_naga() {
-    use wgpu::naga;
-    let source = GpuEllipseSolver::source();
-    let module = naga::front::wgsl::parse_str(&source)
-        .unwrap_or_else(|e| panic!("{}", e.emit_to_string(&source)));
-    naga::valid::Validator::new(
-        naga::valid::ValidationFlags::all(),
-        naga::valid::Capabilities::empty(),
-    )
-    .validate(&module)
-    .unwrap_or_else(|e| panic!("{}", e.emit_to_string(&source)));
+    let _ =
+        raygun::gpu::wgsl::validated("ellipse.wgsl + batch kernel", &GpuEllipseSolver::source());
 }
 
 /// GPU division and square root may be off by 2.5 ulp (WGSL spec), so the kernel is held to the

@@ -448,40 +448,18 @@ impl FilterKernels {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use wgpu::naga;
-
-    fn validated(src: &str, name: &str) -> naga::Module {
-        let module = naga::front::wgsl::parse_str(src).unwrap_or_else(|e| {
-            panic!("{name} does not parse: {}", e.emit_to_string(src));
-        });
-        naga::valid::Validator::new(
-            naga::valid::ValidationFlags::all(),
-            naga::valid::Capabilities::empty(),
-        )
-        .validate(&module)
-        .unwrap_or_else(|e| panic!("{name} does not validate: {e:?}"));
-        module
-    }
-
-    fn struct_size(module: &naga::Module, name: &str) -> usize {
-        let (_, ty) = module
-            .types
-            .iter()
-            .find(|(_, t)| t.name.as_deref() == Some(name))
-            .unwrap_or_else(|| panic!("no struct {name}"));
-        ty.inner.size(module.to_ctx()) as usize
-    }
+    use crate::gpu::wgsl::{struct_size, validated};
 
     /// The kernels parse and validate without a GPU, and every struct shared with Rust has the
     /// same size on both sides.
     #[test]
     fn kernels_validate_and_shared_structs_match_their_rust_twins() {
         for (src, name) in [(EXACT_WGSL, "exact.wgsl"), (FAST_WGSL, "fast.wgsl")] {
-            let m = validated(src, name);
+            let m = validated(name, src);
             assert_eq!(struct_size(&m, "Params"), size_of::<GpuParams>());
             assert_eq!(struct_size(&m, "LevelDesc"), size_of::<GpuLevel>());
         }
-        let m = validated(PYRAMID_WGSL, "pyramid.wgsl");
+        let m = validated("pyramid.wgsl", PYRAMID_WGSL);
         assert_eq!(struct_size(&m, "Pass"), size_of::<GpuPass>());
     }
 

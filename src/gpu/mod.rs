@@ -7,6 +7,8 @@
 
 use std::fmt;
 
+pub mod wgsl;
+
 /// What the user asked for on the command line (`--backend gpu|cpu|auto`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
 #[serde(rename_all = "lowercase")]

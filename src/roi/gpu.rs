@@ -338,27 +338,14 @@ impl DgiRun {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use wgpu::naga;
+    use crate::gpu::wgsl::{struct_size, validated};
 
     /// The kernel parses and validates without a GPU, and every struct shared with Rust has the
     /// same size on both sides (a mismatch would scramble the buffers silently).
     #[test]
     fn kernel_validates_and_shared_structs_match_their_rust_twins() {
-        let module = naga::front::wgsl::parse_str(DGI_WGSL).expect("dgi.wgsl parses");
-        naga::valid::Validator::new(
-            naga::valid::ValidationFlags::all(),
-            naga::valid::Capabilities::empty(),
-        )
-        .validate(&module)
-        .expect("dgi.wgsl validates");
-        let size_of = |name: &str| {
-            let (_, ty) = module
-                .types
-                .iter()
-                .find(|(_, t)| t.name.as_deref() == Some(name))
-                .unwrap_or_else(|| panic!("no struct {name} in dgi.wgsl"));
-            ty.inner.size(module.to_ctx()) as usize
-        };
+        let module = validated("dgi.wgsl", DGI_WGSL);
+        let size_of = |name: &str| struct_size(&module, name);
         assert_eq!(size_of("Params"), size_of_val(&GpuParams::zeroed()));
         assert_eq!(size_of("Piece"), size_of_val(&GpuPiece::zeroed()));
         assert_eq!(

@@ -435,40 +435,20 @@ impl ScheduleRun {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::gpu::wgsl::{struct_size, validated};
     use wgpu::naga;
-
-    fn module(name: &str, source: &str) -> naga::Module {
-        let module = naga::front::wgsl::parse_str(source)
-            .unwrap_or_else(|e| panic!("{name} parses: {}", e.emit_to_string(source)));
-        naga::valid::Validator::new(
-            naga::valid::ValidationFlags::all(),
-            naga::valid::Capabilities::empty(),
-        )
-        .validate(&module)
-        .unwrap_or_else(|e| panic!("{name} validates: {e:?}"));
-        module
-    }
-
-    fn struct_size(module: &naga::Module, name: &str) -> usize {
-        let (_, ty) = module
-            .types
-            .iter()
-            .find(|(_, t)| t.name.as_deref() == Some(name))
-            .unwrap_or_else(|| panic!("no struct {name}"));
-        ty.inner.size(module.to_ctx()) as usize
-    }
 
     /// The kernels parse and validate without a GPU, and the structs shared with Rust have the
     /// same size on both sides.
     #[test]
     fn kernels_validate_and_shared_structs_match_their_rust_twins() {
-        module("select.wgsl", SELECT_WGSL);
-        let compact = module("compact.wgsl", COMPACT_WGSL);
+        validated("select.wgsl", SELECT_WGSL);
+        let compact = validated("compact.wgsl", COMPACT_WGSL);
         assert_eq!(
             struct_size(&compact, "Params"),
             size_of_val(&GpuParams::zeroed())
         );
-        let args = module("args.wgsl", ARGS_WGSL);
+        let args = validated("args.wgsl", ARGS_WGSL);
         assert_eq!(
             struct_size(&args, "ArgsParams"),
             size_of_val(&GpuArgsParams::zeroed())
@@ -478,7 +458,7 @@ mod tests {
     /// The kernel's stream constant and tile shape are the CPU twin's.
     #[test]
     fn kernel_constants_match_the_cpu_twin() {
-        let m = module("compact.wgsl", COMPACT_WGSL);
+        let m = validated("compact.wgsl", COMPACT_WGSL);
         let constant = |name: &str| {
             let (_, c) = m
                 .constants

@@ -362,34 +362,17 @@ impl TraceRun {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use wgpu::naga;
+    use crate::gpu::wgsl::{struct_size, validated};
 
     #[test]
     fn kernel_validates_and_params_match_their_rust_twin() {
-        let module = naga::front::wgsl::parse_str(TRACE_WGSL)
-            .unwrap_or_else(|e| panic!("{}", e.emit_to_string(TRACE_WGSL)));
-        naga::valid::Validator::new(
-            naga::valid::ValidationFlags::all(),
-            naga::valid::Capabilities::empty(),
-        )
-        .validate(&module)
-        .unwrap_or_else(|e| panic!("{}", e.emit_to_string(TRACE_WGSL)));
-        let (_, ty) = module
-            .types
-            .iter()
-            .find(|(_, t)| t.name.as_deref() == Some("Params"))
-            .expect("Params in path.wgsl");
+        let module = validated("path.wgsl", TRACE_WGSL);
         assert_eq!(
-            ty.inner.size(module.to_ctx()) as usize,
+            struct_size(&module, "Params"),
             std::mem::size_of::<GpuTraceParams>()
         );
-        let (_, node) = module
-            .types
-            .iter()
-            .find(|(_, t)| t.name.as_deref() == Some("Node"))
-            .expect("Node in bvh.wgsl");
         assert_eq!(
-            node.inner.size(module.to_ctx()) as usize,
+            struct_size(&module, "Node"),
             std::mem::size_of::<obvhs::cwbvh::node::CwBvhNode>()
         );
     }
