@@ -184,10 +184,7 @@ impl Header {
         Self {
             command: shell_join(std::env::args()),
             device: backend.describe(),
-            adapter: match backend {
-                Backend::Gpu(ctx) => Some(ctx.describe()),
-                Backend::Cpu => None,
-            },
+            adapter: backend.adapter(),
             cpu: cpu_description(),
             commit: commit(),
             dirty: git_dirty(),

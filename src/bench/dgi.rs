@@ -229,15 +229,8 @@ pub fn run(
     }
     Ok(DgiBenchReport {
         display: display_name.to_owned(),
-        adapter: match backend {
-            Backend::Gpu(ctx) => Some(ctx.describe()),
-            Backend::Cpu => None,
-        },
-        cpu: format!(
-            "{} threads ({})",
-            rayon::current_num_threads(),
-            std::env::consts::ARCH
-        ),
+        adapter: backend.adapter(),
+        cpu: super::cpu_threads(),
         config: config.clone(),
         rows,
     })

@@ -339,15 +339,8 @@ pub fn run_with_inputs(
     };
     let mut report = FilterBenchReport {
         display: display_name.to_owned(),
-        adapter: match backend {
-            Backend::Gpu(ctx) => Some(ctx.describe()),
-            Backend::Cpu => None,
-        },
-        cpu: format!(
-            "{} threads ({})",
-            rayon::current_num_threads(),
-            std::env::consts::ARCH
-        ),
+        adapter: backend.adapter(),
+        cpu: super::cpu_threads(),
         input: String::new(),
         config: config.clone(),
         coverage: Vec::new(),

@@ -24,3 +24,13 @@ pub fn median(mut v: Vec<f64>) -> f64 {
         0.5 * (v[n / 2 - 1] + v[n / 2])
     }
 }
+
+/// The CPU side of a benchmark's hardware line: "N threads (ARCH)".
+#[must_use]
+pub fn cpu_threads() -> String {
+    format!(
+        "{} threads ({})",
+        rayon::current_num_threads(),
+        std::env::consts::ARCH
+    )
+}

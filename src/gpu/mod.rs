@@ -58,6 +58,15 @@ impl Backend {
         }
     }
 
+    /// The adapter's description on the GPU backend; `None` on the CPU twins.
+    #[must_use]
+    pub fn adapter(&self) -> Option<String> {
+        match self {
+            Self::Gpu(ctx) => Some(ctx.describe()),
+            Self::Cpu => None,
+        }
+    }
+
     /// A human-readable name: the adapter's name and API, or the CPU twin with its thread count.
     #[must_use]
     pub fn describe(&self) -> String {
