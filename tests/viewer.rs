@@ -208,17 +208,22 @@ fn overlays_show_the_dgi_the_counts_and_the_roi_outline() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-#[test]
-fn replay_playback_pauses_scrubs_and_follows_the_session() {
+/// The bundled centre-sweeps FlyStick session on HORNET, as the viewer's timeline.
+fn bundled_replay() -> Timeline {
     let root = env!("CARGO_MANIFEST_DIR");
-    let timeline = Timeline::collect(&raygun::cli::tracking::ReplayArgs {
+    Timeline::collect(&raygun::cli::tracking::ReplayArgs {
         file: format!("{root}/tracking-replays/flystick-1-centre-sweeps.dtrack.jsonl").into(),
         display: Some(format!("{root}/display-models/hornet.json").into()),
         config: None,
         device: None,
         realtime: false,
     })
-    .unwrap();
+    .unwrap()
+}
+
+#[test]
+fn replay_playback_pauses_scrubs_and_follows_the_session() {
+    let timeline = bundled_replay();
     let mut s = ViewerState::new(RoiSource::Replay, 4);
     s.advance(0.0, &timeline);
     assert!(s.roi().is_none(), "nothing shot at t = 0");
@@ -347,15 +352,7 @@ fn live_dtrack_sets_the_aim_and_a_trigger_press_the_roi() {
 /// DGI stage's time is reported after the change.
 #[test]
 fn fov_override_widens_the_tracked_roi() {
-    let root = env!("CARGO_MANIFEST_DIR");
-    let timeline = Timeline::collect(&raygun::cli::tracking::ReplayArgs {
-        file: format!("{root}/tracking-replays/flystick-1-centre-sweeps.dtrack.jsonl").into(),
-        display: Some(format!("{root}/display-models/hornet.json").into()),
-        config: None,
-        device: None,
-        realtime: false,
-    })
-    .unwrap();
+    let timeline = bundled_replay();
     let (model, scene, backend) = (hornet(), scene(), Backend::Cpu);
     let mut state = ViewerState::new(RoiSource::Replay, 4);
     state.playing = false;
@@ -461,15 +458,7 @@ fn the_roi_is_less_noisy_than_the_periphery_and_a_uniform_sampler_is_not() {
 /// the raw aim is off the wall, and the same after a scrub as when jumped to directly.
 #[test]
 fn replay_cursor_is_smoothed_and_settles_the_same_after_a_scrub() {
-    let root = env!("CARGO_MANIFEST_DIR");
-    let timeline = Timeline::collect(&raygun::cli::tracking::ReplayArgs {
-        file: format!("{root}/tracking-replays/flystick-1-centre-sweeps.dtrack.jsonl").into(),
-        display: Some(format!("{root}/display-models/hornet.json").into()),
-        config: None,
-        device: None,
-        realtime: false,
-    })
-    .unwrap();
+    let timeline = bundled_replay();
     let mut s = ViewerState::new(RoiSource::Replay, 4);
     let (mut raw, mut smooth) = (Vec::new(), Vec::new());
     let mut live_frames = 0;
