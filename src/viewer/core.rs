@@ -535,12 +535,14 @@ pub fn median_finite(values: impl IntoIterator<Item = f32>) -> Option<f32> {
     if v.is_empty() {
         return None;
     }
-    v.sort_unstable_by(f32::total_cmp);
+    // Selection, not a sort: this runs on every displayed frame over every pixel.
     let n = v.len();
+    let (lower, &mut upper, _) = v.select_nth_unstable_by(n / 2, f32::total_cmp);
     Some(if n % 2 == 1 {
-        v[n / 2]
+        upper
     } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
+        let below = lower.iter().copied().max_by(f32::total_cmp).expect("n ≥ 2");
+        0.5 * (below + upper)
     })
 }
 
@@ -634,12 +636,14 @@ pub fn predicted_noise_ratio(p_min: f32) -> f32 {
 #[must_use]
 pub fn noise_map(noise: &[f32]) -> Vec<u8> {
     let mut finite: Vec<f32> = noise.iter().copied().filter(|v| v.is_finite()).collect();
-    finite.sort_unstable_by(f32::total_cmp);
-    let top = finite
-        .get((finite.len().saturating_sub(1) * 99) / 100)
-        .copied()
-        .filter(|v| *v > 0.0)
-        .unwrap_or(1.0);
+    let rank = (finite.len().saturating_sub(1) * 99) / 100;
+    let top = if finite.is_empty() {
+        None
+    } else {
+        Some(*finite.select_nth_unstable_by(rank, f32::total_cmp).1)
+    }
+    .filter(|v| *v > 0.0)
+    .unwrap_or(1.0);
     noise
         .iter()
         .flat_map(|&v| {
