@@ -22,7 +22,8 @@ use glam::{DMat2, DVec2, DVec3};
 pub use crate::display::Rect;
 
 use super::cone::Cone;
-use super::ellipse;
+use super::ellipse::{self, LANES, lane_mask};
+use wide::f64x4;
 
 /// A planar part of the display surface: canvas point c ↦ room point
 /// `origin + c.x·ex + c.y·ey`, for canvas points in `rect` (a tile's active area with its
@@ -104,7 +105,8 @@ impl PlacedConic {
                     return (a == 0.0 && l.x == 0.0 && l.y.abs() <= b)
                         || (b == 0.0 && l.y == 0.0 && l.x.abs() <= a);
                 }
-                (l.x / a).powi(2) + (l.y / b).powi(2) <= 1.0
+                let (s, t) = (l.x / a, l.y / b);
+                s * s + t * t <= 1.0
             }
             ConicKind::Hyperbola { b2, s } => l.y >= 0.0 && l.y * l.y >= b2 + (s * l.x).powi(2),
             ConicKind::Parabola { c } => l.y >= c * l.x * l.x,
@@ -489,27 +491,96 @@ impl Prepared<'_> {
     #[must_use]
     #[inline]
     pub fn distance_hinted(&self, c: DVec2, root: &mut f64) -> f64 {
-        let Some(solver) = &self.solver else {
-            return self.piece.distance(c);
-        };
+        let mut lanes = ([c; LANES], [*root; LANES], [false; LANES]);
+        lanes.2[0] = true;
+        let d = self.distance_hinted_lanes(lanes.0, &mut lanes.1, lanes.2);
+        *root = lanes.1[0];
+        d[0]
+    }
+
+    /// [`Self::distance_hinted`] for the queries whose `need` is set, each bit-identical to
+    /// asking it alone: the ellipse solves run as lanes of one
+    /// [`ellipse::EllipseSolver::closest_hinted_lanes`] call. Lanes not needed answer +∞ and
+    /// keep their root.
+    #[must_use]
+    #[inline]
+    pub fn distance_hinted_lanes(
+        &self,
+        c: [DVec2; LANES],
+        roots: &mut [f64; LANES],
+        need: [bool; LANES],
+    ) -> [f64; LANES] {
         let p = self.piece;
-        let d = c - p.conic.origin;
-        let l = DVec2::new(d.dot(p.conic.axis_u), d.dot(self.axis_v));
-        if p.conic.contains_local(l) {
-            if p.rect.contains(c) {
-                return 0.0;
+        let edges = |c: DVec2| {
+            p.edges
+                .iter()
+                .fold(f64::INFINITY, |d, e| d.min(e.closest(c).0))
+        };
+        let lanes = |bits: u32| (0..LANES).filter(move |l| bits & (1 << l) != 0);
+        let mut out = [f64::INFINITY; LANES];
+        let Some(solver) = &self.solver else {
+            for l in lanes(lane_mask(need).to_bitmask()) {
+                out[l] = p.distance(c[l]);
             }
-        } else {
-            let (dist, q, w) = solver.closest_hinted(l, *root);
-            *root = w;
-            let qc = p.conic.origin + q.x * p.conic.axis_u + q.y * self.axis_v;
-            if p.rect.contains(qc) {
-                return dist;
+            return out;
+        };
+        // The local frame, as `PlacedConic::to_local` computes it.
+        let splat = f64x4::splat;
+        let (o, u, v) = (p.conic.origin, p.conic.axis_u, self.axis_v);
+        let (dx, dy) = (
+            f64x4::new(c.map(|c| c.x)) - splat(o.x),
+            f64x4::new(c.map(|c| c.y)) - splat(o.y),
+        );
+        let (lu, lv) = (
+            dx * splat(u.x) + dy * splat(u.y),
+            dx * splat(v.x) + dy * splat(v.y),
+        );
+        let inside = match p.conic.kind {
+            // `PlacedConic::contains_local` of a proper ellipse, lane by lane.
+            ConicKind::Ellipse { a, b } if a != 0.0 && b != 0.0 => {
+                let (s, t) = (lu / splat(a), lv / splat(b));
+                (s * s + t * t).simd_le(f64x4::ONE)
             }
+            _ => {
+                let (lu, lv) = (lu.to_array(), lv.to_array());
+                lane_mask(std::array::from_fn(|l| {
+                    p.conic.contains_local(DVec2::new(lu[l], lv[l]))
+                }))
+            }
+        };
+        let need = lane_mask(need);
+        for l in lanes((need & inside).to_bitmask()) {
+            out[l] = if p.rect.contains(c[l]) {
+                0.0
+            } else {
+                edges(c[l])
+            };
         }
-        p.edges
-            .iter()
-            .fold(f64::INFINITY, |d, e| d.min(e.closest(c).0))
+        let solve = need & !inside;
+        if solve.none() {
+            return out;
+        }
+        let curve = solver.closest_hinted_lanes(lu, lv, f64x4::new(*roots), solve);
+        // The curve point on the canvas, as `PlacedConic::to_canvas` computes it, and whether it
+        // lies in the piece's rectangle (`Rect::contains`).
+        let qx = splat(o.x) + curve.x * splat(u.x) + curve.y * splat(v.x);
+        let qy = splat(o.y) + curve.x * splat(u.y) + curve.y * splat(v.y);
+        let (lo, hi) = (p.rect.min, p.rect.max);
+        let in_rect = (qx.simd_ge(splat(lo.x))
+            & qx.simd_le(splat(hi.x))
+            & qy.simd_ge(splat(lo.y))
+            & qy.simd_le(splat(hi.y)))
+        .to_bitmask();
+        let (distance, root) = (curve.distance.to_array(), curve.root.to_array());
+        for l in lanes(solve.to_bitmask()) {
+            roots[l] = root[l];
+            out[l] = if in_rect & (1 << l) != 0 {
+                distance[l]
+            } else {
+                edges(c[l])
+            };
+        }
+        out
     }
 }
 
@@ -866,6 +937,64 @@ mod tests {
             }
         }
         assert!(zero > 0 && edge > 0 && curve > 0, "{zero} {edge} {curve}");
+    }
+
+    /// Four rows at once, warm-started along each row as the DGI does, with some lanes switched
+    /// off: every needed lane is bit-identical to the one-query path with the same roots, and
+    /// the others keep their roots. Covers zero, curve and edge answers and a hyperbola piece
+    /// (no ellipse solver).
+    #[test]
+    fn prepared_lanes_are_bit_identical_to_one_at_a_time() {
+        let patch = flat_patch();
+        let ellipse = Cone::from_pose(
+            DVec3::new(0.9, 0.2, 1.0),
+            DVec3::new(0.2, -0.1, -1.0),
+            DVec3::Y,
+            50.0,
+            30.0,
+        )
+        .unwrap();
+        let hyperbola = PlacedConic {
+            kind: ConicKind::Hyperbola { b2: 4e4, s: 0.7 },
+            origin: DVec2::new(900.0, 300.0),
+            axis_u: DVec2::new(0.8, 0.6),
+        };
+        for piece in [
+            Piece::new(patch.rect, section(&ellipse, &patch)).unwrap(),
+            Piece::new(patch.rect, hyperbola).unwrap(),
+        ] {
+            let prepared = piece.prepare();
+            for j0 in (0..60).step_by(4) {
+                let (mut roots, mut alone) = ([f64::NAN; 4], [f64::NAN; 4]);
+                for i in 0..80 {
+                    let c = [0, 1, 2, 3].map(|l| {
+                        DVec2::new(
+                            -500.0 + 50.0 * f64::from(i),
+                            -400.0 + 35.0 * f64::from(j0 + l),
+                        )
+                    });
+                    let need = [i % 7 != 3, true, (i + j0) % 5 != 0, i % 2 == 0];
+                    let before = roots;
+                    let got = prepared.distance_hinted_lanes(c, &mut roots, need);
+                    for l in 0..4 {
+                        if !need[l] {
+                            assert_eq!(got[l], f64::INFINITY);
+                            assert_eq!(roots[l].to_bits(), before[l].to_bits());
+                            continue;
+                        }
+                        let want = prepared.distance_hinted(c[l], &mut alone[l]);
+                        assert_eq!(
+                            got[l].to_bits(),
+                            want.to_bits(),
+                            "{}: {} vs {want}",
+                            c[l],
+                            got[l]
+                        );
+                        assert_eq!(roots[l].to_bits(), alone[l].to_bits(), "{}", c[l]);
+                    }
+                }
+            }
+        }
     }
 
     /// Every sampled point of rect ∩ K lies in the piece's box, and the box is tight: each

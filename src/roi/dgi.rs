@@ -16,6 +16,7 @@ use rayon::prelude::*;
 
 use super::cone::Cone;
 use super::conic::{ConicKind, Patch, Piece, PlacedConic, Prepared, Rect, section};
+use super::ellipse::LANES;
 
 /// Which distance the DGI measures.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
@@ -468,7 +469,12 @@ const OFFSET_FACTOR2: f64 = (1.0 + 1e-12) * (1.0 + 1e-12);
 const BOX_FACTOR2: f64 = 1.0 + 4.0 * f64::EPSILON;
 
 /// The per-block pruning of [`compute_cpu`] for a union of pieces (scratch space reused from
-/// block to block).
+/// block to block), [`LANES`] rows at a time: one per lane of
+/// [`Prepared::distance_hinted_lanes`]. Each pixel's Newton iterations are a chain of dependent
+/// divisions and square roots, and the warm start chains it to the pixel before it in its row,
+/// so one row at a time leaves the core waiting on that chain; rows side by side run their
+/// chains in the same vector instructions. Each pixel's value is bit-identical to solving its
+/// row alone.
 struct BlockPruner<'a> {
     pieces: &'a [Prepared<'a>],
     cap: f64,
@@ -478,8 +484,9 @@ struct BlockPruner<'a> {
     /// Candidate pieces of the current block as (distance from the block centre, index), nearest
     /// first.
     near: Vec<(f64, usize)>,
-    /// Per candidate, the ellipse solver's last roots along the current row (warm starts).
-    warm: Vec<Warm>,
+    /// Per candidate and lane, the ellipse solver's last roots along that lane's current row
+    /// (warm starts).
+    warm: Vec<[Warm; LANES]>,
 }
 
 /// The last two secular roots of one piece along a row: the next pixel's root is predicted by
@@ -579,39 +586,60 @@ impl<'a> BlockPruner<'a> {
             return fill(0.0);
         }
         self.warm.clear();
-        self.warm.resize(self.near.len(), Warm::NONE);
-        for (j, &y) in ys.iter().enumerate() {
-            for w in &mut self.warm {
+        self.warm.resize(self.near.len(), [Warm::NONE; LANES]);
+        for j0 in (0..ys.len()).step_by(LANES) {
+            // Lanes past the block's last row repeat it and are switched off.
+            let rows = (ys.len() - j0).min(LANES);
+            for w in self.warm.iter_mut().flatten() {
                 w.at = usize::MAX;
             }
             for (i, &x) in xs.iter().enumerate() {
-                let c = DVec2::new(x, y);
+                let c: [DVec2; LANES] =
+                    std::array::from_fn(|l| DVec2::new(x, ys[j0 + l.min(rows - 1)]));
                 // The bounds below compare squares (no square root per pixel and piece): the
                 // factors (1 + 1e-12)² and 1 + 4ε cover the squares' rounding, so a piece is
                 // skipped only when it is provably no nearer than `best`.
-                let offset2 = (c - centre).length_squared() * OFFSET_FACTOR2;
-                let mut best = self.cap;
+                let offset2 = c.map(|c| (c - centre).length_squared() * OFFSET_FACTOR2);
+                let mut best = [self.cap; LANES];
+                // Lanes still looking for a nearer piece.
+                let mut open: [bool; LANES] = std::array::from_fn(|l| l < rows);
                 for (&(dc, k), warm) in self.near.iter().zip(&mut self.warm) {
-                    // dc − |c − centre|·(1 + 1e-12) − slack ≥ best: no nearer than best.
-                    let gap = dc - best - self.slack;
-                    if gap >= 0.0 && gap * gap >= offset2 {
-                        break; // sorted by dc: every later piece is as far
-                    }
                     let p = &self.pieces[k];
                     let b = p.piece.bounds;
-                    let to_box = (b.min - c).max(c - b.max).max(DVec2::ZERO);
-                    if to_box.length_squared() >= best * best * BOX_FACTOR2 {
-                        continue;
+                    let mut need = [false; LANES];
+                    for l in 0..LANES {
+                        if !open[l] {
+                            continue;
+                        }
+                        // dc − |c − centre|·(1 + 1e-12) − slack ≥ best: no nearer than best,
+                        // and neither is any later piece (sorted by dc).
+                        let gap = dc - best[l] - self.slack;
+                        if gap >= 0.0 && gap * gap >= offset2[l] {
+                            open[l] = false;
+                            continue;
+                        }
+                        let to_box = (b.min - c[l]).max(c[l] - b.max).max(DVec2::ZERO);
+                        need[l] = to_box.length_squared() < best[l] * best[l] * BOX_FACTOR2;
                     }
-                    let mut root = warm.hint(i);
-                    let d = p.distance_hinted(c, &mut root);
-                    warm.record(i, root);
-                    best = best.min(d);
-                    if best == 0.0 {
+                    if !open.contains(&true) {
                         break;
                     }
+                    if !need.contains(&true) {
+                        continue;
+                    }
+                    let mut roots: [f64; LANES] = std::array::from_fn(|l| warm[l].hint(i));
+                    let d = p.distance_hinted_lanes(c, &mut roots, need);
+                    for l in 0..LANES {
+                        if need[l] {
+                            warm[l].record(i, roots[l]);
+                            best[l] = best[l].min(d[l]);
+                            open[l] &= best[l] != 0.0;
+                        }
+                    }
                 }
-                put(i, j, best);
+                for (l, &d) in best.iter().enumerate().take(rows) {
+                    put(i, j0 + l, d);
+                }
             }
         }
     }

@@ -64,6 +64,17 @@
 //! taken by absolute value; NaN inputs give NaN outputs.
 
 use glam::DVec2;
+use wide::f64x4;
+
+/// Queries [`EllipseSolver::closest_hinted_lanes`] solves at once: one `f64x4`.
+pub const LANES: usize = 4;
+
+/// The all-ones mask of `f64x4` comparisons where `on`, zero elsewhere.
+#[must_use]
+#[inline]
+pub fn lane_mask(on: [bool; LANES]) -> f64x4 {
+    f64x4::new(on.map(|on| f64::from_bits(if on { u64::MAX } else { 0 })))
+}
 
 /// Newton steps before the bisection fallback (f64). Measured on the hard-case set: at most
 /// [`MEASURED_MAX_NEWTON_F64`] were needed.
@@ -219,21 +230,56 @@ impl EllipseSolver {
     #[must_use]
     #[inline]
     pub fn closest_hinted(&self, p: DVec2, hint: f64) -> (f64, DVec2, f64) {
-        let (x, y) = if self.swap {
-            (p.y.abs(), p.x.abs())
-        } else {
-            (p.x.abs(), p.y.abs())
-        };
-        let (cx, cy, _, root) =
-            first_quadrant_core(self.major, self.minor, self.e, self.c, x, y, hint);
-        let distance = hypot(x - cx, y - cy);
-        let (cx, cy) = if self.swap { (cy, cx) } else { (cx, cy) };
-        let point = DVec2::new(
-            if p.x < 0.0 { -cx } else { cx },
-            if p.y < 0.0 { -cy } else { cy },
+        let first = |v: f64, rest: f64| f64x4::new([v, rest, rest, rest]);
+        let lanes = self.closest_hinted_lanes(
+            first(p.x, 0.0),
+            first(p.y, 0.0),
+            first(hint, f64::NAN),
+            lane_mask([true, false, false, false]),
         );
-        (distance, point, root)
+        let lane0 = |v: f64x4| v.to_array()[0];
+        (
+            lane0(lanes.distance),
+            DVec2::new(lane0(lanes.x), lane0(lanes.y)),
+            lane0(lanes.root),
+        )
     }
+
+    /// [`Self::closest_hinted`] for [`LANES`] queries at once, points `(x, y)` and hints given
+    /// lane by lane, lanes whose `mask` is off skipped (they answer NaN). Each lane's answer is
+    /// bit-identical to asking it alone (see `first_quadrant_lanes`).
+    #[must_use]
+    #[inline]
+    pub fn closest_hinted_lanes(&self, x: f64x4, y: f64x4, hint: f64x4, mask: f64x4) -> CurveLanes {
+        let (qx, qy) = if self.swap {
+            (y.abs(), x.abs())
+        } else {
+            (x.abs(), y.abs())
+        };
+        let q = first_quadrant_lanes(self.major, self.minor, self.e, self.c, qx, qy, hint, mask);
+        let distance = hypot_lanes(qx - q.x, qy - q.y, mask);
+        let (cx, cy) = if self.swap { (q.y, q.x) } else { (q.x, q.y) };
+        // The query's signs back, by flipping sign bits as `-c` does (`< 0` keeps −0.0 on the
+        // positive side: the documented choice for the non-unique case).
+        let sign = |v: f64x4| v.simd_lt(f64x4::ZERO) & f64x4::splat(-0.0);
+        CurveLanes {
+            distance,
+            x: cx ^ sign(x),
+            y: cy ^ sign(y),
+            root: q.root,
+        }
+    }
+}
+
+/// The answers of [`EllipseSolver::closest_hinted_lanes`], lane by lane: the distance, the
+/// closest point (x, y) and the secular root (NaN where the answer was closed-form, and in every
+/// field of a lane that was masked off).
+#[derive(Clone, Copy, Debug)]
+pub struct CurveLanes {
+    pub distance: f64x4,
+    pub x: f64x4,
+    pub y: f64x4,
+    pub root: f64x4,
 }
 
 /// Distance from `p` to the filled ellipse: 0 inside or on the boundary, else the distance to the
@@ -272,7 +318,8 @@ fn first_quadrant_f64(a: f64, b: f64, x: f64, y: f64, hint: f64) -> (f64, f64, u
 }
 
 /// [`first_quadrant_f64`] with `e = b/a` and `c = (1 − e)(1 + e)` given (hoisted by
-/// [`EllipseSolver`]; NaN when `a = 0`, which returns before using them).
+/// [`EllipseSolver`]; NaN when `a = 0`, which returns before using them): lane 0 of
+/// [`first_quadrant_lanes`].
 #[inline]
 fn first_quadrant_core(
     a: f64,
@@ -283,130 +330,239 @@ fn first_quadrant_core(
     y: f64,
     hint: f64,
 ) -> (f64, f64, u32, f64) {
+    let first = |v: f64, rest: f64| f64x4::new([v, rest, rest, rest]);
+    let q = first_quadrant_lanes(
+        a,
+        b,
+        e,
+        c,
+        first(x, 0.0),
+        first(y, 0.0),
+        first(hint, f64::NAN),
+        lane_mask([true, false, false, false]),
+    );
+    (
+        q.x.to_array()[0],
+        q.y.to_array()[0],
+        q.iterations[0],
+        q.root.to_array()[0],
+    )
+}
+
+/// The answers of [`first_quadrant_lanes`], lane by lane: the closest point (x, y) in the
+/// caller's units, the iteration count and the secular root (NaN where the answer is
+/// closed-form). Lanes that were masked off hold NaN.
+struct Quadrant {
+    x: f64x4,
+    y: f64x4,
+    iterations: [u32; LANES],
+    root: f64x4,
+}
+
+/// The first-quadrant solver (steps 2–8 of the module docs) for [`LANES`] queries on the same
+/// ellipse at once, lanes whose `mask` is off skipped.
+///
+/// The lanes run side by side in `f64x4` operations (two SSE2 registers, or one AVX register).
+/// That is the point: one query's Newton evaluations form a chain of dependent divisions and
+/// square roots, and the DGI's warm starts chain each pixel to the one before it, so one query
+/// at a time leaves the core waiting on that chain, while four independent queries (the DGI
+/// passes pixels of four rows) share every instruction. Every lane does exactly the IEEE
+/// operations a query alone would (division and square root are correctly rounded, no fused
+/// multiply-add), branches become per-lane selects, and a lane that has stopped computes along
+/// but keeps its root, so a lane's answer never depends on its neighbours
+/// (`lanes_are_bit_identical_to_one_at_a_time`). The one-query solver is lane 0 of this one.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn first_quadrant_lanes(
+    a: f64,
+    b: f64,
+    e: f64,
+    c: f64,
+    x: f64x4,
+    y: f64x4,
+    hint: f64x4,
+    mask: f64x4,
+) -> Quadrant {
+    let nan = f64x4::splat(f64::NAN);
     if a == 0.0 {
-        return (0.0, 0.0, 0, f64::NAN);
+        // The point ellipse.
+        let zero = mask.select(f64x4::ZERO, nan);
+        return Quadrant {
+            x: zero,
+            y: zero,
+            iterations: [0; LANES],
+            root: nan,
+        };
     }
-    let (p, q) = (x / a, y / a);
-    // `!(..)` also routes NaN here, where it stays NaN.
-    if !(p <= FAR_F64 && q <= FAR_F64) {
-        let (cx, cy, n) = far_field_f64(a, e, b, x, y);
-        return (cx, cy, n, f64::NAN);
-    }
-    let eq = e * q;
-    if eq == 0.0 {
-        if p <= c {
-            // Inside the evolute on the major axis (or a segment's interior): the pole root.
-            let (xs, cx) = if c > 0.0 { (p / c, x / c) } else { (0.0, 0.0) };
-            let cy = b * ((1.0 - xs) * (1.0 + xs)).max(0.0).sqrt();
-            return (cx, cy, 0, f64::NAN);
-        }
-        return (a, 0.0, 0, f64::NAN);
-    }
-    let secular = |w: f64| {
-        let (ga, gb) = (p / (w + c), eq / w);
-        (ga, gb, ga * ga + gb * gb)
-    };
-    let r = hypot(p, eq);
-    let mut lo = eq.max(r - c);
+    let (one, cv) = (f64x4::ONE, f64x4::splat(c));
+    let (p, q) = (x / f64x4::splat(a), y / f64x4::splat(a));
+    let eq = f64x4::splat(e) * q;
+    // `!(..)` also routes NaN to the far field, where it stays NaN.
+    let far = !(p.simd_le(f64x4::splat(FAR_F64)) & q.simd_le(f64x4::splat(FAR_F64)));
+    // Step 3's closed forms need eq > 0.
+    let secular = mask & !far & !eq.simd_eq(f64x4::ZERO);
+    // The certified bracket (step 4) and the start (step 5): a warm start from a nearby query's
+    // root (see `closest_point_on_ellipse_hinted`) when it lies in the bracket, else the
+    // Lagrange multiplier of the radial projection when that does, else the bracket's low end.
+    let r = hypot_lanes(p, eq, secular);
+    let mut lo = eq.max(r - cv);
     let mut hi = r;
-    let mut w = lo;
-    let mut probing = false;
-    // A warm start from a nearby query's root (see `closest_point_on_ellipse_hinted`).
-    let hinted = hint > lo && hint < hi;
-    let mut warm = hinted;
-    if hinted {
-        w = hint;
-        probing = true;
-    } else {
-        // Start at the Lagrange multiplier of the radial projection when it lies in the bracket.
-        let rho = hypot(p, q / e);
-        let (x0, b0) = (p / rho, q / (e * rho));
-        let est = e * e * ((rho - 1.0) / (e * e * x0 * x0 + b0 * b0) + 1.0);
-        if est > lo && est < hi {
-            w = est;
-            probing = true;
-        }
+    let hinted = secular & hint.simd_gt(lo) & hint.simd_lt(hi);
+    let mut w = hinted.select(hint, lo);
+    let mut probing = hinted;
+    let cold = secular & !hinted;
+    if cold.any() {
+        let rho = hypot_lanes(p, q / f64x4::splat(e), cold);
+        let (x0, b0) = (p / rho, q / (f64x4::splat(e) * rho));
+        let e2 = f64x4::splat(e * e);
+        let est = e2 * ((rho - one) / (e2 * x0 * x0 + b0 * b0) + one);
+        let start = cold & est.simd_gt(lo) & est.simd_lt(hi);
+        w = start.select(est, w);
+        probing |= start;
     }
-    let mut iterations = 0;
-    let mut converged = false;
-    let mut prev_rel = 1.0_f64;
-    while iterations < MAX_NEWTON_STEPS_F64 {
-        iterations += 1;
-        let (ga, gb, s) = secular(w);
-        if s <= 1.0 && !probing {
-            // At the root, or past it by rounding only: Newton from below never overshoots.
-            converged = true;
-            break;
-        }
-        if s >= 1.0 {
-            lo = lo.max(w);
-        } else {
-            hi = hi.min(w);
-        }
+    // Steps 6–7. The updates of lo, hi and the flags in lanes that have stopped are never read
+    // again.
+    let mut warm = hinted;
+    let mut prev_rel = one;
+    let mut running = secular;
+    let mut iterations = [0u32; LANES];
+    let mut step_count = 0;
+    while step_count < MAX_NEWTON_STEPS_F64 && running.any() {
+        step_count += 1;
+        let wc = w + cv;
+        let (ga, gb) = (p / wc, eq / w);
+        let s = ga * ga + gb * gb;
+        // At the root, or past it by rounding only: Newton from below never overshoots.
+        let at_root = s.simd_le(one) & !probing;
+        let above = s.simd_ge(one);
+        let lo1 = above.select(lo.max(w), lo);
+        let hi1 = above.select(hi, hi.min(w));
         // Newton on h = S^(-1/2): Δw = (1 − h)/h' = w·S(√S − 1)/(w·(A²/(w+c) + B²/w)); the
         // denominator is written bounded (≤ 2) so that tiny w cannot overflow it. h is concave,
         // so the tangent's zero is a lower bound from either side.
-        let dw = ga * ga * (w / (w + c)) + gb * gb;
-        let step = w * s * (s.sqrt() - 1.0) / dw;
+        let dw = ga * ga * (w / wc) + gb * gb;
+        let step = w * s * (s.sqrt() - one) / dw;
         let newton = w + step;
-        if newton > lo {
-            lo = newton.min(hi);
-        }
+        let lo2 = newton.simd_gt(lo1).select(newton.min(hi1), lo1);
         // Quadratic convergence: the error left after this step is about K·step² with
         // K ≈ step/prev_step² measured from the last two steps.
         let rel = step.abs() / w;
-        if rel <= NEWTON_TOL_F64
-            || (!probing
-                && prev_rel <= 1e-3
-                && rel * rel * rel <= 0.25 * EPS_F64 * prev_rel * prev_rel)
-        {
-            w = newton.max(lo).min(hi);
-            converged = true;
-            break;
-        }
-        prev_rel = if probing && !warm { 1.0 } else { rel };
-        warm = false;
-        if s >= 1.0 && lo <= w {
-            // Rounding stalls the climb: w is the root to working precision.
-            w = lo;
-            converged = true;
-            break;
-        }
+        let converged = rel.simd_le(f64x4::splat(NEWTON_TOL_F64))
+            | (!probing
+                & prev_rel.simd_le(f64x4::splat(1e-3))
+                & (rel * rel * rel).simd_le(f64x4::splat(0.25 * EPS_F64) * prev_rel * prev_rel));
+        // Rounding stalls the climb: w is the root to working precision.
+        let stalled = above & lo2.simd_le(w);
+        let next = at_root.select(w, converged.select(newton.max(lo2).min(hi1), lo2));
         let first = w;
-        w = lo;
-        probing = false;
-        if iterations == 1 && s >= 1.0 && !hinted {
-            // Freezing one term at its value at `first` (a lower bound: S ≥ 1 there) and
-            // solving for the other gives an estimate from above that is exact where one term hardly varies: near a vertex of
-            // an eccentric ellipse, where Newton alone crawls (module docs, step 6).
-            // Evaluate there once when Newton's first step covers less than a quarter of the way.
-            let mut frozen = hi;
-            if ga < 1.0 {
-                frozen = frozen.min(eq / ((1.0 - ga) * (1.0 + ga)).sqrt());
-            }
-            if gb < 1.0 {
-                frozen = frozen.min(p / ((1.0 - gb) * (1.0 + gb)).sqrt() - c);
-            }
-            if frozen > lo && lo - first < 0.25 * (frozen - first) {
-                w = frozen;
-                probing = true;
+        w = running.select(next, w);
+        let stepped = running.to_bitmask();
+        for (l, it) in iterations.iter_mut().enumerate() {
+            if stepped & (1 << l) != 0 {
+                *it = step_count;
             }
         }
+        running &= !(at_root | converged | stalled);
+        (lo, hi) = (lo2, hi1);
+        prev_rel = (probing & !warm).select(one, rel);
+        (warm, probing) = (f64x4::ZERO, f64x4::ZERO);
+        let probe = (running & above & !hinted).to_bitmask();
+        if step_count == 1 && probe != 0 {
+            // Freezing one term at its value at `first` (a lower bound: S ≥ 1 there) and solving
+            // for the other gives an estimate from above that is exact where one term hardly
+            // varies: near a vertex of an eccentric ellipse, where Newton alone crawls (module
+            // docs, step 6). Evaluate there once when Newton's first step covers less than a
+            // quarter of the way.
+            let (ga, gb, first) = (ga.to_array(), gb.to_array(), first.to_array());
+            let (p, eq, lo, hi) = (p.to_array(), eq.to_array(), lo.to_array(), hi.to_array());
+            let (mut wl, mut probes) = (w.to_array(), probing.to_array());
+            for l in (0..LANES).filter(|l| probe & (1 << l) != 0) {
+                let mut frozen = hi[l];
+                if ga[l] < 1.0 {
+                    frozen = frozen.min(eq[l] / ((1.0 - ga[l]) * (1.0 + ga[l])).sqrt());
+                }
+                if gb[l] < 1.0 {
+                    frozen = frozen.min(p[l] / ((1.0 - gb[l]) * (1.0 + gb[l])).sqrt() - c);
+                }
+                if frozen > lo[l] && lo[l] - first[l] < 0.25 * (frozen - first[l]) {
+                    wl[l] = frozen;
+                    probes[l] = f64::from_bits(u64::MAX);
+                }
+            }
+            (w, probing) = (f64x4::new(wl), f64x4::new(probes));
+        }
     }
-    if !converged {
-        let (mut lb, mut hb) = (lo.to_bits(), hi.to_bits());
-        while hb > lb + 1 {
-            iterations += 1;
-            let mb = lb + (hb - lb) / 2;
-            if secular(f64::from_bits(mb)).2 >= 1.0 {
-                lb = mb;
+    // Step 8: bisection on the bit pattern of w for lanes Newton has not finished.
+    let unfinished = running.to_bitmask();
+    if unfinished != 0 {
+        let (p, eq, lo, hi) = (p.to_array(), eq.to_array(), lo.to_array(), hi.to_array());
+        let mut wl = w.to_array();
+        for l in (0..LANES).filter(|l| unfinished & (1 << l) != 0) {
+            let (mut lb, mut hb) = (lo[l].to_bits(), hi[l].to_bits());
+            while hb > lb + 1 {
+                iterations[l] += 1;
+                let mb = lb + (hb - lb) / 2;
+                let wm = f64::from_bits(mb);
+                let (ga, gb) = (p[l] / (wm + c), eq[l] / wm);
+                if ga * ga + gb * gb >= 1.0 {
+                    lb = mb;
+                } else {
+                    hb = mb;
+                }
+            }
+            wl[l] = f64::from_bits(lb);
+        }
+        w = f64x4::new(wl);
+    }
+    let mut out = Quadrant {
+        x: secular.select(x / (w + cv), nan),
+        y: secular.select(f64x4::splat(b) * (eq / w), nan),
+        iterations,
+        root: secular.select(w, nan),
+    };
+    // The closed forms: the far field, and points on the major axis.
+    let closed = (mask & !secular).to_bitmask();
+    if closed != 0 {
+        let (xs, ys, p) = (x.to_array(), y.to_array(), p.to_array());
+        let (mut cx, mut cy, far) = (out.x.to_array(), out.y.to_array(), far.to_bitmask());
+        for l in (0..LANES).filter(|l| closed & (1 << l) != 0) {
+            (cx[l], cy[l]) = if far & (1 << l) != 0 {
+                let (cx, cy, _) = far_field_f64(a, e, b, xs[l], ys[l]);
+                (cx, cy)
+            } else if p[l] <= c {
+                // Inside the evolute on the major axis (or a segment's interior): the pole root.
+                let (xr, cx) = if c > 0.0 {
+                    (p[l] / c, xs[l] / c)
+                } else {
+                    (0.0, 0.0)
+                };
+                (cx, b * ((1.0 - xr) * (1.0 + xr)).max(0.0).sqrt())
             } else {
-                hb = mb;
-            }
+                (a, 0.0)
+            };
         }
-        w = f64::from_bits(lb);
+        (out.x, out.y) = (f64x4::new(cx), f64x4::new(cy));
     }
-    (x / (w + c), b * (eq / w), iterations, w)
+    out
+}
+
+/// [`hypot`] lane by lane: the direct square root where every lane in `lanes` is in its range,
+/// the scaled form for those that are not.
+#[inline(always)]
+fn hypot_lanes(x: f64x4, y: f64x4, lanes: f64x4) -> f64x4 {
+    let sq = x * x + y * y;
+    let direct =
+        sq.simd_ge(f64x4::splat(HYPOT_DIRECT_MIN)) & sq.simd_le(f64x4::splat(HYPOT_DIRECT_MAX));
+    let scaled = (lanes & !direct).to_bitmask();
+    let root = sq.sqrt();
+    if scaled == 0 {
+        return root;
+    }
+    let (xs, ys, mut h) = (x.to_array(), y.to_array(), root.to_array());
+    for l in (0..LANES).filter(|l| scaled & (1 << l) != 0) {
+        h[l] = hypot(xs[l], ys[l]);
+    }
+    f64x4::new(h)
 }
 
 /// The point whose outward normal is parallel to `(x, y)`: the closest point to within
@@ -731,6 +887,109 @@ mod tests {
                     assert_eq!(w.to_bits(), root.to_bits(), "a={a} b={b} p={p}");
                 }
             }
+        }
+    }
+
+    /// Asserts that every masked lane of one `closest_hinted_lanes` call is bit-identical to
+    /// solving that lane alone (and that unmasked lanes answer NaN).
+    fn assert_lanes_match(
+        solver: &EllipseSolver,
+        p: [DVec2; LANES],
+        hint: [f64; LANES],
+        mask: [bool; LANES],
+    ) {
+        let lanes = solver.closest_hinted_lanes(
+            f64x4::new(p.map(|p| p.x)),
+            f64x4::new(p.map(|p| p.y)),
+            f64x4::new(hint),
+            lane_mask(mask),
+        );
+        let [d, x, y, w] = [lanes.distance, lanes.x, lanes.y, lanes.root].map(f64x4::to_array);
+        for l in 0..LANES {
+            let (d, q, w) = (d[l], DVec2::new(x[l], y[l]), w[l]);
+            if !mask[l] {
+                assert!(
+                    d.is_nan() && q.is_nan() && w.is_nan(),
+                    "lane {l} is masked off: {lanes:?}"
+                );
+                continue;
+            }
+            let (d1, q1, w1) = solver.closest_hinted(p[l], hint[l]);
+            let bits = |d: f64, q: DVec2, w: f64| [d, q.x, q.y, w].map(f64::to_bits);
+            assert_eq!(
+                bits(d, q, w),
+                bits(d1, q1, w1),
+                "lane {l} of {solver:?}: p={:?} hint={:?} mask={mask:?}",
+                p[l],
+                hint[l]
+            );
+        }
+    }
+
+    /// Each hard case shares its lanes with three other queries on the same ellipse (the point
+    /// reflected, halved and pushed out), cold, warm from the case's own root, and warm from a
+    /// neighbour's: the lanes must not change any query's answer.
+    #[test]
+    fn lanes_are_bit_identical_to_one_at_a_time() {
+        let csv = include_str!("../../tests/data/ellipse_hard_cases.csv");
+        let mut cases = 0;
+        for line in csv.lines().filter(|l| !l.starts_with('#')).skip(1) {
+            let v: Vec<f64> = line
+                .split(',')
+                .take(4)
+                .map(|s| s.parse().unwrap())
+                .collect();
+            let (a, b, p) = (v[0], v[1], DVec2::new(v[2], v[3]));
+            let solver = EllipseSolver::new(a, b);
+            let points = [p, -p, 0.5 * p, p * 1.5 + DVec2::new(a, b)];
+            let roots = points.map(|q| solver.closest_hinted(q, f64::NAN).2);
+            for hint in [
+                [f64::NAN; 4],
+                roots,
+                [roots[1], roots[2], roots[3], roots[0]],
+                [0.5, 2.0, f64::INFINITY, -1.0],
+            ] {
+                assert_lanes_match(&solver, points, hint, [true; 4]);
+                assert_lanes_match(&solver, points, hint, [true, false, true, false]);
+                assert_lanes_match(&solver, points, hint, [false, false, false, true]);
+            }
+            cases += 1;
+        }
+        assert!(cases > 1900, "read {cases} hard cases");
+    }
+
+    proptest! {
+        #[test]
+        fn lanes_are_bit_identical_for_any_input(
+            a in any_finite(), b in any_finite(),
+            xy in prop::array::uniform8(any_finite()),
+            hint in prop::array::uniform4(any_finite()),
+            mask in prop::array::uniform4(any::<bool>()),
+        ) {
+            let p = [0, 1, 2, 3].map(|l| DVec2::new(xy[2 * l], xy[2 * l + 1]));
+            let solver = EllipseSolver::new(a, b);
+            assert_lanes_match(&solver, p, hint, mask);
+            // Warm from each other's roots, as the DGI's neighbouring pixels are.
+            let roots = p.map(|q| solver.closest_hinted(q, f64::NAN).2);
+            assert_lanes_match(&solver, p, [roots[3], roots[0], roots[1], roots[2]], mask);
+        }
+
+        #[test]
+        fn lanes_are_bit_identical_near_eccentric_boundaries(
+            a in 1.0f64..4000.0, k in 0.0f64..8.0,
+            t in prop::array::uniform4(0.0f64..std::f64::consts::TAU),
+            off in prop::array::uniform4(-1e-3f64..1e-3),
+        ) {
+            // Where the start estimate, the frozen-term probe and the stopping rule all act.
+            let b = a * 10f64.powf(-k);
+            let solver = EllipseSolver::new(a, b);
+            let p = [0, 1, 2, 3].map(|l| {
+                let (c, s) = (t[l].cos(), t[l].sin());
+                DVec2::new(a * c, b * s) + off[l] * a * DVec2::new(c / a, s / b).normalize()
+            });
+            assert_lanes_match(&solver, p, [f64::NAN; 4], [true; 4]);
+            let roots = p.map(|q| solver.closest_hinted(q, f64::NAN).2);
+            assert_lanes_match(&solver, p, [roots[1], roots[2], roots[3], roots[0]], [true; 4]);
         }
     }
 
