@@ -491,46 +491,50 @@ impl Prepared<'_> {
     #[must_use]
     #[inline]
     pub fn distance_hinted(&self, c: DVec2, root: &mut f64) -> f64 {
-        let mut lanes = ([c; LANES], [*root; LANES], [false; LANES]);
-        lanes.2[0] = true;
-        let d = self.distance_hinted_lanes(lanes.0, &mut lanes.1, lanes.2);
-        *root = lanes.1[0];
-        d[0]
+        let first = |v: f64| f64x4::new([v; LANES]);
+        let mut roots = first(*root);
+        let need = lane_mask([true, false, false, false]);
+        let d = self.distance_hinted_lanes(first(c.x), first(c.y), &mut roots, need);
+        *root = roots.to_array()[0];
+        d.to_array()[0]
     }
 
-    /// [`Self::distance_hinted`] for the queries whose `need` is set, each bit-identical to
-    /// asking it alone: the ellipse solves run as lanes of one
+    /// [`Self::distance_hinted`] for the points `(x, y)` whose `need` lane is set, each the
+    /// value that point gives alone: the ellipse solves run as lanes of one
     /// [`ellipse::EllipseSolver::closest_hinted_lanes`] call. Lanes not needed answer +∞ and
     /// keep their root.
     #[must_use]
     #[inline]
     pub fn distance_hinted_lanes(
         &self,
-        c: [DVec2; LANES],
-        roots: &mut [f64; LANES],
-        need: [bool; LANES],
-    ) -> [f64; LANES] {
+        x: f64x4,
+        y: f64x4,
+        roots: &mut f64x4,
+        need: f64x4,
+    ) -> f64x4 {
         let p = self.piece;
+        let (xs, ys) = (x.to_array(), y.to_array());
+        let point = |l: usize| DVec2::new(xs[l], ys[l]);
         let edges = |c: DVec2| {
             p.edges
                 .iter()
                 .fold(f64::INFINITY, |d, e| d.min(e.closest(c).0))
         };
-        let lanes = |bits: u32| (0..LANES).filter(move |l| bits & (1 << l) != 0);
+        let lanes = |m: f64x4| {
+            let bits = m.to_bitmask();
+            (0..LANES).filter(move |l| bits & (1 << l) != 0)
+        };
         let mut out = [f64::INFINITY; LANES];
         let Some(solver) = &self.solver else {
-            for l in lanes(lane_mask(need).to_bitmask()) {
-                out[l] = p.distance(c[l]);
+            for l in lanes(need) {
+                out[l] = p.distance(point(l));
             }
-            return out;
+            return f64x4::new(out);
         };
         // The local frame, as `PlacedConic::to_local` computes it.
         let splat = f64x4::splat;
         let (o, u, v) = (p.conic.origin, p.conic.axis_u, self.axis_v);
-        let (dx, dy) = (
-            f64x4::new(c.map(|c| c.x)) - splat(o.x),
-            f64x4::new(c.map(|c| c.y)) - splat(o.y),
-        );
+        let (dx, dy) = (x - splat(o.x), y - splat(o.y));
         let (lu, lv) = (
             dx * splat(u.x) + dy * splat(u.y),
             dx * splat(v.x) + dy * splat(v.y),
@@ -548,39 +552,33 @@ impl Prepared<'_> {
                 }))
             }
         };
-        let need = lane_mask(need);
-        for l in lanes((need & inside).to_bitmask()) {
-            out[l] = if p.rect.contains(c[l]) {
-                0.0
-            } else {
-                edges(c[l])
-            };
+        for l in lanes(need & inside) {
+            let c = point(l);
+            out[l] = if p.rect.contains(c) { 0.0 } else { edges(c) };
         }
         let solve = need & !inside;
         if solve.none() {
-            return out;
+            return f64x4::new(out);
         }
-        let curve = solver.closest_hinted_lanes(lu, lv, f64x4::new(*roots), solve);
+        let curve = solver.closest_hinted_lanes(lu, lv, *roots, solve);
+        *roots = solve.select(curve.root, *roots);
         // The curve point on the canvas, as `PlacedConic::to_canvas` computes it, and whether it
         // lies in the piece's rectangle (`Rect::contains`).
         let qx = splat(o.x) + curve.x * splat(u.x) + curve.y * splat(v.x);
         let qy = splat(o.y) + curve.x * splat(u.y) + curve.y * splat(v.y);
         let (lo, hi) = (p.rect.min, p.rect.max);
-        let in_rect = (qx.simd_ge(splat(lo.x))
+        let in_rect = qx.simd_ge(splat(lo.x))
             & qx.simd_le(splat(hi.x))
             & qy.simd_ge(splat(lo.y))
-            & qy.simd_le(splat(hi.y)))
-        .to_bitmask();
-        let (distance, root) = (curve.distance.to_array(), curve.root.to_array());
-        for l in lanes(solve.to_bitmask()) {
-            roots[l] = root[l];
-            out[l] = if in_rect & (1 << l) != 0 {
-                distance[l]
-            } else {
-                edges(c[l])
-            };
+            & qy.simd_le(splat(hi.y));
+        let distance = curve.distance.to_array();
+        for l in lanes(solve & in_rect) {
+            out[l] = distance[l];
         }
-        out
+        for l in lanes(solve & !in_rect) {
+            out[l] = edges(point(l));
+        }
+        f64x4::new(out)
     }
 }
 
@@ -965,7 +963,7 @@ mod tests {
         ] {
             let prepared = piece.prepare();
             for j0 in (0..60).step_by(4) {
-                let (mut roots, mut alone) = ([f64::NAN; 4], [f64::NAN; 4]);
+                let (mut roots, mut alone) = (f64x4::splat(f64::NAN), [f64::NAN; 4]);
                 for i in 0..80 {
                     let c = [0, 1, 2, 3].map(|l| {
                         DVec2::new(
@@ -974,12 +972,20 @@ mod tests {
                         )
                     });
                     let need = [i % 7 != 3, true, (i + j0) % 5 != 0, i % 2 == 0];
-                    let before = roots;
-                    let got = prepared.distance_hinted_lanes(c, &mut roots, need);
+                    let before = roots.to_array();
+                    let got = prepared
+                        .distance_hinted_lanes(
+                            f64x4::new(c.map(|c| c.x)),
+                            f64x4::new(c.map(|c| c.y)),
+                            &mut roots,
+                            lane_mask(need),
+                        )
+                        .to_array();
+                    let after = roots.to_array();
                     for l in 0..4 {
                         if !need[l] {
                             assert_eq!(got[l], f64::INFINITY);
-                            assert_eq!(roots[l].to_bits(), before[l].to_bits());
+                            assert_eq!(after[l].to_bits(), before[l].to_bits());
                             continue;
                         }
                         let want = prepared.distance_hinted(c[l], &mut alone[l]);
@@ -990,7 +996,7 @@ mod tests {
                             c[l],
                             got[l]
                         );
-                        assert_eq!(roots[l].to_bits(), alone[l].to_bits(), "{}", c[l]);
+                        assert_eq!(after[l].to_bits(), alone[l].to_bits(), "{}", c[l]);
                     }
                 }
             }

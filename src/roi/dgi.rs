@@ -16,7 +16,8 @@ use rayon::prelude::*;
 
 use super::cone::Cone;
 use super::conic::{ConicKind, Patch, Piece, PlacedConic, Prepared, Rect, section};
-use super::ellipse::LANES;
+use super::ellipse::{LANES, lane_mask};
+use wide::f64x4;
 
 /// Which distance the DGI measures.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
@@ -447,7 +448,7 @@ fn compute_into<T: Send>(
                     let mut blocks = BlockPruner::new(&prepared, surface.canvas, cap);
                     for i0 in (0..w).step_by(BLOCK) {
                         let xs = &xs[i0..(i0 + BLOCK).min(w)];
-                        blocks.run(xs, ys, |i, j, d| rows[j * w + i0 + i] = fill(d));
+                        blocks.run(xs, ys, i0, |i, j, d| rows[j * w + i0 + i] = fill(d));
                     }
                 }
                 Guide::Angular { .. } => {
@@ -468,13 +469,12 @@ const OFFSET_FACTOR2: f64 = (1.0 + 1e-12) * (1.0 + 1e-12);
 /// rounding of both squares.
 const BOX_FACTOR2: f64 = 1.0 + 4.0 * f64::EPSILON;
 
-/// The per-block pruning of [`compute_cpu`] for a union of pieces (scratch space reused from
-/// block to block), [`LANES`] rows at a time: one per lane of
+/// The per-block pruning of [`compute_cpu`] for a union of pieces, for the blocks of one band of
+/// [`BLOCK`] rows from left to right, [`LANES`] rows at a time: one per lane of
 /// [`Prepared::distance_hinted_lanes`]. Each pixel's Newton iterations are a chain of dependent
 /// divisions and square roots, and the warm start chains it to the pixel before it in its row,
 /// so one row at a time leaves the core waiting on that chain; rows side by side run their
-/// chains in the same vector instructions. Each pixel's value is bit-identical to solving its
-/// row alone.
+/// chains in the same vector instructions (every lane's value is the one its row alone gives).
 struct BlockPruner<'a> {
     pieces: &'a [Prepared<'a>],
     cap: f64,
@@ -483,9 +483,9 @@ struct BlockPruner<'a> {
     slack: f64,
     /// Candidate pieces of the current block, nearest to its centre first.
     near: Vec<Near>,
-    /// Per candidate and lane, the ellipse solver's last roots along that lane's current row
-    /// (warm starts).
-    warm: Vec<[Warm; LANES]>,
+    /// Per piece and group of [`LANES`] rows of the band, the ellipse solver's last roots along
+    /// those rows (warm starts, carried from block to block).
+    warm: Vec<[Warm; BLOCK / LANES]>,
 }
 
 /// A piece near a block: its distance `dc` from the block centre, and the supporting half-plane
@@ -515,38 +515,41 @@ const MIN_NORMAL_DC: f64 = 1.0;
 /// offsets up to a block's half-diagonal (11.3 px), and η is far below one slack.
 const HALF_PLANE_SLACKS: f64 = 32.0;
 
-/// The last two secular roots of one piece along a row: the next pixel's root is predicted by
-/// linear extrapolation from two consecutive pixels, else taken from the last one (the row above
-/// or a pixel further left: any hint is safe, a close one saves evaluations).
+/// The last two secular roots of one piece along [`LANES`] rows: the next pixel's root is
+/// predicted by linear extrapolation from two consecutive pixels, else taken from the last one
+/// (a pixel further left: any hint is safe, a close one saves evaluations).
 #[derive(Clone, Copy)]
 struct Warm {
-    last: f64,
-    before: f64,
-    /// Column of `last`, `usize::MAX` when not on this row.
-    at: usize,
-    consecutive: bool,
+    last: f64x4,
+    before: f64x4,
+    /// Image column of `last`, −∞ before the first.
+    at: f64x4,
+    /// Mask: `before` and `last` are finite roots of two consecutive columns.
+    consecutive: f64x4,
 }
 
 impl Warm {
     const NONE: Self = Self {
-        last: f64::NAN,
-        before: f64::NAN,
-        at: usize::MAX,
-        consecutive: false,
+        last: f64x4::splat(f64::NAN),
+        before: f64x4::splat(f64::NAN),
+        at: f64x4::splat(f64::NEG_INFINITY),
+        consecutive: f64x4::ZERO,
     };
 
-    fn hint(&self, i: usize) -> f64 {
-        if self.consecutive && self.at.wrapping_add(1) == i {
-            2.0 * self.last - self.before
-        } else {
-            self.last
-        }
+    /// The hints for column `col`.
+    fn hint(&self, col: f64) -> f64x4 {
+        let fresh = self.at.simd_eq(f64x4::splat(col - 1.0));
+        (fresh & self.consecutive).select(f64x4::splat(2.0) * self.last - self.before, self.last)
     }
 
-    fn record(&mut self, i: usize, root: f64) {
-        self.consecutive =
-            self.at.wrapping_add(1) == i && root.is_finite() && self.last.is_finite();
-        (self.before, self.last, self.at) = (self.last, root, i);
+    /// Takes the roots of column `col` in the lanes of `solved`.
+    fn record(&mut self, col: f64, root: f64x4, solved: f64x4) {
+        let fresh = self.at.simd_eq(f64x4::splat(col - 1.0));
+        let consecutive = fresh & root.is_finite() & self.last.is_finite();
+        self.consecutive = solved.select(consecutive, self.consecutive);
+        self.before = solved.select(self.last, self.before);
+        self.last = solved.select(root, self.last);
+        self.at = solved.select(f64x4::splat(col), self.at);
     }
 }
 
@@ -558,12 +561,13 @@ impl<'a> BlockPruner<'a> {
             cap,
             slack: 1e-9 * (1.0 + if mag.is_finite() { mag } else { 0.0 }),
             near: Vec::with_capacity(pieces.len()),
-            warm: Vec::with_capacity(pieces.len()),
+            warm: vec![[Warm::NONE; BLOCK / LANES]; pieces.len()],
         }
     }
 
-    /// Computes the block of pixel centres `xs × ys`, handing each (i, j, distance) to `put`.
-    fn run(&mut self, xs: &[f64], ys: &[f64], mut put: impl FnMut(usize, usize, f64)) {
+    /// Computes the block of pixel centres `xs × ys` (`xs[0]` is image column `col0`), handing
+    /// each (i, j, distance) to `put`.
+    fn run(&mut self, xs: &[f64], ys: &[f64], col0: usize, mut put: impl FnMut(usize, usize, f64)) {
         let mut fill = |d: f64| {
             for j in 0..ys.len() {
                 for i in 0..xs.len() {
@@ -617,60 +621,56 @@ impl<'a> BlockPruner<'a> {
         }) {
             return fill(0.0);
         }
-        self.warm.clear();
-        self.warm.resize(self.near.len(), [Warm::NONE; LANES]);
-        for j0 in (0..ys.len()).step_by(LANES) {
+        let splat = f64x4::splat;
+        let (cap, slack) = (splat(self.cap), splat(self.slack));
+        for (group, j0) in (0..ys.len()).step_by(LANES).enumerate() {
             // Lanes past the block's last row repeat it and are switched off.
             let rows = (ys.len() - j0).min(LANES);
-            for w in self.warm.iter_mut().flatten() {
-                w.at = usize::MAX;
-            }
+            let live = lane_mask(std::array::from_fn(|l| l < rows));
+            let y = f64x4::new(std::array::from_fn(|l| ys[j0 + l.min(rows - 1)]));
+            let dy = y - splat(centre.y);
             for (i, &x) in xs.iter().enumerate() {
-                let c: [DVec2; LANES] =
-                    std::array::from_fn(|l| DVec2::new(x, ys[j0 + l.min(rows - 1)]));
+                let col = (col0 + i) as f64;
+                let x = splat(x);
+                let dx = x - splat(centre.x);
                 // The bounds below compare squares (no square root per pixel and piece): the
                 // factors (1 + 1e-12)² and 1 + 4ε cover the squares' rounding, so a piece is
                 // skipped only when it is provably no nearer than `best`.
-                let offset2 = c.map(|c| (c - centre).length_squared() * OFFSET_FACTOR2);
-                let mut best = [self.cap; LANES];
+                let offset2 = (dx * dx + dy * dy) * splat(OFFSET_FACTOR2);
+                let mut best = cap;
                 // Lanes still looking for a nearer piece.
-                let mut open: [bool; LANES] = std::array::from_fn(|l| l < rows);
-                for (&Near { dc, k, q, n }, warm) in self.near.iter().zip(&mut self.warm) {
-                    let p = &self.pieces[k];
-                    let b = p.piece.bounds;
-                    let mut need = [false; LANES];
-                    for l in 0..LANES {
-                        if !open[l] {
-                            continue;
-                        }
-                        // dc − |c − centre|·(1 + 1e-12) − slack ≥ best: no nearer than best,
-                        // and neither is any later piece (sorted by dc).
-                        let gap = dc - best[l] - self.slack;
-                        if gap >= 0.0 && gap * gap >= offset2[l] {
-                            open[l] = false;
-                            continue;
-                        }
-                        let to_box = (b.min - c[l]).max(c[l] - b.max).max(DVec2::ZERO);
-                        need[l] = to_box.length_squared() < best[l] * best[l] * BOX_FACTOR2
-                            && (c[l] - q).dot(n) - HALF_PLANE_SLACKS * self.slack < best[l];
-                    }
-                    if !open.contains(&true) {
+                let mut open = live;
+                for near in &self.near {
+                    // dc − |c − centre|·(1 + 1e-12) − slack ≥ best: no nearer than best, and
+                    // neither is any later piece (sorted by dc).
+                    let gap = splat(near.dc) - best - slack;
+                    open &= !(gap.simd_ge(f64x4::ZERO) & (gap * gap).simd_ge(offset2));
+                    if open.none() {
                         break;
                     }
-                    if !need.contains(&true) {
+                    let p = &self.pieces[near.k];
+                    let b = p.piece.bounds;
+                    let to_box = |v: f64x4, lo: f64, hi: f64| {
+                        (splat(lo) - v).max(v - splat(hi)).max(f64x4::ZERO)
+                    };
+                    let (bx, by) = (to_box(x, b.min.x, b.max.x), to_box(y, b.min.y, b.max.y));
+                    let half_plane = (x - splat(near.q.x)) * splat(near.n.x)
+                        + (y - splat(near.q.y)) * splat(near.n.y)
+                        - splat(HALF_PLANE_SLACKS * self.slack);
+                    let need = open
+                        & (bx * bx + by * by).simd_lt(best * best * splat(BOX_FACTOR2))
+                        & half_plane.simd_lt(best);
+                    if need.none() {
                         continue;
                     }
-                    let mut roots: [f64; LANES] = std::array::from_fn(|l| warm[l].hint(i));
-                    let d = p.distance_hinted_lanes(c, &mut roots, need);
-                    for l in 0..LANES {
-                        if need[l] {
-                            warm[l].record(i, roots[l]);
-                            best[l] = best[l].min(d[l]);
-                            open[l] &= best[l] != 0.0;
-                        }
-                    }
+                    let warm = &mut self.warm[near.k][group];
+                    let mut roots = warm.hint(col);
+                    let d = p.distance_hinted_lanes(x, y, &mut roots, need);
+                    warm.record(col, roots, need);
+                    best = need.select(best.min(d), best);
+                    open &= !best.simd_eq(f64x4::ZERO);
                 }
-                for (l, &d) in best.iter().enumerate().take(rows) {
+                for (l, &d) in best.to_array().iter().enumerate().take(rows) {
                     put(i, j0 + l, d);
                 }
             }
