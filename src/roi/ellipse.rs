@@ -890,6 +890,35 @@ mod tests {
         }
     }
 
+    /// Points a hair off the major axis inside the evolute, where the secular root w is
+    /// subnormal (1/w would overflow: a Newton loop that multiplied by 1/w instead of dividing
+    /// stalled at its start and answered b instead of b·√(1 − X²)). The reference is the
+    /// on-axis closed form, which the point is within y ≤ 1e-300 of.
+    #[test]
+    fn subnormal_roots_divide() {
+        for (a, b, x, y) in [
+            (1.0_f64, 1e-10_f64, 0.5_f64, 1e-300_f64),
+            (1.0, 1e-10, 0.5, 1e-305),
+            (1.0, 1e-3, 0.3, 1e-306),
+            (2.0, 1e-5, -0.7, -3e-304),
+            (1e-5, 3.0, 1e-303, 2.5),
+        ] {
+            let (major, minor, u, v) = if b > a { (b, a, y, x) } else { (a, b, x, y) };
+            let c = 1.0 - (minor / major).powi(2);
+            let xr = u.abs() / major / c;
+            let want = hypot(
+                u.abs() - major * xr,
+                v.abs() - minor * ((1.0 - xr) * (1.0 + xr)).sqrt(),
+            );
+            let got = closest_point_on_ellipse(a, b, DVec2::new(x, y));
+            assert!(
+                (got.distance - want).abs() <= 1e-14 * a.max(b).max(x.hypot(y)),
+                "({a:e}, {b:e}, {x:e}, {y:e}): {:e} vs {want:e}",
+                got.distance
+            );
+        }
+    }
+
     /// Asserts that every masked lane of one `closest_hinted_lanes` call is bit-identical to
     /// solving that lane alone (and that unmasked lanes answer NaN).
     fn assert_lanes_match(
