@@ -406,35 +406,7 @@ impl Piece {
         self.closest(c).0
     }
 
-    /// [`Self::distance`] with the ellipse solver warm-started from `root`, a nearby query's
-    /// secular root ([`ellipse::closest_point_on_ellipse_hinted`]; NaN for none), which is
-    /// replaced by this query's (NaN where there is none). Other kinds ignore it.
-    #[must_use]
-    pub fn distance_hinted(&self, c: DVec2, root: &mut f64) -> f64 {
-        let ConicKind::Ellipse { a, b } = self.conic.kind else {
-            return self.distance(c);
-        };
-        let l = self.conic.to_local(c);
-        if self.conic.contains_local(l) {
-            if self.rect.contains(c) {
-                return 0.0;
-            }
-        } else {
-            let (cp, w) = ellipse::closest_point_on_ellipse_hinted(a, b, l, *root);
-            *root = w;
-            if self.rect.contains(self.conic.to_canvas(cp.point)) {
-                return self
-                    .edges
-                    .iter()
-                    .fold(cp.distance, |d, e| d.min(e.closest(c).0));
-            }
-        }
-        self.edges
-            .iter()
-            .fold(f64::INFINITY, |d, e| d.min(e.closest(c).0))
-    }
-
-    /// The per-query constants of [`Self::distance_hinted`], computed once (see [`Prepared`]).
+    /// The per-query constants of [`Prepared::distance_hinted`], computed once.
     #[must_use]
     pub fn prepare(&self) -> Prepared<'_> {
         let solver = match self.conic.kind {
@@ -481,13 +453,14 @@ pub struct Prepared<'a> {
 }
 
 impl Prepared<'_> {
-    /// [`Piece::distance_hinted`] with one inside test per query and no edge distances when the
-    /// nearest curve point lies in the rectangle: then the query is outside the convex region K,
-    /// whose nearest point to it is that curve point, which lies in the piece rect ∩ K ⊆ K, so
-    /// it is the piece's nearest point too (each edge, a subset of the piece, is no nearer). The
-    /// curve distance is computed by the same operations as in [`Piece::distance_hinted`]; the
-    /// results differ from it at most where an edge point rounds nearer than the curve point
-    /// it coincides with (within the solvers' rounding).
+    /// [`Piece::distance`] with the ellipse solver warm-started from `root`, a nearby query's
+    /// secular root ([`ellipse::closest_point_on_ellipse_hinted`]; NaN for none), which is
+    /// replaced by this query's (NaN where there is none; other kinds ignore it). One inside
+    /// test per query, and no edge distances when the nearest curve point lies in the
+    /// rectangle: then the query is outside the convex region K, whose nearest point to it is
+    /// that curve point, which lies in the piece rect ∩ K ⊆ K, so it is the piece's nearest
+    /// point too (each edge, a subset of the piece, is no nearer). The results differ from
+    /// [`Piece::distance`] only by the solvers' rounding (`prepared_distance_matches_the_reference`).
     #[must_use]
     #[inline]
     pub fn distance_hinted(&self, c: DVec2, root: &mut f64) -> f64 {
@@ -873,18 +846,22 @@ mod tests {
         }
     }
 
-    #[test]
-    fn clipped_ellipse_matches_brute_force_off_the_rect() {
-        let patch = flat_patch();
-        // A big oblique ROI overlapping the right edge of the patch.
-        let cone = Cone::from_pose(
+    /// A big oblique ROI overlapping the right edge of [`flat_patch`].
+    fn oblique_cone() -> Cone {
+        Cone::from_pose(
             DVec3::new(0.9, 0.2, 1.0),
             DVec3::new(0.2, -0.1, -1.0),
             DVec3::Y,
             50.0,
             30.0,
         )
-        .unwrap();
+        .unwrap()
+    }
+
+    #[test]
+    fn clipped_ellipse_matches_brute_force_off_the_rect() {
+        let patch = flat_patch();
+        let cone = oblique_cone();
         let conic = section(&cone, &patch);
         assert!(matches!(conic.kind, ConicKind::Ellipse { .. }), "{conic:?}");
         let piece = Piece::new(patch.rect, conic).unwrap();
@@ -905,14 +882,7 @@ mod tests {
     #[test]
     fn prepared_distance_matches_the_reference() {
         let patch = flat_patch();
-        let cone = Cone::from_pose(
-            DVec3::new(0.9, 0.2, 1.0),
-            DVec3::new(0.2, -0.1, -1.0),
-            DVec3::Y,
-            50.0,
-            30.0,
-        )
-        .unwrap();
+        let cone = oblique_cone();
         let piece = Piece::new(patch.rect, section(&cone, &patch)).unwrap();
         assert!(!piece.edges.is_empty());
         let prepared = piece.prepare();
@@ -944,14 +914,7 @@ mod tests {
     #[test]
     fn prepared_lanes_are_bit_identical_to_one_at_a_time() {
         let patch = flat_patch();
-        let ellipse = Cone::from_pose(
-            DVec3::new(0.9, 0.2, 1.0),
-            DVec3::new(0.2, -0.1, -1.0),
-            DVec3::Y,
-            50.0,
-            30.0,
-        )
-        .unwrap();
+        let ellipse = oblique_cone();
         let hyperbola = PlacedConic {
             kind: ConicKind::Hyperbola { b2: 4e4, s: 0.7 },
             origin: DVec2::new(900.0, 300.0),

@@ -44,6 +44,12 @@
 //!    bisection on the bit pattern of `w` inside the bracket finishes in at most 63 steps (31 in
 //!    f32), because the bit patterns of two positive finite floats differ by less than 2⁶³ (2³¹).
 //!
+//! The solver runs [`LANES`] queries on the same ellipse side by side in `f64x4` operations
+//! (`EllipseSolver::closest_hinted_lanes`; a single query is lane 0): branches become per-lane
+//! selects, every lane does exactly the IEEE operations it would do alone, and a lane that has
+//! stopped keeps its root, so lanes never change each other's answers. The CPU DGI passes the
+//! pixels of four rows, whose division chains then overlap.
+//!
 //! Step 3's closed forms need `eq > 0`. When `eq == 0` (the point is on the major axis, or `e·q`
 //! underflowed, or the ellipse is a segment) the answer is closed-form: outside the evolute
 //! (`p > c`) the vertex `(a, 0)`; inside it (`p ≤ c`), `X = p/c`, `Y = e·√(1 − X²)`.
