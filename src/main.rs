@@ -54,6 +54,16 @@ enum DisplayCommand {
 }
 
 fn main() {
+    // .cargo/config.toml builds for AVX2 on x86-64; say so instead of dying on an illegal
+    // instruction.
+    #[cfg(target_arch = "x86_64")]
+    if !std::arch::is_x86_feature_detected!("avx2") {
+        eprintln!(
+            "raygun: this build needs a CPU with AVX2 (see .cargo/config.toml); \
+             rebuild without that file's target-feature flags for this CPU"
+        );
+        std::process::exit(1);
+    }
     let cli = Cli::parse();
     let result = match &cli.command {
         Command::Demo(args) => cli::demo::run(args),
