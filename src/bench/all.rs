@@ -21,8 +21,7 @@ use crate::display::DisplayModel;
 use crate::filter::{FilterKind, FilterParams};
 use crate::frame::{GuideConfig, GuidedRenderer};
 use crate::gpu::Backend;
-use crate::roi::cone::Cone;
-use crate::roi::dgi::{Falloff, Roi, Surface};
+use crate::roi::dgi::{Falloff, Surface};
 use crate::scene::Scene;
 use crate::trace::accum::Accumulation;
 use crate::trace::camera::RenderCamera;
@@ -486,13 +485,7 @@ pub fn convergence(
     let mut out = Vec::new();
     for &fov in fovs {
         progress(&format!("convergence: {fov}° guided"));
-        let roi = Roi::Cone(Cone::from_pose(
-            DVec3::new(0.0, 0.0, 1.0),
-            DVec3::NEG_Z,
-            DVec3::Y,
-            fov,
-            fov,
-        )?);
+        let roi = super::paper_roi(fov)?;
         let mut g = GuidedRenderer::new(
             backend,
             scene,

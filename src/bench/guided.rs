@@ -445,13 +445,7 @@ pub fn filter_input(
         max_depth: crate::trace::cpu::DEFAULT_MAX_DEPTH,
         camera,
     };
-    let roi = Roi::Cone(Cone::from_pose(
-        DVec3::new(0.0, 0.0, 1.0),
-        DVec3::NEG_Z,
-        DVec3::Y,
-        fov,
-        fov,
-    )?);
+    let roi = super::paper_roi(fov)?;
     let mut g = GuidedRenderer::new(
         backend,
         scene,

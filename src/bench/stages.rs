@@ -14,15 +14,13 @@
 
 use std::time::Instant;
 
-use glam::{DVec3, Vec3};
+use glam::Vec3;
 use serde::Serialize;
 
 use crate::display::DisplayModel;
 use crate::filter::FilterParams;
 use crate::frame::{GuideConfig, GuidedRenderer};
 use crate::gpu::{Backend, PassTimer};
-use crate::roi::cone::Cone;
-use crate::roi::dgi::Roi;
 use crate::scene::Scene;
 use crate::trace::camera::RenderCamera;
 use crate::trace::cpu::TraceSettings;
@@ -105,13 +103,7 @@ pub fn measure(
         max_depth: crate::trace::cpu::DEFAULT_MAX_DEPTH,
         camera,
     };
-    let roi = Roi::Cone(Cone::from_pose(
-        DVec3::new(0.0, 0.0, 1.0),
-        DVec3::NEG_Z,
-        DVec3::Y,
-        fov,
-        fov,
-    )?);
+    let roi = super::paper_roi(fov)?;
     let mut g = GuidedRenderer::new(backend, scene, settings, display, GuideConfig::default())?;
     let gpu = match backend {
         Backend::Gpu(ctx) => {
