@@ -192,22 +192,7 @@ impl GpuEllipseSolver {
 
     #[must_use]
     pub fn new(ctx: &GpuContext) -> Self {
-        let module = ctx
-            .device
-            .create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("ellipse solver bench"),
-                source: wgpu::ShaderSource::Wgsl(Self::source().into()),
-            });
-        let pipeline = ctx
-            .device
-            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some("ellipse solver bench"),
-                layout: None,
-                module: &module,
-                entry_point: Some("main"),
-                compilation_options: Default::default(),
-                cache: None,
-            });
+        let pipeline = ctx.compute_pipeline("ellipse solver bench", &Self::source(), "main");
         Self { pipeline }
     }
 

@@ -172,23 +172,6 @@ pub struct FilterKernels {
     blur: wgpu::ComputePipeline,
 }
 
-fn pipeline(
-    ctx: &GpuContext,
-    module: &wgpu::ShaderModule,
-    label: &str,
-    entry: &str,
-) -> wgpu::ComputePipeline {
-    ctx.device
-        .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some(label),
-            layout: None,
-            module,
-            entry_point: Some(entry),
-            compilation_options: Default::default(),
-            cache: None,
-        })
-}
-
 fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
     wgpu::BindGroupEntry {
         binding,
@@ -232,26 +215,19 @@ fn groups(size: [u32; 2]) -> [u32; 2] {
 impl FilterKernels {
     #[must_use]
     pub fn new(ctx: &GpuContext) -> Self {
-        let module = |label: &str, src: &str| {
-            ctx.device
-                .create_shader_module(wgpu::ShaderModuleDescriptor {
-                    label: Some(label),
-                    source: wgpu::ShaderSource::Wgsl(src.into()),
-                })
-        };
+        let module = |label: &str, src: &str| ctx.shader_module(label, src);
         let exact = module("filter/exact.wgsl", EXACT_WGSL);
         let fast = module("filter/fast.wgsl", FAST_WGSL);
         let pyramid = module("filter/pyramid.wgsl", PYRAMID_WGSL);
         Self {
-            exact: pipeline(ctx, &exact, "filter/exact", "main"),
-            fast: pipeline(ctx, &fast, "filter/fast", "main"),
-            blur_accumulation: pipeline(
-                ctx,
+            exact: ctx.compute_pipeline_in(&exact, "filter/exact", "main"),
+            fast: ctx.compute_pipeline_in(&fast, "filter/fast", "main"),
+            blur_accumulation: ctx.compute_pipeline_in(
                 &pyramid,
                 "filter/pyramid blur_accumulation",
                 "blur_accumulation",
             ),
-            blur: pipeline(ctx, &pyramid, "filter/pyramid blur", "blur"),
+            blur: ctx.compute_pipeline_in(&pyramid, "filter/pyramid blur", "blur"),
         }
     }
 

@@ -141,6 +141,46 @@ fn adapter_rank(device_type: wgpu::DeviceType, backend: wgpu::Backend) -> (u8, u
 }
 
 impl GpuContext {
+    /// A WGSL shader module.
+    #[must_use]
+    pub fn shader_module(&self, label: &str, source: &str) -> wgpu::ShaderModule {
+        self.device
+            .create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some(label),
+                source: wgpu::ShaderSource::Wgsl(source.into()),
+            })
+    }
+
+    /// The compute pipeline of `entry` in `module`, its layout taken from the shader.
+    #[must_use]
+    pub fn compute_pipeline_in(
+        &self,
+        module: &wgpu::ShaderModule,
+        label: &str,
+        entry: &str,
+    ) -> wgpu::ComputePipeline {
+        self.device
+            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(label),
+                layout: None,
+                module,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+    }
+
+    /// The compute pipeline of `entry` in the WGSL `source` (one module per pipeline).
+    #[must_use]
+    pub fn compute_pipeline(
+        &self,
+        label: &str,
+        source: &str,
+        entry: &str,
+    ) -> wgpu::ComputePipeline {
+        self.compute_pipeline_in(&self.shader_module(label, source), label, entry)
+    }
+
     /// Picks the best adapter (see [`adapter_rank`]); the environment variable `RAYGUN_ADAPTER`
     /// restricts the choice to adapters whose name contains its value.
     pub fn new() -> Result<Self, GpuError> {

@@ -190,22 +190,7 @@ const VALUE_BYTES: u64 = 4;
 impl DgiKernel {
     #[must_use]
     pub fn new(ctx: &GpuContext) -> Self {
-        let module = ctx
-            .device
-            .create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("roi/dgi.wgsl"),
-                source: wgpu::ShaderSource::Wgsl(DGI_WGSL.into()),
-            });
-        let pipeline = ctx
-            .device
-            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some("roi/dgi"),
-                layout: None,
-                module: &module,
-                entry_point: Some("main"),
-                compilation_options: Default::default(),
-                cache: None,
-            });
+        let pipeline = ctx.compute_pipeline("roi/dgi", DGI_WGSL, "main");
         Self { pipeline }
     }
 

@@ -111,24 +111,6 @@ pub struct ScheduleKernel {
     args: wgpu::ComputePipeline,
 }
 
-fn pipeline(ctx: &GpuContext, label: &str, source: &str) -> wgpu::ComputePipeline {
-    let module = ctx
-        .device
-        .create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some(label),
-            source: wgpu::ShaderSource::Wgsl(source.into()),
-        });
-    ctx.device
-        .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some(label),
-            layout: None,
-            module: &module,
-            entry_point: Some("main"),
-            compilation_options: Default::default(),
-            cache: None,
-        })
-}
-
 fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
     wgpu::BindGroupEntry {
         binding,
@@ -140,8 +122,8 @@ impl ScheduleKernel {
     #[must_use]
     pub fn new(ctx: &GpuContext) -> Self {
         Self {
-            compact: pipeline(ctx, "schedule/compact", COMPACT_WGSL),
-            args: pipeline(ctx, "schedule/args", ARGS_WGSL),
+            compact: ctx.compute_pipeline("schedule/compact", COMPACT_WGSL, "main"),
+            args: ctx.compute_pipeline("schedule/args", ARGS_WGSL, "main"),
         }
     }
 

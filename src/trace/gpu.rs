@@ -102,22 +102,7 @@ pub struct TraceKernel {
 impl TraceKernel {
     #[must_use]
     pub fn new(ctx: &GpuContext) -> Self {
-        let module = ctx
-            .device
-            .create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("trace/path.wgsl"),
-                source: wgpu::ShaderSource::Wgsl(TRACE_WGSL.into()),
-            });
-        let pipeline = ctx
-            .device
-            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some("trace/path"),
-                layout: None,
-                module: &module,
-                entry_point: Some("trace"),
-                compilation_options: Default::default(),
-                cache: None,
-            });
+        let pipeline = ctx.compute_pipeline("trace/path", TRACE_WGSL, "trace");
         Self { pipeline }
     }
 }
