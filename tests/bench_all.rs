@@ -186,12 +186,26 @@ fn bench_all_quick_writes_a_consistent_report() {
                 assert!(num(&t["extrapolated_ms"]) > num(&t["ms"]), "{fov}° {who}");
             }
         }
-        if fov == 10.0 {
-            // At 10° a guided iteration traces a few percent of the pixels: at equal time the
-            // ROI has many more samples per pixel than the full frame's (noise ∝ 1/√spp).
+        // The full-frame point quoted at the guided end is the last one within the guided time.
+        let at_end_ms = num(&cv["full_ms_at_guided_end"]);
+        let at_end = full
+            .iter()
+            .find(|p| num(&p["ms"]) == at_end_ms)
+            .expect("the quoted full-frame point is on the curve");
+        assert!(at_end_ms <= num(&g_end["ms"]) || at_end == &full[0]);
+        // Equal time is a wall-clock notion, so which full-frame point it picks varies from run
+        // to run. What must hold whatever the clock said: when the guided ROI has at least twice
+        // the full frame's samples per pixel (every ROI pixel is traced every guided
+        // iteration), its error is lower (noise ∝ 1/√spp).
+        let full_spp = at_end["iteration"].as_u64().unwrap();
+        let guided_spp = g_end["iteration"].as_u64().unwrap();
+        if 2 * full_spp <= guided_spp {
             let g = num(&g_end["rmse_roi"]);
             let f = num(&cv["full_rmse_roi_at_guided_end"]);
-            assert!(g < f, "10°: guided ROI RMSE {g} not below full frame {f}");
+            assert!(
+                g < f,
+                "{fov}°: guided ROI RMSE {g} ({guided_spp} spp) not below full frame {f} ({full_spp} spp)"
+            );
         }
     }
     check_paper_table(&md, &json);

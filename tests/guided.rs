@@ -163,9 +163,10 @@ fn guided_render_converges_to_the_uniform_render() {
 }
 
 /// `bench guided` at a tiny size on the CPU twin: its report is internally consistent — the
-/// share sampled matches the schedule's expectation and grows with the FOV, guided iterations
-/// are faster than full frames, and at 10° the ROI is closer to the reference than an
-/// equal-time full-frame render. (Speed itself is not asserted.)
+/// share sampled matches the schedule's expectation and grows with the FOV, the speed-up and
+/// equal-time figures follow from the measured times, and at 10° the ROI is closer to the
+/// reference than a full-frame render with half its samples or fewer. (Speed itself is
+/// not asserted: it is the clock's, and CI machines are loaded.)
 #[test]
 fn bench_guided_report_is_consistent() {
     use raygun::bench::guided::{GuidedBenchConfig, run};
@@ -199,15 +200,35 @@ fn bench_guided_report_is_consistent() {
         "{}",
         wide.share_sampled
     );
-    assert!(narrow.speedup > 1.0 && wide.speedup > 1.0);
+    // The derived figures follow from the measured ones (the times themselves are the clock's
+    // and are not asserted: speed is for the benchmark, not for a test on a loaded CI machine).
+    let ms_full = report.full_frame[0].ms_per_frame;
+    let megapixels = 96.0 * 54.0 / 1e6;
+    for row in [narrow, wide] {
+        assert!(row.ms_per_iteration > 0.0 && ms_full > 0.0);
+        assert_eq!(row.speedup, ms_full / row.ms_per_iteration);
+        assert_eq!(
+            row.ms_per_megasample,
+            row.ms_per_iteration / (row.share_sampled * megapixels)
+        );
+        let spp = ((row.guided_total_ms / ms_full).floor() as u32).max(1);
+        assert_eq!(row.equal_time_full_spp, spp);
+    }
     assert!(narrow.roi_pixels > 0 && wide.roi_pixels > narrow.roi_pixels);
     assert!(narrow.ms_dgi.is_some());
-    assert!(
-        narrow.rmse_roi_guided < narrow.rmse_roi_full,
-        "guided {} vs full frame {}",
-        narrow.rmse_roi_guided,
-        narrow.rmse_roi_full
-    );
+    // Every ROI pixel is traced every iteration; when that is at least twice the equal-time
+    // full frame's samples (how many depends on the clock), the guided ROI must be the closer
+    // one (noise ∝ 1/√spp). The renders are seeded, so each possible full-frame count (1–8) has
+    // one outcome; all eight were checked to hold, with the error ratio between 2.3 and 5.3.
+    if 2 * narrow.equal_time_full_spp <= report.config.iterations {
+        assert!(
+            narrow.rmse_roi_guided < narrow.rmse_roi_full,
+            "guided {} vs full frame {} ({} spp)",
+            narrow.rmse_roi_guided,
+            narrow.rmse_roi_full,
+            narrow.equal_time_full_spp
+        );
+    }
     // The Figure 5 plot is a 1200 × 500 PNG.
     let path = std::env::temp_dir().join(format!("raygun-fig5-{}.png", std::process::id()));
     raygun::bench::guided::plot(&report, &path).unwrap();

@@ -491,16 +491,18 @@ mod tests {
 
     #[test]
     fn real_time_playback_waits_and_fast_playback_does_not() {
-        let text = "{\"raygun_replay\":1}\n{\"t\":10.0,\"dtrack\":\"a\"}\n{\"t\":10.05,\"dtrack\":\"b\"}\n";
+        let text =
+            "{\"raygun_replay\":1}\n{\"t\":10.0,\"dtrack\":\"a\"}\n{\"t\":10.4,\"dtrack\":\"b\"}\n";
         let start = Instant::now();
         let mut n = 0;
         let problems = play(reader(text), Playback::RealTime, |_| n += 1);
         let slow = start.elapsed();
         assert_eq!(problems.total(), 0);
         assert_eq!(n, 2);
-        assert!(slow >= Duration::from_millis(50), "{slow:?}");
+        assert!(slow >= Duration::from_millis(400), "{slow:?}");
+        // Parsing two lines takes microseconds; the margin is for a loaded CI machine.
         let start = Instant::now();
         let _ = play(reader(text), Playback::AsFastAsPossible, |_| {});
-        assert!(start.elapsed() < Duration::from_millis(50));
+        assert!(start.elapsed() < Duration::from_millis(200));
     }
 }
