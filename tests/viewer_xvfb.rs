@@ -1,6 +1,8 @@
 //! Smoke test of the real window: `raygun view` under Xvfb (eframe's wgpu on lavapipe) renders
 //! several iterations on its own GPU backend (lavapipe too: the whole guided GPU frame path), saves the picture and a screenshot of the whole window, and exits. Needs
-//! `xvfb-run` (installed by `.ci/run`); it fails, never skips, without it.
+//! `xvfb-run` (installed by `.ci/run`); it fails, never skips, without it. A build without the
+//! window (`--no-default-features`) has nothing to smoke-test.
+#![cfg(feature = "viewer")]
 
 use std::path::Path;
 use std::process::Command;

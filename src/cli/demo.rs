@@ -84,12 +84,22 @@ pub struct DemoOutput {
 }
 
 pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
-    if !args.headless && has_display() {
+    // Without the `viewer` feature there is no window to open: the demo renders headless.
+    let windowed = cfg!(feature = "viewer") && has_display();
+    if !args.headless && windowed {
         let (display, replay) = write_inputs(&args.out)?;
         return crate::cli::view::run(&crate::cli::view::ViewArgs::demo(args, &display, &replay));
     }
     if !args.headless {
-        eprintln!("raygun demo: no display (DISPLAY / WAYLAND_DISPLAY unset): rendering headless");
+        if cfg!(feature = "viewer") {
+            eprintln!(
+                "raygun demo: no display (DISPLAY / WAYLAND_DISPLAY unset): rendering headless"
+            );
+        } else {
+            eprintln!(
+                "raygun demo: built without its window (the `viewer` feature): rendering headless"
+            );
+        }
     }
     let out = run_headless(args)?;
     eprintln!(

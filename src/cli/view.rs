@@ -13,6 +13,7 @@ use crate::trace::camera::RenderCamera;
 use crate::trace::cpu::{DEFAULT_MAX_DEPTH, TraceSettings};
 use crate::tracking::event::DeviceId;
 use crate::tracking::ingest::Protocol;
+#[cfg(feature = "viewer")]
 use crate::viewer::app::ViewerApp;
 use crate::viewer::core::{RoiSource, ViewerCore, ViewerState};
 use crate::viewer::live::LiveTracking;
@@ -119,6 +120,10 @@ impl ViewArgs {
 }
 
 pub fn run(args: &ViewArgs) -> anyhow::Result<()> {
+    // Said before loading anything.
+    if !cfg!(feature = "viewer") {
+        anyhow::bail!(NO_WINDOW);
+    }
     if !(args.roi_radius.is_finite() && args.roi_radius > 0.0) {
         anyhow::bail!("--roi-radius must be a positive number of canvas pixels");
     }
@@ -184,6 +189,20 @@ pub fn run(args: &ViewArgs) -> anyhow::Result<()> {
         state.click(&model, c, args.size);
     }
     let core = ViewerCore::new(&backend, &scene, &model, base, state)?;
+    open_window(core, timeline, live, args)
+}
+
+/// What `raygun view` says when it was built without its window.
+const NO_WINDOW: &str = "this raygun was built without its window (the `viewer` feature, on by default): rebuild it with default features to use `raygun view`";
+
+/// Shows the guided render in an egui window until it is closed.
+#[cfg(feature = "viewer")]
+fn open_window(
+    core: ViewerCore,
+    timeline: Option<Timeline>,
+    live: Option<LiveTracking>,
+    args: &ViewArgs,
+) -> anyhow::Result<()> {
     let app = ViewerApp::new(
         core,
         timeline,
@@ -203,4 +222,14 @@ pub fn run(args: &ViewArgs) -> anyhow::Result<()> {
         Box::new(move |_cc| Ok(Box::new(app))),
     )
     .map_err(|e| anyhow::anyhow!("the viewer window failed: {e}"))
+}
+
+#[cfg(not(feature = "viewer"))]
+fn open_window(
+    _: ViewerCore,
+    _: Option<Timeline>,
+    _: Option<LiveTracking>,
+    _: &ViewArgs,
+) -> anyhow::Result<()> {
+    anyhow::bail!(NO_WINDOW)
 }
