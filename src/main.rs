@@ -38,6 +38,14 @@ enum Command {
     /// Regenerate the synthetic FlyStick and mouse sessions in `tracking-replays/`.
     SynthReplays(cli::tracking::SynthArgs),
     /// Closest points on ellipses: `a,b,x,y` lines on stdin → `distance,cx,cy` on stdout.
+    ///
+    /// The ellipse is (x/a)² + (y/b)² = 1, centred at the origin. `distance` is the distance to
+    /// the ellipse *curve*, for a point inside as for one outside (not 0 inside: that is the
+    /// filled ellipse's distance), and (cx, cy) the closest point on the curve. Where two
+    /// points are equally close (inside, on the major axis between the centres of curvature of
+    /// the two vertices) the one on the positive side of the minor axis is printed. A bad line
+    /// prints `nan,nan,nan` and an error naming the line and field; the exit status is 1 then.
+    #[command(verbatim_doc_comment)]
     EllipseDistance,
     /// Scenes: write the generated paper scenes (.glb), summarise a scene file.
     #[command(subcommand)]

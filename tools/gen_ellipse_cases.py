@@ -17,9 +17,11 @@ Each case is an ellipse (x/a)^2 + (y/b)^2 = 1 and a query point (x, y), all four
   unknowns measured from the nearest pole so that no root is lost to cancellation;
 * the degenerate stationary points where t sits at a pole (y = 0 or x = 0: the point is on an
   axis and the closest point leaves it) and the four vertices are added;
-* the reference is the candidate with the smallest distance (the global minimiser); it is
-  non-unique when another candidate, at a different point, has the same distance to 1e-40. A
-  sampled check (4096 points on the ellipse, in floats) asserts that nothing is closer.
+* the reference is the candidate with the smallest distance (the global minimiser) among those
+  on the query point's side of each axis it is off (a mirror image is farther by 4|Y y|, which
+  80 digits cannot see for y = 1e-300); it is non-unique when another such candidate, at a
+  different point, has the same distance to 1e-40. A sampled check (4096 points on the
+  ellipse, in floats) asserts that nothing is closer.
 
 Columns:
   a, b, x, y     the case (exact doubles)
@@ -140,6 +142,15 @@ def reference(a_f, b_f, x_f, y_f):
         cands = [(X, Y) for (Y, X) in candidates_oriented(b, a, y, x)]
     else:
         cands = candidates_oriented(a, b, x, y)
+    # Every candidate must lie on the ellipse (the bisection converged).
+    for (X, Y) in cands:
+        assert abs((X / a) ** 2 + (Y / b) ** 2 - 1) < mpf(10) ** -60, (a_f, b_f, x_f, y_f, X, Y)
+    # The closest point to a point off an axis lies on the point's side of it (its mirror image
+    # is farther by 4|Y y|): keep only such candidates. Without this, a point 1e-300 off the
+    # major axis would "tie" with its mirror image to 80 digits and lose its one right answer.
+    def same_side(X, Y):
+        return (x == 0 or X == 0 or (X > 0) == (x > 0)) and (y == 0 or Y == 0 or (Y > 0) == (y > 0))
+    cands = [c for c in cands if same_side(*c)]
     dists = [mp.hypot(x - X, y - Y) for (X, Y) in cands]
     k = min(range(len(cands)), key=lambda i: dists[i])
     d = dists[k]
@@ -150,9 +161,6 @@ def reference(a_f, b_f, x_f, y_f):
         abs(dists[i] - d) <= tie and mp.hypot(cands[i][0] - cx, cands[i][1] - cy) > tie
         for i in range(len(cands))
     )
-    # Every candidate must lie on the ellipse (the bisection converged).
-    for (X, Y) in cands:
-        assert abs((X / a) ** 2 + (Y / b) ** 2 - 1) < mpf(10) ** -60, (a_f, b_f, x_f, y_f, X, Y)
     if not unique:
         return d, cx, cy, False, mp.inf
     # Radius of curvature at (cx, cy) and whether the point is inside.
@@ -283,6 +291,34 @@ def main():
         r = 10 ** rng.uniform(-6, 4) * max(a, b)
         th = rng.uniform(0, 2 * math.pi)
         add(a, b, r * math.cos(th), r * math.sin(th), "random", signs=False)
+
+    # Inside, near either axis, with the off-axis coordinate tiny or subnormal (from 1e-300 down
+    # to the smallest subnormal, not exactly zero). Near the major axis inside the evolute's span
+    # the secular root is of the order of that coordinate, so it carries few bits when it is
+    # subnormal; the solver must still return a point on the ellipse.
+    # Its own seed, so the cases above stay as they were.
+    rng_tiny = random.Random(20261201)
+    tiny = (1e-300, 2.0**-1022, 1e-310, 1e-315, 1e-320, 2.77e-322, 5e-324)
+    for ratio in (1.0001, 1.4, 2.0, 7.0, 100.0, 1e4, 1e6, 1e8):
+        for major in (1.0, 1873.25):
+            for flip in (False, True):
+                a, b = major, major / ratio
+                ev = (a * a - b * b) / a
+                xs = [(0.3 * ev, "tiny-off-axis-inside-evolute"),
+                      (0.9 * ev, "tiny-off-axis-inside-evolute"),
+                      (rng_tiny.uniform(0.0, ev), "tiny-off-axis-inside-evolute"),
+                      ((ev + a) / 2, "tiny-off-axis-inside-beyond-evolute")]
+                for t in tiny:
+                    pts = [(x, t, cat) for (x, cat) in xs]
+                    pts.append((t, 0.5 * b, "tiny-off-axis-near-minor-axis"))
+                    for (x, y, cat) in pts:
+                        if flip:
+                            add(b, a, y, x, cat + "/b-major")
+                        else:
+                            add(a, b, x, y, cat)
+    # The case this class was found by.
+    add(0.8264120060636826, 0.02754706686878942, 0.5053656884960821, -2.77e-322,
+        "tiny-off-axis-inside-evolute", signs=False)
 
     out = sys.stdout
     out.write(__doc__.replace("\n", "\n# ").join(["# ", "\n"]).replace("# \n", "#\n"))

@@ -21,6 +21,8 @@ const ELLIPSE_BISECTION_STEPS: u32 = 31u;
 // f32 machine epsilon 2^-23; a Newton step below 4 * 2^-23 of w is rounding noise.
 const ELLIPSE_EPS: f32 = 1.1920928955078125e-7;
 const ELLIPSE_NEWTON_TOL: f32 = 4.76837158203125e-7;
+// The smallest normal f32, 2^-126: a root below it is subnormal (or flushed to zero).
+const ELLIPSE_MIN_NORMAL: f32 = 1.1754943508222875e-38;
 // 2^100: beyond this many semi-axes away the far-field point is exact to f32 rounding.
 const ELLIPSE_FAR: f32 = 1.2676506002282294e30;
 
@@ -203,7 +205,15 @@ fn ellipse_first_quadrant(a: f32, b: f32, x: f32, y: f32) -> EllipseQuadrant {
         }
         w = bitcast<f32>(lb);
     }
-    return EllipseQuadrant(vec2<f32>(x / (w + c), b * (eq / w)), iterations);
+    // A subnormal root (or one a GPU flushed to zero) carries too few bits for eq / w: near the
+    // major axis inside the evolute's span, w is of the order of the tiny minor coordinate.
+    // Take y from the ellipse equation there (w << c, so x / (w + c) is exact to rounding).
+    var cy = b * (eq / w);
+    if (w < ELLIPSE_MIN_NORMAL) {
+        let xr = p / (w + c);
+        cy = b * sqrt(max((1.0 - xr) * (1.0 + xr), 0.0));
+    }
+    return EllipseQuadrant(vec2<f32>(x / (w + c), cy), iterations);
 }
 
 // The closest point on the curve to p (any quadrant, any a, b).

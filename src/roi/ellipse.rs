@@ -54,6 +54,17 @@
 //! underflowed, or the ellipse is a segment) the answer is closed-form: outside the evolute
 //! (`p > c`) the vertex `(a, 0)`; inside it (`p ≤ c`), `X = p/c`, `Y = e·√(1 − X²)`.
 //!
+//! When `eq` is tiny but not zero, inside the evolute's span, the root is `w ≈ eq/√(1 − X²)`:
+//! subnormal when `eq` is, with too few bits for `Y = e·B = e·eq/w` (two subnormal ulps over
+//! three gave `B = 2/3` and a point 18 % off the ellipse). Where the root is subnormal, `Y` comes
+//! from the ellipse equation, `e·√(1 − X²)`, as in the closed form: there `w ≪ c`, so `X` is
+//! exact to rounding. The f32 solver does the same below `f32::MIN_POSITIVE` (a GPU may flush
+//! the root to zero, which the same branch covers). The DGI never reaches this case: it asks for
+//! the curve distance only of points outside the filled conic (its inside test comes first, on
+//! both backends), and outside the root exceeds `e²` (the Lagrange multiplier is positive), so a
+//! subnormal root there needs `e < 1.5e-154` (f64) or `e < 1.1e-19` (f32): a segment, for which
+//! `Y ≤ b` keeps the error below the absolute bound anyway.
+//!
 //! # Where the closest point is not unique
 //!
 //! On the part of the major axis inside the evolute (`|x| < (a² − b²)/a` with `y = 0` when
@@ -520,9 +531,23 @@ fn first_quadrant_lanes(
         }
         w = f64x4::new(wl);
     }
+    let wc = w + cv;
+    let mut y_out = f64x4::splat(b) * (eq / w);
+    // A subnormal root carries few bits (inside the evolute's span on the major axis with a
+    // tiny minor coordinate, w ≈ eq/√(1 − X²) is of the order of that coordinate), so eq/w
+    // would be off by up to half (two subnormal ulps over three): take Y from the ellipse
+    // equation instead. There w ≪ c, so X = p/(w + c) is exact to rounding, and the point is
+    // on the curve; near the evolute's cusp (X → 1) it moves along the curve, which changes the
+    // distance only to second order.
+    let subnormal = secular & w.simd_lt(f64x4::splat(f64::MIN_POSITIVE));
+    if subnormal.any() {
+        let xr = p / wc;
+        let on_curve = f64x4::splat(b) * ((one - xr) * (one + xr)).max(f64x4::ZERO).sqrt();
+        y_out = subnormal.select(on_curve, y_out);
+    }
     let mut out = Quadrant {
-        x: secular.select(x / (w + cv), nan),
-        y: secular.select(f64x4::splat(b) * (eq / w), nan),
+        x: secular.select(x / wc, nan),
+        y: secular.select(y_out, nan),
         iterations,
         root: secular.select(w, nan),
     };
@@ -773,7 +798,13 @@ fn first_quadrant_f32(a: f32, b: f32, x: f32, y: f32) -> ([f32; 2], u32) {
         }
         w = f32::from_bits(lb);
     }
-    ([x / (w + c), b * (eq / w)], iterations)
+    // As the f64 solver: a subnormal root (or zero) carries too few bits for eq/w.
+    let mut cy = b * (eq / w);
+    if w < f32::MIN_POSITIVE {
+        let xr = p / (w + c);
+        cy = b * ((1.0 - xr) * (1.0 + xr)).max(0.0).sqrt();
+    }
+    ([x / (w + c), cy], iterations)
 }
 
 /// The f32 closest point on the curve: the CPU mirror of the WGSL `ellipse_closest_point`.
