@@ -363,6 +363,31 @@ impl<'a> GuidedRenderer<'a> {
         })
     }
 
+    /// How far the ROI has come (a read-back on the GPU); `None` without ROI pixels.
+    pub fn roi_progress(&self) -> Result<Option<crate::stop::RoiProgress>, FrameError> {
+        Ok(match &self.engine {
+            Engine::Gpu {
+                ctx, accum, dgi, ..
+            } => {
+                let acc = accum.read(ctx)?;
+                let dgi = ctx.read_buffer::<f32>(dgi)?;
+                crate::stop::RoiProgress::measure(&acc, &dgi)
+            }
+            Engine::Cpu { accum, dgi, .. } => crate::stop::RoiProgress::measure(accum, dgi),
+        })
+    }
+
+    /// The accumulation and the DGI the last frame used, ending the render (moved out on the
+    /// CPU, read back on the GPU).
+    pub fn finish(self) -> Result<(Accumulation, Vec<f32>), FrameError> {
+        Ok(match self.engine {
+            Engine::Gpu {
+                ctx, accum, dgi, ..
+            } => (accum.read(ctx)?, ctx.read_buffer::<f32>(&dgi)?),
+            Engine::Cpu { accum, dgi, .. } => (accum, dgi),
+        })
+    }
+
     /// The DGI the last frame used (a read-back on the GPU).
     pub fn dgi(&self) -> Result<Vec<f32>, FrameError> {
         Ok(match &self.engine {

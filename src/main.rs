@@ -33,8 +33,12 @@ enum Command {
     Display(DisplayCommand),
     /// Replay a tracking session: one JSON line per ROI change.
     Replay(cli::tracking::ReplayArgs),
-    /// Record live DTrack or OSC traffic into a replay file (Ctrl-C stops and saves).
+    /// Record live DTrack or OSC traffic into a replay file (Ctrl-C, SIGTERM or SIGHUP stops
+    /// and saves).
     Record(cli::tracking::RecordArgs),
+    /// Solve the tracker→room calibration from presses at known wall points; writes the file
+    /// `view`, `record`, `replay` and `render --guide` take.
+    Calibrate(cli::calibrate::CalibrateArgs),
     /// Regenerate the synthetic FlyStick and mouse sessions in `tracking-replays/`.
     SynthReplays(cli::tracking::SynthArgs),
     /// Closest points on ellipses: `a,b,x,y` lines on stdin → `distance,cx,cy` on stdout.
@@ -72,6 +76,7 @@ fn main() {
         );
         std::process::exit(1);
     }
+    quiet_xdg_runtime_dir();
     let cli = Cli::parse();
     let result = match &cli.command {
         Command::Demo(args) => cli::demo::run(args),
@@ -84,6 +89,9 @@ fn main() {
         }
         Command::Replay(args) => replay(args),
         Command::Record(args) => record(args),
+        Command::Calibrate(args) => {
+            with_stop_signals(|stop| cli::calibrate::run(args, stop)).map(|_| ())
+        }
         Command::SynthReplays(args) => cli::tracking::run_synth(args).map(|files| {
             for f in files {
                 println!("{}", f.display());
@@ -94,9 +102,45 @@ fn main() {
         Command::Bench(cmd) => cli::bench::run(cmd),
     };
     if let Err(e) = result {
-        eprintln!("raygun: error: {e:#}");
+        eprintln!("raygun: error: {}", cli::error_chain(&e));
         std::process::exit(1);
     }
+}
+
+/// Mesa's Vulkan and GL drivers print "XDG_RUNTIME_DIR is invalid or not set" while raygun
+/// looks for a GPU, which is not the user's error and not raygun's business: where the variable
+/// is unset or names no folder, point it at a private temporary one (a desktop session always
+/// sets it; a service or an ssh session often does not).
+fn quiet_xdg_runtime_dir() {
+    let ok = std::env::var_os("XDG_RUNTIME_DIR").is_some_and(|d| std::path::Path::new(&d).is_dir());
+    if ok {
+        return;
+    }
+    let dir = std::env::temp_dir().join(format!("raygun-runtime-{}", std::process::id()));
+    if std::fs::create_dir_all(&dir).is_ok() {
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            let _ = std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o700));
+        }
+        // SAFETY: called first thing in `main`, before any thread exists that could read the
+        // environment concurrently.
+        unsafe { std::env::set_var("XDG_RUNTIME_DIR", &dir) };
+    }
+}
+
+/// Runs `work` with a flag that Ctrl-C (SIGINT), SIGTERM (systemd, `timeout`) and SIGHUP (a
+/// closed terminal) set, so that a recording or a calibration ends cleanly however it is
+/// stopped.
+fn with_stop_signals<T>(
+    work: impl FnOnce(&std::sync::atomic::AtomicBool) -> anyhow::Result<T>,
+) -> anyhow::Result<T> {
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicBool, Ordering};
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = Arc::clone(&stop);
+    ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst))?;
+    work(&stop)
 }
 
 /// Streams stdin to stdout; exits 1 after the whole stream if any line was bad.
@@ -126,14 +170,10 @@ fn replay(args: &cli::tracking::ReplayArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Records until Ctrl-C (or `--seconds`); the stop flag lets the writer flush everything.
+/// Records until stopped (Ctrl-C, SIGTERM, SIGHUP) or `--seconds`; the stop flag lets the
+/// writer flush everything, and the command exits 0 with a complete file.
 fn record(args: &cli::tracking::RecordArgs) -> anyhow::Result<()> {
-    use std::sync::Arc;
-    use std::sync::atomic::{AtomicBool, Ordering};
-    let stop = Arc::new(AtomicBool::new(false));
-    let flag = Arc::clone(&stop);
-    ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst))?;
-    let n = cli::tracking::run_record(args, &stop)?;
+    let n = with_stop_signals(|stop| cli::tracking::run_record(args, stop))?;
     eprintln!(
         "raygun record: {n} datagrams written to {}",
         args.out.display()

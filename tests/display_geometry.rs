@@ -400,8 +400,11 @@ fn pick_reports_the_centre_hit_as_json() {
 #[test]
 fn pick_loads_the_model_file() {
     let args = PickArgs {
-        display: PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-            .join("display-models/desktop-27in-4k.json"),
+        display: concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/display-models/desktop-27in-4k.json"
+        )
+        .to_owned(),
         origin: DVec3::new(0.1, 0.0, 0.6),
         dir: DVec3::NEG_Z,
         size: [1920, 1080],
@@ -417,7 +420,7 @@ fn pick_loads_the_model_file() {
     );
     assert!((v["t"].as_f64().unwrap() - 0.6).abs() < 1e-12);
     let missing = PickArgs {
-        display: PathBuf::from("/nonexistent/m.json"),
+        display: "/nonexistent/m.json".to_owned(),
         ..args
     };
     assert!(format!("{:#}", pick(&missing).unwrap_err()).contains("/nonexistent/m.json"));

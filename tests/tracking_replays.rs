@@ -38,6 +38,7 @@ fn args(file: &Path) -> ReplayArgs {
         display: None,
         config: None,
         device: None,
+        calibration: None,
         realtime: false,
     }
 }
@@ -239,7 +240,7 @@ fn bad_replay_lines_are_counted_once_per_kind_and_never_change_the_roi() {
     std::fs::create_dir_all(bad.parent().unwrap()).unwrap();
     std::fs::write(&bad, lines.join("\n") + "\n").unwrap();
     let mut a = args(&bad);
-    a.display = Some(Path::new(env!("CARGO_MANIFEST_DIR")).join("display-models/hornet.json"));
+    a.display = Some(concat!(env!("CARGO_MANIFEST_DIR"), "/display-models/hornet.json").to_owned());
     let mut out = Vec::new();
     let problems = run_replay(&a, &mut out).unwrap();
     std::fs::remove_dir_all(&dir).unwrap();

@@ -299,6 +299,8 @@ fn record_arguments_are_validated_before_binding() {
         dtrack,
         osc,
         out: "x.jsonl".into(),
+        display: "hornet".into(),
+        calibration: None,
         bind: IpAddr::V4(Ipv4Addr::LOCALHOST),
         allow_network: false,
         allow_from: vec![],

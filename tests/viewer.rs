@@ -213,9 +213,10 @@ fn bundled_replay() -> Timeline {
     let root = env!("CARGO_MANIFEST_DIR");
     Timeline::collect(&raygun::cli::tracking::ReplayArgs {
         file: format!("{root}/tracking-replays/flystick-1-centre-sweeps.dtrack.jsonl").into(),
-        display: Some(format!("{root}/display-models/hornet.json").into()),
+        display: Some(format!("{root}/display-models/hornet.json")),
         config: None,
         device: None,
+        calibration: None,
         realtime: false,
     })
     .unwrap()
@@ -345,6 +346,70 @@ fn live_dtrack_sets_the_aim_and_a_trigger_press_the_roi() {
     match mark {
         Some(CursorMark::Live(p)) => assert!((p - centre).length() < 1.0, "{p}"),
         other => panic!("{other:?}"),
+    }
+}
+
+/// Live DTrack through a calibration: a tracker in DTrack's factory Z-up frame 1.45 m below
+/// the room origin sends the stick 1 m in front of the wall centre in its own numbers; with the
+/// calibration file's transform the aim and the ROI land on the centre, without it they miss.
+#[test]
+fn live_dtrack_takes_the_calibration() {
+    use raygun::interaction::InteractionConfig;
+    use raygun::tracking::calibration::Calibration;
+    use raygun::tracking::ingest::Protocol;
+    use raygun::viewer::live::LiveTracking;
+    let model = hornet();
+    let cal = Calibration::from_json(
+        r#"{"raygun_calibration":1,"rotation_rows":[[1,0,0],[0,0,1],[0,-1,0]],"translation_m":[0,-1.45,0]}"#,
+        std::path::Path::new("lab.json"),
+    )
+    .unwrap();
+    // Room (0, 0, 1) m is tracker (0, −1000, 1450) mm; the room's identity orientation is the
+    // tracker's Rᵀ, written column by column.
+    let frame = |t: u32, buttons: u32| {
+        format!("fr {t}\n6df2 1 1 [0 1.0 6 2][0 -1000 1450][1 0 0 0 0 1 0 -1 0][{buttons} 0 0]\n")
+            .into_bytes()
+    };
+    let sender = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    let centre = model.canvas_rect().center();
+    for calibrated in [true, false] {
+        let mut live = LiveTracking::start_calibrated(
+            0,
+            Protocol::Dtrack,
+            InteractionConfig::default(),
+            model.clone(),
+            calibrated.then_some(&cal),
+        )
+        .unwrap();
+        let mut state = ViewerState::new(RoiSource::Live, 4);
+        let deadline = std::time::Instant::now() + Duration::from_secs(3);
+        let mut k = 0;
+        while std::time::Instant::now() < deadline
+            && state
+                .tracked
+                .as_ref()
+                .and_then(|r| r.centre.as_ref())
+                .is_none()
+        {
+            sender
+                .send_to(&frame(k, k % 2), ("127.0.0.1", live.port))
+                .unwrap();
+            k += 1;
+            std::thread::sleep(Duration::from_millis(20));
+            live.update(&mut state);
+        }
+        let hit = state
+            .tracked
+            .as_ref()
+            .and_then(|r| r.centre.as_ref())
+            .map(|c| c.canvas_px);
+        if calibrated {
+            let c = hit.expect("the calibrated shot hits");
+            assert!((c - centre).length() < 1.0, "{c} vs {centre}");
+            assert!((state.aim.expect("aim") - centre).length() < 1.0);
+        } else {
+            assert!(hit.is_none_or(|c| (c - centre).length() > 100.0), "{hit:?}");
+        }
     }
 }
 

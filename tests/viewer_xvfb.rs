@@ -36,7 +36,8 @@ fn viewer_under_xvfb_renders_and_saves_a_screenshot() {
     );
     let dir = std::env::temp_dir().join(format!("raygun-xvfb-{}", std::process::id()));
     let o = Command::new("xvfb-run")
-        .args(["-a", "-s", "-screen 0 1280x720x24"])
+        // 1280×700: shorter than the side panel, which must then scroll.
+        .args(["-a", "-s", "-screen 0 1280x700x24"])
         .arg(env!("CARGO_BIN_EXE_raygun"))
         .args(["view", "--backend", "gpu", "--size", &format!("{W},{H}")])
         .args([
@@ -69,6 +70,21 @@ fn viewer_under_xvfb_renders_and_saves_a_screenshot() {
         .filter(|p| p.0[0] >= 250 && (215..=225).contains(&p.0[1]) && p.0[2] <= 5)
         .count();
     assert!(outline > 20, "{outline} outline pixels in the window");
+    // The side panel is taller than the window: it shows a scroll bar, a column just left of
+    // the panel's edge that differs from the panel's background over most of the height.
+    let (ww, wh) = window.dimensions();
+    let background = window.get_pixel(2, wh / 2).0;
+    let edge = (100..ww / 2)
+        .find(|&x| (0..wh).all(|y| window.get_pixel(x, y).0 != background))
+        .expect("the side panel's edge");
+    let bar = (edge.saturating_sub(30)..edge).any(|x| {
+        (0..wh)
+            .filter(|&y| window.get_pixel(x, y).0 != background)
+            .count()
+            * 10
+            >= wh as usize * 6
+    });
+    assert!(bar, "no scroll bar left of the panel edge at x = {edge}");
     // The picture after N iterations: every ROI pixel (d = 0) has N samples, and the periphery
     // (d = 1, p = p_min there) far fewer.
     let counts = gray_exr(&dir.join("screenshot.counts.exr"));

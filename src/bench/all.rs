@@ -1346,6 +1346,15 @@ pub fn plot_convergence(r: &AllReport, path: &Path) -> Result<(), AllBenchError>
     Ok(())
 }
 
+impl From<crate::output::FileError> for AllBenchError {
+    fn from(e: crate::output::FileError) -> Self {
+        Self::Output {
+            path: String::new(),
+            reason: e.to_string(),
+        }
+    }
+}
+
 /// Writes `report.md`, `report.json`, `fig5.png`, `dgi_metrics.png` and `convergence.png` into
 /// `dir` (created).
 pub fn write(r: &AllReport, dir: &Path) -> Result<(), AllBenchError> {
@@ -1354,15 +1363,23 @@ pub fn write(r: &AllReport, dir: &Path) -> Result<(), AllBenchError> {
         move |source| AllBenchError::Io { path, source }
     };
     std::fs::create_dir_all(dir).map_err(io(dir))?;
+    let file = |e: crate::output::FileError| AllBenchError::Output {
+        path: dir.display().to_string(),
+        reason: e.to_string(),
+    };
     let md = dir.join("report.md");
-    std::fs::write(&md, markdown(r)).map_err(io(&md))?;
+    crate::output::write_bytes(&md, markdown(r).as_bytes()).map_err(file)?;
     let json = dir.join("report.json");
     let text = serde_json::to_string_pretty(r).map_err(|e| AllBenchError::Output {
         path: json.display().to_string(),
         reason: e.to_string(),
     })?;
-    std::fs::write(&json, text).map_err(io(&json))?;
-    guided::plot(&r.guided, &dir.join("fig5.png"))?;
-    plot_dgi_metrics(&r.dgi, &dir.join("dgi_metrics.png"))?;
-    plot_convergence(r, &dir.join("convergence.png"))
+    crate::output::write_bytes(&json, text.as_bytes()).map_err(file)?;
+    let plot = |name: &str, draw: &dyn Fn(&Path) -> Result<(), AllBenchError>| {
+        let path = dir.join(name);
+        crate::output::replace_with(&path, |tmp| draw(tmp))
+    };
+    plot("fig5.png", &|p| Ok(guided::plot(&r.guided, p)?))?;
+    plot("dgi_metrics.png", &|p| plot_dgi_metrics(&r.dgi, p))?;
+    plot("convergence.png", &|p| plot_convergence(r, p))
 }

@@ -249,23 +249,33 @@ impl DgiBenchReport {
             self.cpu
         );
         s.push_str(
-            "| FOV | metric | backend | ms (median) | ms (min) | guide ms | share sampled | err max px | err mean px | |GPU−CPU| d |\n",
+            "| FOV | metric | backend | ms (median) | ms (min) | guide ms | share sampled | err max px | err mean px | max difference in d from the CPU twin |\n",
         );
         s.push_str("|---|---|---|---|---|---|---|---|---|---|\n");
         for r in &self.rows {
             s.push_str(&format!(
-                "| {}° | {:?} | {}{} | {:.3} | {:.3} | {:.3} | {:.2} % | {:.3} | {:.4} | {:.1e} |\n",
+                "| {}° | {} | {}{} | {:.3} | {:.3} | {:.3} | {:.2} % | {:.3} | {:.4} | {} |\n",
                 r.fov_deg,
-                r.metric,
+                clap::ValueEnum::to_possible_value(&r.metric)
+                    .map_or_else(String::new, |v| v.get_name().to_owned()),
                 r.backend,
-                if r.gpu_timestamps { " (timestamps)" } else { "" },
+                if r.gpu_timestamps {
+                    " (timestamps)"
+                } else {
+                    ""
+                },
                 r.ms_median,
                 r.ms_min,
                 r.guide_ms,
                 100.0 * r.share_sampled,
                 r.err_max_px,
                 r.err_mean_px,
-                r.backend_max_abs_d
+                // The CPU twin is the reference itself.
+                if r.backend == "cpu" {
+                    "—".to_owned()
+                } else {
+                    format!("{:.1e}", r.backend_max_abs_d)
+                }
             ));
         }
         s

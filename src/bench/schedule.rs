@@ -26,12 +26,8 @@ use crate::schedule::{Order, probability, schedule_cpu};
 #[derive(Clone, Debug, clap::Args)]
 pub struct ScheduleBenchArgs {
     /// Display model (the paper's setup: HORNET).
-    #[arg(
-        long,
-        value_name = "FILE",
-        default_value = "display-models/hornet.json"
-    )]
-    pub display: PathBuf,
+    #[arg(long, value_name = "MODEL", default_value = crate::display::DEFAULT_MODEL)]
+    pub display: String,
     /// Image size.
     #[arg(long, value_name = "W,H", value_parser = crate::cli::args::parse_size, default_value = "3840,2160")]
     pub size: [u32; 2],
@@ -334,7 +330,7 @@ impl ScheduleBenchReport {
 
 /// `raygun bench schedule`.
 pub fn run_command(args: &ScheduleBenchArgs) -> anyhow::Result<()> {
-    let model = DisplayModel::load(&args.display)?;
+    let model = DisplayModel::open(&args.display)?.0;
     let surface = Surface::from_model(&model);
     let backend = Backend::select(args.backend)?;
     let config = ScheduleBenchConfig {

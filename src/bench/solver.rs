@@ -9,6 +9,13 @@
 //! of the inputs to f32 does not count against them. They run on the subset whose inputs are
 //! f32-normal (the GPU on the further subset whose intermediate values stay normal, since GPUs
 //! may flush subnormals) — the same subsets the tests check.
+//!
+//! The class of inside points a tiny or subnormal distance off an axis (categories
+//! `tiny-off-axis-*`) is left out of this benchmark ([`timed_cases`]): the DGI asks the solver
+//! about points outside the ROI only, and that class's arithmetic on subnormal numbers, which
+//! x86 cores run about a hundred times slower, would dominate the time per solve.
+//! `tests/ellipse_hard_cases.rs` holds it to the accuracy bounds, and
+//! `examples/ellipse_bench.rs` times it apart.
 
 use std::hint::black_box;
 use std::time::Instant;
@@ -349,13 +356,26 @@ fn time_cpu<T: Copy>(cases: &[T], reps: u32, mut f: impl FnMut(T)) -> Vec<f64> {
         .collect()
 }
 
-/// Runs the three solvers over the embedded hard-case set, `reps` timed passes each.
+/// The cases the benchmark times: every case but the inside tiny-off-axis class (module docs).
+#[must_use]
+pub fn timed_cases(cases: Vec<HardCase>) -> Vec<HardCase> {
+    cases
+        .into_iter()
+        .filter(|c| !c.category.starts_with(TINY_OFF_AXIS))
+        .collect()
+}
+
+/// The category prefix of the class left out of the timing.
+pub const TINY_OFF_AXIS: &str = "tiny-off-axis";
+
+/// Runs the three solvers over the embedded hard-case set ([`timed_cases`]), `reps` timed
+/// passes each.
 pub fn run(
     backend: &Backend,
     reps: u32,
     mut progress: impl FnMut(&str),
 ) -> Result<SolverReport, SolverBenchError> {
-    let cases = parse_cases(HARD_CASES_CSV, HARD_CASES_PATH)?;
+    let cases = timed_cases(parse_cases(HARD_CASES_CSV, HARD_CASES_PATH)?);
     let mut rows = Vec::new();
 
     progress("closest-point solver: f64 CPU");
@@ -458,7 +478,7 @@ pub fn run(
 #[must_use]
 pub fn markdown(r: &SolverReport) -> String {
     let mut s = format!(
-        "Hard-case set `{}` ({} cases, 80-digit references); time per solve from {} passes over the set (CPU: one thread). Accuracy = max |d − d_ref| / max(a, b, |p|); the f32 solvers are judged against the f64 solver on their f32-rounded inputs, on the cases whose inputs are f32-normal (GPU: whose intermediate values stay normal too).\n\n| solver | cases | iterations max | iterations mean | ns/solve (median) | ns/solve (min) | max error / scale | bound | reference |\n|---|---|---|---|---|---|---|---|---|\n",
+        "Hard-case set `{}` ({} cases, 80-digit references; the inside tiny-off-axis class, which the DGI never meets, is timed apart by `examples/ellipse_bench.rs`); time per solve from {} passes over the set (CPU: one thread). Accuracy = max |d − d_ref| / max(a, b, |p|); the f32 solvers are judged against the f64 solver on their f32-rounded inputs, on the cases whose inputs are f32-normal (GPU: whose intermediate values stay normal too).\n\n| solver | cases | iterations max | iterations mean | ns/solve (median) | ns/solve (min) | max error / scale | bound | reference |\n|---|---|---|---|---|---|---|---|---|\n",
         r.file, r.cases, r.reps
     );
     for row in &r.rows {

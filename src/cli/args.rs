@@ -2,30 +2,37 @@
 
 use glam::{DVec2, DVec3};
 
+use crate::messages::quote;
+
 /// Why a command-line list did not parse.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ListParseError {
-    #[error("{text:?}: expected {expected} comma-separated numbers ({form}), found {found}")]
+    #[error(
+        "{}: expected {expected} comma-separated numbers ({form}), found {found}",
+        quote(text)
+    )]
     Count {
         text: String,
         expected: usize,
         found: usize,
         form: &'static str,
     },
-    #[error("{text:?}: item {index} ({item:?}) is not a number")]
+    #[error("{}: item {index} ({}) is not a number", quote(text), quote(item))]
     NotANumber {
         text: String,
         index: usize,
         item: String,
     },
-    #[error("{text:?}: item {index} ({item:?}) is not finite")]
+    #[error("{}: item {index} ({}) is not finite", quote(text), quote(item))]
     NonFinite {
         text: String,
         index: usize,
         item: String,
     },
     #[error(
-        "{text:?}: item {index} ({item:?}) is not a whole number from 1 to {}",
+        "{}: item {index} ({}) is not a whole number from 1 to {}",
+        quote(text),
+        quote(item),
         u32::MAX
     )]
     NotAPositiveInteger {

@@ -44,19 +44,15 @@ pub struct AllBenchArgs {
     #[arg(long, value_name = "SCENE", default_value = "builtin:cornell")]
     pub scene: String,
     /// Display model (the paper's setup: HORNET).
-    #[arg(
-        long,
-        value_name = "FILE",
-        default_value = "display-models/hornet.json"
-    )]
-    pub display: PathBuf,
+    #[arg(long, value_name = "MODEL", default_value = crate::display::DEFAULT_MODEL)]
+    pub display: String,
     #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
     pub backend: BackendChoice,
 }
 
 fn run_all_bench(args: &AllBenchArgs) -> anyhow::Result<()> {
     let backend = Backend::select(args.backend)?;
-    let display = DisplayModel::load(&args.display)?;
+    let display = DisplayModel::open(&args.display)?.0;
     let scene = crate::cli::render::load_scene(&args.scene, None)?;
     let name = args.scene.trim_start_matches("builtin:");
     let cfg = crate::bench::all::AllConfig::new(args.quick, args.size);
@@ -107,12 +103,8 @@ pub struct GuidedBenchArgs {
     )]
     pub scene: Vec<String>,
     /// Display model (the paper's setup: HORNET).
-    #[arg(
-        long,
-        value_name = "FILE",
-        default_value = "display-models/hornet.json"
-    )]
-    pub display: PathBuf,
+    #[arg(long, value_name = "MODEL", default_value = crate::display::DEFAULT_MODEL)]
+    pub display: String,
     /// Image size.
     #[arg(long, value_name = "W,H", value_parser = crate::cli::args::parse_size, default_value = "3840,2160")]
     pub size: [u32; 2],
@@ -154,12 +146,12 @@ pub struct GuidedBenchArgs {
 
 fn run_guided_bench(args: &GuidedBenchArgs) -> anyhow::Result<()> {
     let backend = Backend::select(args.backend)?;
-    let display = DisplayModel::load(&args.display)?;
+    let display = DisplayModel::open(&args.display)?.0;
     let scenes = crate::cli::render::load_scenes(&args.scene, args.env.as_deref())?;
     let cfg = crate::bench::guided::GuidedBenchConfig {
         size: args.size,
         fovs_deg: args.fov.clone(),
-        iterations: args.iterations.max(1),
+        iterations: args.iterations,
         reference_spp: args.reference_spp.max(1),
         p_min: args.p_min,
         orders: args.order.clone(),
@@ -178,7 +170,9 @@ fn run_guided_bench(args: &GuidedBenchArgs) -> anyhow::Result<()> {
     };
     print_and_save(&text, args.out.as_deref())?;
     if let Some(plot) = &args.plot {
-        crate::bench::guided::plot(&report, plot)?;
+        crate::output::replace_with(plot, |tmp| {
+            crate::bench::guided::plot(&report, tmp).map_err(anyhow::Error::from)
+        })?;
     }
     Ok(())
 }
@@ -244,12 +238,8 @@ fn run_trace_bench(args: &TraceBenchArgs) -> anyhow::Result<()> {
 #[derive(Clone, Debug, clap::Args)]
 pub struct DgiBenchArgs {
     /// Display model (the paper's setup: HORNET).
-    #[arg(
-        long,
-        value_name = "FILE",
-        default_value = "display-models/hornet.json"
-    )]
-    pub display: PathBuf,
+    #[arg(long, value_name = "MODEL", default_value = crate::display::DEFAULT_MODEL)]
+    pub display: String,
     /// Image size.
     #[arg(long, value_name = "W,H", value_parser = crate::cli::args::parse_size, default_value = "3840,2160")]
     pub size: [u32; 2],
@@ -277,7 +267,44 @@ pub struct DgiBenchArgs {
     pub out: Option<PathBuf>,
 }
 
+/// Checks every file and folder a benchmark will write, and the settings that would make its
+/// figures meaningless, before any work.
+fn check_before(cmd: &BenchCommand) -> anyhow::Result<()> {
+    let file_out = match cmd {
+        BenchCommand::Dgi(a) => a.out.as_deref(),
+        BenchCommand::Filter(a) => a.out.as_deref(),
+        BenchCommand::Schedule(a) => a.out.as_deref(),
+        BenchCommand::Trace(a) => a.out.as_deref(),
+        BenchCommand::Guided(a) => a.out.as_deref(),
+        BenchCommand::All(a) => {
+            crate::output::check_folder(&a.out).context("--out")?;
+            None
+        }
+    };
+    if let Some(p) = file_out {
+        crate::output::check_writable(p).context("--out")?;
+    }
+    if let BenchCommand::Guided(a) = cmd {
+        if let Some(p) = &a.plot {
+            if crate::output::check_image_path(p).context("--plot")? != crate::output::Format::Png {
+                anyhow::bail!("--plot {}: the plot is a PNG", p.display());
+            }
+        }
+        if a.iterations == 0 {
+            anyhow::bail!("--iterations must be at least 1 (every figure is per iteration)");
+        }
+        if a.reference_spp == 0 {
+            anyhow::bail!("--reference-spp must be at least 1");
+        }
+        if !(0.0..=1.0).contains(&a.p_min) {
+            anyhow::bail!("--p-min must be a probability from 0 to 1, not {}", a.p_min);
+        }
+    }
+    Ok(())
+}
+
 pub fn run(cmd: &BenchCommand) -> anyhow::Result<()> {
+    check_before(cmd)?;
     match cmd {
         BenchCommand::Filter(args) => crate::cli::filter::run_bench(args),
         BenchCommand::Schedule(args) => crate::bench::schedule::run_command(args),
@@ -285,7 +312,7 @@ pub fn run(cmd: &BenchCommand) -> anyhow::Result<()> {
         BenchCommand::Guided(args) => run_guided_bench(args),
         BenchCommand::All(args) => run_all_bench(args),
         BenchCommand::Dgi(args) => {
-            let model = DisplayModel::load(&args.display)?;
+            let model = DisplayModel::open(&args.display)?.0;
             let surface = Surface::from_model(&model);
             let backend = Backend::select(args.backend)?;
             let config = DgiBenchConfig {
@@ -313,7 +340,7 @@ pub fn run(cmd: &BenchCommand) -> anyhow::Result<()> {
 pub fn print_and_save(text: &str, out: Option<&std::path::Path>) -> anyhow::Result<()> {
     println!("{text}");
     if let Some(path) = out {
-        std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))?;
+        crate::output::write_bytes(path, text.as_bytes())?;
     }
     Ok(())
 }

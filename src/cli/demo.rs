@@ -9,7 +9,9 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 
 use crate::cli::args::parse_size;
-use crate::cli::guided::{GuideSource, GuidedResult, render_guided, write_guides};
+use crate::cli::guided::{GuideSource, GuidedResult, Stopping, render_guided, write_guides};
+use crate::cli::progress::Progress;
+use crate::cli::tracking::{ReplayArgs, ReplayPlan};
 use crate::display::DisplayModel;
 use crate::filter::FilterParams;
 use crate::frame::GuideConfig;
@@ -66,13 +68,11 @@ pub fn has_display() -> bool {
 /// Writes the embedded display model and replay under `<out>/inputs/`; returns their paths.
 pub fn write_inputs(out: &Path) -> anyhow::Result<(PathBuf, PathBuf)> {
     let dir = out.join("inputs");
-    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    crate::output::check_folder(&dir)?;
     let display = dir.join(DISPLAY_FILE);
     let replay = dir.join(REPLAY_FILE);
-    std::fs::write(&display, DISPLAY_JSON)
-        .with_context(|| format!("writing {}", display.display()))?;
-    std::fs::write(&replay, REPLAY_JSONL)
-        .with_context(|| format!("writing {}", replay.display()))?;
+    crate::output::write_bytes(&display, DISPLAY_JSON.as_bytes())?;
+    crate::output::write_bytes(&replay, REPLAY_JSONL.as_bytes())?;
     Ok((display, replay))
 }
 
@@ -119,12 +119,25 @@ pub fn run_headless(args: &DemoArgs) -> anyhow::Result<DemoOutput> {
     if args.iterations == 0 {
         anyhow::bail!("--iterations must be at least 1");
     }
+    crate::output::check_folder(&args.out)?;
+    let backend = Backend::select(args.backend)?;
+    let filter = FilterParams::default();
+    crate::cli::render::check_memory(
+        crate::memory::Work::Render {
+            gpu: backend.is_gpu(),
+            filter: filter.kind,
+        },
+        args.size,
+        &backend,
+    )?;
     let (display_path, replay_path) = write_inputs(&args.out)?;
     let model = DisplayModel::load(&display_path)?;
+    if args.tiles {
+        crate::cli::render::warn_if_resampled(args.size, &model, "HORNET");
+    }
     let scene = crate::cli::render::load_scene(SCENE, Some(ENV))?;
     let [w, h] = args.size;
     let camera = RenderCamera::choose(&scene, None, w, h).context("demo scene camera")?;
-    let backend = Backend::select(args.backend)?;
     let settings = TraceSettings {
         width: w,
         height: h,
@@ -132,16 +145,18 @@ pub fn run_headless(args: &DemoArgs) -> anyhow::Result<DemoOutput> {
         max_depth: DEFAULT_MAX_DEPTH,
         camera,
     };
-    let source = GuideSource::parse(
-        replay_path.to_str().context("non-UTF-8 output path")?,
-        &model,
-        &display_path,
-        args.size,
-    )?;
+    let (plan, _) = ReplayPlan::new(&ReplayArgs {
+        display: Some(display_path.display().to_string()),
+        ..ReplayArgs::of(replay_path.clone())
+    })?;
+    let source = GuideSource::from_replay(&plan, &replay_path)?;
     let config = GuideConfig::default();
-    let filter = FilterParams::default();
-    let bar = crate::cli::render::progress(args.quiet, u64::from(args.iterations), "iterations");
-    bar.set_message("demo");
+    let mut bar = Progress::new(
+        args.quiet,
+        "demo",
+        Some(u64::from(args.iterations)),
+        "iterations",
+    );
     let result = render_guided(
         &backend,
         &scene,
@@ -150,48 +165,104 @@ pub fn run_headless(args: &DemoArgs) -> anyhow::Result<DemoOutput> {
         config,
         &filter,
         &source,
-        args.iterations,
-        |k| bar.set_position(u64::from(k)),
+        &Stopping {
+            iterations: Some(args.iterations),
+            until: Vec::new(),
+        },
+        |k, _| bar.set(u64::from(k)),
     )?;
-    bar.finish_and_clear();
-    let mut files = Vec::new();
+    bar.finish();
+    let mut files = vec![
+        FileNote::new(
+            display_path,
+            "the display model (HORNET), written from the copy built into raygun",
+        ),
+        FileNote::new(
+            replay_path,
+            "the FlyStick session that guides the render (synthetic), built in likewise",
+        ),
+    ];
     for name in ["image.png", "image.exr"] {
         let p = args.out.join(name);
         crate::output::write_rgb(&p, w, h, &result.image, 0.0)?;
-        files.push(p);
+        files.push(FileNote::new(
+            p,
+            if name.ends_with("png") {
+                "the filtered image, sRGB 8-bit"
+            } else {
+                "the filtered image, linear RGB, 32-bit float"
+            },
+        ));
     }
     let (dgi, counts) = (args.out.join("dgi.png"), args.out.join("counts.exr"));
     write_guides(&result, &dgi, &counts)?;
-    files.extend([dgi, counts]);
+    files.push(FileNote::new(
+        dgi,
+        "the distance-guide image of the session's last ROI (black: in the ROI, white: d = 1)",
+    ));
+    files.push(FileNote::new(
+        counts,
+        "samples per pixel over the whole session (one float channel `samples`)",
+    ));
     if args.tiles {
         let dir = args.out.join("tiles");
-        files.extend(crate::output::tiles::write_tiles(
+        let n = crate::output::tiles::write_tiles(
             &dir,
             &model,
             &result.image,
             args.size,
             crate::output::Format::Png,
             0.0,
-        )?);
+        )?
+        .len();
+        files.push(FileNote::new(
+            dir,
+            &format!(
+                "{n} PNGs, one per wall tile (`<tile id>.png`, 1920×1080), cut from the image and resampled (nearest neighbour) from {w}×{h}"
+            ),
+        ));
     }
     let report = args.out.join("report.md");
-    let text = report_text(args, &backend, &model, &config, &filter, &result, &files);
-    std::fs::write(&report, text).with_context(|| format!("writing {}", report.display()))?;
+    let text = report_text(
+        &backend, &model, &config, &filter, &result, &args.out, &files,
+    );
+    crate::output::write_bytes(&report, text.as_bytes())?;
     Ok(DemoOutput {
         result,
-        files,
+        files: files.into_iter().map(|f| f.path).collect(),
         report,
     })
 }
 
+/// A file the demo wrote and what it is.
+struct FileNote {
+    path: PathBuf,
+    what: String,
+}
+
+impl FileNote {
+    fn new(path: PathBuf, what: &str) -> Self {
+        Self {
+            path,
+            what: what.to_owned(),
+        }
+    }
+}
+
+/// A value-enum setting by its command-line name.
+fn name_of<T: clap::ValueEnum>(v: &T) -> String {
+    v.to_possible_value()
+        .map_or_else(|| "?".into(), |p| p.get_name().to_owned())
+}
+
 fn report_text(
-    args: &DemoArgs,
     backend: &Backend,
     model: &DisplayModel,
     config: &GuideConfig,
     filter: &FilterParams,
     r: &GuidedResult,
-    files: &[PathBuf],
+    out: &Path,
+    files: &[FileNote],
 ) -> String {
     let [w, h] = r.size;
     let samples = r.samples();
@@ -199,7 +270,10 @@ fn report_text(
     // Writing to a String cannot fail.
     let _ = writeln!(s, "# raygun demo\n");
     let _ = writeln!(s, "| setting | value |\n|---|---|");
-    let _ = writeln!(s, "| scene | `{SCENE}`, environment {ENV} |");
+    let _ = writeln!(
+        s,
+        "| scene | `{SCENE}` (the Cornell box with its ceiling light), environment radiance {ENV} |"
+    );
     let _ = writeln!(
         s,
         "| display | {} ({} tiles, canvas {:.0}×{:.0} px) |",
@@ -210,20 +284,26 @@ fn report_text(
     );
     let _ = writeln!(
         s,
-        "| guide | replay `{REPLAY_FILE}` spread over the iterations |"
+        "| guide | the replay `inputs/{REPLAY_FILE}`, spread evenly over the iterations |"
     );
-    let _ = writeln!(s, "| image | {w}×{h} |");
+    let _ = writeln!(s, "| image | {w}×{h}, covering the display's canvas |");
     let _ = writeln!(s, "| iterations | {} |", r.iterations);
     let _ = writeln!(s, "| backend | {} |", backend.describe());
+    let _ = writeln!(s, "| distance measure | {} |", name_of(&config.metric));
     let _ = writeln!(
         s,
-        "| guide config | metric {:?}, falloff {:?}, p_min {}, order {:?} |",
-        config.metric, config.falloff, config.p_min, config.order
+        "| falloff | L = {} m + {} × ROI radius |",
+        config.falloff.base_m, config.falloff.scale
     );
+    let _ = writeln!(s, "| lowest sampling probability | {} |", config.p_min);
+    let _ = writeln!(s, "| pixel order | {} |", name_of(&config.order));
     let _ = writeln!(
         s,
-        "| filter | {:?}, blend {:?}, k_max {}, c {} |",
-        filter.kind, filter.blend, filter.k_max, filter.c
+        "| filter | {}, blend by {}, largest radius {} px, c = {} samples |",
+        name_of(&filter.kind),
+        name_of(&filter.blend),
+        filter.k_max,
+        filter.c
     );
     let _ = writeln!(s, "\n## Results\n");
     let _ = writeln!(s, "| measure | value |\n|---|---|");
@@ -252,8 +332,9 @@ fn report_text(
     );
     let _ = writeln!(s, "\n## Files\n");
     for f in files {
-        let name = f.strip_prefix(&args.out).unwrap_or(f);
-        let _ = writeln!(s, "- `{}`", name.display());
+        let name = f.path.strip_prefix(out).unwrap_or(&f.path);
+        let _ = writeln!(s, "- `{}`: {}", name.display(), f.what);
     }
+    let _ = writeln!(s, "- `report.md`: this report");
     s
 }

@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, bail};
+use clap::ValueEnum;
 use glam::{DVec2, DVec3};
 
 use crate::cli::args::{parse_pair, parse_size, parse_vec3};
@@ -14,9 +15,9 @@ use crate::roi::gpu::DgiKernel;
 
 #[derive(Clone, Debug, clap::Args)]
 pub struct DgiArgs {
-    /// Display model file (e.g. display-models/hornet.json).
-    #[arg(long, value_name = "FILE")]
-    pub display: PathBuf,
+    /// Display model: a file, or a built-in model (hornet, desktop-27in-4k, projection-4m-4k).
+    #[arg(long, value_name = "MODEL", default_value = crate::display::DEFAULT_MODEL)]
+    pub display: String,
     /// Ray-gun apex in the room frame, metres.
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true,
           requires_all = ["dir", "fov"], conflicts_with_all = ["center_px", "axes_px"])]
@@ -95,16 +96,8 @@ pub fn roi_from_args(args: &DgiArgs, model: &DisplayModel) -> anyhow::Result<Roi
 }
 
 pub fn run(args: &DgiArgs) -> anyhow::Result<()> {
-    let model = DisplayModel::load(&args.display)?;
-    let roi = roi_from_args(args, &model)?;
-    let surface = Surface::from_model(&model);
-    let falloff = Falloff::new(args.falloff_base, args.falloff_scale)?;
-    let length_px = falloff.length_px(roi_radius_m(&surface, &roi), model.pitch_m());
-    let params = DgiParams {
-        width: args.size[0],
-        height: args.size[1],
-        falloff_px: (!args.raw).then_some(length_px),
-    };
+    // The output first: a bad path or extension fails before any work.
+    crate::output::check_image_path(&args.out)?;
     if args.raw
         && !args
             .out
@@ -113,8 +106,25 @@ pub fn run(args: &DgiArgs) -> anyhow::Result<()> {
     {
         bail!("--raw distances need an .exr output");
     }
-    let guide = Guide::new(&surface, &roi, args.metric)?;
+    let model = DisplayModel::open(&args.display)?.0;
+    let roi = roi_from_args(args, &model)?;
     let backend = Backend::select(args.backend)?;
+    crate::cli::render::check_memory(
+        crate::memory::Work::Dgi {
+            gpu: backend.is_gpu(),
+        },
+        args.size,
+        &backend,
+    )?;
+    let surface = Surface::from_model(&model);
+    let falloff = Falloff::new(args.falloff_base, args.falloff_scale)?;
+    let length_px = falloff.length_px(roi_radius_m(&surface, &roi), model.pitch_m());
+    let params = DgiParams {
+        width: args.size[0],
+        height: args.size[1],
+        falloff_px: (!args.raw).then_some(length_px),
+    };
+    let guide = Guide::new(&surface, &roi, args.metric)?;
     let values = match &backend {
         Backend::Gpu(ctx) => DgiKernel::new(ctx).compute(ctx, &surface, &guide, &params)?,
         Backend::Cpu => compute_cpu(&surface, &guide, &params),
@@ -124,13 +134,19 @@ pub fn run(args: &DgiArgs) -> anyhow::Result<()> {
         params.width,
         params.height,
         &values,
-        if args.raw { "distance" } else { "dgi" },
+        if args.raw {
+            "distance"
+        } else {
+            crate::output::DGI_CHANNEL
+        },
     )?;
     eprintln!(
-        "raygun dgi: {}×{} {:?} on {} → {}",
+        "raygun dgi: {}×{} {} on {} → {}",
         params.width,
         params.height,
-        args.metric,
+        args.metric
+            .to_possible_value()
+            .map_or_else(String::new, |v| v.get_name().to_owned()),
         backend.describe(),
         args.out.display()
     );

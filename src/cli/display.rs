@@ -11,9 +11,9 @@ use crate::display::DisplayModel;
 /// `raygun pick`: where does a ray meet the display?
 #[derive(Clone, Debug, clap::Args)]
 pub struct PickArgs {
-    /// Display model file (e.g. display-models/hornet.json).
-    #[arg(long, value_name = "FILE")]
-    pub display: PathBuf,
+    /// Display model: a file, or a built-in model (hornet, desktop-27in-4k, projection-4m-4k).
+    #[arg(long, value_name = "MODEL", default_value = crate::display::DEFAULT_MODEL)]
+    pub display: String,
     /// Ray origin in the room frame, metres.
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
     pub origin: DVec3,
@@ -36,7 +36,7 @@ pub struct ExpandArgs {
 /// `raygun pick`: loads the model and reports the first hit as one JSON object (see
 /// [`pick_on`]).
 pub fn pick(args: &PickArgs) -> anyhow::Result<Value> {
-    let model = DisplayModel::load(&args.display)?;
+    let model = DisplayModel::open(&args.display)?.0;
     pick_on(&model, args.origin, args.dir, args.size)
 }
 

@@ -3,13 +3,33 @@
 
 pub mod args;
 pub mod bench;
+pub mod calibrate;
 pub mod demo;
 pub mod dgi;
 pub mod display;
 pub mod ellipse_distance;
 pub mod filter;
 pub mod guided;
+pub mod progress;
 pub mod render;
 pub mod scene;
 pub mod tracking;
 pub mod view;
+
+/// An error and its causes as one line, "what failed: why: why that", leaving out a cause whose
+/// text the message already holds (library errors often quote their source in their own text).
+#[must_use]
+pub fn error_chain(e: &anyhow::Error) -> String {
+    let mut out = String::new();
+    for cause in e.chain() {
+        let text = cause.to_string();
+        if text.is_empty() || out.contains(&text) {
+            continue;
+        }
+        if !out.is_empty() {
+            out.push_str(": ");
+        }
+        out.push_str(&text);
+    }
+    out
+}

@@ -1,22 +1,43 @@
 //! `raygun render`: a progressive path-traced image of a glTF scene, written as EXR (linear,
 //! 32-bit float RGB) and/or PNG (sRGB, 8-bit) by the files' extensions.
+//!
+//! Everything the command will write is checked before any work (extensions, folders that
+//! exist and take files), and so is the memory the size needs; every file is written through a
+//! temporary name and renamed into place.
 
 use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Context;
+use clap::ArgGroup;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::cli::args::parse_size;
+use crate::cli::progress::Progress;
 use crate::display::DisplayModel;
 use crate::gpu::{Backend, BackendChoice};
-use crate::output::{Format, write_rgb};
+use crate::memory::{Budget, Work};
+use crate::output::{Format, check_image_path, write_rgb};
 use crate::scene::{Environment, Scene};
+use crate::stop::StopCondition;
 use crate::trace::camera::RenderCamera;
 use crate::trace::cpu::{DEFAULT_MAX_DEPTH, TraceSettings};
 use crate::trace::render::Renderer;
 
+/// Samples per pixel of a full-frame render when `--spp` is not given.
+pub const DEFAULT_SPP: u32 = 64;
+
 #[derive(Clone, Debug, clap::Args)]
+#[command(group(
+    ArgGroup::new("guided_only")
+        .multiple(true)
+        .args([
+            "iterations", "until", "p_min", "metric", "falloff_base", "falloff_scale", "order",
+            "filter", "blend", "k_max", "c", "variance_threshold", "dgi_out", "counts_out",
+            "calibration",
+        ])
+        .requires("guide")
+))]
 pub struct RenderArgs {
     /// Scene: a .gltf/.glb file, or builtin:cornell, builtin:cornell-light, builtin:city,
     /// builtin:city-small.
@@ -28,14 +49,15 @@ pub struct RenderArgs {
     /// Image size.
     #[arg(long, value_name = "W,H", value_parser = parse_size, default_value = "1280,720")]
     pub size: [u32; 2],
-    /// Samples per pixel.
-    #[arg(long, value_name = "N", default_value_t = 64)]
-    pub spp: u32,
+    /// Samples per pixel of a full-frame render (default 64; guided renders take
+    /// --iterations instead).
+    #[arg(long, value_name = "N", conflicts_with = "guide")]
+    pub spp: Option<u32>,
     /// Environment light: linear radiance R,G,B or an equirectangular .hdr/.exr image
     /// (default: white, radiance 1).
     #[arg(long, value_name = "R,G,B|FILE")]
     pub env: Option<String>,
-    /// Maximum path vertices.
+    /// Maximum path vertices: 1 is direct light only (Mitsuba's max_depth 2).
     #[arg(long, value_name = "N", default_value_t = DEFAULT_MAX_DEPTH)]
     pub max_depth: u32,
     /// Seed of the per-pixel random sequences.
@@ -54,41 +76,47 @@ pub struct RenderArgs {
     pub exposure: f32,
     #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
     pub backend: BackendChoice,
-    /// No progress bar.
+    /// No progress report.
     #[arg(long)]
     pub quiet: bool,
-    /// Guided rendering (DESIGN.md §6): the ROI from a tracking replay (spread evenly over the
-    /// iterations), a ray-gun pose `pose:X,Y,Z:DX,DY,DZ:FOV[,FOV_V]` (room frame, degrees) or
-    /// a mouse ROI `mouse:X,Y:A,B` (image pixels). Writes the image, the DGI and the per-pixel
-    /// sample counts.
+    /// Guided rendering: the ROI from a tracking replay (spread evenly over the iterations),
+    /// a ray-gun pose `pose:X,Y,Z:DX,DY,DZ:FOV[,FOV_V]` (room frame, metres, degrees) or a
+    /// mouse ROI `mouse:X,Y:A,B` (centre and semi-axes in image pixels). Writes the image, the
+    /// distance-guide image and the per-pixel sample counts.
+    #[arg(long, value_name = "REPLAY|pose:…|mouse:…", allow_hyphen_values = true)]
+    pub guide: Option<String>,
+    /// Guided iterations (each traces one path per scheduled pixel). Needed with a replay
+    /// guide; optional with a pose or mouse guide when --until is given.
+    #[arg(long, value_name = "N")]
+    pub iterations: Option<u32>,
+    /// Stop a guided render early (repeatable; the first reached wins): roi-se:X (median
+    /// standard error of the ROI pixels' mean luminance at or below X), roi-spp:N (every ROI
+    /// pixel has N samples) or time:SECONDS.
+    #[arg(long, value_name = "roi-se:X|roi-spp:N|time:S")]
+    pub until: Vec<StopCondition>,
+    /// Display model whose canvas the image covers: a file, or a built-in model (hornet,
+    /// desktop-27in-4k, projection-4m-4k). Default: the replay's, else hornet.
+    #[arg(long, value_name = "MODEL")]
+    pub display: Option<String>,
+    /// Tracker→room calibration for a replay guide (default: the one it was recorded with).
+    #[arg(long, value_name = "FILE")]
+    pub calibration: Option<PathBuf>,
+    /// Lowest sampling probability, 0 to 1 (the paper's: 0).
     #[arg(
         long,
-        value_name = "REPLAY|pose:…|mouse:…",
-        requires = "iterations",
+        value_name = "P",
+        default_value_t = 0.0,
         allow_hyphen_values = true
     )]
-    pub guide: Option<String>,
-    /// Guided iterations (each traces one path per scheduled pixel); replaces --spp.
-    #[arg(long, value_name = "N", requires = "guide")]
-    pub iterations: Option<u32>,
-    /// Display model whose canvas the image covers (guided rendering).
-    #[arg(
-        long,
-        value_name = "FILE",
-        default_value = "display-models/hornet.json"
-    )]
-    pub display: PathBuf,
-    /// Lowest sampling probability (paper preset 0).
-    #[arg(long, value_name = "P", default_value_t = 0.0)]
     pub p_min: f32,
     /// Distance measure of the DGI.
     #[arg(long, value_enum, default_value_t = crate::roi::dgi::Metric::Exact)]
     pub metric: crate::roi::dgi::Metric,
     /// Falloff L = BASE + SCALE × ROI radius: the base, metres along the wall.
-    #[arg(long, value_name = "METRES", default_value_t = crate::roi::dgi::Falloff::DEFAULT_BASE_M)]
+    #[arg(long, value_name = "METRES", default_value_t = crate::roi::dgi::Falloff::DEFAULT_BASE_M, allow_hyphen_values = true)]
     pub falloff_base: f64,
     /// Falloff L = BASE + SCALE × ROI radius: the scale.
-    #[arg(long, value_name = "K", default_value_t = crate::roi::dgi::Falloff::DEFAULT_SCALE)]
+    #[arg(long, value_name = "K", default_value_t = crate::roi::dgi::Falloff::DEFAULT_SCALE, allow_hyphen_values = true)]
     pub falloff_scale: f64,
     /// Order of the scheduled pixel list.
     #[arg(long, value_enum, default_value_t = crate::schedule::Order::Coherent)]
@@ -98,7 +126,8 @@ pub struct RenderArgs {
     /// Where to write the DGI (EXR or PNG; default `<out stem>.dgi.exr`).
     #[arg(long, value_name = "FILE")]
     pub dgi_out: Option<PathBuf>,
-    /// Where to write the per-pixel sample counts (EXR; default `<out stem>.counts.exr`).
+    /// Where to write the per-pixel sample counts (EXR or PNG; default
+    /// `<out stem>.counts.exr`).
     #[arg(long, value_name = "FILE")]
     pub counts_out: Option<PathBuf>,
     /// Wall output: one image per tile of --display, `DIR/<tile id>.<exr|png>`, cut from the
@@ -132,17 +161,6 @@ pub fn write_wall_tiles(
         Some(f) => f,
         None => Format::from_path(&args.out[0])?,
     };
-    let canvas = crate::output::tiles::canvas_pixel_size(model);
-    if canvas != args.size {
-        eprintln!(
-            "raygun: --tiles: the {}×{} image is resampled (nearest neighbour) to the {}×{} canvas of {}",
-            args.size[0],
-            args.size[1],
-            canvas[0],
-            canvas[1],
-            args.display.display()
-        );
-    }
     let paths =
         crate::output::tiles::write_tiles(dir, model, image, args.size, format, args.exposure)
             .with_context(|| format!("--tiles {}", dir.display()))?;
@@ -154,7 +172,18 @@ pub fn write_wall_tiles(
     Ok(())
 }
 
-/// A progress bar over `len` units (hidden when `quiet`).
+/// Says when `--tiles` will resample the image (it is not at the canvas size).
+pub fn warn_if_resampled(size: [u32; 2], model: &DisplayModel, origin: &str) {
+    let canvas = crate::output::tiles::canvas_pixel_size(model);
+    if canvas != size {
+        eprintln!(
+            "raygun: --tiles: the {}×{} image is resampled (nearest neighbour) to the {}×{} canvas of {origin}; render at --size {},{} for an exact cut",
+            size[0], size[1], canvas[0], canvas[1], canvas[0], canvas[1]
+        );
+    }
+}
+
+/// A progress bar over `len` units (hidden when `quiet`), for the benchmarks.
 #[must_use]
 pub fn progress(quiet: bool, len: u64, unit: &str) -> ProgressBar {
     if quiet {
@@ -195,75 +224,136 @@ pub fn load_scenes(scenes: &[String], env: Option<&str>) -> anyhow::Result<Vec<(
         .collect()
 }
 
+/// Checks the memory a render of `size` needs against this machine and the backend, printing
+/// the note for a large run.
+pub fn check_memory(work: Work, size: [u32; 2], backend: &Backend) -> anyhow::Result<()> {
+    let budget = Budget::of(work, size);
+    if let Some(note) =
+        budget.check(crate::memory::available_host_bytes(), backend.max_binding())?
+    {
+        eprintln!("raygun: {note}");
+    }
+    Ok(())
+}
+
+/// Every output the render will write, checked before any work.
+fn check_outputs(args: &RenderArgs) -> anyhow::Result<()> {
+    for out in &args.out {
+        check_image_path(out)?;
+    }
+    if let Some(p) = &args.dgi_out {
+        check_image_path(p).context("--dgi-out")?;
+    }
+    if let Some(p) = &args.counts_out {
+        check_image_path(p).context("--counts-out")?;
+    }
+    if let Some(dir) = &args.tiles {
+        crate::output::check_folder(dir).context("--tiles")?;
+    }
+    Ok(())
+}
+
 pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
-    if args.spp == 0 {
+    if args.spp == Some(0) {
         anyhow::bail!("--spp must be at least 1");
     }
     if args.max_depth == 0 {
         anyhow::bail!("--max-depth must be at least 1");
     }
-    for out in &args.out {
-        crate::output::Format::from_path(out)?;
+    if !args.exposure.is_finite() {
+        anyhow::bail!(
+            "--exposure must be a finite number of stops, not {}",
+            crate::messages::number(f64::from(args.exposure))
+        );
     }
-    // Load the model before the render so a bad --display fails at once.
+    check_outputs(args)?;
+    let filter = args.filter.params()?;
+    // Guide, display and calibration are validated before the GPU is looked for and the scene
+    // loads.
+    let plan = match &args.guide {
+        Some(guide) => Some(crate::cli::guided::GuidedPlan::new(args, guide)?),
+        None => None,
+    };
+    let backend = Backend::select(args.backend)?;
+    check_memory(
+        Work::Render {
+            gpu: backend.is_gpu(),
+            filter: filter.kind,
+        },
+        args.size,
+        &backend,
+    )?;
+    if let Some(plan) = &plan {
+        let scene = load_scene(&args.scene, args.env.as_deref())?;
+        let settings = settings(args, &scene)?;
+        return crate::cli::guided::run(args, plan, &scene, settings, &backend);
+    }
+    // A full frame: --display matters only for the tiles.
     let wall = match &args.tiles {
-        Some(_) => Some(DisplayModel::load(&args.display)?),
+        Some(_) => {
+            let spec = args
+                .display
+                .as_deref()
+                .unwrap_or(crate::display::DEFAULT_MODEL);
+            let (model, origin) = DisplayModel::open(spec)?;
+            warn_if_resampled(args.size, &model, &origin.to_string());
+            Some(model)
+        }
         None => None,
     };
     let scene = load_scene(&args.scene, args.env.as_deref())?;
+    let settings = settings(args, &scene)?;
     let [w, h] = args.size;
-    let camera = RenderCamera::choose(&scene, args.camera.as_deref(), w, h)
-        .with_context(|| format!("scene {}", args.scene))?;
-    let backend = Backend::select(args.backend)?;
-    let settings = TraceSettings {
-        width: w,
-        height: h,
-        seed: args.seed,
-        max_depth: args.max_depth,
-        camera,
-    };
-    if let (Some(guide), Some(iterations)) = (&args.guide, args.iterations) {
-        if iterations == 0 {
-            anyhow::bail!("--iterations must be at least 1");
-        }
-        return crate::cli::guided::run(args, &scene, settings, &backend, guide, iterations);
-    }
+    let spp = args.spp.unwrap_or(DEFAULT_SPP);
     let mut renderer = Renderer::new(&backend, &scene, settings)?;
-    let bar = progress(args.quiet, u64::from(args.spp), "spp");
-    bar.set_message("rendering");
+    let mut bar = Progress::new(args.quiet, "rendering", Some(u64::from(spp)), "spp");
     // Batches of about a quarter second keep the bar moving without starving the GPU.
     let t0 = Instant::now();
     let mut done = 0;
     let mut batch = 1;
-    while done < args.spp {
-        let n = batch.min(args.spp - done);
+    while done < spp {
+        let n = batch.min(spp - done);
         let tb = Instant::now();
         renderer.iterate(n)?;
         done += n;
-        bar.set_position(u64::from(done));
+        bar.set(u64::from(done));
         if tb.elapsed().as_secs_f64() < 0.25 {
             batch *= 2;
         }
     }
     let seconds = t0.elapsed().as_secs_f64();
-    bar.finish_and_clear();
+    bar.finish();
     let acc = renderer.accumulation()?;
     let image = acc.mean_image();
+    drop(acc);
     for out in &args.out {
         write_rgb(out, w, h, &image, args.exposure)?;
     }
     if let Some(model) = &wall {
         write_wall_tiles(args, model, &image)?;
     }
-    let megasamples = f64::from(w) * f64::from(h) * f64::from(args.spp) / 1e6;
+    let megasamples = f64::from(w) * f64::from(h) * f64::from(spp) / 1e6;
     eprintln!(
-        "raygun: {} triangles, {w}×{h}, {} spp in {:.2} s on {}: {:.2} ms per megasample (BVH build {:.2} s)",
+        "raygun: {} triangles, {w}×{h}, {spp} spp in {:.2} s on {}: {:.2} ms per megasample (BVH build {:.2} s)",
         scene.triangles.len(),
-        args.spp,
         seconds,
         backend.describe(),
         seconds * 1e3 / megasamples,
         renderer.build_seconds,
     );
     Ok(())
+}
+
+/// The tracer's settings from the arguments and the scene's camera.
+fn settings(args: &RenderArgs, scene: &Scene) -> anyhow::Result<TraceSettings> {
+    let [w, h] = args.size;
+    let camera = RenderCamera::choose(scene, args.camera.as_deref(), w, h)
+        .with_context(|| format!("scene {}", args.scene))?;
+    Ok(TraceSettings {
+        width: w,
+        height: h,
+        seed: args.seed,
+        max_depth: args.max_depth,
+        camera,
+    })
 }

@@ -2,7 +2,6 @@
 
 use std::path::PathBuf;
 
-use anyhow::Context;
 use serde_json::{Value, json};
 
 use crate::scene::Scene;
@@ -72,8 +71,18 @@ pub fn run(cmd: &SceneCommand) -> anyhow::Result<String> {
             });
         }
     };
+    if !out
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("glb"))
+    {
+        anyhow::bail!(
+            "{}: the generated scenes are binary glTF: name the file .glb",
+            out.display()
+        );
+    }
+    crate::output::check_writable(out)?;
     let Generated { glb, triangles } = generated.map_err(anyhow::Error::msg)?;
-    std::fs::write(out, &glb).with_context(|| format!("{}: cannot write", out.display()))?;
+    crate::output::write_bytes(out, &glb)?;
     Ok(format!(
         "{}: {triangles} triangles, {} bytes",
         out.display(),

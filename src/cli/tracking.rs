@@ -22,11 +22,12 @@ use clap::{ArgGroup, Args};
 
 use crate::display::DisplayModel;
 use crate::interaction::{Interaction, InteractionConfig, RoiChange};
+use crate::tracking::calibration::Calibration;
 use crate::tracking::event::DeviceId;
 use crate::tracking::ingest::{Ingest, Pipeline, Protocol};
 use crate::tracking::problems::ProblemLog;
 use crate::tracking::replay::{
-    Playback, ReplayHeader, ReplayPayload, ReplayReader, ReplayWriter, play,
+    LineFile, Playback, ReplayHeader, ReplayPayload, ReplayReader, ReplayWriter, play,
 };
 use crate::tracking::udp::{ListenerConfig, UdpSource, record};
 
@@ -35,35 +36,61 @@ use crate::tracking::udp::{ListenerConfig, UdpSource, record};
 pub struct ReplayArgs {
     /// Replay file (JSON Lines).
     pub file: PathBuf,
-    /// Display model to shoot at (`display-models/*.json`); default: the replay header's
-    /// `display`, looked up relative to the working directory, then to the replay's folder's
-    /// parent (where the shipped replays' models live).
-    #[arg(long)]
-    pub display: Option<PathBuf>,
+    /// Display model to shoot at: a file, or a built-in model (hornet, desktop-27in-4k,
+    /// projection-4m-4k); default: the one the recording's header names.
+    #[arg(long, value_name = "MODEL")]
+    pub display: Option<String>,
     /// Interaction mapping (JSON); default: the documented defaults.
-    #[arg(long)]
+    #[arg(long, value_name = "FILE")]
     pub config: Option<PathBuf>,
     /// Device to follow, e.g. `flystick:0`; default: the header's, else the config's.
-    #[arg(long)]
+    #[arg(long, value_name = "KIND:N")]
     pub device: Option<DeviceId>,
+    /// Tracker→room calibration (JSON, as `raygun calibrate` writes it); default: the
+    /// mapping's `calibration`, else the one the recording was made with.
+    #[arg(long, value_name = "FILE")]
+    pub calibration: Option<PathBuf>,
     /// Play at recorded speed instead of as fast as possible.
     #[arg(long)]
     pub realtime: bool,
+}
+
+impl ReplayArgs {
+    /// A replay of `file` with everything else taken from its header.
+    #[must_use]
+    pub fn of(file: PathBuf) -> Self {
+        Self {
+            file,
+            display: None,
+            config: None,
+            device: None,
+            calibration: None,
+            realtime: false,
+        }
+    }
 }
 
 /// `raygun record`.
 #[derive(Args, Debug, Clone)]
 #[command(group(ArgGroup::new("source").required(true).args(["dtrack", "osc"])))]
 pub struct RecordArgs {
-    /// Listen for DTrack ASCII on this UDP port.
-    #[arg(long)]
+    /// Listen for DTrack ASCII on this UDP port (0: any free port, said at start).
+    #[arg(long, value_name = "PORT")]
     pub dtrack: Option<u16>,
-    /// Listen for OSC on this UDP port.
-    #[arg(long)]
+    /// Listen for OSC on this UDP port (0: any free port, said at start).
+    #[arg(long, value_name = "PORT")]
     pub osc: Option<u16>,
     /// Replay file to write.
-    #[arg(long)]
+    #[arg(long, value_name = "FILE")]
     pub out: PathBuf,
+    /// The display the session is for (a file or a built-in model), stored in the recording so
+    /// that `replay` and `render --guide` use it.
+    #[arg(long, value_name = "MODEL", default_value = crate::display::DEFAULT_MODEL)]
+    pub display: String,
+    /// Tracker→room calibration (JSON), stored in the recording; default: identity (DTrack
+    /// millimetres, OSC metres).
+    #[arg(long, value_name = "FILE")]
+    pub calibration: Option<PathBuf>,
     /// Address to bind; anything but loopback needs `--allow-network`.
     #[arg(long, default_value_t = IpAddr::V4(Ipv4Addr::LOCALHOST))]
     pub bind: IpAddr,
@@ -86,29 +113,35 @@ pub struct SynthArgs {
     pub out: PathBuf,
 }
 
-/// The display model file a replay names: as given, else next to the replay's folder.
-fn resolve_display(named: &str, replay: &Path) -> PathBuf {
-    let direct = PathBuf::from(named);
-    if direct.exists() {
-        return direct;
-    }
+/// The display model a replay names: a file as given, else one next to the replay's folder
+/// (where the shipped replays' models live), else a built-in model of that name.
+fn resolve_display(named: &str, replay: &Path) -> anyhow::Result<(DisplayModel, String)> {
     let beside = replay
         .parent()
         .and_then(Path::parent)
-        .map(|p| p.join(named));
-    beside.filter(|p| p.exists()).unwrap_or(direct)
+        .map(|p| p.join(named))
+        .filter(|p| !Path::new(named).exists() && p.exists());
+    let spec = beside.map_or_else(|| named.to_owned(), |p| p.display().to_string());
+    let (model, origin) = DisplayModel::open(&spec)?;
+    Ok((model, origin.to_string()))
 }
 
 /// Everything a replay run needs, validated.
 pub struct ReplayPlan {
     pub header: ReplayHeader,
     pub surface: DisplayModel,
+    /// Which display model is used, for messages ("display-models/hornet.json", "the built-in
+    /// hornet model", "the model stored in the recording").
+    pub display_origin: String,
     pub interaction: InteractionConfig,
+    /// The calibration given on the command line or in the mapping (the header's own applies
+    /// otherwise).
+    pub calibration: Option<Calibration>,
     pub playback: Playback,
 }
 
 impl ReplayPlan {
-    /// Reads the header and resolves display, device and mapping.
+    /// Reads the header and resolves display, device, calibration and mapping.
     pub fn new(
         args: &ReplayArgs,
     ) -> anyhow::Result<(Self, ReplayReader<io::BufReader<std::fs::File>>)> {
@@ -121,16 +154,33 @@ impl ReplayPlan {
         if let Some(d) = args.device.or(header.device) {
             interaction.device = d;
         }
-        interaction.validate()?;
-        let display = match (&args.display, &header.display) {
-            (Some(p), _) => p.clone(),
-            (None, Some(named)) => resolve_display(named, &args.file),
-            (None, None) => bail!(
-                "{}: no --display given and the header names none",
-                args.file.display()
-            ),
+        let calibration = match args
+            .calibration
+            .as_ref()
+            .or(interaction.calibration.as_ref())
+        {
+            Some(p) => Some(Calibration::load(p)?),
+            None => None,
         };
-        let surface = DisplayModel::load(&display)?;
+        if let Some(c) = calibration.as_ref().or(header.calibration.as_ref()) {
+            c.validate(&args.file)
+                .with_context(|| format!("{}: calibration", args.file.display()))?;
+            interaction.use_calibrated_axes(c);
+        }
+        interaction.validate()?;
+        let (surface, display_origin) =
+            match (&args.display, &header.display_model, &header.display) {
+                (Some(spec), _, _) => {
+                    let (m, origin) = DisplayModel::open(spec)?;
+                    (m, origin.to_string())
+                }
+                (None, Some(m), _) => (m.clone(), "the model stored in the recording".to_owned()),
+                (None, None, Some(named)) => resolve_display(named, &args.file)?,
+                (None, None, None) => bail!(
+                    "{}: the recording names no display: give --display MODEL",
+                    args.file.display()
+                ),
+            };
         if let Some(d) = &header.dtrack {
             d.tracker_to_room
                 .validate()
@@ -145,21 +195,20 @@ impl ReplayPlan {
             Self {
                 header,
                 surface,
+                display_origin,
                 interaction,
+                calibration,
                 playback,
             },
             reader,
         ))
     }
 
-    /// A fresh pipeline configured from the header and the mapping.
+    /// A fresh pipeline configured from the header, the calibration and the mapping.
     #[must_use]
     pub fn pipeline(&self) -> Pipeline {
-        let ingest = Ingest::new(
-            self.header.dtrack.clone().unwrap_or_default(),
-            self.header.osc.clone().unwrap_or_default(),
-            self.header.time_source,
-        );
+        let (dtrack, osc) = self.header.decoder_configs(self.calibration.as_ref());
+        let ingest = Ingest::new(dtrack, osc, self.header.time_source);
         Pipeline::new(ingest, Interaction::new(self.interaction.clone()))
     }
 }
@@ -220,10 +269,30 @@ pub fn run_replay(args: &ReplayArgs, out: impl Write) -> anyhow::Result<ProblemL
 /// problem counts (reader and decoders).
 pub fn replay_changes(
     args: &ReplayArgs,
-    mut saw_event: impl FnMut(f64),
-    mut on_change: impl FnMut(&RoiChange),
+    saw_event: impl FnMut(f64),
+    on_change: impl FnMut(&RoiChange),
 ) -> anyhow::Result<ProblemLog> {
     let (plan, reader) = ReplayPlan::new(args)?;
+    Ok(play_plan(&plan, reader, saw_event, on_change))
+}
+
+/// [`replay_changes`] for a plan made already (its file is read again from the start).
+pub fn replay_changes_with(
+    plan: &ReplayPlan,
+    file: &Path,
+    saw_event: impl FnMut(f64),
+    on_change: impl FnMut(&RoiChange),
+) -> anyhow::Result<ProblemLog> {
+    let reader = ReplayReader::open(file)?;
+    Ok(play_plan(plan, reader, saw_event, on_change))
+}
+
+fn play_plan(
+    plan: &ReplayPlan,
+    reader: ReplayReader<io::BufReader<std::fs::File>>,
+    mut saw_event: impl FnMut(f64),
+    mut on_change: impl FnMut(&RoiChange),
+) -> ProblemLog {
     let mut pipeline = plan.pipeline();
     let device = plan.interaction.device;
     let reader_problems = play(reader, plan.playback, |item| {
@@ -248,7 +317,7 @@ pub fn replay_changes(
     });
     let mut problems = reader_problems;
     problems.merge(&pipeline.ingest.problems);
-    Ok(problems)
+    problems
 }
 
 /// Validated recorder settings.
@@ -272,19 +341,36 @@ pub fn listener_config(args: &RecordArgs) -> anyhow::Result<(ListenerConfig, Pro
     Ok((config, protocol))
 }
 
-/// Records live traffic into a replay file; returns the number of datagrams written.
+/// Records live traffic into a replay file; returns the number of datagrams written. The
+/// recording's header holds the display model and the calibration, so that replaying it needs
+/// neither. Says "listening on ADDR:PORT" once bound.
 pub fn run_record(args: &RecordArgs, stop: &AtomicBool) -> anyhow::Result<u64> {
     let (config, protocol) = listener_config(args)?;
+    crate::output::check_writable(&args.out)?;
+    let (model, origin) = DisplayModel::open(&args.display)?;
+    let calibration = match &args.calibration {
+        Some(p) => Some(Calibration::load(p)?),
+        None => None,
+    };
     let mut source = UdpSource::bind(config)?;
-    let file = std::fs::File::create(&args.out)
-        .with_context(|| format!("creating {}", args.out.display()))?;
+    let addr = source.local_addr()?;
     let mut header = ReplayHeader::new(format!(
-        "recorded by raygun record from {:?} on {}",
-        protocol,
-        source.local_addr()?
+        "recorded by raygun record from {protocol:?} on {addr}, for {origin}"
     ));
-    header.display = None;
-    let mut writer = ReplayWriter::new(io::BufWriter::new(file), &header)?;
+    header.display = Some(match origin {
+        crate::display::ModelOrigin::Builtin(name) => name.to_owned(),
+        crate::display::ModelOrigin::File(p) => p.display().to_string(),
+    });
+    header.display_model = Some(model);
+    header.calibration = calibration;
+    let file =
+        LineFile::create(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+    let mut writer = ReplayWriter::new(file, &header)?;
+    writer.flush()?;
+    eprintln!(
+        "raygun record: listening on {addr} for {protocol:?}, writing {}",
+        args.out.display()
+    );
     let mut problems = ProblemLog::default();
     let n = record(
         &mut source,
@@ -294,7 +380,12 @@ pub fn run_record(args: &RecordArgs, stop: &AtomicBool) -> anyhow::Result<u64> {
         args.seconds.map(Duration::from_secs_f64),
         &mut problems,
     )
-    .with_context(|| format!("recording into {}", args.out.display()))?;
+    .with_context(|| {
+        format!(
+            "recording into {} (every record up to the failure is kept)",
+            args.out.display()
+        )
+    })?;
     Ok(n)
 }
 

@@ -11,6 +11,7 @@ use crate::gpu::{Backend, BackendChoice};
 use crate::interaction::{CursorSmoother, InteractionConfig};
 use crate::trace::camera::RenderCamera;
 use crate::trace::cpu::{DEFAULT_MAX_DEPTH, TraceSettings};
+use crate::tracking::calibration::Calibration;
 use crate::tracking::event::DeviceId;
 use crate::tracking::ingest::Protocol;
 #[cfg(feature = "viewer")]
@@ -29,13 +30,10 @@ pub struct ViewArgs {
         default_value = "builtin:cornell-light"
     )]
     pub scene: String,
-    /// Display model whose canvas the image covers.
-    #[arg(
-        long,
-        value_name = "FILE",
-        default_value = "display-models/hornet.json"
-    )]
-    pub display: PathBuf,
+    /// Display model whose canvas the image covers: a file, or a built-in model (hornet,
+    /// desktop-27in-4k, projection-4m-4k).
+    #[arg(long, value_name = "MODEL", default_value = crate::display::DEFAULT_MODEL)]
+    pub display: String,
     /// Image size (the renderer's; the window scales it to fit).
     #[arg(long, value_name = "W,H", value_parser = parse_size, default_value = "992,400")]
     pub size: [u32; 2],
@@ -62,13 +60,27 @@ pub struct ViewArgs {
     /// Tracked device to follow (live input); default: the --config's (flystick:0).
     #[arg(long, value_name = "KIND:N")]
     pub device: Option<DeviceId>,
-    /// Interaction mapping JSON (buttons, stick, and the cursor's smoothing under `cursor`;
-    /// see `src/interaction/config.rs`) for live input and replays.
+    /// Interaction mapping JSON (device axes, buttons, stick, the cursor's smoothing, a
+    /// calibration file) for live input and replays; the README lists its fields.
     #[arg(long, value_name = "FILE")]
     pub config: Option<PathBuf>,
-    /// Lowest sampling probability outside the ROI (also a panel slider; 0: the paper's).
-    #[arg(long, value_name = "P", default_value_t = 0.0)]
+    /// Tracker→room calibration for live input (JSON, as `raygun calibrate` writes it);
+    /// default: the mapping's, else identity. A replay uses the one it was recorded with.
+    #[arg(long, value_name = "FILE")]
+    pub calibration: Option<PathBuf>,
+    /// Lowest sampling probability outside the ROI, 0 to 1 (also a panel slider; 0: the
+    /// paper's).
+    #[arg(
+        long,
+        value_name = "P",
+        default_value_t = 0.0,
+        allow_hyphen_values = true
+    )]
     pub p_min: f32,
+    /// The ROI's target standard error (median over its pixels of the mean luminance's): the
+    /// panel shows the time to it (also a panel setting).
+    #[arg(long, value_name = "SE")]
+    pub target_se: Option<f64>,
     /// A mouse ROI from the start: centre in image pixels (the click position's equivalent).
     #[arg(long, value_name = "X,Y", value_parser = crate::cli::args::parse_pair)]
     pub roi_at: Option<glam::DVec2>,
@@ -92,7 +104,7 @@ impl ViewArgs {
     pub fn demo(args: &crate::cli::demo::DemoArgs, display: &Path, replay: &Path) -> Self {
         Self {
             scene: crate::cli::demo::SCENE.to_owned(),
-            display: display.to_path_buf(),
+            display: display.display().to_string(),
             size: args.size,
             env: Some(crate::cli::demo::ENV.to_owned()),
             camera: None,
@@ -103,7 +115,9 @@ impl ViewArgs {
             replay: Some(replay.to_path_buf()),
             device: None,
             config: None,
+            calibration: None,
             p_min: 0.0,
+            target_se: None,
             roi_at: None,
             roi_radius: 600.0,
             filter: crate::cli::filter::FilterArgs {
@@ -124,10 +138,26 @@ pub fn run(args: &ViewArgs) -> anyhow::Result<()> {
     if !cfg!(feature = "viewer") {
         anyhow::bail!(NO_WINDOW);
     }
+    if !crate::cli::demo::has_display() {
+        anyhow::bail!(NO_DISPLAY);
+    }
     if !(args.roi_radius.is_finite() && args.roi_radius > 0.0) {
         anyhow::bail!("--roi-radius must be a positive number of canvas pixels");
     }
-    let model = DisplayModel::load(&args.display)?;
+    if !(0.0..=1.0).contains(&args.p_min) {
+        anyhow::bail!(
+            "--p-min must be a probability from 0 to 1, not {}",
+            crate::messages::number(f64::from(args.p_min))
+        );
+    }
+    if let Some(t) = args.target_se
+        && !(t.is_finite() && t > 0.0)
+    {
+        anyhow::bail!("--target-se must be a positive number, not {t}");
+    }
+    crate::output::check_folder(&args.save_dir).context("--save-dir")?;
+    let filter = args.filter.params()?;
+    let (model, _) = DisplayModel::open(&args.display)?;
     let mut interaction = match &args.config {
         Some(p) => InteractionConfig::load(p)?,
         None => InteractionConfig::default(),
@@ -135,11 +165,31 @@ pub fn run(args: &ViewArgs) -> anyhow::Result<()> {
     if let Some(d) = args.device {
         interaction.device = d;
     }
+    let calibration = match args
+        .calibration
+        .as_ref()
+        .or(interaction.calibration.as_ref())
+    {
+        Some(p) => Some(Calibration::load(p)?),
+        None => None,
+    };
+    if let Some(c) = &calibration {
+        interaction.use_calibrated_axes(c);
+        interaction.validate()?;
+    }
+    let backend = Backend::select(args.backend)?;
+    crate::cli::render::check_memory(
+        crate::memory::Work::Render {
+            gpu: backend.is_gpu(),
+            filter: filter.kind,
+        },
+        args.size,
+        &backend,
+    )?;
     let scene = crate::cli::render::load_scene(&args.scene, args.env.as_deref())?;
     let [w, h] = args.size;
     let camera = RenderCamera::choose(&scene, args.camera.as_deref(), w, h)
         .with_context(|| format!("scene {}", args.scene))?;
-    let backend = Backend::select(args.backend)?;
     eprintln!("raygun view: rendering on {}", backend.describe());
     let base = TraceSettings {
         width: w,
@@ -150,28 +200,35 @@ pub fn run(args: &ViewArgs) -> anyhow::Result<()> {
     };
     let timeline = match &args.replay {
         Some(file) => Some(Timeline::collect(&ReplayArgs {
-            file: file.clone(),
             display: Some(args.display.clone()),
             config: args.config.clone(),
             device: args.device,
-            realtime: false,
+            calibration: args.calibration.clone(),
+            ..ReplayArgs::of(file.clone())
         })?),
         None => None,
     };
-    let live = match (args.dtrack, args.osc) {
-        (Some(p), _) => Some(LiveTracking::start_with(
-            p,
-            Protocol::Dtrack,
-            interaction.clone(),
-            model.clone(),
-        )?),
-        (_, Some(p)) => Some(LiveTracking::start_with(
-            p,
-            Protocol::Osc,
-            interaction.clone(),
-            model.clone(),
-        )?),
+    let protocol = match (args.dtrack, args.osc) {
+        (Some(p), _) => Some((p, Protocol::Dtrack)),
+        (_, Some(p)) => Some((p, Protocol::Osc)),
         _ => None,
+    };
+    let live = match protocol {
+        Some((port, protocol)) => {
+            let l = LiveTracking::start_calibrated(
+                port,
+                protocol,
+                interaction.clone(),
+                model.clone(),
+                calibration.as_ref(),
+            )?;
+            eprintln!(
+                "raygun view: listening on 127.0.0.1:{} for {protocol:?}",
+                l.port
+            );
+            Some(l)
+        }
+        None => None,
     };
     let source = if timeline.is_some() {
         RoiSource::Replay
@@ -181,9 +238,10 @@ pub fn run(args: &ViewArgs) -> anyhow::Result<()> {
         RoiSource::Mouse
     };
     let mut state = ViewerState::new(source, args.max_depth);
-    state.filter = args.filter.params()?;
+    state.filter = filter;
     state.mouse_radius_px = args.roi_radius;
     state.p_min = args.p_min;
+    state.target_se = args.target_se;
     state.cursor = CursorSmoother::new(interaction.cursor.clone());
     if let Some(c) = args.roi_at {
         state.click(&model, c, args.size);
@@ -191,6 +249,9 @@ pub fn run(args: &ViewArgs) -> anyhow::Result<()> {
     let core = ViewerCore::new(&backend, &scene, &model, base, state)?;
     open_window(core, timeline, live, args)
 }
+
+/// What `raygun view` says where no window can be opened.
+const NO_DISPLAY: &str = "no display to open the viewer's window on (DISPLAY and WAYLAND_DISPLAY are unset): `raygun render … --guide REPLAY|pose:…|mouse:…` renders the same guided image to files, and `raygun demo --headless` runs the demo without a window";
 
 /// What `raygun view` says when it was built without its window.
 const NO_WINDOW: &str = "this raygun was built without its window (the `viewer` feature, on by default): rebuild it with default features to use `raygun view`";
@@ -210,6 +271,7 @@ fn open_window(
         args.save_dir.clone(),
         args.screenshot_after,
     );
+    let failure = std::sync::Arc::clone(&app.failure);
     let options = eframe::NativeOptions {
         viewport: eframe::egui::ViewportBuilder::default()
             .with_title("raygun view")
@@ -221,7 +283,19 @@ fn open_window(
         options,
         Box::new(move |_cc| Ok(Box::new(app))),
     )
-    .map_err(|e| anyhow::anyhow!("the viewer window failed: {e}"))
+    .map_err(|e| {
+        anyhow::anyhow!(
+            "the viewer's window could not open on display {}: {} (`raygun render … --guide …` and `raygun demo --headless` need no window)",
+            std::env::var("DISPLAY")
+                .or_else(|_| std::env::var("WAYLAND_DISPLAY"))
+                .unwrap_or_default(),
+            crate::messages::without_source_paths(&e.to_string())
+        )
+    })?;
+    match failure.lock().ok().and_then(|mut f| f.take()) {
+        Some(message) => anyhow::bail!(message),
+        None => Ok(()),
+    }
 }
 
 #[cfg(not(feature = "viewer"))]

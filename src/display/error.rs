@@ -36,7 +36,7 @@ pub enum DisplayModelError {
 
 fn tile_prefix(tile: &Option<String>) -> String {
     match tile {
-        Some(id) => format!("tile {id:?}: "),
+        Some(id) => format!("tile {}: ", crate::messages::quote(id)),
         None => String::new(),
     }
 }
@@ -104,6 +104,10 @@ pub enum Problem {
     /// The two tiles touch on the canvas, but the 3D points of the shared edge computed from each
     /// tile are `gap_m` apart (more than [`crate::display::SEAM_TOL_M`]).
     SeamMismatch { other: String, gap_m: f64 },
+    /// The tile id cannot be a file name (see `check_file_name`).
+    BadTileId { reason: &'static str },
+    /// The two tiles (active area and bezels) pass through or lie on each other in the room.
+    RoomOverlap { other: String },
 }
 
 impl fmt::Display for Problem {
@@ -180,6 +184,18 @@ impl fmt::Display for Problem {
                  apart in 3D (tolerance {:.3} mm): the canvas contradicts the corners",
                 gap_m * 1e3,
                 SEAM_TOL_M * 1e3
+            ),
+            Self::BadTileId { reason } => write!(
+                f,
+                "{reason}: tile ids name the files of `render --tiles`, so they must be plain \
+                 file names (letters, digits, `-`, `_`, `.`)"
+            ),
+            Self::RoomOverlap { other } => write!(
+                f,
+                "the tile overlaps tile {} in the room (they pass through or lie on each other, \
+                 beyond {} mm): check the corners",
+                crate::messages::quote(other),
+                super::overlap::OVERLAP_3D_TOL_M * 1e3
             ),
         }
     }

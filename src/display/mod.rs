@@ -69,11 +69,14 @@
 //! axes or from the model pitch by more than [`PITCH_REL_TOL`], duplicate ids or grid positions,
 //! overlapping canvas rectangles (active area + bezels, beyond [`OVERLAP_TOL_PX`]), and canvas
 //! placements that contradict the 3D geometry: where two canvas rectangles share an edge, the 3D
-//! points of that edge computed from each tile must agree within [`SEAM_TOL_M`].
+//! points of that edge computed from each tile must agree within [`SEAM_TOL_M`]. Tiles that
+//! overlap in the room (beyond [`OVERLAP_3D_TOL_M`]) and tile ids that cannot be plain file
+//! names ([`check_file_name`]: `render --tiles` writes `<id>.<ext>`) are rejected too.
 
 mod error;
 mod generator;
 mod intersect;
+mod overlap;
 mod rect;
 mod spec;
 mod tile;
@@ -85,9 +88,11 @@ use glam::{DVec2, DVec3};
 
 pub use error::{DisplayModelError, Problem};
 pub use intersect::{EDGE_SLACK_PX, Hit, PARALLEL_COS, T_MIN_M, T_TIE_M};
+pub use overlap::OVERLAP_3D_TOL_M;
 pub use rect::Rect;
 pub use spec::{Bezel, DisplayModelSpec, GeneratorSpec, TileSpec};
 pub use tile::Tile;
+pub use validate::{MAX_TILE_ID_CHARS, check_file_name};
 
 /// Relative tolerance on pixel pitch, between a tile's two axes and between a tile and the model.
 /// Panel datasheets give active sizes to 0.1 mm; on edges of 300 mm or more that rounding is at
@@ -150,7 +155,102 @@ pub struct DisplayModel {
     canvas: Rect,
 }
 
+/// The models shipped in `display-models/`, built into the binary so that every command works
+/// from any folder: (name, file name, JSON).
+pub const BUILTIN_MODELS: [(&str, &str, &str); 3] = [
+    (
+        "hornet",
+        "hornet.json",
+        include_str!("../../display-models/hornet.json"),
+    ),
+    (
+        "desktop-27in-4k",
+        "desktop-27in-4k.json",
+        include_str!("../../display-models/desktop-27in-4k.json"),
+    ),
+    (
+        "projection-4m-4k",
+        "projection-4m-4k.json",
+        include_str!("../../display-models/projection-4m-4k.json"),
+    ),
+];
+
+/// The display model commands use when none is given: the paper's HORNET wall.
+pub const DEFAULT_MODEL: &str = "hornet";
+
+/// Where a model opened by [`DisplayModel::open`] came from.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum ModelOrigin {
+    /// A file, as named.
+    File(std::path::PathBuf),
+    /// A built-in model, by name.
+    Builtin(&'static str),
+}
+
+impl std::fmt::Display for ModelOrigin {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::File(p) => write!(f, "{}", p.display()),
+            Self::Builtin(name) => write!(f, "the built-in {name} model"),
+        }
+    }
+}
+
 impl DisplayModel {
+    /// Opens a model named on the command line or in a file header: `builtin:NAME` or a bare
+    /// built-in name (`hornet`, `desktop-27in-4k`, `projection-4m-4k`) is the built-in model; any
+    /// other text is a file path. A path to a shipped model's file name that does not exist here
+    /// (`display-models/hornet.json` run from another folder) falls back to the built-in copy,
+    /// which is byte-identical to the shipped file.
+    pub fn open(spec: &str) -> Result<(Self, ModelOrigin), DisplayModelError> {
+        let builtin = |name: &str| BUILTIN_MODELS.iter().find(|(n, _, _)| *n == name);
+        let from_builtin = |(name, _, json): &(&'static str, &str, &str)| {
+            Self::from_json(json, &format!("builtin:{name}"))
+                .map(|m| (m, ModelOrigin::Builtin(name)))
+        };
+        if let Some(name) = spec.strip_prefix("builtin:") {
+            return builtin(name).map_or_else(
+                || {
+                    Err(DisplayModelError::Io {
+                        file: spec.to_owned(),
+                        source: std::io::Error::new(
+                            std::io::ErrorKind::NotFound,
+                            format!(
+                                "no built-in display model of that name ({})",
+                                builtin_names()
+                            ),
+                        ),
+                    })
+                },
+                from_builtin,
+            );
+        }
+        let path = Path::new(spec);
+        if path.exists() {
+            return Self::load(path).map(|m| (m, ModelOrigin::File(path.to_owned())));
+        }
+        if let Some(b) = builtin(spec) {
+            return from_builtin(b);
+        }
+        let file_name = path.file_name().and_then(|n| n.to_str());
+        if let Some(b) = BUILTIN_MODELS
+            .iter()
+            .find(|(_, file, _)| Some(*file) == file_name)
+        {
+            return from_builtin(b);
+        }
+        Err(DisplayModelError::Io {
+            file: spec.to_owned(),
+            source: std::io::Error::new(
+                std::io::ErrorKind::NotFound,
+                format!(
+                    "no such file, and not a built-in display model ({})",
+                    builtin_names()
+                ),
+            ),
+        })
+    }
+
     /// Reads and validates a model file.
     pub fn load(path: impl AsRef<Path>) -> Result<Self, DisplayModelError> {
         let path = path.as_ref();
@@ -202,8 +302,15 @@ impl DisplayModel {
                 ));
             }
         };
-        let (tiles, pitch_m) =
-            validate::validate(tile_specs).map_err(|(t, f, p)| invalid(t, f, p))?;
+        let (tiles, pitch_m) = validate::validate(tile_specs).map_err(|(t, f, p)| {
+            // A generator's tiles overlap because of its yaw step: name the field to change.
+            let f = if spec.generator.is_some() && matches!(p, Problem::RoomOverlap { .. }) {
+                "generator.yaw_step_deg".to_owned()
+            } else {
+                f
+            };
+            invalid(t, f, p)
+        })?;
         let rects: Vec<Rect> = tiles.iter().map(|t| t.canvas_rect(pitch_m)).collect();
         let canvas = rects[1..].iter().fold(rects[0], |acc, r| acc.union(r));
         Ok(Self {
@@ -350,6 +457,12 @@ impl DisplayModel {
     }
 }
 
+/// "built-in models: hornet, desktop-27in-4k, projection-4m-4k".
+fn builtin_names() -> String {
+    let names: Vec<&str> = BUILTIN_MODELS.iter().map(|(n, _, _)| *n).collect();
+    format!("built-in models: {}", names.join(", "))
+}
+
 impl TryFrom<DisplayModelSpec> for DisplayModel {
     type Error = DisplayModelError;
 
@@ -369,7 +482,7 @@ impl From<DisplayModel> for DisplayModelSpec {
 fn json_error(e: &serde_json::Error, file: &str) -> DisplayModelError {
     let full = e.to_string();
     let suffix = format!(" at line {} column {}", e.line(), e.column());
-    let message = full.strip_suffix(&suffix).unwrap_or(&full).to_owned();
+    let message = crate::messages::clip(full.strip_suffix(&suffix).unwrap_or(&full));
     DisplayModelError::Json {
         file: file.to_owned(),
         line: e.line(),

@@ -43,6 +43,9 @@ pub(crate) fn validate(specs: &[TileSpec]) -> Result<(Vec<Tile>, f64), Failure> 
             // No id to name: name the tile by its place in the list.
             return Err((Some(format!("#{i}")), "id".into(), Problem::Empty));
         }
+        if let Err(reason) = check_file_name(&s.id) {
+            return Err(fail(&s.id, "id", Problem::BadTileId { reason }));
+        }
         if ids.insert(&s.id, i).is_some() {
             return Err(fail(&s.id, "id", Problem::DuplicateId));
         }
@@ -90,9 +93,58 @@ pub(crate) fn validate(specs: &[TileSpec]) -> Result<(Vec<Tile>, f64), Failure> 
     for j in 0..tiles.len() {
         for i in 0..j {
             check_pair(&tiles[i], &rects[i], &tiles[j], &rects[j])?;
+            if super::overlap::tiles_overlap(&tiles[i], &rects[i], &tiles[j], &rects[j], pitch) {
+                return Err(fail(
+                    tiles[j].id(),
+                    "top_left",
+                    Problem::RoomOverlap {
+                        other: tiles[i].id().to_owned(),
+                    },
+                ));
+            }
         }
     }
     Ok((tiles, pitch))
+}
+
+/// Longest tile id: `render --tiles` names files after ids, and 64 characters stay far inside
+/// every file system's 255-byte limit with an extension added.
+pub const MAX_TILE_ID_CHARS: usize = 64;
+
+/// Why `id` cannot be a file name inside the output folder (`render --tiles DIR` writes
+/// `DIR/<id>.<ext>`): path separators and `..` would leave the folder, and control characters,
+/// the characters Windows forbids, its device names (`NUL`, `COM1`, …), and leading dots or
+/// spaces (hidden files, names that shells and file managers mangle) make names a file system
+/// or a person cannot handle.
+pub fn check_file_name(id: &str) -> Result<(), &'static str> {
+    if id.chars().count() > MAX_TILE_ID_CHARS {
+        return Err("is longer than 64 characters");
+    }
+    if id.contains(['/', '\\']) {
+        return Err("contains a path separator");
+    }
+    if id == "." || id == ".." || id.starts_with('.') {
+        return Err("starts with a dot (`..` would leave the output folder; others hide the file)");
+    }
+    if id.chars().any(char::is_control) {
+        return Err("contains a control character");
+    }
+    if id.contains(['<', '>', ':', '"', '|', '?', '*']) {
+        return Err("contains one of < > : \" | ? * (not allowed in Windows file names)");
+    }
+    if id.starts_with(char::is_whitespace) || id.ends_with(char::is_whitespace) || id.ends_with('.')
+    {
+        return Err("starts or ends with a space, or ends with a dot");
+    }
+    let stem = id.split('.').next().unwrap_or(id).to_ascii_uppercase();
+    let reserved = ["CON", "PRN", "AUX", "NUL"].contains(&stem.as_str())
+        || (stem.len() == 4
+            && (stem.starts_with("COM") || stem.starts_with("LPT"))
+            && stem.as_bytes()[3].is_ascii_digit());
+    if reserved {
+        return Err("is a reserved device name on Windows");
+    }
+    Ok(())
 }
 
 fn check_tile(s: &TileSpec) -> Result<Tile, Failure> {

@@ -13,12 +13,13 @@ pub mod wgsl;
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum BackendChoice {
-    /// The best wgpu adapter; an error when there is none.
+    /// The best GPU adapter (a software one too); an error when there is none.
     Gpu,
-    /// The CPU twins (f64, rayon).
+    /// The CPU versions of every stage, on all cores (the path tracer in 32-bit floats like
+    /// the GPU's, the distance-guide image in 64-bit).
     Cpu,
-    /// The GPU when a hardware adapter exists, else the CPU twins (a software rasteriser such
-    /// as lavapipe is slower than the twins; `Gpu` still selects it).
+    /// The GPU when a hardware one exists, else the CPU (a software GPU such as lavapipe runs
+    /// slower than the CPU versions; `--backend gpu` uses it anyway).
     #[default]
     Auto,
 }
@@ -56,6 +57,26 @@ impl Backend {
                 }
             },
         }
+    }
+
+    /// The GPU's largest storage binding in bytes (what one buffer a kernel reads may hold);
+    /// `None` on the CPU backend.
+    #[must_use]
+    pub fn max_binding(&self) -> Option<u64> {
+        match self {
+            Self::Gpu(ctx) => Some(
+                ctx.limits
+                    .max_storage_buffer_binding_size
+                    .min(ctx.limits.max_buffer_size),
+            ),
+            Self::Cpu => None,
+        }
+    }
+
+    /// Whether this is the GPU backend.
+    #[must_use]
+    pub fn is_gpu(&self) -> bool {
+        matches!(self, Self::Gpu(_))
     }
 
     /// The adapter's description on the GPU backend; `None` on the CPU twins.
@@ -253,8 +274,9 @@ impl GpuContext {
         match Self::new() {
             Ok(ctx) => ctx,
             Err(e) => panic!(
-                "GPU tests need a wgpu adapter: {e}. CI installs lavapipe (`.ci/run`); \
-                 locally run `apt-get install mesa-vulkan-drivers`."
+                "GPU tests need a wgpu adapter: {e}. `bash .ci/run` installs Mesa's software \
+                 Vulkan driver (lavapipe) and runs every test; or install it alone with \
+                 `apt-get install mesa-vulkan-drivers`."
             ),
         }
     }

@@ -14,9 +14,13 @@
 //!   "image_size": [3840, 2160],
 //!   "mouse_ellipse_px": [400, 300],
 //!   "cursor": { "smooth": true, "min_cutoff_hz": 1.0, "beta": 0.005, "d_cutoff_hz": 1.0,
-//!               "max_extrapolation_s": 0.02, "stale_after_s": 0.25 }
+//!               "max_extrapolation_s": 0.02, "stale_after_s": 0.25 },
+//!   "calibration": "lab-calibration.json"
 //! }
 //! ```
+//!
+//! * `calibration` (no default): the tracker→room calibration file (`raygun calibrate` writes
+//!   one), relative to this file; its axes for `device` replace the three axes above.
 //!
 //! * FlyStick2 button 0 is the trigger, so it shoots; 1 and 2 are the next two buttons.
 //! * The stick is a rate control: outside the dead zone, deflection a ∈ [−1, 1] is rescaled to
@@ -93,6 +97,10 @@ pub struct InteractionConfig {
     pub image_size: [u32; 2],
     pub mouse_ellipse_px: [f64; 2],
     pub cursor: super::cursor::CursorConfig,
+    /// A tracker→room calibration file (`crate::tracking::calibration`) for live input and
+    /// recordings; relative to this file's folder. `--calibration` on the command line wins.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub calibration: Option<PathBuf>,
 }
 
 impl Default for InteractionConfig {
@@ -115,6 +123,7 @@ impl Default for InteractionConfig {
             image_size: [3840, 2160],
             mouse_ellipse_px: [400.0, 300.0],
             cursor: super::cursor::CursorConfig::default(),
+            calibration: None,
         }
     }
 }
@@ -128,12 +137,8 @@ pub enum ConfigError {
         #[source]
         source: std::io::Error,
     },
-    #[error("{path}: {source}")]
-    Json {
-        path: PathBuf,
-        #[source]
-        source: serde_json::Error,
-    },
+    #[error("{path}: {message}")]
+    Json { path: PathBuf, message: String },
     #[error("interaction config field `{field}`: {reason}")]
     Invalid { field: &'static str, reason: String },
 }
@@ -145,10 +150,16 @@ impl InteractionConfig {
             path: path.to_owned(),
             source,
         })?;
-        let c: Self = serde_json::from_str(&text).map_err(|source| ConfigError::Json {
+        let mut c: Self = serde_json::from_str(&text).map_err(|e| ConfigError::Json {
             path: path.to_owned(),
-            source,
+            message: crate::messages::clip(&e.to_string()),
         })?;
+        if let Some(cal) = &mut c.calibration
+            && cal.is_relative()
+            && let Some(folder) = path.parent()
+        {
+            *cal = folder.join(&*cal);
+        }
         c.validate()?;
         Ok(c)
     }
@@ -234,6 +245,15 @@ impl InteractionConfig {
             return bad(field, reason);
         }
         Ok(())
+    }
+
+    /// Takes a calibration's axes for the followed device, if it lists them.
+    pub fn use_calibrated_axes(&mut self, calibration: &crate::tracking::calibration::Calibration) {
+        if let Some(a) = calibration.devices.get(&self.device) {
+            self.pointing_axis = a.pointing_axis;
+            self.right_axis = a.right_axis;
+            self.up_axis = a.up_axis;
+        }
     }
 
     /// Pointing, right and up axes in the device frame.

@@ -1,8 +1,12 @@
-//! Output: images on disk (EXR for the numbers, PNG for people), chosen by file extension.
+//! Output: images on disk (EXR for the numbers, PNG for people), chosen by file extension, each
+//! written through a temporary name and renamed into place ([`file`]).
 
 use std::path::{Path, PathBuf};
 
+pub mod file;
 pub mod tiles;
+
+pub use file::{FileError, check_folder, check_writable, replace_with, write_bytes};
 
 /// Why an image could not be written.
 #[derive(Debug, thiserror::Error)]
@@ -29,7 +33,13 @@ pub enum OutputError {
         #[source]
         source: image::ImageError,
     },
+    #[error(transparent)]
+    File(#[from] FileError),
 }
+
+/// The channel name of a DGI written as EXR (by `render --guide`, `dgi`, `view`'s saves): the
+/// value d of DESIGN.md §5.
+pub const DGI_CHANNEL: &str = "d";
 
 /// The image formats raygun writes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -57,6 +67,13 @@ impl Format {
     }
 }
 
+/// Checks an image output before any work: a known extension and a folder that takes the file.
+pub fn check_image_path(path: &Path) -> Result<Format, OutputError> {
+    let format = Format::from_path(path)?;
+    check_writable(path)?;
+    Ok(format)
+}
+
 /// Writes a one-channel float image (row-major): EXR keeps the values as 32-bit floats in a
 /// channel named `channel`; PNG shows them as 8-bit grey, mapping [0, 1] to [0, 255] (values
 /// outside are clamped, NaN is black).
@@ -78,23 +95,27 @@ pub fn write_gray(
                 Encoding::FAST_LOSSLESS,
                 AnyChannels::sort(SmallVec::from_vec(vec![ch])),
             );
-            Image::from_layer(layer)
-                .write()
-                .to_file(path)
-                .map_err(|source| OutputError::Exr {
-                    path: path.to_owned(),
-                    source,
-                })
+            replace_with(path, |tmp| {
+                Image::from_layer(layer)
+                    .write()
+                    .to_file(tmp)
+                    .map_err(|source| OutputError::Exr {
+                        path: path.to_owned(),
+                        source,
+                    })
+            })
         }
         Format::Png => {
             let bytes: Vec<u8> = values.iter().map(|&v| unit_to_u8(v)).collect();
-            image::GrayImage::from_raw(width, height, bytes)
-                .expect("length checked above")
-                .save(path)
-                .map_err(|source| OutputError::Png {
-                    path: path.to_owned(),
-                    source,
-                })
+            let img =
+                image::GrayImage::from_raw(width, height, bytes).expect("length checked above");
+            replace_with(path, |tmp| {
+                img.save_with_format(tmp, image::ImageFormat::Png)
+                    .map_err(|source| OutputError::Png {
+                        path: path.to_owned(),
+                        source,
+                    })
+            })
         }
     }
 }
@@ -128,13 +149,15 @@ pub fn write_rgb(
                     channel("B", 2),
                 ])),
             );
-            Image::from_layer(layer)
-                .write()
-                .to_file(path)
-                .map_err(|source| OutputError::Exr {
-                    path: path.to_owned(),
-                    source,
-                })
+            replace_with(path, |tmp| {
+                Image::from_layer(layer)
+                    .write()
+                    .to_file(tmp)
+                    .map_err(|source| OutputError::Exr {
+                        path: path.to_owned(),
+                        source,
+                    })
+            })
         }
         Format::Png => {
             let scale = exposure.exp2();
@@ -143,13 +166,15 @@ pub fn write_rgb(
                 .flat_map(|p| p.to_array())
                 .map(|v| unit_to_u8(linear_to_srgb(v * scale)))
                 .collect();
-            image::RgbImage::from_raw(width, height, bytes)
-                .expect("length checked above")
-                .save(path)
-                .map_err(|source| OutputError::Png {
-                    path: path.to_owned(),
-                    source,
-                })
+            let img =
+                image::RgbImage::from_raw(width, height, bytes).expect("length checked above");
+            replace_with(path, |tmp| {
+                img.save_with_format(tmp, image::ImageFormat::Png)
+                    .map_err(|source| OutputError::Png {
+                        path: path.to_owned(),
+                        source,
+                    })
+            })
         }
     }
 }

@@ -14,8 +14,13 @@ pub enum ConeError {
     #[error("the up vector is zero or parallel to the pointing direction")]
     UpParallel,
     #[error(
-        "field of view {which} = {deg}° is outside (0°, 180°): a cone of 180° or more is a half-space, \
-         not a region on the wall"
+        "the {which} field of view, {}°, is outside {FOV_MIN_DEG:e}° to {FOV_MAX_DEG}°: {}",
+        crate::messages::number(*deg),
+        if *deg < FOV_MIN_DEG {
+            "a narrower cone covers far less than a pixel of any wall"
+        } else {
+            "a cone of 180° or more is a half-space, not a region on the wall"
+        }
     )]
     FovOutOfRange { which: &'static str, deg: f64 },
 }

@@ -181,7 +181,9 @@ impl Default for Falloff {
 /// A falloff setting that cannot give a positive length.
 #[derive(Clone, Copy, Debug, thiserror::Error, PartialEq)]
 #[error(
-    "falloff base {base_m} m and scale {scale} must be finite and non-negative, with a positive base"
+    "falloff base {} m and scale {} must be finite and non-negative, with a positive base",
+    crate::messages::number(*base_m),
+    crate::messages::number(*scale)
 )]
 pub struct FalloffError {
     pub base_m: f64,

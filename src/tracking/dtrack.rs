@@ -28,7 +28,7 @@
 //!   frame could pair one body's position with another's buttons.
 //! * Lines end in LF, CR LF or CR; senders may append NUL bytes (C strings).
 
-use glam::{DMat3, DQuat, DVec3};
+use glam::{DMat3, DVec3};
 use serde::{Deserialize, Serialize};
 
 use super::event::{DeviceId, DeviceKind, MAX_AXES, Pose, Tracking, TrackingEvent};
@@ -458,14 +458,7 @@ fn make_pose(
     if !(error < ROTATION_TOLERANCE && r.determinant() > 0.0) {
         return Err(DtrackErrorKind::NotRotation { record, id, error });
     }
-    let t = &config.tracker_to_room;
-    let room_rot = t.rotation();
-    let q = DQuat::from_mat3(&(room_rot * r)).normalize();
-    let p = room_rot * (position * t.metres_per_unit) + DVec3::from_array(t.translation_m);
-    Ok(Some(Pose {
-        position: p,
-        orientation: q,
-    }))
+    Ok(Some(config.tracker_to_room.map_pose(position, r)))
 }
 
 /// A tokenizer over one record: tokens are `[`, `]` and runs of other non-space characters.
@@ -679,6 +672,11 @@ impl DtrackDecoder {
         &self.config
     }
 
+    /// Replaces the configuration (a calibration given after construction).
+    pub fn set_config(&mut self, config: DtrackConfig) {
+        self.config = config;
+    }
+
     /// The continuous time of a `ts` value: a jump back by more than half a day is a wrap
     /// past midnight (DTrack frames are milliseconds apart, never hours).
     fn unwrap_ts(&mut self, ts: f64) -> f64 {
@@ -766,6 +764,7 @@ pub fn format_flystick_block(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use glam::DQuat;
     use proptest::prelude::*;
 
     const ID_ROT: &str =

@@ -104,6 +104,15 @@ impl Ingest {
         }
     }
 
+    /// Applies a tracker→room calibration to both decoders (their other settings stay).
+    pub fn calibrate(&mut self, calibration: &super::calibration::Calibration) {
+        let mut dtrack = self.dtrack.config().clone();
+        let mut osc = self.osc.config().clone();
+        calibration.apply(&mut dtrack, &mut osc);
+        self.dtrack.set_config(dtrack);
+        self.osc.set_config(osc);
+    }
+
     /// Decodes one datagram; a bad one is counted and yields no events.
     pub fn datagram(
         &mut self,

@@ -11,11 +11,13 @@
 //! exactly what the live run did; `tests/tracking_replays.rs` checks that for every shipped
 //! replay.
 //!
-//! Modules: [`event`] (normalised events), [`dtrack`] and [`osc`] (parsers), [`replay`]
+//! Modules: [`event`] (normalised events), [`dtrack`] and [`osc`] (parsers), [`calibration`]
+//! (the tracker→room transform of every source), [`replay`]
 //! (JSON Lines files), [`udp`] (listeners, recorder), [`problems`] (bad-input counters),
 //! [`synth`] (synthetic sessions), [`bench`] (ingest benchmark).
 
 pub mod bench;
+pub mod calibration;
 pub mod dtrack;
 pub mod event;
 pub mod ingest;

@@ -42,7 +42,7 @@ use glam::{DQuat, DVec2, DVec3};
 use rosc::{OscBundle, OscMessage, OscPacket, OscType};
 use serde::{Deserialize, Serialize};
 
-use super::dtrack::TimeSource;
+use super::dtrack::{TimeSource, TrackerToRoom};
 use super::event::{DeviceId, DeviceKind, MAX_AXES, Pose, Tracking, TrackingEvent};
 
 /// The largest UDP payload over IPv4; receive buffers are at least this big (bundles of many
@@ -54,12 +54,26 @@ pub const MAX_BUNDLE_DEPTH: usize = 8;
 pub const MAX_DEVICE: u32 = 255;
 
 /// OSC decoder configuration.
-#[derive(Clone, Debug, PartialEq, Default, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct OscConfig {
     /// VMC serial → hand ("right" or "left").
     pub vmc_serials: BTreeMap<String, VmcHand>,
     pub time_source: TimeSource,
+    /// The sender's frame → room (a calibration, [`super::calibration`]); the identity in metres
+    /// (the default) leaves the poses as sent.
+    #[serde(skip_serializing_if = "TrackerToRoom::is_identity_metres")]
+    pub tracker_to_room: TrackerToRoom,
+}
+
+impl Default for OscConfig {
+    fn default() -> Self {
+        Self {
+            vmc_serials: BTreeMap::new(),
+            time_source: TimeSource::default(),
+            tracker_to_room: TrackerToRoom::identity_metres(),
+        }
+    }
 }
 
 /// A VMC hand.
@@ -243,6 +257,16 @@ impl OscDecoder {
         }
     }
 
+    #[must_use]
+    pub fn config(&self) -> &OscConfig {
+        &self.config
+    }
+
+    /// Replaces the configuration (a calibration given after construction).
+    pub fn set_config(&mut self, config: OscConfig) {
+        self.config = config;
+    }
+
     /// Decodes one datagram received at `receive_t`, appending its events to `out`. On error
     /// nothing is appended and no VMC state changes.
     pub fn decode_into(
@@ -280,6 +304,14 @@ impl OscDecoder {
             }
         }
         *self = scratch;
+        let to_room = &self.config.tracker_to_room;
+        if !to_room.is_identity_metres() {
+            for e in &mut out[start..] {
+                if let Some(Tracking::Tracked(p)) = &mut e.pose {
+                    *p = to_room.map_pose(p.position, glam::DMat3::from_quat(p.orientation));
+                }
+            }
+        }
         Ok(())
     }
 

@@ -22,6 +22,7 @@ use std::time::{Duration, Instant};
 
 use serde::{Deserialize, Serialize};
 
+use super::calibration::Calibration;
 use super::dtrack::{DtrackConfig, TimeSource};
 use super::event::{DeviceId, TrackingEvent};
 use super::ingest::Protocol;
@@ -43,6 +44,9 @@ pub struct ReplayHeader {
     /// Display model the session was made for (a name such as `hornet` or a file).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub display: Option<String>,
+    /// The display model itself, explicit (written by `raygun record`): a replay needs no file.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub display_model: Option<crate::display::DisplayModel>,
     /// The device the interaction should follow.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub device: Option<DeviceId>,
@@ -55,6 +59,10 @@ pub struct ReplayHeader {
     pub osc: Option<OscConfig>,
     #[serde(default)]
     pub time_source: TimeSource,
+    /// The tracker→room calibration the session was recorded with; it replaces the transforms
+    /// of `dtrack` and `osc` (written by `raygun record`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub calibration: Option<Calibration>,
 }
 
 impl ReplayHeader {
@@ -64,12 +72,26 @@ impl ReplayHeader {
             raygun_replay: FORMAT_VERSION,
             synthetic: false,
             display: None,
+            display_model: None,
             device: None,
             description: description.into(),
             dtrack: None,
             osc: None,
             time_source: TimeSource::default(),
+            calibration: None,
         }
+    }
+
+    /// The decoder configurations this session needs: the header's, with `calibration` (given
+    /// on the command line) or else the header's own calibration replacing their transforms.
+    #[must_use]
+    pub fn decoder_configs(&self, calibration: Option<&Calibration>) -> (DtrackConfig, OscConfig) {
+        let mut dtrack = self.dtrack.clone().unwrap_or_default();
+        let mut osc = self.osc.clone().unwrap_or_default();
+        if let Some(c) = calibration.or(self.calibration.as_ref()) {
+            c.apply(&mut dtrack, &mut osc);
+        }
+        (dtrack, osc)
     }
 }
 
@@ -149,7 +171,11 @@ pub struct ReplayReader<R> {
     path: PathBuf,
     header: ReplayHeader,
     line_no: usize,
+    /// The time of the last record delivered.
     last_t: f64,
+    /// The next record, held back until the one after it shows whether its time is believable
+    /// (see [`ReplayReader::next_item`]), with its line number.
+    pending: Option<(ReplayItem, usize)>,
     buf: Vec<u8>,
     pub problems: ProblemLog,
 }
@@ -178,7 +204,7 @@ impl<R: BufRead> ReplayReader<R> {
         let header: ReplayHeader =
             serde_json::from_str(first.trim()).map_err(|e| ReplayError::BadHeader {
                 path: path.to_owned(),
-                reason: e.to_string(),
+                reason: crate::messages::clip(&e.to_string()),
             })?;
         if header.raygun_replay != FORMAT_VERSION {
             return Err(ReplayError::Version {
@@ -192,6 +218,7 @@ impl<R: BufRead> ReplayReader<R> {
             header,
             line_no: 1,
             last_t: f64::NEG_INFINITY,
+            pending: None,
             buf: Vec::new(),
             problems: ProblemLog::default(),
         })
@@ -210,7 +237,69 @@ impl<R: BufRead> ReplayReader<R> {
 
     /// The next good record, or `None` at the end of the input. Bad lines are counted in
     /// [`Self::problems`] and skipped.
+    ///
+    /// Times must not go back. A record whose time jumps ahead of the records on both sides
+    /// of it (one line with `"t": 1e308`) is the bad one, not every record after it: each
+    /// record is held back until the next shows whether it continues the series, and a record
+    /// that the next one goes back from, while the next one continues from the record before,
+    /// is dropped instead (counted as `replay_time_jump`).
     pub fn next_item(&mut self) -> Option<ReplayItem> {
+        loop {
+            let Some((next, line)) = self.next_record() else {
+                let (item, _) = self.pending.take()?;
+                self.last_t = item.t;
+                return Some(item);
+            };
+            let Some((held, held_line)) = self.pending.take() else {
+                if next.t < self.last_t {
+                    let msg = format!(
+                        "t = {} goes back from {}",
+                        crate::messages::number(next.t),
+                        crate::messages::number(self.last_t)
+                    );
+                    self.skip_at(line, "replay_back_in_time", msg);
+                } else {
+                    self.pending = Some((next, line));
+                }
+                continue;
+            };
+            if next.t >= held.t {
+                self.pending = Some((next, line));
+                self.last_t = held.t;
+                return Some(held);
+            }
+            if self.last_t.is_finite() && next.t >= self.last_t {
+                // The held record jumped ahead of both neighbours: it is the bad one. (With no
+                // record before it, nothing says which of the two is wrong: the later one is
+                // dropped, as without the look-ahead.)
+                let msg = format!(
+                    "t = {} jumps ahead of the records around it ({} then {})",
+                    crate::messages::number(held.t),
+                    crate::messages::number(self.last_t),
+                    crate::messages::number(next.t)
+                );
+                self.skip_at(held_line, "replay_time_jump", msg);
+                self.pending = Some((next, line));
+                continue;
+            }
+            let msg = format!(
+                "t = {} goes back from {}",
+                crate::messages::number(next.t),
+                crate::messages::number(held.t)
+            );
+            self.skip_at(line, "replay_back_in_time", msg);
+            self.pending = Some((held, held_line));
+        }
+    }
+
+    fn skip_at(&mut self, line: usize, kind: &'static str, reason: impl std::fmt::Display) {
+        let where_ = format!("{}:{line}", self.path.display());
+        self.problems
+            .report(kind, format_args!("{where_}: {reason}"));
+    }
+
+    /// The next record that parses, with its line number; times are only checked to be finite.
+    fn next_record(&mut self) -> Option<(ReplayItem, usize)> {
         loop {
             self.buf.clear();
             let read = io::Read::take(&mut self.input, MAX_LINE as u64 + 1)
@@ -245,17 +334,12 @@ impl<R: BufRead> ReplayReader<R> {
             let line: Line = match serde_json::from_str(text) {
                 Ok(l) => l,
                 Err(e) => {
-                    self.skip("replay_not_json", e);
+                    self.skip("replay_not_json", crate::messages::clip(&e.to_string()));
                     continue;
                 }
             };
             if !line.t.is_finite() {
                 self.skip("replay_bad_time", "t is not finite");
-                continue;
-            }
-            if line.t < self.last_t {
-                let msg = format!("t = {} goes back from {}", line.t, self.last_t);
-                self.skip("replay_back_in_time", msg);
                 continue;
             }
             let payloads = usize::from(line.dtrack.is_some())
@@ -292,8 +376,7 @@ impl<R: BufRead> ReplayReader<R> {
             } else {
                 continue;
             };
-            self.last_t = line.t;
-            return Some(ReplayItem { t: line.t, payload });
+            return Some((ReplayItem { t: line.t, payload }, self.line_no));
         }
     }
 }
@@ -328,6 +411,60 @@ pub fn play<R: BufRead>(
         f(&item);
     }
     reader.problems
+}
+
+/// A file that takes whole lines and writes them out at `flush` only, remembering how much of it
+/// holds complete lines: a failed write (a full disk) is cut back to the last complete line, so
+/// a recording never ends in half a record. The recorder flushes at least every
+/// [`super::udp::FLUSH_INTERVAL`], so a killed recorder loses at most that much.
+pub struct LineFile {
+    file: std::fs::File,
+    buf: Vec<u8>,
+    committed: u64,
+}
+
+impl LineFile {
+    /// Creates (or truncates) `path`.
+    pub fn create(path: &Path) -> io::Result<Self> {
+        Ok(Self {
+            file: std::fs::File::create(path)?,
+            buf: Vec::new(),
+            committed: 0,
+        })
+    }
+
+    /// Bytes of complete lines on disk.
+    #[must_use]
+    pub fn committed(&self) -> u64 {
+        self.committed
+    }
+}
+
+impl Write for LineFile {
+    fn write(&mut self, bytes: &[u8]) -> io::Result<usize> {
+        self.buf.extend_from_slice(bytes);
+        Ok(bytes.len())
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        if self.buf.is_empty() {
+            return Ok(());
+        }
+        match self.file.write_all(&self.buf) {
+            Ok(()) => {
+                self.committed += self.buf.len() as u64;
+                self.buf.clear();
+                self.file.flush()
+            }
+            Err(e) => {
+                use std::io::Seek;
+                self.buf.clear();
+                let _ = self.file.set_len(self.committed);
+                let _ = self.file.seek(io::SeekFrom::Start(self.committed));
+                Err(e)
+            }
+        }
+    }
 }
 
 /// Writes a replay.

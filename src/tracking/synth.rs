@@ -673,7 +673,7 @@ pub fn write_all(dir: &Path) -> io::Result<Vec<PathBuf>> {
         .into_iter()
         .map(|(name, bytes)| {
             let p = dir.join(name);
-            std::fs::write(&p, bytes)?;
+            crate::output::write_bytes(&p, &bytes).map_err(io::Error::other)?;
             Ok(p)
         })
         .collect()

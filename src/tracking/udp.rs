@@ -24,6 +24,9 @@ use crate::interaction::{RaySurface, RoiChange, RoiState};
 
 /// Smallest kernel receive buffer accepted: one maximal OSC bundle must fit.
 pub const MIN_RECV_BUFFER: usize = 64 * 1024;
+/// The recorder writes what it has received at least this often, so a recorder killed without
+/// warning (`kill -9`, a power cut) loses at most this much of the session.
+pub const FLUSH_INTERVAL: Duration = Duration::from_millis(250);
 
 /// How a listener binds and whom it listens to.
 #[derive(Clone, Debug, PartialEq)]
@@ -58,7 +61,7 @@ impl ListenerConfig {
 #[derive(Debug, thiserror::Error)]
 pub enum UdpError {
     #[error(
-        "refusing to bind {addr}: not a loopback address (pass the explicit flag to listen on the network)"
+        "refusing to bind {addr}: not a loopback address (listening on the network needs --allow-network)"
     )]
     NonLoopback { addr: SocketAddr },
     #[error("receive buffer of {bytes} bytes is below the {MIN_RECV_BUFFER}-byte minimum")]
@@ -251,12 +254,12 @@ pub fn record<W: io::Write>(
     problems: &mut ProblemLog,
 ) -> io::Result<u64> {
     let start = Instant::now();
+    let mut last_flush = start;
     let mut n = 0;
     while !stop.load(Ordering::Relaxed) && max_duration.is_none_or(|d| start.elapsed() < d) {
         let t = start.elapsed().as_secs_f64();
         match source.recv()? {
-            // Flushing when the line is quiet keeps a killed recorder's file complete.
-            Received::Idle => writer.flush()?,
+            Received::Idle => {}
             Received::Rejected(from) => {
                 problems.report(
                     "udp_rejected_source",
@@ -266,10 +269,13 @@ pub fn record<W: io::Write>(
             Received::Datagram(bytes, _) => {
                 writer.datagram(t, protocol, bytes)?;
                 n += 1;
-                if n % 256 == 0 {
-                    writer.flush()?;
-                }
             }
+        }
+        // Under a steady stream as when the line is quiet: a killed recorder keeps everything
+        // up to the last flush.
+        if last_flush.elapsed() >= FLUSH_INTERVAL {
+            writer.flush()?;
+            last_flush = Instant::now();
         }
     }
     writer.flush()?;

@@ -44,6 +44,9 @@ pub struct ViewerApp<'a> {
     recorded: u32,
     message: String,
     error: Option<String>,
+    /// A save the command line asked for (`--screenshot-after`) that failed: the command then
+    /// exits with this error once the window closes.
+    pub failure: Arc<Mutex<Option<String>>>,
 }
 
 impl<'a> ViewerApp<'a> {
@@ -69,17 +72,97 @@ impl<'a> ViewerApp<'a> {
             recorded: 0,
             message: String::new(),
             error: None,
+            failure: Arc::new(Mutex::new(None)),
         }
     }
 
-    fn save(&mut self, stem: &str, picture: &super::core::Picture) {
+    /// Records a failure of a save the command line asked for; the window closes.
+    fn fail(&mut self, ctx: &egui::Context, message: String) {
+        eprintln!("raygun view: {message}");
+        if let Ok(mut f) = self.failure.lock() {
+            f.get_or_insert(message);
+        }
+        ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+    }
+
+    fn save(&mut self, stem: &str, picture: &super::core::Picture) -> Result<(), String> {
         match save_picture(&self.save_dir, stem, picture, self.core.state.exposure) {
             Ok(files) => {
                 self.message =
                     format!("saved {} files to {}", files.len(), self.save_dir.display());
                 eprintln!("raygun view: {}", self.message);
+                Ok(())
             }
-            Err(e) => self.message = format!("save failed: {e:#}"),
+            Err(e) => {
+                self.message = format!("save failed: {e:#}");
+                Err(self.message.clone())
+            }
+        }
+    }
+
+    /// The statistics, first in the panel so that no window is too small to show them.
+    fn statistics(&mut self, ui: &mut egui::Ui) {
+        let s = &mut self.core.state;
+        ui.heading("Statistics");
+        let st = &self.core.stats;
+        ui.label(format!("iterations {}", st.iterations));
+        ui.label(format!("{:.1} iterations/s", st.iterations_per_s));
+        if let Some(share) = st.sampled_share {
+            ui.label(format!("pixels sampled {:.1} %", 100.0 * share));
+        }
+        if let Some(t) = st.last_timed {
+            let ms = |v: Option<f64>| v.map_or("–".to_owned(), |v| format!("{v:.2}"));
+            ui.label(format!(
+                "ms: DGI {} · schedule {} · trace {}",
+                ms(st.ms_dgi),
+                ms(t.ms_schedule),
+                ms(t.ms_trace)
+            ));
+        }
+        if st.roi_pixels > 0 {
+            ui.label(format!(
+                "ROI: {} samples, {:.1} per pixel",
+                st.roi_samples,
+                st.roi_samples as f64 / st.roi_pixels as f64
+            ));
+        }
+        if let (Some(roi), Some(far)) = (st.roi_noise, st.periphery_noise) {
+            ui.label(format!(
+                "noise (median SE of luminance): ROI {roi:.2e}, periphery {far:.2e}"
+            ));
+        }
+        if let Some(p) = st.roi_progress {
+            ui.label(format!(
+                "ROI now: median SE {:.2e} over all {} pixels, fewest samples {}",
+                p.median_se, p.pixels, p.min_samples
+            ));
+        }
+        let mut want_target = s.target_se.is_some();
+        ui.horizontal(|ui| {
+            ui.checkbox(&mut want_target, "ROI target SE");
+            let mut t = s.target_se.unwrap_or(1e-2);
+            ui.add_enabled(
+                want_target,
+                egui::DragValue::new(&mut t)
+                    .range(1e-6..=1.0)
+                    .speed(1e-4)
+                    .max_decimals(6),
+            );
+            s.target_se = want_target.then_some(t);
+        });
+        if let Some(target) = s.target_se {
+            ui.label(match st.seconds_to_target(target) {
+                Some(t) if t <= 0.0 => "target reached".to_owned(),
+                Some(t) => format!("about {t:.0} s to the target at this rate"),
+                None => "time to the target: not yet known (pixels need two samples)".to_owned(),
+            });
+        }
+        ui.label(self.core.backend_name());
+        if !self.message.is_empty() {
+            ui.label(&self.message);
+        }
+        if let Some(e) = &self.error {
+            ui.colored_label(egui::Color32::RED, e);
         }
     }
 
@@ -202,41 +285,6 @@ impl<'a> ViewerApp<'a> {
         }
         ui.checkbox(&mut self.recording, "record (a PNG per frame)");
         ui.separator();
-        ui.heading("Statistics");
-        let st = &self.core.stats;
-        ui.label(format!("iterations {}", st.iterations));
-        ui.label(format!("{:.1} iterations/s", st.iterations_per_s));
-        if let Some(share) = st.sampled_share {
-            ui.label(format!("pixels sampled {:.1} %", 100.0 * share));
-        }
-        if let Some(t) = st.last_timed {
-            let ms = |v: Option<f64>| v.map_or("–".to_owned(), |v| format!("{v:.2}"));
-            ui.label(format!(
-                "ms: DGI {} · schedule {} · trace {}",
-                ms(st.ms_dgi),
-                ms(t.ms_schedule),
-                ms(t.ms_trace)
-            ));
-        }
-        if st.roi_pixels > 0 {
-            ui.label(format!(
-                "ROI: {} samples, {:.1} per pixel",
-                st.roi_samples,
-                st.roi_samples as f64 / st.roi_pixels as f64
-            ));
-        }
-        if let (Some(roi), Some(far)) = (st.roi_noise, st.periphery_noise) {
-            ui.label(format!(
-                "noise (median SE of luminance): ROI {roi:.2e}, periphery {far:.2e}"
-            ));
-        }
-        ui.label(self.core.backend_name());
-        if !self.message.is_empty() {
-            ui.label(&self.message);
-        }
-        if let Some(e) = &self.error {
-            ui.colored_label(egui::Color32::RED, e);
-        }
         save
     }
 }
@@ -257,8 +305,20 @@ impl eframe::App for ViewerApp<'_> {
         }
         let save = egui::Panel::left("controls")
             .show(ui, |ui| {
+                // A scroll bar that is always drawn, not one that appears on hover only: the
+                // panel is taller than a 700-pixel window.
+                let mut scroll = egui::style::ScrollStyle::solid();
+                scroll.dormant_handle_opacity = scroll.active_handle_opacity;
+                scroll.dormant_background_opacity = scroll.active_background_opacity;
+                ui.style_mut().spacing.scroll = scroll;
                 egui::ScrollArea::vertical()
-                    .show(ui, |ui| self.controls(ui))
+                    .auto_shrink([false, false])
+                    .scroll_bar_visibility(egui::scroll_area::ScrollBarVisibility::AlwaysVisible)
+                    .show(ui, |ui| {
+                        self.statistics(ui);
+                        ui.separator();
+                        self.controls(ui)
+                    })
                     .inner
             })
             .inner;
@@ -309,13 +369,16 @@ impl eframe::App for ViewerApp<'_> {
         if save {
             self.saves += 1;
             let stem = format!("view-{:03}", self.saves);
-            self.save(&stem, &picture);
+            let _ = self.save(&stem, &picture);
         }
         if let Some(n) = self.screenshot_after
             && self.core.stats.iterations >= n
         {
             // The picture files now; the whole window once the integration has read it back.
-            self.save("screenshot", &picture);
+            if let Err(e) = self.save("screenshot", &picture) {
+                self.fail(ui.ctx(), e);
+                return;
+            }
             let slot = Arc::new(Mutex::new(None));
             let (s, ctx) = (Arc::clone(&slot), ui.ctx().clone());
             ui.ctx().request_screenshot(move |img| {
@@ -334,12 +397,22 @@ impl eframe::App for ViewerApp<'_> {
                 let path = self.save_dir.join("screenshot.window.png");
                 let [sw, sh] = img.size;
                 let saved = image::RgbaImage::from_raw(sw as u32, sh as u32, img.as_raw().to_vec())
-                    .map(|i| i.save(&path));
+                    .map(|i| {
+                        crate::output::replace_with(&path, |tmp| {
+                            i.save_with_format(tmp, image::ImageFormat::Png)
+                                .map_err(anyhow::Error::from)
+                        })
+                    });
                 match saved {
-                    Some(Ok(())) => eprintln!("raygun view: saved {}", path.display()),
-                    _ => eprintln!("raygun view: could not save {}", path.display()),
+                    Some(Ok(())) => {
+                        eprintln!("raygun view: saved {}", path.display());
+                        ui.ctx().send_viewport_cmd(egui::ViewportCommand::Close);
+                    }
+                    _ => {
+                        let ctx = ui.ctx().clone();
+                        self.fail(&ctx, format!("could not save {}", path.display()));
+                    }
                 }
-                ui.ctx().send_viewport_cmd(egui::ViewportCommand::Close);
             } else if *waited > 300 {
                 eprintln!("raygun view: no window screenshot arrived; closing");
                 ui.ctx().send_viewport_cmd(egui::ViewportCommand::Close);

@@ -82,6 +82,8 @@ pub struct ViewerState {
     cursor_fed_t: Option<f64>,
     /// Set by the "reset accumulation" button; cleared when the renderer has been rebuilt.
     pub reset: bool,
+    /// The ROI's target standard error (`view --target-se`): the panel shows the time to it.
+    pub target_se: Option<f64>,
 }
 
 impl ViewerState {
@@ -113,6 +115,7 @@ impl ViewerState {
             cursor: CursorSmoother::new(crate::interaction::CursorConfig::default()),
             cursor_fed_t: None,
             reset: false,
+            target_se: None,
         }
     }
 
@@ -229,6 +232,20 @@ pub struct Stats {
     /// pixels and the periphery's ([`NoiseContrast`]); `None` without an ROI or such pixels.
     pub roi_noise: Option<f32>,
     pub periphery_noise: Option<f32>,
+    /// The ROI's progress as `render --until` measures it (median SE over every ROI pixel,
+    /// fewest samples), and the seconds the current ROI has been sampled for.
+    pub roi_progress: Option<crate::stop::RoiProgress>,
+    pub seconds_on_roi: f64,
+}
+
+impl Stats {
+    /// Seconds until the ROI's median SE reaches `target` at the rate it has fallen so far
+    /// (`Some(0.0)`: reached); `None` while it cannot be told.
+    #[must_use]
+    pub fn seconds_to_target(&self, target: f64) -> Option<f64> {
+        self.roi_progress?
+            .seconds_to_se(target, self.seconds_on_roi)
+    }
 }
 
 /// What the renderer was built with: a change rebuilds it (and restarts the accumulation).
@@ -283,6 +300,8 @@ pub struct ViewerCore<'a> {
     built: Built,
     /// Frames since the renderer was built, and when (for iterations per second).
     window: (u32, Instant),
+    /// When the ROI last changed (or the accumulation restarted).
+    roi_since: Instant,
     pub stats: Stats,
 }
 
@@ -315,6 +334,7 @@ impl<'a> ViewerCore<'a> {
             state,
             renderer,
             window: (0, Instant::now()),
+            roi_since: Instant::now(),
             stats: Stats::default(),
         })
     }
@@ -358,12 +378,14 @@ impl<'a> ViewerCore<'a> {
             self.built = want;
             self.state.reset = false;
             self.window = (0, Instant::now());
+            self.roi_since = Instant::now();
             self.stats = Stats::default();
         }
         let roi = self.state.roi();
         let changed = self.renderer.roi() != roi.as_ref();
         if changed {
             let t0 = Instant::now();
+            self.roi_since = t0;
             self.renderer.set_roi(roi)?;
             // The CPU twin computes the DGI right here; the GPU records it into the next frame
             // (timed by its timestamps).
@@ -422,6 +444,11 @@ impl<'a> ViewerCore<'a> {
         });
         self.stats.roi_noise = contrast.map(|c| c.roi);
         self.stats.periphery_noise = contrast.map(|c| c.periphery);
+        self.stats.roi_progress = self
+            .renderer
+            .roi()
+            .and_then(|_| crate::stop::RoiProgress::measure(&acc, &dgi));
+        self.stats.seconds_on_roi = self.roi_since.elapsed().as_secs_f64();
         let size = self.size();
         let mut rgba = match self.state.overlay {
             Overlay::Image => {
@@ -706,8 +733,10 @@ pub fn save_picture(
 /// Writes the picture as shown (RGBA8 PNG).
 pub fn save_view_png(path: &Path, p: &Picture) -> anyhow::Result<()> {
     let [w, h] = p.size;
-    image::RgbaImage::from_raw(w, h, p.rgba.clone())
-        .ok_or_else(|| anyhow::anyhow!("picture size mismatch"))?
-        .save(path)
-        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
+    let img = image::RgbaImage::from_raw(w, h, p.rgba.clone())
+        .ok_or_else(|| anyhow::anyhow!("picture size mismatch"))?;
+    crate::output::replace_with(path, |tmp| {
+        img.save_with_format(tmp, image::ImageFormat::Png)
+            .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
+    })
 }

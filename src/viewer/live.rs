@@ -11,6 +11,7 @@ use glam::DVec2;
 use super::core::ViewerState;
 use crate::display::DisplayModel;
 use crate::interaction::{Interaction, InteractionConfig, RaySurface};
+use crate::tracking::calibration::Calibration;
 use crate::tracking::event::{DeviceId, Tracking};
 use crate::tracking::ingest::{Pipeline, Protocol};
 use crate::tracking::udp::{ListenerConfig, Live, UdpSource, run_live};
@@ -54,6 +55,18 @@ impl LiveTracking {
         config: InteractionConfig,
         model: DisplayModel,
     ) -> anyhow::Result<Self> {
+        Self::start_calibrated(port, protocol, config, model, None)
+    }
+
+    /// [`Self::start_with`] with the tracker→room `calibration` applied to the decoders (its
+    /// device axes are the caller's to put into `config`).
+    pub fn start_calibrated(
+        port: u16,
+        protocol: Protocol,
+        config: InteractionConfig,
+        model: DisplayModel,
+        calibration: Option<&Calibration>,
+    ) -> anyhow::Result<Self> {
         let mut source = UdpSource::bind(ListenerConfig::loopback(port))?;
         let port = source.local_addr()?.port();
         let live = Arc::new(Live::default());
@@ -61,6 +74,9 @@ impl LiveTracking {
         let stop = Arc::new(AtomicBool::new(false));
         let device = config.device;
         let mut pipeline = Pipeline::quiet_live(device);
+        if let Some(c) = calibration {
+            pipeline.ingest.calibrate(c);
+        }
         pipeline.interaction = Interaction::new(config);
         let (pointing, _, _) = pipeline.interaction.config().axes();
         let (l, a, s) = (Arc::clone(&live), Arc::clone(&aim), Arc::clone(&stop));

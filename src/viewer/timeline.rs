@@ -134,9 +134,10 @@ mod tests {
         let root = env!("CARGO_MANIFEST_DIR");
         let t = Timeline::collect(&ReplayArgs {
             file: format!("{root}/tracking-replays/flystick-1-centre-sweeps.dtrack.jsonl").into(),
-            display: Some(format!("{root}/display-models/hornet.json").into()),
+            display: Some(format!("{root}/display-models/hornet.json")),
             config: None,
             device: None,
+            calibration: None,
             realtime: false,
         })
         .unwrap();

@@ -1,0 +1,315 @@
+//! The memory a run needs, computed before anything is allocated (DESIGN.md §11: each stage
+//! states its memory per megapixel), and checked against what the machine has: a size that
+//! cannot fit is a clear error naming the size and the bytes, not an allocator abort minutes
+//! into the run; a size that fits but is large gets a note first.
+//!
+//! The per-pixel figures are what each stage holds at its peak, in bytes per image pixel, on
+//! the host (the CPU twins, and read-backs and file encoding on either backend) and on the GPU.
+//! `tests/memory.rs` measures the host's peak heap of real runs with a counting allocator and
+//! holds these figures to it.
+
+use crate::filter::FilterKind;
+
+/// Host bytes per pixel of the accumulation: RGB sum and Σ luminance² (4 × f32), count (u32).
+pub const ACCUMULATION_BPP: u64 = 20;
+/// The DGI (one f32).
+pub const DGI_BPP: u64 = 4;
+/// The CPU scheduler's pixel list at its largest (every pixel listed, one u32 each).
+pub const SCHEDULE_BPP: u64 = 4;
+/// The tracer twin's per-pixel results of one iteration before they are added (RGB, f32).
+pub const TRACE_BPP: u64 = 12;
+/// The picture: the mean or filtered image (f64 RGB from the filter twin, then f32 RGB).
+pub const PICTURE_BPP: u64 = 36;
+/// The fast filter twin's working set beyond its output: the pyramid of normalised
+/// convolutions (RGB and weight per level, 4/3 of the image in all, f64) and its blend inputs.
+pub const FAST_FILTER_BPP: u64 = 64;
+/// Writing an image file: the EXR channels copied out (3 × f32), or the PNG's 8-bit RGB and the
+/// encoder's buffers.
+pub const ENCODE_BPP: u64 = 16;
+/// The GPU's buffers: accumulation (16), counts (4), the frame's DGI (4) and the DGI kernel's
+/// output (4), the pixel list (4), and the filter's output (16) and pyramid (22).
+pub const DEVICE_BPP: u64 = 70;
+/// Host memory that does not grow with the image (scene, BVH and libraries are counted apart):
+/// allocator slack, thread stacks, small tables.
+pub const FIXED_BYTES: u64 = 64 << 20;
+/// A note is printed above this much (or above a quarter of what is available).
+pub const NOTE_BYTES: u64 = 4 << 30;
+/// Largest image: pixel indices are 32-bit on the GPU (and in the files' counts).
+pub const MAX_PIXELS: u64 = u32::MAX as u64;
+
+/// What a command will hold, by stage.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Budget {
+    /// Image size.
+    pub size: [u32; 2],
+    /// (stage, host bytes).
+    pub host: Vec<(&'static str, u64)>,
+    /// (stage, GPU bytes); empty on the CPU backend.
+    pub device: Vec<(&'static str, u64)>,
+}
+
+/// What a run needs to do.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Work {
+    /// `render` without a guide, or a guided render (`render --guide`, `view`, `demo`):
+    /// accumulation, DGI, schedule, trace, picture and files.
+    Render { gpu: bool, filter: FilterKind },
+    /// `dgi`: the DGI and its file.
+    Dgi { gpu: bool },
+}
+
+impl Budget {
+    /// The budget of `work` at `size` (pixels of the image).
+    #[must_use]
+    pub fn of(work: Work, size: [u32; 2]) -> Self {
+        let px = u64::from(size[0]) * u64::from(size[1]);
+        let mut host = vec![("fixed", FIXED_BYTES)];
+        let mut device = Vec::new();
+        match work {
+            Work::Render { gpu, filter } => {
+                // The GPU keeps the accumulation on the device; reading it back for the picture
+                // holds a host copy as large.
+                host.push(("accumulation", ACCUMULATION_BPP * px));
+                host.push(("DGI", DGI_BPP * px));
+                if !gpu {
+                    host.push(("schedule", SCHEDULE_BPP * px));
+                    host.push(("trace", TRACE_BPP * px));
+                }
+                host.push(("picture", PICTURE_BPP * px));
+                if !gpu && filter == FilterKind::Fast {
+                    host.push(("fast filter", FAST_FILTER_BPP * px));
+                }
+                host.push(("file encoding", ENCODE_BPP * px));
+                if gpu {
+                    device.push(("accumulation, DGI, list, filter", DEVICE_BPP * px));
+                }
+            }
+            Work::Dgi { gpu } => {
+                host.push(("DGI", DGI_BPP * px));
+                host.push(("file encoding", ENCODE_BPP * px));
+                if gpu {
+                    device.push(("DGI", DGI_BPP * px));
+                }
+            }
+        }
+        Self { size, host, device }
+    }
+
+    #[must_use]
+    pub fn pixels(&self) -> u64 {
+        u64::from(self.size[0]) * u64::from(self.size[1])
+    }
+
+    #[must_use]
+    pub fn host_bytes(&self) -> u64 {
+        self.host.iter().map(|(_, b)| b).sum()
+    }
+
+    #[must_use]
+    pub fn device_bytes(&self) -> u64 {
+        self.device.iter().map(|(_, b)| b).sum()
+    }
+
+    /// "accumulation 20 GB, DGI 4 GB, …" (largest first).
+    #[must_use]
+    pub fn breakdown(&self) -> String {
+        let mut lines = self.host.clone();
+        lines.sort_by_key(|l| std::cmp::Reverse(l.1));
+        lines
+            .iter()
+            .map(|(stage, b)| format!("{stage} {}", bytes(*b)))
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+
+    /// Checks the budget against `available_host` bytes (None: unknown) and the GPU's largest
+    /// storage binding `max_buffer` (None: CPU backend). `Ok(Some(note))` for a large run that
+    /// fits.
+    pub fn check(
+        &self,
+        available_host: Option<u64>,
+        max_buffer: Option<u64>,
+    ) -> Result<Option<String>, MemoryError> {
+        let [w, h] = self.size;
+        if self.pixels() > MAX_PIXELS {
+            return Err(MemoryError::TooManyPixels {
+                width: w,
+                height: h,
+                pixels: self.pixels(),
+            });
+        }
+        let need = self.host_bytes();
+        if let Some(have) = available_host
+            && need > have
+        {
+            return Err(MemoryError::Host {
+                width: w,
+                height: h,
+                need,
+                have,
+                breakdown: self.breakdown(),
+            });
+        }
+        if let Some(max) = max_buffer {
+            // The largest single buffer: the accumulation's 16 bytes per pixel.
+            let largest = 16 * self.pixels();
+            if !self.device.is_empty() && largest > max {
+                return Err(MemoryError::DeviceBuffer {
+                    width: w,
+                    height: h,
+                    need: largest,
+                    max,
+                });
+            }
+        }
+        let large = need > NOTE_BYTES || available_host.is_some_and(|have| need > have / 4);
+        Ok(large.then(|| {
+            format!(
+                "{w}×{h} ({:.1} megapixels) needs about {} of memory ({}){}; this will take a while",
+                self.pixels() as f64 / 1e6,
+                bytes(need),
+                self.breakdown(),
+                available_host.map_or(String::new(), |have| format!(", of {} available", bytes(have))),
+            )
+        }))
+    }
+}
+
+/// Why a size cannot be run here.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum MemoryError {
+    #[error(
+        "--size {width},{height}: {pixels} pixels is more than the {MAX_PIXELS} an image can have (pixel indices are 32-bit)"
+    )]
+    TooManyPixels {
+        width: u32,
+        height: u32,
+        pixels: u64,
+    },
+    #[error(
+        "--size {width},{height}: this run needs about {} of memory ({breakdown}), and this machine has {} available",
+        bytes(*need),
+        bytes(*have)
+    )]
+    Host {
+        width: u32,
+        height: u32,
+        need: u64,
+        have: u64,
+        breakdown: String,
+    },
+    #[error(
+        "--size {width},{height}: the accumulation needs one GPU buffer of {}, and this adapter's largest is {}; use a smaller size or --backend cpu",
+        bytes(*need),
+        bytes(*max)
+    )]
+    DeviceBuffer {
+        width: u32,
+        height: u32,
+        need: u64,
+        max: u64,
+    },
+}
+
+/// Bytes for people: "1.5 GB", "640 MB", "12 kB".
+#[must_use]
+pub fn bytes(b: u64) -> String {
+    let b = b as f64;
+    if b >= 1e9 {
+        format!("{:.1} GB", b / 1e9)
+    } else if b >= 1e6 {
+        format!("{:.0} MB", b / 1e6)
+    } else {
+        format!("{:.0} kB", b / 1e3)
+    }
+}
+
+/// Memory available to this process now (Linux: `MemAvailable` of /proc/meminfo); `None` where
+/// that cannot be read.
+#[must_use]
+pub fn available_host_bytes() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GB: u64 = 1 << 30;
+
+    #[test]
+    fn a_size_beyond_the_machine_is_an_error_naming_size_and_bytes() {
+        let b = Budget::of(
+            Work::Render {
+                gpu: false,
+                filter: FilterKind::Fast,
+            },
+            [60_000, 60_000],
+        );
+        let e = b.check(Some(24 * GB), None).unwrap_err();
+        let text = e.to_string();
+        assert!(text.contains("--size 60000,60000"), "{text}");
+        assert!(text.contains("GB"), "{text}");
+        assert!(text.contains("accumulation"), "{text}");
+        let e = Budget::of(Work::Dgi { gpu: false }, [100_000, 100_000])
+            .check(None, None)
+            .unwrap_err();
+        assert!(matches!(e, MemoryError::TooManyPixels { .. }), "{e}");
+    }
+
+    #[test]
+    fn a_large_size_that_fits_gets_a_note_and_a_small_one_none() {
+        let work = Work::Render {
+            gpu: false,
+            filter: FilterKind::Fast,
+        };
+        let note = Budget::of(work, [20_000, 20_000])
+            .check(Some(256 * GB), None)
+            .unwrap()
+            .expect("a note");
+        assert!(note.contains("400.0 megapixels"), "{note}");
+        assert!(
+            Budget::of(work, [1280, 720])
+                .check(Some(24 * GB), None)
+                .unwrap()
+                .is_none()
+        );
+    }
+
+    #[test]
+    fn the_gpu_buffer_limit_is_checked_for_gpu_runs_only() {
+        let gpu = Work::Render {
+            gpu: true,
+            filter: FilterKind::Fast,
+        };
+        // lavapipe: 128 MiB (134.2 MB) per binding; 4096×2160 × 16 B = 141.6 MB.
+        assert!(
+            Budget::of(gpu, [3840, 2160])
+                .check(Some(24 * GB), Some(128 << 20))
+                .is_ok()
+        );
+        let e = Budget::of(gpu, [4096, 2160])
+            .check(Some(24 * GB), Some(128 << 20))
+            .unwrap_err();
+        assert!(matches!(e, MemoryError::DeviceBuffer { .. }), "{e}");
+        let cpu = Work::Render {
+            gpu: false,
+            filter: FilterKind::Fast,
+        };
+        assert!(
+            Budget::of(cpu, [4096, 2160])
+                .check(Some(24 * GB), Some(128 << 20))
+                .is_ok()
+        );
+    }
+
+    #[test]
+    fn bytes_read_like_people_write_them() {
+        assert_eq!(bytes(160_000_000_000), "160.0 GB");
+        assert_eq!(bytes(640_000_000), "640 MB");
+        assert_eq!(bytes(12_000), "12 kB");
+    }
+}

@@ -1,0 +1,70 @@
+//! Running the `raygun` binary from tests, and a fresh folder per test for its files.
+
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// The repository root (where the shipped models and replays are).
+pub const ROOT: &str = env!("CARGO_MANIFEST_DIR");
+
+/// `raygun ARGS` in the repository root, with a valid XDG_RUNTIME_DIR.
+pub fn raygun(args: &[&str]) -> Output {
+    raygun_in(Path::new(ROOT), args)
+}
+
+/// `raygun ARGS` in `dir`.
+pub fn raygun_in(dir: &Path, args: &[&str]) -> Output {
+    command(dir, args).output().expect("the raygun binary runs")
+}
+
+/// The command, for tests that need to change it further (environment, stdin, spawn).
+pub fn command(dir: &Path, args: &[&str]) -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_raygun"));
+    c.args(args)
+        .current_dir(dir)
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir());
+    c
+}
+
+/// A new, empty folder for one test (`name` must be unique among the tests of a binary).
+pub fn tmp_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("raygun-test-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+pub fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+pub fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+/// Asserts success, showing standard error otherwise.
+pub fn ok(o: &Output) {
+    assert!(o.status.success(), "{}", stderr(o));
+}
+
+/// Asserts a clean failure (exit 1, an `error:` line, no panic or abort) whose message
+/// contains every one of `needles`; returns standard error.
+pub fn fails_with(o: &Output, needles: &[&str]) -> String {
+    let e = stderr(o);
+    assert_eq!(o.status.code(), Some(1), "exit status {:?}: {e}", o.status);
+    assert!(e.contains("error:"), "{e}");
+    assert!(
+        !e.contains("panicked") && !e.contains("RUST_BACKTRACE"),
+        "{e}"
+    );
+    for n in needles {
+        assert!(e.contains(n), "missing {n:?} in: {e}");
+    }
+    e
+}
+
+/// The path as a `&str` (test paths are UTF-8).
+pub fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
