@@ -16,16 +16,19 @@ pub const ACCUMULATION_BPP: u64 = 20;
 pub const DGI_BPP: u64 = 4;
 /// The CPU scheduler's pixel list at its largest (every pixel listed, one u32 each).
 pub const SCHEDULE_BPP: u64 = 4;
-/// The tracer twin's per-pixel results of one iteration before they are added (RGB, f32).
-pub const TRACE_BPP: u64 = 12;
-/// The picture: the mean or filtered image (f64 RGB from the filter twin, then f32 RGB).
-pub const PICTURE_BPP: u64 = 36;
-/// The fast filter twin's working set beyond its output: the pyramid of normalised
-/// convolutions (RGB and weight per level, 4/3 of the image in all, f64) and its blend inputs.
-pub const FAST_FILTER_BPP: u64 = 64;
-/// Writing an image file: the EXR channels copied out (3 × f32), or the PNG's 8-bit RGB and the
-/// encoder's buffers.
-pub const ENCODE_BPP: u64 = 16;
+/// The picture: the mean or filtered image (f32 RGB).
+pub const PICTURE_BPP: u64 = 12;
+/// The exact filter twin's working set: its f64 RGB output before it becomes the picture, and
+/// its per-pixel weights.
+pub const EXACT_FILTER_BPP: u64 = 32;
+/// The fast filter twin's working set: the pyramid of normalised convolutions (RGB and weight
+/// per level, 4/3 of the image in all, f64), the half-octave blend inputs and its f64 output.
+pub const FAST_FILTER_BPP: u64 = 152;
+/// A full-frame render reads its accumulation out as a copy before the mean image is made.
+pub const READ_BACK_BPP: u64 = 20;
+/// Writing an image file: the EXR channels copied out (f32 each) and the encoder's buffers, per
+/// channel.
+pub const ENCODE_BPP_PER_CHANNEL: u64 = 4;
 /// The GPU's buffers: accumulation (16), counts (4), the frame's DGI (4) and the DGI kernel's
 /// output (4), the pixel list (4), and the filter's output (16) and pyramid (22).
 pub const DEVICE_BPP: u64 = 70;
@@ -51,15 +54,18 @@ pub struct Budget {
 /// What a run needs to do.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Work {
-    /// `render` without a guide, or a guided render (`render --guide`, `view`, `demo`):
-    /// accumulation, DGI, schedule, trace, picture and files.
+    /// A guided render (`render --guide`, `view`, `demo`): accumulation, DGI, schedule, the
+    /// filtered picture.
     Render { gpu: bool, filter: FilterKind },
+    /// `render` without a guide: the accumulation, its read-back and the mean image.
+    FullFrame { gpu: bool },
     /// `dgi`: the DGI and its file.
     Dgi { gpu: bool },
 }
 
 impl Budget {
-    /// The budget of `work` at `size` (pixels of the image).
+    /// The budget of `work` at `size` (pixels of the image): what the largest phase of the run
+    /// holds at once, by stage. `tests/memory.rs` measures the host side.
     #[must_use]
     pub fn of(work: Work, size: [u32; 2]) -> Self {
         let px = u64::from(size[0]) * u64::from(size[1]);
@@ -67,26 +73,37 @@ impl Budget {
         let mut device = Vec::new();
         match work {
             Work::Render { gpu, filter } => {
-                // The GPU keeps the accumulation on the device; reading it back for the picture
-                // holds a host copy as large.
+                // On the GPU the accumulation lives on the device; the picture reads it back,
+                // which holds a host copy as large, and the filter's output comes back too.
                 host.push(("accumulation", ACCUMULATION_BPP * px));
                 host.push(("DGI", DGI_BPP * px));
-                if !gpu {
-                    host.push(("schedule", SCHEDULE_BPP * px));
-                    host.push(("trace", TRACE_BPP * px));
-                }
                 host.push(("picture", PICTURE_BPP * px));
-                if !gpu && filter == FilterKind::Fast {
-                    host.push(("fast filter", FAST_FILTER_BPP * px));
-                }
-                host.push(("file encoding", ENCODE_BPP * px));
                 if gpu {
+                    // The filter's f32 RGBA output comes back, then becomes RGB.
+                    host.push(("filter read-back", 20 * px));
                     device.push(("accumulation, DGI, list, filter", DEVICE_BPP * px));
+                } else {
+                    host.push(("schedule", SCHEDULE_BPP * px));
+                    match filter {
+                        FilterKind::Off => {}
+                        FilterKind::Exact => host.push(("exact filter", EXACT_FILTER_BPP * px)),
+                        FilterKind::Fast => host.push(("fast filter", FAST_FILTER_BPP * px)),
+                    }
+                }
+            }
+            Work::FullFrame { gpu } => {
+                host.push(("accumulation", ACCUMULATION_BPP * px));
+                host.push(("read-back", READ_BACK_BPP * px));
+                host.push(("picture", PICTURE_BPP * px));
+                host.push(("file encoding", 3 * ENCODE_BPP_PER_CHANNEL * px));
+                if gpu {
+                    device.push(("accumulation", (ACCUMULATION_BPP) * px));
                 }
             }
             Work::Dgi { gpu } => {
                 host.push(("DGI", DGI_BPP * px));
-                host.push(("file encoding", ENCODE_BPP * px));
+                // One channel: its copy and the encoder's buffers.
+                host.push(("file encoding", 2 * ENCODE_BPP_PER_CHANNEL * px));
                 if gpu {
                     device.push(("DGI", DGI_BPP * px));
                 }

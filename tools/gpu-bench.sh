@@ -1,29 +1,33 @@
 #!/usr/bin/env bash
-# Every GPU benchmark on a lent GPU machine (the `device` tool), in as few device calls as the
-# 10-minute-per-command limit allows.
+# Every GPU figure in one call on a lent GPU machine (the `device` tool): the adapter, then the
+# benchmarks at 3840×2160, most important first, each within a time budget, the whole run
+# within 7 minutes; everything it wrote packed into one tarball plus one summary file under
+# $OUT (the device returns at most 8 files).
 #
 # Here (the development machine), once:
 #   tools/gpu-bench.sh stage
 # builds the release binary, strips it into .dev/raygun (git-ignored; the device copies tracked
-# files but only *carried* ignored ones, 64 MiB in all), and downloads the Vulkan loader packages
-# into .gl/ (the device image has the NVIDIA driver but no loader).
+# files but only *carried* ignored ones, 64 MiB in all) and downloads the Vulkan loader packages
+# into .gl/ (the GPU machine has the NVIDIA driver but no loader).
 #
-# There, with carry [".dev", ".gl"], one group per call:
-#   bash tools/gpu-bench.sh run quick     # adapter check + `bench all --quick` (~1 min)
-#   bash tools/gpu-bench.sh run kernels   # dgi, trace, schedule, filter at 3840×2160
-#   bash tools/gpu-bench.sh run guided    # the paper's benchmark + Figure 5
-#   bash tools/gpu-bench.sh run all       # `bench all` at full size (report.md, plots)
-# Each writes <group>.log plus the benchmarks' Markdown/JSON/PNG under $OUT; copy the tables
-# into BENCHMARKS.md with the date and the adapter name printed at the top of the log.
+# There, with carry [".dev", ".gl"] and a timeout_s of about 480:
+#   bash tools/gpu-bench.sh run
+# $OUT then holds summary.md (every group: status, seconds, its tables) and gpu-bench.tar.gz
+# (every log, table, JSON and plot). Copy the tables into BENCHMARKS.md with the date and the
+# adapter's name from the summary's first lines.
 #
-# `bench GROUP...` runs the groups without the device setup. With RAYGUN_BIN and
-# RAYGUN_BENCH_EXTRA (appended to every bench command) it smoke-tests this script here, e.g.
-#   OUT=/tmp/gb RAYGUN_BIN=target/debug/raygun RAYGUN_BENCH_EXTRA='--size 32,18' \
-#     tools/gpu-bench.sh bench kernels
-set -euo pipefail
+# Here, to check the script itself on lavapipe at tiny sizes (under a minute with a release
+# binary; tests/gpu_bench_script.rs runs it with the test build):
+#   OUT=/tmp/gb bash tools/gpu-bench.sh smoke
+#
+# Settings (environment): RAYGUN_BIN (default .dev/raygun for run, target/release/raygun or
+# target/debug/raygun for smoke), GPU_BENCH_LIMIT_S (the whole run's budget: 420 for run, 120
+# for smoke), OUT (where the results go; required).
+set -uo pipefail
 cd "$(dirname "$0")/.."
 
 stage() {
+  set -e
   cargo build --release --locked
   mkdir -p .dev
   cp target/release/raygun .dev/raygun
@@ -37,65 +41,160 @@ stage() {
     (cd .gl && apt-get $o download libvulkan1)
   fi
   du -ch .dev .gl | tail -1
-  echo 'staged: run with carry [".dev", ".gl"] and `bash tools/gpu-bench.sh run GROUP`'
+  echo 'staged: run with carry [".dev", ".gl"] and `bash tools/gpu-bench.sh run`'
 }
 
+# The GPU machine: unpack the loader, find the driver, say what the machine is.
 setup_device() {
   for f in .gl/*.deb; do dpkg -x "$f" /; done
   ldconfig
-  if ! .dev/raygun bench dgi --size 64,36 --fov 10 --reps 1 --cpu-reps 1 --backend gpu >/dev/null 2>&1; then
+  if ! "$BIN" bench adapter >/dev/null 2>&1 \
+     || "$BIN" bench adapter 2>/dev/null | grep -q '^adapter: llvmpipe'; then
     export VK_DRIVER_FILES=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
   fi
-  nvidia-smi --query-gpu=name,driver_version,clocks.max.sm,clocks.max.mem --format=csv || true
+  nvidia-smi --query-gpu=name,driver_version,memory.total,clocks.max.sm,clocks.max.mem --format=csv || true
   lscpu | grep -E 'Model name|^CPU\(s\)' || true
 }
 
-run_group() {
-  local out="${OUT:?set by the device tool}"
-  local -a extra
-  read -r -a extra <<<"${RAYGUN_BENCH_EXTRA:-}"
-  rg() { "${RAYGUN_BIN:-.dev/raygun}" bench "$@" "${extra[@]}"; }
-  case "$1" in
-    quick)
-      rg all --quick --backend gpu --out "$out/quick"
-      ;;
-    kernels)
-      rg dgi --backend gpu --out "$out/dgi.md"
-      rg trace --backend gpu --scene builtin:cornell,builtin:city --out "$out/trace.md"
-      rg schedule --backend gpu --order coherent,scattered --out "$out/schedule.md"
-      rg filter --backend gpu --out "$out/filter.md"
-      ;;
-    guided)
-      rg guided --backend gpu --scene builtin:cornell,builtin:city \
-        --order coherent,scattered --plot "$out/fig5.png" --out "$out/guided.md"
-      ;;
-    all)
-      rg all --backend gpu --out "$out/all"
-      ;;
-    *)
-      echo "unknown group '$1' (quick | kernels | guided | all)" >&2
-      exit 2
+# The groups, most important first: NAME BUDGET_SECONDS (the H200's; smoke mode has its own).
+BENCH_GROUPS=(adapter dgi schedule trace guided filter all-quick all wall)
+declare -A BUDGET=([adapter]=20 [dgi]=60 [schedule]=30 [trace]=90 [guided]=120 [filter]=45
+  [all-quick]=60 [all]=150 [wall]=60)
+declare -A SMOKE_BUDGET=([adapter]=10 [dgi]=20 [schedule]=20 [trace]=20 [guided]=40
+  [filter]=30 [all-quick]=60 [all]=60 [wall]=20)
+
+# One group's command line (printed, then run by `run_group`), for size S.
+group_command() {
+  local g="$1" d="$2"
+  local s="$SIZE"
+  case "$g" in
+    adapter) echo "$BIN bench adapter --json --out $d/adapter.json" ;;
+    dgi) echo "$BIN bench dgi --backend gpu --size $s --fov 10,30,60 --reps $REPS --cpu-reps 1 --out $d/dgi.md" ;;
+    schedule) echo "$BIN bench schedule --backend gpu --size $s --fov 10,30,60 --order coherent,scattered --reps $REPS --cpu-reps 1 --out $d/schedule.md" ;;
+    trace) echo "$BIN bench trace --backend gpu --size $s --scene builtin:cornell,$CITY --spp $SPP --out $d/trace.md" ;;
+    guided) echo "$BIN bench guided --backend gpu --size $s --scene builtin:cornell --fov 10,20,30,40,50,60 --iterations $ITERATIONS --reference-spp $REFERENCE_SPP --plot $d/fig5.png --out $d/guided.md" ;;
+    filter) echo "$BIN bench filter --backend gpu --size $s --fov 10,60 --time-k-max 8,16,32 --reps $REPS --out $d/filter.md" ;;
+    all-quick) echo "$BIN bench all --quick --backend gpu $ALL_QUICK_SIZE --out $d" ;;
+    all) echo "$BIN bench all --backend gpu $ALL_SIZE --out $d" ;;
+    wall)
+      # HORNET's native canvas through the wall camera, once the build has one.
+      if "$BIN" bench guided --help 2>/dev/null | grep -q -- '--eye'; then
+        echo "$BIN bench guided --backend gpu --camera wall --eye 0,0,1 --size $WALL_SIZE --scene builtin:cornell --fov 10,60 --iterations $ITERATIONS --reference-spp 1 --out $d/wall.md"
+      fi
       ;;
   esac
 }
 
-case "${1:-}" in
-  stage) stage ;;
-  run)
-    shift
-    [ $# -gt 0 ] || { echo "usage: tools/gpu-bench.sh run quick|kernels|guided|all ..." >&2; exit 2; }
-    setup_device 2>&1 | tee "${OUT:?}/setup.log"
-    for g in "$@"; do
-      echo "== $g ($(date -u +%FT%TZ))"
-      run_group "$g" 2>&1 | tee "$OUT/$g.log"
+# Runs the groups in order within the run's budget; writes $WORK/status.tsv.
+run_groups() {
+  local start now left budget status rc t0 t1 cmd
+  start=$(date +%s)
+  : >"$WORK/status.tsv"
+  for g in "${BENCH_GROUPS[@]}"; do
+    local d="$WORK/$g"
+    mkdir -p "$d"
+    budget=${BUDGETS[$g]}
+    now=$(date +%s)
+    left=$((LIMIT - (now - start)))
+    cmd=$(group_command "$g" "$d")
+    if [ -z "$cmd" ]; then
+      status="not in this build"
+      echo "== $g: $status" | tee "$d/$g.log"
+      printf '%s\t%s\t0\n' "$g" "$status" >>"$WORK/status.tsv"
+      continue
+    fi
+    if [ "$left" -lt "$budget" ]; then
+      status="skipped: ${left} s left, its budget is ${budget} s"
+      echo "== $g: $status" | tee "$d/$g.log"
+      printf '%s\t%s\t0\n' "$g" "$status" >>"$WORK/status.tsv"
+      continue
+    fi
+    echo "== $g ($(date -u +%FT%TZ)), budget ${budget} s: $cmd" | tee "$d/$g.log"
+    t0=$(date +%s)
+    # shellcheck disable=SC2086
+    timeout --signal=TERM --kill-after=5 "$budget" $cmd >>"$d/$g.log" 2>&1
+    rc=$?
+    t1=$(date +%s)
+    case "$rc" in
+      0) status=ok ;;
+      124 | 137) status="overran its ${budget} s budget (stopped)" ;;
+      *) status="failed (exit $rc)" ;;
+    esac
+    echo "== $g: $status in $((t1 - t0)) s" | tee -a "$d/$g.log"
+    printf '%s\t%s\t%s\n' "$g" "$status" "$((t1 - t0))" >>"$WORK/status.tsv"
+  done
+}
+
+# summary.md: the machine, every group's status and time, and the tables each wrote.
+write_summary() {
+  local out="$1"
+  {
+    echo "# GPU benchmarks, $(date -u +%F) ($MODE)"
+    echo
+    if [ -s "$WORK/adapter/adapter.json" ]; then
+      grep -E '"(name|backend|driver|driver_info|subgroup_min_size|subgroup_max_size|cpu)"' \
+        "$WORK/adapter/adapter.json" | sed 's/^ */- /'
+    else
+      echo "- adapter: not recorded"
+    fi
+    [ -s "$WORK/setup.log" ] && sed 's/^/    /' "$WORK/setup.log"
+    echo
+    echo "| group | status | seconds |"
+    echo "|---|---|---|"
+    while IFS=$'\t' read -r g st secs; do echo "| $g | $st | $secs |"; done <"$WORK/status.tsv"
+    for g in "${BENCH_GROUPS[@]}"; do
+      for f in "$WORK/$g"/*.md; do
+        [ -s "$f" ] || continue
+        echo
+        echo "## $g: $(basename "$f")"
+        echo
+        cat "$f"
+      done
     done
-    ;;
-  bench)
-    shift
-    for g in "$@"; do run_group "$g" 2>&1 | tee "${OUT:?}/$g.log"; done
-    ;;
-  *)
-    echo "usage: tools/gpu-bench.sh stage | run GROUP... | bench GROUP..." >&2
-    exit 2
-    ;;
-esac
+  } >"$out/summary.md"
+  tar -czf "$out/gpu-bench.tar.gz" -C "$WORK" .
+}
+
+main() {
+  MODE="${1:-}"
+  case "$MODE" in
+    stage) stage; return ;;
+    run)
+      BIN="${RAYGUN_BIN:-.dev/raygun}"
+      LIMIT="${GPU_BENCH_LIMIT_S:-420}"
+      SIZE=3840,2160 REPS=20 SPP=4 ITERATIONS=100 REFERENCE_SPP=256 CITY=builtin:city
+      ALL_QUICK_SIZE="" ALL_SIZE="" WALL_SIZE=native
+      declare -gA BUDGETS
+      for g in "${BENCH_GROUPS[@]}"; do BUDGETS[$g]=${BUDGET[$g]}; done
+      ;;
+    smoke)
+      if [ -n "${RAYGUN_BIN:-}" ]; then BIN="$RAYGUN_BIN"
+      elif [ -x target/release/raygun ]; then BIN=target/release/raygun
+      else BIN=target/debug/raygun; fi
+      LIMIT="${GPU_BENCH_LIMIT_S:-120}"
+      SIZE=32,18 REPS=1 SPP=1 ITERATIONS=2 REFERENCE_SPP=2 CITY=builtin:city-small
+      ALL_QUICK_SIZE="--size 16,9 --scene builtin:cornell" ALL_SIZE="--size 24,12 --scene builtin:cornell"
+      WALL_SIZE=64,26
+      declare -gA BUDGETS
+      for g in "${BENCH_GROUPS[@]}"; do BUDGETS[$g]=${SMOKE_BUDGET[$g]}; done
+      export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-/tmp}"
+      ;;
+    *)
+      echo "usage: tools/gpu-bench.sh stage | run | smoke   (run and smoke need OUT)" >&2
+      exit 2
+      ;;
+  esac
+  local out="${OUT:?set OUT to the folder for the results}"
+  mkdir -p "$out"
+  WORK="$(mktemp -d)/gpu-bench"
+  mkdir -p "$WORK"
+  if [ "$MODE" = run ]; then
+    setup_device >"$WORK/setup.log" 2>&1
+  fi
+  run_groups
+  write_summary "$out"
+  echo "wrote $out/summary.md and $out/gpu-bench.tar.gz"
+  cat "$WORK/status.tsv"
+}
+
+main "$@"

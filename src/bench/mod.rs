@@ -47,3 +47,18 @@ pub fn cpu_threads() -> String {
         std::env::consts::ARCH
     )
 }
+
+/// The CPU model (Linux: `model name` of /proc/cpuinfo) and [`cpu_threads`].
+#[must_use]
+pub fn cpu_description() -> String {
+    let model = std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|t| {
+            t.lines()
+                .find(|l| l.starts_with("model name"))
+                .and_then(|l| l.split_once(':'))
+                .map(|(_, m)| m.trim().to_owned())
+        })
+        .unwrap_or_else(|| "unknown CPU".to_owned());
+    format!("{model}, {}", cpu_threads())
+}

@@ -11,6 +11,9 @@ use crate::roi::dgi::{Falloff, Surface};
 
 #[derive(Clone, Debug, clap::Subcommand)]
 pub enum BenchCommand {
+    /// The GPU adapter the benchmarks run on: name, API, driver, subgroup sizes, limits and
+    /// features (every adapter found, the chosen one first), and this machine's CPU.
+    Adapter(AdapterArgs),
     /// DGI time per metric and backend, and the cheaper metrics' error against the exact one.
     Dgi(DgiBenchArgs),
     /// Filter time (exact and fast) and error against a reference inside and outside the ROI.
@@ -27,6 +30,60 @@ pub enum BenchCommand {
     /// the paper's table and the targets beside ours, into DIR: report.md, report.json,
     /// fig5.png, dgi_metrics.png, convergence.png.
     All(AllBenchArgs),
+}
+
+#[derive(Clone, Debug, clap::Args)]
+pub struct AdapterArgs {
+    /// Print JSON instead of text.
+    #[arg(long)]
+    pub json: bool,
+    /// Also write the output to this file.
+    #[arg(long, value_name = "FILE")]
+    pub out: Option<PathBuf>,
+}
+
+/// `raygun bench adapter`.
+fn run_adapter(args: &AdapterArgs) -> anyhow::Result<()> {
+    let chosen = crate::gpu::GpuContext::new().map(|ctx| ctx.report());
+    let all = crate::gpu::list_adapters();
+    let report = serde_json::json!({
+        "chosen": chosen.as_ref().ok(),
+        "error": chosen.as_ref().err().map(ToString::to_string),
+        "adapters": all,
+        "cpu": crate::bench::cpu_description(),
+    });
+    let text = if args.json {
+        serde_json::to_string_pretty(&report)?
+    } else {
+        let mut t = String::new();
+        match &chosen {
+            Ok(c) => {
+                t += &format!(
+                    "adapter: {} ({}, {}), driver {} {}\nsubgroup size {}–{}\n",
+                    c["name"].as_str().unwrap_or("?"),
+                    c["backend"].as_str().unwrap_or("?"),
+                    c["device_type"].as_str().unwrap_or("?"),
+                    c["driver"].as_str().unwrap_or("?"),
+                    c["driver_info"].as_str().unwrap_or("?"),
+                    c["subgroup_min_size"],
+                    c["subgroup_max_size"]
+                );
+                for (k, v) in c["limits"].as_object().into_iter().flatten() {
+                    t += &format!("limit {k} = {v}\n");
+                }
+                for (k, v) in c["features"].as_object().into_iter().flatten() {
+                    t += &format!("feature {k}: {v}\n");
+                }
+            }
+            Err(e) => t += &format!("no adapter: {e}\n"),
+        }
+        for a in &all {
+            t += &format!("found: {a}\n");
+        }
+        t += &format!("cpu: {}", report["cpu"].as_str().unwrap_or("?"));
+        t
+    };
+    print_and_save(&text, args.out.as_deref())
 }
 
 #[derive(Clone, Debug, clap::Args)]
@@ -271,6 +328,7 @@ pub struct DgiBenchArgs {
 /// figures meaningless, before any work.
 fn check_before(cmd: &BenchCommand) -> anyhow::Result<()> {
     let file_out = match cmd {
+        BenchCommand::Adapter(a) => a.out.as_deref(),
         BenchCommand::Dgi(a) => a.out.as_deref(),
         BenchCommand::Filter(a) => a.out.as_deref(),
         BenchCommand::Schedule(a) => a.out.as_deref(),
@@ -306,6 +364,7 @@ fn check_before(cmd: &BenchCommand) -> anyhow::Result<()> {
 pub fn run(cmd: &BenchCommand) -> anyhow::Result<()> {
     check_before(cmd)?;
     match cmd {
+        BenchCommand::Adapter(args) => run_adapter(args),
         BenchCommand::Filter(args) => crate::cli::filter::run_bench(args),
         BenchCommand::Schedule(args) => crate::bench::schedule::run_command(args),
         BenchCommand::Trace(args) => run_trace_bench(args),

@@ -275,14 +275,17 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
         None => None,
     };
     let backend = Backend::select(args.backend)?;
-    check_memory(
+    let work = if plan.is_some() {
         Work::Render {
             gpu: backend.is_gpu(),
             filter: filter.kind,
-        },
-        args.size,
-        &backend,
-    )?;
+        }
+    } else {
+        Work::FullFrame {
+            gpu: backend.is_gpu(),
+        }
+    };
+    check_memory(work, args.size, &backend)?;
     if let Some(plan) = &plan {
         let scene = load_scene(&args.scene, args.env.as_deref())?;
         let settings = settings(args, &scene)?;

@@ -136,12 +136,35 @@ pub struct GpuContext {
     pub limits: wgpu::Limits,
     /// Whether GPU timestamp queries are enabled (benchmarks use them for per-kernel times).
     pub timestamps: bool,
+    /// What the adapter supports (not all of it is enabled).
+    pub supported: wgpu::Features,
 }
 
 impl fmt::Debug for GpuContext {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(&self.describe())
     }
+}
+
+/// Every adapter wgpu finds, as "NAME (API, TYPE, driver DRIVER INFO)".
+#[must_use]
+pub fn list_adapters() -> Vec<String> {
+    pollster::block_on(async {
+        let instance =
+            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        instance
+            .enumerate_adapters(wgpu::Backends::all())
+            .await
+            .iter()
+            .map(|a| {
+                let i = a.get_info();
+                format!(
+                    "{} ({:?}, {:?}, driver {} {})",
+                    i.name, i.backend, i.device_type, i.driver, i.driver_info
+                )
+            })
+            .collect()
+    })
 }
 
 /// Ranks adapters: real GPUs first, then virtual, then software rasterisers; among equals the
@@ -264,6 +287,7 @@ impl GpuContext {
             info,
             limits,
             timestamps,
+            supported,
         })
     }
 
@@ -279,6 +303,43 @@ impl GpuContext {
                  `apt-get install mesa-vulkan-drivers`."
             ),
         }
+    }
+
+    /// What a benchmark run should record about the adapter: name, API, driver, subgroup
+    /// sizes, the limits raygun's kernels depend on and the features that matter to them.
+    #[must_use]
+    pub fn report(&self) -> serde_json::Value {
+        let l = &self.limits;
+        let has = |f: wgpu::Features| self.supported.contains(f);
+        serde_json::json!({
+            "name": self.info.name,
+            "backend": format!("{:?}", self.info.backend),
+            "device_type": format!("{:?}", self.info.device_type),
+            "driver": self.info.driver,
+            "driver_info": self.info.driver_info,
+            "vendor": self.info.vendor,
+            "device": self.info.device,
+            "subgroup_min_size": self.info.subgroup_min_size,
+            "subgroup_max_size": self.info.subgroup_max_size,
+            "limits": {
+                "max_storage_buffer_binding_size": l.max_storage_buffer_binding_size,
+                "max_buffer_size": l.max_buffer_size,
+                "max_storage_buffers_per_shader_stage": l.max_storage_buffers_per_shader_stage,
+                "max_compute_workgroup_size_x": l.max_compute_workgroup_size_x,
+                "max_compute_invocations_per_workgroup": l.max_compute_invocations_per_workgroup,
+                "max_compute_workgroups_per_dimension": l.max_compute_workgroups_per_dimension,
+                "max_compute_workgroup_storage_size": l.max_compute_workgroup_storage_size,
+            },
+            "features": {
+                "timestamp_query": has(wgpu::Features::TIMESTAMP_QUERY),
+                "timestamp_query_inside_passes": has(wgpu::Features::TIMESTAMP_QUERY_INSIDE_PASSES),
+                "subgroup": has(wgpu::Features::SUBGROUP),
+                "shader_f64": has(wgpu::Features::SHADER_F64),
+                "shader_f16": has(wgpu::Features::SHADER_F16),
+                "shader_int64": has(wgpu::Features::SHADER_INT64),
+            },
+            "timestamps_enabled": self.timestamps,
+        })
     }
 
     /// "NAME (API, driver DRIVER INFO)".

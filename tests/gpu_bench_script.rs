@@ -1,0 +1,120 @@
+//! `tools/gpu-bench.sh smoke`: the one-call GPU benchmark script, run here on lavapipe at tiny
+//! sizes with the test build. What comes back from a GPU machine is at most 8 files, so the
+//! script must leave exactly its summary and one tarball, and the tarball must hold every
+//! group's log and tables.
+
+use std::path::Path;
+use std::process::Command;
+
+const GROUPS: [&str; 9] = [
+    "adapter",
+    "dgi",
+    "schedule",
+    "trace",
+    "guided",
+    "filter",
+    "all-quick",
+    "all",
+    "wall",
+];
+
+fn smoke(out: &Path, limit_s: Option<u32>) -> std::process::Output {
+    let mut c = Command::new("bash");
+    c.args(["tools/gpu-bench.sh", "smoke"])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .env("OUT", out)
+        .env("RAYGUN_BIN", env!("CARGO_BIN_EXE_raygun"))
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir());
+    if let Some(l) = limit_s {
+        c.env("GPU_BENCH_LIMIT_S", l.to_string());
+    }
+    c.output().unwrap()
+}
+
+fn fresh(name: &str) -> std::path::PathBuf {
+    let d = std::env::temp_dir().join(format!("raygun-gpu-bench-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+#[test]
+fn the_smoke_run_leaves_a_summary_and_a_tarball_that_names_every_group() {
+    let out = fresh("smoke");
+    let o = smoke(&out, None);
+    let log = String::from_utf8_lossy(&o.stdout).into_owned() + &String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{log}");
+    let mut files: Vec<String> = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    files.sort();
+    assert_eq!(files, ["gpu-bench.tar.gz", "summary.md"]);
+    let unpacked = out.join("unpacked");
+    std::fs::create_dir_all(&unpacked).unwrap();
+    let st = Command::new("tar")
+        .args(["-xzf"])
+        .arg(out.join("gpu-bench.tar.gz"))
+        .arg("-C")
+        .arg(&unpacked)
+        .status()
+        .unwrap();
+    assert!(st.success());
+    let summary = std::fs::read_to_string(out.join("summary.md")).unwrap();
+    assert!(
+        summary.contains("llvmpipe"),
+        "the adapter is named:\n{summary}"
+    );
+    for g in GROUPS {
+        assert!(
+            unpacked.join(g).join(format!("{g}.log")).exists(),
+            "{g}: no log"
+        );
+        let row = summary
+            .lines()
+            .find(|l| l.starts_with(&format!("| {g} |")))
+            .unwrap_or_else(|| panic!("{g} missing from the summary:\n{summary}"));
+        // Every group this build has ran to completion; the wall camera may not exist yet.
+        assert!(
+            row.contains("| ok |") || (g == "wall" && row.contains("not in this build")),
+            "{row}"
+        );
+    }
+    for table in [
+        "dgi/dgi.md",
+        "schedule/schedule.md",
+        "trace/trace.md",
+        "guided/guided.md",
+        "filter/filter.md",
+        "all/report.md",
+        "all-quick/report.md",
+        "adapter/adapter.json",
+    ] {
+        let p = unpacked.join(table);
+        assert!(
+            std::fs::metadata(&p).is_ok_and(|m| m.len() > 0),
+            "{table} missing or empty"
+        );
+    }
+    assert!(unpacked.join("guided/fig5.png").exists());
+    std::fs::remove_dir_all(&out).ok();
+}
+
+#[test]
+fn groups_that_would_overrun_the_budget_are_skipped_and_said_so() {
+    let out = fresh("budget");
+    // 25 s: the first groups fit, the full report's 60 s budget does not.
+    let o = smoke(&out, Some(25));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let summary = std::fs::read_to_string(out.join("summary.md")).unwrap();
+    let row = |g: &str| {
+        summary
+            .lines()
+            .find(|l| l.starts_with(&format!("| {g} |")))
+            .unwrap()
+            .to_owned()
+    };
+    assert!(row("adapter").contains("| ok |"), "{summary}");
+    assert!(row("all").contains("skipped"), "{}", row("all"));
+    assert!(row("all").contains("budget"), "{}", row("all"));
+    std::fs::remove_dir_all(&out).ok();
+}
