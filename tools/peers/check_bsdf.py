@@ -45,14 +45,35 @@ def gltf_eval(base, metallic, alpha, specular, wo, wi):
 
 
 def gltf_albedo(mat: scenes.Material, theta_o: float, n: int, rng) -> np.ndarray:
+    """Directional albedo of raygun's BSDF by one-sample MIS: half the directions cosine-
+    weighted, half from GGX normals (D cos theta_h), weighted by the mixture density."""
     wo = np.array([math.sin(theta_o), 0, math.cos(theta_o)])
-    u1, u2 = rng.random(n), rng.random(n)
-    z = u1
-    r = np.sqrt(np.maximum(1 - z * z, 0))
-    wi = np.stack([r * np.cos(2 * np.pi * u2), r * np.sin(2 * np.pi * u2), z], 1)
     alpha = max(mat.roughness**2, scenes.MIN_ALPHA)
-    f = gltf_eval(mat.base_color[:3], mat.metallic, alpha, mat.specular, wo, wi)
-    return (f * z[:, None]).mean(0) * 2 * math.pi
+    a2 = alpha * alpha
+    u1, u2, u3 = rng.random(n), rng.random(n), rng.random(n)
+    phi = 2 * np.pi * u2
+    # cosine hemisphere
+    r = np.sqrt(u1)
+    wc = np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(np.maximum(1 - u1, 0))], 1)
+    # GGX normal, reflected
+    ch = np.sqrt(np.maximum((1 - u1) / (1 + (a2 - 1) * u1), 0))
+    sh = np.sqrt(np.maximum(1 - ch * ch, 0))
+    hv = np.stack([sh * np.cos(phi), sh * np.sin(phi), ch], 1)
+    wg = 2 * (hv @ wo)[:, None] * hv - wo[None, :]
+    wi = np.where((u3 < 0.5)[:, None], wc, wg)
+    cos_i = wi[:, 2]
+    h = wo[None, :] + wi
+    h /= np.maximum(np.linalg.norm(h, axis=1, keepdims=True), 1e-12)
+    noh = np.maximum(h[:, 2], 0)
+    voh = np.maximum(h @ wo, 1e-7)
+    dd = noh * noh * (a2 - 1) + 1
+    d = a2 / (math.pi * dd * dd)
+    pdf = 0.5 * np.maximum(cos_i, 0) / math.pi + 0.5 * d * noh / (4 * voh)
+    ok = (cos_i > 0) & (pdf > 0)
+    f = gltf_eval(mat.base_color[:3], mat.metallic, alpha, mat.specular, wo,
+                  np.where(ok[:, None], wi, np.array([0, 0, 1.0])))
+    w = np.where(ok, np.maximum(cos_i, 0) / np.where(ok, pdf, 1), 0)
+    return (f * w[:, None]).mean(0)
 
 
 def mitsuba_albedo(mi, dr, bsdf, theta_o: float, n: int) -> np.ndarray:

@@ -48,7 +48,11 @@ first). The mapping, and where it is exact:
   = (j + 0.5) / W, i.e. half a turn from raygun's, and row i's sample at v = i / (H - 1)
   (rows from pole to pole), interpolating bilinearly. So the Mitsuba map is raygun's
   resampled on Mitsuba's grid, `ENV_UPSAMPLE` times finer, each sample the raygun texel its
-  direction falls in: the same function except within 1/(2 ENV_UPSAMPLE) texel of a texel edge.
+  direction falls in, and a sample lying exactly on a raygun row edge the mean of the two
+  rows (`mitsuba_envmap_texels`): the same function except for a symmetric linear ramp
+  within 1/ENV_UPSAMPLE texel of each texel edge. (Without the edge means every row edge
+  moved 1/(2 ENV_UPSAMPLE) texel towards the zenith: +1 % in the directly seen sky, +4 % at
+  the horizon in the envmap reference.)
 * Integrator: `path`, max_depth = raygun's --max-depth + 1, rr_depth = 4 (raygun starts
   Russian roulette after the BSDF sample of its fourth vertex, depth index 3, with the same
   probability min(max(throughput), 0.95); Mitsuba increments depth before its test
@@ -317,11 +321,17 @@ def _texture_dict(mat: Material, scale: np.ndarray) -> dict:
     }
 
 
-def bsdf_dict(mat: Material) -> dict:
-    """The Mitsuba BSDF for a raygun material (see the module docstring), two-sided."""
+def bsdf_dict(mat: Material, model: str = "native") -> dict:
+    """The Mitsuba BSDF for a raygun material (see the module docstring), two-sided.
+    model "gltf": raygun's own BSDF as the Python plugin of gltf_bsdf.py (vectorised
+    variants only; `gltf_bsdf.register()` first)."""
     base = mat.base_color[:3]
     refl = _texture_dict(mat, base) if mat.texture is not None else _rgb(base)
     alpha = max(mat.roughness**2, MIN_ALPHA)
+    if model == "gltf":
+        return {"type": "twosided", "bsdf": {
+            "type": "gltf", "base_color": refl, "metallic": float(mat.metallic),
+            "alpha": float(alpha), "specular": float(mat.specular)}}
     diffuse = {"type": "diffuse", "reflectance": refl}
     if mat.specular > 0:
         f0 = 0.04 * mat.specular
@@ -365,8 +375,10 @@ def bsdf_dict(mat: Material) -> dict:
     return {"type": "twosided", "bsdf": inner}
 
 
-def material_model(mat: Material) -> str:
+def material_model(mat: Material, model: str = "native") -> str:
     """A one-line statement of how exactly the material maps (for the reference JSON)."""
+    if model == "gltf":
+        return "gltf plugin (raygun's BSDF formulas, exact)"
     if mat.metallic <= 0 and mat.specular <= 0:
         return "diffuse (exact)"
     if mat.metallic >= 1:
@@ -396,16 +408,25 @@ def environment_to_mitsuba(env) -> dict:
 
 def mitsuba_envmap_texels(tex: np.ndarray, up: int = ENV_UPSAMPLE) -> np.ndarray:
     """Resamples a raygun equirectangular map (nearest-texel function) onto Mitsuba's envmap
-    grid: W' = up W columns at u_m = (j + 0.5) / W', H' = up H + 1 rows at v = i / (H' - 1);
-    raygun's u = u_m + 0.5 (mod 1)."""
+    grid: W' = up W columns at u_m = (j + 0.5) / W' (raygun's u = u_m + 0.5 mod 1), so raygun's
+    column edges fall midway between two samples; H' = up H + 1 rows at v = i / (H' - 1), so
+    raygun's row edges fall on a sample, which gets the mean of the two rows it separates.
+    Mitsuba's bilinear interpolation then ramps symmetrically across every texel edge (over
+    1/up of a texel) and the map's integral is raygun's."""
     h, w, _ = tex.shape
     wm, hm = up * w, up * h + 1
     um = (np.arange(wm) + 0.5) / wm
     u = np.mod(um + 0.5, 1.0)
-    v = np.arange(hm) / (hm - 1)
     col = np.minimum((u * w).astype(np.int64), w - 1)
-    row = np.minimum((v * h).astype(np.int64), h - 1)
-    return np.ascontiguousarray(tex[row][:, col], np.float32)
+    cols = tex[:, col]  # (h, wm, 3)
+    rows = np.empty((hm, wm, 3), np.float32)
+    for i in range(hm):
+        r, edge = divmod(i, up)
+        if edge == 0 and 0 < r < h:
+            rows[i] = 0.5 * (cols[r - 1] + cols[r])
+        else:
+            rows[i] = cols[min(r, h - 1)]
+    return np.ascontiguousarray(rows, np.float32)
 
 
 def equirect_direction(u: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -483,9 +504,18 @@ def mitsuba_dict(
     env=None,
     seed: int = 0,
     integrator: dict | None = None,
+    model: str = "native",
 ) -> dict:
-    """The Mitsuba 3 scene dict; `max_depth` in raygun's convention (path vertices)."""
+    """The Mitsuba 3 scene dict; `max_depth` in raygun's convention (path vertices).
+    model: "native" (Mitsuba's BSDFs, the mapping above) or "gltf" (gltf_bsdf.py)."""
     import mitsuba as mi
+
+    if model == "gltf":
+        try:
+            from . import gltf_bsdf
+        except ImportError:  # pragma: no cover
+            import gltf_bsdf  # type: ignore
+        gltf_bsdf.register()
 
     cam = scene.camera(camera)
     lo, hi = scene.bounds()
@@ -529,7 +559,7 @@ def mitsuba_dict(
             copies.append(_reversed_copy(prim, gap))
         for j, pr in enumerate(copies):
             props = mi.Properties()
-            props["bsdf"] = mi.load_dict(bsdf_dict(mat))
+            props["bsdf"] = mi.load_dict(bsdf_dict(mat, model))
             if emissive:
                 props["emitter"] = mi.load_dict({"type": "area", "radiance": _rgb(mat.emission)})
             d[f"shape_{i}_{j}"] = _mesh(mi, f"{pr.name}", pr, props)
