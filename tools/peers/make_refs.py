@@ -2,8 +2,10 @@
 """Renders the peer reference suite with Mitsuba 3 into tests/data/peers/.
 
 For each scene of SUITE: builds the scene file where it is generated (tests/data/peers/scenes/),
-converts it with scenes.py, renders K independent images (seeds 0..K-1) with the variant named
-(scalar_rgb by default, the issue's choice), and writes
+converts it with scenes.py, renders K independent images (seeds 0..K-1) with the scene's
+variant (scalar_rgb, the issue's choice, for every scene Mitsuba's own BSDFs model; llvm_ad_rgb
+for the `*-gltf` scenes, whose BSDF is the Python plugin gltf_bsdf.py - llvm_ad_rgb and
+scalar_rgb agree within the MC error on the Lambert scenes, README.md), and writes
 
 * `<name>.exr`: the mean of the K renders, linear RGB float32 (ZIP-compressed scanlines);
 * `<name>.json`: everything needed to reproduce and to compare: scene file and its SHA-256,
@@ -16,6 +18,8 @@ converts it with scenes.py, renders K independent images (seeds 0..K-1) with the
     python3 tools/peers/make_refs.py                  # all scenes
     python3 tools/peers/make_refs.py --only glossy    # one
     python3 tools/peers/make_refs.py --quick          # a smoke run (4 renders of 16 spp, /tmp)
+    python3 tools/peers/make_refs.py --only cornell-lambert-env --variant llvm_ad_rgb \
+        --out /tmp/val        # a cross-check: compare.py the reference against /tmp/val/*.exr
 
 Install: `pip install mitsuba numpy` (3.9.1 used). See README.md beside this file.
 """
