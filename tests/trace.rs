@@ -20,6 +20,7 @@ fn lambert(rho: f32, emission: Vec3) -> Material {
         roughness: 1.0,
         specular: 0.0,
         emission,
+        double_sided: true,
     }
 }
 
@@ -359,6 +360,141 @@ fn glowing_room_converges_to_the_neumann_series_on_both_backends() {
     assert_converges_to(&gpu, |_| expected, "GPU glowing room");
 }
 
+/// The glowing room with paths of at most `max_depth` vertices: the series stops at ρᴺ, the
+/// last term coming from the last vertex's light sample alone (no BSDF ray follows it). A light
+/// sample weighted by MIS there would lose the BSDF strategy's share of that term: at depth 1
+/// the image would be darker than Le (1 + ρ). No Russian roulette at these depths.
+#[test]
+fn glowing_room_at_depths_one_to_three_converges_to_the_truncated_series() {
+    let scene = glowing_room();
+    let ctx = GpuContext::for_tests();
+    let (le, rho) = (0.25f32, 0.5f32);
+    for n in 1..=3u32 {
+        let expected: f32 = (0..=n).map(|k| le * rho.powi(k as i32)).sum();
+        let s = settings(&scene, 24, 24, 7 + n, n);
+        let cpu = render_on_cpu(&scene, &s, 64).pooled(8);
+        assert_converges_to(&cpu, |_| expected, &format!("CPU glowing room, depth {n}"));
+        // Power: the next term's worth of error is told apart.
+        let off = expected - le * rho.powi(n as i32) * 0.5;
+        assert!(converges_to(&cpu, |_| off, "CPU, half the last term").is_err());
+        let gpu = render_gpu(&ctx, &scene, &s, 64).pooled(8);
+        assert_converges_to(&gpu, |_| expected, &format!("GPU glowing room, depth {n}"));
+    }
+}
+
+/// A quad at z = 0 with its front towards −z, seen from z = +3 (from behind), in front of a
+/// uniform environment; and a diffuse floor below a small quad lamp.
+fn quad(z: f32, facing_camera: bool, material: u32) -> Vec<Triangle> {
+    let (a, b, c, d) = (
+        Vec3::new(-1.0, -1.0, z),
+        Vec3::new(1.0, -1.0, z),
+        Vec3::new(1.0, 1.0, z),
+        Vec3::new(-1.0, 1.0, z),
+    );
+    // Counter-clockwise seen from +z: the front faces +z.
+    if facing_camera {
+        vec![flat([a, b, c], material), flat([a, c, d], material)]
+    } else {
+        vec![flat([a, c, b], material), flat([a, d, c], material)]
+    }
+}
+
+#[test]
+fn a_single_sided_emitter_seen_from_behind_is_not_there() {
+    let ctx = GpuContext::for_tests();
+    let lamp = |double_sided| Material {
+        double_sided,
+        ..lambert(0.5, Vec3::splat(5.0))
+    };
+    let scene = |double_sided| Scene {
+        triangles: quad(0.0, false, 0),
+        materials: vec![lamp(double_sided)],
+        cameras: vec![camera(Vec3::new(0.0, 0.0, 3.0), Vec3::ZERO, 20.0)],
+        environment: Environment::Constant(Vec3::splat(0.3)),
+        ..Default::default()
+    };
+    // The camera sees only the quad's back: one-sided, it sees the environment through it,
+    // exactly (every sample is the environment's radiance).
+    let one = scene(false);
+    let s = settings(&one, 16, 16, 5, 4);
+    for (acc, label) in [
+        (render_on_cpu(&one, &s, 16), "CPU"),
+        (render_gpu(&ctx, &one, &s, 16), "GPU"),
+    ] {
+        let worst = acc
+            .mean_image()
+            .iter()
+            .map(|c| (luminance(*c) - 0.3).abs())
+            .fold(0.0, f32::max);
+        assert!(worst < 1e-5, "{label}: one-sided lamp from behind: {worst}");
+    }
+    // Two-sided, it glows from the back as well.
+    let two = scene(true);
+    let acc = render_on_cpu(&two, &settings(&two, 16, 16, 5, 4), 8);
+    assert!(luminance(acc.mean(8 * 16 + 8)) > 4.0);
+}
+
+#[test]
+fn a_single_sided_lamp_lights_only_what_its_front_faces() {
+    let ctx = GpuContext::for_tests();
+    let floor = |m| {
+        let (a, b, c, d) = (
+            Vec3::new(-2.0, 0.0, -2.0),
+            Vec3::new(2.0, 0.0, -2.0),
+            Vec3::new(2.0, 0.0, 2.0),
+            Vec3::new(-2.0, 0.0, 2.0),
+        );
+        vec![flat([a, c, b], m), flat([a, d, c], m)]
+    };
+    // A 0.4 m lamp 1 m above the floor, its front up (away) or down (towards it).
+    let lamp = |down: bool| -> Vec<Triangle> {
+        let (a, b, c, d) = (
+            Vec3::new(-0.2, 1.0, -0.2),
+            Vec3::new(0.2, 1.0, -0.2),
+            Vec3::new(0.2, 1.0, 0.2),
+            Vec3::new(-0.2, 1.0, 0.2),
+        );
+        if down {
+            vec![flat([a, b, c], 1), flat([a, c, d], 1)]
+        } else {
+            vec![flat([a, c, b], 1), flat([a, d, c], 1)]
+        }
+    };
+    let scene = |down: bool, double_sided: bool| Scene {
+        triangles: [floor(0), lamp(down)].concat(),
+        materials: vec![
+            lambert(0.5, Vec3::ZERO),
+            Material {
+                double_sided,
+                ..lambert(0.0, Vec3::splat(10.0))
+            },
+        ],
+        // Low over the floor, below the lamp: it sees the lamp's underside (its back when it
+        // faces up) and the floor around it.
+        cameras: vec![camera(Vec3::new(0.0, 0.6, 3.0), Vec3::new(0.0, 0.3, 0.0), 40.0)],
+        environment: Environment::Constant(Vec3::ZERO),
+        ..Default::default()
+    };
+    // Facing away, one-sided: nothing reaches the floor, exactly.
+    let away = scene(false, false);
+    let s = settings(&away, 16, 16, 9, 4);
+    for (acc, label) in [
+        (render_on_cpu(&away, &s, 16), "CPU"),
+        (render_gpu(&ctx, &away, &s, 16), "GPU"),
+    ] {
+        assert!(acc.mean_image().iter().all(|c| *c == Vec3::ZERO), "{label}: light behind a one-sided lamp");
+    }
+    // Facing down, one-sided lights the floor as a two-sided lamp does (the floor only sees its
+    // front), and the two-sided lamp facing up lights it just the same.
+    let down_one = render_on_cpu(&scene(true, false), &s, 64);
+    let down_two = render_gpu(&ctx, &scene(true, true), &s, 64);
+    let up_two = render_on_cpu(&scene(false, true), &settings(&away, 16, 16, 10, 4), 64);
+    let lit: f32 = down_one.mean_image().iter().map(|c| luminance(*c)).sum();
+    assert!(lit > 1.0, "the lamp facing down lights the floor: {lit}");
+    renders_agree(&down_one, &down_two, "one-sided (CPU) vs two-sided (GPU), facing down").unwrap();
+    renders_agree(&down_two, &up_two, "two-sided facing down (GPU) vs up (CPU)").unwrap();
+}
+
 fn material(name: &str, rgb: Vec3, metallic: f32, roughness: f32, emission: Vec3) -> Material {
     Material {
         name: name.into(),
@@ -368,6 +504,7 @@ fn material(name: &str, rgb: Vec3, metallic: f32, roughness: f32, emission: Vec3
         roughness,
         specular: 1.0,
         emission,
+        double_sided: true,
     }
 }
 
@@ -410,13 +547,17 @@ fn twin_scene() -> Scene {
             material("white", Vec3::splat(0.73), 0.0, 1.0, Vec3::ZERO),
             material("red", Vec3::new(0.65, 0.05, 0.05), 0.0, 1.0, Vec3::ZERO),
             material("green", Vec3::new(0.12, 0.45, 0.15), 0.0, 1.0, Vec3::ZERO),
-            material(
-                "light",
-                Vec3::splat(0.78),
-                0.0,
-                1.0,
-                Vec3::new(17.0, 12.0, 4.0),
-            ),
+            // One-sided, as a ceiling lamp is: the twins must agree on that path too.
+            Material {
+                double_sided: false,
+                ..material(
+                    "light",
+                    Vec3::splat(0.78),
+                    0.0,
+                    1.0,
+                    Vec3::new(17.0, 12.0, 4.0),
+                )
+            },
             material("gold", Vec3::new(1.0, 0.77, 0.34), 1.0, 0.3, Vec3::ZERO),
         ],
         cameras: vec![camera(

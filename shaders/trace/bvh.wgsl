@@ -84,12 +84,13 @@ fn node_hits(node: Node, o: vec3<f32>, d: vec3<f32>, inv_d: vec3<f32>, tmax: f32
     return hit_mask;
 }
 
-// Möller–Trumbore with precomputed edges (CPU twin: bvh::intersect_triangle). Returns
-// (t, u, v) or t < 0 for a miss.
-fn intersect_triangle(o: vec3<f32>, d: vec3<f32>, v0: vec3<f32>, e1: vec3<f32>, e2: vec3<f32>, tmax: f32) -> vec3<f32> {
+// Möller–Trumbore with precomputed edges (CPU twin: bvh::intersect_triangle_sided). Returns
+// (t, u, v) or t < 0 for a miss. With cull_back (a single-sided glTF material) the back face is
+// no hit: det = e1·(d × e2) is positive exactly on the front face.
+fn intersect_triangle(o: vec3<f32>, d: vec3<f32>, v0: vec3<f32>, e1: vec3<f32>, e2: vec3<f32>, tmax: f32, cull_back: bool) -> vec3<f32> {
     let pv = cross(d, e2);
     let det = dot(e1, pv);
-    if det == 0.0 {
+    if det == 0.0 || (cull_back && det < 0.0) {
         return vec3<f32>(-1.0, 0.0, 0.0);
     }
     let inv_det = 1.0 / det;
@@ -123,7 +124,8 @@ fn traverse(o: vec3<f32>, d: vec3<f32>, tmax_in: f32, any_hit: bool) -> Hit {
             prim_group.y &= ~(1u << local);
             let pid = prim_group.x + local;
             let a = prims[3u * pid];
-            let r = intersect_triangle(o, d, a.xyz, prims[3u * pid + 1u].xyz, prims[3u * pid + 2u].xyz, hit.t);
+            let c = prims[3u * pid + 2u];
+            let r = intersect_triangle(o, d, a.xyz, prims[3u * pid + 1u].xyz, c.xyz, hit.t, c.w != 0.0);
             if r.x > 0.0 {
                 hit = Hit(r.x, r.y, r.z, pid);
                 if any_hit {

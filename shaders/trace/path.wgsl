@@ -278,17 +278,31 @@ fn trace_sample(pixel: u32, sample: u32) -> vec3<f32> {
                 wi = to / dl;
                 let n_l = cross(le1, le2);
                 let area2 = length(n_l);
-                let cos_l = abs(dot(n_l, wi)) / area2;
+                // A single-sided light emits from its front (towards n_l) only; seen from behind
+                // the sample is discarded (pdf 0).
+                let facing = -dot(n_l, wi) / area2;
+                var cos_l = max(facing, 0.0);
+                if lights[3u * k + 1u].w != 0.0 {
+                    cos_l = abs(facing);
+                }
                 let tri = bitcast<u32>(la.w);
                 let lmi = 3u * bitcast<u32>(shade[4u * tri + 3u].w);
                 let density = dist[k + 1u] - dist[k];
-                pdf_l = (1.0 - params.env_select) * density / (0.5 * area2) * dist2 / cos_l;
+                pdf_l = 0.0;
+                if cos_l > 0.0 {
+                    pdf_l = (1.0 - params.env_select) * density / (0.5 * area2) * dist2 / cos_l;
+                }
                 le = materials[lmi + 1u].xyz;
                 tmax = dl * (1.0 - 1e-4);
             }
             if pdf_l > 0.0 && pdf_l <= T_FAR && dot(wi, ng) > 0.0 {
                 let fb = bsdf_eval(bsdf, ns, wo, wi);
-                let contrib = throughput * fb.xyz * le * (dot(ns, wi) / pdf_l) * mis(pdf_l, fb.w);
+                // The last vertex's light sample carries the whole estimate: no BSDF ray follows.
+                var w = mis(pdf_l, fb.w);
+                if depth + 1u == params.max_depth {
+                    w = 1.0;
+                }
+                let contrib = throughput * fb.xyz * le * (dot(ns, wi) / pdf_l) * w;
                 if any(contrib != vec3<f32>(0.0)) {
                     let blocker = traverse(po, wi, tmax, true);
                     if blocker.prim == NO_HIT {

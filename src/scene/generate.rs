@@ -311,6 +311,8 @@ impl Builder {
 
     /// A diffuse material (metallic 0, roughness 1), optionally textured and emissive
     /// (`emission` = radiance; stored as a [0, 1] factor × KHR_materials_emissive_strength).
+    /// Double-sided, except an emitter: a lamp shines from its front only (glTF
+    /// `doubleSided: false`, so its back neither emits nor is seen).
     #[allow(clippy::field_reassign_with_default)]
     fn material(
         &mut self,
@@ -321,7 +323,7 @@ impl Builder {
     ) -> json::Index<json::Material> {
         let mut m = json::Material {
             name: Some(name.into()),
-            double_sided: true,
+            double_sided: emission.is_none(),
             ..Default::default()
         };
         m.pbr_metallic_roughness.base_color_factor =

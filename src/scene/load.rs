@@ -700,6 +700,7 @@ impl Loader<'_> {
             roughness,
             specular,
             emission: emissive * strength,
+            double_sided: m.double_sided(),
         })
     }
 

@@ -50,6 +50,11 @@ pub struct Material {
     pub specular: f32,
     /// Emitted radiance (W·sr⁻¹·m⁻² in linear RGB): emissive factor × KHR_materials_emissive_strength.
     pub emission: Vec3,
+    /// glTF's `doubleSided`: seen, lit and (for an emitter) emitting from both faces, the back
+    /// shaded with the normal reversed. Single-sided (glTF's default) triangles do not exist from
+    /// behind: rays pass through their back face, and an emitter's back neither emits nor is
+    /// sampled.
+    pub double_sided: bool,
 }
 
 impl Default for Material {
@@ -63,6 +68,7 @@ impl Default for Material {
             roughness: 1.0,
             specular: 1.0,
             emission: Vec3::ZERO,
+            double_sided: false,
         }
     }
 }

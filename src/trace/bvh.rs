@@ -18,8 +18,9 @@
 //! and traversal of the Tray Racing benchmark that `obvhs` was built for.
 //!
 //! Primitives are stored in BVH order (`prims`, three `vec4<f32>` each: `v0` and the original
-//! triangle index, `e1 = v1 − v0` and the light-selection density, `e2 = v2 − v0`), so a leaf's
-//! triangles are contiguous in memory.
+//! triangle index, `e1 = v1 − v0` and the light-selection density, `e2 = v2 − v0` and 1 for a
+//! single-sided triangle, whose back face rays pass through), so a leaf's triangles are
+//! contiguous in memory.
 
 use std::time::Duration;
 
@@ -59,9 +60,26 @@ pub fn intersect_triangle(
     e2: Vec3,
     tmax: f32,
 ) -> Option<(f32, f32, f32)> {
+    intersect_triangle_sided(origin, dir, v0, e1, e2, tmax, false)
+}
+
+/// [`intersect_triangle`], with the back face ignored when `cull_back` (a single-sided glTF
+/// material). `det = e1·(d × e2) = −d·(e1 × e2)` is positive exactly when the ray meets the
+/// front face (the one `e1 × e2` points out of, counter-clockwise winding).
+#[must_use]
+#[inline]
+pub fn intersect_triangle_sided(
+    origin: Vec3,
+    dir: Vec3,
+    v0: Vec3,
+    e1: Vec3,
+    e2: Vec3,
+    tmax: f32,
+    cull_back: bool,
+) -> Option<(f32, f32, f32)> {
     let pv = dir.cross(e2);
     let det = e1.dot(pv);
-    if det == 0.0 || !det.is_finite() {
+    if det == 0.0 || !det.is_finite() || (cull_back && det < 0.0) {
         return None;
     }
     let inv_det = 1.0 / det;
@@ -84,6 +102,13 @@ impl SceneBvh {
     /// picks a point on it; 0 for non-emitters).
     #[must_use]
     pub fn build(triangles: &[[Vec3; 3]], light_density: &[f32]) -> Self {
+        Self::build_sided(triangles, light_density, &[])
+    }
+
+    /// [`Self::build`] with `single_sided[i]` set for the triangles whose back face rays pass
+    /// (missing entries: double-sided).
+    #[must_use]
+    pub fn build_sided(triangles: &[[Vec3; 3]], light_density: &[f32], single_sided: &[bool]) -> Self {
         if triangles.is_empty() {
             return Self {
                 cwbvh: CwBvh::default(),
@@ -109,9 +134,16 @@ impl SceneBvh {
             let (e1, e2) = (t[1] - t[0], t[2] - t[0]);
             prims.push([t[0].x, t[0].y, t[0].z, f32::from_bits(orig)]);
             prims.push([e1.x, e1.y, e1.z, light_density[orig as usize]]);
-            prims.push([e2.x, e2.y, e2.z, 0.0]);
+            let cull = single_sided.get(orig as usize).copied().unwrap_or(false);
+            prims.push([e2.x, e2.y, e2.z, if cull { 1.0 } else { 0.0 }]);
         }
         Self { cwbvh, prims }
+    }
+
+    /// Whether BVH primitive `i` is single-sided (rays pass its back face).
+    #[inline]
+    fn culled(&self, i: usize) -> bool {
+        self.prims[3 * i + 2][3] != 0.0
     }
 
     fn prim(&self, i: usize) -> (Vec3, Vec3, Vec3) {
@@ -160,7 +192,9 @@ impl SceneBvh {
             {
                 let i = state.primitive_id as usize;
                 let (v0, e1, e2) = self.prim(i);
-                if let Some((t, u, v)) = intersect_triangle(origin, dir, v0, e1, e2, ray.tmax) {
+                if let Some((t, u, v)) =
+                    intersect_triangle_sided(origin, dir, v0, e1, e2, ray.tmax, self.culled(i))
+                {
                     ray.tmax = t;
                     best = Some(TraceHit {
                         t,
@@ -193,8 +227,11 @@ impl SceneBvh {
                 state,
                 node.intersect_ray(&ray, state.oct_inv4),
                 {
-                    let (v0, e1, e2) = self.prim(state.primitive_id as usize);
-                    if intersect_triangle(origin, dir, v0, e1, e2, tmax).is_some() {
+                    let i = state.primitive_id as usize;
+                    let (v0, e1, e2) = self.prim(i);
+                    if intersect_triangle_sided(origin, dir, v0, e1, e2, tmax, self.culled(i))
+                        .is_some()
+                    {
                         blocked = true;
                         break 'search;
                     }

@@ -271,16 +271,35 @@ pub fn trace_counted(sc: &PackedScene, s: &TraceSettings, pixel: u32, sample: u3
                 let wi = to / dist;
                 let n_l = le1.cross(le2);
                 let area2 = n_l.length();
-                let cos_l = n_l.dot(wi).abs() / area2;
+                // A single-sided light emits from its front (towards n_l) only: seen from
+                // behind it contributes nothing, and the sample is discarded (pdf 0).
+                let facing = -n_l.dot(wi) / area2;
+                let cos_l = if sc.lights[l + 1][3] != 0.0 {
+                    facing.abs()
+                } else {
+                    facing.max(0.0)
+                };
                 let tri = sc.lights[l][3].to_bits() as usize;
                 let lmi = 3 * sc.shade[4 * tri + 3][3].to_bits() as usize;
                 let density = sc.dist[k as usize + 1] - sc.dist[k as usize];
-                let pdf = (1.0 - sc.env_select) * density / (0.5 * area2) * dist2 / cos_l;
+                let pdf = if cos_l > 0.0 {
+                    (1.0 - sc.env_select) * density / (0.5 * area2) * dist2 / cos_l
+                } else {
+                    0.0
+                };
                 (wi, v3(sc.materials[lmi + 1]), pdf, dist * (1.0 - 1e-4))
             };
             if pdf_l > 0.0 && pdf_l.is_finite() && wi.dot(ng) > 0.0 {
                 let (f, pdf_b) = bsdf.eval(ns, wo, wi);
-                let contrib = throughput * f * le * (ns.dot(wi) / pdf_l) * mis(pdf_l, pdf_b);
+                // At the last vertex no BSDF ray follows to find this light, so its sample
+                // carries the whole estimate: MIS against a strategy that is never taken
+                // would drop that strategy's share.
+                let w = if depth + 1 == s.max_depth {
+                    1.0
+                } else {
+                    mis(pdf_l, pdf_b)
+                };
+                let contrib = throughput * f * le * (ns.dot(wi) / pdf_l) * w;
                 if contrib != Vec3::ZERO {
                     rays += 1;
                     if !bvh.occluded(po, wi, tmax) {

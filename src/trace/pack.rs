@@ -4,11 +4,11 @@
 //! | array | per | layout |
 //! |---|---|---|
 //! | `nodes` | BVH node | obvhs `CwBvhNode` (80 bytes; see [`super::bvh`]) |
-//! | `prims` | BVH primitive | 3 × vec4: `[v0, bits(triangle)]`, `[e1, light density]`, `[e2, 0]` |
+//! | `prims` | BVH primitive | 3 × vec4: `[v0, bits(triangle)]`, `[e1, light density]`, `[e2, 1 if single-sided]` |
 //! | `shade` | triangle | 4 × vec4: `[n0, uv0.x]`, `[n1, uv0.y]`, `[n2, uv1.x]`, `[uv1.y, uv2, bits(material)]` |
-//! | `materials` | material | 3 × vec4: `[base colour rgba]`, `[emission, bits(texture or !0)]`, `[metallic, α, specular, 0]` |
+//! | `materials` | material | 3 × vec4: `[base colour rgba]`, `[emission, bits(texture or !0)]`, `[metallic, α, specular, 1 if double-sided]` |
 //! | `texels` | texture | header `[offset, width, height, 0]` per texture, then RGBA8 (sRGB) words |
-//! | `lights` | emissive triangle | 3 × vec4: `[v0, bits(triangle)]`, `[e1, 0]`, `[e2, 0]` |
+//! | `lights` | emissive triangle | 3 × vec4: `[v0, bits(triangle)]`, `[e1, 1 if double-sided]`, `[e2, 0]` |
 //! | `dist` | — | light CDF (L + 1), environment row CDF (H + 1), per-row column CDFs (H × (W + 1)) |
 //! | `env` | environment texel | `[rgb, pdf over the unit square]` |
 //!
@@ -80,13 +80,15 @@ impl PackedScene {
     #[must_use]
     pub fn new(scene: &Scene) -> Self {
         let tris = &scene.triangles;
-        // Emitters: next-event estimation picks one in proportion to its power (area × luminance).
+        // Emitters: next-event estimation picks one in proportion to its power (area × luminance
+        // × the faces it emits from).
         let mut light_tris = Vec::new();
         let mut light_weights = Vec::new();
         for (i, t) in tris.iter().enumerate() {
             let m = &scene.materials[t.material as usize];
             let area = 0.5 * (t.p[1] - t.p[0]).cross(t.p[2] - t.p[0]).length();
-            let power = f64::from(area) * f64::from(luminance(m.emission));
+            let sides = if m.double_sided { 2.0 } else { 1.0 };
+            let power = f64::from(area) * f64::from(luminance(m.emission)) * sides;
             if power > 0.0 && area > 0.0 {
                 light_tris.push(i);
                 light_weights.push(power);
@@ -99,18 +101,23 @@ impl PackedScene {
             let t = &tris[i];
             let area = 0.5 * (t.p[1] - t.p[0]).cross(t.p[2] - t.p[0]).length();
             light_density[i] = (light_cdf[k + 1] - light_cdf[k]) / area;
+            let double_sided = scene.materials[t.material as usize].double_sided;
             push3(
                 &mut lights,
                 t.p[0],
                 f32::from_bits(i as u32),
                 t.p[1] - t.p[0],
-                0.0,
+                if double_sided { 1.0 } else { 0.0 },
                 t.p[2] - t.p[0],
                 0.0,
             );
         }
         let positions: Vec<[Vec3; 3]> = tris.iter().map(|t| t.p).collect();
-        let bvh = SceneBvh::build(&positions, &light_density);
+        let single_sided: Vec<bool> = tris
+            .iter()
+            .map(|t| !scene.materials[t.material as usize].double_sided)
+            .collect();
+        let bvh = SceneBvh::build_sided(&positions, &light_density, &single_sided);
 
         let mut shade = Vec::with_capacity(tris.len() * 4);
         for t in tris {
@@ -132,7 +139,12 @@ impl PackedScene {
                 f32::from_bits(tex),
             ]);
             let alpha = (m.roughness * m.roughness).max(MIN_ALPHA);
-            materials.push([m.metallic, alpha, m.specular, 0.0]);
+            materials.push([
+                m.metallic,
+                alpha,
+                m.specular,
+                if m.double_sided { 1.0 } else { 0.0 },
+            ]);
         }
 
         let mut texels = Vec::new();
