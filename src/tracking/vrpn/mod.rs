@@ -27,9 +27,70 @@
 //! every buffer is bounded (one partial message per connection, one read at a time).
 
 pub mod config;
+pub mod decoder;
 pub mod wire;
 
 pub use config::{
     AnalogGroup, ButtonGroup, Transport, VrpnAddress, VrpnAddressError, VrpnConfig,
     VrpnConfigError, VrpnHeader,
 };
+pub use decoder::{Channel, VrpnDecoder, VrpnMessage, VrpnStats};
+
+use std::io::BufRead;
+
+use super::dtrack::TimeSource;
+use super::event::TrackingEvent;
+use super::ingest::Ingest;
+use super::problems::ProblemLog;
+use super::replay::{HeaderConfigError, ReplayHeader, ReplayPayload, ReplayReader};
+
+/// The header of a recording of `source`: the address and the mapping (with its
+/// calibration) go in, so that `raygun replay` decodes exactly as the live run did; times are
+/// the tracker's.
+#[must_use]
+pub fn recording_header(source: &VrpnAddress, config: &VrpnConfig) -> ReplayHeader {
+    let mut h = ReplayHeader::new(format!("recorded by raygun record from VRPN {source}"));
+    h.vrpn = Some(VrpnHeader {
+        source: source.clone(),
+        config: config.clone(),
+    });
+    h.time_source = TimeSource::Tracker;
+    h
+}
+
+/// Every event of a replay, decoded through the decoders its header configures (raw VRPN
+/// reads through [`VrpnDecoder`], DTrack and OSC datagrams through theirs, events validated),
+/// with the reader's and the decoders' problems.
+pub fn replay_events<R: BufRead>(
+    mut reader: ReplayReader<R>,
+) -> Result<(Vec<TrackingEvent>, ProblemLog), HeaderConfigError> {
+    let mut ingest = reader.header().ingest()?;
+    ingest.problems.quiet = reader.problems.quiet;
+    let mut events = Vec::new();
+    while let Some(item) = reader.next_item() {
+        match item.payload {
+            ReplayPayload::Datagram(p, bytes) => {
+                events.extend_from_slice(ingest.datagram(p, &bytes, item.t));
+            }
+            ReplayPayload::Event(e) => events.extend(ingest.event(e)),
+        }
+    }
+    let mut problems = reader.problems;
+    problems.merge(&ingest.problems);
+    Ok((events, problems))
+}
+
+/// An [`Ingest`] that decodes only VRPN, for `device` with `config` (live loops that do not
+/// come from a replay header).
+pub fn ingest_for(
+    device: &str,
+    config: VrpnConfig,
+    time_source: TimeSource,
+) -> Result<Ingest, VrpnConfigError> {
+    Ingest::new(
+        super::dtrack::DtrackConfig::default(),
+        super::osc::OscConfig::default(),
+        time_source,
+    )
+    .with_vrpn(device, config)
+}
