@@ -26,10 +26,12 @@
 //! [`ProblemLog`](crate::tracking::problems::ProblemLog) and logged once; nothing panics, and
 //! every buffer is bounded (one partial message per connection, one read at a time).
 
+pub mod client;
 pub mod config;
 pub mod decoder;
 pub mod wire;
 
+pub use client::{VrpnClientConfig, VrpnClientError, VrpnPoll, VrpnSource, record, run_live};
 pub use config::{
     AnalogGroup, ButtonGroup, Transport, VrpnAddress, VrpnAddressError, VrpnConfig,
     VrpnConfigError, VrpnHeader,
