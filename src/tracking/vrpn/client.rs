@@ -158,7 +158,8 @@ enum State {
     Ended,
 }
 
-/// A VRPN connection that can be polled: see the module documentation.
+/// A VRPN connection that can be polled: see the module documentation. It is `Send`, so a
+/// viewer can poll it on its own thread ([`run_live`]).
 pub struct VrpnSource {
     config: VrpnClientConfig,
     server: SocketAddr,
@@ -303,7 +304,8 @@ impl VrpnSource {
     }
 
     /// Waits up to the poll interval for input and returns it; connects, reconnects and
-    /// times out handshakes on the way. Problems of the connection (refused, lost, no cookie,
+    /// times out handshakes on the way (a TCP connection attempt may block for up to
+    /// [`VrpnClientConfig::connect_timeout`]; on loopback a refusal is immediate). Problems of the connection (refused, lost, no cookie,
     /// datagrams from strangers) are counted in `problems`; problems of the bytes are the
     /// decoder's.
     pub fn poll(&mut self, problems: &mut ProblemLog) -> io::Result<VrpnPoll<'_>> {
@@ -586,6 +588,12 @@ impl VrpnSource {
         Ok(VrpnPoll::Idle)
     }
 }
+
+// Checked at compile time: the viewer moves the client into its tracking thread.
+const _: () = {
+    const fn send<T: Send>() {}
+    send::<VrpnSource>();
+};
 
 fn now_stamp() -> VrpnTime {
     let d = SystemTime::now()
