@@ -471,7 +471,11 @@ fn a_single_sided_lamp_lights_only_what_its_front_faces() {
         ],
         // Low over the floor, below the lamp: it sees the lamp's underside (its back when it
         // faces up) and the floor around it.
-        cameras: vec![camera(Vec3::new(0.0, 0.6, 3.0), Vec3::new(0.0, 0.3, 0.0), 40.0)],
+        cameras: vec![camera(
+            Vec3::new(0.0, 0.6, 3.0),
+            Vec3::new(0.0, 0.3, 0.0),
+            40.0,
+        )],
         environment: Environment::Constant(Vec3::ZERO),
         ..Default::default()
     };
@@ -482,7 +486,10 @@ fn a_single_sided_lamp_lights_only_what_its_front_faces() {
         (render_on_cpu(&away, &s, 16), "CPU"),
         (render_gpu(&ctx, &away, &s, 16), "GPU"),
     ] {
-        assert!(acc.mean_image().iter().all(|c| *c == Vec3::ZERO), "{label}: light behind a one-sided lamp");
+        assert!(
+            acc.mean_image().iter().all(|c| *c == Vec3::ZERO),
+            "{label}: light behind a one-sided lamp"
+        );
     }
     // Facing down, one-sided lights the floor as a two-sided lamp does (the floor only sees its
     // front), and the two-sided lamp facing up lights it just the same.
@@ -491,8 +498,18 @@ fn a_single_sided_lamp_lights_only_what_its_front_faces() {
     let up_two = render_on_cpu(&scene(false, true), &settings(&away, 16, 16, 10, 4), 64);
     let lit: f32 = down_one.mean_image().iter().map(|c| luminance(*c)).sum();
     assert!(lit > 1.0, "the lamp facing down lights the floor: {lit}");
-    renders_agree(&down_one, &down_two, "one-sided (CPU) vs two-sided (GPU), facing down").unwrap();
-    renders_agree(&down_two, &up_two, "two-sided facing down (GPU) vs up (CPU)").unwrap();
+    renders_agree(
+        &down_one,
+        &down_two,
+        "one-sided (CPU) vs two-sided (GPU), facing down",
+    )
+    .unwrap();
+    renders_agree(
+        &down_two,
+        &up_two,
+        "two-sided facing down (GPU) vs up (CPU)",
+    )
+    .unwrap();
 }
 
 fn material(name: &str, rgb: Vec3, metallic: f32, roughness: f32, emission: Vec3) -> Material {

@@ -10,6 +10,7 @@ use raygun::tracking::dtrack::{DtrackConfig, TimeSource};
 use raygun::tracking::ingest::{Ingest, Pipeline};
 use raygun::tracking::osc::OscConfig;
 use raygun::tracking::replay::{ReplayPayload, ReplayReader};
+use raygun::tracking::vrpn::VrpnConfig;
 
 fuzz_target!(|data: &[u8]| {
     // A valid header, so the fuzzer spends its time on the records.
@@ -19,7 +20,10 @@ fuzz_target!(|data: &[u8]| {
         return;
     };
     reader.problems.quiet = true;
-    let mut ingest = Ingest::new(DtrackConfig::default(), OscConfig::default(), TimeSource::Tracker);
+    // VRPN reads (vrpn_tcp_hex, vrpn_udp_hex) go through the VRPN decoder too.
+    let mut ingest = Ingest::new(DtrackConfig::default(), OscConfig::default(), TimeSource::Tracker)
+        .with_vrpn("DTrack", VrpnConfig::default())
+        .unwrap();
     ingest.problems.quiet = true;
     let mut pipeline = Pipeline::new(ingest, Interaction::new(InteractionConfig::default()));
     let wall = HingedWall::hornet();

@@ -137,6 +137,8 @@ pub struct ReplayPlan {
     /// The calibration given on the command line or in the mapping (the header's own applies
     /// otherwise).
     pub calibration: Option<Calibration>,
+    /// The decoders the header asks for, with the calibration applied, before any input.
+    pub ingest: Ingest,
     pub playback: Playback,
 }
 
@@ -181,11 +183,10 @@ impl ReplayPlan {
                     args.file.display()
                 ),
             };
-        if let Some(d) = &header.dtrack {
-            d.tracker_to_room
-                .validate()
-                .with_context(|| format!("{}: header `dtrack`", args.file.display()))?;
-        }
+        // Every decoder the header asks for must be usable.
+        let ingest = header
+            .ingest(calibration.as_ref())
+            .with_context(|| args.file.display().to_string())?;
         let playback = if args.realtime {
             Playback::RealTime
         } else {
@@ -198,6 +199,7 @@ impl ReplayPlan {
                 display_origin,
                 interaction,
                 calibration,
+                ingest,
                 playback,
             },
             reader,
@@ -207,9 +209,10 @@ impl ReplayPlan {
     /// A fresh pipeline configured from the header, the calibration and the mapping.
     #[must_use]
     pub fn pipeline(&self) -> Pipeline {
-        let (dtrack, osc) = self.header.decoder_configs(self.calibration.as_ref());
-        let ingest = Ingest::new(dtrack, osc, self.header.time_source);
-        Pipeline::new(ingest, Interaction::new(self.interaction.clone()))
+        Pipeline::new(
+            self.ingest.clone(),
+            Interaction::new(self.interaction.clone()),
+        )
     }
 }
 

@@ -108,7 +108,11 @@ impl SceneBvh {
     /// [`Self::build`] with `single_sided[i]` set for the triangles whose back face rays pass
     /// (missing entries: double-sided).
     #[must_use]
-    pub fn build_sided(triangles: &[[Vec3; 3]], light_density: &[f32], single_sided: &[bool]) -> Self {
+    pub fn build_sided(
+        triangles: &[[Vec3; 3]],
+        light_density: &[f32],
+        single_sided: &[bool],
+    ) -> Self {
         if triangles.is_empty() {
             return Self {
                 cwbvh: CwBvh::default(),

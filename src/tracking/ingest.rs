@@ -7,6 +7,7 @@ use super::event::DeviceId;
 use super::event::TrackingEvent;
 use super::osc::{OscConfig, OscDecoder};
 use super::problems::ProblemLog;
+use super::vrpn::{Channel, VrpnConfig, VrpnConfigError, VrpnDecoder};
 use crate::interaction::{Interaction, InteractionConfig, RaySurface, RoiChange};
 
 /// The protocol of a raw datagram.
@@ -15,6 +16,11 @@ use crate::interaction::{Interaction, InteractionConfig, RaySurface, RoiChange};
 pub enum Protocol {
     Dtrack,
     Osc,
+    /// Bytes of one read from a VRPN TCP connection (any piece of the stream; empty: the
+    /// connection ended).
+    VrpnTcp,
+    /// One VRPN UDP datagram (whole messages).
+    VrpnUdp,
 }
 
 /// Decoder and state machine together: raw input in, ROI changes out. Live listeners and
@@ -70,6 +76,21 @@ impl Pipeline {
         (events, &self.changes)
     }
 
+    /// Nothing arrived up to `receive_t` (a live poll timed out): the VRPN decoder may lose
+    /// the sensors of a silent server (see [`Ingest::idle`]).
+    pub fn idle(
+        &mut self,
+        receive_t: f64,
+        surface: &dyn RaySurface,
+    ) -> (&[TrackingEvent], &[RoiChange]) {
+        self.changes.clear();
+        let events = self.ingest.idle(receive_t);
+        for e in events {
+            self.interaction.handle(e, surface, &mut self.changes);
+        }
+        (events, &self.changes)
+    }
+
     /// One normalised event (validated first).
     pub fn event(&mut self, event: TrackingEvent, surface: &dyn RaySurface) -> &[RoiChange] {
         self.changes.clear();
@@ -80,11 +101,14 @@ impl Pipeline {
     }
 }
 
-/// Decoders for both protocols plus the problem counters.
+/// Decoders for every protocol plus the problem counters. VRPN needs a device name and a
+/// mapping, so its decoder exists only once [`Ingest::with_vrpn`] configured it.
 #[derive(Clone, Debug)]
 pub struct Ingest {
     dtrack: DtrackDecoder,
     osc: OscDecoder,
+    vrpn: Option<VrpnDecoder>,
+    time_source: TimeSource,
     pub problems: ProblemLog,
     events: Vec<TrackingEvent>,
     /// Datagrams that decoded (frames delivered).
@@ -98,22 +122,70 @@ impl Ingest {
         Self {
             dtrack: DtrackDecoder::new(dtrack, time_source),
             osc: OscDecoder::new(osc),
+            vrpn: None,
+            time_source,
             problems: ProblemLog::default(),
             events: Vec::new(),
             accepted: 0,
         }
     }
 
-    /// Applies a tracker→room calibration to both decoders (their other settings stay).
+    /// Applies a tracker→room calibration to every decoder (their other settings stay; VRPN
+    /// sends metres). Meant for before the first datagram: a VRPN decoder starts afresh.
     pub fn calibrate(&mut self, calibration: &super::calibration::Calibration) {
         let mut dtrack = self.dtrack.config().clone();
         let mut osc = self.osc.config().clone();
         calibration.apply(&mut dtrack, &mut osc);
         self.dtrack.set_config(dtrack);
         self.osc.set_config(osc);
+        if let Some(v) = &self.vrpn {
+            let mut config = v.config().clone();
+            config.tracker_to_room = calibration.tracker_to_room(1.0);
+            let device = v.device().to_owned();
+            // The configuration validated before; only the transform changed, and a
+            // calibration's transform is valid.
+            if let Ok(d) = VrpnDecoder::new(&device, config, self.time_source) {
+                self.vrpn = Some(d);
+            }
+        }
     }
 
-    /// Decodes one datagram; a bad one is counted and yields no events.
+    /// Adds the VRPN decoder for `device` (the DEVICE of DEVICE@HOST) with `config`
+    /// (validated), using this ingest's time source.
+    pub fn with_vrpn(mut self, device: &str, config: VrpnConfig) -> Result<Self, VrpnConfigError> {
+        self.vrpn = Some(VrpnDecoder::new(device, config, self.time_source)?);
+        Ok(self)
+    }
+
+    /// The VRPN decoder, if configured.
+    #[must_use]
+    pub fn vrpn(&self) -> Option<&VrpnDecoder> {
+        self.vrpn.as_ref()
+    }
+
+    /// The VRPN decoder, if configured (e.g. to keep its decoded messages).
+    pub fn vrpn_mut(&mut self) -> Option<&mut VrpnDecoder> {
+        self.vrpn.as_mut()
+    }
+
+    /// Whether the VRPN stream broke since the last call (see
+    /// [`VrpnDecoder::take_reconnect`]); live loops then drop the connection.
+    pub fn take_vrpn_reconnect(&mut self) -> bool {
+        self.vrpn.as_mut().is_some_and(VrpnDecoder::take_reconnect)
+    }
+
+    /// Nothing arrived up to `receive_t`: events the silence implies (VRPN: sensors lost
+    /// after [`VrpnConfig::silence_s`]).
+    pub fn idle(&mut self, receive_t: f64) -> &[TrackingEvent] {
+        self.events.clear();
+        if let Some(v) = &mut self.vrpn {
+            v.idle(receive_t, &mut self.events);
+        }
+        &self.events
+    }
+
+    /// Decodes one datagram; a bad one is counted and yields no events. A VRPN read holds any
+    /// number of messages: bad ones are counted one by one and the good ones still decode.
     pub fn datagram(
         &mut self,
         protocol: Protocol,
@@ -131,6 +203,24 @@ impl Ingest {
                 .osc
                 .decode_into(data, receive_t, &mut self.events)
                 .map_err(|e| (e.name(), e.to_string())),
+            Protocol::VrpnTcp | Protocol::VrpnUdp => {
+                let channel = if protocol == Protocol::VrpnTcp {
+                    Channel::Tcp
+                } else {
+                    Channel::Udp
+                };
+                match &mut self.vrpn {
+                    Some(v) => {
+                        v.decode(channel, data, receive_t, &mut self.events, &mut self.problems);
+                        Ok(())
+                    }
+                    None => Err((
+                        "vrpn_not_configured",
+                        "a VRPN read arrived but no VRPN device is configured (replay header `vrpn`)"
+                            .to_owned(),
+                    )),
+                }
+            }
         };
         match result {
             Ok(()) => {

@@ -2,7 +2,8 @@
 //!
 //! ```text
 //! UDP datagram ─► dtrack::DtrackDecoder ─┐
-//!              └► osc::OscDecoder ───────┼─► TrackingEvent ─► interaction::Interaction ─► ROI
+//!              └► osc::OscDecoder ───────┤
+//! VRPN read    ─► vrpn::VrpnDecoder ─────┼─► TrackingEvent ─► interaction::Interaction ─► ROI
 //! replay line  ─► replay::ReplayReader ──┘    (events of a replay go straight through)
 //! ```
 //!
@@ -11,9 +12,9 @@
 //! exactly what the live run did; `tests/tracking_replays.rs` checks that for every shipped
 //! replay.
 //!
-//! Modules: [`event`] (normalised events), [`dtrack`] and [`osc`] (parsers), [`calibration`]
-//! (the tracker→room transform of every source), [`replay`]
-//! (JSON Lines files), [`udp`] (listeners, recorder), [`problems`] (bad-input counters),
+//! Modules: [`event`] (normalised events), [`dtrack`] and [`osc`] (parsers), [`vrpn`] (VRPN
+//! client and decoder), [`calibration`] (the tracker→room transform of every source),
+//! [`replay`] (JSON Lines files), [`udp`] (listeners, recorder), [`problems`] (bad-input counters),
 //! [`synth`] (synthetic sessions), [`bench`] (ingest benchmark).
 
 pub mod bench;
@@ -26,3 +27,4 @@ pub mod problems;
 pub mod replay;
 pub mod synth;
 pub mod udp;
+pub mod vrpn;

@@ -7,11 +7,16 @@
 //! {"t":0.0,"dtrack":"fr 1\nts 36000.000000\n6df2 1 1 [0 1.000 6 2][…][…][0 0.000000 0.000000]\n"}
 //! {"t":0.016,"dtrack_hex":"66722031…"}       DTrack bytes that are not text (recorded garbage)
 //! {"t":0.016,"osc_hex":"2362756e646c65…"}   OSC packet bytes
+//! {"t":0.020,"vrpn_tcp_hex":"7672706e3a20…"} one read of a VRPN TCP connection ("" = it ended)
+//! {"t":0.021,"vrpn_udp_hex":"00000058…"}     one VRPN UDP datagram
 //! {"t":0.033,"event":{"t":0.033,"device":"mouse:0","buttons":1,"canvas":[1920.0,1080.0]}}
 //! ```
 //!
 //! `t` is the receive time in seconds from the start of the recording. Raw datagrams are
-//! decoded by the same decoders as live traffic ([`super::ingest::Ingest`]). A line that is not
+//! decoded by the same decoders as live traffic ([`super::ingest::Ingest`], built from the
+//! header by [`ReplayHeader::ingest`]). VRPN reads are kept exactly as the socket returned
+//! them, so a TCP message may span several lines; the header's `vrpn` names the device and
+//! its mapping. A line that is not
 //! JSON, has no or several payloads, or whose `t` goes back in time is skipped, counted and
 //! reported once per kind; reading never stops on a bad line. Only a missing or unreadable
 //! header is an error, because then the file is not a replay.
@@ -23,11 +28,12 @@ use std::time::{Duration, Instant};
 use serde::{Deserialize, Serialize};
 
 use super::calibration::Calibration;
-use super::dtrack::{DtrackConfig, TimeSource};
+use super::dtrack::{DtrackConfig, TimeSource, TransformError};
 use super::event::{DeviceId, TrackingEvent};
-use super::ingest::Protocol;
+use super::ingest::{Ingest, Protocol};
 use super::osc::OscConfig;
 use super::problems::ProblemLog;
+use super::vrpn::{VrpnConfigError, VrpnHeader};
 
 /// The format version written into headers.
 pub const FORMAT_VERSION: u32 = 1;
@@ -57,12 +63,25 @@ pub struct ReplayHeader {
     pub dtrack: Option<DtrackConfig>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub osc: Option<OscConfig>,
+    /// The VRPN device the raw VRPN reads come from and its mapping (with its tracker→room
+    /// calibration).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub vrpn: Option<VrpnHeader>,
     #[serde(default)]
     pub time_source: TimeSource,
     /// The tracker→room calibration the session was recorded with; it replaces the transforms
     /// of `dtrack` and `osc` (written by `raygun record`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub calibration: Option<Calibration>,
+}
+
+/// Why a header's decoder configuration cannot be used.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum HeaderConfigError {
+    #[error("replay header `dtrack`: {0}")]
+    Dtrack(#[from] TransformError),
+    #[error("replay header `vrpn`: {0}")]
+    Vrpn(#[from] VrpnConfigError),
 }
 
 impl ReplayHeader {
@@ -77,6 +96,7 @@ impl ReplayHeader {
             description: description.into(),
             dtrack: None,
             osc: None,
+            vrpn: None,
             time_source: TimeSource::default(),
             calibration: None,
         }
@@ -93,6 +113,27 @@ impl ReplayHeader {
         }
         (dtrack, osc)
     }
+
+    /// The decoders this header asks for (DTrack and OSC settings, the VRPN device and
+    /// mapping, the time source), validated, with `calibration` (given on the command line) or
+    /// else the header's own replacing every decoder's tracker→room transform: what a replay of
+    /// the file must decode with.
+    pub fn ingest(&self, calibration: Option<&Calibration>) -> Result<Ingest, HeaderConfigError> {
+        let (dtrack, osc) = self.decoder_configs(calibration);
+        dtrack.tracker_to_room.validate()?;
+        let ingest = Ingest::new(dtrack, osc, self.time_source);
+        Ok(match &self.vrpn {
+            Some(v) => {
+                let mut config = v.config.clone();
+                if let Some(c) = calibration.or(self.calibration.as_ref()) {
+                    // VRPN sends metres.
+                    config.tracker_to_room = c.tracker_to_room(1.0);
+                }
+                ingest.with_vrpn(&v.source.device, config)?
+            }
+            None => ingest,
+        })
+    }
 }
 
 #[derive(Serialize, Deserialize)]
@@ -106,7 +147,25 @@ struct Line {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     osc_hex: Option<String>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    vrpn_tcp_hex: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    vrpn_udp_hex: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     event: Option<TrackingEvent>,
+}
+
+impl Line {
+    fn empty(t: f64) -> Self {
+        Self {
+            t,
+            dtrack: None,
+            dtrack_hex: None,
+            osc_hex: None,
+            vrpn_tcp_hex: None,
+            vrpn_udp_hex: None,
+            event: None,
+        }
+    }
 }
 
 /// One record of a replay.
@@ -345,11 +404,13 @@ impl<R: BufRead> ReplayReader<R> {
             let payloads = usize::from(line.dtrack.is_some())
                 + usize::from(line.dtrack_hex.is_some())
                 + usize::from(line.osc_hex.is_some())
+                + usize::from(line.vrpn_tcp_hex.is_some())
+                + usize::from(line.vrpn_udp_hex.is_some())
                 + usize::from(line.event.is_some());
             if payloads != 1 {
                 self.skip(
                     "replay_bad_payload",
-                    format_args!("{payloads} payloads; exactly one of dtrack, dtrack_hex, osc_hex, event is needed"),
+                    format_args!("{payloads} payloads; exactly one of dtrack, dtrack_hex, osc_hex, vrpn_tcp_hex, vrpn_udp_hex, event is needed"),
                 );
                 continue;
             }
@@ -368,6 +429,21 @@ impl<R: BufRead> ReplayReader<R> {
                     Some(b) => ReplayPayload::Datagram(Protocol::Osc, b),
                     None => {
                         self.skip("replay_bad_payload", "osc_hex is not hex");
+                        continue;
+                    }
+                }
+            } else if let Some((protocol, hex)) = line
+                .vrpn_tcp_hex
+                .map(|h| (Protocol::VrpnTcp, h))
+                .or(line.vrpn_udp_hex.map(|h| (Protocol::VrpnUdp, h)))
+            {
+                match from_hex(&hex) {
+                    Some(b) => ReplayPayload::Datagram(protocol, b),
+                    None => {
+                        self.skip(
+                            "replay_bad_payload",
+                            "vrpn_tcp_hex / vrpn_udp_hex is not hex",
+                        );
                         continue;
                     }
                 }
@@ -485,21 +561,19 @@ impl<W: Write> ReplayWriter<W> {
         self.out.write_all(b"\n")
     }
 
-    /// Writes a raw datagram; DTrack text stays readable, anything else becomes hex.
+    /// Writes a raw datagram; DTrack text stays readable, anything else becomes hex. A VRPN
+    /// read is written as it came, however it cuts the stream (an empty TCP read marks the
+    /// end of a connection).
     pub fn datagram(&mut self, t: f64, protocol: Protocol, bytes: &[u8]) -> io::Result<()> {
-        let mut line = Line {
-            t,
-            dtrack: None,
-            dtrack_hex: None,
-            osc_hex: None,
-            event: None,
-        };
+        let mut line = Line::empty(t);
         match protocol {
             Protocol::Dtrack => match std::str::from_utf8(bytes) {
                 Ok(s) => line.dtrack = Some(s.to_owned()),
                 Err(_) => line.dtrack_hex = Some(to_hex(bytes)),
             },
             Protocol::Osc => line.osc_hex = Some(to_hex(bytes)),
+            Protocol::VrpnTcp => line.vrpn_tcp_hex = Some(to_hex(bytes)),
+            Protocol::VrpnUdp => line.vrpn_udp_hex = Some(to_hex(bytes)),
         }
         self.line(&line)
     }
@@ -507,11 +581,8 @@ impl<W: Write> ReplayWriter<W> {
     /// Writes a normalised event.
     pub fn event(&mut self, t: f64, event: &TrackingEvent) -> io::Result<()> {
         self.line(&Line {
-            t,
-            dtrack: None,
-            dtrack_hex: None,
-            osc_hex: None,
             event: Some(event.clone()),
+            ..Line::empty(t)
         })
     }
 
@@ -564,6 +635,11 @@ mod tests {
         w.datagram(0.1, Protocol::Dtrack, &[0xff, 0x00, b'x'])
             .unwrap();
         w.datagram(0.2, Protocol::Osc, &[1, 2, 3, 4]).unwrap();
+        w.datagram(0.3, Protocol::VrpnTcp, &[0x76, 0, 0xff])
+            .unwrap();
+        w.datagram(0.3, Protocol::VrpnTcp, &[]).unwrap();
+        w.datagram(0.4, Protocol::VrpnUdp, &[0, 0, 0, 0x58])
+            .unwrap();
         w.event(0.5, &e).unwrap();
         let text = String::from_utf8(w.into_inner()).unwrap();
         let (items, problems) = collect(reader(&text));
@@ -574,6 +650,9 @@ mod tests {
                 ReplayPayload::Datagram(Protocol::Dtrack, b"fr 1\r\nts 1.0\n\0".to_vec()),
                 ReplayPayload::Datagram(Protocol::Dtrack, vec![0xff, 0x00, b'x']),
                 ReplayPayload::Datagram(Protocol::Osc, vec![1, 2, 3, 4]),
+                ReplayPayload::Datagram(Protocol::VrpnTcp, vec![0x76, 0, 0xff]),
+                ReplayPayload::Datagram(Protocol::VrpnTcp, vec![]),
+                ReplayPayload::Datagram(Protocol::VrpnUdp, vec![0, 0, 0, 0x58]),
                 ReplayPayload::Event(e),
             ]
         );

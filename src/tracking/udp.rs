@@ -193,6 +193,29 @@ impl Live {
     pub fn datagrams(&self) -> u64 {
         self.snapshot.lock().map(|s| s.datagrams).unwrap_or(0)
     }
+
+    /// What a receive loop publishes after one input: `reads` more inputs handled, the ROI
+    /// after the last of `n_changes` changes (if any), the problem counts when they changed.
+    pub(crate) fn publish(
+        &self,
+        reads: u64,
+        latest: Option<RoiState>,
+        n_changes: u64,
+        problems: Option<&ProblemLog>,
+    ) -> io::Result<()> {
+        let Ok(mut snap) = self.snapshot.lock() else {
+            return Err(io::Error::other("live state lock poisoned"));
+        };
+        snap.datagrams += reads;
+        if latest.is_some() {
+            snap.roi = latest;
+            snap.version += n_changes;
+        }
+        if let Some(p) = problems {
+            snap.problems = p.clone();
+        }
+        Ok(())
+    }
 }
 
 /// Receives on `source` until `stop` is set: every datagram goes through `pipeline`; its
@@ -228,17 +251,9 @@ pub fn run_live(
                 n_changes = changes.len();
             }
         }
-        let Ok(mut snap) = live.snapshot.lock() else {
-            return Err(io::Error::other("live state lock poisoned"));
-        };
-        snap.datagrams += 1;
-        if latest.is_some() {
-            snap.roi = latest;
-            snap.version += n_changes as u64;
-        }
-        if pipeline.ingest.problems.total() != problems_before {
-            snap.problems = pipeline.ingest.problems.clone();
-        }
+        let problems = (pipeline.ingest.problems.total() != problems_before)
+            .then_some(&pipeline.ingest.problems);
+        live.publish(1, latest, n_changes as u64, problems)?;
     }
     Ok(())
 }

@@ -1,0 +1,98 @@
+//! VRPN (Virtual-Reality Peripheral Network): the protocol most VR labs already run between
+//! their trackers and applications (A.R.T. via `vrpn_Tracker_DTrack`, Vicon's built-in
+//! server, Unreal nDisplay). No maintained Rust implementation exists, so this is raygun's
+//! own client, written from the wire format of VRPN 07.38 and checked on its bytes
+//! (`tests/data/vrpn/`).
+//!
+//! ```text
+//! VrpnSource::poll ─► raw read (TCP piece | UDP datagram | end) ─┬─► replay line (vrpn_*_hex)
+//!                                                               └─► Ingest ─► VrpnDecoder ─► TrackingEvent
+//! replay line ─► ReplayReader ─► the same Ingest / VrpnDecoder
+//! ```
+//!
+//! * [`wire`]: cookie, 24-byte big-endian headers, 8-byte padding, payloads of Pos_Quat,
+//!   Velocity, Acceleration, Button Change / States and Analog Channel; an encoder for test
+//!   servers.
+//! * [`decoder`]: reassembles TCP reads, matches the peer's sender and type ids by name
+//!   (ids differ per side), and turns the device's messages into normalised events
+//!   (DESIGN.md §10) through the tracker→room calibration ([`VrpnConfig`]).
+//! * [`config`]: `DEVICE@HOST[:PORT]` addresses and the sensor / button / analog mapping.
+//! * [`client`]: the connection (TCP, or VRPN's classic UDP set-up), reconnection with
+//!   back-off, [`run_live`] and [`record`].
+//!
+//! Bad input of every kind (wrong cookie or major version, lengths below 24 or above
+//! [`wire::MAX_MESSAGE_LEN`], truncated messages, unknown or redefined ids, NaN, infinite or
+//! non-unit poses, a silent or flooding server) is counted per kind in a
+//! [`ProblemLog`] and logged once; nothing panics, and
+//! every buffer is bounded (one partial message per connection, one read at a time).
+
+pub mod client;
+pub mod config;
+pub mod decoder;
+pub mod wire;
+
+pub use client::{VrpnClientConfig, VrpnClientError, VrpnPoll, VrpnSource, record, run_live};
+pub use config::{
+    AnalogGroup, ButtonGroup, Transport, VrpnAddress, VrpnAddressError, VrpnConfig,
+    VrpnConfigError, VrpnHeader,
+};
+pub use decoder::{Channel, VrpnDecoder, VrpnMessage, VrpnStats};
+
+use std::io::BufRead;
+
+use super::dtrack::TimeSource;
+use super::event::TrackingEvent;
+use super::ingest::Ingest;
+use super::problems::ProblemLog;
+use super::replay::{HeaderConfigError, ReplayHeader, ReplayPayload, ReplayReader};
+
+/// The header of a recording of `source`: the address and the mapping (with its
+/// calibration) go in, so that `raygun replay` decodes exactly as the live run did; times are
+/// the tracker's.
+#[must_use]
+pub fn recording_header(source: &VrpnAddress, config: &VrpnConfig) -> ReplayHeader {
+    let mut h = ReplayHeader::new(format!("recorded by raygun record from VRPN {source}"));
+    h.vrpn = Some(VrpnHeader {
+        source: source.clone(),
+        config: config.clone(),
+    });
+    h.time_source = TimeSource::Tracker;
+    h
+}
+
+/// Every event of a replay, decoded through the decoders its header configures (raw VRPN
+/// reads through [`VrpnDecoder`], DTrack and OSC datagrams through theirs, events validated),
+/// with the reader's and the decoders' problems.
+pub fn replay_events<R: BufRead>(
+    mut reader: ReplayReader<R>,
+) -> Result<(Vec<TrackingEvent>, ProblemLog), HeaderConfigError> {
+    let mut ingest = reader.header().ingest(None)?;
+    ingest.problems.quiet = reader.problems.quiet;
+    let mut events = Vec::new();
+    while let Some(item) = reader.next_item() {
+        match item.payload {
+            ReplayPayload::Datagram(p, bytes) => {
+                events.extend_from_slice(ingest.datagram(p, &bytes, item.t));
+            }
+            ReplayPayload::Event(e) => events.extend(ingest.event(e)),
+        }
+    }
+    let mut problems = reader.problems;
+    problems.merge(&ingest.problems);
+    Ok((events, problems))
+}
+
+/// An [`Ingest`] that decodes only VRPN, for `device` with `config` (live loops that do not
+/// come from a replay header).
+pub fn ingest_for(
+    device: &str,
+    config: VrpnConfig,
+    time_source: TimeSource,
+) -> Result<Ingest, VrpnConfigError> {
+    Ingest::new(
+        super::dtrack::DtrackConfig::default(),
+        super::osc::OscConfig::default(),
+        time_source,
+    )
+    .with_vrpn(device, config)
+}
