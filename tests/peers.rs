@@ -53,8 +53,13 @@ fn comparable_references() -> Vec<Reference> {
 /// Per region: the mean RGB over `renders` independent renders and its standard error.
 fn raygun_regions(backend: &Backend, r: &Reference, spp: u32) -> Vec<([f64; 3], [f64; 3])> {
     let j = &r.json;
-    let mut scene = Scene::open(Path::new(ROOT).join(j["scene"].as_str().unwrap()).to_str().unwrap())
-        .unwrap();
+    let mut scene = Scene::open(
+        Path::new(ROOT)
+            .join(j["scene"].as_str().unwrap())
+            .to_str()
+            .unwrap(),
+    )
+    .unwrap();
     let env = j["env"]["raygun"].as_str().unwrap();
     let env = if env.contains(',') {
         env.to_owned()
@@ -85,7 +90,8 @@ fn raygun_regions(backend: &Backend, r: &Reference, spp: u32) -> Vec<([f64; 3], 
             regions
                 .iter()
                 .map(|g| {
-                    let [x0, x1, y0, y1] = ["x0", "x1", "y0", "y1"].map(|k| g[k].as_u64().unwrap() as u32);
+                    let [x0, x1, y0, y1] =
+                        ["x0", "x1", "y0", "y1"].map(|k| g[k].as_u64().unwrap() as u32);
                     let mut sum = [0f64; 3];
                     for y in y0..y1 {
                         for x in x0..x1 {
@@ -130,7 +136,11 @@ fn compare(r: &Reference, got: &[([f64; 3], [f64; 3])], label: &str) -> Result<f
     let mut image_ratio = f64::NAN;
     for (g, (mean, se)) in r.json["regions"].as_array().unwrap().iter().zip(got) {
         let name = g["name"].as_str().unwrap();
-        let rel = if name == "image" { image_rel } else { region_rel };
+        let rel = if name == "image" {
+            image_rel
+        } else {
+            region_rel
+        };
         for c in 0..3 {
             let (m_ref, se_ref) = (g["mean"][c].as_f64().unwrap(), g["se"][c].as_f64().unwrap());
             let bound = sigma * (se_ref * se_ref + se[c] * se[c]).sqrt() + rel * m_ref.abs();
@@ -153,7 +163,11 @@ fn compare(r: &Reference, got: &[([f64; 3], [f64; 3])], label: &str) -> Result<f
     if failures.is_empty() {
         Ok(image_ratio)
     } else {
-        Err(format!("{label} vs Mitsuba, {}:\n{}", r.name, failures.join("\n")))
+        Err(format!(
+            "{label} vs Mitsuba, {}:\n{}",
+            r.name,
+            failures.join("\n")
+        ))
     }
 }
 

@@ -298,6 +298,7 @@ fn record_arguments_are_validated_before_binding() {
     let args = |dtrack, osc, seconds| RecordArgs {
         dtrack,
         osc,
+        vrpn: None,
         out: "x.jsonl".into(),
         display: "hornet".into(),
         calibration: None,

@@ -1515,3 +1515,105 @@ fn a_replay_header_without_vrpn_counts_vrpn_reads_as_not_configured() {
     let e = header.ingest(None).err().unwrap().to_string();
     assert!(e.contains("`vrpn`") && e.contains("silence_s"), "{e}");
 }
+
+/// `raygun record --vrpn` and `raygun replay`, end to end: the recording of a live session
+/// (the capture served over TCP) carries the display and the calibration in its header and
+/// replays by itself to the golden ROI changes.
+#[test]
+fn the_record_and_replay_commands_reproduce_the_golden_roi_changes() {
+    let cap = tcp_capture();
+    let (addr, server) = serve(vec![cap.tcp.clone()], 4096);
+    let dir = std::env::temp_dir().join(format!("raygun-vrpn-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    // The golden calibration as a calibration file (VRPN sends metres: no units needed).
+    let cal = dir.join("lab.json");
+    std::fs::write(
+        &cal,
+        r#"{"raygun_calibration": 1, "translation_m": [0.0, -1.2, 1.25]}"#,
+    )
+    .unwrap();
+    let out = dir.join("session.jsonl");
+    let raygun = |args: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_raygun"))
+            .args(args)
+            .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+            .output()
+            .unwrap()
+    };
+    let o = raygun(&[
+        "record",
+        "--vrpn",
+        &format!("DTrack@tcp://{addr}"),
+        "--out",
+        out.to_str().unwrap(),
+        "--calibration",
+        cal.to_str().unwrap(),
+        "--seconds",
+        "60",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    server.join().unwrap();
+    let o = raygun(&["replay", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let got = String::from_utf8(o.stdout).unwrap();
+    assert_eq!(got.lines().count(), golden(&cap).lines().count(), "{got}");
+    assert!(
+        got == golden(&cap),
+        "recorded ROI changes differ from the golden file"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// `raygun view --vrpn`'s live source: the viewer's state gets the ROI of the capture's first
+/// shot, with the calibration applied.
+#[test]
+fn the_viewers_vrpn_source_delivers_the_shots() {
+    use raygun::tracking::calibration::Calibration;
+    use raygun::viewer::core::{RoiSource, ViewerState};
+    use raygun::viewer::live::LiveTracking;
+    let cap = tcp_capture();
+    let (addr, _server) = serve(vec![cap.tcp.clone()], 4096);
+    let cal = Calibration::from_json(
+        r#"{"raygun_calibration": 1, "translation_m": [0.0, -1.2, 1.25]}"#,
+        Path::new("lab.json"),
+    )
+    .unwrap();
+    let model = DisplayModel::load(hornet()).unwrap();
+    let mut live = LiveTracking::start_vrpn(
+        format!("DTrack@tcp://{addr}").parse().unwrap(),
+        false,
+        InteractionConfig::default(),
+        model.clone(),
+        Some(&cal),
+    )
+    .unwrap();
+    let mut state = ViewerState::new(RoiSource::Live, 4);
+    let deadline = std::time::Instant::now() + Duration::from_secs(20);
+    while state
+        .tracked
+        .as_ref()
+        .and_then(|r| r.centre.as_ref())
+        .is_none()
+    {
+        assert!(std::time::Instant::now() < deadline, "no ROI arrived");
+        std::thread::sleep(Duration::from_millis(20));
+        live.update(&mut state);
+    }
+    // The capture plays at once: the state ends at the golden file's last shot (its later FOV
+    // changes keep the centre).
+    let g = golden(&cap);
+    let last: Value = g
+        .lines()
+        .map(|l| serde_json::from_str::<Value>(l).unwrap())
+        .rfind(|v| v["kind"] == "shoot")
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(300));
+    live.update(&mut state);
+    let want = last["centre_canvas_px"].as_array().unwrap();
+    let got = state.tracked.unwrap().centre.unwrap().canvas_px;
+    assert!(
+        (got.x - want[0].as_f64().unwrap()).abs() < 0.01
+            && (got.y - want[1].as_f64().unwrap()).abs() < 0.01,
+        "{got} vs {want:?}"
+    );
+}

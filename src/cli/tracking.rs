@@ -72,7 +72,7 @@ impl ReplayArgs {
 
 /// `raygun record`.
 #[derive(Args, Debug, Clone)]
-#[command(group(ArgGroup::new("source").required(true).args(["dtrack", "osc"])))]
+#[command(group(ArgGroup::new("source").required(true).args(["dtrack", "osc", "vrpn"])))]
 pub struct RecordArgs {
     /// Listen for DTrack ASCII on this UDP port (0: any free port, said at start).
     #[arg(long, value_name = "PORT")]
@@ -80,6 +80,11 @@ pub struct RecordArgs {
     /// Listen for OSC on this UDP port (0: any free port, said at start).
     #[arg(long, value_name = "PORT")]
     pub osc: Option<u16>,
+    /// Record a VRPN server's device (DEVICE@HOST[:PORT], or DEVICE@tcp://HOST[:PORT]): the raw
+    /// messages, replayed through the same decoder; the recording ends at --seconds or when the
+    /// server closes.
+    #[arg(long, value_name = "DEVICE@HOST[:PORT]")]
+    pub vrpn: Option<crate::tracking::vrpn::VrpnAddress>,
     /// Replay file to write.
     #[arg(long, value_name = "FILE")]
     pub out: PathBuf,
@@ -348,13 +353,21 @@ pub fn listener_config(args: &RecordArgs) -> anyhow::Result<(ListenerConfig, Pro
 /// recording's header holds the display model and the calibration, so that replaying it needs
 /// neither. Says "listening on ADDR:PORT" once bound.
 pub fn run_record(args: &RecordArgs, stop: &AtomicBool) -> anyhow::Result<u64> {
-    let (config, protocol) = listener_config(args)?;
+    if let Some(s) = args.seconds
+        && !(s.is_finite() && s > 0.0)
+    {
+        bail!("--seconds must be a positive number of seconds, not {s}");
+    }
     crate::output::check_writable(&args.out)?;
     let (model, origin) = DisplayModel::open(&args.display)?;
     let calibration = match &args.calibration {
         Some(p) => Some(Calibration::load(p)?),
         None => None,
     };
+    if let Some(address) = &args.vrpn {
+        return record_vrpn(args, address, model, origin, calibration, stop);
+    }
+    let (config, protocol) = listener_config(args)?;
     let mut source = UdpSource::bind(config)?;
     let addr = source.local_addr()?;
     let mut header = ReplayHeader::new(format!(
@@ -389,6 +402,65 @@ pub fn run_record(args: &RecordArgs, stop: &AtomicBool) -> anyhow::Result<u64> {
             args.out.display()
         )
     })?;
+    Ok(n)
+}
+
+/// `record --vrpn`: the raw VRPN reads of one connection, with the display and the calibration
+/// in the header.
+fn record_vrpn(
+    args: &RecordArgs,
+    address: &crate::tracking::vrpn::VrpnAddress,
+    model: DisplayModel,
+    origin: crate::display::ModelOrigin,
+    calibration: Option<Calibration>,
+    stop: &AtomicBool,
+) -> anyhow::Result<u64> {
+    use crate::tracking::vrpn::{self, VrpnClientConfig, VrpnConfig, VrpnSource};
+    let mut source = VrpnSource::new(VrpnClientConfig {
+        reconnect: false,
+        allow_non_loopback: args.allow_network,
+        ..VrpnClientConfig::new(address.clone())
+    })?;
+    let mut header = vrpn::recording_header(address, &VrpnConfig::default());
+    header.display = Some(match &origin {
+        crate::display::ModelOrigin::Builtin(name) => (*name).to_owned(),
+        crate::display::ModelOrigin::File(p) => p.display().to_string(),
+    });
+    header.display_model = Some(model);
+    header.calibration = calibration;
+    let mut ingest = header.ingest(None)?;
+    ingest.problems.quiet = true;
+    let file =
+        LineFile::create(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+    let mut writer = ReplayWriter::new(file, &header)?;
+    writer.flush()?;
+    eprintln!(
+        "raygun record: recording VRPN {address} ({}), writing {}",
+        source.server(),
+        args.out.display()
+    );
+    let n = vrpn::record(
+        &mut source,
+        &mut writer,
+        &mut ingest,
+        stop,
+        args.seconds.map(Duration::from_secs_f64),
+    )
+    .with_context(|| {
+        format!(
+            "recording into {} (every record up to the failure is kept)",
+            args.out.display()
+        )
+    })?;
+    if ingest.problems.total() > 0 {
+        let kinds: Vec<String> = ingest
+            .problems
+            .counts()
+            .iter()
+            .map(|(kind, n)| format!("{n} × {kind}"))
+            .collect();
+        eprintln!("raygun record: input problems: {}", kinds.join(", "));
+    }
     Ok(n)
 }
 

@@ -14,6 +14,7 @@ use crate::trace::cpu::{DEFAULT_MAX_DEPTH, TraceSettings};
 use crate::tracking::calibration::Calibration;
 use crate::tracking::event::DeviceId;
 use crate::tracking::ingest::Protocol;
+use crate::tracking::vrpn::VrpnAddress;
 #[cfg(feature = "viewer")]
 use crate::viewer::app::ViewerApp;
 use crate::viewer::core::{RoiSource, ViewerCore, ViewerState};
@@ -21,7 +22,7 @@ use crate::viewer::live::LiveTracking;
 use crate::viewer::timeline::Timeline;
 
 #[derive(Clone, Debug, clap::Args)]
-#[command(group(clap::ArgGroup::new("tracking").args(["dtrack", "osc", "replay"])))]
+#[command(group(clap::ArgGroup::new("tracking").args(["dtrack", "osc", "vrpn", "replay"])))]
 pub struct ViewArgs {
     /// Scene: a .gltf/.glb file or builtin:NAME.
     #[arg(
@@ -54,6 +55,13 @@ pub struct ViewArgs {
     /// Live OSC on this loopback UDP port.
     #[arg(long, value_name = "PORT")]
     pub osc: Option<u16>,
+    /// Live VRPN from a server (`vrpn_Tracker_DTrack`, Vicon, …): DEVICE@HOST[:PORT] (VRPN's
+    /// classic UDP mode) or DEVICE@tcp://HOST[:PORT]; reconnects when the server goes away.
+    #[arg(long, value_name = "DEVICE@HOST[:PORT]")]
+    pub vrpn: Option<VrpnAddress>,
+    /// Allow a VRPN server that is not on this machine.
+    #[arg(long, requires = "vrpn")]
+    pub allow_network: bool,
     /// A replay to play, pause and scrub.
     #[arg(long, value_name = "FILE")]
     pub replay: Option<PathBuf>,
@@ -112,6 +120,8 @@ impl ViewArgs {
             backend: args.backend,
             dtrack: None,
             osc: None,
+            vrpn: None,
+            allow_network: false,
             replay: Some(replay.to_path_buf()),
             device: None,
             config: None,
@@ -213,8 +223,19 @@ pub fn run(args: &ViewArgs) -> anyhow::Result<()> {
         (_, Some(p)) => Some((p, Protocol::Osc)),
         _ => None,
     };
-    let live = match protocol {
-        Some((port, protocol)) => {
+    let live = match (protocol, &args.vrpn) {
+        (_, Some(address)) => {
+            let l = LiveTracking::start_vrpn(
+                address.clone(),
+                args.allow_network,
+                interaction.clone(),
+                model.clone(),
+                calibration.as_ref(),
+            )?;
+            eprintln!("raygun view: following VRPN {address}");
+            Some(l)
+        }
+        (Some((port, protocol)), None) => {
             let l = LiveTracking::start_calibrated(
                 port,
                 protocol,
@@ -228,7 +249,7 @@ pub fn run(args: &ViewArgs) -> anyhow::Result<()> {
             );
             Some(l)
         }
-        None => None,
+        (None, None) => None,
     };
     let source = if timeline.is_some() {
         RoiSource::Replay

@@ -10,11 +10,14 @@ use glam::DVec2;
 
 use super::core::ViewerState;
 use crate::display::DisplayModel;
+use crate::interaction::RoiChange;
 use crate::interaction::{Interaction, InteractionConfig, RaySurface};
 use crate::tracking::calibration::Calibration;
-use crate::tracking::event::{DeviceId, Tracking};
+use crate::tracking::dtrack::TimeSource;
+use crate::tracking::event::{DeviceId, Tracking, TrackingEvent};
 use crate::tracking::ingest::{Pipeline, Protocol};
 use crate::tracking::udp::{ListenerConfig, Live, UdpSource, run_live};
+use crate::tracking::vrpn::{self, VrpnAddress, VrpnClientConfig, VrpnConfig, VrpnSource};
 
 /// Aim samples of the followed device: (event time, canvas point or `None` while untracked or
 /// aiming off the wall).
@@ -69,42 +72,91 @@ impl LiveTracking {
     ) -> anyhow::Result<Self> {
         let mut source = UdpSource::bind(ListenerConfig::loopback(port))?;
         let port = source.local_addr()?.port();
+        let mut pipeline = Pipeline::quiet_live(config.device);
+        if let Some(c) = calibration {
+            pipeline.ingest.calibrate(c);
+        }
+        Self::spawn(
+            pipeline,
+            config,
+            model,
+            port,
+            move |p, m, stop, live, on| run_live(&mut source, protocol, p, m, stop, live, on),
+        )
+    }
+
+    /// Follows a VRPN server (`DEVICE@HOST[:PORT]`, loopback unless `allow_network`),
+    /// reconnecting when it goes away, with the default mapping for `vrpn_Tracker_DTrack`
+    /// and `calibration` (VRPN sends metres).
+    pub fn start_vrpn(
+        address: VrpnAddress,
+        allow_network: bool,
+        config: InteractionConfig,
+        model: DisplayModel,
+        calibration: Option<&Calibration>,
+    ) -> anyhow::Result<Self> {
+        let mut source = VrpnSource::new(VrpnClientConfig {
+            allow_non_loopback: allow_network,
+            ..VrpnClientConfig::new(address.clone())
+        })?;
+        let mut ingest =
+            vrpn::ingest_for(&address.device, VrpnConfig::default(), TimeSource::Tracker)?;
+        ingest.problems.quiet = true;
+        if let Some(c) = calibration {
+            ingest.calibrate(c);
+        }
+        let pipeline = Pipeline::new(ingest, Interaction::new(config.clone()));
+        Self::spawn(
+            pipeline,
+            config,
+            model,
+            address.port,
+            move |p, m, stop, live, on| vrpn::run_live(&mut source, p, m, stop, live, on),
+        )
+    }
+
+    /// Runs `receive` (a source's live loop) on its own thread with `pipeline` following
+    /// `config`'s device, collecting the device's aim for the cursor.
+    fn spawn(
+        mut pipeline: Pipeline,
+        config: InteractionConfig,
+        model: DisplayModel,
+        port: u16,
+        receive: impl FnOnce(
+            &mut Pipeline,
+            &DisplayModel,
+            &AtomicBool,
+            &Live,
+            &mut dyn FnMut(&[TrackingEvent], &[RoiChange]),
+        ) -> std::io::Result<()>
+        + Send
+        + 'static,
+    ) -> anyhow::Result<Self> {
         let live = Arc::new(Live::default());
         let aim: AimQueue = Arc::new(Mutex::new(Vec::new()));
         let stop = Arc::new(AtomicBool::new(false));
         let device = config.device;
-        let mut pipeline = Pipeline::quiet_live(device);
-        if let Some(c) = calibration {
-            pipeline.ingest.calibrate(c);
-        }
         pipeline.interaction = Interaction::new(config);
         let (pointing, _, _) = pipeline.interaction.config().axes();
         let (l, a, s) = (Arc::clone(&live), Arc::clone(&aim), Arc::clone(&stop));
         let thread = std::thread::Builder::new()
             .name("raygun live tracking".into())
             .spawn(move || {
-                run_live(
-                    &mut source,
-                    protocol,
-                    &mut pipeline,
-                    &model,
-                    &s,
-                    &l,
-                    |events, _| {
-                        for e in events.iter().filter(|e| e.device == device) {
-                            let new = match e.pose {
-                                Some(Tracking::Tracked(p)) => model
-                                    .hit(p.position, p.orientation * pointing)
-                                    .map(|h| h.canvas_px),
-                                Some(Tracking::Lost) => None,
-                                None => continue,
-                            };
-                            if let Ok(mut g) = a.lock() {
-                                g.push((e.t, new));
-                            }
+                let mut on = |events: &[TrackingEvent], _: &[RoiChange]| {
+                    for e in events.iter().filter(|e| e.device == device) {
+                        let new = match e.pose {
+                            Some(Tracking::Tracked(p)) => model
+                                .hit(p.position, p.orientation * pointing)
+                                .map(|h| h.canvas_px),
+                            Some(Tracking::Lost) => None,
+                            None => continue,
+                        };
+                        if let Ok(mut g) = a.lock() {
+                            g.push((e.t, new));
                         }
-                    },
-                )
+                    }
+                };
+                receive(&mut pipeline, &model, &s, &l, &mut on)
             })?;
         Ok(Self {
             live,

@@ -737,6 +737,7 @@ pub fn record<W: io::Write>(
     max_duration: Option<Duration>,
 ) -> io::Result<u64> {
     let start = Instant::now();
+    let mut last_flush = start;
     let mut n = 0u64;
     while !stop.load(Ordering::Relaxed) && max_duration.is_none_or(|d| start.elapsed() < d) {
         let polled = source.poll(&mut ingest.problems)?;
@@ -746,13 +747,15 @@ pub fn record<W: io::Write>(
                 writer.datagram(t, protocol, bytes)?;
                 let _ = ingest.datagram(protocol, bytes, t);
                 n += 1;
-                if n.is_multiple_of(256) {
-                    writer.flush()?;
-                }
             }
             None if polled == VrpnPoll::Ended => break,
-            // Flushing when the line is quiet keeps a killed recorder's file complete.
-            None => writer.flush()?,
+            None => {}
+        }
+        // Under a steady stream as when the line is quiet: a killed recorder keeps everything
+        // up to the last flush.
+        if last_flush.elapsed() >= crate::tracking::udp::FLUSH_INTERVAL {
+            writer.flush()?;
+            last_flush = Instant::now();
         }
         if ingest.take_vrpn_reconnect() {
             source.drop_connection();
