@@ -996,7 +996,7 @@ pub fn markdown(r: &AllReport) -> String {
         c.seed,
     );
     s += &paper_markdown(&r.paper);
-    s += "\n## Targets (issue 8)\n\n";
+    s += "\n## Targets\n\n";
     s += &targets_markdown(&r.targets);
     s += "\n";
     s += "## DGI\n\n";
@@ -1059,7 +1059,7 @@ fn fmt_range(v: [f64; 2], digits: usize) -> String {
 #[must_use]
 pub fn paper_markdown(rows: &[PaperRow]) -> String {
     let mut s = String::from(
-        "## The paper's table beside ours\n\nThe paper (DESIGN.md §9): HORNET, viewer 1 m in front of the wall centre, 3840×2160, GTX 980 with OptiX. Per megapixel = ms ÷ the image's megapixels (for a 1-spp full frame the paper's ms per megasample); where our size is not 3840×2160 it is the comparable figure, and nothing is scaled. Speed-up = full frame ÷ guided iteration on the same device.\n\n| measure | paper ms | paper ms/megapixel | paper speed-up | ours ms | ours ms/megapixel | ours speed-up | our size | our device | note |\n|---|---|---|---|---|---|---|---|---|---|\n",
+        "## The paper's table beside ours\n\nThe paper (Roth et al., ISVC 2015): HORNET, viewer 1 m in front of the wall centre, 3840×2160, GTX 980 with OptiX. Per megapixel = ms ÷ the image's megapixels (for a 1-spp full frame the paper's ms per megasample); where our size is not 3840×2160 it is the comparable figure, and nothing is scaled. Speed-up = full frame ÷ guided iteration on the same device.\n\n| measure | paper ms | paper ms/megapixel | paper speed-up | ours ms | ours ms/megapixel | ours speed-up | our size | our device | note |\n|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in rows {
         let sp = |v: Option<f64>| v.map_or("–".into(), |v| format!("{v:.2}×"));
