@@ -1,5 +1,5 @@
-//! `cargo bench --bench tracking_ingest`: see `raygun::tracking::bench`.
+//! `cargo bench --bench tracking_ingest`: see `raygun::bench::tracking`.
 
 fn main() {
-    println!("{}", raygun::tracking::bench::run());
+    println!("{}", raygun::bench::tracking::run());
 }

@@ -52,7 +52,7 @@ pub mod random;
 pub mod roi;
 pub mod scene;
 pub mod schedule;
-pub mod stop;
+pub mod session;
 pub mod trace;
 pub mod tracking;
 pub mod viewer;

@@ -92,6 +92,29 @@ pub fn number(v: f64) -> String {
     }
 }
 
+/// An error and its sources as one line, `outer: inner: …`, each message once (a wrapper
+/// that repeats its source's text adds nothing).
+#[must_use]
+pub fn chain(e: &(dyn std::error::Error + 'static)) -> String {
+    join_causes(std::iter::successors(Some(e), |e| e.source()).map(ToString::to_string))
+}
+
+/// Causes joined with `: `, skipping empty ones and ones already said.
+#[must_use]
+pub fn join_causes(causes: impl IntoIterator<Item = String>) -> String {
+    let mut out = String::new();
+    for text in causes {
+        if text.is_empty() || out.contains(&text) {
+            continue;
+        }
+        if !out.is_empty() {
+            out.push_str(": ");
+        }
+        out.push_str(&text);
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

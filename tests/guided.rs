@@ -2,7 +2,7 @@
 
 use glam::DVec3;
 use raygun::display::DisplayModel;
-use raygun::frame::{GuideConfig, GuidedRenderer};
+use raygun::frame::{GuideConfig, Renderer};
 use raygun::gpu::{Backend, GpuContext};
 use raygun::roi::cone::Cone;
 use raygun::roi::dgi::Roi;
@@ -62,8 +62,7 @@ fn guided(
         p_min,
         ..Default::default()
     };
-    let mut r =
-        GuidedRenderer::new(backend, scene, settings(scene, seed), &hornet(), config).unwrap();
+    let mut r = Renderer::guided(backend, scene, settings(scene, seed), &hornet(), config).unwrap();
     for (roi, n) in plan {
         r.set_roi(*roi).unwrap();
         for _ in 0..*n {

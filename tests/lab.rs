@@ -39,7 +39,7 @@ fn uncalibrated_copy(dir: &Path) -> PathBuf {
 }
 
 fn golden(replay: &str) -> String {
-    let p = raygun::cli::tracking::golden_path(&Path::new(ROOT).join(replay));
+    let p = raygun::session::replay::golden_path(&Path::new(ROOT).join(replay));
     std::fs::read_to_string(p).unwrap()
 }
 

@@ -12,11 +12,11 @@
 
 use std::path::Path;
 
+use raygun::frame::Renderer;
 use raygun::gpu::{Backend, GpuContext};
 use raygun::scene::{Environment, Scene};
 use raygun::trace::camera::RenderCamera;
 use raygun::trace::cpu::TraceSettings;
-use raygun::trace::render::Renderer;
 use serde_json::Value;
 
 const ROOT: &str = env!("CARGO_MANIFEST_DIR");
@@ -83,7 +83,7 @@ fn raygun_regions(backend: &Backend, r: &Reference, spp: u32) -> Vec<([f64; 3], 
             max_depth,
             camera,
         };
-        let mut renderer = Renderer::new(backend, &scene, settings).unwrap();
+        let mut renderer = Renderer::full(backend, &scene, settings).unwrap();
         renderer.iterate(spp).unwrap();
         let image = renderer.accumulation().unwrap().mean_image();
         per_render.push(

@@ -9,10 +9,11 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use raygun::cli::tracking::{ChangePrinter, ReplayArgs, ReplayPlan, golden_path, run_replay};
+use raygun::cli::tracking::{ReplayArgs, run_replay};
+use raygun::session::replay::{ChangePrinter, ReplayPlan, golden_path};
+use raygun::session::synth;
+use raygun::session::udp::{ListenerConfig, Live, UdpSource, run_live};
 use raygun::tracking::replay::ReplayPayload;
-use raygun::tracking::synth;
-use raygun::tracking::udp::{ListenerConfig, Live, UdpSource, run_live};
 
 fn replay_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tracking-replays")
@@ -125,7 +126,7 @@ fn sessions_report_their_misses_and_untracked_shots() {
 
 /// Sends every datagram of `file` to a live listener over loopback and returns what it printed.
 fn run_over_udp(file: &Path) -> String {
-    let (plan, mut reader) = ReplayPlan::new(&args(file)).unwrap();
+    let (plan, mut reader) = ReplayPlan::new(&args(file).options()).unwrap();
     let mut datagrams = Vec::new();
     let mut protocol = None;
     while let Some(item) = reader.next_item() {

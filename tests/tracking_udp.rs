@@ -9,12 +9,13 @@ use std::time::{Duration, Instant};
 
 use raygun::cli::tracking::{RecordArgs, listener_config};
 use raygun::interaction::{ChangeCause, HingedWall, RoiChange};
+use raygun::session::pipeline::Pipeline;
+use raygun::session::udp::{ListenerConfig, Live, UdpError, UdpSource, record, run_live};
 use raygun::tracking::event::{DeviceId, DeviceKind};
-use raygun::tracking::ingest::{Pipeline, Protocol};
+use raygun::tracking::ingest::Protocol;
 use raygun::tracking::osc::encode;
 use raygun::tracking::problems::ProblemLog;
 use raygun::tracking::replay::{ReplayHeader, ReplayPayload, ReplayReader, ReplayWriter};
-use raygun::tracking::udp::{ListenerConfig, Live, UdpError, UdpSource, record, run_live};
 use rosc::{OscMessage, OscPacket, OscType};
 
 const ID_ROT: &str = "[1 0 0 0 1 0 0 0 1]";

@@ -18,20 +18,19 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use glam::DQuat;
-use raygun::cli::tracking::{ChangePrinter, ReplayArgs, ReplayPlan, golden_path};
 use raygun::display::DisplayModel;
 use raygun::interaction::{Interaction, InteractionConfig};
+use raygun::session::pipeline::Pipeline;
+use raygun::session::replay::{ChangePrinter, ReplayOptions, ReplayPlan, golden_path};
+use raygun::session::udp::Live;
+use raygun::session::vrpn::{VrpnClientConfig, VrpnClientError, VrpnPoll, VrpnSource};
 use raygun::tracking::dtrack::{DtrackConfig, DtrackDecoder, TimeSource, TrackerToRoom};
 use raygun::tracking::event::{DeviceId, DeviceKind, Tracking, TrackingEvent};
-use raygun::tracking::ingest::{Ingest, Pipeline, Protocol};
+use raygun::tracking::ingest::{Ingest, Protocol};
 use raygun::tracking::problems::ProblemLog;
 use raygun::tracking::replay::{ReplayHeader, ReplayPayload, ReplayReader, ReplayWriter};
-use raygun::tracking::udp::Live;
 use raygun::tracking::vrpn::wire::{self, Body, Header, VrpnTime, encode};
-use raygun::tracking::vrpn::{
-    self, Channel, VrpnAddress, VrpnClientConfig, VrpnClientError, VrpnConfig, VrpnHeader,
-    VrpnMessage, VrpnPoll, VrpnSource,
-};
+use raygun::tracking::vrpn::{self, Channel, VrpnAddress, VrpnConfig, VrpnHeader, VrpnMessage};
 use serde_json::Value;
 
 fn data(name: &str) -> PathBuf {
@@ -838,9 +837,9 @@ fn the_udp_capture_decodes_exactly_what_its_listing_says_in_classic_mode() {
 /// Plays a replay through its header's decoders and the interaction state machine, as
 /// `raygun replay` does, and prints the ROI changes in the golden files' form.
 fn replay_roi_changes(file: &Path) -> (String, ProblemLog) {
-    let args = ReplayArgs {
+    let args = ReplayOptions {
         display: Some(hornet().display().to_string()),
-        ..ReplayArgs::of(file.to_owned())
+        ..ReplayOptions::of(file.to_owned())
     };
     let (plan, mut reader) = ReplayPlan::new(&args).unwrap();
     reader.problems.quiet = true;
@@ -945,7 +944,7 @@ fn a_live_tcp_session_gives_the_golden_roi_changes() {
     let stop = AtomicBool::new(false);
     let live = Live::default();
     let mut printer = ChangePrinter::new(Vec::new());
-    vrpn::run_live(
+    raygun::session::vrpn::run_live(
         &mut source,
         &mut pipeline,
         &surface,
@@ -1036,7 +1035,7 @@ fn a_recording_replays_to_the_golden_roi_changes() {
     let mut ingest = header.ingest(None).unwrap();
     ingest.problems.quiet = true;
     let stop = AtomicBool::new(false);
-    let n = vrpn::record(
+    let n = raygun::session::vrpn::record(
         &mut source,
         &mut writer,
         &mut ingest,
@@ -1568,9 +1567,9 @@ fn the_record_and_replay_commands_reproduce_the_golden_roi_changes() {
 /// shot, with the calibration applied.
 #[test]
 fn the_viewers_vrpn_source_delivers_the_shots() {
+    use raygun::session::live::LiveTracking;
     use raygun::tracking::calibration::Calibration;
     use raygun::viewer::core::{RoiSource, ViewerState};
-    use raygun::viewer::live::LiveTracking;
     let cap = tcp_capture();
     let (addr, _server) = serve(vec![cap.tcp.clone()], 4096);
     let cal = Calibration::from_json(
@@ -1597,7 +1596,7 @@ fn the_viewers_vrpn_source_delivers_the_shots() {
     {
         assert!(std::time::Instant::now() < deadline, "no ROI arrived");
         std::thread::sleep(Duration::from_millis(20));
-        live.update(&mut state);
+        state.apply_live(live.update());
     }
     // The capture plays at once: the state ends at the golden file's last shot (its later FOV
     // changes keep the centre).
@@ -1608,7 +1607,7 @@ fn the_viewers_vrpn_source_delivers_the_shots() {
         .rfind(|v| v["kind"] == "shoot")
         .unwrap();
     std::thread::sleep(Duration::from_millis(300));
-    live.update(&mut state);
+    state.apply_live(live.update());
     let want = last["centre_canvas_px"].as_array().unwrap();
     let got = state.tracked.unwrap().centre.unwrap().canvas_px;
     assert!(

@@ -10,6 +10,7 @@ use raygun::gpu::Backend;
 use raygun::interaction::CursorMark;
 use raygun::roi::dgi::Roi;
 use raygun::scene::{Environment, Scene};
+use raygun::session::timeline::Timeline;
 use raygun::trace::accum::Accumulation;
 use raygun::trace::camera::RenderCamera;
 use raygun::trace::cpu::TraceSettings;
@@ -18,7 +19,6 @@ use raygun::viewer::core::{
     ViewerState, heat_map, median_finite, noise_image, noise_map, predicted_noise_ratio,
     roi_outline, save_picture,
 };
-use raygun::viewer::timeline::Timeline;
 
 #[path = "support/xvfb_settings.rs"]
 mod xvfb;
@@ -116,10 +116,13 @@ fn panel_settings_reach_the_renderer() {
     core.state.falloff_scale = 1.25;
     core.step(ONE).unwrap();
     let r = core.renderer();
-    assert_eq!(r.config.p_min, 1.0);
+    assert_eq!(r.guide_config().unwrap().p_min, 1.0);
     assert_eq!(r.settings.max_depth, 2);
     assert_eq!(
-        (r.config.falloff.base_m, r.config.falloff.scale),
+        (
+            r.guide_config().unwrap().falloff.base_m,
+            r.guide_config().unwrap().falloff.scale
+        ),
         (0.5, 1.25)
     );
     assert_eq!(r.iteration(), 1);
@@ -144,7 +147,7 @@ fn panel_settings_reach_the_renderer() {
     core.state.falloff_base_m = 0.0;
     let e = core.step(ONE).unwrap_err();
     assert!(format!("{e:#}").contains("falloff"), "{e:#}");
-    assert_eq!(core.renderer().config.falloff.base_m, 0.5);
+    assert_eq!(core.renderer().guide_config().unwrap().falloff.base_m, 0.5);
 }
 
 #[test]
@@ -211,7 +214,7 @@ fn overlays_show_the_dgi_the_counts_and_the_roi_outline() {
 /// The bundled centre-sweeps FlyStick session on HORNET, as the viewer's timeline.
 fn bundled_replay() -> Timeline {
     let root = env!("CARGO_MANIFEST_DIR");
-    Timeline::collect(&raygun::cli::tracking::ReplayArgs {
+    Timeline::collect(&raygun::session::replay::ReplayOptions {
         file: format!("{root}/tracking-replays/flystick-1-centre-sweeps.dtrack.jsonl").into(),
         display: Some(format!("{root}/display-models/hornet.json")),
         config: None,
@@ -290,8 +293,8 @@ fn gpu_backend_follows_the_click_and_reports_stats() {
 /// stick points (the wall centre) and, after a trigger press, the ROI there.
 #[test]
 fn live_dtrack_sets_the_aim_and_a_trigger_press_the_roi() {
+    use raygun::session::live::LiveTracking;
     use raygun::tracking::ingest::Protocol;
-    use raygun::viewer::live::LiveTracking;
     let model = hornet();
     let mut live = LiveTracking::start(
         0,
@@ -323,7 +326,7 @@ fn live_dtrack_sets_the_aim_and_a_trigger_press_the_roi() {
             .unwrap();
         k += 1;
         std::thread::sleep(Duration::from_millis(20));
-        live.update(&mut state);
+        state.apply_live(live.update());
     }
     let centre = model.canvas_rect().center();
     let aim = state.aim.expect("the stick points at the wall");
@@ -355,9 +358,9 @@ fn live_dtrack_sets_the_aim_and_a_trigger_press_the_roi() {
 #[test]
 fn live_dtrack_takes_the_calibration() {
     use raygun::interaction::InteractionConfig;
+    use raygun::session::live::LiveTracking;
     use raygun::tracking::calibration::Calibration;
     use raygun::tracking::ingest::Protocol;
-    use raygun::viewer::live::LiveTracking;
     let model = hornet();
     let cal = Calibration::from_json(
         r#"{"raygun_calibration":1,"rotation_rows":[[1,0,0],[0,0,1],[0,-1,0]],"translation_m":[0,-1.45,0]}"#,
@@ -396,7 +399,7 @@ fn live_dtrack_takes_the_calibration() {
                 .unwrap();
             k += 1;
             std::thread::sleep(Duration::from_millis(20));
-            live.update(&mut state);
+            state.apply_live(live.update());
         }
         let hit = state
             .tracked

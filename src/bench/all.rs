@@ -19,14 +19,13 @@ use crate::bench::stages::{self, StageRow};
 use crate::bench::trace::{self, TraceBenchConfig, TraceBenchRow};
 use crate::display::DisplayModel;
 use crate::filter::{FilterKind, FilterParams};
-use crate::frame::{GuideConfig, GuidedRenderer};
+use crate::frame::{GuideConfig, Renderer};
 use crate::gpu::Backend;
 use crate::roi::dgi::{Falloff, Surface};
 use crate::scene::Scene;
 use crate::trace::accum::Accumulation;
 use crate::trace::camera::RenderCamera;
 use crate::trace::cpu::TraceSettings;
-use crate::trace::render::Renderer;
 
 /// Target of the time-to-quality figure: RMSE inside the ROI ≤ this share of the reference's
 /// mean there.
@@ -472,7 +471,7 @@ pub fn convergence(
         cfg.reference_spp
     ));
     let reference = {
-        let mut r = Renderer::new(backend, scene, settings(cfg.seed ^ 0xc0_5eed))?;
+        let mut r = Renderer::full(backend, scene, settings(cfg.seed ^ 0xc0_5eed))?;
         let mut left = cfg.reference_spp.max(1);
         while left > 0 {
             let n = left.min(64);
@@ -486,7 +485,7 @@ pub fn convergence(
     for &fov in fovs {
         progress(&format!("convergence: {fov}° guided"));
         let roi = super::paper_roi(fov)?;
-        let mut g = GuidedRenderer::new(
+        let mut g = Renderer::guided(
             backend,
             scene,
             settings(cfg.seed.wrapping_add(11)),
@@ -513,7 +512,7 @@ pub fn convergence(
         drop(g);
         let guided_ms = ms;
         progress(&format!("convergence: {fov}° full frame"));
-        let mut full = Renderer::new(backend, scene, settings(cfg.seed.wrapping_add(12)))?;
+        let mut full = Renderer::full(backend, scene, settings(cfg.seed.wrapping_add(12)))?;
         let (mut ms, mut full_curve, mut i) = (0.0, Vec::new(), 0u32);
         let mut stride = 1u32;
         loop {

@@ -12,7 +12,7 @@ use serde::Serialize;
 use super::median;
 
 use crate::display::DisplayModel;
-use crate::frame::{FrameError, GuideConfig, GuidedRenderer};
+use crate::frame::{FrameError, GuideConfig, Renderer};
 use crate::gpu::{Backend, GpuError};
 use crate::roi::cone::{Cone, ConeError};
 use crate::roi::dgi::Roi;
@@ -20,7 +20,6 @@ use crate::scene::Scene;
 use crate::schedule::Order;
 use crate::trace::camera::{CameraError, RenderCamera};
 use crate::trace::cpu::TraceSettings;
-use crate::trace::render::Renderer;
 
 /// What to measure.
 #[derive(Clone, Debug, Serialize)]
@@ -148,8 +147,8 @@ fn full_frame_image(
     scene: &Scene,
     settings: TraceSettings,
     spp: u32,
-) -> Result<Vec<Vec3>, GpuError> {
-    let mut r = Renderer::new(backend, scene, settings)?;
+) -> Result<Vec<Vec3>, FrameError> {
+    let mut r = Renderer::full(backend, scene, settings)?;
     let mut left = spp;
     while left > 0 {
         let n = left.min(64);
@@ -185,7 +184,7 @@ pub fn run(
             camera,
         };
         progress(&format!("{name}: full-frame baseline"));
-        let mut full = Renderer::new(backend, scene, settings(cfg.seed))?;
+        let mut full = Renderer::full(backend, scene, settings(cfg.seed))?;
         full.iterate(2)?;
         let timed = full.timed_iterations(cfg.full_frames.max(1))?;
         let ms_full = median(timed.ms.clone());
@@ -217,7 +216,7 @@ pub fn run(
                     order,
                     ..Default::default()
                 };
-                let mut g = GuidedRenderer::new(
+                let mut g = Renderer::guided(
                     backend,
                     scene,
                     settings(cfg.seed.wrapping_add(1)),
@@ -446,7 +445,7 @@ pub fn filter_input(
         camera,
     };
     let roi = super::paper_roi(fov)?;
-    let mut g = GuidedRenderer::new(
+    let mut g = Renderer::guided(
         backend,
         scene,
         settings(seed),

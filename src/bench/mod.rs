@@ -9,6 +9,7 @@ pub mod schedule;
 pub mod solver;
 pub mod stages;
 pub mod trace;
+pub mod tracking;
 
 /// The median (mean of the two middle values for an even count; NaN when empty).
 #[must_use]

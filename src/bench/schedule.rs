@@ -8,64 +8,29 @@
 //! permutation), but what coherence buys is the tracer's time over the list, which the guided
 //! render benchmark measures once the tracer exists ([`Order`] selects the order).
 
-use std::path::PathBuf;
 use std::time::Instant;
 
 use glam::DVec3;
 use serde::Serialize;
 use wgpu::util::DeviceExt;
 
-use crate::display::DisplayModel;
-use crate::gpu::{Backend, BackendChoice, GpuContext, PassTimer};
+use crate::gpu::{Backend, GpuContext, PassTimer};
 use crate::roi::cone::Cone;
 use crate::roi::dgi::{DgiParams, Falloff, Guide, Metric, Roi, Surface, compute_cpu, roi_radius_m};
 use crate::schedule::gpu::{ScheduleConfig, ScheduleKernel};
 use crate::schedule::{Order, probability, schedule_cpu};
 
-/// `raygun bench schedule` arguments.
-#[derive(Clone, Debug, clap::Args)]
-pub struct ScheduleBenchArgs {
-    /// Display model (the paper's setup: HORNET).
-    #[arg(long, value_name = "MODEL", default_value = crate::display::DEFAULT_MODEL)]
-    pub display: String,
-    /// Image size.
-    #[arg(long, value_name = "W,H", value_parser = crate::cli::args::parse_size, default_value = "3840,2160")]
-    pub size: [u32; 2],
-    /// Fields of view, degrees (square cones).
-    #[arg(
-        long,
-        value_name = "DEG,…",
-        value_delimiter = ',',
-        default_value = "10,20,30,40,50,60"
-    )]
-    pub fov: Vec<f64>,
-    /// Lowest sampling probability (paper preset 0).
-    #[arg(long, default_value_t = 0.0)]
-    pub p_min: f32,
-    /// List orders to time.
-    #[arg(
-        long,
-        value_enum,
-        value_delimiter = ',',
-        default_value = "coherent,scattered"
-    )]
-    pub order: Vec<Order>,
-    /// GPU iterations per measurement (median reported).
-    #[arg(long, default_value_t = 50)]
-    pub reps: u32,
-    /// CPU iterations per measurement.
-    #[arg(long, default_value_t = 5)]
-    pub cpu_reps: u32,
-    /// `cpu` measures the twin only; `gpu` (the default: this benchmark is about the kernel)
-    /// measures both, on any adapter; `auto` skips software adapters, as elsewhere.
-    #[arg(long, value_enum, default_value_t = BackendChoice::Gpu)]
-    pub backend: BackendChoice,
-    /// Print JSON instead of a Markdown table.
-    #[arg(long)]
-    pub json: bool,
-    /// Also write the output to this file.
-    #[arg(long, value_name = "FILE")]
-    pub out: Option<PathBuf>,
+/// Why the scheduling benchmark could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum ScheduleBenchError {
+    #[error(transparent)]
+    Gpu(#[from] crate::gpu::GpuError),
+    #[error(transparent)]
+    Schedule(#[from] crate::schedule::ScheduleError),
+    #[error(transparent)]
+    Cone(#[from] crate::roi::cone::ConeError),
+    #[error(transparent)]
+    Guide(#[from] crate::roi::dgi::GuideError),
 }
 
 /// What to measure.
@@ -148,7 +113,7 @@ fn time_gpu(
     dgi: &wgpu::Buffer,
     config: &ScheduleBenchConfig,
     order: Order,
-) -> anyhow::Result<(Vec<f64>, bool, u32)> {
+) -> Result<(Vec<f64>, bool, u32), ScheduleBenchError> {
     let [width, height] = config.size;
     let run = kernel.prepare(
         ctx,
@@ -195,7 +160,7 @@ pub fn run(
     backend: &Backend,
     config: &ScheduleBenchConfig,
     mut progress: impl FnMut(&str),
-) -> anyhow::Result<ScheduleBenchReport> {
+) -> Result<ScheduleBenchReport, ScheduleBenchError> {
     let [w, h] = config.size;
     let pixels = f64::from(w) * f64::from(h);
     let gpu = match backend {
@@ -326,31 +291,4 @@ impl ScheduleBenchReport {
         }
         s
     }
-}
-
-/// `raygun bench schedule`.
-pub fn run_command(args: &ScheduleBenchArgs) -> anyhow::Result<()> {
-    let model = DisplayModel::open(&args.display)?.0;
-    let surface = Surface::from_model(&model);
-    let backend = Backend::select(args.backend)?;
-    let config = ScheduleBenchConfig {
-        size: args.size,
-        fovs_deg: args.fov.clone(),
-        p_min: crate::schedule::validate_p_min(args.p_min)?,
-        orders: args.order.clone(),
-        gpu_reps: args.reps.max(1),
-        cpu_reps: args.cpu_reps.max(1),
-        ..ScheduleBenchConfig::default()
-    };
-    let gpu = u64::from(matches!(backend, Backend::Gpu(_)));
-    let steps = config.fovs_deg.len() as u64 * (1 + config.orders.len() as u64 * (1 + gpu));
-    let (bar, progress) = crate::cli::bench::bench_progress(args.json, steps);
-    let report = run(&surface, model.name(), &backend, &config, progress)?;
-    bar.finish_and_clear();
-    let text = if args.json {
-        serde_json::to_string_pretty(&report)?
-    } else {
-        report.to_markdown()
-    };
-    crate::cli::bench::print_and_save(&text, args.out.as_deref())
 }

@@ -19,7 +19,7 @@ use serde::Serialize;
 
 use crate::display::DisplayModel;
 use crate::filter::FilterParams;
-use crate::frame::{GuideConfig, GuidedRenderer};
+use crate::frame::{GuideConfig, Renderer};
 use crate::gpu::{Backend, PassTimer};
 use crate::scene::Scene;
 use crate::trace::camera::RenderCamera;
@@ -104,7 +104,7 @@ pub fn measure(
         camera,
     };
     let roi = super::paper_roi(fov)?;
-    let mut g = GuidedRenderer::new(backend, scene, settings, display, GuideConfig::default())?;
+    let mut g = Renderer::guided(backend, scene, settings, display, GuideConfig::default())?;
     let gpu = match backend {
         Backend::Gpu(ctx) => {
             let kernels = crate::filter::gpu::FilterKernels::new(ctx);

@@ -6,11 +6,11 @@ use serde::Serialize;
 
 use super::median;
 
+use crate::frame::Renderer;
 use crate::gpu::{Backend, GpuError};
 use crate::scene::Scene;
 use crate::trace::camera::{CameraError, RenderCamera};
 use crate::trace::cpu::TraceSettings;
-use crate::trace::render::Renderer;
 
 /// What to measure.
 #[derive(Clone, Debug, Serialize)]
@@ -64,6 +64,8 @@ pub struct TraceBenchRow {
 pub enum TraceBenchError {
     #[error(transparent)]
     Gpu(#[from] GpuError),
+    #[error(transparent)]
+    Frame(#[from] crate::frame::FrameError),
     #[error("scene '{scene}': {source}")]
     Camera {
         scene: String,
@@ -106,7 +108,7 @@ pub fn run(
             max_depth: cfg.max_depth,
             camera,
         };
-        let mut r = Renderer::new(backend, scene, settings)?;
+        let mut r = Renderer::full(backend, scene, settings)?;
         r.iterate(cfg.warmup)?;
         let timed = r.timed_iterations(cfg.frames.max(1))?;
         let med = median(timed.ms.clone());

@@ -19,7 +19,7 @@ pub enum BenchCommand {
     /// Filter time (exact and fast) and error against a reference inside and outside the ROI.
     Filter(crate::cli::filter::FilterBenchArgs),
     /// Scheduling (mask, compaction, indirect arguments) per FOV, GPU and CPU twin.
-    Schedule(crate::bench::schedule::ScheduleBenchArgs),
+    Schedule(ScheduleBenchArgs),
     /// Full-frame path tracing: ms per frame, ms per megasample and rays per second.
     Trace(TraceBenchArgs),
     /// The paper's benchmark: guided vs full-frame per FOV (share sampled, ms per iteration,
@@ -366,7 +366,7 @@ pub fn run(cmd: &BenchCommand) -> anyhow::Result<()> {
     match cmd {
         BenchCommand::Adapter(args) => run_adapter(args),
         BenchCommand::Filter(args) => crate::cli::filter::run_bench(args),
-        BenchCommand::Schedule(args) => crate::bench::schedule::run_command(args),
+        BenchCommand::Schedule(args) => run_schedule(args),
         BenchCommand::Trace(args) => run_trace_bench(args),
         BenchCommand::Guided(args) => run_guided_bench(args),
         BenchCommand::All(args) => run_all_bench(args),
@@ -402,4 +402,77 @@ pub fn print_and_save(text: &str, out: Option<&std::path::Path>) -> anyhow::Resu
         crate::output::write_bytes(path, text.as_bytes())?;
     }
     Ok(())
+}
+
+/// `raygun bench schedule` arguments.
+#[derive(Clone, Debug, clap::Args)]
+pub struct ScheduleBenchArgs {
+    /// Display model (the paper's setup: HORNET).
+    #[arg(long, value_name = "MODEL", default_value = crate::display::DEFAULT_MODEL)]
+    pub display: String,
+    /// Image size.
+    #[arg(long, value_name = "W,H", value_parser = crate::cli::args::parse_size, default_value = "3840,2160")]
+    pub size: [u32; 2],
+    /// Fields of view, degrees (square cones).
+    #[arg(
+        long,
+        value_name = "DEG,…",
+        value_delimiter = ',',
+        default_value = "10,20,30,40,50,60"
+    )]
+    pub fov: Vec<f64>,
+    /// Lowest sampling probability (paper preset 0).
+    #[arg(long, default_value_t = 0.0)]
+    pub p_min: f32,
+    /// List orders to time.
+    #[arg(
+        long,
+        value_enum,
+        value_delimiter = ',',
+        default_value = "coherent,scattered"
+    )]
+    pub order: Vec<crate::schedule::Order>,
+    /// GPU iterations per measurement (median reported).
+    #[arg(long, default_value_t = 50)]
+    pub reps: u32,
+    /// CPU iterations per measurement.
+    #[arg(long, default_value_t = 5)]
+    pub cpu_reps: u32,
+    /// `cpu` measures the twin only; `gpu` (the default: this benchmark is about the kernel)
+    /// measures both, on any adapter; `auto` skips software adapters, as elsewhere.
+    #[arg(long, value_enum, default_value_t = BackendChoice::Gpu)]
+    pub backend: BackendChoice,
+    /// Print JSON instead of a Markdown table.
+    #[arg(long)]
+    pub json: bool,
+    /// Also write the output to this file.
+    #[arg(long, value_name = "FILE")]
+    pub out: Option<PathBuf>,
+}
+
+/// `raygun bench schedule`.
+fn run_schedule(args: &ScheduleBenchArgs) -> anyhow::Result<()> {
+    let model = DisplayModel::open(&args.display)?.0;
+    let surface = Surface::from_model(&model);
+    let backend = Backend::select(args.backend)?;
+    let config = crate::bench::schedule::ScheduleBenchConfig {
+        size: args.size,
+        fovs_deg: args.fov.clone(),
+        p_min: crate::schedule::validate_p_min(args.p_min)?,
+        orders: args.order.clone(),
+        gpu_reps: args.reps.max(1),
+        cpu_reps: args.cpu_reps.max(1),
+        ..crate::bench::schedule::ScheduleBenchConfig::default()
+    };
+    let gpu = u64::from(matches!(backend, Backend::Gpu(_)));
+    let steps = config.fovs_deg.len() as u64 * (1 + config.orders.len() as u64 * (1 + gpu));
+    let (bar, progress) = bench_progress(args.json, steps);
+    let report = crate::bench::schedule::run(&surface, model.name(), &backend, &config, progress)?;
+    bar.finish_and_clear();
+    let text = if args.json {
+        serde_json::to_string_pretty(&report)?
+    } else {
+        report.to_markdown()
+    };
+    print_and_save(&text, args.out.as_deref())
 }

@@ -9,13 +9,14 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 
 use crate::cli::args::parse_size;
-use crate::cli::guided::{GuideSource, GuidedResult, Stopping, render_guided, write_guides};
 use crate::cli::progress::Progress;
-use crate::cli::tracking::{ReplayArgs, ReplayPlan};
 use crate::display::DisplayModel;
 use crate::filter::FilterParams;
 use crate::frame::GuideConfig;
 use crate::gpu::{Backend, BackendChoice};
+use crate::session::guide::GuideSource;
+use crate::session::render::{GuidedResult, Stopping, render_guided};
+use crate::session::replay::{ReplayOptions, ReplayPlan};
 use crate::trace::camera::RenderCamera;
 use crate::trace::cpu::{DEFAULT_MAX_DEPTH, TraceSettings};
 
@@ -145,9 +146,9 @@ pub fn run_headless(args: &DemoArgs) -> anyhow::Result<DemoOutput> {
         max_depth: DEFAULT_MAX_DEPTH,
         camera,
     };
-    let (plan, _) = ReplayPlan::new(&ReplayArgs {
+    let (plan, _) = ReplayPlan::new(&ReplayOptions {
         display: Some(display_path.display().to_string()),
-        ..ReplayArgs::of(replay_path.clone())
+        ..ReplayOptions::of(replay_path.clone())
     })?;
     let source = GuideSource::from_replay(&plan, &replay_path)?;
     let config = GuideConfig::default();
@@ -195,7 +196,7 @@ pub fn run_headless(args: &DemoArgs) -> anyhow::Result<DemoOutput> {
         ));
     }
     let (dgi, counts) = (args.out.join("dgi.png"), args.out.join("counts.exr"));
-    write_guides(&result, &dgi, &counts)?;
+    result.write_guides(&dgi, &counts)?;
     files.push(FileNote::new(
         dgi,
         "the distance-guide image of the session's last ROI (black: in the ROI, white: d = 1)",

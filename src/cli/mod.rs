@@ -20,16 +20,5 @@ pub mod view;
 /// text the message already holds (library errors often quote their source in their own text).
 #[must_use]
 pub fn error_chain(e: &anyhow::Error) -> String {
-    let mut out = String::new();
-    for cause in e.chain() {
-        let text = cause.to_string();
-        if text.is_empty() || out.contains(&text) {
-            continue;
-        }
-        if !out.is_empty() {
-            out.push_str(": ");
-        }
-        out.push_str(&text);
-    }
-    out
+    crate::messages::join_causes(e.chain().map(ToString::to_string))
 }

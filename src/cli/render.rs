@@ -15,14 +15,14 @@ use indicatif::{ProgressBar, ProgressStyle};
 use crate::cli::args::parse_size;
 use crate::cli::progress::Progress;
 use crate::display::DisplayModel;
+use crate::frame::Renderer;
+use crate::frame::stop::StopCondition;
 use crate::gpu::{Backend, BackendChoice};
 use crate::memory::{Budget, Work};
 use crate::output::{Format, check_image_path, write_rgb};
 use crate::scene::{Environment, Scene};
-use crate::stop::StopCondition;
 use crate::trace::camera::RenderCamera;
 use crate::trace::cpu::{DEFAULT_MAX_DEPTH, TraceSettings};
-use crate::trace::render::Renderer;
 
 /// Samples per pixel of a full-frame render when `--spp` is not given.
 pub const DEFAULT_SPP: u32 = 64;
@@ -308,7 +308,7 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     let settings = settings(args, &scene)?;
     let [w, h] = args.size;
     let spp = args.spp.unwrap_or(DEFAULT_SPP);
-    let mut renderer = Renderer::new(&backend, &scene, settings)?;
+    let mut renderer = Renderer::full(&backend, &scene, settings)?;
     let mut bar = Progress::new(args.quiet, "rendering", Some(u64::from(spp)), "spp");
     // Batches of about a quarter second keep the bar moving without starving the GPU.
     let t0 = Instant::now();

@@ -1,19 +1,11 @@
 //! `raygun replay`, `raygun record` and `raygun synth-replays`: clap arguments and run
 //! functions. Arguments are turned into a validated configuration before any work starts.
 //!
-//! `raygun replay FILE` prints one JSON line per ROI change (and per failed shot, with
-//! `"kind":"miss"` or `"untracked"`):
-//!
-//! ```text
-//! {"t":1.916667,"kind":"shoot","centre_canvas_px":[5870.74,3779.658],"centre_image_px":[1667.527,1496.188],"fov_deg":[30.0,30.0],"tile":"c3r3","filter":true}
-//! ```
-//!
-//! `t` is seconds since the session's first event; pixels are rounded to 1e-3, degrees to
-//! 1e-4, so the output is deterministic and can be compared with a golden file.
+//! `raygun replay FILE` prints the ROI changes as JSON lines (see [`crate::session::replay`]).
 
-use std::io::{self, Write};
+use std::io::Write;
 use std::net::{IpAddr, Ipv4Addr, SocketAddr};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
@@ -21,15 +13,13 @@ use anyhow::{Context, bail};
 use clap::{ArgGroup, Args};
 
 use crate::display::DisplayModel;
-use crate::interaction::{Interaction, InteractionConfig, RoiChange};
+use crate::session::replay::{ChangePrinter, ReplayOptions, replay_changes};
+use crate::session::udp::{ListenerConfig, UdpSource, record};
 use crate::tracking::calibration::Calibration;
 use crate::tracking::event::DeviceId;
-use crate::tracking::ingest::{Ingest, Pipeline, Protocol};
+use crate::tracking::ingest::Protocol;
 use crate::tracking::problems::ProblemLog;
-use crate::tracking::replay::{
-    LineFile, Playback, ReplayHeader, ReplayPayload, ReplayReader, ReplayWriter, play,
-};
-use crate::tracking::udp::{ListenerConfig, UdpSource, record};
+use crate::tracking::replay::{LineFile, ReplayHeader, ReplayWriter};
 
 /// `raygun replay`.
 #[derive(Args, Debug, Clone)]
@@ -56,16 +46,16 @@ pub struct ReplayArgs {
 }
 
 impl ReplayArgs {
-    /// A replay of `file` with everything else taken from its header.
+    /// What the arguments ask the session layer to replay.
     #[must_use]
-    pub fn of(file: PathBuf) -> Self {
-        Self {
-            file,
-            display: None,
-            config: None,
-            device: None,
-            calibration: None,
-            realtime: false,
+    pub fn options(&self) -> ReplayOptions {
+        ReplayOptions {
+            file: self.file.clone(),
+            display: self.display.clone(),
+            config: self.config.clone(),
+            device: self.device,
+            calibration: self.calibration.clone(),
+            realtime: self.realtime,
         }
     }
 }
@@ -118,149 +108,13 @@ pub struct SynthArgs {
     pub out: PathBuf,
 }
 
-/// The display model a replay names: a file as given, else one next to the replay's folder
-/// (where the shipped replays' models live), else a built-in model of that name.
-fn resolve_display(named: &str, replay: &Path) -> anyhow::Result<(DisplayModel, String)> {
-    let beside = replay
-        .parent()
-        .and_then(Path::parent)
-        .map(|p| p.join(named))
-        .filter(|p| !Path::new(named).exists() && p.exists());
-    let spec = beside.map_or_else(|| named.to_owned(), |p| p.display().to_string());
-    let (model, origin) = DisplayModel::open(&spec)?;
-    Ok((model, origin.to_string()))
-}
-
-/// Everything a replay run needs, validated.
-pub struct ReplayPlan {
-    pub header: ReplayHeader,
-    pub surface: DisplayModel,
-    /// Which display model is used, for messages ("display-models/hornet.json", "the built-in
-    /// hornet model", "the model stored in the recording").
-    pub display_origin: String,
-    pub interaction: InteractionConfig,
-    /// The calibration given on the command line or in the mapping (the header's own applies
-    /// otherwise).
-    pub calibration: Option<Calibration>,
-    /// The decoders the header asks for, with the calibration applied, before any input.
-    pub ingest: Ingest,
-    pub playback: Playback,
-}
-
-impl ReplayPlan {
-    /// Reads the header and resolves display, device, calibration and mapping.
-    pub fn new(
-        args: &ReplayArgs,
-    ) -> anyhow::Result<(Self, ReplayReader<io::BufReader<std::fs::File>>)> {
-        let reader = ReplayReader::open(&args.file)?;
-        let header = reader.header().clone();
-        let mut interaction = match &args.config {
-            Some(p) => InteractionConfig::load(p)?,
-            None => InteractionConfig::default(),
-        };
-        if let Some(d) = args.device.or(header.device) {
-            interaction.device = d;
-        }
-        let calibration = match args
-            .calibration
-            .as_ref()
-            .or(interaction.calibration.as_ref())
-        {
-            Some(p) => Some(Calibration::load(p)?),
-            None => None,
-        };
-        if let Some(c) = calibration.as_ref().or(header.calibration.as_ref()) {
-            c.validate(&args.file)
-                .with_context(|| format!("{}: calibration", args.file.display()))?;
-            interaction.use_calibrated_axes(c);
-        }
-        interaction.validate()?;
-        let (surface, display_origin) =
-            match (&args.display, &header.display_model, &header.display) {
-                (Some(spec), _, _) => {
-                    let (m, origin) = DisplayModel::open(spec)?;
-                    (m, origin.to_string())
-                }
-                (None, Some(m), _) => (m.clone(), "the model stored in the recording".to_owned()),
-                (None, None, Some(named)) => resolve_display(named, &args.file)?,
-                (None, None, None) => bail!(
-                    "{}: the recording names no display: give --display MODEL",
-                    args.file.display()
-                ),
-            };
-        // Every decoder the header asks for must be usable.
-        let ingest = header
-            .ingest(calibration.as_ref())
-            .with_context(|| args.file.display().to_string())?;
-        let playback = if args.realtime {
-            Playback::RealTime
-        } else {
-            Playback::AsFastAsPossible
-        };
-        Ok((
-            Self {
-                header,
-                surface,
-                display_origin,
-                interaction,
-                calibration,
-                ingest,
-                playback,
-            },
-            reader,
-        ))
-    }
-
-    /// A fresh pipeline configured from the header, the calibration and the mapping.
-    #[must_use]
-    pub fn pipeline(&self) -> Pipeline {
-        Pipeline::new(
-            self.ingest.clone(),
-            Interaction::new(self.interaction.clone()),
-        )
-    }
-}
-
-/// Writes ROI changes as JSON lines, times relative to the first event seen.
-pub struct ChangePrinter<W: Write> {
-    out: W,
-    t_origin: Option<f64>,
-}
-
-impl<W: Write> ChangePrinter<W> {
-    #[must_use]
-    pub fn new(out: W) -> Self {
-        Self {
-            out,
-            t_origin: None,
-        }
-    }
-
-    /// Sets the time origin if unset (call with each event's time).
-    pub fn saw_event(&mut self, t: f64) {
-        self.t_origin.get_or_insert(t);
-    }
-
-    pub fn print(&mut self, c: &RoiChange) -> io::Result<()> {
-        let origin = *self.t_origin.get_or_insert(c.t);
-        serde_json::to_writer(&mut self.out, &c.report(origin))?;
-        self.out.write_all(b"\n")
-    }
-
-    /// The underlying writer.
-    #[must_use]
-    pub fn into_inner(self) -> W {
-        self.out
-    }
-}
-
 /// Runs a replay, printing changes to `out`; returns the problem counts (reader and decoders).
 pub fn run_replay(args: &ReplayArgs, out: impl Write) -> anyhow::Result<ProblemLog> {
     let mut printer = ChangePrinter::new(out);
     let mut io_result = Ok(());
     let printer_ref = std::cell::RefCell::new(&mut printer);
     let problems = replay_changes(
-        args,
+        &args.options(),
         |t| printer_ref.borrow_mut().saw_event(t),
         |c| {
             if io_result.is_ok() {
@@ -270,62 +124,6 @@ pub fn run_replay(args: &ReplayArgs, out: impl Write) -> anyhow::Result<ProblemL
     )?;
     io_result.context("writing ROI changes")?;
     Ok(problems)
-}
-
-/// Plays a replay through the live parsers and the interaction state machine: `saw_event` gets
-/// the time of each event of the configured device, `on_change` each ROI change. Returns the
-/// problem counts (reader and decoders).
-pub fn replay_changes(
-    args: &ReplayArgs,
-    saw_event: impl FnMut(f64),
-    on_change: impl FnMut(&RoiChange),
-) -> anyhow::Result<ProblemLog> {
-    let (plan, reader) = ReplayPlan::new(args)?;
-    Ok(play_plan(&plan, reader, saw_event, on_change))
-}
-
-/// [`replay_changes`] for a plan made already (its file is read again from the start).
-pub fn replay_changes_with(
-    plan: &ReplayPlan,
-    file: &Path,
-    saw_event: impl FnMut(f64),
-    on_change: impl FnMut(&RoiChange),
-) -> anyhow::Result<ProblemLog> {
-    let reader = ReplayReader::open(file)?;
-    Ok(play_plan(plan, reader, saw_event, on_change))
-}
-
-fn play_plan(
-    plan: &ReplayPlan,
-    reader: ReplayReader<io::BufReader<std::fs::File>>,
-    mut saw_event: impl FnMut(f64),
-    mut on_change: impl FnMut(&RoiChange),
-) -> ProblemLog {
-    let mut pipeline = plan.pipeline();
-    let device = plan.interaction.device;
-    let reader_problems = play(reader, plan.playback, |item| {
-        let changes = match &item.payload {
-            ReplayPayload::Datagram(protocol, bytes) => {
-                let (events, changes) = pipeline.datagram(*protocol, bytes, item.t, &plan.surface);
-                if let Some(e) = events.iter().find(|e| e.device == device) {
-                    saw_event(e.t);
-                }
-                changes
-            }
-            ReplayPayload::Event(e) => {
-                if e.device == device && e.is_valid() {
-                    saw_event(e.t);
-                }
-                pipeline.event(e.clone(), &plan.surface)
-            }
-        };
-        for c in changes {
-            on_change(c);
-        }
-    });
-    let mut problems = reader_problems;
-    problems.merge(&pipeline.ingest.problems);
-    problems
 }
 
 /// Validated recorder settings.
@@ -415,7 +213,8 @@ fn record_vrpn(
     calibration: Option<Calibration>,
     stop: &AtomicBool,
 ) -> anyhow::Result<u64> {
-    use crate::tracking::vrpn::{self, VrpnClientConfig, VrpnConfig, VrpnSource};
+    use crate::session::vrpn::{VrpnClientConfig, VrpnSource};
+    use crate::tracking::vrpn::{self, VrpnConfig};
     let mut source = VrpnSource::new(VrpnClientConfig {
         reconnect: false,
         allow_non_loopback: args.allow_network,
@@ -439,7 +238,7 @@ fn record_vrpn(
         source.server(),
         args.out.display()
     );
-    let n = vrpn::record(
+    let n = crate::session::vrpn::record(
         &mut source,
         &mut writer,
         &mut ingest,
@@ -466,21 +265,6 @@ fn record_vrpn(
 
 /// Writes the synthetic sessions.
 pub fn run_synth(args: &SynthArgs) -> anyhow::Result<Vec<PathBuf>> {
-    crate::tracking::synth::write_all(&args.out)
+    crate::session::synth::write_all(&args.out)
         .with_context(|| format!("writing into {}", args.out.display()))
-}
-
-/// The golden file of a replay: `tracking-replays/golden/<stem>.roi.jsonl`.
-#[must_use]
-pub fn golden_path(replay: &Path) -> PathBuf {
-    let name = replay
-        .file_name()
-        .and_then(|n| n.to_str())
-        .unwrap_or("replay.jsonl");
-    let stem = name.strip_suffix(".jsonl").unwrap_or(name);
-    replay
-        .parent()
-        .unwrap_or(Path::new("."))
-        .join("golden")
-        .join(format!("{stem}.roi.jsonl"))
 }

@@ -5,10 +5,12 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 
 use crate::cli::args::parse_size;
-use crate::cli::tracking::ReplayArgs;
 use crate::display::DisplayModel;
 use crate::gpu::{Backend, BackendChoice};
 use crate::interaction::{CursorSmoother, InteractionConfig};
+use crate::session::live::LiveTracking;
+use crate::session::replay::ReplayOptions;
+use crate::session::timeline::Timeline;
 use crate::trace::camera::RenderCamera;
 use crate::trace::cpu::{DEFAULT_MAX_DEPTH, TraceSettings};
 use crate::tracking::calibration::Calibration;
@@ -18,8 +20,6 @@ use crate::tracking::vrpn::VrpnAddress;
 #[cfg(feature = "viewer")]
 use crate::viewer::app::ViewerApp;
 use crate::viewer::core::{RoiSource, ViewerCore, ViewerState};
-use crate::viewer::live::LiveTracking;
-use crate::viewer::timeline::Timeline;
 
 #[derive(Clone, Debug, clap::Args)]
 #[command(group(clap::ArgGroup::new("tracking").args(["dtrack", "osc", "vrpn", "replay"])))]
@@ -209,12 +209,12 @@ pub fn run(args: &ViewArgs) -> anyhow::Result<()> {
         camera,
     };
     let timeline = match &args.replay {
-        Some(file) => Some(Timeline::collect(&ReplayArgs {
+        Some(file) => Some(Timeline::collect(&ReplayOptions {
             display: Some(args.display.clone()),
             config: args.config.clone(),
             device: args.device,
             calibration: args.calibration.clone(),
-            ..ReplayArgs::of(file.clone())
+            ..ReplayOptions::of(file.clone())
         })?),
         None => None,
     };

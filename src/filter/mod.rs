@@ -40,6 +40,7 @@
 //!   exact filter is measured and bounded in `tests/filter_fast.rs`. CPU twin
 //!   [`fast::filter_cpu`]; kernels `shaders/filter/pyramid.wgsl` and `shaders/filter/fast.wgsl`.
 //! * [`gpu`]: the dispatch of both.
+//! * [`Filter`]: the stage's one entry point, on either backend.
 //!
 //! # Numerics
 //!
@@ -52,9 +53,12 @@ pub mod fast;
 pub mod gpu;
 pub mod synth;
 
-use glam::DVec3;
+use glam::{DVec3, Vec3};
 use serde::Serialize;
 
+pub use gpu::FilterGpuError;
+
+use crate::gpu::{Backend, GpuContext};
 use crate::trace::accum::Accumulation;
 
 /// Which implementation runs (`--filter`).
@@ -317,6 +321,78 @@ pub fn filter_cpu(
         FilterKind::Exact => exact::filter_cpu(params, acc, dgi),
         FilterKind::Fast => fast::filter_cpu(params, acc, dgi),
     })
+}
+
+/// The filter stage on one backend: the GPU kernels (compiled once, at [`Filter::new`]) or
+/// the CPU twin. Every caller that wants a filtered image goes through here.
+pub enum Filter<'a> {
+    Gpu {
+        ctx: &'a GpuContext,
+        kernels: gpu::FilterKernels,
+    },
+    Cpu,
+}
+
+impl<'a> Filter<'a> {
+    #[must_use]
+    pub fn new(backend: &'a Backend) -> Self {
+        match backend {
+            Backend::Gpu(ctx) => Self::Gpu {
+                ctx,
+                kernels: gpu::FilterKernels::new(ctx),
+            },
+            Backend::Cpu => Self::Cpu,
+        }
+    }
+
+    /// `"gpu"` or `"cpu"`.
+    #[must_use]
+    pub fn backend_name(&self) -> &'static str {
+        match self {
+            Self::Gpu { .. } => "gpu",
+            Self::Cpu => "cpu",
+        }
+    }
+
+    /// The filtered mean image in f64 (the GPU's f32 widened): [`filter_cpu`] or its kernels.
+    pub fn apply(
+        &self,
+        params: &FilterParams,
+        acc: &Accumulation,
+        dgi: &[f32],
+    ) -> Result<Vec<DVec3>, gpu::FilterGpuError> {
+        Ok(match self {
+            Self::Gpu { ctx, kernels } => kernels
+                .filter(ctx, params, acc, dgi)?
+                .iter()
+                .map(|p| DVec3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2])))
+                .collect(),
+            Self::Cpu => filter_cpu(params, acc, dgi)?,
+        })
+    }
+
+    /// The picture: the mean image of `acc` filtered by `params` (linear RGB, row-major);
+    /// [`FilterKind::Off`] is the accumulation's own mean image on either backend.
+    pub fn image(
+        &self,
+        params: &FilterParams,
+        acc: &Accumulation,
+        dgi: &[f32],
+    ) -> Result<Vec<Vec3>, gpu::FilterGpuError> {
+        // Straight to f32: a widened copy of a large image would only raise the peak.
+        Ok(match (self, params.kind) {
+            (_, FilterKind::Off) => acc.mean_image(),
+            (Self::Gpu { ctx, kernels }, _) => kernels
+                .filter(ctx, params, acc, dgi)?
+                .iter()
+                .map(|p| Vec3::new(p[0], p[1], p[2]))
+                .collect(),
+            (Self::Cpu, _) => filter_cpu(params, acc, dgi)?
+                .iter()
+                .map(|p| p.as_vec3())
+                .collect(),
+        })
+    }
 }
 
 #[cfg(test)]

@@ -6,7 +6,6 @@ pub mod camera;
 pub mod cpu;
 pub mod gpu;
 pub mod pack;
-pub mod render;
 pub mod shading;
 
 pub use accum::{Accumulation, luminance};

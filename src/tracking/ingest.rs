@@ -1,14 +1,13 @@
-//! One path from raw input to validated events, shared by live sockets and replay files.
+//! One path from raw input to validated events, shared by live sockets and replay files (the
+//! session layer's `Pipeline` adds the interaction state machine on top).
 
 use serde::{Deserialize, Serialize};
 
 use super::dtrack::{DtrackConfig, DtrackDecoder, TimeSource};
-use super::event::DeviceId;
 use super::event::TrackingEvent;
 use super::osc::{OscConfig, OscDecoder};
 use super::problems::ProblemLog;
 use super::vrpn::{Channel, VrpnConfig, VrpnConfigError, VrpnDecoder};
-use crate::interaction::{Interaction, InteractionConfig, RaySurface, RoiChange};
 
 /// The protocol of a raw datagram.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -21,84 +20,6 @@ pub enum Protocol {
     VrpnTcp,
     /// One VRPN UDP datagram (whole messages).
     VrpnUdp,
-}
-
-/// Decoder and state machine together: raw input in, ROI changes out. Live listeners and
-/// replays both drive this, so a replay reproduces what the live run did.
-#[derive(Clone, Debug)]
-pub struct Pipeline {
-    pub ingest: Ingest,
-    pub interaction: Interaction,
-    changes: Vec<RoiChange>,
-}
-
-impl Pipeline {
-    #[must_use]
-    pub fn new(ingest: Ingest, interaction: Interaction) -> Self {
-        Self {
-            ingest,
-            interaction,
-            changes: Vec::new(),
-        }
-    }
-
-    /// A pipeline for live traffic with the default parsers and mapping, stamped with receive
-    /// times, following `device`, with problems counted but not logged (load and loopback runs,
-    /// where a logged line per bad datagram would be noise).
-    #[must_use]
-    pub fn quiet_live(device: DeviceId) -> Self {
-        let mut ingest = Ingest::new(
-            DtrackConfig::default(),
-            OscConfig::default(),
-            TimeSource::Receive,
-        );
-        ingest.problems.quiet = true;
-        let interaction = Interaction::new(InteractionConfig {
-            device,
-            ..InteractionConfig::default()
-        });
-        Self::new(ingest, interaction)
-    }
-
-    /// One raw datagram: its events and the ROI changes they caused.
-    pub fn datagram(
-        &mut self,
-        protocol: Protocol,
-        data: &[u8],
-        receive_t: f64,
-        surface: &dyn RaySurface,
-    ) -> (&[TrackingEvent], &[RoiChange]) {
-        self.changes.clear();
-        let events = self.ingest.datagram(protocol, data, receive_t);
-        for e in events {
-            self.interaction.handle(e, surface, &mut self.changes);
-        }
-        (events, &self.changes)
-    }
-
-    /// Nothing arrived up to `receive_t` (a live poll timed out): the VRPN decoder may lose
-    /// the sensors of a silent server (see [`Ingest::idle`]).
-    pub fn idle(
-        &mut self,
-        receive_t: f64,
-        surface: &dyn RaySurface,
-    ) -> (&[TrackingEvent], &[RoiChange]) {
-        self.changes.clear();
-        let events = self.ingest.idle(receive_t);
-        for e in events {
-            self.interaction.handle(e, surface, &mut self.changes);
-        }
-        (events, &self.changes)
-    }
-
-    /// One normalised event (validated first).
-    pub fn event(&mut self, event: TrackingEvent, surface: &dyn RaySurface) -> &[RoiChange] {
-        self.changes.clear();
-        if let Some(e) = self.ingest.event(event) {
-            self.interaction.handle(&e, surface, &mut self.changes);
-        }
-        &self.changes
-    }
 }
 
 /// Decoders for every protocol plus the problem counters. VRPN needs a device name and a

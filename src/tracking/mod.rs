@@ -7,17 +7,17 @@
 //! replay line  ─► replay::ReplayReader ──┘    (events of a replay go straight through)
 //! ```
 //!
-//! Raw datagrams from a replay file and from a live socket take the same path
-//! ([`ingest::Pipeline`]: decoders, validation, interaction), so a recorded session reproduces
-//! exactly what the live run did; `tests/tracking_replays.rs` checks that for every shipped
-//! replay.
+//! Raw datagrams from a replay file and from a live socket take the same path (the session
+//! layer's `Pipeline`: these decoders, validation, then the interaction), so a recorded
+//! session reproduces exactly what the live run did; `tests/tracking_replays.rs` checks that
+//! for every shipped replay. This layer only parses and validates: sockets, threads and
+//! replays played against a display belong to `session`.
 //!
 //! Modules: [`event`] (normalised events), [`dtrack`] and [`osc`] (parsers), [`vrpn`] (VRPN
-//! client and decoder), [`calibration`] (the tracker→room transform of every source),
-//! [`replay`] (JSON Lines files), [`udp`] (listeners, recorder), [`problems`] (bad-input counters),
-//! [`synth`] (synthetic sessions), [`bench`] (ingest benchmark).
+//! wire format and decoder), [`calibration`] (the tracker→room transform of every source),
+//! [`ingest`] (every decoder behind one call), [`replay`] (JSON Lines files), [`problems`]
+//! (bad-input counters).
 
-pub mod bench;
 pub mod calibration;
 pub mod dtrack;
 pub mod event;
@@ -25,6 +25,4 @@ pub mod ingest;
 pub mod osc;
 pub mod problems;
 pub mod replay;
-pub mod synth;
-pub mod udp;
 pub mod vrpn;

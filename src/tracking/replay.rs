@@ -489,10 +489,14 @@ pub fn play<R: BufRead>(
     reader.problems
 }
 
+/// The recorder writes what it has received at least this often, so a recorder killed without
+/// warning (`kill -9`, a power cut) loses at most this much of the session.
+pub const FLUSH_INTERVAL: std::time::Duration = std::time::Duration::from_millis(250);
+
 /// A file that takes whole lines and writes them out at `flush` only, remembering how much of it
 /// holds complete lines: a failed write (a full disk) is cut back to the last complete line, so
 /// a recording never ends in half a record. The recorder flushes at least every
-/// [`super::udp::FLUSH_INTERVAL`], so a killed recorder loses at most that much.
+/// [`FLUSH_INTERVAL`], so a killed recorder loses at most that much.
 pub struct LineFile {
     file: std::fs::File,
     buf: Vec<u8>,

@@ -11,10 +11,10 @@ use eframe::egui;
 use glam::DVec2;
 
 use super::core::{Overlay, RoiSource, ViewerCore, save_picture};
-use super::live::LiveTracking;
-use super::timeline::Timeline;
 use crate::filter::{Blend, FilterKind};
 use crate::interaction::CursorMark;
+use crate::session::live::LiveTracking;
+use crate::session::timeline::Timeline;
 
 /// How long one UI frame may spend rendering before it draws.
 pub const FRAME_BUDGET: Duration = Duration::from_millis(30);
@@ -94,7 +94,7 @@ impl<'a> ViewerApp<'a> {
                 Ok(())
             }
             Err(e) => {
-                self.message = format!("save failed: {e:#}");
+                self.message = format!("save failed: {}", crate::messages::chain(&e));
                 Err(self.message.clone())
             }
         }
@@ -301,7 +301,7 @@ impl eframe::App for ViewerApp<'_> {
         if let Some(l) = &mut self.live
             && self.core.state.source == RoiSource::Live
         {
-            l.update(&mut self.core.state);
+            self.core.state.apply_live(l.update());
         }
         let save = egui::Panel::left("controls")
             .show(ui, |ui| {
@@ -330,7 +330,7 @@ impl eframe::App for ViewerApp<'_> {
                 p
             }
             Err(e) => {
-                self.error = Some(format!("{e:#}"));
+                self.error = Some(crate::messages::chain(&e));
                 ui.ctx().request_repaint_after(Duration::from_millis(200));
                 return;
             }
@@ -352,7 +352,10 @@ impl eframe::App for ViewerApp<'_> {
             let dir = self.save_dir.join("recording");
             let path = dir.join(format!("frame-{:05}.png", self.recorded));
             let saved = std::fs::create_dir_all(&dir)
-                .map_err(anyhow::Error::from)
+                .map_err(|error| super::core::ViewerError::CreateDir {
+                    dir: dir.clone(),
+                    error,
+                })
                 .and_then(|()| super::core::save_view_png(&path, &picture));
             match saved {
                 Ok(()) => {
@@ -362,7 +365,7 @@ impl eframe::App for ViewerApp<'_> {
                 }
                 Err(e) => {
                     self.recording = false;
-                    self.message = format!("recording stopped: {e:#}");
+                    self.message = format!("recording stopped: {}", crate::messages::chain(&e));
                 }
             }
         }
@@ -400,7 +403,10 @@ impl eframe::App for ViewerApp<'_> {
                     .map(|i| {
                         crate::output::replace_with(&path, |tmp| {
                             i.save_with_format(tmp, image::ImageFormat::Png)
-                                .map_err(anyhow::Error::from)
+                                .map_err(|error| super::core::ViewerError::Png {
+                                    path: path.clone(),
+                                    error,
+                                })
                         })
                     });
                 match saved {

@@ -1,5 +1,5 @@
 //! The viewer without a screen: the panel's settings ([`ViewerState`]), what they mean for the
-//! renderer, and [`ViewerCore`], which keeps a [`GuidedRenderer`] in step with them and
+//! renderer, and [`ViewerCore`], which keeps a [`Renderer`] in step with them and
 //! composes the picture the window shows. The egui front end (`app.rs`) only maps widgets and
 //! clicks onto these; tests drive them directly.
 
@@ -8,10 +8,9 @@ use std::time::{Duration, Instant};
 
 use glam::{DVec2, Vec3};
 
-use crate::cli::guided::filtered_image;
 use crate::display::DisplayModel;
 use crate::filter::{FilterKind, FilterParams};
-use crate::frame::{FrameStats, GuideConfig, GuidedRenderer};
+use crate::frame::{FrameStats, GuideConfig, Renderer};
 use crate::gpu::Backend;
 use crate::interaction::{CursorMark, CursorSmoother, RoiState};
 use crate::output::tiles::wall_view;
@@ -21,7 +20,7 @@ use crate::schedule::Order;
 use crate::trace::accum::Accumulation;
 use crate::trace::cpu::TraceSettings;
 
-use super::timeline::Timeline;
+use crate::session::timeline::Timeline;
 
 /// Where the ROI comes from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -145,7 +144,7 @@ impl ViewerState {
     }
 
     /// The guide configuration the renderer gets (errors name the bad setting).
-    pub fn guide_config(&self) -> anyhow::Result<GuideConfig> {
+    pub fn guide_config(&self) -> Result<GuideConfig, ViewerError> {
         crate::schedule::validate_p_min(self.p_min)?;
         Ok(GuideConfig {
             metric: self.metric,
@@ -168,6 +167,20 @@ impl ViewerState {
                 self.filter.kind
             },
             ..self.filter
+        }
+    }
+
+    /// Takes live tracking's news: the ROI when it changed, the aim samples into the cursor
+    /// and the latest aim.
+    pub fn apply_live(&mut self, update: crate::session::live::LiveUpdate) {
+        if let Some(roi) = update.roi {
+            self.tracked = roi;
+        }
+        for &(t, aim) in &update.aim {
+            self.cursor.observe(t, aim);
+        }
+        if let Some(&(_, aim)) = update.aim.last() {
+            self.aim = aim;
         }
     }
 
@@ -234,7 +247,7 @@ pub struct Stats {
     pub periphery_noise: Option<f32>,
     /// The ROI's progress as `render --until` measures it (median SE over every ROI pixel,
     /// fewest samples), and the seconds the current ROI has been sampled for.
-    pub roi_progress: Option<crate::stop::RoiProgress>,
+    pub roi_progress: Option<crate::frame::stop::RoiProgress>,
     pub seconds_on_roi: f64,
 }
 
@@ -296,13 +309,39 @@ pub struct ViewerCore<'a> {
     pub model: &'a DisplayModel,
     base: TraceSettings,
     pub state: ViewerState,
-    renderer: GuidedRenderer<'a>,
+    renderer: Renderer<'a>,
     built: Built,
     /// Frames since the renderer was built, and when (for iterations per second).
     window: (u32, Instant),
     /// When the ROI last changed (or the accumulation restarted).
     roi_since: Instant,
     pub stats: Stats,
+}
+
+/// Why the viewer's renderer or a saved picture failed.
+#[derive(Debug, thiserror::Error)]
+pub enum ViewerError {
+    #[error(transparent)]
+    Schedule(#[from] crate::schedule::ScheduleError),
+    #[error(transparent)]
+    Falloff(#[from] crate::roi::dgi::FalloffError),
+    #[error(transparent)]
+    Frame(#[from] crate::frame::FrameError),
+    #[error("max path depth must be at least 1")]
+    MaxDepth,
+    #[error(transparent)]
+    Output(#[from] crate::output::OutputError),
+    #[error(transparent)]
+    File(#[from] crate::output::FileError),
+    #[error("{}: cannot create the directory: {error}", dir.display())]
+    CreateDir { dir: PathBuf, error: std::io::Error },
+    #[error("{}: {error}", path.display())]
+    Png {
+        path: PathBuf,
+        error: image::ImageError,
+    },
+    #[error("picture size mismatch")]
+    PictureSize,
 }
 
 /// Every this many frames one is timed (stage times, pixel count), which makes the GPU wait.
@@ -315,13 +354,13 @@ impl<'a> ViewerCore<'a> {
         model: &'a DisplayModel,
         base: TraceSettings,
         state: ViewerState,
-    ) -> anyhow::Result<Self> {
+    ) -> Result<Self, ViewerError> {
         let config = state.guide_config()?;
         let settings = TraceSettings {
             max_depth: state.max_depth,
             ..base
         };
-        let renderer = GuidedRenderer::new(backend, scene, settings, model, config)?;
+        let renderer = Renderer::guided(backend, scene, settings, model, config)?;
         Ok(Self {
             backend,
             scene,
@@ -352,16 +391,16 @@ impl<'a> ViewerCore<'a> {
 
     /// The renderer as it stands (settings it received, iterations, ROI).
     #[must_use]
-    pub fn renderer(&self) -> &GuidedRenderer<'a> {
+    pub fn renderer(&self) -> &Renderer<'a> {
         &self.renderer
     }
 
     /// Brings the renderer in line with the state: rebuilds it when the guide settings or the
     /// path depth changed or a reset was asked for, and hands it a changed ROI. Returns whether
     /// the ROI changed.
-    pub fn sync(&mut self) -> anyhow::Result<bool> {
+    pub fn sync(&mut self) -> Result<bool, ViewerError> {
         if self.state.max_depth == 0 {
-            anyhow::bail!("max path depth must be at least 1");
+            return Err(ViewerError::MaxDepth);
         }
         let config = self.state.guide_config()?;
         let want = Built {
@@ -374,7 +413,7 @@ impl<'a> ViewerCore<'a> {
                 ..self.base
             };
             self.renderer =
-                GuidedRenderer::new(self.backend, self.scene, settings, self.model, config)?;
+                Renderer::guided(self.backend, self.scene, settings, self.model, config)?;
             self.built = want;
             self.state.reset = false;
             self.window = (0, Instant::now());
@@ -397,7 +436,7 @@ impl<'a> ViewerCore<'a> {
     }
 
     /// Syncs, then runs frames for about `budget` (at least one).
-    pub fn step(&mut self, budget: Duration) -> anyhow::Result<()> {
+    pub fn step(&mut self, budget: Duration) -> Result<(), ViewerError> {
         let mut roi_changed = self.sync()?;
         let t0 = Instant::now();
         loop {
@@ -427,10 +466,12 @@ impl<'a> ViewerCore<'a> {
 
     /// Reads the accumulation and the DGI back, filters, and composes the picture for the
     /// state's overlay (with the ROI outline and the wall view as asked).
-    pub fn picture(&mut self) -> anyhow::Result<Picture> {
+    pub fn picture(&mut self) -> Result<Picture, ViewerError> {
         let acc = self.renderer.accumulation()?;
         let dgi = self.renderer.dgi()?;
-        let image = filtered_image(self.backend, &self.state.filter_params(), &acc, &dgi)?;
+        let image = self
+            .renderer
+            .picture_of(&self.state.filter_params(), &acc, &dgi)?;
         let (roi_samples, roi_pixels) = roi_samples(&acc, &dgi, self.renderer.roi().is_some());
         self.stats.roi_samples = roi_samples;
         self.stats.roi_pixels = roi_pixels;
@@ -438,7 +479,7 @@ impl<'a> ViewerCore<'a> {
         let contrast = self.renderer.roi().and_then(|_| {
             let regions = NoiseRegions {
                 dgi: &dgi,
-                p_min: self.renderer.config.p_min,
+                p_min: self.renderer.guide_config().map_or(0.0, |c| c.p_min),
             };
             NoiseContrast::measure(&noise, &regions)
         });
@@ -447,7 +488,7 @@ impl<'a> ViewerCore<'a> {
         self.stats.roi_progress = self
             .renderer
             .roi()
-            .and_then(|_| crate::stop::RoiProgress::measure(&acc, &dgi));
+            .and_then(|_| crate::frame::stop::RoiProgress::measure(&acc, &dgi));
         self.stats.seconds_on_roi = self.roi_since.elapsed().as_secs_f64();
         let size = self.size();
         let mut rgba = match self.state.overlay {
@@ -707,9 +748,11 @@ pub fn save_picture(
     stem: &str,
     p: &Picture,
     exposure: f32,
-) -> anyhow::Result<Vec<PathBuf>> {
-    std::fs::create_dir_all(dir)
-        .map_err(|e| anyhow::anyhow!("{}: cannot create the directory: {e}", dir.display()))?;
+) -> Result<Vec<PathBuf>, ViewerError> {
+    std::fs::create_dir_all(dir).map_err(|error| ViewerError::CreateDir {
+        dir: dir.to_owned(),
+        error,
+    })?;
     let [w, h] = p.size;
     let mut files = Vec::new();
     for ext in ["exr", "png"] {
@@ -731,12 +774,14 @@ pub fn save_picture(
 }
 
 /// Writes the picture as shown (RGBA8 PNG).
-pub fn save_view_png(path: &Path, p: &Picture) -> anyhow::Result<()> {
+pub fn save_view_png(path: &Path, p: &Picture) -> Result<(), ViewerError> {
     let [w, h] = p.size;
-    let img = image::RgbaImage::from_raw(w, h, p.rgba.clone())
-        .ok_or_else(|| anyhow::anyhow!("picture size mismatch"))?;
+    let img = image::RgbaImage::from_raw(w, h, p.rgba.clone()).ok_or(ViewerError::PictureSize)?;
     crate::output::replace_with(path, |tmp| {
         img.save_with_format(tmp, image::ImageFormat::Png)
-            .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
+            .map_err(|error| ViewerError::Png {
+                path: path.to_owned(),
+                error,
+            })
     })
 }

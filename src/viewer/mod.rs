@@ -2,12 +2,9 @@
 //! converges, steered by mouse clicks, a replay or live tracking.
 //!
 //! * [`core`]: the panel's settings and the renderer kept in step with them, without a screen.
-//! * [`timeline`]: a replay collected ahead of time for play / pause / scrub.
-//! * [`live`]: live DTrack / OSC on a listener thread.
+
 //! * `app`: the eframe front end (with the `viewer` feature, on by default).
 
 #[cfg(feature = "viewer")]
 pub mod app;
 pub mod core;
-pub mod live;
-pub mod timeline;

@@ -5,7 +5,7 @@
 //! (`tests/data/vrpn/`).
 //!
 //! ```text
-//! VrpnSource::poll ─► raw read (TCP piece | UDP datagram | end) ─┬─► replay line (vrpn_*_hex)
+//! session::vrpn::VrpnSource::poll ─► raw read (TCP piece | UDP datagram | end) ─┬─► replay line (vrpn_*_hex)
 //!                                                               └─► Ingest ─► VrpnDecoder ─► TrackingEvent
 //! replay line ─► ReplayReader ─► the same Ingest / VrpnDecoder
 //! ```
@@ -17,8 +17,9 @@
 //!   (ids differ per side), and turns the device's messages into normalised events
 //!   (DESIGN.md §10) through the tracker→room calibration ([`VrpnConfig`]).
 //! * [`config`]: `DEVICE@HOST[:PORT]` addresses and the sensor / button / analog mapping.
-//! * [`client`]: the connection (TCP, or VRPN's classic UDP set-up), reconnection with
-//!   back-off, [`run_live`] and [`record`].
+//!
+//! The connection itself (TCP, or VRPN's classic UDP set-up, reconnection with back-off, live
+//! runs and recording) is the session layer's (`session::vrpn`): this module only parses.
 //!
 //! Bad input of every kind (wrong cookie or major version, lengths below 24 or above
 //! [`wire::MAX_MESSAGE_LEN`], truncated messages, unknown or redefined ids, NaN, infinite or
@@ -26,12 +27,10 @@
 //! [`ProblemLog`] and logged once; nothing panics, and
 //! every buffer is bounded (one partial message per connection, one read at a time).
 
-pub mod client;
 pub mod config;
 pub mod decoder;
 pub mod wire;
 
-pub use client::{VrpnClientConfig, VrpnClientError, VrpnPoll, VrpnSource, record, run_live};
 pub use config::{
     AnalogGroup, ButtonGroup, Transport, VrpnAddress, VrpnAddressError, VrpnConfig,
     VrpnConfigError, VrpnHeader,

@@ -3,7 +3,7 @@
 
 use glam::DVec2;
 
-use crate::cli::tracking::{ReplayArgs, ReplayPlan};
+use super::replay::{ReplayOptions, ReplayPlan, ReplayPlanError};
 use crate::interaction::RaySurface;
 use crate::interaction::RoiState;
 use crate::tracking::event::Tracking;
@@ -22,7 +22,7 @@ pub struct Timeline {
 impl Timeline {
     /// Plays `args` through the live parsers and the interaction state machine, as fast as
     /// possible, keeping the followed device's aim and every ROI change.
-    pub fn collect(args: &ReplayArgs) -> anyhow::Result<Self> {
+    pub fn collect(args: &ReplayOptions) -> Result<Self, ReplayPlanError> {
         let (plan, reader) = ReplayPlan::new(args)?;
         let mut pipeline = plan.pipeline();
         let device = plan.interaction.device;
@@ -132,7 +132,7 @@ mod tests {
     #[test]
     fn bundled_replay_has_shots_and_aim_in_time_order() {
         let root = env!("CARGO_MANIFEST_DIR");
-        let t = Timeline::collect(&ReplayArgs {
+        let t = Timeline::collect(&ReplayOptions {
             file: format!("{root}/tracking-replays/flystick-1-centre-sweeps.dtrack.jsonl").into(),
             display: Some(format!("{root}/display-models/hornet.json")),
             config: None,

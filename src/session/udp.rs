@@ -16,17 +16,16 @@ use std::time::{Duration, Instant};
 
 use socket2::{Domain, Protocol as SockProtocol, Socket, Type};
 
-use super::event::TrackingEvent;
-use super::ingest::{Pipeline, Protocol};
-use super::problems::ProblemLog;
-use super::replay::ReplayWriter;
+use super::pipeline::Pipeline;
 use crate::interaction::{RaySurface, RoiChange, RoiState};
+use crate::tracking::event::TrackingEvent;
+use crate::tracking::ingest::Protocol;
+use crate::tracking::problems::ProblemLog;
+use crate::tracking::replay::ReplayWriter;
 
 /// Smallest kernel receive buffer accepted: one maximal OSC bundle must fit.
 pub const MIN_RECV_BUFFER: usize = 64 * 1024;
-/// The recorder writes what it has received at least this often, so a recorder killed without
-/// warning (`kill -9`, a power cut) loses at most this much of the session.
-pub const FLUSH_INTERVAL: Duration = Duration::from_millis(250);
+pub use crate::tracking::replay::FLUSH_INTERVAL;
 
 /// How a listener binds and whom it listens to.
 #[derive(Clone, Debug, PartialEq)]

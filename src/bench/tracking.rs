@@ -11,15 +11,17 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
-use super::dtrack::{DtrackConfig, DtrackDecoder, TimeSource, parse_datagram};
-use super::event::{DeviceId, DeviceKind, Pose};
-use super::ingest::{Ingest, Pipeline, Protocol};
-use super::osc::{OscConfig, OscDecoder, encode};
-use super::problems::ProblemLog;
-use super::udp::{ListenerConfig, Live, UdpSource, run_live};
-use super::vrpn::wire::{VrpnTime, encode as vrpn_encode};
-use super::vrpn::{self, Channel, VrpnClientConfig, VrpnConfig, VrpnDecoder, VrpnSource};
 use crate::interaction::{HingedWall, Interaction, InteractionConfig};
+use crate::session::pipeline::Pipeline;
+use crate::session::udp::{ListenerConfig, Live, UdpSource, run_live};
+use crate::session::vrpn::{self as vrpn_live, VrpnClientConfig, VrpnSource};
+use crate::tracking::dtrack::{DtrackConfig, DtrackDecoder, TimeSource, parse_datagram};
+use crate::tracking::event::{DeviceId, DeviceKind, Pose};
+use crate::tracking::ingest::{Ingest, Protocol};
+use crate::tracking::osc::{OscConfig, OscDecoder, encode};
+use crate::tracking::problems::ProblemLog;
+use crate::tracking::vrpn::wire::{VrpnTime, encode as vrpn_encode};
+use crate::tracking::vrpn::{self, Channel, VrpnConfig, VrpnDecoder};
 
 /// A typical lab frame: 5 lines (frame, time, calibration, two bodies, one FlyStick).
 #[must_use]
@@ -278,7 +280,7 @@ pub fn vrpn_decode_rate() -> String {
 }
 
 /// A fake vrpn_server sends Pos_Quat (with buttons and analogs mixed in) at 10 kHz over
-/// loopback TCP, one write per message, to the live VRPN client ([`vrpn::run_live`]); reports
+/// loopback TCP, one write per message, to the live VRPN client ([`vrpn_live::run_live`]); reports
 /// loss, drain time, backlog and memory.
 #[must_use]
 pub fn vrpn_stream_10khz(duration: Duration) -> String {
@@ -340,7 +342,7 @@ pub fn vrpn_stream_10khz(duration: Duration) -> String {
             let mut pipeline =
                 Pipeline::new(ingest, Interaction::new(InteractionConfig::default()));
             let wall = HingedWall::hornet();
-            let _ = vrpn::run_live(
+            let _ = vrpn_live::run_live(
                 &mut source,
                 &mut pipeline,
                 &wall,

@@ -1,6 +1,6 @@
 //! The live VRPN client: connects to `DEVICE@HOST[:PORT]` directly over TCP or by VRPN's
 //! classic UDP set-up, reconnects with back-off when the server goes away, and hands on every
-//! read raw, with its channel — decoding is the pipeline's job ([`super::VrpnDecoder`] inside
+//! read raw, with its channel — decoding is the pipeline's job ([`VrpnDecoder`](crate::tracking::vrpn::VrpnDecoder) inside
 //! [`Ingest`]), so that a recording of these reads replays exactly.
 //!
 //! Classic set-up (`DEVICE@HOST`, as VRPN's own clients default to):
@@ -28,14 +28,15 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use socket2::{Domain, Protocol as SockProtocol, SockRef, Socket, TcpKeepalive, Type};
 
-use super::config::{Transport, VrpnAddress};
-use super::wire::{COOKIE_LEN, VrpnTime, check_cookie, encode, system};
+use super::pipeline::Pipeline;
+use super::udp::Live;
 use crate::interaction::{RaySurface, RoiChange};
 use crate::tracking::event::TrackingEvent;
-use crate::tracking::ingest::{Ingest, Pipeline, Protocol};
+use crate::tracking::ingest::{Ingest, Protocol};
 use crate::tracking::problems::ProblemLog;
 use crate::tracking::replay::ReplayWriter;
-use crate::tracking::udp::Live;
+use crate::tracking::vrpn::config::{Transport, VrpnAddress};
+use crate::tracking::vrpn::wire::{COOKIE_LEN, VrpnTime, check_cookie, encode, system};
 
 /// How the client connects.
 #[derive(Clone, Debug, PartialEq)]
@@ -753,7 +754,7 @@ pub fn record<W: io::Write>(
         }
         // Under a steady stream as when the line is quiet: a killed recorder keeps everything
         // up to the last flush.
-        if last_flush.elapsed() >= crate::tracking::udp::FLUSH_INTERVAL {
+        if last_flush.elapsed() >= super::udp::FLUSH_INTERVAL {
             writer.flush()?;
             last_flush = Instant::now();
         }

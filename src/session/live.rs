@@ -8,16 +8,39 @@ use std::time::Instant;
 
 use glam::DVec2;
 
-use super::core::ViewerState;
+use super::pipeline::Pipeline;
+use super::udp::{ListenerConfig, Live, UdpSource, run_live};
+use super::vrpn::{VrpnClientConfig, VrpnSource};
 use crate::display::DisplayModel;
-use crate::interaction::RoiChange;
 use crate::interaction::{Interaction, InteractionConfig, RaySurface};
+use crate::interaction::{RoiChange, RoiState};
 use crate::tracking::calibration::Calibration;
 use crate::tracking::dtrack::TimeSource;
 use crate::tracking::event::{DeviceId, Tracking, TrackingEvent};
-use crate::tracking::ingest::{Pipeline, Protocol};
-use crate::tracking::udp::{ListenerConfig, Live, UdpSource, run_live};
-use crate::tracking::vrpn::{self, VrpnAddress, VrpnClientConfig, VrpnConfig, VrpnSource};
+use crate::tracking::ingest::Protocol;
+use crate::tracking::vrpn::{self, VrpnAddress, VrpnConfig};
+
+/// Why live tracking could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum LiveError {
+    #[error(transparent)]
+    Udp(#[from] super::udp::UdpError),
+    #[error(transparent)]
+    Vrpn(#[from] super::vrpn::VrpnClientError),
+    #[error(transparent)]
+    VrpnConfig(#[from] crate::tracking::vrpn::VrpnConfigError),
+    #[error("starting the live tracking thread: {0}")]
+    Io(#[from] std::io::Error),
+}
+
+/// What live tracking delivered since the last [`LiveTracking::update`].
+#[derive(Clone, Debug, Default)]
+pub struct LiveUpdate {
+    /// The latest ROI, when it changed (`Some(None)`: the ROI went away).
+    pub roi: Option<Option<RoiState>>,
+    /// (event time, canvas point or `None` while untracked or aiming off the wall).
+    pub aim: Vec<(f64, Option<DVec2>)>,
+}
 
 /// Aim samples of the followed device: (event time, canvas point or `None` while untracked or
 /// aiming off the wall).
@@ -43,7 +66,7 @@ impl LiveTracking {
         protocol: Protocol,
         device: DeviceId,
         model: DisplayModel,
-    ) -> anyhow::Result<Self> {
+    ) -> Result<Self, LiveError> {
         let config = InteractionConfig {
             device,
             ..InteractionConfig::default()
@@ -57,7 +80,7 @@ impl LiveTracking {
         protocol: Protocol,
         config: InteractionConfig,
         model: DisplayModel,
-    ) -> anyhow::Result<Self> {
+    ) -> Result<Self, LiveError> {
         Self::start_calibrated(port, protocol, config, model, None)
     }
 
@@ -69,7 +92,7 @@ impl LiveTracking {
         config: InteractionConfig,
         model: DisplayModel,
         calibration: Option<&Calibration>,
-    ) -> anyhow::Result<Self> {
+    ) -> Result<Self, LiveError> {
         let mut source = UdpSource::bind(ListenerConfig::loopback(port))?;
         let port = source.local_addr()?.port();
         let mut pipeline = Pipeline::quiet_live(config.device);
@@ -94,7 +117,7 @@ impl LiveTracking {
         config: InteractionConfig,
         model: DisplayModel,
         calibration: Option<&Calibration>,
-    ) -> anyhow::Result<Self> {
+    ) -> Result<Self, LiveError> {
         let mut source = VrpnSource::new(VrpnClientConfig {
             allow_non_loopback: allow_network,
             ..VrpnClientConfig::new(address.clone())
@@ -111,7 +134,7 @@ impl LiveTracking {
             config,
             model,
             address.port,
-            move |p, m, stop, live, on| vrpn::run_live(&mut source, p, m, stop, live, on),
+            move |p, m, stop, live, on| super::vrpn::run_live(&mut source, p, m, stop, live, on),
         )
     }
 
@@ -131,7 +154,7 @@ impl LiveTracking {
         ) -> std::io::Result<()>
         + Send
         + 'static,
-    ) -> anyhow::Result<Self> {
+    ) -> Result<Self, LiveError> {
         let live = Arc::new(Live::default());
         let aim: AimQueue = Arc::new(Mutex::new(Vec::new()));
         let stop = Arc::new(AtomicBool::new(false));
@@ -169,26 +192,23 @@ impl LiveTracking {
         })
     }
 
-    /// Copies the latest ROI (when it changed) and aim into `state`, and feeds the aim
-    /// samples that arrived since the last call to its cursor.
-    pub fn update(&mut self, state: &mut ViewerState) {
+    /// What arrived since the last call: the latest ROI when it changed and the aim samples,
+    /// in time order (the viewer feeds them to its cursor).
+    pub fn update(&mut self) -> LiveUpdate {
         let snap = self.live.snapshot();
-        if snap.version != self.version {
+        let roi = (snap.version != self.version).then(|| {
             self.version = snap.version;
-            state.tracked = snap.roi;
-        }
-        let samples = self
+            snap.roi
+        });
+        let aim = self
             .aim
             .lock()
             .map(|mut g| std::mem::take(&mut *g))
             .unwrap_or_default();
-        for &(t, aim) in &samples {
-            state.cursor.observe(t, aim);
-        }
-        if let Some(&(t, aim)) = samples.last() {
-            state.aim = aim;
+        if let Some(&(t, _)) = aim.last() {
             self.clock = Some((t, Instant::now()));
         }
+        LiveUpdate { roi, aim }
     }
 
     /// The events' clock now (for drawing the cursor); `None` before the first sample.

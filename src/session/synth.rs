@@ -32,12 +32,12 @@ use std::path::{Path, PathBuf};
 
 use glam::{DMat3, DQuat, DVec2, DVec3};
 
-use super::dtrack::{DtrackConfig, TrackerToRoom, format_flystick_block};
-use super::event::{DeviceId, DeviceKind, Pose, TrackingEvent};
-use super::ingest::Protocol;
-use super::osc::encode;
-use super::replay::{ReplayHeader, ReplayWriter};
 use crate::interaction::{HingedWall, InteractionConfig, RaySurface};
+use crate::tracking::dtrack::{DtrackConfig, TrackerToRoom, format_flystick_block};
+use crate::tracking::event::{DeviceId, DeviceKind, Pose, TrackingEvent};
+use crate::tracking::ingest::Protocol;
+use crate::tracking::osc::encode;
+use crate::tracking::replay::{ReplayHeader, ReplayWriter};
 
 /// SplitMix64: tiny, fast and fully specified, so sessions are identical on every platform.
 #[derive(Clone, Debug)]
@@ -476,7 +476,7 @@ pub fn simulate(spec: &SessionSpec) -> Vec<Sample> {
 
 fn header(spec: &SessionSpec, device: DeviceId, form: &str) -> ReplayHeader {
     let mut h = ReplayHeader::new(format!(
-        "SYNTHETIC session `{}` ({form}), made by raygun::tracking::synth (seed {}): {} s at {} Hz, \
+        "SYNTHETIC session `{}` ({form}), made by raygun::session::synth (seed {}): {} s at {} Hz, \
          {}, targets {:?}, {} dropouts. Not recorded from a person.",
         spec.name,
         spec.seed,
@@ -603,7 +603,7 @@ pub fn mouse_replay() -> io::Result<Vec<u8>> {
     let device = DeviceId::new(DeviceKind::Mouse, 0);
     let mut h = ReplayHeader::new(
         "SYNTHETIC mouse session on display-models/desktop-27in-4k.json (27-inch 3840x2160), made by \
-         raygun::tracking::synth: 12 s at 60 Hz, min-jerk pointer moves, 8 clicks. Not recorded from a person.",
+         raygun::session::synth: 12 s at 60 Hz, min-jerk pointer moves, 8 clicks. Not recorded from a person.",
     );
     h.synthetic = true;
     h.display = Some("display-models/desktop-27in-4k.json".into());

@@ -1,0 +1,698 @@
+//! One frame of the pipeline (DESIGN.md §1), on either backend:
+//!
+//! ```text
+//! install the DGI (if the ROI changed) ──► schedule (p = max(p_min, 1 − d), Bernoulli,
+//!     compaction) ──► trace exactly the listed pixels into the accumulation
+//!                                        ──► filter and picture (when asked)
+//! ```
+//!
+//! [`Renderer::run_frame`] is that function, one named step per stage, each choosing its
+//! backend inside. On the GPU every step records into one command encoder — the DGI only when
+//! the ROI changed, then the scheduler, whose pixel count feeds the tracer's indirect dispatch
+//! — and the frame submits once: nothing is read back. On the CPU the twins run in the same
+//! order on the same data, so both backends take the same decisions. Per-pixel sample counts
+//! live in the accumulation and persist across ROI changes. [`Renderer::picture`] filters the
+//! accumulation with the DGI when a picture is wanted.
+//!
+//! A full-frame render ([`Renderer::full`]) is a guided frame without an ROI and without a
+//! display: its DGI is 0 everywhere, so every pixel is traced every frame and the scheduling
+//! step has nothing to decide (the tracer covers the frame directly). A guided render before
+//! its first shot is the same: d = 0 everywhere.
+//!
+//! [`stop`] holds the halt conditions measured on the accumulation (`--until`).
+
+pub mod stop;
+
+use std::cell::OnceCell;
+use std::time::Instant;
+
+use glam::Vec3;
+
+use crate::display::DisplayModel;
+use crate::filter::{Filter, FilterGpuError, FilterParams};
+use crate::gpu::{Backend, GpuContext, GpuError, PassTimer};
+use crate::roi::dgi::{
+    DgiParams, Falloff, Guide, GuideError, Metric, Roi, Surface, compute_cpu, roi_radius_m,
+};
+use crate::roi::gpu::{DgiKernel, DgiRun};
+use crate::scene::Scene;
+use crate::schedule::gpu::{ScheduleConfig, ScheduleKernel, ScheduleRun};
+use crate::schedule::{Order, ScheduleError, schedule_cpu};
+use crate::trace::accum::Accumulation;
+use crate::trace::cpu::{TraceSettings, render_cpu};
+use crate::trace::gpu::{GpuAccum, GpuScene, TraceKernel, TraceRun, WORKGROUP};
+use crate::trace::pack::PackedScene;
+use stop::RoiProgress;
+
+/// How the ROI steers sampling.
+#[derive(Clone, Copy, Debug, serde::Serialize)]
+pub struct GuideConfig {
+    pub metric: Metric,
+    pub falloff: Falloff,
+    /// Lowest sampling probability (paper preset 0).
+    pub p_min: f32,
+    pub order: Order,
+}
+
+impl Default for GuideConfig {
+    fn default() -> Self {
+        Self {
+            metric: Metric::Exact,
+            falloff: Falloff::default(),
+            p_min: 0.0,
+            order: Order::Coherent,
+        }
+    }
+}
+
+/// Why a frame (or the renderer's set-up) failed.
+#[derive(Debug, thiserror::Error)]
+pub enum FrameError {
+    #[error(transparent)]
+    Gpu(#[from] GpuError),
+    #[error(transparent)]
+    Schedule(#[from] ScheduleError),
+    #[error(transparent)]
+    Guide(#[from] GuideError),
+    #[error(transparent)]
+    Filter(#[from] FilterGpuError),
+    #[error(
+        "a full-frame renderer has no display to aim an ROI at (build it with Renderer::guided)"
+    )]
+    NotGuided,
+}
+
+/// What one frame did.
+#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+pub struct FrameStats {
+    pub iteration: u32,
+    /// Whether the DGI was recomputed (the ROI changed).
+    pub dgi_recomputed: bool,
+    /// Pixels traced (CPU: always; GPU: full frames always, guided ones only with timing,
+    /// which reads the count back).
+    pub pixels: Option<u32>,
+    /// Stage times in ms (GPU timestamps or CPU wall clock), when timing was asked for.
+    pub ms_dgi: Option<f64>,
+    pub ms_schedule: Option<f64>,
+    pub ms_trace: Option<f64>,
+    /// Whether `ms_*` come from GPU timestamps (else the CPU's clock).
+    #[serde(skip)]
+    pub gpu_timestamps: bool,
+    /// Rays traced (closest-hit and shadow rays; CPU: always; GPU: with timing).
+    #[serde(skip)]
+    pub rays: Option<u64>,
+}
+
+/// Times of frames run one at a time.
+#[derive(Clone, Debug)]
+pub struct TimedIterations {
+    /// Milliseconds of the trace step per iteration: GPU timestamps where the adapter has them,
+    /// else wall clock around submit-and-wait (CPU: wall clock).
+    pub ms: Vec<f64>,
+    /// Rays traced per iteration (closest-hit and shadow rays), averaged.
+    pub rays_per_iteration: f64,
+    /// Whether `ms` comes from GPU timestamps.
+    pub gpu_timestamps: bool,
+}
+
+/// Where the ROI is aimed and how it steers sampling (a guided renderer only).
+struct Guidance {
+    config: GuideConfig,
+    surface: Surface,
+    pitch_m: f64,
+    roi: Option<Roi>,
+}
+
+/// A new DGI for the next frame to install.
+enum PendingDgi {
+    Run(DgiRun),
+    /// No ROI: d = 0 everywhere.
+    Zero,
+}
+
+/// The guided stages on the GPU: the DGI kernel, the DGI the scheduler reads (a DGI run's
+/// output is copied in on ROI changes), the scheduler, and a DGI change waiting for the next
+/// frame.
+struct GpuGuide {
+    dgi_kernel: DgiKernel,
+    dgi: wgpu::Buffer,
+    schedule: ScheduleRun,
+    pending: Option<PendingDgi>,
+}
+
+/// The guided stages on the CPU: the DGI in use and the next one with the ms it took.
+struct CpuGuide {
+    dgi: Vec<f32>,
+    pending: Option<(Vec<f32>, f64)>,
+}
+
+// One engine per renderer: the size difference between the variants does not matter.
+#[allow(clippy::large_enum_variant)]
+enum Engine<'a> {
+    Gpu {
+        ctx: &'a GpuContext,
+        scene: GpuScene,
+        accum: GpuAccum,
+        trace: TraceRun,
+        guide: Option<GpuGuide>,
+        timer: Option<PassTimer>,
+    },
+    Cpu {
+        accum: Accumulation,
+        guide: Option<CpuGuide>,
+    },
+}
+
+/// Timer slots of a frame's passes.
+const PASS_DGI: u32 = 0;
+const PASS_SCHEDULE: u32 = 1;
+const PASS_TRACE: u32 = 2;
+
+/// A frame being assembled by the steps of [`Renderer::run_frame`].
+struct FrameInProgress {
+    timed: bool,
+    stats: FrameStats,
+    /// GPU: the encoder every step records into.
+    encoder: Option<wgpu::CommandEncoder>,
+    /// CPU: the pixels the schedule step chose (`None`: every pixel).
+    list: Option<Vec<u32>>,
+    /// When the frame started (the GPU's wall-clock fallback).
+    started: Instant,
+}
+
+/// A progressive render, full frame or steered by an ROI on a display wall: the one object
+/// every command, the viewer and the benchmarks drive.
+pub struct Renderer<'a> {
+    pub packed: PackedScene,
+    pub settings: TraceSettings,
+    /// Seconds spent building the BVH and packing the scene.
+    pub build_seconds: f64,
+    backend: &'a Backend,
+    guidance: Option<Guidance>,
+    engine: Engine<'a>,
+    iteration: u32,
+    /// The filter stage, made on the first picture (its GPU kernels compile once).
+    filter: OnceCell<Filter<'a>>,
+}
+
+impl<'a> Renderer<'a> {
+    /// A full-frame render of `scene`: one path per pixel per frame.
+    pub fn full(
+        backend: &'a Backend,
+        scene: &Scene,
+        settings: TraceSettings,
+    ) -> Result<Self, FrameError> {
+        Self::new(backend, scene, settings, None)
+    }
+
+    /// A render of `settings.width × settings.height` pixels covering `display`'s canvas,
+    /// steered by the ROI set with [`Self::set_roi`] (none yet: the whole frame is sampled).
+    pub fn guided(
+        backend: &'a Backend,
+        scene: &Scene,
+        settings: TraceSettings,
+        display: &DisplayModel,
+        config: GuideConfig,
+    ) -> Result<Self, FrameError> {
+        crate::schedule::validate_p_min(config.p_min)?;
+        let guidance = Guidance {
+            config,
+            surface: Surface::from_model(display),
+            pitch_m: display.pitch_m(),
+            roi: None,
+        };
+        Self::new(backend, scene, settings, Some(guidance))
+    }
+
+    /// Packs the scene, builds its BVH and prepares every stage (on the GPU: uploads and
+    /// clears).
+    fn new(
+        backend: &'a Backend,
+        scene: &Scene,
+        settings: TraceSettings,
+        guidance: Option<Guidance>,
+    ) -> Result<Self, FrameError> {
+        let t0 = Instant::now();
+        let packed = PackedScene::new(scene);
+        let build_seconds = t0.elapsed().as_secs_f64();
+        let (w, h) = (settings.width, settings.height);
+        let n = w as usize * h as usize;
+        let engine = match backend {
+            Backend::Gpu(ctx) => {
+                let ctx: &GpuContext = ctx;
+                let kernel = TraceKernel::new(ctx);
+                let gscene = GpuScene::upload(ctx, &kernel, &packed)?;
+                let accum = GpuAccum::new(ctx, w, h)?;
+                let guide = match &guidance {
+                    Some(g) => Some(gpu_guide(ctx, w, h, &g.config)?),
+                    None => None,
+                };
+                let trace = TraceRun::new(
+                    ctx,
+                    &kernel,
+                    &packed,
+                    &settings,
+                    &accum,
+                    guide
+                        .as_ref()
+                        .map(|g| (g.schedule.list(), g.schedule.args())),
+                );
+                let mut enc = ctx.device.create_command_encoder(&Default::default());
+                accum.clear(&mut enc);
+                if let Some(g) = &guide {
+                    enc.clear_buffer(&g.dgi, 0, None);
+                }
+                ctx.queue.submit([enc.finish()]);
+                Engine::Gpu {
+                    ctx,
+                    scene: gscene,
+                    accum,
+                    trace,
+                    guide,
+                    timer: PassTimer::new(ctx, 3),
+                }
+            }
+            Backend::Cpu => Engine::Cpu {
+                accum: Accumulation::new(w, h),
+                guide: guidance.as_ref().map(|_| CpuGuide {
+                    dgi: vec![0.0; n],
+                    pending: None,
+                }),
+            },
+        };
+        Ok(Self {
+            packed,
+            settings,
+            build_seconds,
+            backend,
+            guidance,
+            engine,
+            iteration: 0,
+            filter: OnceCell::new(),
+        })
+    }
+
+    /// Iterations run so far.
+    #[must_use]
+    pub fn iteration(&self) -> u32 {
+        self.iteration
+    }
+
+    /// The current ROI (`None` also for a full-frame render).
+    #[must_use]
+    pub fn roi(&self) -> Option<&Roi> {
+        self.guidance.as_ref().and_then(|g| g.roi.as_ref())
+    }
+
+    /// How the ROI steers sampling (`None` for a full-frame render).
+    #[must_use]
+    pub fn guide_config(&self) -> Option<&GuideConfig> {
+        self.guidance.as_ref().map(|g| &g.config)
+    }
+
+    /// The backend the frames run on.
+    #[must_use]
+    pub fn backend(&self) -> &'a Backend {
+        self.backend
+    }
+
+    /// Sets the ROI; its DGI is computed by the next frame (`None`: sample the whole frame).
+    /// The accumulation is kept: samples taken under the old ROI still count.
+    pub fn set_roi(&mut self, roi: Option<Roi>) -> Result<(), FrameError> {
+        let (w, h) = (self.settings.width, self.settings.height);
+        let g = self.guidance.as_mut().ok_or(FrameError::NotGuided)?;
+        let prepared = match &roi {
+            Some(r) => {
+                let guide = Guide::new(&g.surface, r, g.config.metric)?;
+                let length = g
+                    .config
+                    .falloff
+                    .length_px(roi_radius_m(&g.surface, r), g.pitch_m);
+                Some((
+                    guide,
+                    DgiParams {
+                        width: w,
+                        height: h,
+                        falloff_px: Some(length),
+                    },
+                ))
+            }
+            None => None,
+        };
+        match &mut self.engine {
+            Engine::Gpu {
+                ctx,
+                guide: Some(gg),
+                ..
+            } => {
+                gg.pending = Some(match prepared {
+                    Some((guide, params)) => {
+                        PendingDgi::Run(gg.dgi_kernel.prepare(ctx, &g.surface, &guide, &params)?)
+                    }
+                    None => PendingDgi::Zero,
+                });
+            }
+            Engine::Cpu {
+                guide: Some(cg), ..
+            } => {
+                let t0 = Instant::now();
+                let dgi = match prepared {
+                    Some((guide, params)) => compute_cpu(&g.surface, &guide, &params),
+                    None => vec![0.0; w as usize * h as usize],
+                };
+                cg.pending = Some((dgi, t0.elapsed().as_secs_f64() * 1e3));
+            }
+            // A guided renderer always has its guided stages.
+            Engine::Gpu { guide: None, .. } | Engine::Cpu { guide: None, .. } => {
+                return Err(FrameError::NotGuided);
+            }
+        }
+        g.roi = roi;
+        Ok(())
+    }
+
+    /// Runs one frame: the DGI if the ROI changed, the schedule, and one path for each
+    /// scheduled pixel. With `timed`, stage times are measured (GPU timestamps where the
+    /// adapter has them) and the pixel and ray counts are read back — for benchmarks; an
+    /// interactive loop leaves it off so nothing waits on the GPU.
+    pub fn run_frame(&mut self, timed: bool) -> Result<FrameStats, FrameError> {
+        let mut frame = self.begin(timed);
+        self.install_dgi(&mut frame);
+        self.schedule(&mut frame)?;
+        self.trace(&mut frame);
+        self.submit(frame)
+    }
+
+    /// Starts a frame: on the GPU, the command encoder the steps record into (and, timed, the
+    /// cleared ray counter).
+    fn begin(&self, timed: bool) -> FrameInProgress {
+        let encoder = match &self.engine {
+            Engine::Gpu { ctx, accum, .. } => {
+                let mut enc = ctx.device.create_command_encoder(&Default::default());
+                if timed {
+                    accum.clear_stats(&mut enc);
+                }
+                Some(enc)
+            }
+            Engine::Cpu { .. } => None,
+        };
+        FrameInProgress {
+            timed,
+            stats: FrameStats {
+                iteration: self.iteration,
+                ..FrameStats::default()
+            },
+            encoder,
+            list: None,
+            started: Instant::now(),
+        }
+    }
+
+    /// Step 1: installs the DGI of a changed ROI (recorded on the GPU; computed already by
+    /// [`Self::set_roi`] on the CPU). Nothing for a full frame or an unchanged ROI.
+    fn install_dgi(&mut self, frame: &mut FrameInProgress) {
+        match &mut self.engine {
+            Engine::Gpu {
+                guide: Some(g),
+                timer,
+                ..
+            } => {
+                let timer = timer.as_ref().filter(|_| frame.timed);
+                let enc = frame.encoder.as_mut().expect("a GPU frame has an encoder");
+                match g.pending.take() {
+                    Some(PendingDgi::Run(run)) => {
+                        run.record(enc, timer.map(|t| (t, PASS_DGI)));
+                        enc.copy_buffer_to_buffer(&run.output, 0, &g.dgi, 0, g.dgi.size());
+                        frame.stats.dgi_recomputed = true;
+                    }
+                    Some(PendingDgi::Zero) => {
+                        enc.clear_buffer(&g.dgi, 0, None);
+                        frame.stats.dgi_recomputed = true;
+                    }
+                    None => {}
+                }
+            }
+            Engine::Cpu { guide: Some(g), .. } => {
+                if let Some((new, ms)) = g.pending.take() {
+                    g.dgi = new;
+                    frame.stats.dgi_recomputed = true;
+                    if frame.timed {
+                        frame.stats.ms_dgi = Some(ms);
+                    }
+                }
+            }
+            Engine::Gpu { guide: None, .. } | Engine::Cpu { guide: None, .. } => {}
+        }
+    }
+
+    /// Step 2: chooses the pixels to trace from the DGI (p = max(p_min, 1 − d), Bernoulli,
+    /// compaction into a list). A full frame traces every pixel: nothing to choose.
+    fn schedule(&mut self, frame: &mut FrameInProgress) -> Result<(), FrameError> {
+        let (w, h, seed) = (
+            self.settings.width,
+            self.settings.height,
+            self.settings.seed,
+        );
+        let iteration = self.iteration;
+        match (&mut self.engine, &self.guidance) {
+            (
+                Engine::Gpu {
+                    guide: Some(g),
+                    timer,
+                    ..
+                },
+                _,
+            ) => {
+                let timer = timer.as_ref().filter(|_| frame.timed);
+                let enc = frame.encoder.as_mut().expect("a GPU frame has an encoder");
+                g.schedule
+                    .record(enc, iteration, seed, timer.map(|t| (t, PASS_SCHEDULE)));
+            }
+            (Engine::Cpu { guide: Some(g), .. }, Some(guidance)) => {
+                let t0 = Instant::now();
+                let c = &guidance.config;
+                frame.list = Some(schedule_cpu(
+                    &g.dgi, w, h, c.p_min, iteration, seed, c.order,
+                )?);
+                if frame.timed {
+                    frame.stats.ms_schedule = Some(t0.elapsed().as_secs_f64() * 1e3);
+                }
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+
+    /// Step 3: one path for each scheduled pixel (every pixel of a full frame), added to the
+    /// accumulation.
+    fn trace(&mut self, frame: &mut FrameInProgress) {
+        match &mut self.engine {
+            Engine::Gpu {
+                scene,
+                trace,
+                timer,
+                ..
+            } => {
+                let timer = timer.as_ref().filter(|_| frame.timed);
+                let enc = frame.encoder.as_mut().expect("a GPU frame has an encoder");
+                trace.record(enc, scene, timer.map(|t| (t, PASS_TRACE)));
+            }
+            Engine::Cpu { accum, .. } => {
+                let t0 = Instant::now();
+                let list = frame.list.as_deref();
+                let rays = render_cpu(&self.packed, &self.settings, accum, list);
+                let pixels = list.map_or(self.settings.width * self.settings.height, |l| {
+                    l.len() as u32
+                });
+                frame.stats.pixels = Some(pixels);
+                frame.stats.rays = Some(rays);
+                if frame.timed {
+                    frame.stats.ms_trace = Some(t0.elapsed().as_secs_f64() * 1e3);
+                }
+            }
+        }
+    }
+
+    /// Ends the frame: on the GPU, submits the steps' work once (and, timed, waits and reads
+    /// the timestamps and counts back).
+    fn submit(&mut self, frame: FrameInProgress) -> Result<FrameStats, FrameError> {
+        let FrameInProgress {
+            timed,
+            mut stats,
+            encoder,
+            started,
+            ..
+        } = frame;
+        if let Engine::Gpu {
+            ctx,
+            accum,
+            guide,
+            timer,
+            ..
+        } = &self.engine
+        {
+            let timer = timer.as_ref().filter(|_| timed);
+            let mut enc = encoder.expect("a GPU frame has an encoder");
+            if let Some(t) = timer {
+                t.resolve(&mut enc);
+            }
+            ctx.queue.submit([enc.finish()]);
+            if guide.is_none() {
+                stats.pixels = Some(self.settings.width * self.settings.height);
+            }
+            if timed {
+                ctx.wait()?;
+                let wall = started.elapsed().as_secs_f64() * 1e3;
+                if let Some(g) = guide {
+                    stats.pixels = Some(g.schedule.read_args(ctx)?[3]);
+                }
+                match timer {
+                    Some(t) => {
+                        let ms = t.read_ms(ctx)?;
+                        stats.ms_dgi = stats.dgi_recomputed.then_some(ms[PASS_DGI as usize]);
+                        if guide.is_some() {
+                            stats.ms_schedule = Some(ms[PASS_SCHEDULE as usize]);
+                        }
+                        stats.ms_trace = Some(ms[PASS_TRACE as usize]);
+                        stats.gpu_timestamps = true;
+                    }
+                    // Without timestamps only the whole frame can be timed.
+                    None => stats.ms_trace = Some(wall),
+                }
+                stats.rays = Some(accum.rays(ctx)?);
+            }
+        }
+        self.iteration += 1;
+        Ok(stats)
+    }
+
+    /// Runs `n` frames and waits for them.
+    pub fn iterate(&mut self, n: u32) -> Result<(), FrameError> {
+        for _ in 0..n {
+            self.run_frame(false)?;
+        }
+        self.wait()
+    }
+
+    /// Waits until the submitted frames are done (nothing to wait for on the CPU).
+    pub fn wait(&self) -> Result<(), FrameError> {
+        match &self.engine {
+            Engine::Gpu { ctx, .. } => Ok(ctx.wait()?),
+            Engine::Cpu { .. } => Ok(()),
+        }
+    }
+
+    /// Runs `n` frames one at a time and times the trace step of each (for benchmarks).
+    pub fn timed_iterations(&mut self, n: u32) -> Result<TimedIterations, FrameError> {
+        let mut ms = Vec::with_capacity(n as usize);
+        let mut rays = 0u64;
+        let mut stamps = false;
+        for _ in 0..n {
+            let s = self.run_frame(true)?;
+            ms.push(s.ms_trace.unwrap_or(f64::NAN));
+            rays += s.rays.unwrap_or(0);
+            stamps = s.gpu_timestamps;
+        }
+        Ok(TimedIterations {
+            ms,
+            rays_per_iteration: rays as f64 / f64::from(n.max(1)),
+            gpu_timestamps: stamps,
+        })
+    }
+
+    /// The accumulation so far (a read-back on the GPU).
+    pub fn accumulation(&self) -> Result<Accumulation, FrameError> {
+        Ok(match &self.engine {
+            Engine::Gpu { ctx, accum, .. } => accum.read(ctx)?,
+            Engine::Cpu { accum, .. } => accum.clone(),
+        })
+    }
+
+    /// The DGI the last frame used (a read-back on the GPU; 0 everywhere for a full frame).
+    pub fn dgi(&self) -> Result<Vec<f32>, FrameError> {
+        let n = self.settings.width as usize * self.settings.height as usize;
+        Ok(match &self.engine {
+            Engine::Gpu {
+                ctx,
+                guide: Some(g),
+                ..
+            } => ctx.read_buffer::<f32>(&g.dgi)?,
+            Engine::Cpu { guide: Some(g), .. } => g.dgi.clone(),
+            Engine::Gpu { guide: None, .. } | Engine::Cpu { guide: None, .. } => vec![0.0; n],
+        })
+    }
+
+    /// How far the ROI has come (a read-back on the GPU); `None` without ROI pixels.
+    pub fn roi_progress(&self) -> Result<Option<RoiProgress>, FrameError> {
+        Ok(match &self.engine {
+            Engine::Cpu {
+                accum,
+                guide: Some(g),
+            } => RoiProgress::measure(accum, &g.dgi),
+            _ => RoiProgress::measure(&self.accumulation()?, &self.dgi()?),
+        })
+    }
+
+    /// Step 4, when a picture is wanted: the mean image filtered by `params` with the DGI
+    /// (linear RGB, row-major), on this renderer's backend.
+    pub fn picture(&self, params: &FilterParams) -> Result<Vec<Vec3>, FrameError> {
+        let acc = self.accumulation()?;
+        let dgi = self.dgi()?;
+        self.picture_of(params, &acc, &dgi)
+    }
+
+    /// The picture of an accumulation and DGI read back already (see [`Self::picture`]).
+    pub fn picture_of(
+        &self,
+        params: &FilterParams,
+        acc: &Accumulation,
+        dgi: &[f32],
+    ) -> Result<Vec<Vec3>, FrameError> {
+        let filter = self.filter.get_or_init(|| Filter::new(self.backend));
+        Ok(filter.image(params, acc, dgi)?)
+    }
+
+    /// The accumulation and the DGI the last frame used, ending the render (moved out on the
+    /// CPU, read back on the GPU).
+    pub fn finish(self) -> Result<(Accumulation, Vec<f32>), FrameError> {
+        let dgi = self.dgi()?;
+        Ok(match self.engine {
+            Engine::Gpu { ctx, accum, .. } => (accum.read(ctx)?, dgi),
+            Engine::Cpu { accum, .. } => (accum, dgi),
+        })
+    }
+}
+
+/// The guided stages on the GPU for a `w × h` frame, with a cleared DGI.
+fn gpu_guide(
+    ctx: &GpuContext,
+    w: u32,
+    h: u32,
+    config: &GuideConfig,
+) -> Result<GpuGuide, FrameError> {
+    let dgi = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("frame dgi"),
+        size: u64::from(w) * u64::from(h) * 4,
+        usage: wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::COPY_DST
+            | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    });
+    let schedule = ScheduleKernel::new(ctx).prepare(
+        ctx,
+        &dgi,
+        &ScheduleConfig {
+            width: w,
+            height: h,
+            p_min: config.p_min,
+            order: config.order,
+            trace_workgroup_size: WORKGROUP,
+        },
+    )?;
+    Ok(GpuGuide {
+        dgi_kernel: DgiKernel::new(ctx),
+        dgi,
+        schedule,
+        pending: None,
+    })
+}

@@ -1,0 +1,82 @@
+//! Where a guided render's ROI comes from: a fixed ROI, or a replay's ROI changes spread
+//! evenly over the iterations.
+
+use std::path::{Path, PathBuf};
+
+use super::replay::{ReplayPlan, replay_changes_with};
+use crate::roi::dgi::Roi;
+use crate::tracking::replay::ReplayError;
+
+/// Why a replay gives no guide.
+#[derive(Debug, thiserror::Error)]
+pub enum GuideSourceError {
+    #[error(transparent)]
+    Replay(#[from] ReplayError),
+    #[error(
+        "{}: no shot of the replay hits the display ({display}): it gives no ROI (`raygun replay` lists its shots and misses)",
+        file.display()
+    )]
+    NoShot { file: PathBuf, display: String },
+}
+
+/// Where the ROI comes from.
+#[derive(Clone, Debug)]
+pub enum GuideSource {
+    /// A fixed ROI for every iteration.
+    Fixed(Roi),
+    /// A replay's ROI changes, (seconds since the first, ROI) in time order, spread evenly
+    /// over the iterations.
+    Replay {
+        changes: Vec<(f64, Option<Roi>)>,
+        duration: f64,
+    },
+}
+
+impl GuideSource {
+    /// The ROI changes of a replay, timed from its first event of the followed device.
+    pub fn from_replay(plan: &ReplayPlan, file: &Path) -> Result<Self, GuideSourceError> {
+        let mut changes = Vec::new();
+        let mut first = None;
+        let mut last = 0.0f64;
+        replay_changes_with(
+            plan,
+            file,
+            |t_event| {
+                first.get_or_insert(t_event);
+                last = last.max(t_event);
+            },
+            |c| {
+                changes.push((c.t, c.roi.to_roi().ok().flatten()));
+            },
+        )?;
+        if !changes.iter().any(|(_, r)| r.is_some()) {
+            return Err(GuideSourceError::NoShot {
+                file: file.to_owned(),
+                display: plan.display_origin.clone(),
+            });
+        }
+        let t0 = first.unwrap_or(0.0);
+        let changes: Vec<(f64, Option<Roi>)> =
+            changes.into_iter().map(|(t, r)| (t - t0, r)).collect();
+        Ok(Self::Replay {
+            changes,
+            duration: (last - t0).max(0.0),
+        })
+    }
+
+    /// The ROI for iteration `k` of `n`.
+    #[must_use]
+    pub fn roi_at(&self, k: u32, n: u32) -> Option<Roi> {
+        match self {
+            Self::Fixed(r) => Some(*r),
+            Self::Replay { changes, duration } => {
+                let t = duration * f64::from(k) / f64::from(n.max(1));
+                changes
+                    .iter()
+                    .rev()
+                    .find(|(tc, _)| *tc <= t)
+                    .and_then(|(_, r)| *r)
+            }
+        }
+    }
+}

@@ -1,0 +1,131 @@
+//! The render loop that `render --guide`, `demo` and the benchmarks share: guided frames with
+//! the ROI from a [`GuideSource`] until a stop rule says so, then the picture.
+
+use std::path::Path;
+use std::time::Instant;
+
+use glam::Vec3;
+
+use super::guide::GuideSource;
+use crate::display::DisplayModel;
+use crate::filter::{Filter, FilterParams};
+use crate::frame::stop::{RoiProgress, StopCondition, StopReason, reached};
+use crate::frame::{FrameError, GuideConfig, Renderer};
+use crate::gpu::Backend;
+use crate::output::OutputError;
+use crate::roi::dgi::Roi;
+use crate::scene::Scene;
+use crate::trace::cpu::TraceSettings;
+
+/// When a guided render stops.
+#[derive(Clone, Debug, Default)]
+pub struct Stopping {
+    /// At most this many iterations (`None`: until a condition is reached).
+    pub iterations: Option<u32>,
+    pub until: Vec<StopCondition>,
+}
+
+/// How often the ROI's progress is measured for a stop condition (a read-back on the GPU).
+const PROGRESS_INTERVAL_S: f64 = 0.5;
+
+/// What a guided render produced.
+pub struct GuidedResult {
+    pub size: [u32; 2],
+    pub iterations: u32,
+    /// The filtered mean image (linear RGB, row-major).
+    pub image: Vec<Vec3>,
+    /// The DGI of the last iteration.
+    pub dgi: Vec<f32>,
+    /// Samples per pixel.
+    pub counts: Vec<u32>,
+    /// Wall-clock seconds of the iterations (read-back and filter excluded).
+    pub seconds: f64,
+    pub stop: StopReason,
+    /// The ROI's last measured progress (with stop conditions only).
+    pub progress: Option<RoiProgress>,
+}
+
+impl GuidedResult {
+    /// Samples taken in all.
+    #[must_use]
+    pub fn samples(&self) -> u64 {
+        self.counts.iter().map(|&c| u64::from(c)).sum()
+    }
+
+    /// Samples as a share of `iterations` full frames.
+    #[must_use]
+    pub fn sample_share(&self) -> f64 {
+        self.samples() as f64
+            / (f64::from(self.size[0]) * f64::from(self.size[1]) * f64::from(self.iterations))
+    }
+
+    /// Writes the DGI and the sample counts (EXR or PNG by extension).
+    pub fn write_guides(&self, dgi_out: &Path, counts_out: &Path) -> Result<(), OutputError> {
+        let [w, h] = self.size;
+        crate::output::write_gray(dgi_out, w, h, &self.dgi, crate::output::DGI_CHANNEL)?;
+        let counts: Vec<f32> = self.counts.iter().map(|&c| c as f32).collect();
+        crate::output::write_gray(counts_out, w, h, &counts, "samples")?;
+        Ok(())
+    }
+}
+
+/// Runs guided frames with the ROI from `source` until `stopping` says so, then reads back and
+/// filters. `on_iteration` is called after each frame with the number done and the ROI's
+/// progress when it was measured.
+#[allow(clippy::too_many_arguments)]
+pub fn render_guided(
+    backend: &Backend,
+    scene: &Scene,
+    settings: TraceSettings,
+    model: &DisplayModel,
+    config: GuideConfig,
+    filter: &FilterParams,
+    source: &GuideSource,
+    stopping: &Stopping,
+    mut on_iteration: impl FnMut(u32, Option<&RoiProgress>),
+) -> Result<GuidedResult, FrameError> {
+    let mut r = Renderer::guided(backend, scene, settings, model, config)?;
+    let t0 = Instant::now();
+    let needs_progress = stopping.until.iter().any(StopCondition::needs_progress);
+    let spread = stopping.iterations.unwrap_or(1);
+    let mut current: Option<Roi> = None;
+    let mut last_check = f64::NEG_INFINITY;
+    let mut progress = None;
+    let mut k = 0;
+    let stop = loop {
+        if stopping.iterations.is_some_and(|n| k >= n) {
+            break StopReason::Iterations(k);
+        }
+        let roi = source.roi_at(k, spread);
+        if k == 0 || roi != current {
+            r.set_roi(roi)?;
+            current = roi;
+        }
+        r.run_frame(false)?;
+        k += 1;
+        let elapsed = t0.elapsed().as_secs_f64();
+        let mut measured = false;
+        if needs_progress && elapsed - last_check >= PROGRESS_INTERVAL_S {
+            last_check = elapsed;
+            progress = r.roi_progress()?;
+            measured = true;
+        }
+        on_iteration(k, progress.as_ref().filter(|_| measured));
+        if let Some(c) = reached(&stopping.until, progress.as_ref(), elapsed) {
+            break StopReason::Reached(c);
+        }
+    };
+    let seconds = t0.elapsed().as_secs_f64();
+    let (acc, dgi) = r.finish()?;
+    let image = Filter::new(backend).image(filter, &acc, &dgi)?;
+    Ok(GuidedResult {
+        size: [settings.width, settings.height],
+        iterations: k,
+        image,
+        dgi,
+        counts: acc.count,
+        seconds,
+        stop,
+        progress,
+    })
+}

@@ -1,0 +1,298 @@
+//! Replays played against a display: the plan (header, display, device, calibration,
+//! mapping, decoders, all resolved before any input), its ROI changes, and their JSON lines.
+//!
+//! `raygun replay FILE` prints one JSON line per ROI change (and per failed shot, with
+//! `"kind":"miss"` or `"untracked"`):
+//!
+//! ```text
+//! {"t":1.916667,"kind":"shoot","centre_canvas_px":[5870.74,3779.658],"centre_image_px":[1667.527,1496.188],"fov_deg":[30.0,30.0],"tile":"c3r3","filter":true}
+//! ```
+//!
+//! `t` is seconds since the session's first event; pixels are rounded to 1e-3, degrees to
+//! 1e-4, so the output is deterministic and can be compared with a golden file.
+
+use std::io::{self, Write};
+use std::path::{Path, PathBuf};
+
+use super::pipeline::Pipeline;
+use crate::display::{DisplayModel, DisplayModelError};
+use crate::interaction::config::ConfigError;
+use crate::interaction::{Interaction, InteractionConfig, RoiChange};
+use crate::tracking::calibration::{Calibration, CalibrationError};
+use crate::tracking::event::DeviceId;
+use crate::tracking::ingest::Ingest;
+use crate::tracking::problems::ProblemLog;
+use crate::tracking::replay::{
+    HeaderConfigError, Playback, ReplayError, ReplayHeader, ReplayPayload, ReplayReader, play,
+};
+
+/// What to replay and against what; `None` fields come from the recording's header.
+#[derive(Clone, Debug)]
+pub struct ReplayOptions {
+    pub file: PathBuf,
+    /// A display model file or a built-in model's name.
+    pub display: Option<String>,
+    /// An interaction mapping (JSON).
+    pub config: Option<PathBuf>,
+    pub device: Option<DeviceId>,
+    /// A tracker→room calibration (JSON).
+    pub calibration: Option<PathBuf>,
+    /// At recorded speed instead of as fast as possible.
+    pub realtime: bool,
+}
+
+impl ReplayOptions {
+    /// A replay of `file` with everything else taken from its header.
+    #[must_use]
+    pub fn of(file: PathBuf) -> Self {
+        Self {
+            file,
+            display: None,
+            config: None,
+            device: None,
+            calibration: None,
+            realtime: false,
+        }
+    }
+}
+
+/// Why a replay could not be planned.
+#[derive(Debug, thiserror::Error)]
+pub enum ReplayPlanError {
+    #[error(transparent)]
+    Replay(#[from] ReplayError),
+    #[error(transparent)]
+    Mapping(#[from] ConfigError),
+    #[error(transparent)]
+    Calibration(#[from] CalibrationError),
+    #[error("{}: calibration", file.display())]
+    BadCalibration {
+        file: PathBuf,
+        #[source]
+        source: CalibrationError,
+    },
+    #[error(transparent)]
+    Display(#[from] DisplayModelError),
+    #[error("{}: the recording names no display: give --display MODEL", .0.display())]
+    NoDisplay(PathBuf),
+    #[error("{}", file.display())]
+    Header {
+        file: PathBuf,
+        #[source]
+        source: HeaderConfigError,
+    },
+}
+
+/// The display model a replay names: a file as given, else one next to the replay's folder
+/// (where the shipped replays' models live), else a built-in model of that name.
+fn resolve_display(
+    named: &str,
+    replay: &Path,
+) -> Result<(DisplayModel, String), DisplayModelError> {
+    let beside = replay
+        .parent()
+        .and_then(Path::parent)
+        .map(|p| p.join(named))
+        .filter(|p| !Path::new(named).exists() && p.exists());
+    let spec = beside.map_or_else(|| named.to_owned(), |p| p.display().to_string());
+    let (model, origin) = DisplayModel::open(&spec)?;
+    Ok((model, origin.to_string()))
+}
+
+/// Everything a replay run needs, validated.
+pub struct ReplayPlan {
+    pub header: ReplayHeader,
+    pub surface: DisplayModel,
+    /// Which display model is used, for messages ("display-models/hornet.json", "the built-in
+    /// hornet model", "the model stored in the recording").
+    pub display_origin: String,
+    pub interaction: InteractionConfig,
+    /// The calibration given on the command line or in the mapping (the header's own applies
+    /// otherwise).
+    pub calibration: Option<Calibration>,
+    /// The decoders the header asks for, with the calibration applied, before any input.
+    pub ingest: Ingest,
+    pub playback: Playback,
+}
+
+impl ReplayPlan {
+    /// Reads the header and resolves display, device, calibration and mapping.
+    pub fn new(
+        args: &ReplayOptions,
+    ) -> Result<(Self, ReplayReader<io::BufReader<std::fs::File>>), ReplayPlanError> {
+        let reader = ReplayReader::open(&args.file)?;
+        let header = reader.header().clone();
+        let mut interaction = match &args.config {
+            Some(p) => InteractionConfig::load(p)?,
+            None => InteractionConfig::default(),
+        };
+        if let Some(d) = args.device.or(header.device) {
+            interaction.device = d;
+        }
+        let calibration = match args
+            .calibration
+            .as_ref()
+            .or(interaction.calibration.as_ref())
+        {
+            Some(p) => Some(Calibration::load(p)?),
+            None => None,
+        };
+        if let Some(c) = calibration.as_ref().or(header.calibration.as_ref()) {
+            c.validate(&args.file)
+                .map_err(|source| ReplayPlanError::BadCalibration {
+                    file: args.file.clone(),
+                    source,
+                })?;
+            interaction.use_calibrated_axes(c);
+        }
+        interaction.validate()?;
+        let (surface, display_origin) =
+            match (&args.display, &header.display_model, &header.display) {
+                (Some(spec), _, _) => {
+                    let (m, origin) = DisplayModel::open(spec)?;
+                    (m, origin.to_string())
+                }
+                (None, Some(m), _) => (m.clone(), "the model stored in the recording".to_owned()),
+                (None, None, Some(named)) => resolve_display(named, &args.file)?,
+                (None, None, None) => return Err(ReplayPlanError::NoDisplay(args.file.clone())),
+            };
+        // Every decoder the header asks for must be usable.
+        let ingest =
+            header
+                .ingest(calibration.as_ref())
+                .map_err(|source| ReplayPlanError::Header {
+                    file: args.file.clone(),
+                    source,
+                })?;
+        let playback = if args.realtime {
+            Playback::RealTime
+        } else {
+            Playback::AsFastAsPossible
+        };
+        Ok((
+            Self {
+                header,
+                surface,
+                display_origin,
+                interaction,
+                calibration,
+                ingest,
+                playback,
+            },
+            reader,
+        ))
+    }
+
+    /// A fresh pipeline configured from the header, the calibration and the mapping.
+    #[must_use]
+    pub fn pipeline(&self) -> Pipeline {
+        Pipeline::new(
+            self.ingest.clone(),
+            Interaction::new(self.interaction.clone()),
+        )
+    }
+}
+
+/// Writes ROI changes as JSON lines, times relative to the first event seen.
+pub struct ChangePrinter<W: Write> {
+    out: W,
+    t_origin: Option<f64>,
+}
+
+impl<W: Write> ChangePrinter<W> {
+    #[must_use]
+    pub fn new(out: W) -> Self {
+        Self {
+            out,
+            t_origin: None,
+        }
+    }
+
+    /// Sets the time origin if unset (call with each event's time).
+    pub fn saw_event(&mut self, t: f64) {
+        self.t_origin.get_or_insert(t);
+    }
+
+    pub fn print(&mut self, c: &RoiChange) -> io::Result<()> {
+        let origin = *self.t_origin.get_or_insert(c.t);
+        serde_json::to_writer(&mut self.out, &c.report(origin))?;
+        self.out.write_all(b"\n")
+    }
+
+    /// The underlying writer.
+    #[must_use]
+    pub fn into_inner(self) -> W {
+        self.out
+    }
+}
+
+/// Plays a replay through the live parsers and the interaction state machine: `saw_event` gets
+/// the time of each event of the configured device, `on_change` each ROI change. Returns the
+/// problem counts (reader and decoders).
+pub fn replay_changes(
+    args: &ReplayOptions,
+    saw_event: impl FnMut(f64),
+    on_change: impl FnMut(&RoiChange),
+) -> Result<ProblemLog, ReplayPlanError> {
+    let (plan, reader) = ReplayPlan::new(args)?;
+    Ok(play_plan(&plan, reader, saw_event, on_change))
+}
+
+/// [`replay_changes`] for a plan made already (its file is read again from the start).
+pub fn replay_changes_with(
+    plan: &ReplayPlan,
+    file: &Path,
+    saw_event: impl FnMut(f64),
+    on_change: impl FnMut(&RoiChange),
+) -> Result<ProblemLog, ReplayError> {
+    let reader = ReplayReader::open(file)?;
+    Ok(play_plan(plan, reader, saw_event, on_change))
+}
+
+fn play_plan(
+    plan: &ReplayPlan,
+    reader: ReplayReader<io::BufReader<std::fs::File>>,
+    mut saw_event: impl FnMut(f64),
+    mut on_change: impl FnMut(&RoiChange),
+) -> ProblemLog {
+    let mut pipeline = plan.pipeline();
+    let device = plan.interaction.device;
+    let reader_problems = play(reader, plan.playback, |item| {
+        let changes = match &item.payload {
+            ReplayPayload::Datagram(protocol, bytes) => {
+                let (events, changes) = pipeline.datagram(*protocol, bytes, item.t, &plan.surface);
+                if let Some(e) = events.iter().find(|e| e.device == device) {
+                    saw_event(e.t);
+                }
+                changes
+            }
+            ReplayPayload::Event(e) => {
+                if e.device == device && e.is_valid() {
+                    saw_event(e.t);
+                }
+                pipeline.event(e.clone(), &plan.surface)
+            }
+        };
+        for c in changes {
+            on_change(c);
+        }
+    });
+    let mut problems = reader_problems;
+    problems.merge(&pipeline.ingest.problems);
+    problems
+}
+
+/// The golden file of a replay: `tracking-replays/golden/<stem>.roi.jsonl`.
+#[must_use]
+pub fn golden_path(replay: &Path) -> PathBuf {
+    let name = replay
+        .file_name()
+        .and_then(|n| n.to_str())
+        .unwrap_or("replay.jsonl");
+    let stem = name.strip_suffix(".jsonl").unwrap_or(name);
+    replay
+        .parent()
+        .unwrap_or(Path::new("."))
+        .join("golden")
+        .join(format!("{stem}.roi.jsonl"))
+}
