@@ -1,4 +1,4 @@
-//! `raygun bench all --quick` (issue 8) on the CPU backend at a small size: the files exist and
+//! `raygun bench all --quick` on the CPU backend at a small size: the files exist and
 //! agree with each other, and guided rendering beats full-frame rendering inside a 10° ROI at
 //! equal time. Each section is checked for internal consistency: the paper table's rows exist and
 //! our values are the benchmarks' own, the closest-point solver meets its stated accuracy, the
@@ -356,7 +356,7 @@ fn check_dgi_metrics(md: &str, json: &serde_json::Value) {
     }
 }
 
-/// f64 within 1e-14 of the scale (issue 2's bound), the f32 mirror within its stated 1e-6, on
+/// f64 within 1e-14 of the scale (DESIGN.md §5's bound), the f32 mirror within its stated 1e-6, on
 /// the whole hard-case set; no GPU row on the CPU backend, and the Markdown says why.
 fn check_solver(md: &str, json: &serde_json::Value) {
     let s = &json["solver"];
@@ -518,7 +518,7 @@ fn stage_times_on_the_gpu_fit_in_the_iteration() {
         k_max: 1.0,
         ..Default::default()
     };
-    let r = raygun::bench::stages::measure(
+    let r = raygun::bench::all::stages::measure(
         &backend,
         &display,
         "cornell",

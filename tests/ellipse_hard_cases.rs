@@ -12,9 +12,9 @@ use raygun::roi::ellipse::{
 };
 
 /// Backward stability: the distance error is at most this fraction of `max(a, b, |p|)`
-/// (issue 2's bound).
+/// (DESIGN.md §5's bound).
 const ABS_TOL: f64 = 1e-14;
-/// Relative distance error wherever `scale / d_ref ≤ REL_RANGE` (issue 2's bound).
+/// Relative distance error wherever `scale / d_ref ≤ REL_RANGE` (DESIGN.md §5's bound).
 const REL_TOL: f64 = 1e-12;
 const REL_RANGE: f64 = 1e3;
 /// The returned point lies on the ellipse: `|(cx/a)² + (cy/b)² − 1|` is at most this, relative

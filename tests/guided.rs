@@ -1,4 +1,4 @@
-//! Guided rendering (issue 5): the frame function's DGI → schedule → trace on both backends.
+//! Guided rendering (DESIGN.md §1, §6): the frame function's DGI → schedule → trace on both backends.
 
 use glam::DVec3;
 use raygun::display::DisplayModel;
@@ -243,6 +243,7 @@ fn bench_guided_report_is_consistent() {
 #[test]
 fn filters_reduce_the_band_error_of_a_guided_render() {
     use raygun::bench::filter::error_rows;
+    use raygun::filter::Filter;
     use raygun::filter::FilterParams;
     let scene = cornell();
     let input = raygun::bench::guided::filter_input(
@@ -261,7 +262,7 @@ fn filters_reduce_the_band_error_of_a_guided_render() {
         k_max: 4.0,
         ..FilterParams::default()
     };
-    let rows = error_rows(&Backend::Cpu, None, &params, 60.0, &input).unwrap();
+    let rows = error_rows(&Filter::new(&Backend::Cpu), &params, 60.0, &input).unwrap();
     let get = |v: &str| rows.iter().find(|r| r.variant == v).unwrap();
     let raw = get("unfiltered").brightness_err_band.abs();
     for v in ["paper (exact)", "fast"] {

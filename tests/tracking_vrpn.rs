@@ -157,7 +157,7 @@ fn reads_of(tcp: &[u8], udp: &[Vec<u8>]) -> Vec<(Protocol, f64, Vec<u8>)> {
 
 /// A capture as a raygun replay file.
 fn capture_replay(tcp: &[u8], udp: &[Vec<u8>], source: &str, description: &str) -> Vec<u8> {
-    let mut header = vrpn::recording_header(&source.parse().unwrap(), &golden_config());
+    let mut header = ReplayHeader::vrpn_recording(&source.parse().unwrap(), &golden_config());
     header.description = description.into();
     header.display = Some("display-models/hornet.json".into());
     header.device = Some(flystick());
@@ -382,7 +382,7 @@ fn client_config(address: &str) -> VrpnClientConfig {
 fn collect(client: VrpnClientConfig, config: VrpnConfig, progress: Option<&Progress>) -> Collected {
     let device = client.address.device.clone();
     let mut source = VrpnSource::new(client).unwrap();
-    let mut ingest = vrpn::ingest_for(&device, config, TimeSource::Tracker).unwrap();
+    let mut ingest = Ingest::vrpn_only(&device, config, TimeSource::Tracker).unwrap();
     ingest.problems.quiet = true;
     ingest.vrpn_mut().unwrap().keep_messages(true);
     let mut c = Collected::default();
@@ -937,7 +937,7 @@ fn a_live_tcp_session_gives_the_golden_roi_changes() {
     let cap = tcp_capture();
     let (addr, server) = serve(vec![cap.tcp.clone()], 1000);
     let mut source = VrpnSource::new(client_config(&format!("DTrack@tcp://{addr}"))).unwrap();
-    let mut ingest = vrpn::ingest_for("DTrack", golden_config(), TimeSource::Tracker).unwrap();
+    let mut ingest = Ingest::vrpn_only("DTrack", golden_config(), TimeSource::Tracker).unwrap();
     ingest.problems.quiet = true;
     let surface = DisplayModel::load(hornet()).unwrap();
     let mut pipeline = Pipeline::new(ingest, Interaction::new(InteractionConfig::default()));
@@ -982,7 +982,7 @@ fn a_live_classic_udp_session_gives_the_golden_roi_changes() {
     let progress = Arc::new(Progress::default());
     let (addr, server) = serve_classic(reads_of(&cap.tcp, &cap.udp), progress.clone());
     let mut source = VrpnSource::new(client_config(&format!("DTrack@{addr}"))).unwrap();
-    let ingest = vrpn::ingest_for("DTrack", golden_config(), TimeSource::Tracker).unwrap();
+    let ingest = Ingest::vrpn_only("DTrack", golden_config(), TimeSource::Tracker).unwrap();
     let surface = DisplayModel::load(hornet()).unwrap();
     let mut pipeline = Pipeline::new(ingest, Interaction::new(InteractionConfig::default()));
     let mut printer = ChangePrinter::new(Vec::new());
@@ -1029,7 +1029,7 @@ fn a_recording_replays_to_the_golden_roi_changes() {
     let (addr, server) = serve(vec![cap.tcp.clone()], 4096);
     let address: VrpnAddress = format!("DTrack@tcp://{addr}").parse().unwrap();
     let mut source = VrpnSource::new(client_config(&address.to_string())).unwrap();
-    let mut header = vrpn::recording_header(&address, &golden_config());
+    let mut header = ReplayHeader::vrpn_recording(&address, &golden_config());
     header.device = Some(flystick());
     let mut writer = ReplayWriter::new(Vec::new(), &header).unwrap();
     let mut ingest = header.ingest(None).unwrap();
@@ -1062,7 +1062,8 @@ fn a_recording_replays_to_the_golden_roi_changes() {
     std::fs::write(&file, &text).unwrap();
     let (got, problems) = replay_roi_changes(&file);
     // The library entry point for replays decodes the same file too.
-    let (events, p2) = vrpn::replay_events(ReplayReader::open(&file).unwrap()).unwrap();
+    let (events, p2) =
+        raygun::tracking::replay::replay_events(ReplayReader::open(&file).unwrap()).unwrap();
     std::fs::remove_dir_all(&dir).unwrap();
     assert_eq!((problems.total(), p2.total()), (0, 0));
     assert!(
@@ -1427,7 +1428,7 @@ fn the_client_reconnects_when_the_server_goes_away_and_loses_the_devices_meanwhi
     })
     .unwrap();
     let mut ingest =
-        vrpn::ingest_for("DTrack", VrpnConfig::default(), TimeSource::Tracker).unwrap();
+        Ingest::vrpn_only("DTrack", VrpnConfig::default(), TimeSource::Tracker).unwrap();
     ingest.problems.quiet = true;
     let mut events = Vec::new();
     let start = Instant::now();

@@ -3,13 +3,11 @@
 
 use std::time::Instant;
 
-use glam::DVec3;
 use serde::Serialize;
 
 use crate::gpu::{Backend, GpuContext, GpuError, PassTimer};
-use crate::roi::cone::Cone;
 use crate::roi::dgi::{
-    DgiParams, Falloff, Guide, GuideError, Metric, Roi, Surface, compute_cpu, roi_radius_m,
+    DgiParams, Falloff, Guide, GuideError, Metric, Surface, compute_cpu, roi_radius_m,
 };
 use crate::roi::gpu::DgiKernel;
 
@@ -142,14 +140,7 @@ pub fn run(
     };
     let mut rows = Vec::new();
     for &fov in &config.fovs_deg {
-        let cone = Cone::from_pose(
-            DVec3::from_array(config.origin),
-            DVec3::from_array(config.dir),
-            DVec3::Y,
-            fov,
-            fov,
-        )?;
-        let roi = Roi::Cone(cone);
+        let roi = super::paper::roi_from(config.origin, config.dir, fov)?;
         let length_px = config
             .falloff
             .length_px(roi_radius_m(surface, &roi), surface.pitch_m);

@@ -13,10 +13,9 @@ use glam::{DVec3, Vec3};
 use serde::Serialize;
 
 use crate::filter::gpu::{FilterGpuError, FilterKernels, UploadedInputs};
-use crate::filter::{self, Blend, FilterInputError, FilterKind, FilterParams, synth};
+use crate::filter::{self, Blend, Filter, FilterInputError, FilterKind, FilterParams, synth};
 use crate::gpu::{Backend, GpuContext, PassTimer};
-use crate::roi::cone::Cone;
-use crate::roi::dgi::{DgiParams, Falloff, Guide, Metric, Roi, Surface, compute_cpu, roi_radius_m};
+use crate::roi::dgi::{Falloff, Surface};
 use crate::trace::accum::{Accumulation, luminance};
 
 /// One render to judge: what the filter sees and what it should converge to.
@@ -161,16 +160,14 @@ pub fn paper_dgi(
     height: u32,
     fov: f64,
 ) -> Result<Vec<f32>, FilterBenchError> {
-    let cone = Cone::from_pose(DVec3::new(0.0, 0.0, 1.0), DVec3::NEG_Z, DVec3::Y, fov, fov)?;
-    let roi = Roi::Cone(cone);
-    let length = Falloff::default().length_px(roi_radius_m(surface, &roi), surface.pitch_m);
-    let guide = Guide::new(surface, &roi, Metric::Exact)?;
-    let params = DgiParams {
+    let roi = super::paper::roi(fov)?;
+    Ok(super::paper::dgi(
+        surface,
         width,
         height,
-        falloff_px: Some(length),
-    };
-    Ok(compute_cpu(surface, &guide, &params))
+        &roi,
+        Falloff::default(),
+    )?)
 }
 
 /// Times `reps` runs of the filter on the GPU (one timestamp pair around all its dispatches).
@@ -232,27 +229,9 @@ fn region_error(
     ((se / n as f64).sqrt(), (lo - lr) / lr)
 }
 
-/// The filtered image, on the GPU when there is one (else the CPU twin).
-fn filtered(
-    backend: &Backend,
-    kernels: Option<&FilterKernels>,
-    params: &FilterParams,
-    input: &FilterBenchInput,
-) -> Result<Vec<DVec3>, FilterBenchError> {
-    match (backend, kernels) {
-        (Backend::Gpu(ctx), Some(k)) => Ok(k
-            .filter(ctx, params, &input.accumulation, &input.dgi)?
-            .iter()
-            .map(|p| DVec3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2])))
-            .collect()),
-        _ => Ok(filter::filter_cpu(params, &input.accumulation, &input.dgi)?),
-    }
-}
-
-/// The error table for one input (the four variants of the issue).
+/// The error table for one input (the four variants: exact and fast, each with the count and the variance blend).
 pub fn error_rows(
-    backend: &Backend,
-    kernels: Option<&FilterKernels>,
+    filter_stage: &Filter,
     base: &FilterParams,
     fov_deg: f64,
     input: &FilterBenchInput,
@@ -270,7 +249,7 @@ pub fn error_rows(
             blend,
             ..*base
         };
-        let out = filtered(backend, kernels, &params, input)?;
+        let out = filter_stage.apply(&params, &input.accumulation, &input.dgi)?;
         let roi = |i: usize| input.roi_mask[i];
         let (rmse_roi, brightness_err_roi) = region_error(&out, input, roi);
         let (rmse_outside, brightness_err_outside) = region_error(&out, input, |i| !roi(i));
@@ -333,10 +312,7 @@ pub fn run_with_inputs(
         .validate()
         .map_err(FilterInputError::from)?;
     let [w, h] = config.size;
-    let kernels = match backend {
-        Backend::Gpu(ctx) => Some(FilterKernels::new(ctx)),
-        Backend::Cpu => None,
-    };
+    let filter_stage = Filter::new(backend);
     let mut report = FilterBenchReport {
         display: display_name.to_owned(),
         adapter: backend.adapter(),
@@ -374,9 +350,9 @@ pub fn run_with_inputs(
                     k_max,
                     ..config.error_params
                 };
-                let (times, stamped, name) = match (backend, &kernels, &uploaded) {
-                    (Backend::Gpu(ctx), Some(k), Some(up)) => {
-                        let (t, s) = time_gpu(ctx, k, &params, up, config.reps.max(1))?;
+                let (times, stamped, name) = match (&filter_stage, &uploaded) {
+                    (Filter::Gpu { ctx, kernels }, Some(up)) => {
+                        let (t, s) = time_gpu(ctx, kernels, &params, up, config.reps.max(1))?;
                         (t, s, "gpu")
                     }
                     _ => {
@@ -403,8 +379,7 @@ pub fn run_with_inputs(
         }
         progress(&format!("{fov}°: error table"));
         report.errors.extend(error_rows(
-            backend,
-            kernels.as_ref(),
+            &filter_stage,
             &config.error_params,
             fov,
             &input,

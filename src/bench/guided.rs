@@ -1,4 +1,4 @@
-//! `raygun bench guided`: the paper's benchmark (DESIGN.md §9, issue 5). HORNET wall, viewer
+//! `raygun bench guided`: the paper's benchmark (DESIGN.md §9). HORNET wall, viewer
 //! 1 m in front of the wall centre pointing at it, FOV 10°…60°: per FOV the share of pixels
 //! sampled, ms per iteration, ms per megasample, the speed-up over a full-frame 1-spp
 //! iteration, and the RMSE inside the ROI against a converged reference after equal time for
@@ -6,19 +6,19 @@
 
 use std::path::Path;
 
-use glam::{DVec3, Vec3};
+use glam::Vec3;
 use serde::Serialize;
 
 use super::median;
 
+use super::paper;
 use crate::display::DisplayModel;
 use crate::frame::{FrameError, GuideConfig, Renderer};
 use crate::gpu::{Backend, GpuError};
-use crate::roi::cone::{Cone, ConeError};
-use crate::roi::dgi::Roi;
+use crate::roi::cone::ConeError;
 use crate::scene::Scene;
 use crate::schedule::Order;
-use crate::trace::camera::{CameraError, RenderCamera};
+use crate::trace::camera::CameraError;
 use crate::trace::cpu::TraceSettings;
 
 /// What to measure.
@@ -142,22 +142,6 @@ fn rmse(image: &[Vec3], reference: &[Vec3], mask: &[bool]) -> (f64, f64) {
     ((se / n as f64).sqrt(), sum / n as f64)
 }
 
-fn full_frame_image(
-    backend: &Backend,
-    scene: &Scene,
-    settings: TraceSettings,
-    spp: u32,
-) -> Result<Vec<Vec3>, FrameError> {
-    let mut r = Renderer::full(backend, scene, settings)?;
-    let mut left = spp;
-    while left > 0 {
-        let n = left.min(64);
-        r.iterate(n)?;
-        left -= n;
-    }
-    Ok(r.accumulation()?.mean_image())
-}
-
 /// Runs the benchmark; `progress` hears what is being measured.
 pub fn run(
     backend: &Backend,
@@ -171,18 +155,13 @@ pub fn run(
     let mut full_frame = Vec::new();
     let mut rows = Vec::new();
     for (name, scene) in scenes {
-        let camera =
-            RenderCamera::choose(scene, None, w, h).map_err(|source| GuidedBenchError::Camera {
+        let base = paper::settings(scene, cfg.size, cfg.seed, cfg.max_depth).map_err(|source| {
+            GuidedBenchError::Camera {
                 scene: name.clone(),
                 source,
-            })?;
-        let settings = |seed: u32| TraceSettings {
-            width: w,
-            height: h,
-            seed,
-            max_depth: cfg.max_depth,
-            camera,
-        };
+            }
+        })?;
+        let settings = |seed: u32| TraceSettings { seed, ..base };
         progress(&format!("{name}: full-frame baseline"));
         let mut full = Renderer::full(backend, scene, settings(cfg.seed))?;
         full.iterate(2)?;
@@ -195,7 +174,7 @@ pub fn run(
         });
         drop(full);
         progress(&format!("{name}: reference ({} spp)", cfg.reference_spp));
-        let reference = full_frame_image(
+        let reference = paper::reference_image(
             backend,
             scene,
             settings(cfg.seed ^ 0x5eed),
@@ -204,26 +183,20 @@ pub fn run(
         for &fov in &cfg.fovs_deg {
             for &order in &cfg.orders {
                 progress(&format!("{name}: {fov}° ({order:?})"));
-                let roi = Roi::Cone(Cone::from_pose(
-                    DVec3::from_array(cfg.origin),
-                    DVec3::from_array(cfg.dir),
-                    DVec3::Y,
-                    fov,
-                    fov,
-                )?);
+                let roi = paper::roi_from(cfg.origin, cfg.dir, fov)?;
                 let config = GuideConfig {
                     p_min: cfg.p_min,
                     order,
                     ..Default::default()
                 };
-                let mut g = Renderer::guided(
+                let mut g = paper::guided(
                     backend,
                     scene,
                     settings(cfg.seed.wrapping_add(1)),
                     display,
                     config,
+                    roi,
                 )?;
-                g.set_roi(Some(roi))?;
                 let (mut per_iter, mut sched, mut trace) = (Vec::new(), Vec::new(), Vec::new());
                 let (mut pixels, mut ms_dgi, mut stamps, mut total) = (0u64, None, false, 0.0);
                 for _ in 0..cfg.iterations.max(1) {
@@ -247,8 +220,12 @@ pub fn run(
                 let guided_image = g.accumulation()?.mean_image();
                 drop(g);
                 let spp_eq = ((total / ms_full).floor() as u32).max(1);
-                let full_image =
-                    full_frame_image(backend, scene, settings(cfg.seed.wrapping_add(2)), spp_eq)?;
+                let full_image = paper::reference_image(
+                    backend,
+                    scene,
+                    settings(cfg.seed.wrapping_add(2)),
+                    spp_eq,
+                )?;
                 let (rg, mean_ref) = rmse(&guided_image, &reference, &mask);
                 let (rf, _) = rmse(&full_image, &reference, &mask);
                 rows.push(GuidedBenchRow {
@@ -431,35 +408,28 @@ pub fn filter_input(
     reference_spp: u32,
     seed: u32,
 ) -> Result<crate::bench::filter::FilterBenchInput, GuidedBenchError> {
-    let [w, h] = size;
-    let camera =
-        RenderCamera::choose(scene, None, w, h).map_err(|source| GuidedBenchError::Camera {
+    let base = paper::settings(scene, size, seed, crate::trace::cpu::DEFAULT_MAX_DEPTH).map_err(
+        |source| GuidedBenchError::Camera {
             scene: name.to_string(),
             source,
-        })?;
-    let settings = |seed: u32| TraceSettings {
-        width: w,
-        height: h,
-        seed,
-        max_depth: crate::trace::cpu::DEFAULT_MAX_DEPTH,
-        camera,
-    };
-    let roi = super::paper_roi(fov)?;
-    let mut g = Renderer::guided(
+        },
+    )?;
+    let settings = |seed: u32| TraceSettings { seed, ..base };
+    let mut g = paper::guided(
         backend,
         scene,
         settings(seed),
         display,
         GuideConfig::default(),
+        paper::roi(fov)?,
     )?;
-    g.set_roi(Some(roi))?;
     for _ in 0..iterations.max(1) {
         g.run_frame(false)?;
     }
     let accumulation = g.accumulation()?;
     let dgi = g.dgi()?;
     drop(g);
-    let reference = full_frame_image(
+    let reference = paper::reference_image(
         backend,
         scene,
         settings(seed ^ 0x5eed),

@@ -5,9 +5,10 @@ pub mod all;
 pub mod dgi;
 pub mod filter;
 pub mod guided;
+pub mod paper;
 pub mod schedule;
 pub mod solver;
-pub mod stages;
+
 pub mod trace;
 pub mod tracking;
 
@@ -24,19 +25,6 @@ pub fn median(mut v: Vec<f64>) -> f64 {
     } else {
         0.5 * (v[n / 2 - 1] + v[n / 2])
     }
-}
-
-/// The paper's ROI (DESIGN.md §9): a square ray-gun cone of `fov_deg` from a viewer 1 m in front
-/// of the wall centre, pointing straight at it.
-pub fn paper_roi(fov_deg: f64) -> Result<crate::roi::dgi::Roi, crate::roi::cone::ConeError> {
-    crate::roi::cone::Cone::from_pose(
-        glam::DVec3::new(0.0, 0.0, 1.0),
-        glam::DVec3::NEG_Z,
-        glam::DVec3::Y,
-        fov_deg,
-        fov_deg,
-    )
-    .map(crate::roi::dgi::Roi::Cone)
 }
 
 /// The CPU side of a benchmark's hardware line: "N threads (ARCH)".

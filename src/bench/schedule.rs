@@ -1,7 +1,7 @@
 //! `raygun bench schedule`: the time of one scheduling iteration (Bernoulli mask, compaction and
 //! the tracer's indirect arguments) for the DGIs of the paper's setup (HORNET, viewer 1 m in
 //! front of the wall centre pointing at it, FOV 10°–60°; DESIGN.md §9), on the GPU and on the
-//! CPU twin, with the share of pixels selected. Issue 5's target: ≤ 0.1 ms at 3840 × 2160 on a
+//! CPU twin, with the share of pixels selected. The target: ≤ 0.1 ms at 3840 × 2160 on a
 //! datacenter GPU.
 //!
 //! Both list orders are timed; the scattered one costs more here (uncoalesced DGI reads and the
@@ -10,13 +10,11 @@
 
 use std::time::Instant;
 
-use glam::DVec3;
 use serde::Serialize;
 use wgpu::util::DeviceExt;
 
 use crate::gpu::{Backend, GpuContext, PassTimer};
-use crate::roi::cone::Cone;
-use crate::roi::dgi::{DgiParams, Falloff, Guide, Metric, Roi, Surface, compute_cpu, roi_radius_m};
+use crate::roi::dgi::{Falloff, Surface};
 use crate::schedule::gpu::{ScheduleConfig, ScheduleKernel};
 use crate::schedule::{Order, probability, schedule_cpu};
 
@@ -170,25 +168,8 @@ pub fn run(
     let mut rows = Vec::new();
     for &fov in &config.fovs_deg {
         progress(&format!("{fov}°: DGI (exact metric, CPU twin)"));
-        let cone = Cone::from_pose(
-            DVec3::from_array(config.origin),
-            DVec3::from_array(config.dir),
-            DVec3::Y,
-            fov,
-            fov,
-        )?;
-        let roi = Roi::Cone(cone);
-        let params = DgiParams {
-            width: w,
-            height: h,
-            falloff_px: Some(
-                config
-                    .falloff
-                    .length_px(roi_radius_m(surface, &roi), surface.pitch_m),
-            ),
-        };
-        let guide = Guide::new(surface, &roi, Metric::Exact)?;
-        let dgi = compute_cpu(surface, &guide, &params);
+        let roi = super::paper::roi_from(config.origin, config.dir, fov)?;
+        let dgi = super::paper::dgi(surface, w, h, &roi, config.falloff)?;
         let expected_share = dgi
             .iter()
             .map(|&d| f64::from(probability(d, config.p_min)).min(1.0))

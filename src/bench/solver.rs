@@ -1,4 +1,4 @@
-//! The closest-point solver on the hard-case set (issue 8, DESIGN.md §5): iterations, time per
+//! The closest-point solver on the hard-case set (DESIGN.md §5): iterations, time per
 //! solve and accuracy for the f64 CPU solver, its f32 CPU mirror and the f32 WGSL on the GPU.
 //!
 //! The set is `tests/data/ellipse_hard_cases.csv` (80-digit mpmath references; its header
@@ -32,7 +32,7 @@ use crate::roi::ellipse::{
 pub const HARD_CASES_CSV: &str = include_str!("../../tests/data/ellipse_hard_cases.csv");
 /// Its path in the repository (for messages and the report).
 pub const HARD_CASES_PATH: &str = "tests/data/ellipse_hard_cases.csv";
-/// The f64 solver's accuracy bound (issue 2): distance error ≤ this share of the scale.
+/// The f64 solver's accuracy bound (DESIGN.md §5): distance error ≤ this share of the scale.
 pub const F64_DISTANCE_BOUND: f64 = 1e-14;
 /// The spacing of subnormal doubles (2⁻¹⁰⁷⁴): a subnormal result cannot be closer to the truth
 /// than half of it, and each rounding on the way may cost one. Errors up to four of them are not

@@ -1,6 +1,6 @@
 //! `raygun bench trace`: full-frame path tracing speed — ms per frame at one sample per pixel,
 //! ms per megasample and rays per second — for the paper's two scenes, beside the paper's
-//! figures (DESIGN.md §9) and our targets (issue 4).
+//! figures (DESIGN.md §9) and raygun's targets (the report's Targets table).
 
 use serde::Serialize;
 
@@ -9,8 +9,7 @@ use super::median;
 use crate::frame::Renderer;
 use crate::gpu::{Backend, GpuError};
 use crate::scene::Scene;
-use crate::trace::camera::{CameraError, RenderCamera};
-use crate::trace::cpu::TraceSettings;
+use crate::trace::camera::CameraError;
 
 /// What to measure.
 #[derive(Clone, Debug, Serialize)]
@@ -96,18 +95,13 @@ pub fn run(
     for (name, scene) in scenes {
         progress(name);
         let [w, h] = cfg.size;
-        let camera =
-            RenderCamera::choose(scene, None, w, h).map_err(|source| TraceBenchError::Camera {
-                scene: name.clone(),
-                source,
+        let settings =
+            super::paper::settings(scene, cfg.size, cfg.seed, cfg.max_depth).map_err(|source| {
+                TraceBenchError::Camera {
+                    scene: name.clone(),
+                    source,
+                }
             })?;
-        let settings = TraceSettings {
-            width: w,
-            height: h,
-            seed: cfg.seed,
-            max_depth: cfg.max_depth,
-            camera,
-        };
         let mut r = Renderer::full(backend, scene, settings)?;
         r.iterate(cfg.warmup)?;
         let timed = r.timed_iterations(cfg.frames.max(1))?;

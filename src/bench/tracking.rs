@@ -1,4 +1,4 @@
-//! Ingest benchmarks (issues 3 and 18; not timed tests): DTrack parse rate per core, OSC
+//! Ingest benchmarks (DESIGN.md §10; not timed tests): DTrack parse rate per core, OSC
 //! decode rate, VRPN decode rate, a 10 kHz DTrack datagram stream through the live UDP
 //! listener with latest-state semantics, and a 10 kHz VRPN Pos_Quat stream over loopback TCP
 //! into the live VRPN client.
@@ -21,7 +21,7 @@ use crate::tracking::ingest::{Ingest, Protocol};
 use crate::tracking::osc::{OscConfig, OscDecoder, encode};
 use crate::tracking::problems::ProblemLog;
 use crate::tracking::vrpn::wire::{VrpnTime, encode as vrpn_encode};
-use crate::tracking::vrpn::{self, Channel, VrpnConfig, VrpnDecoder};
+use crate::tracking::vrpn::{Channel, VrpnConfig, VrpnDecoder};
 
 /// A typical lab frame: 5 lines (frame, time, calibration, two bodies, one FlyStick).
 #[must_use]
@@ -259,7 +259,7 @@ pub fn vrpn_decode_rate() -> String {
     let wall = HingedWall::hornet();
     let start = Instant::now();
     while start.elapsed() < Duration::from_secs(1) {
-        let mut ingest = vrpn::ingest_for(VRPN_DEVICE, VrpnConfig::default(), TimeSource::Tracker)
+        let mut ingest = Ingest::vrpn_only(VRPN_DEVICE, VrpnConfig::default(), TimeSource::Tracker)
             .expect("default mapping");
         ingest.problems.quiet = true;
         let mut p = Pipeline::new(ingest, Interaction::new(InteractionConfig::default()));
@@ -336,7 +336,7 @@ pub fn vrpn_stream_10khz(duration: Duration) -> String {
             })
             .expect("loopback client");
             let mut ingest =
-                vrpn::ingest_for(VRPN_DEVICE, VrpnConfig::default(), TimeSource::Tracker)
+                Ingest::vrpn_only(VRPN_DEVICE, VrpnConfig::default(), TimeSource::Tracker)
                     .expect("default mapping");
             ingest.problems.quiet = true;
             let mut pipeline =
@@ -486,7 +486,7 @@ mod tests {
             vrpn_message(&mut stream, i, 5 + i);
         }
         let mut ingest =
-            vrpn::ingest_for(VRPN_DEVICE, VrpnConfig::default(), TimeSource::Tracker).unwrap();
+            Ingest::vrpn_only(VRPN_DEVICE, VrpnConfig::default(), TimeSource::Tracker).unwrap();
         ingest.problems.quiet = true;
         let mut p = Pipeline::new(ingest, Interaction::new(InteractionConfig::default()));
         let wall = HingedWall::hornet();

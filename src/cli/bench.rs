@@ -4,6 +4,8 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 
+use crate::cli::progress::{bench_progress, print_and_save};
+
 use crate::bench::dgi::{self, DgiBenchConfig};
 use crate::display::DisplayModel;
 use crate::gpu::{Backend, BackendChoice};
@@ -110,7 +112,7 @@ pub struct AllBenchArgs {
 fn run_all_bench(args: &AllBenchArgs) -> anyhow::Result<()> {
     let backend = Backend::select(args.backend)?;
     let display = DisplayModel::open(&args.display)?.0;
-    let scene = crate::cli::render::load_scene(&args.scene, None)?;
+    let scene = crate::cli::scene::load_scene(&args.scene, None)?;
     let name = args.scene.trim_start_matches("builtin:");
     let cfg = crate::bench::all::AllConfig::new(args.quick, args.size);
     let steps = crate::bench::all::progress_steps(&cfg, name, matches!(backend, Backend::Gpu(_)));
@@ -131,22 +133,6 @@ fn run_all_bench(args: &AllBenchArgs) -> anyhow::Result<()> {
         args.out.display()
     );
     Ok(())
-}
-
-/// A progress bar over a benchmark's `steps` — hidden with `--json`, and (by indicatif) when
-/// standard error is not a terminal — and the callback that advances it, showing each step's
-/// name. A step beyond the count lengthens the bar rather than overrunning it.
-pub fn bench_progress(json: bool, steps: u64) -> (indicatif::ProgressBar, impl FnMut(&str)) {
-    let bar = crate::cli::render::progress(json, steps, "steps");
-    let b = bar.clone();
-    let advance = move |what: &str| {
-        if b.position() >= b.length().unwrap_or(0) {
-            b.inc_length(1);
-        }
-        b.set_message(what.to_string());
-        b.inc(1);
-    };
-    (bar, advance)
 }
 
 #[derive(Clone, Debug, clap::Args)]
@@ -204,7 +190,7 @@ pub struct GuidedBenchArgs {
 fn run_guided_bench(args: &GuidedBenchArgs) -> anyhow::Result<()> {
     let backend = Backend::select(args.backend)?;
     let display = DisplayModel::open(&args.display)?.0;
-    let scenes = crate::cli::render::load_scenes(&args.scene, args.env.as_deref())?;
+    let scenes = crate::cli::scene::load_scenes(&args.scene, args.env.as_deref())?;
     let cfg = crate::bench::guided::GuidedBenchConfig {
         size: args.size,
         fovs_deg: args.fov.clone(),
@@ -268,7 +254,7 @@ pub struct TraceBenchArgs {
 
 fn run_trace_bench(args: &TraceBenchArgs) -> anyhow::Result<()> {
     let backend = Backend::select(args.backend)?;
-    let scenes = crate::cli::render::load_scenes(&args.scene, args.env.as_deref())?;
+    let scenes = crate::cli::scene::load_scenes(&args.scene, args.env.as_deref())?;
     let cfg = crate::bench::trace::TraceBenchConfig {
         size: args.size,
         frames: args.spp.max(1),
@@ -393,15 +379,6 @@ pub fn run(cmd: &BenchCommand) -> anyhow::Result<()> {
             print_and_save(&text, args.out.as_deref())
         }
     }
-}
-
-/// Prints a benchmark's text and, with `--out`, also writes it to that file.
-pub fn print_and_save(text: &str, out: Option<&std::path::Path>) -> anyhow::Result<()> {
-    println!("{text}");
-    if let Some(path) = out {
-        crate::output::write_bytes(path, text.as_bytes())?;
-    }
-    Ok(())
 }
 
 /// `raygun bench schedule` arguments.

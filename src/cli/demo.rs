@@ -10,6 +10,7 @@ use anyhow::Context;
 
 use crate::cli::args::parse_size;
 use crate::cli::progress::Progress;
+use crate::cli::view::{ViewArgs, has_display};
 use crate::display::DisplayModel;
 use crate::filter::FilterParams;
 use crate::frame::GuideConfig;
@@ -58,14 +59,6 @@ pub struct DemoArgs {
     pub quiet: bool,
 }
 
-/// Whether a window can be opened: an X11 or Wayland display is named in the environment.
-#[must_use]
-pub fn has_display() -> bool {
-    ["DISPLAY", "WAYLAND_DISPLAY"]
-        .iter()
-        .any(|v| std::env::var_os(v).is_some_and(|s| !s.is_empty()))
-}
-
 /// Writes the embedded display model and replay under `<out>/inputs/`; returns their paths.
 pub fn write_inputs(out: &Path) -> anyhow::Result<(PathBuf, PathBuf)> {
     let dir = out.join("inputs");
@@ -89,7 +82,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     let windowed = cfg!(feature = "viewer") && has_display();
     if !args.headless && windowed {
         let (display, replay) = write_inputs(&args.out)?;
-        return crate::cli::view::run(&crate::cli::view::ViewArgs::demo(args, &display, &replay));
+        return crate::cli::view::run(&view_args(args, &display, &replay));
     }
     if !args.headless {
         if cfg!(feature = "viewer") {
@@ -136,7 +129,7 @@ pub fn run_headless(args: &DemoArgs) -> anyhow::Result<DemoOutput> {
     if args.tiles {
         crate::cli::render::warn_if_resampled(args.size, &model, "HORNET");
     }
-    let scene = crate::cli::render::load_scene(SCENE, Some(ENV))?;
+    let scene = crate::cli::scene::load_scene(SCENE, Some(ENV))?;
     let [w, h] = args.size;
     let camera = RenderCamera::choose(&scene, None, w, h).context("demo scene camera")?;
     let settings = TraceSettings {
@@ -338,4 +331,39 @@ fn report_text(
     }
     let _ = writeln!(s, "- `report.md`: this report");
     s
+}
+
+/// The demo's viewer: its scene and size, the embedded display and replay written to disk.
+#[must_use]
+pub fn view_args(args: &DemoArgs, display: &Path, replay: &Path) -> ViewArgs {
+    ViewArgs {
+        scene: SCENE.to_owned(),
+        display: display.display().to_string(),
+        size: args.size,
+        env: Some(ENV.to_owned()),
+        camera: None,
+        max_depth: DEFAULT_MAX_DEPTH,
+        backend: args.backend,
+        dtrack: None,
+        osc: None,
+        vrpn: None,
+        allow_network: false,
+        replay: Some(replay.to_path_buf()),
+        device: None,
+        config: None,
+        calibration: None,
+        p_min: 0.0,
+        target_se: None,
+        roi_at: None,
+        roi_radius: 600.0,
+        filter: crate::cli::filter::FilterArgs {
+            filter: crate::filter::FilterKind::Fast,
+            blend: crate::filter::Blend::Count,
+            k_max: crate::filter::FilterParams::DEFAULT_K_MAX,
+            c: crate::filter::FilterParams::DEFAULT_C,
+            variance_threshold: crate::filter::FilterParams::DEFAULT_VARIANCE_THRESHOLD,
+        },
+        save_dir: args.out.clone(),
+        screenshot_after: None,
+    }
 }

@@ -127,11 +127,11 @@ pub fn run_bench(args: &FilterBenchArgs) -> anyhow::Result<()> {
     };
     // Per FOV: the input, exact and fast per k_max, the error table.
     let steps = config.fovs_deg.len() * (2 + 2 * config.k_maxes.len());
-    let (bar, progress) = crate::cli::bench::bench_progress(args.json, steps as u64);
+    let (bar, progress) = crate::cli::progress::bench_progress(args.json, steps as u64);
     let report = match &args.scene {
         None => bench::run(&surface, model.name(), &backend, &config, progress)?,
         Some(scene_arg) => {
-            let scene = crate::cli::render::load_scene(scene_arg, None)?;
+            let scene = crate::cli::scene::load_scene(scene_arg, None)?;
             let name = scene_arg.trim_start_matches("builtin:");
             bench::run_with_inputs(
                 &surface,
@@ -162,7 +162,7 @@ pub fn run_bench(args: &FilterBenchArgs) -> anyhow::Result<()> {
     } else {
         report.to_markdown()
     };
-    crate::cli::bench::print_and_save(&text, args.out.as_deref())
+    crate::cli::progress::print_and_save(&text, args.out.as_deref())
 }
 
 #[cfg(test)]

@@ -9,7 +9,6 @@ pub mod dgi;
 pub mod display;
 pub mod ellipse_distance;
 pub mod filter;
-pub mod guided;
 pub mod progress;
 pub mod render;
 pub mod scene;

@@ -118,3 +118,43 @@ impl Progress {
         }
     }
 }
+
+/// A progress bar over `len` units (hidden when `quiet`), for the benchmarks.
+#[must_use]
+pub fn bar(quiet: bool, len: u64, unit: &str) -> ProgressBar {
+    if quiet {
+        return ProgressBar::hidden();
+    }
+    ProgressBar::new(len).with_style(
+        ProgressStyle::with_template(&format!(
+            "{{msg}} [{{bar:40}}] {{pos}}/{{len}} {unit}, {{elapsed}} (eta {{eta}})"
+        ))
+        .expect("static template")
+        .progress_chars("=> "),
+    )
+}
+
+/// A progress bar over a benchmark's `steps` — hidden with `--json`, and (by indicatif) when
+/// standard error is not a terminal — and the callback that advances it, showing each step's
+/// name. A step beyond the count lengthens the bar rather than overrunning it.
+pub fn bench_progress(json: bool, steps: u64) -> (indicatif::ProgressBar, impl FnMut(&str)) {
+    let bar = bar(json, steps, "steps");
+    let b = bar.clone();
+    let advance = move |what: &str| {
+        if b.position() >= b.length().unwrap_or(0) {
+            b.inc_length(1);
+        }
+        b.set_message(what.to_string());
+        b.inc(1);
+    };
+    (bar, advance)
+}
+
+/// Prints a benchmark's text and, with `--out`, also writes it to that file.
+pub fn print_and_save(text: &str, out: Option<&std::path::Path>) -> anyhow::Result<()> {
+    println!("{text}");
+    if let Some(path) = out {
+        crate::output::write_bytes(path, text.as_bytes())?;
+    }
+    Ok(())
+}

@@ -4,8 +4,8 @@ use std::path::PathBuf;
 
 use serde_json::{Value, json};
 
-use crate::scene::Scene;
 use crate::scene::generate::{self, CityParams, Generated};
+use crate::scene::{Environment, Scene};
 
 #[derive(Clone, Debug, clap::Subcommand)]
 pub enum SceneCommand {
@@ -141,4 +141,30 @@ fn info_text(s: &Value) -> String {
         }
     }
     out.trim_end().to_string()
+}
+
+/// Loads the scene named by `--scene`, with `--env` applied and its unsupported features
+/// reported on standard error.
+pub fn load_scene(scene: &str, env: Option<&str>) -> anyhow::Result<Scene> {
+    let mut s = Scene::open(scene)?;
+    if let Some(env) = env {
+        s.environment = Environment::parse(env)?;
+    }
+    for u in &s.unsupported {
+        eprintln!("raygun: {scene}: not supported, ignored: {u}");
+    }
+    Ok(s)
+}
+
+/// Loads each of `scenes` with [`load_scene`], named by its argument without `builtin:`.
+pub fn load_scenes(scenes: &[String], env: Option<&str>) -> anyhow::Result<Vec<(String, Scene)>> {
+    scenes
+        .iter()
+        .map(|s| {
+            Ok((
+                s.trim_start_matches("builtin:").to_string(),
+                load_scene(s, env)?,
+            ))
+        })
+        .collect()
 }

@@ -214,13 +214,13 @@ fn record_vrpn(
     stop: &AtomicBool,
 ) -> anyhow::Result<u64> {
     use crate::session::vrpn::{VrpnClientConfig, VrpnSource};
-    use crate::tracking::vrpn::{self, VrpnConfig};
+    use crate::tracking::vrpn::VrpnConfig;
     let mut source = VrpnSource::new(VrpnClientConfig {
         reconnect: false,
         allow_non_loopback: args.allow_network,
         ..VrpnClientConfig::new(address.clone())
     })?;
-    let mut header = vrpn::recording_header(address, &VrpnConfig::default());
+    let mut header = ReplayHeader::vrpn_recording(address, &VrpnConfig::default());
     header.display = Some(match &origin {
         crate::display::ModelOrigin::Builtin(name) => (*name).to_owned(),
         crate::display::ModelOrigin::File(p) => p.display().to_string(),

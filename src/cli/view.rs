@@ -1,6 +1,6 @@
 //! `raygun view --scene FILE --display MODEL [--dtrack PORT | --osc PORT | --replay FILE]`.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use anyhow::Context;
 
@@ -106,41 +106,12 @@ pub struct ViewArgs {
     pub screenshot_after: Option<u32>,
 }
 
-impl ViewArgs {
-    /// The demo's viewer: its scene and size, the embedded display and replay written to disk.
-    #[must_use]
-    pub fn demo(args: &crate::cli::demo::DemoArgs, display: &Path, replay: &Path) -> Self {
-        Self {
-            scene: crate::cli::demo::SCENE.to_owned(),
-            display: display.display().to_string(),
-            size: args.size,
-            env: Some(crate::cli::demo::ENV.to_owned()),
-            camera: None,
-            max_depth: DEFAULT_MAX_DEPTH,
-            backend: args.backend,
-            dtrack: None,
-            osc: None,
-            vrpn: None,
-            allow_network: false,
-            replay: Some(replay.to_path_buf()),
-            device: None,
-            config: None,
-            calibration: None,
-            p_min: 0.0,
-            target_se: None,
-            roi_at: None,
-            roi_radius: 600.0,
-            filter: crate::cli::filter::FilterArgs {
-                filter: crate::filter::FilterKind::Fast,
-                blend: crate::filter::Blend::Count,
-                k_max: crate::filter::FilterParams::DEFAULT_K_MAX,
-                c: crate::filter::FilterParams::DEFAULT_C,
-                variance_threshold: crate::filter::FilterParams::DEFAULT_VARIANCE_THRESHOLD,
-            },
-            save_dir: args.out.clone(),
-            screenshot_after: None,
-        }
-    }
+/// Whether a window can be opened: an X11 or Wayland display is named in the environment.
+#[must_use]
+pub fn has_display() -> bool {
+    ["DISPLAY", "WAYLAND_DISPLAY"]
+        .iter()
+        .any(|v| std::env::var_os(v).is_some_and(|s| !s.is_empty()))
 }
 
 pub fn run(args: &ViewArgs) -> anyhow::Result<()> {
@@ -148,7 +119,7 @@ pub fn run(args: &ViewArgs) -> anyhow::Result<()> {
     if !cfg!(feature = "viewer") {
         anyhow::bail!(NO_WINDOW);
     }
-    if !crate::cli::demo::has_display() {
+    if !has_display() {
         anyhow::bail!(NO_DISPLAY);
     }
     if !(args.roi_radius.is_finite() && args.roi_radius > 0.0) {
@@ -196,7 +167,7 @@ pub fn run(args: &ViewArgs) -> anyhow::Result<()> {
         args.size,
         &backend,
     )?;
-    let scene = crate::cli::render::load_scene(&args.scene, args.env.as_deref())?;
+    let scene = crate::cli::scene::load_scene(&args.scene, args.env.as_deref())?;
     let [w, h] = args.size;
     let camera = RenderCamera::choose(&scene, args.camera.as_deref(), w, h)
         .with_context(|| format!("scene {}", args.scene))?;

@@ -371,6 +371,47 @@ impl<'a> Filter<'a> {
         })
     }
 
+    /// [`Self::image`] with the filter's own time in ms: the kernels' (GPU timestamps where
+    /// the adapter has them, else the wall clock around submit-and-wait; uploads and the
+    /// read-back excluded) or the CPU twin's wall clock. The flag says whether timestamps were
+    /// used.
+    pub fn timed_image(
+        &self,
+        params: &FilterParams,
+        acc: &Accumulation,
+        dgi: &[f32],
+    ) -> Result<(Vec<Vec3>, f64, bool), gpu::FilterGpuError> {
+        match self {
+            Self::Gpu { ctx, kernels } if params.kind != FilterKind::Off => {
+                check_inputs(params, acc, dgi)?;
+                let uploaded = gpu::UploadedInputs::new(ctx, acc, dgi)?;
+                let run = kernels.prepare(ctx, params, &uploaded.inputs())?;
+                let timer = crate::gpu::PassTimer::new(ctx, 1);
+                let t = std::time::Instant::now();
+                let mut enc = ctx.device.create_command_encoder(&Default::default());
+                run.record(&mut enc, timer.as_ref().map(|t| (t, 0)));
+                if let Some(timer) = &timer {
+                    timer.resolve(&mut enc);
+                }
+                ctx.queue.submit([enc.finish()]);
+                ctx.wait()?;
+                let wall = t.elapsed().as_secs_f64() * 1e3;
+                let ms = match &timer {
+                    Some(timer) => timer.read_ms(ctx)?[0],
+                    None => wall,
+                };
+                let out: Vec<[f32; 4]> = ctx.read_buffer(&run.output)?;
+                let image = out.iter().map(|p| Vec3::new(p[0], p[1], p[2])).collect();
+                Ok((image, ms, timer.is_some()))
+            }
+            _ => {
+                let t = std::time::Instant::now();
+                let image = self.image(params, acc, dgi)?;
+                Ok((image, t.elapsed().as_secs_f64() * 1e3, false))
+            }
+        }
+    }
+
     /// The picture: the mean image of `acc` filtered by `params` (linear RGB, row-major);
     /// [`FilterKind::Off`] is the accumulation's own mean image on either backend.
     pub fn image(

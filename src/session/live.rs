@@ -17,8 +17,8 @@ use crate::interaction::{RoiChange, RoiState};
 use crate::tracking::calibration::Calibration;
 use crate::tracking::dtrack::TimeSource;
 use crate::tracking::event::{DeviceId, Tracking, TrackingEvent};
-use crate::tracking::ingest::Protocol;
-use crate::tracking::vrpn::{self, VrpnAddress, VrpnConfig};
+use crate::tracking::ingest::{Ingest, Protocol};
+use crate::tracking::vrpn::{VrpnAddress, VrpnConfig};
 
 /// Why live tracking could not start.
 #[derive(Debug, thiserror::Error)]
@@ -123,7 +123,7 @@ impl LiveTracking {
             ..VrpnClientConfig::new(address.clone())
         })?;
         let mut ingest =
-            vrpn::ingest_for(&address.device, VrpnConfig::default(), TimeSource::Tracker)?;
+            Ingest::vrpn_only(&address.device, VrpnConfig::default(), TimeSource::Tracker)?;
         ingest.problems.quiet = true;
         if let Some(c) = calibration {
             ingest.calibrate(c);

@@ -37,6 +37,17 @@ pub struct Ingest {
 }
 
 impl Ingest {
+    /// An ingest that decodes only VRPN, for `device` with `config` (live loops that do not
+    /// come from a replay header).
+    pub fn vrpn_only(
+        device: &str,
+        config: VrpnConfig,
+        time_source: TimeSource,
+    ) -> Result<Ingest, VrpnConfigError> {
+        Self::new(DtrackConfig::default(), OscConfig::default(), time_source)
+            .with_vrpn(device, config)
+    }
+
     #[must_use]
     pub fn new(dtrack: DtrackConfig, osc: OscConfig, time_source: TimeSource) -> Self {
         let osc = OscConfig { time_source, ..osc };

@@ -33,7 +33,7 @@ use super::event::{DeviceId, TrackingEvent};
 use super::ingest::{Ingest, Protocol};
 use super::osc::OscConfig;
 use super::problems::ProblemLog;
-use super::vrpn::{VrpnConfigError, VrpnHeader};
+use super::vrpn::{VrpnAddress, VrpnConfig, VrpnConfigError, VrpnHeader};
 
 /// The format version written into headers.
 pub const FORMAT_VERSION: u32 = 1;
@@ -85,6 +85,20 @@ pub enum HeaderConfigError {
 }
 
 impl ReplayHeader {
+    /// The header of a recording of `source`: the address and the mapping (with its
+    /// calibration) go in, so that `raygun replay` decodes exactly as the live run did; times are
+    /// the tracker's.
+    #[must_use]
+    pub fn vrpn_recording(source: &VrpnAddress, config: &VrpnConfig) -> Self {
+        let mut h = Self::new(format!("recorded by raygun record from VRPN {source}"));
+        h.vrpn = Some(VrpnHeader {
+            source: source.clone(),
+            config: config.clone(),
+        });
+        h.time_source = TimeSource::Tracker;
+        h
+    }
+
     #[must_use]
     pub fn new(description: impl Into<String>) -> Self {
         Self {
@@ -599,6 +613,28 @@ impl<W: Write> ReplayWriter<W> {
     pub fn into_inner(self) -> W {
         self.out
     }
+}
+
+/// Every event of a replay, decoded through the decoders its header configures (raw VRPN
+/// reads through [`VrpnDecoder`](super::vrpn::VrpnDecoder), DTrack and OSC datagrams through theirs, events validated),
+/// with the reader's and the decoders' problems.
+pub fn replay_events<R: BufRead>(
+    mut reader: ReplayReader<R>,
+) -> Result<(Vec<TrackingEvent>, ProblemLog), HeaderConfigError> {
+    let mut ingest = reader.header().ingest(None)?;
+    ingest.problems.quiet = reader.problems.quiet;
+    let mut events = Vec::new();
+    while let Some(item) = reader.next_item() {
+        match item.payload {
+            ReplayPayload::Datagram(p, bytes) => {
+                events.extend_from_slice(ingest.datagram(p, &bytes, item.t));
+            }
+            ReplayPayload::Event(e) => events.extend(ingest.event(e)),
+        }
+    }
+    let mut problems = reader.problems;
+    problems.merge(&ingest.problems);
+    Ok((events, problems))
 }
 
 #[cfg(test)]

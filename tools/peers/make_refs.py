@@ -3,7 +3,7 @@
 
 For each scene of SUITE: builds the scene file where it is generated (tests/data/peers/scenes/),
 converts it with scenes.py, renders K independent images (seeds 0..K-1) with the scene's
-variant (scalar_rgb, the issue's choice, for every scene Mitsuba's own BSDFs model; llvm_ad_rgb
+variant (scalar_rgb, the reference variant, for every scene Mitsuba's own BSDFs model; llvm_ad_rgb
 for the `*-gltf` scenes, whose BSDF is the Python plugin gltf_bsdf.py - llvm_ad_rgb and
 scalar_rgb agree within the MC error on the Lambert scenes, README.md), and writes
 

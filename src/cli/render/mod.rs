@@ -5,22 +5,24 @@
 //! exist and take files), and so is the memory the size needs; every file is written through a
 //! temporary name and renamed into place.
 
+pub mod guided;
+
 use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Context;
 use clap::ArgGroup;
-use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::cli::args::parse_size;
 use crate::cli::progress::Progress;
+use crate::cli::scene::load_scene;
 use crate::display::DisplayModel;
 use crate::frame::Renderer;
 use crate::frame::stop::StopCondition;
 use crate::gpu::{Backend, BackendChoice};
 use crate::memory::{Budget, Work};
 use crate::output::{Format, check_image_path, write_rgb};
-use crate::scene::{Environment, Scene};
+use crate::scene::Scene;
 use crate::trace::camera::RenderCamera;
 use crate::trace::cpu::{DEFAULT_MAX_DEPTH, TraceSettings};
 
@@ -183,47 +185,6 @@ pub fn warn_if_resampled(size: [u32; 2], model: &DisplayModel, origin: &str) {
     }
 }
 
-/// A progress bar over `len` units (hidden when `quiet`), for the benchmarks.
-#[must_use]
-pub fn progress(quiet: bool, len: u64, unit: &str) -> ProgressBar {
-    if quiet {
-        return ProgressBar::hidden();
-    }
-    ProgressBar::new(len).with_style(
-        ProgressStyle::with_template(&format!(
-            "{{msg}} [{{bar:40}}] {{pos}}/{{len}} {unit}, {{elapsed}} (eta {{eta}})"
-        ))
-        .expect("static template")
-        .progress_chars("=> "),
-    )
-}
-
-/// Loads the scene named by `--scene`, with `--env` applied and its unsupported features
-/// reported on standard error.
-pub fn load_scene(scene: &str, env: Option<&str>) -> anyhow::Result<Scene> {
-    let mut s = Scene::open(scene)?;
-    if let Some(env) = env {
-        s.environment = Environment::parse(env)?;
-    }
-    for u in &s.unsupported {
-        eprintln!("raygun: {scene}: not supported, ignored: {u}");
-    }
-    Ok(s)
-}
-
-/// Loads each of `scenes` with [`load_scene`], named by its argument without `builtin:`.
-pub fn load_scenes(scenes: &[String], env: Option<&str>) -> anyhow::Result<Vec<(String, Scene)>> {
-    scenes
-        .iter()
-        .map(|s| {
-            Ok((
-                s.trim_start_matches("builtin:").to_string(),
-                load_scene(s, env)?,
-            ))
-        })
-        .collect()
-}
-
 /// Checks the memory a render of `size` needs against this machine and the backend, printing
 /// the note for a large run.
 pub fn check_memory(work: Work, size: [u32; 2], backend: &Backend) -> anyhow::Result<()> {
@@ -271,7 +232,7 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     // Guide, display and calibration are validated before the GPU is looked for and the scene
     // loads.
     let plan = match &args.guide {
-        Some(guide) => Some(crate::cli::guided::GuidedPlan::new(args, guide)?),
+        Some(guide) => Some(guided::GuidedPlan::new(args, guide)?),
         None => None,
     };
     let backend = Backend::select(args.backend)?;
@@ -289,7 +250,7 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     if let Some(plan) = &plan {
         let scene = load_scene(&args.scene, args.env.as_deref())?;
         let settings = settings(args, &scene)?;
-        return crate::cli::guided::run(args, plan, &scene, settings, &backend);
+        return guided::run(args, plan, &scene, settings, &backend);
     }
     // A full frame: --display matters only for the tiles.
     let wall = match &args.tiles {

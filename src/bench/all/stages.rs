@@ -1,4 +1,4 @@
-//! Per-stage times of a guided iteration (issue 8): DGI (on the iteration after an ROI change,
+//! Per-stage times of a guided iteration (DESIGN.md §1): DGI (on the iteration after an ROI change,
 //! and spread over the run), mask + compaction, tracing, the fast filter and display, each
 //! measured inside the iteration's own wall-clock interval so that their sum can be checked
 //! against it.
@@ -18,14 +18,12 @@ use glam::Vec3;
 use serde::Serialize;
 
 use crate::display::DisplayModel;
-use crate::filter::FilterParams;
+use crate::filter::{Filter, FilterParams};
 use crate::frame::{GuideConfig, Renderer};
-use crate::gpu::{Backend, PassTimer};
+use crate::gpu::Backend;
 use crate::scene::Scene;
-use crate::trace::camera::RenderCamera;
-use crate::trace::cpu::TraceSettings;
 
-use super::all::AllBenchError;
+use super::AllBenchError;
 
 /// The viewer's picture of a linear image: `exposure` stops, sRGB, 8 bits, opaque RGBA
 /// (`ViewerCore::picture` with the image overlay).
@@ -67,7 +65,7 @@ pub struct StageRow {
     pub iteration_ms_min: f64,
     /// iteration_ms_mean − stage_sum_ms: read-backs, uploads, waits, bookkeeping.
     pub other_ms: f64,
-    /// The issue's target iteration on the iteration with an ROI change: DGI + schedule +
+    /// The target iteration on the iteration with an ROI change: DGI + schedule +
     /// trace + fast filter (display excluded).
     pub target_iteration_ms: f64,
     /// Whether the GPU stages came from timestamps (else wall clock).
@@ -91,28 +89,15 @@ pub fn measure(
     seed: u32,
 ) -> Result<StageRow, AllBenchError> {
     let [w, h] = size;
-    let camera =
-        RenderCamera::choose(scene, None, w, h).map_err(|source| AllBenchError::Camera {
-            scene: name.to_string(),
-            source,
-        })?;
-    let settings = TraceSettings {
-        width: w,
-        height: h,
-        seed,
-        max_depth: crate::trace::cpu::DEFAULT_MAX_DEPTH,
-        camera,
-    };
-    let roi = super::paper_roi(fov)?;
+    let settings =
+        crate::bench::paper::settings(scene, size, seed, crate::trace::cpu::DEFAULT_MAX_DEPTH)
+            .map_err(|source| AllBenchError::Camera {
+                scene: name.to_string(),
+                source,
+            })?;
+    let roi = crate::bench::paper::roi(fov)?;
     let mut g = Renderer::guided(backend, scene, settings, display, GuideConfig::default())?;
-    let gpu = match backend {
-        Backend::Gpu(ctx) => {
-            let kernels = crate::filter::gpu::FilterKernels::new(ctx);
-            let timer = PassTimer::new(ctx, 1);
-            Some((ctx.as_ref(), kernels, timer))
-        }
-        Backend::Cpu => None,
-    };
+    let filter_stage = Filter::new(backend);
     let n = iterations.max(1);
     let (mut dgi_change, mut stamps) = (None, matches!(backend, Backend::Cpu));
     let (mut sched, mut trace, mut filt, mut disp) = (0f64, 0f64, 0f64, 0f64);
@@ -127,41 +112,7 @@ pub fn measure(
         let s = g.run_frame(true)?;
         let acc = g.accumulation()?;
         let dgi = g.dgi()?;
-        let (image, ms_filter) = match &gpu {
-            Some((ctx, kernels, timer)) => {
-                let up = crate::filter::gpu::UploadedInputs::new(ctx, &acc, &dgi)?;
-                let run = kernels.prepare(ctx, filter, &up.inputs()).map_err(|e| {
-                    AllBenchError::Output {
-                        path: "per-stage filter".into(),
-                        reason: e.to_string(),
-                    }
-                })?;
-                let t = Instant::now();
-                let mut enc = ctx.device.create_command_encoder(&Default::default());
-                run.record(&mut enc, timer.as_ref().map(|t| (t, 0)));
-                if let Some(timer) = timer {
-                    timer.resolve(&mut enc);
-                }
-                ctx.queue.submit([enc.finish()]);
-                ctx.wait()?;
-                let wall = t.elapsed().as_secs_f64() * 1e3;
-                let ms = match timer {
-                    Some(timer) => timer.read_ms(ctx)?[0],
-                    None => wall,
-                };
-                let out: Vec<[f32; 4]> = ctx.read_buffer(&run.output)?;
-                (
-                    out.iter().map(|p| Vec3::new(p[0], p[1], p[2])).collect(),
-                    ms,
-                )
-            }
-            None => {
-                let t = Instant::now();
-                let img = crate::filter::filter_cpu(filter, &acc, &dgi)?;
-                let ms = t.elapsed().as_secs_f64() * 1e3;
-                (img.iter().map(|p| p.as_vec3()).collect::<Vec<_>>(), ms)
-            }
-        };
+        let (image, ms_filter, stamped) = filter_stage.timed_image(filter, &acc, &dgi)?;
         let t = Instant::now();
         let rgba = display_rgba(&image, exposure);
         std::hint::black_box(&rgba);
@@ -170,8 +121,8 @@ pub fn measure(
         if s.dgi_recomputed {
             dgi_change = s.ms_dgi;
         }
-        if let Some((ctx, ..)) = &gpu {
-            stamps = ctx.timestamps;
+        if backend.is_gpu() {
+            stamps = stamped;
         }
         pixels += u64::from(s.pixels.unwrap_or(0));
         sched += s.ms_schedule.unwrap_or(0.0);
@@ -196,7 +147,7 @@ pub fn measure(
         filter_ms: filt,
         display_ms: disp,
         stage_sum_ms: stage_sum,
-        iteration_ms_median: super::median(walls.clone()),
+        iteration_ms_median: crate::bench::median(walls.clone()),
         iteration_ms_min: walls.iter().copied().fold(f64::INFINITY, f64::min),
         iteration_ms_mean: mean,
         other_ms: mean - stage_sum,
@@ -209,7 +160,7 @@ pub fn measure(
 #[must_use]
 pub fn markdown(rows: &[StageRow], device: &str) -> String {
     let mut s = format!(
-        "Device: {device}. Means over the iterations (ms), so the stages add up; the wall clock of whole iterations is given as mean, median and min. *Display* = the viewer's conversion of the filtered image to the 8-bit sRGB RGBA texture it uploads (CPU); *other* = the rest of the wall clock (read-backs of the accumulation and DGI, the filter's upload and read-back on the GPU, waits). Filter and display run every iteration here. The *target iteration* is the issue's: DGI on a change + mask/compaction + trace + fast filter.\n\n| FOV | size | iterations | share sampled | DGI per change | DGI amortised | mask+compaction | trace | filter | display | sum of stages | other | iteration (mean / median / min) | target iteration |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n"
+        "Device: {device}. Means over the iterations (ms), so the stages add up; the wall clock of whole iterations is given as mean, median and min. *Display* = the viewer's conversion of the filtered image to the 8-bit sRGB RGBA texture it uploads (CPU); *other* = the rest of the wall clock (read-backs of the accumulation and DGI, the filter's upload and read-back on the GPU, waits). Filter and display run every iteration here. The *target iteration* is DGI on a change + mask/compaction + trace + fast filter.\n\n| FOV | size | iterations | share sampled | DGI per change | DGI amortised | mask+compaction | trace | filter | display | sum of stages | other | iteration (mean / median / min) | target iteration |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n"
     );
     for r in rows {
         s += &format!(
@@ -240,6 +191,8 @@ pub fn markdown(rows: &[StageRow], device: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::trace::camera::RenderCamera;
+    use crate::trace::cpu::TraceSettings;
     use crate::viewer::core::{RoiSource, ViewerCore, ViewerState};
 
     /// The display stage converts exactly as the viewer's picture does.

@@ -1,0 +1,489 @@
+//! The layering of `src/`, read from the code's own paths: every `crate::…` and `super::…`
+//! path outside `#[cfg(test)]` modules is an import of the module it names. The rule
+//! (README, "Architecture"):
+//!
+//! * a module imports only from its own layer or the layers below it ([`LAYERS`], lowest
+//!   first);
+//! * the top-level modules form no cycle (a stage may use another stage, never both ways);
+//! * the files form no cycle, apart from a folder's `mod.rs` and its own children (the parent
+//!   re-exports, the children use the parent's types).
+//!
+//! A failure names both ends of the offending import.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+
+/// The layers, lowest first, each with its top-level modules.
+const LAYERS: &[(&str, &[&str])] = &[
+    ("base", &["messages", "random", "gpu"]),
+    (
+        "stages",
+        &[
+            "display",
+            "scene",
+            "tracking",
+            "interaction",
+            "roi",
+            "schedule",
+            "trace",
+            "filter",
+            "output",
+        ],
+    ),
+    ("frame", &["frame", "memory"]),
+    ("session", &["session"]),
+    ("front ends", &["bench", "viewer"]),
+    ("command line", &["cli"]),
+];
+
+fn layer_of(top: &str) -> Option<usize> {
+    LAYERS.iter().position(|(_, mods)| mods.contains(&top))
+}
+
+/// Module path of a source file: `src/a/b.rs` and `src/a/b/mod.rs` are `a::b`.
+fn module_of(src: &Path, file: &Path) -> Vec<String> {
+    let rel = file.strip_prefix(src).unwrap().with_extension("");
+    let mut parts: Vec<String> = rel
+        .components()
+        .map(|c| c.as_os_str().to_string_lossy().into_owned())
+        .collect();
+    if parts.last().is_some_and(|p| p == "mod") {
+        parts.pop();
+    }
+    parts
+}
+
+fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.is_dir() {
+            rust_files(&path, out);
+        } else if path.extension().is_some_and(|e| e == "rs") {
+            out.push(path);
+        }
+    }
+}
+
+/// The code of a file without comments, string contents and `#[cfg(test)]` items.
+fn code_of(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    let b = text.as_bytes();
+    let mut i = 0;
+    while i < b.len() {
+        if b[i..].starts_with(b"//") {
+            while i < b.len() && b[i] != b'\n' {
+                i += 1;
+            }
+        } else if b[i..].starts_with(b"/*") {
+            let end = text[i + 2..].find("*/").map_or(b.len(), |e| i + 2 + e + 2);
+            i = end;
+        } else if b[i] == b'"' {
+            // Raw strings are rare in paths' way; plain strings are skipped with escapes.
+            i += 1;
+            while i < b.len() && b[i] != b'"' {
+                i += if b[i] == b'\\' { 2 } else { 1 };
+            }
+            i += 1;
+            out.push_str("\"\"");
+        } else if b[i] == b'\'' && i + 2 < b.len() && (b[i + 2] == b'\'' || b[i + 1] == b'\\') {
+            // A char literal ('x' or '\n'): skip it, so that '"' does not open a string.
+            let close = text[i + 1..].find('\'').map_or(b.len(), |e| i + 1 + e + 1);
+            i = close.max(i + 3);
+        } else {
+            out.push(b[i] as char);
+            i += 1;
+        }
+    }
+    strip_test_items(&out)
+}
+
+/// Removes every item that follows `#[cfg(test)]` (a test module or a test-only function):
+/// tests may reach anywhere.
+fn strip_test_items(code: &str) -> String {
+    let mut out = String::new();
+    let mut rest = code;
+    while let Some(at) = rest.find("#[cfg(test)]") {
+        out.push_str(&rest[..at]);
+        let after = &rest[at..];
+        // The item ends at its closing brace (or at `;` for `mod tests;`).
+        let mut depth = 0usize;
+        let mut end = after.len();
+        for (k, c) in after.char_indices() {
+            match c {
+                '{' => depth += 1,
+                '}' => {
+                    depth -= 1;
+                    if depth == 0 {
+                        end = k + 1;
+                        break;
+                    }
+                }
+                ';' if depth == 0 => {
+                    end = k + 1;
+                    break;
+                }
+                _ => {}
+            }
+        }
+        rest = &after[end..];
+    }
+    out.push_str(rest);
+    out
+}
+
+/// Every path a `use` tree names, expanded: `use crate::{a::b, c::{d, e}}` gives
+/// `crate::a::b`, `crate::c::d`, `crate::c::e`.
+fn expand_use(tree: &str, prefix: &str, out: &mut Vec<String>) {
+    let tree = tree.trim();
+    if let Some(open) = tree.find('{') {
+        let head = tree[..open].trim().trim_end_matches("::");
+        let inner = &tree[open + 1..tree.rfind('}').unwrap_or(tree.len())];
+        let base = join(prefix, head);
+        let mut depth = 0;
+        let mut start = 0;
+        for (k, c) in inner.char_indices() {
+            match c {
+                '{' => depth += 1,
+                '}' => depth -= 1,
+                ',' if depth == 0 => {
+                    expand_use(&inner[start..k], &base, out);
+                    start = k + 1;
+                }
+                _ => {}
+            }
+        }
+        expand_use(&inner[start..], &base, out);
+    } else if !tree.is_empty() {
+        let path = tree.split(" as ").next().unwrap().trim();
+        // `use a::{self, b}`: `self` is `a` itself.
+        out.push(if path == "self" {
+            prefix.to_owned()
+        } else {
+            join(prefix, path)
+        });
+    }
+}
+
+fn join(a: &str, b: &str) -> String {
+    match (a.is_empty(), b.is_empty()) {
+        (true, _) => b.to_owned(),
+        (_, true) => a.to_owned(),
+        _ => format!("{a}::{b}"),
+    }
+}
+
+/// The paths a file's code names: its `use` trees and every inline `crate::…` / `super::…`.
+fn paths_in(code: &str) -> Vec<String> {
+    let mut out = Vec::new();
+    let mut rest = code;
+    // `use` statements (possibly `pub use`, spanning lines).
+    while let Some(at) = find_word(rest, "use") {
+        let after = &rest[at + 3..];
+        let end = after.find(';').unwrap_or(after.len());
+        expand_use(&after[..end], "", &mut out);
+        rest = &after[end..];
+    }
+    // Inline paths.
+    for start in ["crate::", "super::"] {
+        let mut from = 0;
+        while let Some(k) = code[from..].find(start) {
+            let at = from + k;
+            let prev = code[..at].chars().next_back();
+            if !prev.is_some_and(|c| c.is_alphanumeric() || c == '_' || c == ':') {
+                let len = code[at..]
+                    .find(|c: char| !(c.is_alphanumeric() || c == '_' || c == ':'))
+                    .unwrap_or(code.len() - at);
+                let path = code[at..at + len].trim_end_matches(':');
+                // `crate::{…}` is a use tree, read above.
+                if path.contains("::") {
+                    out.push(path.to_owned());
+                }
+            }
+            from = at + start.len();
+        }
+    }
+    out
+}
+
+fn find_word(s: &str, word: &str) -> Option<usize> {
+    let mut from = 0;
+    while let Some(k) = s[from..].find(word) {
+        let at = from + k;
+        let before = s[..at].chars().next_back();
+        let after = s[at + word.len()..].chars().next();
+        let boundary = |c: Option<char>| !c.is_some_and(|c| c.is_alphanumeric() || c == '_');
+        if boundary(before) && after.is_some_and(char::is_whitespace) {
+            return Some(at);
+        }
+        from = at + word.len();
+    }
+    None
+}
+
+/// The module a path names, as the longest prefix that is a module of the crate.
+fn resolve(
+    path: &str,
+    here: &[String],
+    here_is_mod_rs: bool,
+    modules: &BTreeSet<Vec<String>>,
+) -> Option<Vec<String>> {
+    let mut segs: Vec<&str> = path.split("::").filter(|s| !s.is_empty()).collect();
+    let mut base: Vec<String> = match segs.first() {
+        Some(&"crate") => {
+            segs.remove(0);
+            Vec::new()
+        }
+        Some(&"super") => {
+            // `super` of `a::b` (file b.rs) is `a`; of `a::b` (b/mod.rs) also `a`.
+            let _ = here_is_mod_rs;
+            let mut b = here.to_vec();
+            while segs.first() == Some(&"super") {
+                segs.remove(0);
+                b.pop();
+            }
+            b
+        }
+        _ => return None,
+    };
+    let mut best = None;
+    for s in segs {
+        base.push(s.to_owned());
+        if modules.contains(&base) {
+            best = Some(base.clone());
+        } else {
+            break;
+        }
+    }
+    best
+}
+
+struct Graph {
+    /// File module path → the modules it imports, with one example path each.
+    edges: BTreeMap<Vec<String>, BTreeMap<Vec<String>, String>>,
+}
+
+fn graph() -> Graph {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let mut files = Vec::new();
+    rust_files(&src, &mut files);
+    files.retain(|f| {
+        let name = f.strip_prefix(&src).unwrap();
+        name != Path::new("lib.rs") && name != Path::new("main.rs")
+    });
+    let modules: BTreeSet<Vec<String>> = files.iter().map(|f| module_of(&src, f)).collect();
+    let mut edges = BTreeMap::new();
+    for f in &files {
+        let here = module_of(&src, f);
+        let is_mod_rs = f.file_name().is_some_and(|n| n == "mod.rs");
+        let code = code_of(&std::fs::read_to_string(f).unwrap());
+        let mut out: BTreeMap<Vec<String>, String> = BTreeMap::new();
+        for p in paths_in(&code) {
+            if let Some(target) = resolve(&p, &here, is_mod_rs, &modules)
+                && target != here
+            {
+                out.entry(target).or_insert(p);
+            }
+        }
+        edges.insert(here, out);
+    }
+    Graph { edges }
+}
+
+fn file_name(m: &[String]) -> String {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let joined = m.join("/");
+    if src.join(format!("{joined}/mod.rs")).exists() {
+        format!("src/{joined}/mod.rs")
+    } else {
+        format!("src/{joined}.rs")
+    }
+}
+
+#[test]
+fn every_top_level_module_has_a_layer() {
+    let g = graph();
+    let tops: BTreeSet<&String> = g.edges.keys().filter_map(|m| m.first()).collect();
+    let missing: Vec<&&String> = tops.iter().filter(|t| layer_of(t).is_none()).collect();
+    assert!(
+        missing.is_empty(),
+        "modules without a layer in LAYERS: {missing:?}"
+    );
+}
+
+#[test]
+fn imports_point_down_or_sideways_never_up() {
+    let g = graph();
+    let mut bad = Vec::new();
+    for (from, targets) in &g.edges {
+        let Some(lf) = layer_of(&from[0]) else {
+            continue;
+        };
+        for (to, example) in targets {
+            let Some(lt) = layer_of(&to[0]) else { continue };
+            if lt > lf {
+                bad.push(format!(
+                    "{} ({}) imports {} ({}) via `{example}`",
+                    file_name(from),
+                    LAYERS[lf].0,
+                    file_name(to),
+                    LAYERS[lt].0
+                ));
+            }
+        }
+    }
+    assert!(bad.is_empty(), "upward imports:\n{}", bad.join("\n"));
+}
+
+/// A cycle in `edges`, as the list of nodes around it.
+fn find_cycle<N: Ord + Clone>(edges: &BTreeMap<N, BTreeSet<N>>) -> Option<Vec<N>> {
+    #[derive(Clone, Copy, PartialEq)]
+    enum Mark {
+        Open,
+        Done,
+    }
+    fn visit<N: Ord + Clone>(
+        n: &N,
+        edges: &BTreeMap<N, BTreeSet<N>>,
+        marks: &mut BTreeMap<N, Mark>,
+        stack: &mut Vec<N>,
+    ) -> Option<Vec<N>> {
+        match marks.get(n) {
+            Some(Mark::Done) => return None,
+            Some(Mark::Open) => {
+                let at = stack.iter().position(|s| s == n).unwrap();
+                let mut cycle = stack[at..].to_vec();
+                cycle.push(n.clone());
+                return Some(cycle);
+            }
+            None => {}
+        }
+        marks.insert(n.clone(), Mark::Open);
+        stack.push(n.clone());
+        for m in edges.get(n).into_iter().flatten() {
+            if let Some(c) = visit(m, edges, marks, stack) {
+                return Some(c);
+            }
+        }
+        stack.pop();
+        marks.insert(n.clone(), Mark::Done);
+        None
+    }
+    let mut marks = BTreeMap::new();
+    for n in edges.keys() {
+        let mut stack = Vec::new();
+        if let Some(c) = visit(n, edges, &mut marks, &mut stack) {
+            return Some(c);
+        }
+    }
+    None
+}
+
+#[test]
+fn top_level_modules_form_no_cycle() {
+    let g = graph();
+    let mut tops: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+    for (from, targets) in &g.edges {
+        let set = tops.entry(from[0].clone()).or_default();
+        for to in targets.keys() {
+            if to[0] != from[0] {
+                set.insert(to[0].clone());
+            }
+        }
+    }
+    if let Some(cycle) = find_cycle(&tops) {
+        let mut why = Vec::new();
+        for w in cycle.windows(2) {
+            let example = g
+                .edges
+                .iter()
+                .filter(|(f, _)| f[0] == w[0])
+                .flat_map(|(f, t)| t.iter().map(move |(to, p)| (f, to, p)))
+                .find(|(_, to, _)| to[0] == w[1])
+                .map(|(f, to, p)| format!("{} → {} via `{p}`", file_name(f), file_name(to)))
+                .unwrap_or_default();
+            why.push(example);
+        }
+        panic!(
+            "the top-level modules {} form a cycle:\n{}",
+            cycle.join(" → "),
+            why.join("\n")
+        );
+    }
+}
+
+#[test]
+fn files_form_no_cycle() {
+    let g = graph();
+    let mut files: BTreeMap<Vec<String>, BTreeSet<Vec<String>>> = BTreeMap::new();
+    for (from, targets) in &g.edges {
+        let set = files.entry(from.clone()).or_default();
+        for to in targets.keys() {
+            // A folder's mod.rs and its own children may use each other.
+            let parent_child = (to.len() == from.len() + 1 && to.starts_with(from))
+                || (from.len() == to.len() + 1 && from.starts_with(to));
+            if !parent_child {
+                set.insert(to.clone());
+            }
+        }
+    }
+    // Every cycle, one at a time: report it, cut its first edge, look again.
+    let mut report = Vec::new();
+    while let Some(cycle) = find_cycle(&files) {
+        let names: Vec<String> = cycle.iter().map(|m| file_name(m)).collect();
+        report.push(format!("files import each other ({}):", names.join(" → ")));
+        for w in cycle.windows(2) {
+            report.push(format!(
+                "  {} → {} via `{}`",
+                file_name(&w[0]),
+                file_name(&w[1]),
+                g.edges[&w[0]][&w[1]]
+            ));
+        }
+        files.get_mut(&cycle[0]).unwrap().remove(&cycle[1]);
+    }
+    assert!(report.is_empty(), "{}", report.join("\n"));
+}
+
+/// The checker itself, on code whose answer is known.
+#[test]
+fn the_path_reader_expands_use_trees_and_skips_comments_strings_and_tests() {
+    let code = code_of(
+        r#"
+        use crate::{a::b, c::{d, e as f}};
+        pub use super::g::H;
+        // use crate::commented::Out;
+        /// [`crate::doc::Link`]
+        fn x() { let s = "crate::in_string"; crate::inline::call(); let c = '"'; }
+        #[cfg(test)]
+        mod tests { use crate::only_tests; }
+        "#,
+    );
+    let mut p = paths_in(&code);
+    p.sort();
+    p.dedup();
+    assert_eq!(
+        p,
+        [
+            "crate::a::b",
+            "crate::c::d",
+            "crate::c::e",
+            "crate::inline::call",
+            "super::g::H"
+        ]
+    );
+    let modules: BTreeSet<Vec<String>> = [vec!["s".to_owned()], vec!["s".into(), "g".into()]]
+        .into_iter()
+        .collect();
+    let here = vec!["s".to_owned(), "h".to_owned()];
+    assert_eq!(
+        resolve("super::g::H", &here, false, &modules),
+        Some(vec!["s".to_owned(), "g".to_owned()])
+    );
+    assert_eq!(resolve("crate::nowhere", &here, false, &modules), None);
+    let mut edges: BTreeMap<u8, BTreeSet<u8>> = BTreeMap::new();
+    edges.insert(1, [2].into());
+    edges.insert(2, [3].into());
+    assert_eq!(find_cycle(&edges), None);
+    edges.insert(3, [1].into());
+    assert_eq!(find_cycle(&edges), Some(vec![1, 2, 3, 1]));
+}
