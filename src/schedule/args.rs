@@ -1,0 +1,21 @@
+//! The tracer's indirect dispatch arguments from the list's length (DESIGN.md §6). CPU twin of
+//! `shaders/schedule/args.wgsl`.
+
+/// The indirect dispatch grid for `count` listed pixels and a tracer workgroup of
+/// `workgroup_size` threads, with at most `max_per_dim` workgroups per dimension (65 535 in
+/// WebGPU's defaults; 3840 × 2160 / 64 = 129 600 groups needs two dimensions).
+///
+/// Returns `[gx, gy, 1]` with gx·gy ≥ ⌈count / workgroup_size⌉, gx, gy ≤ max_per_dim and fewer
+/// than gy idle groups; `[0, 1, 1]` when nothing is listed. The tracer's thread for list entry
+/// `(wg.y · gx + wg.x) · workgroup_size + local_index` returns when that is ≥ count. Identical
+/// to `shaders/schedule/args.wgsl`.
+#[must_use]
+pub fn indirect_grid(count: u32, workgroup_size: u32, max_per_dim: u32) -> [u32; 3] {
+    let groups = count.div_ceil(workgroup_size);
+    if groups == 0 {
+        return [0, 1, 1];
+    }
+    let gy = groups.div_ceil(max_per_dim);
+    let gx = groups.div_ceil(gy);
+    [gx, gy, 1]
+}
