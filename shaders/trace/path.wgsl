@@ -28,7 +28,9 @@ struct Params {
     punctual_count: u32,
     punct_select: f32,
     ortho_half_y: f32,   // orthographic window half height (0: pinhole)
-    _pad1: vec3<u32>,
+    _pad1: u32,
+    _pad2: u32,
+    _pad3: u32,
 }
 
 // Layout constants: src/trace/pack.rs (module doc).
@@ -110,12 +112,12 @@ fn wrap(i: i32, n: u32, mode: u32) -> u32 {
     return u32(((i % ni) + ni) % ni);
 }
 
-fn texel(off: u32, w: u32, h: u32, sampler: u32, x: i32, y: i32) -> vec4<f32> {
-    let xi = wrap(x, w, sampler & 3u);
-    let yi = wrap(y, h, (sampler >> 2u) & 3u);
+fn texel(off: u32, w: u32, h: u32, smp: u32, x: i32, y: i32) -> vec4<f32> {
+    let xi = wrap(x, w, smp & 3u);
+    let yi = wrap(y, h, (smp >> 2u) & 3u);
     let c = texels[off + yi * w + xi];
     let ch = vec4<f32>(f32(c & 0xffu), f32((c >> 8u) & 0xffu), f32((c >> 16u) & 0xffu), f32(c >> 24u)) / 255.0;
-    if (sampler & 32u) != 0u {
+    if (smp & 32u) != 0u {
         return vec4<f32>(srgb_to_linear(ch.x), srgb_to_linear(ch.y), srgb_to_linear(ch.z), ch.w);
     }
     return ch;
@@ -125,14 +127,14 @@ fn texture(tex: u32, uv_in: vec2<f32>) -> vec4<f32> {
     let off = texels[4u * tex];
     let w = texels[4u * tex + 1u];
     let h = texels[4u * tex + 2u];
-    let sampler = texels[4u * tex + 3u];
+    let smp = texels[4u * tex + 3u];
     // Non-finite coordinates read as 0 (the CPU twin does the same).
     var uv = uv_in;
     if !(abs(uv.x) <= T_FAR && abs(uv.y) <= T_FAR) {
         uv = vec2<f32>(0.0);
     }
-    if (sampler & 16u) != 0u {
-        return texel(off, w, h, sampler, i32(floor(uv.x * f32(w))), i32(floor(uv.y * f32(h))));
+    if (smp & 16u) != 0u {
+        return texel(off, w, h, smp, i32(floor(uv.x * f32(w))), i32(floor(uv.y * f32(h))));
     }
     let x = uv.x * f32(w) - 0.5;
     let y = uv.y * f32(h) - 0.5;
@@ -142,10 +144,10 @@ fn texture(tex: u32, uv_in: vec2<f32>) -> vec4<f32> {
     let fy = y - y0;
     let xi = i32(x0);
     let yi = i32(y0);
-    let a = texel(off, w, h, sampler, xi, yi);
-    let b = texel(off, w, h, sampler, xi + 1, yi);
-    let c = texel(off, w, h, sampler, xi, yi + 1);
-    let d = texel(off, w, h, sampler, xi + 1, yi + 1);
+    let a = texel(off, w, h, smp, xi, yi);
+    let b = texel(off, w, h, smp, xi + 1, yi);
+    let c = texel(off, w, h, smp, xi, yi + 1);
+    let d = texel(off, w, h, smp, xi + 1, yi + 1);
     return (a * (1.0 - fx) + b * fx) * (1.0 - fy) + (c * (1.0 - fx) + d * fx) * fy;
 }
 
@@ -153,9 +155,9 @@ fn lerp4(a: vec4<f32>, b: vec4<f32>, c: vec4<f32>, u: f32, v: f32) -> vec4<f32> 
     return a * (1.0 - u - v) + b * u + c * v;
 }
 
-fn surface_uv(tri: u32, u: f32, v: f32, set: u32) -> vec2<f32> {
+fn surface_uv(tri: u32, u: f32, v: f32, uv_set: u32) -> vec2<f32> {
     let b0 = 1.0 - u - v;
-    if set == 1u && (params.features & FEAT_EXTRAS) != 0u {
+    if uv_set == 1u && (params.features & FEAT_EXTRAS) != 0u {
         let e = params.extras_offset + EXTRAS_STRIDE * tri;
         let a = shade[e + 3u];
         let b = shade[e + 4u];
@@ -466,7 +468,7 @@ fn trace_sample(pixel: u32, sample: u32) -> vec3<f32> {
                 wi = to / dl;
                 let n_l = cross(le1, le2);
                 let area2 = length(n_l);
-                // A single-sided light emits from its front (towards n_l) only; seen from behind
+                // A single-sided light emits ray_from its front (towards n_l) only; seen ray_from behind
                 // the sample is discarded (pdf 0).
                 let facing = -dot(n_l, wi) / area2;
                 var cos_l = max(facing, 0.0);
@@ -508,14 +510,14 @@ fn trace_sample(pixel: u32, sample: u32) -> vec3<f32> {
                 }
                 let contrib = throughput * fb.xyz * le * (abs(dot(ns, wi)) / pdf_l) * w;
                 if any(contrib != vec3<f32>(0.0)) {
-                    var from = po;
+                    var ray_from = po;
                     if side < 0.0 {
-                        from = offset_ray(p, -ng);
+                        ray_from = offset_ray(p, -ng);
                     }
                     if alpha_scene {
                         ray_seed = seed_for(pixel, sample, depth, 1u);
                     }
-                    let blocker = traverse(from, wi, tmax, true);
+                    let blocker = traverse(ray_from, wi, tmax, true);
                     if blocker.prim == NO_HIT {
                         radiance += contrib;
                     }

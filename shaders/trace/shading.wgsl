@@ -253,8 +253,8 @@ fn ext_eval(e: BsdfExt, n: vec3<f32>, wo: vec3<f32>, wi: vec3<f32>) -> vec4<f32>
     let d = ggx_d(noh, a2);
     let g = ggx_g1(cos_o, a2) * ggx_g1(-cos_i, a2);
     let jac = eta * eta * -wih / (denom * denom);
-    let core = woh * d * g * jac / (cos_o * -cos_i);
-    let value = b.base * ((1.0 - b.metallic) * (1.0 - max3(fr.fd)) * e.transmission * core * (1.0 - coat));
+    let btdf = woh * d * g * jac / (cos_o * -cos_i);
+    let value = b.base * ((1.0 - b.metallic) * (1.0 - max3(fr.fd)) * e.transmission * btdf * (1.0 - coat));
     return vec4<f32>(value, p.z * d * noh * jac);
 }
 

@@ -194,8 +194,12 @@ fn load_bytes(bytes: &[u8], file: &str, base: Option<&Path>) -> Result<Scene, Sc
             file: file.into(),
             reason: e.to_string(),
         })?;
-    let root = document.into_json();
+    let mut root = document.into_json();
     precheck(&root, file)?;
+    // Every required extension is one raygun implements (precheck); the gltf crate's
+    // validation would reject those it has no types for (KHR_mesh_quantization,
+    // KHR_materials_clearcoat), so the list has done its job.
+    root.extensions_required.clear();
     let doc = gltf::Document::from_json(root).map_err(|e| match e {
         gltf::Error::Validation(problems) => SceneError::Invalid {
             file: file.into(),
@@ -278,6 +282,33 @@ fn triangle_indices(mode: Mode, idx: &[u32]) -> Vec<[u32; 3]> {
             .map(|i| [idx[i + 1], idx[i + 2], idx[0]])
             .collect(),
         Mode::Points | Mode::Lines | Mode::LineLoop | Mode::LineStrip => Vec::new(),
+    }
+}
+
+/// A texture info's texture coordinates: its texCoord, or KHR_texture_transform's override,
+/// and the transform (non-finite values are the identity's).
+fn info_uv(info: &gltf::texture::Info) -> UvMap {
+    let Some(t) = info.texture_transform() else {
+        return UvMap {
+            tex_coord: info.tex_coord(),
+            transform: UvTransform::default(),
+        };
+    };
+    let finite2 = |v: [f32; 2], d: Vec2| {
+        let v = Vec2::from_array(v);
+        if v.is_finite() { v } else { d }
+    };
+    UvMap {
+        tex_coord: t.tex_coord().unwrap_or(info.tex_coord()),
+        transform: UvTransform {
+            offset: finite2(t.offset(), Vec2::ZERO),
+            rotation: if t.rotation().is_finite() {
+                t.rotation()
+            } else {
+                0.0
+            },
+            scale: finite2(t.scale(), Vec2::ONE),
+        },
     }
 }
 
@@ -737,11 +768,9 @@ impl Loader<'_> {
         element: &str,
         what: &str,
         tex: &gltf::Texture,
-        tex_coord: u32,
-        transform: Option<&serde_json::Value>,
+        uv: UvMap,
         srgb: bool,
     ) -> Result<Option<TextureRef>, SceneError> {
-        let uv = texture_transform(transform, tex_coord);
         if uv.tex_coord > 1 {
             self.report.unsupported(format!(
                 "texCoord {} ({element} {what}; only TEXCOORD_0 and TEXCOORD_1 are read, the factor is used)",
@@ -871,15 +900,10 @@ impl Loader<'_> {
             }
         };
         if let Some(t) = m.normal_texture() {
-            let tf = t.extension_value("KHR_texture_transform");
-            ext.normal_texture = self.texture_ref(
-                &element,
-                "normalTexture",
-                &t.texture(),
-                t.tex_coord(),
-                tf,
-                false,
-            )?;
+            // The gltf crate has no typed transform for normal textures: read its JSON.
+            let uv = texture_transform(t.extension_value("KHR_texture_transform"), t.tex_coord());
+            ext.normal_texture =
+                self.texture_ref(&element, "normalTexture", &t.texture(), uv, false)?;
             let s = t.scale();
             ext.normal_scale = if s.is_finite() { s } else { 1.0 };
         }
@@ -889,15 +913,8 @@ impl Loader<'_> {
             ));
         }
         if let Some(t) = m.emissive_texture() {
-            let tf = t.extension_value("KHR_texture_transform");
-            ext.emissive_texture = self.texture_ref(
-                &element,
-                "emissiveTexture",
-                &t.texture(),
-                t.tex_coord(),
-                tf,
-                true,
-            )?;
+            ext.emissive_texture =
+                self.texture_ref(&element, "emissiveTexture", &t.texture(), info_uv(&t), true)?;
             if ext.emissive_texture.is_none() {
                 // The factor alone would turn the whole mesh into a lamp; what the texture
                 // leaves dark is the usual case (exporters write factor 1 beside the texture).
@@ -907,25 +924,21 @@ impl Loader<'_> {
             }
         }
         if let Some(t) = pbr.metallic_roughness_texture() {
-            let tf = t.extension_value("KHR_texture_transform");
             ext.metallic_roughness_texture = self.texture_ref(
                 &element,
                 "metallicRoughnessTexture",
                 &t.texture(),
-                t.tex_coord(),
-                tf,
+                info_uv(&t),
                 false,
             )?;
         }
         let base_color_texture = match pbr.base_color_texture() {
             Some(info) => {
-                let tf = info.extension_value("KHR_texture_transform");
                 let r = self.texture_ref(
                     &element,
                     "baseColorTexture",
                     &info.texture(),
-                    info.tex_coord(),
-                    tf,
+                    info_uv(&info),
                     true,
                 )?;
                 if let Some(r) = r {
@@ -1093,7 +1106,7 @@ mod tests {
         let idx = [0, 1, 2, 3, 4];
         assert_eq!(
             triangle_indices(Mode::TriangleStrip, &idx),
-            vec![[0, 1, 2], [2, 1, 3], [2, 3, 4]]
+            vec![[0, 1, 2], [1, 3, 2], [2, 3, 4]]
         );
         assert_eq!(
             triangle_indices(Mode::TriangleFan, &idx),
