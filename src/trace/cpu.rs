@@ -202,6 +202,7 @@ fn base_color(sc: &PackedScene, mb: usize, flags: u32, sp: SurfacePoint) -> Vec4
 /// Coverage of an alpha-tested triangle at (u, v): MASK compares alpha with the cutoff, BLEND
 /// with a uniform threshold hashed from the ray's seed and the triangle (so a ray sees a
 /// blended surface with probability alpha). The twin of `alpha_covered` in path.wgsl.
+#[inline(never)]
 fn alpha_covered(sc: &PackedScene, tri: u32, u: f32, v: f32, seed: u32) -> bool {
     let mb = material_base(sc, tri);
     let flags = sc.materials[mb + 1][3] as u32;
@@ -236,8 +237,36 @@ fn emission_at(sc: &PackedScene, mb: usize, flags: u32, sp: SurfacePoint) -> Vec
     e
 }
 
+/// Next-event estimation of one punctual light (`u` the selection number): direction,
+/// radiance × falloff (inverse square, spot cone), selection probability, shadow ray length,
+/// and `true`: a delta light.
+#[inline(never)]
+fn sample_punctual(sc: &PackedScene, po: Vec3, u: f32) -> (Vec3, Vec3, f32, f32, bool) {
+    let n = sc.punctual_count;
+    let k = (((u - sc.env_select) / sc.punct_select * n as f32) as u32).min(n - 1);
+    let l = 3 * (sc.light_count + k) as usize;
+    let (la, lb, lc) = (sc.lights[l], sc.lights[l + 1], sc.lights[l + 2]);
+    let pdf = sc.punct_select / n as f32;
+    if la[3] as u32 == LIGHT_DIRECTIONAL {
+        return (v3(la), v3(lb), pdf, f32::INFINITY, true);
+    }
+    let to = v3(la) - po;
+    let dist2 = to.length_squared();
+    let dist = dist2.sqrt();
+    let wi = to / dist;
+    let mut le = v3(lb) / dist2;
+    if la[3] as u32 == LIGHT_SPOT {
+        // glTF's recommended smooth falloff between the cones.
+        let scale = 1.0 / (lc[3] - lb[3]).max(0.001);
+        let t = ((v3(lc).dot(-wi) - lb[3]) * scale).clamp(0.0, 1.0);
+        le *= t * t;
+    }
+    (wi, le, pdf, dist * (1.0 - 1e-4), true)
+}
+
 /// The normal-mapped shading normal: the slot-2 texel in the frame of the interpolated
 /// tangent (sign in w) and `ns` (before any flip to the viewer's side).
+#[inline(never)]
 fn normal_mapped(sc: &PackedScene, mb: usize, sp: SurfacePoint, ns: Vec3) -> Vec3 {
     let tn = slot(sc, mb, 2, sp).truncate() * 2.0 - Vec3::ONE;
     let scale = sc.materials[mb + 4][3];
@@ -429,9 +458,12 @@ pub fn trace_counted(sc: &PackedScene, s: &TraceSettings, pixel: u32, sample: u3
             }
         });
         let transmits = ext.is_some_and(|e| e.transmits());
-        let eval = |wi: Vec3| match &ext {
-            Some(e) => e.eval(ns, wo, wi),
-            None => bsdf.eval(ns, wo, wi),
+        let eval = |wi: Vec3| {
+            if let Some(e) = &ext {
+                e.eval(ns, wo, wi)
+            } else {
+                bsdf.eval(ns, wo, wi)
+            }
         };
         let r1 = rand4(pixel, sample, s.seed, 1 + 2 * depth);
         let r2 = rand4(pixel, sample, s.seed, 2 + 2 * depth);
@@ -444,27 +476,7 @@ pub fn trace_counted(sc: &PackedScene, s: &TraceSettings, pixel: u32, sample: u3
                 let (wi, le, pdf) = sample_env(sc, r1[1], r1[2]);
                 (wi, le, sc.env_select * pdf, f32::INFINITY, false)
             } else if r1[0] < sc.env_select + sc.punct_select {
-                let n = sc.punctual_count;
-                let k = (((r1[0] - sc.env_select) / sc.punct_select * n as f32) as u32).min(n - 1);
-                let l = 3 * (sc.light_count + k) as usize;
-                let (la, lb, lc) = (sc.lights[l], sc.lights[l + 1], sc.lights[l + 2]);
-                let pdf = sc.punct_select / n as f32;
-                if la[3] as u32 == LIGHT_DIRECTIONAL {
-                    (v3(la), v3(lb), pdf, f32::INFINITY, true)
-                } else {
-                    let to = v3(la) - po;
-                    let dist2 = to.length_squared();
-                    let dist = dist2.sqrt();
-                    let wi = to / dist;
-                    let mut le = v3(lb) / dist2;
-                    if la[3] as u32 == LIGHT_SPOT {
-                        // glTF's recommended smooth falloff between the cones.
-                        let scale = 1.0 / (lc[3] - lb[3]).max(0.001);
-                        let t = ((v3(lc).dot(-wi) - lb[3]) * scale).clamp(0.0, 1.0);
-                        le *= t * t;
-                    }
-                    (wi, le, pdf, dist * (1.0 - 1e-4), true)
-                }
+                sample_punctual(sc, po, r1[0])
             } else {
                 let u = ((r1[0] - sc.env_select - sc.punct_select) / tri_select).min(0.99999994);
                 let k = sample_cdf(&sc.dist, 0, sc.light_count, u);
