@@ -251,7 +251,7 @@ fn an_alpha_masked_quad_in_front_of_an_emitter_lets_exactly_the_unmasked_area_th
     let alpha = 64.0 / 255.0;
     for (acc, label) in both(&blend, &s, 64) {
         let all: Vec<usize> = (0..256).collect();
-        let z = z_of(&acc, &all, 3.0 * (1.0 - f64::from(alpha)));
+        let z = z_of(&acc, &all, 3.0 * (1.0 - alpha));
         assert!(z.abs() < 5.0, "{label}: blended coverage z = {z}");
         assert!(
             z_of(&acc, &all, 3.0 * 0.72).abs() > 5.0,
@@ -579,7 +579,7 @@ fn everything() -> Scene {
         })
         .collect();
     let tex = |name, w, h, texels, wrap, nearest, srgb| Texture {
-        name: name,
+        name,
         width: w,
         height: h,
         texels,

@@ -287,7 +287,13 @@ fn texture_transform_test_shows_no_not_supported_or_error_marker() {
         (1.1 - 0.07, -0.55 - 0.25),
     ];
     for (name, cx, offset, rotation, scale) in [
-        ("Rotation", -1.1f32, Vec2::ZERO, 0.392_699_1f32, Vec2::ONE),
+        (
+            "Rotation",
+            -1.1f32,
+            Vec2::ZERO,
+            std::f32::consts::FRAC_PI_8,
+            Vec2::ONE,
+        ),
         ("Scale", 0.0, Vec2::ZERO, 0.0, Vec2::splat(1.5)),
         ("All", 1.1, Vec2::new(-0.2, -0.1), 0.3, Vec2::splat(1.5)),
     ] {

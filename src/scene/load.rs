@@ -496,9 +496,11 @@ impl Loader<'_> {
         let (position, direction, _) = self.frame(&element, world)?;
         let color = Vec3::from_array(light.color());
         let intensity = light.intensity();
-        if !(color.is_finite() && color.min_element() >= 0.0)
-            || !(intensity >= 0.0 && intensity.is_finite())
-        {
+        let usable = color.is_finite()
+            && color.min_element() >= 0.0
+            && intensity >= 0.0
+            && intensity.is_finite();
+        if !usable {
             return Err(self.element_error(
                 element,
                 format!("color {color} × intensity {intensity} is not finite and ≥ 0"),
