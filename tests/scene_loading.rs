@@ -902,7 +902,7 @@ fn material_textures_vertex_colours_lights_and_cameras_load_as_the_file_says() {
 }
 
 /// Quantized geometry (KHR_mesh_quantization: normalized i16 positions under a node scale)
-/// loads; Draco, meshopt and KTX2 are clean errors naming the extension.
+/// loads; Draco and KTX2 are clean errors naming the extension.
 #[test]
 fn quantized_meshes_load_and_compressed_ones_are_named() {
     let mut d = Doc::default();
@@ -920,11 +920,7 @@ fn quantized_meshes_load_and_compressed_ones_are_named() {
     }));
     let scene = load(&bytes).unwrap();
     assert_eq!(scene.triangles[0].p[1], Vec3::new(2.0, 0.0, 0.0));
-    for ext in [
-        "KHR_draco_mesh_compression",
-        "EXT_meshopt_compression",
-        "KHR_texture_basisu",
-    ] {
+    for ext in ["KHR_draco_mesh_compression", "KHR_texture_basisu"] {
         let doc = format!(
             r#"{{"asset":{{"version":"2.0"}},"extensionsUsed":["{ext}"],"extensionsRequired":["{ext}"]}}"#
         );
@@ -1012,5 +1008,96 @@ fn errors_name_the_file_and_the_element() {
     assert_eq!(
         e,
         "test.gltf: node 'loop': is reached twice: the node hierarchy must be a tree"
+    );
+}
+
+/// EXT_meshopt_compression (gltfpack's output): positions and octahedral-filtered normals
+/// encoded by meshoptimizer, indices by its triangle codec, decoded into the fallback buffer:
+/// the same triangles as the uncompressed file; broken streams are errors naming the view.
+#[test]
+fn meshopt_compressed_meshes_load_as_their_uncompressed_originals() {
+    // A 2 × 2 grid of quads (9 vertices, 8 triangles) in z = 0.
+    let positions: Vec<[f32; 3]> = (0..9)
+        .map(|i| [(i % 3) as f32, (i / 3) as f32, 0.0])
+        .collect();
+    let indices: Vec<u32> = (0..4)
+        .flat_map(|q| {
+            let (x, y) = (q % 2, q / 2);
+            let a = y * 3 + x;
+            [a, a + 1, a + 4, a, a + 4, a + 3]
+        })
+        .collect();
+    let normals = meshopt::encode_filter_oct::<i8>(&[[0.0, 0.0, 1.0, 0.0]; 9], 8);
+    let vb = meshopt::encode_vertex_buffer(&positions).unwrap();
+    let nb = meshopt::encode_vertex_buffer(&normals).unwrap();
+    let ib = meshopt::encode_index_buffer(&indices, 9).unwrap();
+    let mut compressed = Vec::new();
+    let mut place = |bytes: &[u8]| {
+        while compressed.len() % 4 != 0 {
+            compressed.push(0);
+        }
+        let at = compressed.len();
+        compressed.extend_from_slice(bytes);
+        (at, bytes.len())
+    };
+    let (vo, vl) = place(&vb);
+    let (no, nl) = place(&nb);
+    let (io, il) = place(&ib);
+    let ext = |offset: usize,
+               length: usize,
+               stride: usize,
+               count: usize,
+               mode: &str,
+               filter: &str| {
+        json!({ "EXT_meshopt_compression": { "buffer": 0, "byteOffset": offset, "byteLength": length,
+            "byteStride": stride, "count": count, "mode": mode, "filter": filter } })
+    };
+    let doc = |index_stream: &[u8]| {
+        let mut c = compressed.clone();
+        c[io..io + il].copy_from_slice(&index_stream[..il]);
+        let root = json!({
+            "asset": { "version": "2.0" },
+            "extensionsUsed": ["EXT_meshopt_compression"],
+            "extensionsRequired": ["EXT_meshopt_compression"],
+            "buffers": [
+                { "byteLength": c.len(), "uri": format!("data:application/octet-stream;base64,{}", base64::encode(&c)) },
+                { "byteLength": 108 + 36 + 96, "extensions": { "EXT_meshopt_compression": { "fallback": true } } },
+            ],
+            "bufferViews": [
+                { "buffer": 1, "byteOffset": 0, "byteLength": 108, "byteStride": 12, "extensions": ext(vo, vl, 12, 9, "ATTRIBUTES", "NONE") },
+                { "buffer": 1, "byteOffset": 108, "byteLength": 36, "byteStride": 4, "extensions": ext(no, nl, 4, 9, "ATTRIBUTES", "OCTAHEDRAL") },
+                { "buffer": 1, "byteOffset": 144, "byteLength": 96, "extensions": ext(io, il, 4, 24, "TRIANGLES", "NONE") },
+            ],
+            "accessors": [
+                { "bufferView": 0, "componentType": 5126, "count": 9, "type": "VEC3", "min": [0, 0, 0], "max": [2, 2, 0] },
+                { "bufferView": 1, "componentType": 5120, "normalized": true, "count": 9, "type": "VEC3" },
+                { "bufferView": 2, "componentType": 5125, "count": 24, "type": "SCALAR" },
+            ],
+            "meshes": [{ "name": "packed", "primitives": [{ "attributes": { "POSITION": 0, "NORMAL": 1 }, "indices": 2 }] }],
+            "nodes": [{ "mesh": 0 }],
+            "scenes": [{ "nodes": [0] }],
+        });
+        serde_json::to_vec(&root).unwrap()
+    };
+    let scene = load(&doc(&ib)).unwrap();
+    assert!(scene.unsupported.is_empty(), "{:?}", scene.unsupported);
+    assert_eq!(scene.triangles.len(), 8);
+    // The index codec may rotate a triangle's vertices (keeping its winding).
+    for (t, tri) in scene.triangles.iter().zip(indices.chunks(3)) {
+        let want: Vec<[f32; 3]> = tri.iter().map(|&i| positions[i as usize]).collect();
+        let got: Vec<[f32; 3]> = t.p.iter().map(|p| p.to_array()).collect();
+        assert!(
+            (0..3).any(|r| (0..3).all(|k| got[k] == want[(k + r) % 3])),
+            "{got:?} is no rotation of {want:?}"
+        );
+        for n in t.n {
+            assert!((n - Vec3::Z).length() < 1e-2, "{n}");
+        }
+    }
+    // A corrupted index stream is an error naming the view, not garbage triangles.
+    let e = err(&doc(&vec![0xff; il]));
+    assert!(
+        e.starts_with("test.gltf: buffer view 2: EXT_meshopt_compression:"),
+        "{e}"
     );
 }

@@ -50,6 +50,7 @@ pub const SUPPORTED_EXTENSIONS: &[&str] = &[
     "KHR_texture_transform",
     "KHR_lights_punctual",
     "KHR_mesh_quantization",
+    "EXT_meshopt_compression",
 ];
 
 /// A scene that cannot be loaded. Every message names the file and the element at fault.

@@ -16,6 +16,10 @@ use super::{Sampler, Texture, Wrap};
 /// texture is 512 MiB, more than any texture the tracer can bind.
 const MAX_IMAGE_BYTES: u64 = 512 << 20;
 
+/// The largest EXT_meshopt_compression fallback buffer (decoded data) a file may declare: its
+/// bytes cost memory, not file size, so a hostile file could ask for terabytes.
+const MAX_DECODED_BYTES: usize = 1 << 30;
+
 /// The GLB header's declared length must cover the header itself: `gltf::binary::Glb` subtracts
 /// 12 from it unchecked (an overflow panic, found by fuzzing).
 pub(super) fn check_glb_header(bytes: &[u8], file: &str) -> Result<(), SceneError> {
@@ -43,6 +47,26 @@ pub(super) fn load_buffers(
     let mut out = Vec::new();
     for buffer in doc.buffers() {
         let element = label("buffer", buffer.name(), buffer.index());
+        let fallback = buffer
+            .extension_value("EXT_meshopt_compression")
+            .and_then(|e| e.get("fallback"))
+            .and_then(serde_json::Value::as_bool)
+            == Some(true);
+        if fallback && matches!(buffer.source(), gltf::buffer::Source::Bin) {
+            // A placeholder for decoded views (EXT_meshopt_compression): filled below.
+            if buffer.length() > MAX_DECODED_BYTES {
+                return Err(SceneError::Element {
+                    file: file.into(),
+                    element,
+                    problem: format!(
+                        "declares {} bytes of decoded data (at most {MAX_DECODED_BYTES})",
+                        buffer.length()
+                    ),
+                });
+            }
+            out.push(vec![0; buffer.length()]);
+            continue;
+        }
         let data = match buffer.source() {
             gltf::buffer::Source::Bin => {
                 blob.map(<[u8]>::to_vec)
@@ -74,7 +98,142 @@ pub(super) fn load_buffers(
         }
         out.push(data);
     }
+    decode_meshopt_views(doc, &mut out, file)?;
     Ok(out)
+}
+
+/// EXT_meshopt_compression: every buffer view with the extension is decoded from its
+/// compressed bytes into the bytes the view itself names (usually in a fallback buffer), with
+/// meshoptimizer's decoders (safe for untrusted input: bad data decodes to garbage or an
+/// error, never out of bounds) and filters.
+fn decode_meshopt_views(
+    doc: &gltf::Document,
+    buffers: &mut [Vec<u8>],
+    file: &str,
+) -> Result<(), SceneError> {
+    for view in doc.views() {
+        let Some(ext) = view.extension_value("EXT_meshopt_compression") else {
+            continue;
+        };
+        let element = label("buffer view", view.name(), view.index());
+        let error = |problem: String| SceneError::Element {
+            file: file.into(),
+            element: element.clone(),
+            problem: format!("EXT_meshopt_compression: {problem}"),
+        };
+        let num = |key: &str| ext.get(key).and_then(serde_json::Value::as_u64);
+        let str_of = |key: &str| ext.get(key).and_then(serde_json::Value::as_str);
+        let (Some(source), Some(length), Some(stride), Some(count)) = (
+            num("buffer"),
+            num("byteLength"),
+            num("byteStride"),
+            num("count"),
+        ) else {
+            return Err(error(
+                "buffer, byteLength, byteStride and count are required".into(),
+            ));
+        };
+        let (source, offset, length, stride, count) = (
+            source as usize,
+            num("byteOffset").unwrap_or(0) as usize,
+            length as usize,
+            stride as usize,
+            count as usize,
+        );
+        let mode = str_of("mode").unwrap_or("");
+        let filter = str_of("filter").unwrap_or("NONE");
+        let valid_stride = match mode {
+            "ATTRIBUTES" => stride % 4 == 0 && (4..=256).contains(&stride),
+            "TRIANGLES" | "INDICES" => stride == 2 || stride == 4,
+            _ => return Err(error(format!("unknown mode '{mode}'"))),
+        };
+        if !valid_stride {
+            return Err(error(format!(
+                "byteStride {stride} is not valid for {mode}"
+            )));
+        }
+        let out_len = count
+            .checked_mul(stride)
+            .filter(|&n| n <= view.length() && n <= MAX_DECODED_BYTES)
+            .ok_or_else(|| {
+                error(format!(
+                    "{count} × {stride} bytes do not fit the view's {} bytes",
+                    view.length()
+                ))
+            })?;
+        let compressed = buffers
+            .get(source)
+            .and_then(|b| b.get(offset..offset.checked_add(length)?))
+            .ok_or_else(|| {
+                error(format!(
+                    "bytes {offset}+{length} of buffer {source} do not exist"
+                ))
+            })?
+            .to_vec();
+        let mut decoded = vec![0u8; out_len];
+        // SAFETY: `decoded` holds exactly count × stride bytes, the size each decoder writes;
+        // the decoders read only `compressed` (its pointer and length) and check its format.
+        let rc = unsafe {
+            let (dst, src) = (decoded.as_mut_ptr().cast(), compressed.as_ptr());
+            match mode {
+                "ATTRIBUTES" => meshopt::ffi::meshopt_decodeVertexBuffer(
+                    dst,
+                    count,
+                    stride,
+                    src,
+                    compressed.len(),
+                ),
+                "TRIANGLES" => meshopt::ffi::meshopt_decodeIndexBuffer(
+                    dst,
+                    count,
+                    stride,
+                    src,
+                    compressed.len(),
+                ),
+                _ => meshopt::ffi::meshopt_decodeIndexSequence(
+                    dst,
+                    count,
+                    stride,
+                    src,
+                    compressed.len(),
+                ),
+            }
+        };
+        if rc != 0 {
+            return Err(error(format!(
+                "the compressed data does not decode (code {rc})"
+            )));
+        }
+        let filter_ok = match filter {
+            "NONE" => true,
+            "OCTAHEDRAL" => mode == "ATTRIBUTES" && (stride == 4 || stride == 8),
+            "QUATERNION" => mode == "ATTRIBUTES" && stride == 8,
+            "EXPONENTIAL" => mode == "ATTRIBUTES",
+            _ => false,
+        };
+        if !filter_ok {
+            return Err(error(format!(
+                "filter '{filter}' does not apply to {mode} of stride {stride}"
+            )));
+        }
+        // SAFETY: each filter rewrites count elements of `stride` bytes in place, the buffer's
+        // exact size; the strides are the ones the filters accept (checked above).
+        unsafe {
+            let p = decoded.as_mut_ptr().cast();
+            match filter {
+                "OCTAHEDRAL" => meshopt::ffi::meshopt_decodeFilterOct(p, count, stride),
+                "QUATERNION" => meshopt::ffi::meshopt_decodeFilterQuat(p, count, stride),
+                "EXPONENTIAL" => meshopt::ffi::meshopt_decodeFilterExp(p, count, stride),
+                _ => {}
+            }
+        }
+        let target = buffers
+            .get_mut(view.buffer().index())
+            .and_then(|b| b.get_mut(view.offset()..view.offset().checked_add(out_len)?))
+            .ok_or_else(|| error("the view lies outside its buffer".into()))?;
+        target.copy_from_slice(&decoded);
+    }
+    Ok(())
 }
 
 /// A URI for messages: data URIs are cut to their media type.
