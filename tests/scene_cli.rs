@@ -84,3 +84,49 @@ fn scene_info_prints_counts_bounds_cameras_and_problems() {
         "{e}"
     );
 }
+
+/// `render` takes an orthographic camera by name, a viewpoint from `--look-from/--look-at/
+/// --yfov` for files without one, and says which cameras exist when the name is wrong.
+#[test]
+fn render_takes_orthographic_cameras_and_look_from_viewpoints() {
+    let file = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/data/gltf-samples/Cameras.gltf"
+    );
+    let png = tmp("cameras.png");
+    let png = png.to_str().unwrap();
+    let common = [
+        "--size",
+        "16,16",
+        "--spp",
+        "1",
+        "--backend",
+        "cpu",
+        "--quiet",
+    ];
+    let ok = |extra: &[&str]| {
+        let mut args = vec!["render", "--scene", file, "--out", png];
+        args.extend_from_slice(&common);
+        args.extend_from_slice(extra);
+        raygun(&args)
+    };
+    let o = ok(&["--camera", "camera 1"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = ok(&[
+        "--look-from",
+        "0.5,0.5,3",
+        "--look-at",
+        "0.5,0.5,0",
+        "--yfov",
+        "30",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = ok(&["--look-from", "0.5,0.5,3"]);
+    assert!(!o.status.success(), "--look-from needs --look-at");
+    let o = ok(&["--camera", "nope"]);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && e.contains("'camera 0', 'camera 1' (orthographic)"),
+        "{e}"
+    );
+}

@@ -125,7 +125,12 @@ fn traverse(o: vec3<f32>, d: vec3<f32>, tmax_in: f32, any_hit: bool) -> Hit {
             let pid = prim_group.x + local;
             let a = prims[3u * pid];
             let c = prims[3u * pid + 2u];
-            let r = intersect_triangle(o, d, a.xyz, prims[3u * pid + 1u].xyz, c.xyz, hit.t, c.w != 0.0);
+            // Flags as a small float (src/trace/bvh.rs): 1 single-sided, 2 alpha-tested.
+            let flags = u32(c.w);
+            var r = intersect_triangle(o, d, a.xyz, prims[3u * pid + 1u].xyz, c.xyz, hit.t, (flags & 1u) != 0u);
+            if r.x > 0.0 && (flags & 2u) != 0u && !alpha_covered(bitcast<u32>(a.w), r.y, r.z) {
+                r.x = -1.0;
+            }
             if r.x > 0.0 {
                 hit = Hit(r.x, r.y, r.z, pid);
                 if any_hit {

@@ -23,7 +23,32 @@ struct Params {
     node_count: u32,
     cam_up: vec3<f32>,
     _pad: u32,
+    features: u32,       // 1 vertex extras packed, 2 some primitive alpha-tested
+    extras_offset: u32,  // vec4 index of the vertex extras in `shade`
+    punctual_count: u32,
+    punct_select: f32,
+    ortho_half_y: f32,   // orthographic window half height (0: pinhole)
+    _pad1: u32,
+    _pad2: u32,
+    _pad3: u32,
 }
+
+// Layout constants: src/trace/pack.rs (module doc).
+const MATERIAL_STRIDE: u32 = 13u;
+const EXTRAS_STRIDE: u32 = 8u;
+const MAT_BASE_TEX: u32 = 2u;
+const MAT_MR_TEX: u32 = 4u;
+const MAT_NORMAL_TEX: u32 = 8u;
+const MAT_EMISSIVE_TEX: u32 = 16u;
+const MAT_MASK: u32 = 32u;
+const MAT_BLEND: u32 = 64u;
+const MAT_EXT_BSDF: u32 = 128u;
+const FEAT_EXTRAS: u32 = 1u;
+const FEAT_ALPHA: u32 = 2u;
+const LIGHT_SPOT: u32 = 1u;
+const LIGHT_DIRECTIONAL: u32 = 2u;
+const ALPHA_HASH: u32 = 0x414c5048u;
+const MIN_ALPHA: f32 = 1e-3;
 
 const NO_TEXTURE: u32 = 0xffffffffu;
 const STREAM_TRACE: u32 = 0x7a3c0000u;
@@ -75,24 +100,41 @@ fn sample_cdf(offset: u32, n: u32, u: f32) -> u32 {
     return lo;
 }
 
-fn texel(off: u32, w: u32, h: u32, x: i32, y: i32) -> vec4<f32> {
-    let wi = i32(w);
-    let hi = i32(h);
-    let xi = u32(((x % wi) + wi) % wi);
-    let yi = u32(((y % hi) + hi) % hi);
+fn wrap(i: i32, n: u32, mode: u32) -> u32 {
+    let ni = i32(n);
+    if mode == 1u {
+        return u32(clamp(i, 0, ni - 1));
+    }
+    if mode == 2u {
+        let k = ((i % (2 * ni)) + 2 * ni) % (2 * ni);
+        return u32(select(k, 2 * ni - 1 - k, k >= ni));
+    }
+    return u32(((i % ni) + ni) % ni);
+}
+
+fn texel(off: u32, w: u32, h: u32, smp: u32, x: i32, y: i32) -> vec4<f32> {
+    let xi = wrap(x, w, smp & 3u);
+    let yi = wrap(y, h, (smp >> 2u) & 3u);
     let c = texels[off + yi * w + xi];
     let ch = vec4<f32>(f32(c & 0xffu), f32((c >> 8u) & 0xffu), f32((c >> 16u) & 0xffu), f32(c >> 24u)) / 255.0;
-    return vec4<f32>(srgb_to_linear(ch.x), srgb_to_linear(ch.y), srgb_to_linear(ch.z), ch.w);
+    if (smp & 32u) != 0u {
+        return vec4<f32>(srgb_to_linear(ch.x), srgb_to_linear(ch.y), srgb_to_linear(ch.z), ch.w);
+    }
+    return ch;
 }
 
 fn texture(tex: u32, uv_in: vec2<f32>) -> vec4<f32> {
     let off = texels[4u * tex];
     let w = texels[4u * tex + 1u];
     let h = texels[4u * tex + 2u];
+    let smp = texels[4u * tex + 3u];
     // Non-finite coordinates read as 0 (the CPU twin does the same).
     var uv = uv_in;
     if !(abs(uv.x) <= T_FAR && abs(uv.y) <= T_FAR) {
         uv = vec2<f32>(0.0);
+    }
+    if (smp & 16u) != 0u {
+        return texel(off, w, h, smp, i32(floor(uv.x * f32(w))), i32(floor(uv.y * f32(h))));
     }
     let x = uv.x * f32(w) - 0.5;
     let y = uv.y * f32(h) - 0.5;
@@ -102,11 +144,95 @@ fn texture(tex: u32, uv_in: vec2<f32>) -> vec4<f32> {
     let fy = y - y0;
     let xi = i32(x0);
     let yi = i32(y0);
-    let a = texel(off, w, h, xi, yi);
-    let b = texel(off, w, h, xi + 1, yi);
-    let c = texel(off, w, h, xi, yi + 1);
-    let d = texel(off, w, h, xi + 1, yi + 1);
+    let a = texel(off, w, h, smp, xi, yi);
+    let b = texel(off, w, h, smp, xi + 1, yi);
+    let c = texel(off, w, h, smp, xi, yi + 1);
+    let d = texel(off, w, h, smp, xi + 1, yi + 1);
     return (a * (1.0 - fx) + b * fx) * (1.0 - fy) + (c * (1.0 - fx) + d * fx) * fy;
+}
+
+fn lerp4(a: vec4<f32>, b: vec4<f32>, c: vec4<f32>, u: f32, v: f32) -> vec4<f32> {
+    return a * (1.0 - u - v) + b * u + c * v;
+}
+
+fn surface_uv(tri: u32, u: f32, v: f32, uv_set: u32) -> vec2<f32> {
+    let b0 = 1.0 - u - v;
+    if uv_set == 1u && (params.features & FEAT_EXTRAS) != 0u {
+        let e = params.extras_offset + EXTRAS_STRIDE * tri;
+        let a = shade[e + 3u];
+        let b = shade[e + 4u];
+        return a.xy * b0 + a.zw * u + b.xy * v;
+    }
+    let ti = 4u * tri;
+    return vec2<f32>(shade[ti].w, shade[ti + 1u].w) * b0 + vec2<f32>(shade[ti + 2u].w, shade[ti + 3u].x) * u
+        + shade[ti + 3u].yz * v;
+}
+
+fn slot(mb: u32, k: u32, tri: u32, u: f32, v: f32) -> vec4<f32> {
+    let r0 = materials[mb + 5u + 2u * k];
+    let r1 = materials[mb + 6u + 2u * k];
+    let uv = vec3<f32>(surface_uv(tri, u, v, bitcast<u32>(r1.w)), 1.0);
+    return texture(bitcast<u32>(r0.w), vec2<f32>(dot(r0.xyz, uv), dot(r1.xyz, uv)));
+}
+
+fn material_base(tri: u32) -> u32 {
+    return MATERIAL_STRIDE * bitcast<u32>(shade[4u * tri + 3u].w);
+}
+
+fn base_color(mb: u32, flags: u32, tri: u32, u: f32, v: f32) -> vec4<f32> {
+    var base = materials[mb];
+    if (flags & MAT_BASE_TEX) != 0u {
+        base *= slot(mb, 0u, tri, u, v);
+    }
+    if (params.features & FEAT_EXTRAS) != 0u {
+        let e = params.extras_offset + EXTRAS_STRIDE * tri;
+        base *= lerp4(shade[e], shade[e + 1u], shade[e + 2u], u, v);
+    }
+    return base;
+}
+
+// The coverage seed of the ray being traced (set before each traverse).
+var<private> ray_seed: u32;
+
+// Called by traverse() for alpha-tested primitives (CPU twin: cpu::alpha_covered).
+fn alpha_covered(tri: u32, u: f32, v: f32) -> bool {
+    let mb = material_base(tri);
+    let flags = u32(materials[mb + 1u].w);
+    let a = base_color(mb, flags, tri, u, v).w;
+    if (flags & MAT_MASK) != 0u {
+        return a >= materials[mb + 2u].w;
+    }
+    return a > unit_f32(pcg4d(vec4<u32>(ray_seed, tri, ALPHA_HASH, 0u)).x);
+}
+
+fn seed_for(pixel: u32, sample: u32, depth: u32, which: u32) -> u32 {
+    return pcg4d(vec4<u32>(pixel, sample, params.seed, STREAM_TRACE + 0x8000u + 2u * depth + which)).x;
+}
+
+fn emission_at(mb: u32, flags: u32, tri: u32, u: f32, v: f32) -> vec3<f32> {
+    var e = materials[mb + 1u].xyz;
+    if (flags & MAT_EMISSIVE_TEX) != 0u {
+        e *= slot(mb, 3u, tri, u, v).xyz;
+    }
+    return e;
+}
+
+fn normal_mapped(mb: u32, tri: u32, u: f32, v: f32, ns: vec3<f32>) -> vec3<f32> {
+    let tn = slot(mb, 2u, tri, u, v).xyz * 2.0 - vec3<f32>(1.0);
+    let scale = materials[mb + 4u].w;
+    let e = params.extras_offset + EXTRAS_STRIDE * tri;
+    let t4 = lerp4(shade[e + 5u], shade[e + 6u], shade[e + 7u], u, v);
+    var t = t4.xyz - ns * dot(ns, t4.xyz);
+    if !(dot(t, t) > 1e-12) {
+        t = basis_t(ns)[0];
+    }
+    t = normalize(t);
+    let b = cross(ns, t) * select(1.0, -1.0, t4.w < 0.0);
+    let m = normalize(t * (tn.x * scale) + b * (tn.y * scale) + ns * tn.z);
+    if is_finite3(m) {
+        return m;
+    }
+    return ns;
 }
 
 // Radiance in .xyz, sampling density in .w.
@@ -173,6 +299,13 @@ fn camera_direction(x: f32, y: f32) -> vec3<f32> {
     return normalize(params.cam_fwd + params.cam_right * sx + params.cam_up * sy);
 }
 
+// The orthographic camera's ray origin for image point (x, y).
+fn camera_origin(x: f32, y: f32) -> vec3<f32> {
+    let sx = (2.0 * x / f32(params.size.x) - 1.0) * params.ortho_half_y * params.aspect;
+    let sy = (1.0 - 2.0 * y / f32(params.size.y)) * params.ortho_half_y;
+    return params.cam_pos + params.cam_right * sx + params.cam_up * sy;
+}
+
 fn is_finite3(v: vec3<f32>) -> bool {
     return all(abs(v) <= vec3<f32>(T_FAR));
 }
@@ -181,12 +314,25 @@ fn trace_sample(pixel: u32, sample: u32) -> vec3<f32> {
     let x = pixel % params.size.x;
     let y = pixel / params.size.x;
     let r0 = rand4(pixel, sample, 0u);
-    var d = camera_direction(f32(x) + r0.x, f32(y) + r0.y);
-    var o = params.cam_pos;
+    var d: vec3<f32>;
+    var o: vec3<f32>;
+    if params.ortho_half_y > 0.0 {
+        o = camera_origin(f32(x) + r0.x, f32(y) + r0.y);
+        d = params.cam_fwd;
+    } else {
+        d = camera_direction(f32(x) + r0.x, f32(y) + r0.y);
+        o = params.cam_pos;
+    }
     var throughput = vec3<f32>(1.0);
     var radiance = vec3<f32>(0.0);
     var prev_pdf = 0.0;
+    let alpha_scene = (params.features & FEAT_ALPHA) != 0u;
+    let tri_select = 1.0 - params.env_select - params.punct_select;
     for (var depth = 0u; depth < params.max_depth; depth++) {
+        ray_seed = 0u;
+        if alpha_scene {
+            ray_seed = seed_for(pixel, sample, depth, 0u);
+        }
         let hit = traverse(o, d, T_FAR, false);
         if hit.prim == NO_HIT {
             let le = env_eval(d);
@@ -206,7 +352,8 @@ fn trace_sample(pixel: u32, sample: u32) -> vec3<f32> {
         let light_density = pb.w;
         var ng = normalize(cross(e1, e2));
         let p = v0 + e1 * hit.u + e2 * hit.v;
-        let ti = 4u * bitcast<u32>(pa.w);
+        let tri = bitcast<u32>(pa.w);
+        let ti = 4u * tri;
         let s0 = shade[ti];
         let s1 = shade[ti + 1u];
         let s2 = shade[ti + 2u];
@@ -216,51 +363,94 @@ fn trace_sample(pixel: u32, sample: u32) -> vec3<f32> {
         if !is_finite3(ns) {
             ns = ng;
         }
-        let uv = vec2<f32>(s0.w, s1.w) * b0 + vec2<f32>(s2.w, s3.x) * hit.u + vec2<f32>(s3.y, s3.z) * hit.v;
-        let mi = 3u * bitcast<u32>(s3.w);
-        let m0 = materials[mi];
-        let m1 = materials[mi + 1u];
-        let m2 = materials[mi + 2u];
+        let mb = MATERIAL_STRIDE * bitcast<u32>(s3.w);
+        let m1 = materials[mb + 1u];
+        let m2 = materials[mb + 2u];
+        let flags = u32(m1.w);
         let wo = -d;
         let cos_hit = abs(dot(ng, d));
-        if dot(ng, wo) < 0.0 {
+        let front = dot(ng, wo) >= 0.0;
+        if !front {
             ng = -ng;
+        }
+        if (flags & MAT_NORMAL_TEX) != 0u {
+            ns = normal_mapped(mb, tri, hit.u, hit.v, ns);
         }
         if dot(ns, ng) < 0.0 {
             ns = -ns;
         }
-        let emission = m1.xyz;
+        let emission = emission_at(mb, flags, tri, hit.u, hit.v);
         if any(emission != vec3<f32>(0.0)) {
             var w = 1.0;
             if prev_pdf != 0.0 {
-                let pdf_light = (1.0 - params.env_select) * light_density * hit.t * hit.t / cos_hit;
+                let pdf_light = tri_select * light_density * hit.t * hit.t / cos_hit;
                 w = mis(prev_pdf, pdf_light);
             }
             radiance += throughput * emission * w;
         }
-        var base = m0;
-        let tex = bitcast<u32>(m1.w);
-        if tex != NO_TEXTURE {
-            base *= texture(tex, uv);
+        let base = base_color(mb, flags, tri, hit.u, hit.v);
+        var metallic = m2.x;
+        var alpha = m2.y;
+        if (flags & MAT_MR_TEX) != 0u {
+            let mr = slot(mb, 1u, tri, hit.u, hit.v);
+            alpha = max(alpha * mr.y * mr.y, MIN_ALPHA);
+            metallic *= mr.z;
         }
-        let bsdf = Bsdf(base.xyz, m2.x, m2.y, m2.z);
+        let bsdf = Bsdf(base.xyz, metallic, alpha, m2.z);
+        let has_ext = (flags & MAT_EXT_BSDF) != 0u;
+        var ext = BsdfExt(bsdf, vec3<f32>(1.0), 0.04, 1.5, 0.0, 0.0, 0.1);
+        if has_ext {
+            let m3 = materials[mb + 3u];
+            let m4 = materials[mb + 4u];
+            let ior = m4.x;
+            let f0 = (ior - 1.0) / (ior + 1.0);
+            ext = BsdfExt(bsdf, m3.xyz, f0 * f0, select(1.0 / ior, ior, front), m3.w, m4.y, m4.z);
+        }
+        let transmits = has_ext && ext_transmits(ext);
         let r1 = rand4(pixel, sample, 1u + 2u * depth);
         let r2 = rand4(pixel, sample, 2u + 2u * depth);
         let po = offset_ray(p, ng);
 
-        if params.env_select > 0.0 || params.light_count > 0u {
+        if params.env_select > 0.0 || params.light_count > 0u || params.punctual_count > 0u {
             var wi: vec3<f32>;
             var le: vec3<f32>;
             var pdf_l: f32;
             var tmax: f32;
+            var delta = false;
             if r1.x < params.env_select {
                 let es = sample_env(r1.y, r1.z);
                 wi = es.dir;
                 le = es.radiance;
                 pdf_l = params.env_select * es.pdf;
                 tmax = T_FAR;
+            } else if r1.x < params.env_select + params.punct_select {
+                let n = params.punctual_count;
+                let k = min(u32((r1.x - params.env_select) / params.punct_select * f32(n)), n - 1u);
+                let l = 3u * (params.light_count + k);
+                let la = lights[l];
+                let lb = lights[l + 1u];
+                let lc = lights[l + 2u];
+                pdf_l = params.punct_select / f32(n);
+                delta = true;
+                if u32(la.w) == LIGHT_DIRECTIONAL {
+                    wi = la.xyz;
+                    le = lb.xyz;
+                    tmax = T_FAR;
+                } else {
+                    let to = la.xyz - po;
+                    let dist2 = dot(to, to);
+                    let dl = sqrt(dist2);
+                    wi = to / dl;
+                    le = lb.xyz / dist2;
+                    if u32(la.w) == LIGHT_SPOT {
+                        let scale = 1.0 / max(lc.w - lb.w, 0.001);
+                        let t = clamp((dot(lc.xyz, -wi) - lb.w) * scale, 0.0, 1.0);
+                        le *= t * t;
+                    }
+                    tmax = dl * (1.0 - 1e-4);
+                }
             } else {
-                let u = min((r1.x - params.env_select) / (1.0 - params.env_select), 0.99999994);
+                let u = min((r1.x - params.env_select - params.punct_select) / tri_select, 0.99999994);
                 let k = sample_cdf(0u, params.light_count, u);
                 let la = lights[3u * k];
                 let le1 = lights[3u * k + 1u].xyz;
@@ -278,33 +468,56 @@ fn trace_sample(pixel: u32, sample: u32) -> vec3<f32> {
                 wi = to / dl;
                 let n_l = cross(le1, le2);
                 let area2 = length(n_l);
-                // A single-sided light emits from its front (towards n_l) only; seen from behind
+                // A single-sided light emits ray_from its front (towards n_l) only; seen ray_from behind
                 // the sample is discarded (pdf 0).
                 let facing = -dot(n_l, wi) / area2;
                 var cos_l = max(facing, 0.0);
                 if lights[3u * k + 1u].w != 0.0 {
                     cos_l = abs(facing);
                 }
-                let tri = bitcast<u32>(la.w);
-                let lmi = 3u * bitcast<u32>(shade[4u * tri + 3u].w);
+                let ltri = bitcast<u32>(la.w);
+                let lmb = material_base(ltri);
+                let lflags = u32(materials[lmb + 1u].w);
+                le = emission_at(lmb, lflags, ltri, a, b);
+                // A cut-out emitter emits only where it is there (BSDF rays see the same).
+                if (lflags & MAT_MASK) != 0u {
+                    if base_color(lmb, lflags, ltri, a, b).w < materials[lmb + 2u].w {
+                        le = vec3<f32>(0.0);
+                    }
+                } else if (lflags & MAT_BLEND) != 0u {
+                    le *= base_color(lmb, lflags, ltri, a, b).w;
+                }
                 let density = dist[k + 1u] - dist[k];
                 pdf_l = 0.0;
                 if cos_l > 0.0 {
-                    pdf_l = (1.0 - params.env_select) * density / (0.5 * area2) * dist2 / cos_l;
+                    pdf_l = tri_select * density / (0.5 * area2) * dist2 / cos_l;
                 }
-                le = materials[lmi + 1u].xyz;
                 tmax = dl * (1.0 - 1e-4);
             }
-            if pdf_l > 0.0 && pdf_l <= T_FAR && dot(wi, ng) > 0.0 {
-                let fb = bsdf_eval(bsdf, ns, wo, wi);
-                // The last vertex's light sample carries the whole estimate: no BSDF ray follows.
+            let side = dot(wi, ng);
+            if pdf_l > 0.0 && pdf_l <= T_FAR && (side > 0.0 || (transmits && side < 0.0)) {
+                var fb: vec4<f32>;
+                if has_ext {
+                    fb = ext_eval(ext, ns, wo, wi);
+                } else {
+                    fb = bsdf_eval(bsdf, ns, wo, wi);
+                }
+                // The last vertex's light sample carries the whole estimate: no BSDF ray
+                // follows. A delta light cannot be hit at all.
                 var w = mis(pdf_l, fb.w);
-                if depth + 1u == params.max_depth {
+                if delta || depth + 1u == params.max_depth {
                     w = 1.0;
                 }
-                let contrib = throughput * fb.xyz * le * (dot(ns, wi) / pdf_l) * w;
+                let contrib = throughput * fb.xyz * le * (abs(dot(ns, wi)) / pdf_l) * w;
                 if any(contrib != vec3<f32>(0.0)) {
-                    let blocker = traverse(po, wi, tmax, true);
+                    var ray_from = po;
+                    if side < 0.0 {
+                        ray_from = offset_ray(p, -ng);
+                    }
+                    if alpha_scene {
+                        ray_seed = seed_for(pixel, sample, depth, 1u);
+                    }
+                    let blocker = traverse(ray_from, wi, tmax, true);
                     if blocker.prim == NO_HIT {
                         radiance += contrib;
                     }
@@ -312,15 +525,26 @@ fn trace_sample(pixel: u32, sample: u32) -> vec3<f32> {
             }
         }
 
-        let wi = bsdf_sample(bsdf, ns, wo, r1.w, r2.x, r2.y);
-        if dot(wi, ng) <= 0.0 {
+        var wi: vec3<f32>;
+        if has_ext {
+            wi = ext_sample(ext, ns, wo, r1.w, r2.x, r2.y);
+        } else {
+            wi = bsdf_sample(bsdf, ns, wo, r1.w, r2.x, r2.y);
+        }
+        let side = dot(wi, ng);
+        if !(side > 0.0 || (transmits && side < 0.0 && dot(ns, wi) < 0.0)) {
             break;
         }
-        let fb = bsdf_eval(bsdf, ns, wo, wi);
+        var fb: vec4<f32>;
+        if has_ext {
+            fb = ext_eval(ext, ns, wo, wi);
+        } else {
+            fb = bsdf_eval(bsdf, ns, wo, wi);
+        }
         if !(fb.w > 0.0) {
             break;
         }
-        throughput *= fb.xyz * (dot(ns, wi) / fb.w);
+        throughput *= fb.xyz * (abs(dot(ns, wi)) / fb.w);
         prev_pdf = fb.w;
         if depth >= 3u {
             let q = min(max(max(throughput.x, throughput.y), throughput.z), 0.95);
@@ -329,7 +553,11 @@ fn trace_sample(pixel: u32, sample: u32) -> vec3<f32> {
             }
             throughput /= q;
         }
-        o = po;
+        if side > 0.0 {
+            o = po;
+        } else {
+            o = offset_ray(p, -ng);
+        }
         d = wi;
     }
     if is_finite3(radiance) {

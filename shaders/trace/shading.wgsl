@@ -118,3 +118,165 @@ fn bsdf_sample(b: Bsdf, n: vec3<f32>, wo: vec3<f32>, u_lobe: f32, u: f32, v: f32
     let l = cosine_hemisphere(u, v);
     return tb[0] * l.x + tb[1] * l.y + n * l.z;
 }
+
+// glTF's BSDF extensions (CPU twin: BsdfExt in src/trace/shading.rs).
+struct BsdfExt {
+    core: Bsdf,
+    specular_color: vec3<f32>,
+    f0: f32,
+    eta: f32,
+    transmission: f32,
+    clearcoat: f32,
+    clearcoat_alpha: f32,
+}
+
+fn ggx_d(noh: f32, a2: f32) -> f32 {
+    let dd = noh * noh * (a2 - 1.0) + 1.0;
+    return a2 / (PI * dd * dd);
+}
+
+fn ggx_vis(cos_i: f32, cos_o: f32, a2: f32) -> f32 {
+    return 0.5 / (cos_i * sqrt(cos_o * cos_o * (1.0 - a2) + a2) + cos_o * sqrt(cos_i * cos_i * (1.0 - a2) + a2));
+}
+
+fn ggx_g1(c: f32, a2: f32) -> f32 {
+    return 2.0 * c / (c + sqrt(a2 + (1.0 - a2) * c * c));
+}
+
+fn ggx_half(tb: mat2x3<f32>, n: vec3<f32>, alpha: f32, u: f32, v: f32) -> vec3<f32> {
+    let a2 = alpha * alpha;
+    let cos_h = sqrt(max((1.0 - u) / (1.0 + (a2 - 1.0) * u), 0.0));
+    let sin_h = sqrt(max(1.0 - cos_h * cos_h, 0.0));
+    let phi = 2.0 * PI * v;
+    return tb[0] * (sin_h * cos(phi)) + tb[1] * (sin_h * sin(phi)) + n * cos_h;
+}
+
+fn max3(v: vec3<f32>) -> f32 {
+    return max(max(v.x, v.y), v.z);
+}
+
+fn ext_transmits(e: BsdfExt) -> bool {
+    return e.transmission > 0.0 && e.core.metallic < 1.0;
+}
+
+struct ExtFresnel {
+    fd: vec3<f32>,
+    f: vec3<f32>,
+}
+
+fn ext_fresnel(e: BsdfExt, c: f32) -> ExtFresnel {
+    let b = e.core;
+    let f0 = min(e.specular_color * e.f0, vec3<f32>(1.0));
+    var cc = c;
+    var tir = false;
+    if e.transmission > 0.0 && e.eta < 1.0 {
+        let s2 = (1.0 - c * c) / (e.eta * e.eta);
+        tir = s2 >= 1.0;
+        cc = sqrt(max(1.0 - s2, 0.0));
+    }
+    let k = pow5(max(1.0 - cc, 0.0));
+    var fd = vec3<f32>(1.0);
+    if !tir {
+        fd = (f0 + (vec3<f32>(1.0) - f0) * k) * b.specular;
+    }
+    let km = pow5(max(1.0 - c, 0.0));
+    let fm = b.base + (vec3<f32>(1.0) - b.base) * km;
+    return ExtFresnel(fd, mix(fd, fm, b.metallic));
+}
+
+fn ext_coat(e: BsdfExt, cos_o: f32) -> f32 {
+    if e.clearcoat > 0.0 {
+        return e.clearcoat * (0.04 + 0.96 * pow5(max(1.0 - cos_o, 0.0)));
+    }
+    return 0.0;
+}
+
+fn ext_lobes(e: BsdfExt, cos_o: f32) -> vec4<f32> {
+    let b = e.core;
+    let fr = ext_fresnel(e, cos_o);
+    let coat = ext_coat(e, cos_o);
+    let ws = lum(fr.f) * (1.0 - coat);
+    let rest = lum(b.base) * (1.0 - b.metallic) * (1.0 - max3(fr.fd)) * (1.0 - coat);
+    let wd = rest * (1.0 - e.transmission);
+    let wt = rest * e.transmission;
+    let total = ws + wd + wt + coat;
+    if total > 0.0 {
+        return vec4<f32>(ws / total, wd / total, wt / total, coat / total);
+    }
+    return vec4<f32>(0.5, 0.5, 0.0, 0.0);
+}
+
+fn ext_eval(e: BsdfExt, n: vec3<f32>, wo: vec3<f32>, wi: vec3<f32>) -> vec4<f32> {
+    let b = e.core;
+    let cos_o = dot(n, wo);
+    let cos_i = dot(n, wi);
+    if cos_o <= 0.0 || cos_i == 0.0 {
+        return vec4<f32>(0.0);
+    }
+    let p = ext_lobes(e, cos_o);
+    let coat = ext_coat(e, cos_o);
+    let a2 = b.alpha * b.alpha;
+    if cos_i > 0.0 {
+        let h = normalize(wo + wi);
+        let noh = max(dot(n, h), 0.0);
+        let voh = max(dot(wo, h), 1e-7);
+        let fr = ext_fresnel(e, voh);
+        let d = ggx_d(noh, a2);
+        let spec = fr.f * (d * ggx_vis(cos_i, cos_o, a2));
+        let diff = b.base * ((1.0 - b.metallic) * (1.0 - max3(fr.fd)) * (1.0 - e.transmission) / PI);
+        var value = (spec + diff) * (1.0 - coat);
+        var pdf = p.x * d * noh / (4.0 * voh) + p.y * cos_i / PI;
+        if coat > 0.0 {
+            let c2 = e.clearcoat_alpha * e.clearcoat_alpha;
+            let dc = ggx_d(noh, c2);
+            value += vec3<f32>(coat * dc * ggx_vis(cos_i, cos_o, c2));
+            pdf += p.w * dc * noh / (4.0 * voh);
+        }
+        return vec4<f32>(value, pdf);
+    }
+    if !ext_transmits(e) {
+        return vec4<f32>(0.0);
+    }
+    let eta = e.eta;
+    var h = -normalize(wo + wi * eta);
+    if dot(n, h) < 0.0 {
+        h = -h;
+    }
+    let woh = dot(wo, h);
+    let wih = dot(wi, h);
+    let denom = woh + eta * wih;
+    if !(woh > 0.0 && wih < 0.0) || abs(denom) < 1e-7 || !all(abs(h) <= vec3<f32>(T_FAR)) {
+        return vec4<f32>(0.0);
+    }
+    let noh = dot(n, h);
+    let fr = ext_fresnel(e, woh);
+    let d = ggx_d(noh, a2);
+    let g = ggx_g1(cos_o, a2) * ggx_g1(-cos_i, a2);
+    let jac = eta * eta * -wih / (denom * denom);
+    let btdf = woh * d * g * jac / (cos_o * -cos_i);
+    let value = b.base * ((1.0 - b.metallic) * (1.0 - max3(fr.fd)) * e.transmission * btdf * (1.0 - coat));
+    return vec4<f32>(value, p.z * d * noh * jac);
+}
+
+fn ext_sample(e: BsdfExt, n: vec3<f32>, wo: vec3<f32>, u_lobe: f32, u: f32, v: f32) -> vec3<f32> {
+    let tb = basis_t(n);
+    let p = ext_lobes(e, dot(n, wo));
+    if u_lobe < p.x {
+        let h = ggx_half(tb, n, e.core.alpha, u, v);
+        return 2.0 * dot(wo, h) * h - wo;
+    } else if u_lobe < p.x + p.y {
+        let l = cosine_hemisphere(u, v);
+        return tb[0] * l.x + tb[1] * l.y + n * l.z;
+    } else if u_lobe < p.x + p.y + p.z {
+        let h = ggx_half(tb, n, e.core.alpha, u, v);
+        let c = dot(wo, h);
+        let r = 1.0 / e.eta;
+        let k = 1.0 - r * r * (1.0 - c * c);
+        if c <= 0.0 || k < 0.0 {
+            return vec3<f32>(0.0);
+        }
+        return -r * wo + (r * c - sqrt(k)) * h;
+    }
+    let h = ggx_half(tb, n, e.clearcoat_alpha, u, v);
+    return 2.0 * dot(wo, h) * h - wo;
+}

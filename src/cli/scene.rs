@@ -107,9 +107,22 @@ pub fn info(name: &str, scene: &Scene) -> Value {
             "up": v3(c.up),
             "yfov_deg": c.yfov.to_degrees(),
         })).collect::<Vec<_>>(),
+        "orthographic_cameras": scene.orthographic_cameras.iter().map(|c| json!({
+            "name": c.name,
+            "position": v3(c.position),
+            "forward": v3(c.forward),
+            "ymag": c.ymag,
+        })).collect::<Vec<_>>(),
+        "lights": scene.lights.iter().map(|l| json!({
+            "name": l.name,
+            "kind": format!("{:?}", l.kind),
+            "position": v3(l.position),
+            "intensity": v3(l.intensity),
+        })).collect::<Vec<_>>(),
         "bounds": scene.bounds().map(|b| json!({ "min": v3(b.min), "max": v3(b.max) })),
         "unsupported": scene.unsupported,
         "warnings": scene.warnings,
+        "notes": scene.notes,
     })
 }
 
@@ -135,7 +148,29 @@ fn info_text(s: &Value) -> String {
             c["yfov_deg"].as_f64().unwrap_or(f64::NAN)
         );
     }
-    for (key, title) in [("unsupported", "unsupported"), ("warnings", "warning")] {
+    for c in s["orthographic_cameras"].as_array().into_iter().flatten() {
+        out += &format!(
+            "camera '{}' (orthographic): position {}, forward {}, ymag {}\n",
+            c["name"].as_str().unwrap_or(""),
+            c["position"],
+            c["forward"],
+            c["ymag"]
+        );
+    }
+    for l in s["lights"].as_array().into_iter().flatten() {
+        out += &format!(
+            "light '{}': {} at {}, intensity {}\n",
+            l["name"].as_str().unwrap_or(""),
+            l["kind"].as_str().unwrap_or(""),
+            l["position"],
+            l["intensity"]
+        );
+    }
+    for (key, title) in [
+        ("unsupported", "unsupported"),
+        ("warnings", "warning"),
+        ("notes", "note"),
+    ] {
         for item in s[key].as_array().into_iter().flatten() {
             out += &format!("{title}: {}\n", item.as_str().unwrap_or(""));
         }

@@ -44,6 +44,16 @@ pub struct ViewArgs {
     /// Camera by name.
     #[arg(long, value_name = "NAME")]
     pub camera: Option<String>,
+    /// Look from this point (X,Y,Z, metres, the scene's frame) instead of a scene camera;
+    /// needs --look-at.
+    #[arg(long, value_name = "X,Y,Z", value_parser = crate::cli::args::parse_vec3, requires = "look_at", conflicts_with = "camera", allow_hyphen_values = true)]
+    pub look_from: Option<glam::DVec3>,
+    /// The point --look-from looks at (+Y up).
+    #[arg(long, value_name = "X,Y,Z", value_parser = crate::cli::args::parse_vec3, requires = "look_from", allow_hyphen_values = true)]
+    pub look_at: Option<glam::DVec3>,
+    /// Vertical field of view of --look-from, degrees (default 45).
+    #[arg(long, value_name = "DEG", requires = "look_from")]
+    pub yfov: Option<f32>,
     /// Maximum path vertices (also a panel slider).
     #[arg(long, value_name = "N", default_value_t = DEFAULT_MAX_DEPTH)]
     pub max_depth: u32,
@@ -169,8 +179,10 @@ pub fn run(args: &ViewArgs) -> anyhow::Result<()> {
     )?;
     let scene = crate::cli::scene::load_scene(&args.scene, args.env.as_deref())?;
     let [w, h] = args.size;
-    let camera = RenderCamera::choose(&scene, args.camera.as_deref(), w, h)
-        .with_context(|| format!("scene {}", args.scene))?;
+    let look = crate::cli::render::look_at(args.look_from, args.look_at, args.yfov);
+    let camera =
+        RenderCamera::choose_or_look_at(&scene, args.camera.as_deref(), look.as_ref(), w, h)
+            .with_context(|| format!("scene {}", args.scene))?;
     eprintln!("raygun view: rendering on {}", backend.describe());
     let base = TraceSettings {
         width: w,

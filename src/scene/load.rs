@@ -1,22 +1,21 @@
-//! glTF 2.0 (`.gltf`, `.glb`, in-memory GLB) → [`Scene`].
+//! glTF 2.0 (`.gltf`, `.glb`, in-memory GLB) → [`Scene`]: the scene walk.
 //!
 //! The loader walks the default scene's node tree (the first scene where the file names none),
-//! bakes node transforms into world-space triangles and keeps only what the integrator shades
-//! (DESIGN.md §7). Features it does not model go to [`Scene::unsupported`] by name; data it
-//! had to repair go to [`Scene::warnings`]. It never hands the tracer a non-finite or
-//! degenerate triangle: such triangles are dropped and counted per mesh.
+//! bakes node transforms into world-space triangles, cameras and lights, and keeps only what
+//! the integrator shades (DESIGN.md §7). Features it does not model go to
+//! [`Scene::unsupported`] by name; data it had to repair go to [`Scene::warnings`]; what a path
+//! tracer does not need (occlusion maps) to [`Scene::notes`]. It never hands the tracer a
+//! non-finite or degenerate triangle: such triangles are dropped and counted per mesh.
 //!
 //! `Scene::materials` holds the materials the drawn triangles use, in order of first use (glTF's
 //! default material — white, metallic 1, roughness 1 — where a primitive names none);
-//! `Scene::textures` the base-colour textures those materials use.
-//!
-//! Resources are resolved here rather than with `gltf::import`, which is all-or-nothing: one
-//! undecodable image would fail the whole scene, where raygun falls back to the material's
-//! base colour factor and says so. A missing file, though, is an error naming its URI.
+//! `Scene::textures` the textures those materials use (buffers, images, textures and samplers
+//! are resolved in `resources.rs`). Vertex colours, TEXCOORD_1 and tangents go to
+//! `Scene::vertex_extras` and material features beyond the core factors to
+//! `Scene::material_ext`, both only when some primitive or material has them.
 
-use std::collections::{BTreeMap, HashMap, HashSet};
-use std::io::Cursor;
-use std::path::{Path, PathBuf};
+use std::collections::{BTreeMap, HashMap};
+use std::path::Path;
 
 use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
 use gltf::accessor::Dimensions;
@@ -24,7 +23,12 @@ use gltf::json::validation::Checked;
 use gltf::mesh::{Mode, Semantic};
 
 use super::accessor::{read_floats, read_indices};
-use super::{Camera, Environment, Material, Scene, Texture, Triangle};
+use super::report::{Report, SceneError, label};
+use super::resources::{Resources, check_glb_header, load_buffers};
+use super::{
+    AlphaMode, Camera, Environment, LightKind, Material, MaterialExt, OrthographicCamera,
+    PunctualLight, Scene, TextureRef, Triangle, UvMap, UvTransform, VertexExtras,
+};
 
 /// The largest coordinate magnitude (metres) a triangle vertex or camera may have.
 ///
@@ -35,47 +39,20 @@ use super::{Camera, Environment, Material, Scene, Texture, Triangle};
 /// Triangles beyond it are dropped and reported in [`Scene::warnings`].
 pub const MAX_COORDINATE: f32 = 1.0e9;
 
-/// glTF extensions the loader implements; every other one in `extensionsUsed` is reported.
-pub const SUPPORTED_EXTENSIONS: &[&str] =
-    &["KHR_materials_emissive_strength", "KHR_materials_specular"];
-
-/// Images larger than this (bytes of decoded RGBA8) are refused by the decoder: a 16k × 8k
-/// texture is 512 MiB, more than any base-colour texture the tracer can bind.
-const MAX_IMAGE_BYTES: u64 = 512 << 20;
-
-/// A scene that cannot be loaded. Every message names the file and the element at fault.
-#[derive(Debug, thiserror::Error)]
-pub enum SceneError {
-    #[error("{file}: cannot read the file")]
-    Read {
-        file: String,
-        #[source]
-        source: std::io::Error,
-    },
-    #[error("{file}: not a glTF 2.0 file: {reason}")]
-    Parse { file: String, reason: String },
-    #[error("{file}: invalid glTF: {problems}")]
-    Invalid { file: String, problems: String },
-    #[error("{file}: requires extension {extension}, which raygun does not implement")]
-    RequiredExtension { file: String, extension: String },
-    #[error("{file}: {element}: cannot read '{uri}': {reason}")]
-    Resource {
-        file: String,
-        element: String,
-        uri: String,
-        reason: String,
-    },
-    #[error("{file}: {element}: {problem}")]
-    Element {
-        file: String,
-        element: String,
-        problem: String,
-    },
-    #[error("unknown built-in scene '{name}' (built-ins: {known})")]
-    UnknownBuiltin { name: String, known: String },
-    #[error("cannot generate built-in scene '{name}': {reason}")]
-    Generate { name: String, reason: String },
-}
+/// glTF extensions the loader implements; every other one in `extensionsUsed` is reported, and
+/// one in `extensionsRequired` is an error. KHR_mesh_quantization needs nothing beyond the
+/// core accessor reads (normalized and integer attributes are read as glTF defines them).
+pub const SUPPORTED_EXTENSIONS: &[&str] = &[
+    "KHR_materials_emissive_strength",
+    "KHR_materials_specular",
+    "KHR_materials_transmission",
+    "KHR_materials_ior",
+    "KHR_materials_clearcoat",
+    "KHR_texture_transform",
+    "KHR_lights_punctual",
+    "KHR_mesh_quantization",
+    "EXT_meshopt_compression",
+];
 
 impl Scene {
     /// Loads a `.gltf` (with its external or data-URI resources) or `.glb` file.
@@ -105,36 +82,6 @@ impl Scene {
     }
 }
 
-/// `mesh 'Tower'` or `mesh 3`.
-fn label(kind: &str, name: Option<&str>, index: usize) -> String {
-    match name {
-        Some(n) => format!("{kind} '{n}'"),
-        None => format!("{kind} {index}"),
-    }
-}
-
-/// What one load found, besides the triangles.
-#[derive(Default)]
-struct Report {
-    unsupported: Vec<String>,
-    seen: HashSet<String>,
-    warnings: Vec<String>,
-}
-
-impl Report {
-    fn unsupported(&mut self, what: String) {
-        if self.seen.insert(what.clone()) {
-            self.unsupported.push(what);
-        }
-    }
-
-    fn warn(&mut self, what: String) {
-        if self.seen.insert(what.clone()) {
-            self.warnings.push(what);
-        }
-    }
-}
-
 /// Triangles a mesh lost or had repaired, summed over its instances.
 #[derive(Default)]
 struct MeshStats {
@@ -143,19 +90,31 @@ struct MeshStats {
     too_far: usize,
     bad_normals: usize,
     bad_uvs: usize,
+    bad_colors: usize,
+}
+
+/// A converted material and what its primitives must provide.
+#[derive(Clone, Copy)]
+struct Converted {
+    index: u32,
+    /// The texture coordinate set of its normal map (tangents are needed), if it has one.
+    normal_uv: Option<u32>,
 }
 
 struct Loader<'a> {
     file: &'a str,
-    base: Option<&'a Path>,
     doc: &'a gltf::Document,
-    buffers: Vec<Vec<u8>>,
+    res: Resources<'a>,
     report: Report,
     scene: Scene,
-    /// glTF material index (None: the default material) → index in `scene.materials`.
-    materials: HashMap<Option<usize>, u32>,
-    /// glTF texture index → index in `scene.textures` (None: could not be decoded).
-    textures: HashMap<usize, Option<u32>>,
+    /// glTF material index (None: the default material) → converted material.
+    materials: HashMap<Option<usize>, Converted>,
+    /// `scene.material_ext` in step with `scene.materials` while loading (emptied at the end
+    /// when no material uses any extended feature).
+    material_ext: Vec<MaterialExt>,
+    /// Whether some triangle has vertex extras (`scene.vertex_extras` is then kept in step
+    /// with `scene.triangles`).
+    extras: bool,
     stats: BTreeMap<usize, MeshStats>,
 }
 
@@ -166,8 +125,12 @@ fn load_bytes(bytes: &[u8], file: &str, base: Option<&Path>) -> Result<Scene, Sc
             file: file.into(),
             reason: e.to_string(),
         })?;
-    let root = document.into_json();
+    let mut root = document.into_json();
     precheck(&root, file)?;
+    // Every required extension is one raygun implements (precheck); the gltf crate's
+    // validation would reject those it has no types for (KHR_mesh_quantization,
+    // KHR_materials_clearcoat), so the list has done its job.
+    root.extensions_required.clear();
     let doc = gltf::Document::from_json(root).map_err(|e| match e {
         gltf::Error::Validation(problems) => SceneError::Invalid {
             file: file.into(),
@@ -185,35 +148,17 @@ fn load_bytes(bytes: &[u8], file: &str, base: Option<&Path>) -> Result<Scene, Sc
     let buffers = load_buffers(&doc, blob.as_deref(), file, base)?;
     let mut loader = Loader {
         file,
-        base,
         doc: &doc,
-        buffers,
+        res: Resources::new(file, base, buffers),
         report: Report::default(),
         scene: Scene::default(),
         materials: HashMap::new(),
-        textures: HashMap::new(),
+        material_ext: Vec::new(),
+        extras: false,
         stats: BTreeMap::new(),
     };
     loader.run()?;
     Ok(loader.finish())
-}
-
-/// The GLB header's declared length must cover the header itself: `gltf::binary::Glb` subtracts
-/// 12 from it unchecked (an overflow panic, found by fuzzing).
-fn check_glb_header(bytes: &[u8], file: &str) -> Result<(), SceneError> {
-    let Some(rest) = bytes.strip_prefix(b"glTF") else {
-        return Ok(());
-    };
-    let declared = rest
-        .get(4..8)
-        .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]));
-    match declared {
-        Some(n) if n >= 12 => Ok(()),
-        _ => Err(SceneError::Parse {
-            file: file.into(),
-            reason: "the GLB header is truncated or declares less than its own 12 bytes".into(),
-        }),
-    }
 }
 
 /// Checks made before the `gltf` crate's validation, for clearer messages than its
@@ -251,99 +196,90 @@ fn precheck(root: &gltf::json::Root, file: &str) -> Result<(), SceneError> {
     Ok(())
 }
 
-fn load_buffers(
-    doc: &gltf::Document,
-    blob: Option<&[u8]>,
-    file: &str,
-    base: Option<&Path>,
-) -> Result<Vec<Vec<u8>>, SceneError> {
-    let mut out = Vec::new();
-    for buffer in doc.buffers() {
-        let element = label("buffer", buffer.name(), buffer.index());
-        let data = match buffer.source() {
-            gltf::buffer::Source::Bin => {
-                blob.map(<[u8]>::to_vec)
-                    .ok_or_else(|| SceneError::Element {
-                        file: file.into(),
-                        element: element.clone(),
-                        problem: "refers to the GLB binary chunk, but the file has none".into(),
-                    })?
-            }
-            gltf::buffer::Source::Uri(uri) => {
-                read_uri(uri, base).map_err(|reason| SceneError::Resource {
-                    file: file.into(),
-                    element: element.clone(),
-                    uri: short_uri(uri),
-                    reason,
-                })?
-            }
+/// The triangles of a primitive's index list (glTF 2.0 §3.7.2.1): lists as they are, strips
+/// and fans unrolled with the specification's winding; other modes have none.
+fn triangle_indices(mode: Mode, idx: &[u32]) -> Vec<[u32; 3]> {
+    match mode {
+        Mode::Triangles => idx.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect(),
+        // p_i = {v_i, v_(i + (1 + i % 2)), v_(i + (2 − i % 2))}
+        Mode::TriangleStrip => (0..idx.len().saturating_sub(2))
+            .map(|i| {
+                let odd = i % 2;
+                [idx[i], idx[i + 1 + odd], idx[i + 2 - odd]]
+            })
+            .collect(),
+        // p_i = {v_(i+1), v_(i+2), v_0}
+        Mode::TriangleFan => (0..idx.len().saturating_sub(2))
+            .map(|i| [idx[i + 1], idx[i + 2], idx[0]])
+            .collect(),
+        Mode::Points | Mode::Lines | Mode::LineLoop | Mode::LineStrip => Vec::new(),
+    }
+}
+
+/// A texture info's texture coordinates: its texCoord, or KHR_texture_transform's override,
+/// and the transform (non-finite values are the identity's).
+fn info_uv(info: &gltf::texture::Info) -> UvMap {
+    let Some(t) = info.texture_transform() else {
+        return UvMap {
+            tex_coord: info.tex_coord(),
+            transform: UvTransform::default(),
         };
-        if data.len() < buffer.length() {
-            return Err(SceneError::Element {
-                file: file.into(),
-                element,
-                problem: format!(
-                    "has {} bytes, but its byteLength is {}",
-                    data.len(),
-                    buffer.length()
-                ),
-            });
-        }
-        out.push(data);
-    }
-    Ok(out)
-}
-
-/// A URI for messages: data URIs are cut to their media type.
-fn short_uri(uri: &str) -> String {
-    match uri.strip_prefix("data:") {
-        Some(rest) => format!("data:{}…", rest.split([',', ';']).next().unwrap_or("")),
-        None => uri.to_string(),
-    }
-}
-
-/// The bytes behind a glTF URI: `data:…;base64,…`, `file:` or a path relative to `base`.
-fn read_uri(uri: &str, base: Option<&Path>) -> Result<Vec<u8>, String> {
-    if let Some(rest) = uri.strip_prefix("data:") {
-        let (_, payload) = rest
-            .split_once(";base64,")
-            .ok_or("a data URI must be base64-encoded (';base64,')")?;
-        return base64::decode(payload).map_err(|e| format!("bad base64: {e}"));
-    }
-    let path = if let Some(rest) = uri.strip_prefix("file:") {
-        PathBuf::from(percent_decode(rest.strip_prefix("//").unwrap_or(rest))?)
-    } else if uri.contains(':') {
-        return Err("only data: URIs and relative paths are supported".into());
-    } else {
-        let base = base.ok_or("an in-memory scene cannot refer to external files")?;
-        base.join(percent_decode(uri)?)
     };
-    if base.is_none() {
-        return Err("an in-memory scene cannot refer to external files".into());
+    let finite2 = |v: [f32; 2], d: Vec2| {
+        let v = Vec2::from_array(v);
+        if v.is_finite() { v } else { d }
+    };
+    UvMap {
+        tex_coord: t.tex_coord().unwrap_or(info.tex_coord()),
+        transform: UvTransform {
+            offset: finite2(t.offset(), Vec2::ZERO),
+            rotation: if t.rotation().is_finite() {
+                t.rotation()
+            } else {
+                0.0
+            },
+            scale: finite2(t.scale(), Vec2::ONE),
+        },
     }
-    std::fs::read(&path).map_err(|e| format!("{} ({e})", path.display()))
 }
 
-/// RFC 3986 percent-decoding into UTF-8.
-fn percent_decode(s: &str) -> Result<String, String> {
-    let bytes = s.as_bytes();
-    let mut out = Vec::with_capacity(bytes.len());
-    let mut i = 0;
-    while i < bytes.len() {
-        if bytes[i] == b'%' {
-            let hex = bytes
-                .get(i + 1..i + 3)
-                .and_then(|h| std::str::from_utf8(h).ok())
-                .and_then(|h| u8::from_str_radix(h, 16).ok())
-                .ok_or_else(|| format!("bad percent-escape in URI '{s}'"))?;
-            out.push(hex);
-            i += 3;
-        } else {
-            out.push(bytes[i]);
-            i += 1;
-        }
+/// KHR_texture_transform of a texture reference (its JSON), and the texCoord it overrides.
+fn texture_transform(ext: Option<&serde_json::Value>, tex_coord: u32) -> UvMap {
+    let Some(t) = ext else {
+        return UvMap {
+            tex_coord,
+            transform: UvTransform::default(),
+        };
+    };
+    let pair = |key: &str, default: Vec2| {
+        t.get(key)
+            .and_then(|v| v.as_array())
+            .and_then(|a| {
+                Some(Vec2::new(
+                    a.first()?.as_f64()? as f32,
+                    a.get(1)?.as_f64()? as f32,
+                ))
+            })
+            .filter(|v| v.is_finite())
+            .unwrap_or(default)
+    };
+    let rotation = t
+        .get("rotation")
+        .and_then(serde_json::Value::as_f64)
+        .map(|r| r as f32)
+        .filter(|r| r.is_finite())
+        .unwrap_or(0.0);
+    UvMap {
+        tex_coord: t
+            .get("texCoord")
+            .and_then(serde_json::Value::as_u64)
+            .map_or(tex_coord, |c| c.min(u64::from(u32::MAX)) as u32),
+        transform: UvTransform {
+            offset: pair("offset", Vec2::ZERO),
+            rotation,
+            scale: pair("scale", Vec2::ONE),
+        },
     }
-    String::from_utf8(out).map_err(|_| format!("URI '{s}' does not decode to UTF-8"))
 }
 
 impl Loader<'_> {
@@ -391,6 +327,9 @@ impl Loader<'_> {
             if let Some(camera) = node.camera() {
                 self.camera(&node, &camera, world)?;
             }
+            if let Some(light) = node.light() {
+                self.light(&light, world)?;
+            }
             if let Some(mesh) = node.mesh() {
                 self.mesh(&mesh, world)?;
             }
@@ -401,32 +340,12 @@ impl Loader<'_> {
         Ok(())
     }
 
-    fn camera(
-        &mut self,
-        node: &gltf::Node,
-        camera: &gltf::Camera,
-        world: Mat4,
-    ) -> Result<(), SceneError> {
-        let name = node
-            .name()
-            .or(camera.name())
-            .map_or_else(|| format!("camera {}", node.index()), str::to_string);
-        let element = format!("camera '{name}'");
-        let yfov = match camera.projection() {
-            gltf::camera::Projection::Perspective(p) => p.yfov(),
-            gltf::camera::Projection::Orthographic(_) => {
-                self.report
-                    .unsupported(format!("orthographic camera '{name}'"));
-                return Ok(());
-            }
-        };
-        if !(yfov > 0.0 && yfov < std::f32::consts::PI) {
-            return Err(self.element_error(element, format!("yfov {yfov} is not in (0, π)")));
-        }
+    /// A node's world position and its unit −Z (forward) and +Y (up) axes.
+    fn frame(&self, element: &str, world: Mat4) -> Result<(Vec3, Vec3, Vec3), SceneError> {
         let position = world.transform_point3(Vec3::ZERO);
         if !position.is_finite() || position.abs().max_element() > MAX_COORDINATE {
             return Err(self.element_error(
-                element,
+                element.to_string(),
                 format!("position {position} is not finite or beyond ±{MAX_COORDINATE} m"),
             ));
         }
@@ -437,16 +356,123 @@ impl Loader<'_> {
         });
         let (Some(forward), Some(up)) = (forward, up) else {
             return Err(self.element_error(
-                element,
+                element.to_string(),
                 "its node transform is degenerate (no viewing direction or up vector)",
             ));
         };
-        self.scene.cameras.push(Camera {
+        Ok((position, forward, up))
+    }
+
+    /// A camera is named after its node, else itself, else its index in the file's cameras
+    /// (what `--camera` takes).
+    fn camera(
+        &mut self,
+        node: &gltf::Node,
+        camera: &gltf::Camera,
+        world: Mat4,
+    ) -> Result<(), SceneError> {
+        let name = node
+            .name()
+            .or(camera.name())
+            .map_or_else(|| format!("camera {}", camera.index()), str::to_string);
+        let element = format!("camera '{name}'");
+        match camera.projection() {
+            gltf::camera::Projection::Perspective(p) => {
+                let yfov = p.yfov();
+                if !(yfov > 0.0 && yfov < std::f32::consts::PI) {
+                    return Err(
+                        self.element_error(element, format!("yfov {yfov} is not in (0, π)"))
+                    );
+                }
+                let (position, forward, up) = self.frame(&element, world)?;
+                self.scene.cameras.push(Camera {
+                    name,
+                    position,
+                    forward,
+                    up,
+                    yfov,
+                });
+            }
+            gltf::camera::Projection::Orthographic(o) => {
+                // The node's scale scales the window (glTF: cameras are affected by it).
+                let ymag = o.ymag().abs() * world.transform_vector3(Vec3::Y).length();
+                if !(ymag > 0.0 && ymag.is_finite() && ymag <= MAX_COORDINATE) {
+                    return Err(self.element_error(
+                        element,
+                        format!("ymag {} is not a positive finite size", o.ymag()),
+                    ));
+                }
+                let (position, forward, up) = self.frame(&element, world)?;
+                self.scene.orthographic_cameras.push(OrthographicCamera {
+                    name,
+                    position,
+                    forward,
+                    up,
+                    ymag,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    fn light(
+        &mut self,
+        light: &gltf::khr_lights_punctual::Light,
+        world: Mat4,
+    ) -> Result<(), SceneError> {
+        let name = light
+            .name()
+            .map_or_else(|| format!("light {}", light.index()), str::to_string);
+        let element = format!("light '{name}'");
+        let (position, direction, _) = self.frame(&element, world)?;
+        let color = Vec3::from_array(light.color());
+        let intensity = light.intensity();
+        let usable = color.is_finite()
+            && color.min_element() >= 0.0
+            && intensity >= 0.0
+            && intensity.is_finite();
+        if !usable {
+            return Err(self.element_error(
+                element,
+                format!("color {color} × intensity {intensity} is not finite and ≥ 0"),
+            ));
+        }
+        let kind = match light.kind() {
+            gltf::khr_lights_punctual::Kind::Point => LightKind::Point,
+            gltf::khr_lights_punctual::Kind::Directional => LightKind::Directional,
+            gltf::khr_lights_punctual::Kind::Spot {
+                inner_cone_angle,
+                outer_cone_angle,
+            } => {
+                let half_pi = std::f32::consts::FRAC_PI_2;
+                if !(0.0 <= inner_cone_angle
+                    && inner_cone_angle < outer_cone_angle
+                    && outer_cone_angle <= half_pi)
+                {
+                    return Err(self.element_error(
+                        element,
+                        format!(
+                            "cone angles {inner_cone_angle}, {outer_cone_angle} are not 0 ≤ inner < outer ≤ π/2"
+                        ),
+                    ));
+                }
+                LightKind::Spot {
+                    inner: inner_cone_angle,
+                    outer: outer_cone_angle,
+                }
+            }
+        };
+        if light.range().is_some() {
+            self.report.note(format!(
+                "{element}: range ignored (the light falls off with the inverse square everywhere)"
+            ));
+        }
+        self.scene.lights.push(PunctualLight {
             name,
+            kind,
             position,
-            forward,
-            up,
-            yfov,
+            direction,
+            intensity: color * intensity,
         });
         Ok(())
     }
@@ -461,7 +487,10 @@ impl Loader<'_> {
         let flip = det < 0.0;
         for prim in mesh.primitives() {
             let element = format!("{mesh_label} primitive {}", prim.index());
-            if prim.mode() != Mode::Triangles {
+            if !matches!(
+                prim.mode(),
+                Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
+            ) {
                 self.report.unsupported(format!(
                     "primitive mode {} ({mesh_label})",
                     mode_name(prim.mode())
@@ -472,14 +501,12 @@ impl Loader<'_> {
                 self.report
                     .unsupported(format!("morph targets ({mesh_label})"));
             }
-            if prim.get(&Semantic::Colors(0)).is_some() {
-                self.report
-                    .unsupported(format!("vertex colours COLOR_0 ({mesh_label})"));
-            }
+            let converted = self.material(prim.material())?;
+            let buffers = &self.res.buffers;
             let read = |semantic: Semantic, what: &str, dims: Dimensions| {
                 prim.get(&semantic)
                     .map(|acc| {
-                        read_floats(&acc, &self.buffers, dims).map_err(|e| {
+                        read_floats(&acc, buffers, dims).map_err(|e| {
                             self.element_error(element.clone(), format!("{what}: {e}"))
                         })
                     })
@@ -489,8 +516,26 @@ impl Loader<'_> {
                 .expect("precheck: every primitive has POSITION");
             let normals = read(Semantic::Normals, "NORMAL", Dimensions::Vec3)?;
             let uvs = read(Semantic::TexCoords(0), "TEXCOORD_0", Dimensions::Vec2)?;
+            let uvs1 = read(Semantic::TexCoords(1), "TEXCOORD_1", Dimensions::Vec2)?;
+            let color_dims = prim
+                .get(&Semantic::Colors(0))
+                .map(|a| a.dimensions())
+                .filter(|d| *d == Dimensions::Vec3)
+                .map_or(Dimensions::Vec4, |d| d);
+            let colors = read(Semantic::Colors(0), "COLOR_0", color_dims)?;
+            let color_n = if color_dims == Dimensions::Vec3 { 3 } else { 4 };
+            let tangents = match converted.normal_uv {
+                Some(_) => read(Semantic::Tangents, "TANGENT", Dimensions::Vec4)?,
+                None => None,
+            };
             let vertex_count = positions.len() / 3;
-            for (what, data, n) in [("NORMAL", &normals, 3), ("TEXCOORD_0", &uvs, 2)] {
+            for (what, data, n) in [
+                ("NORMAL", &normals, 3),
+                ("TEXCOORD_0", &uvs, 2),
+                ("TEXCOORD_1", &uvs1, 2),
+                ("COLOR_0", &colors, color_n),
+                ("TANGENT", &tangents, 4),
+            ] {
                 if let Some(d) = data
                     && d.len() / n != vertex_count
                 {
@@ -504,7 +549,7 @@ impl Loader<'_> {
                 }
             }
             let indices = match prim.indices() {
-                Some(acc) => read_indices(&acc, &self.buffers)
+                Some(acc) => read_indices(&acc, &self.res.buffers)
                     .map_err(|e| self.element_error(element.clone(), e))?,
                 None => (0..vertex_count as u32).collect(),
             };
@@ -518,21 +563,38 @@ impl Loader<'_> {
                     format!("index {i} at position {k} is past the {vertex_count} vertices"),
                 ));
             }
-            if indices.len() % 3 != 0 {
+            if prim.mode() == Mode::Triangles && indices.len() % 3 != 0 {
                 self.report.warn(format!(
                     "{element}: {} indices are not a multiple of 3; the last {} are ignored",
                     indices.len(),
                     indices.len() % 3
                 ));
             }
-            let material = self.material(prim.material())?;
+            let material = converted.index;
+            // Vertex extras are kept only for scenes that have any.
+            let wants_extras = colors.is_some() || uvs1.is_some() || converted.normal_uv.is_some();
+            if wants_extras && !self.extras {
+                self.extras = true;
+                self.scene
+                    .vertex_extras
+                    .resize(self.scene.triangles.len(), VertexExtras::default());
+            }
             let stats = self.stats.entry(mesh.index()).or_default();
             let vec3 = |d: &[f32], i: u32| {
                 let i = i as usize * 3;
                 Vec3::new(d[i], d[i + 1], d[i + 2])
             };
-            for tri in indices.chunks_exact(3) {
-                let mut idx = [tri[0], tri[1], tri[2]];
+            let vec2 = |d: &[f32], i: u32, bad: &mut usize| {
+                let v = Vec2::new(d[i as usize * 2], d[i as usize * 2 + 1]);
+                if v.is_finite() {
+                    v
+                } else {
+                    *bad += 1;
+                    Vec2::ZERO
+                }
+            };
+            for tri in triangle_indices(prim.mode(), &indices) {
+                let mut idx = tri;
                 if flip {
                     // A mirroring transform turns counter-clockwise (front) faces clockwise:
                     // swapping two vertices keeps the geometric normal on the front side.
@@ -561,74 +623,194 @@ impl Loader<'_> {
                     _ => [geometric; 3],
                 };
                 let uv = match &uvs {
-                    Some(t) => idx.map(|i| {
-                        let v = Vec2::new(t[i as usize * 2], t[i as usize * 2 + 1]);
-                        if v.is_finite() {
-                            v
-                        } else {
-                            stats.bad_uvs += 1;
-                            Vec2::ZERO
-                        }
-                    }),
+                    Some(t) => idx.map(|i| vec2(t, i, &mut stats.bad_uvs)),
                     None => [Vec2::ZERO; 3],
                 };
                 self.scene.triangles.push(Triangle { p, n, uv, material });
+                if !self.extras {
+                    continue;
+                }
+                let mut extra = VertexExtras::default();
+                if let Some(t) = &uvs1 {
+                    extra.uv1 = idx.map(|i| vec2(t, i, &mut stats.bad_uvs));
+                }
+                if let Some(c) = &colors {
+                    extra.color = idx.map(|i| {
+                        let k = i as usize * color_n;
+                        let v = Vec4::new(
+                            c[k],
+                            c[k + 1],
+                            c[k + 2],
+                            if color_n == 4 { c[k + 3] } else { 1.0 },
+                        );
+                        if v.is_finite() {
+                            v.clamp(Vec4::ZERO, Vec4::ONE)
+                        } else {
+                            stats.bad_colors += 1;
+                            Vec4::ONE
+                        }
+                    });
+                }
+                if let Some(set) = converted.normal_uv {
+                    let uvn = if set == 1 { extra.uv1 } else { uv };
+                    extra.tangent = match (&tangents, normal_matrix) {
+                        (Some(ts), Some(_)) => {
+                            let mut out = [Vec4::ZERO; 3];
+                            for (c, &i) in idx.iter().enumerate() {
+                                let k = i as usize * 4;
+                                let t =
+                                    world.transform_vector3(Vec3::new(ts[k], ts[k + 1], ts[k + 2]));
+                                // A mirroring transform flips the handedness of the frame.
+                                let w = if ts[k + 3] < 0.0 { -1.0 } else { 1.0 } * det.signum();
+                                out[c] = tangent_for(t, w, n[c]);
+                            }
+                            out
+                        }
+                        _ => uv_tangents(p, uvn, n),
+                    };
+                }
+                self.scene.vertex_extras.push(extra);
             }
         }
         Ok(())
     }
 
     /// The scene material for a glTF material (None: glTF's default material), converted once.
-    fn material(&mut self, m: gltf::Material) -> Result<u32, SceneError> {
+    fn material(&mut self, m: gltf::Material) -> Result<Converted, SceneError> {
         let key = m.index();
-        if let Some(&i) = self.materials.get(&key) {
-            return Ok(i);
+        if let Some(&c) = self.materials.get(&key) {
+            return Ok(c);
         }
-        let converted = match key {
+        let (converted, ext) = match key {
             Some(_) => self.convert_material(&m)?,
-            None => Material::default(),
+            None => (Material::default(), MaterialExt::default()),
         };
-        let i = self.scene.materials.len() as u32;
+        let c = Converted {
+            index: self.scene.materials.len() as u32,
+            normal_uv: ext.normal_texture.map(|t| t.uv.tex_coord),
+        };
         self.scene.materials.push(converted);
-        self.materials.insert(key, i);
-        Ok(i)
+        self.material_ext.push(ext);
+        self.materials.insert(key, c);
+        Ok(c)
     }
 
-    fn convert_material(&mut self, m: &gltf::Material) -> Result<Material, SceneError> {
+    /// A texture reference: its scene texture (None where it cannot be used, reported) and UVs.
+    fn texture_ref(
+        &mut self,
+        element: &str,
+        what: &str,
+        tex: &gltf::Texture,
+        uv: UvMap,
+        srgb: bool,
+    ) -> Result<Option<TextureRef>, SceneError> {
+        if uv.tex_coord > 1 {
+            self.report.unsupported(format!(
+                "texCoord {} ({element} {what}; only TEXCOORD_0 and TEXCOORD_1 are read, the factor is used)",
+                uv.tex_coord
+            ));
+            return Ok(None);
+        }
+        let texture = self
+            .res
+            .texture(tex, srgb, &mut self.scene.textures, &mut self.report)?;
+        Ok(texture.map(|texture| TextureRef { texture, uv }))
+    }
+
+    fn convert_material(
+        &mut self,
+        m: &gltf::Material,
+    ) -> Result<(Material, MaterialExt), SceneError> {
         let index = m.index().unwrap_or(0);
         let element = label("material", m.name(), index);
         let name = m
             .name()
             .map_or_else(|| format!("material {index}"), str::to_string);
         let pbr = m.pbr_metallic_roughness();
-        let mut factor = |what: &str, v: f32| -> Result<f32, SceneError> {
+        let file = self.file;
+        let factor = |report: &mut Report, what: &str, v: f32| -> Result<f32, SceneError> {
             if !v.is_finite() {
-                return Err(
-                    self.element_error(element.clone(), format!("{what} {v} is not finite"))
-                );
+                return Err(SceneError::Element {
+                    file: file.into(),
+                    element: element.clone(),
+                    problem: format!("{what} {v} is not finite"),
+                });
             }
             let c = v.clamp(0.0, 1.0);
             if c != v {
-                self.report
-                    .warn(format!("{element}: {what} {v} clamped to [0, 1]"));
+                report.warn(format!("{element}: {what} {v} clamped to [0, 1]"));
             }
             Ok(c)
         };
+        let r = &mut self.report;
         let bc = pbr.base_color_factor();
         let base_color = Vec4::new(
-            factor("baseColorFactor", bc[0])?,
-            factor("baseColorFactor", bc[1])?,
-            factor("baseColorFactor", bc[2])?,
-            factor("baseColorFactor", bc[3])?,
+            factor(r, "baseColorFactor", bc[0])?,
+            factor(r, "baseColorFactor", bc[1])?,
+            factor(r, "baseColorFactor", bc[2])?,
+            factor(r, "baseColorFactor", bc[3])?,
         );
-        let metallic = factor("metallicFactor", pbr.metallic_factor())?;
-        let roughness = factor("roughnessFactor", pbr.roughness_factor())?;
+        let metallic = factor(r, "metallicFactor", pbr.metallic_factor())?;
+        let roughness = factor(r, "roughnessFactor", pbr.roughness_factor())?;
         let ef = m.emissive_factor();
         let emissive = Vec3::new(
-            factor("emissiveFactor", ef[0])?,
-            factor("emissiveFactor", ef[1])?,
-            factor("emissiveFactor", ef[2])?,
+            factor(r, "emissiveFactor", ef[0])?,
+            factor(r, "emissiveFactor", ef[1])?,
+            factor(r, "emissiveFactor", ef[2])?,
         );
+        let mut ext = MaterialExt::default();
+        if let Some(c) = m.extension_value("KHR_materials_clearcoat") {
+            let get = |key: &str| c.get(key).and_then(serde_json::Value::as_f64);
+            ext.clearcoat = factor(
+                r,
+                "clearcoatFactor",
+                get("clearcoatFactor").unwrap_or(0.0) as f32,
+            )?;
+            ext.clearcoat_roughness = factor(
+                r,
+                "clearcoatRoughnessFactor",
+                get("clearcoatRoughnessFactor").unwrap_or(0.0) as f32,
+            )?;
+            for t in [
+                "clearcoatTexture",
+                "clearcoatRoughnessTexture",
+                "clearcoatNormalTexture",
+            ] {
+                if c.get(t).is_some() {
+                    r.unsupported(format!(
+                        "KHR_materials_clearcoat {t} ({element}; the factor is used)"
+                    ));
+                }
+            }
+        }
+        if let Some(t) = m.transmission() {
+            ext.transmission = factor(
+                &mut self.report,
+                "transmissionFactor",
+                t.transmission_factor(),
+            )?;
+            if t.transmission_texture().is_some() {
+                self.report.unsupported(format!(
+                    "KHR_materials_transmission transmissionTexture ({element}; the factor is used)"
+                ));
+            }
+        }
+        if let Some(ior) = m.ior() {
+            // glTF: ior ≥ 1, or 0 for "reflects like a metal" (F0 = 1); raygun needs a
+            // refracting interface, so 0 and values under 1 are clamped and said.
+            ext.ior = if ior.is_finite() && ior >= 1.0 {
+                ior.min(10.0)
+            } else {
+                self.report
+                    .warn(format!("{element}: ior {ior} replaced by 1.5"));
+                1.5
+            };
+        }
+        if m.extension_value("KHR_materials_volume").is_some() {
+            self.report.unsupported(format!(
+                "KHR_materials_volume ({element}; the surface refracts as the boundary of a clear solid)"
+            ));
+        }
         let strength = m.emissive_strength().unwrap_or(1.0);
         if !(strength >= 0.0 && strength.is_finite()) {
             return Err(self.element_error(
@@ -636,44 +818,71 @@ impl Loader<'_> {
                 format!("emissiveStrength {strength} is not a finite number ≥ 0"),
             ));
         }
-        let alpha = match m.alpha_mode() {
-            gltf::material::AlphaMode::Opaque => None,
-            gltf::material::AlphaMode::Blend => Some("BLEND"),
-            gltf::material::AlphaMode::Mask => Some("MASK"),
+        ext.alpha = match m.alpha_mode() {
+            gltf::material::AlphaMode::Opaque => AlphaMode::Opaque,
+            gltf::material::AlphaMode::Blend => AlphaMode::Blend,
+            gltf::material::AlphaMode::Mask => {
+                let cutoff = m.alpha_cutoff().unwrap_or(0.5);
+                if !cutoff.is_finite() || cutoff < 0.0 {
+                    return Err(self.element_error(
+                        element,
+                        format!("alphaCutoff {cutoff} is not a finite number ≥ 0"),
+                    ));
+                }
+                AlphaMode::Mask(cutoff)
+            }
         };
-        if let Some(mode) = alpha {
-            self.report
-                .unsupported(format!("alphaMode {mode} ({element}; drawn opaque)"));
-        }
-        if m.normal_texture().is_some() {
-            self.report
-                .unsupported(format!("normalTexture ({element})"));
+        if let Some(t) = m.normal_texture() {
+            // The gltf crate has no typed transform for normal textures: read its JSON.
+            let uv = texture_transform(t.extension_value("KHR_texture_transform"), t.tex_coord());
+            ext.normal_texture =
+                self.texture_ref(&element, "normalTexture", &t.texture(), uv, false)?;
+            let s = t.scale();
+            ext.normal_scale = if s.is_finite() { s } else { 1.0 };
         }
         if m.occlusion_texture().is_some() {
-            self.report
-                .unsupported(format!("occlusionTexture ({element})"));
+            self.report.note(format!(
+                "occlusionTexture ({element}) not used: the path tracer computes occlusion"
+            ));
         }
-        if m.emissive_texture().is_some() {
-            self.report
-                .unsupported(format!("emissiveTexture ({element})"));
+        if let Some(t) = m.emissive_texture() {
+            ext.emissive_texture =
+                self.texture_ref(&element, "emissiveTexture", &t.texture(), info_uv(&t), true)?;
+            if ext.emissive_texture.is_none() {
+                // The factor alone would turn the whole mesh into a lamp; what the texture
+                // leaves dark is the usual case (exporters write factor 1 beside the texture).
+                self.report.warn(format!(
+                    "{element}: its emissive texture cannot be used; the material does not emit"
+                ));
+            }
         }
-        if pbr.metallic_roughness_texture().is_some() {
-            self.report
-                .unsupported(format!("metallicRoughnessTexture ({element})"));
+        if let Some(t) = pbr.metallic_roughness_texture() {
+            ext.metallic_roughness_texture = self.texture_ref(
+                &element,
+                "metallicRoughnessTexture",
+                &t.texture(),
+                info_uv(&t),
+                false,
+            )?;
         }
         let base_color_texture = match pbr.base_color_texture() {
-            Some(info) if info.tex_coord() != 0 => {
-                self.report.unsupported(format!(
-                    "texCoord {} ({element} baseColorTexture; the factor is used)",
-                    info.tex_coord()
-                ));
-                None
+            Some(info) => {
+                let r = self.texture_ref(
+                    &element,
+                    "baseColorTexture",
+                    &info.texture(),
+                    info_uv(&info),
+                    true,
+                )?;
+                if let Some(r) = r {
+                    ext.base_color_uv = r.uv;
+                }
+                r.map(|r| r.texture)
             }
-            Some(info) => self.texture(&info.texture())?,
             None => None,
         };
-        // KHR_materials_specular: the scalar factor scales the dielectric Fresnel term (the
-        // tracer's BSDF); a coloured factor or textures are not modelled.
+        // KHR_materials_specular: the factor scales the dielectric Fresnel term, the colour
+        // tints its F0 (the tracer's BSDF); its textures are not modelled.
         let mut specular = 1.0;
         if let Some(sp) = m.specular() {
             let f = sp.specular_factor();
@@ -682,121 +891,35 @@ impl Loader<'_> {
             } else {
                 1.0
             };
-            if sp.specular_color_factor() != [1.0; 3] {
-                self.report.unsupported(format!(
-                    "KHR_materials_specular specularColorFactor ({element}; white is used)"
-                ));
-            }
+            let c = Vec3::from_array(sp.specular_color_factor());
+            ext.specular_color = if c.is_finite() {
+                c.clamp(Vec3::ZERO, Vec3::splat(10.0))
+            } else {
+                Vec3::ONE
+            };
             if sp.specular_texture().is_some() || sp.specular_color_texture().is_some() {
                 self.report
                     .unsupported(format!("KHR_materials_specular textures ({element})"));
             }
         }
-        Ok(Material {
-            name,
-            base_color,
-            base_color_texture,
-            metallic,
-            roughness,
-            specular,
-            emission: emissive * strength,
-            double_sided: m.double_sided(),
-        })
-    }
-
-    /// Decodes a texture's image once; `None` (reported) where it cannot be decoded.
-    fn texture(&mut self, tex: &gltf::Texture) -> Result<Option<u32>, SceneError> {
-        if let Some(&t) = self.textures.get(&tex.index()) {
-            return Ok(t);
-        }
-        let image = tex.source();
-        let name = tex
-            .name()
-            .or(image.name())
-            .map_or_else(|| format!("texture {}", tex.index()), str::to_string);
-        let element = format!("texture '{name}'");
-        let sampler = tex.sampler();
-        for wrap in [sampler.wrap_s(), sampler.wrap_t()] {
-            if wrap != gltf::texture::WrappingMode::Repeat {
-                let wrap = match wrap {
-                    gltf::texture::WrappingMode::ClampToEdge => "CLAMP_TO_EDGE",
-                    gltf::texture::WrappingMode::MirroredRepeat => "MIRRORED_REPEAT",
-                    gltf::texture::WrappingMode::Repeat => "REPEAT",
-                };
-                self.report.unsupported(format!(
-                    "sampler wrap mode {wrap} ({element}; sampled with REPEAT)"
-                ));
-            }
-        }
-        let (bytes, mime, uri_ext) = match image.source() {
-            gltf::image::Source::View { view, mime_type } => {
-                let start = view.offset();
-                let bytes = start
-                    .checked_add(view.length())
-                    .and_then(|end| self.buffers.get(view.buffer().index())?.get(start..end))
-                    .ok_or_else(|| {
-                        self.element_error(
-                            element.clone(),
-                            format!("buffer view {} runs past its buffer", view.index()),
-                        )
-                    })?;
-                (bytes.to_vec(), Some(mime_type.to_string()), None)
-            }
-            gltf::image::Source::Uri { uri, mime_type } => {
-                let bytes = read_uri(uri, self.base).map_err(|reason| SceneError::Resource {
-                    file: self.file.into(),
-                    element: element.clone(),
-                    uri: short_uri(uri),
-                    reason,
-                })?;
-                let data_mime = uri
-                    .strip_prefix("data:")
-                    .and_then(|r| r.split(';').next())
-                    .filter(|m| !m.is_empty());
-                let mime = mime_type.or(data_mime).map(str::to_string);
-                let ext = (!uri.starts_with("data:"))
-                    .then(|| uri.rsplit('.').next().map(str::to_ascii_lowercase))
-                    .flatten();
-                (bytes, mime, ext)
-            }
+        let emission = if m.emissive_texture().is_some() && ext.emissive_texture.is_none() {
+            Vec3::ZERO
+        } else {
+            emissive * strength
         };
-        let format = match (mime.as_deref(), uri_ext.as_deref()) {
-            (Some("image/png"), _) | (None, Some("png")) => Some(image::ImageFormat::Png),
-            (Some("image/jpeg"), _) | (None, Some("jpg" | "jpeg")) => {
-                Some(image::ImageFormat::Jpeg)
-            }
-            _ => image::guess_format(&bytes)
-                .ok()
-                .filter(|f| matches!(f, image::ImageFormat::Png | image::ImageFormat::Jpeg)),
-        };
-        let Some(format) = format else {
-            let what = mime.or(uri_ext).unwrap_or_else(|| "unknown".into());
-            self.report.unsupported(format!(
-                "image format {what} ({element}; its materials use the base colour factor)"
-            ));
-            self.textures.insert(tex.index(), None);
-            return Ok(None);
-        };
-        let decoded = decode_rgba8(&bytes, format);
-        let t = match decoded {
-            Ok(texture) => {
-                self.scene.textures.push(Texture {
-                    name,
-                    width: texture.width(),
-                    height: texture.height(),
-                    texels: texture.pixels().map(|p| p.0).collect(),
-                });
-                Some(self.scene.textures.len() as u32 - 1)
-            }
-            Err(e) => {
-                self.report.warn(format!(
-                    "{element}: cannot decode the {format:?} image ({e}); its materials use the base colour factor"
-                ));
-                None
-            }
-        };
-        self.textures.insert(tex.index(), t);
-        Ok(t)
+        Ok((
+            Material {
+                name,
+                base_color,
+                base_color_texture,
+                metallic,
+                roughness,
+                specular,
+                emission,
+                double_sided: m.double_sided(),
+            },
+            ext,
+        ))
     }
 
     fn finish(mut self) -> Scene {
@@ -822,37 +945,58 @@ impl Loader<'_> {
                     s.bad_uvs,
                     "non-finite texture coordinates replaced by (0, 0)",
                 ),
+                (s.bad_colors, "non-finite vertex colours replaced by white"),
             ] {
                 if n > 0 {
                     self.report.warn(format!("{l}: {n} {what}"));
                 }
             }
         }
+        if self
+            .material_ext
+            .iter()
+            .any(|e| *e != MaterialExt::default())
+        {
+            self.scene.material_ext = self.material_ext;
+        }
         self.scene.unsupported = self.report.unsupported;
         self.scene.warnings = self.report.warnings;
+        self.scene.notes = self.report.notes;
         self.scene.environment = Environment::default();
         self.scene
     }
 }
 
-/// Decodes PNG or JPEG into RGBA8 (grey, grey-alpha, RGB and 16-bit images are expanded the way
-/// the `image` crate does: 16-bit channels are rounded to 8 bits, missing alpha is opaque).
-fn decode_rgba8(bytes: &[u8], format: image::ImageFormat) -> Result<image::RgbaImage, String> {
-    let mut reader = image::ImageReader::with_format(Cursor::new(bytes), format);
-    let mut limits = image::Limits::default();
-    limits.max_alloc = Some(MAX_IMAGE_BYTES);
-    reader.limits(limits);
-    let img = reader.decode().map_err(|e| e.to_string())?;
-    let (w, h) = (u64::from(img.width()), u64::from(img.height()));
-    if w * h * 4 > MAX_IMAGE_BYTES {
-        return Err(format!(
-            "{w}×{h} is larger than {MAX_IMAGE_BYTES} bytes of RGBA8"
-        ));
+/// A unit tangent orthogonal to `n` with bitangent sign `w`, or a zero vector where `t` is
+/// unusable (the tracer then builds a frame from the normal alone).
+fn tangent_for(t: Vec3, w: f32, n: Vec3) -> Vec4 {
+    match unit(t - n * n.dot(t)) {
+        Some(t) => t.extend(w),
+        None => Vec4::ZERO,
     }
-    if w == 0 || h == 0 {
-        return Err("the image is empty".into());
+}
+
+/// Per-corner tangents from the positions and the normal map's texture coordinates (the
+/// triangle's dP/du), with the sign that makes the normal map's +Y the direction of decreasing
+/// v (glTF's images have v = 0 at the top, normal maps +Y up).
+fn uv_tangents(p: [Vec3; 3], uv: [Vec2; 3], n: [Vec3; 3]) -> [Vec4; 3] {
+    let (dp1, dp2) = (p[1] - p[0], p[2] - p[0]);
+    let (d1, d2) = (uv[1] - uv[0], uv[2] - uv[0]);
+    let r = d1.x * d2.y - d1.y * d2.x;
+    if r == 0.0 || !r.is_finite() {
+        return [Vec4::ZERO; 3];
     }
-    Ok(img.to_rgba8())
+    let dpdu = (dp1 * d2.y - dp2 * d1.y) / r;
+    let dpdv = (dp2 * d1.x - dp1 * d2.x) / r;
+    n.map(|n| {
+        let t = tangent_for(dpdu, 1.0, n);
+        let w = if n.cross(t.truncate()).dot(-dpdv) < 0.0 {
+            -1.0
+        } else {
+            1.0
+        };
+        t.truncate().extend(if t == Vec4::ZERO { 0.0 } else { w })
+    })
 }
 
 /// `v` scaled to unit length, or `None` for a zero or non-finite vector. Dividing by the largest
@@ -891,37 +1035,34 @@ mod tests {
     use super::*;
 
     #[test]
-    fn percent_decoding_accepts_utf8_and_rejects_broken_escapes() {
-        assert_eq!(percent_decode("a%20b%C3%A9.png").unwrap(), "a bé.png");
-        assert_eq!(percent_decode("plain.bin").unwrap(), "plain.bin");
-        // The gltf crate unwraps this decoding and panics; here it is an error.
-        assert!(percent_decode("%FF.png").unwrap_err().contains("UTF-8"));
-        assert!(
-            percent_decode("%G1")
-                .unwrap_err()
-                .contains("percent-escape")
+    fn strips_and_fans_unroll_with_the_specifications_winding() {
+        let idx = [0, 1, 2, 3, 4];
+        assert_eq!(
+            triangle_indices(Mode::TriangleStrip, &idx),
+            vec![[0, 1, 2], [1, 3, 2], [2, 3, 4]]
         );
-        assert!(percent_decode("end%2").is_err());
+        assert_eq!(
+            triangle_indices(Mode::TriangleFan, &idx),
+            vec![[1, 2, 0], [2, 3, 0], [3, 4, 0]]
+        );
+        assert!(triangle_indices(Mode::TriangleStrip, &[0, 1]).is_empty());
+        assert_eq!(triangle_indices(Mode::Triangles, &idx), vec![[0, 1, 2]]);
     }
 
     #[test]
-    fn uris_resolve_data_and_relative_paths_and_refuse_the_rest() {
-        assert_eq!(
-            read_uri("data:application/octet-stream;base64,AAEC", None).unwrap(),
-            [0, 1, 2]
-        );
-        assert!(
-            read_uri("data:text/plain,hello", None)
-                .unwrap_err()
-                .contains("base64")
-        );
-        assert!(read_uri("https://example.com/a.bin", Some(Path::new("."))).is_err());
-        assert!(read_uri("a.bin", None).unwrap_err().contains("in-memory"));
-        assert!(
-            read_uri("file:///etc/hostname", None)
-                .unwrap_err()
-                .contains("in-memory")
-        );
-        assert_eq!(short_uri("data:image/png;base64,AAAA"), "data:image/png…");
+    fn uv_tangents_follow_u_and_sign_v_down() {
+        // A quad in the xy plane facing +z, u along +x, v along −y (glTF images: v down).
+        let p = [Vec3::ZERO, Vec3::X, Vec3::Y];
+        let uv = [
+            Vec2::new(0.0, 1.0),
+            Vec2::new(1.0, 1.0),
+            Vec2::new(0.0, 0.0),
+        ];
+        let t = uv_tangents(p, uv, [Vec3::Z; 3]);
+        for t in t {
+            assert!((t.truncate() - Vec3::X).length() < 1e-6, "{t}");
+            // B = N × T · w = +y: the normal map's +Y points up the image (decreasing v).
+            assert_eq!(t.w, 1.0);
+        }
     }
 }

@@ -18,14 +18,22 @@
 //! and traversal of the Tray Racing benchmark that `obvhs` was built for.
 //!
 //! Primitives are stored in BVH order (`prims`, three `vec4<f32>` each: `v0` and the original
-//! triangle index, `e1 = v1 − v0` and the light-selection density, `e2 = v2 − v0` and 1 for a
-//! single-sided triangle, whose back face rays pass through), so a leaf's triangles are
-//! contiguous in memory.
+//! triangle index, `e1 = v1 − v0` and the light-selection density, `e2 = v2 − v0` and the
+//! primitive's flags as a small float — [`PRIM_CULL`] for a single-sided triangle, whose back
+//! face rays pass through, plus [`PRIM_ALPHA`] for one whose material is alpha-masked or
+//! blended, where the caller decides per hit whether the surface is there), so a leaf's
+//! triangles are contiguous in memory.
 
 use std::time::Duration;
 
 use glam::{UVec2, Vec3, Vec3A, vec3a};
 use obvhs::{BvhBuildParams, cwbvh::CwBvh, ray::Ray, triangle::Triangle as ObvhsTriangle};
+
+/// Primitive flag: single-sided (rays pass the back face).
+pub const PRIM_CULL: u32 = 1;
+/// Primitive flag: alpha-tested (MASK or BLEND): a hit counts only where the traversal's
+/// coverage test says the surface is there.
+pub const PRIM_ALPHA: u32 = 2;
 
 /// The BVH and the primitives in BVH order.
 #[derive(Clone, Debug)]
@@ -113,6 +121,18 @@ impl SceneBvh {
         light_density: &[f32],
         single_sided: &[bool],
     ) -> Self {
+        let flags: Vec<u32> = single_sided
+            .iter()
+            .map(|&s| if s { PRIM_CULL } else { 0 })
+            .collect();
+        Self::build_flagged(triangles, light_density, &flags)
+    }
+
+    /// [`Self::build`] with per-triangle flags ([`PRIM_CULL`], [`PRIM_ALPHA`]; missing
+    /// entries: none), stored as the float `flags as f32` (exact, and a normal number on every
+    /// GPU, where a bit pattern this small would be a subnormal that may be flushed).
+    #[must_use]
+    pub fn build_flagged(triangles: &[[Vec3; 3]], light_density: &[f32], flags: &[u32]) -> Self {
         if triangles.is_empty() {
             return Self {
                 cwbvh: CwBvh::default(),
@@ -138,16 +158,16 @@ impl SceneBvh {
             let (e1, e2) = (t[1] - t[0], t[2] - t[0]);
             prims.push([t[0].x, t[0].y, t[0].z, f32::from_bits(orig)]);
             prims.push([e1.x, e1.y, e1.z, light_density[orig as usize]]);
-            let cull = single_sided.get(orig as usize).copied().unwrap_or(false);
-            prims.push([e2.x, e2.y, e2.z, if cull { 1.0 } else { 0.0 }]);
+            let f = flags.get(orig as usize).copied().unwrap_or(0);
+            prims.push([e2.x, e2.y, e2.z, f as f32]);
         }
         Self { cwbvh, prims }
     }
 
-    /// Whether BVH primitive `i` is single-sided (rays pass its back face).
+    /// BVH primitive `i`'s flags ([`PRIM_CULL`], [`PRIM_ALPHA`]).
     #[inline]
-    fn culled(&self, i: usize) -> bool {
-        self.prims[3 * i + 2][3] != 0.0
+    fn flags(&self, i: usize) -> u32 {
+        self.prims[3 * i + 2][3] as u32
     }
 
     fn prim(&self, i: usize) -> (Vec3, Vec3, Vec3) {
@@ -180,6 +200,19 @@ impl SceneBvh {
     /// The closest hit along `origin + t·dir`, `0 < t < tmax`.
     #[must_use]
     pub fn closest_hit(&self, origin: Vec3, dir: Vec3, tmax: f32) -> Option<TraceHit> {
+        self.closest_hit_filtered(origin, dir, tmax, |_, _, _| true)
+    }
+
+    /// [`Self::closest_hit`] where a hit on an alpha-tested primitive ([`PRIM_ALPHA`]) counts
+    /// only if `covered(triangle, u, v)` (the CPU twin of `alpha_covered` in path.wgsl).
+    #[must_use]
+    pub fn closest_hit_filtered(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        tmax: f32,
+        covered: impl Fn(u32, f32, f32) -> bool,
+    ) -> Option<TraceHit> {
         if self.cwbvh.nodes.is_empty() {
             return None;
         }
@@ -196,9 +229,19 @@ impl SceneBvh {
             {
                 let i = state.primitive_id as usize;
                 let (v0, e1, e2) = self.prim(i);
-                if let Some((t, u, v)) =
-                    intersect_triangle_sided(origin, dir, v0, e1, e2, ray.tmax, self.culled(i))
-                {
+                let flags = self.flags(i);
+                if let Some((t, u, v)) = intersect_triangle_sided(
+                    origin,
+                    dir,
+                    v0,
+                    e1,
+                    e2,
+                    ray.tmax,
+                    flags & PRIM_CULL != 0,
+                )
+                .filter(|&(_, u, v)| {
+                    flags & PRIM_ALPHA == 0 || covered(self.prims[3 * i][3].to_bits(), u, v)
+                }) {
                     ray.tmax = t;
                     best = Some(TraceHit {
                         t,
@@ -216,6 +259,18 @@ impl SceneBvh {
     /// Whether anything blocks `origin + t·dir` for `0 < t < tmax` (shadow rays).
     #[must_use]
     pub fn occluded(&self, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
+        self.occluded_filtered(origin, dir, tmax, |_, _, _| true)
+    }
+
+    /// [`Self::occluded`] with the coverage test of [`Self::closest_hit_filtered`].
+    #[must_use]
+    pub fn occluded_filtered(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        tmax: f32,
+        covered: impl Fn(u32, f32, f32) -> bool,
+    ) -> bool {
         if self.cwbvh.nodes.is_empty() {
             return false;
         }
@@ -233,9 +288,19 @@ impl SceneBvh {
                 {
                     let i = state.primitive_id as usize;
                     let (v0, e1, e2) = self.prim(i);
-                    if intersect_triangle_sided(origin, dir, v0, e1, e2, tmax, self.culled(i))
-                        .is_some()
-                    {
+                    let flags = self.flags(i);
+                    if intersect_triangle_sided(
+                        origin,
+                        dir,
+                        v0,
+                        e1,
+                        e2,
+                        tmax,
+                        flags & PRIM_CULL != 0,
+                    )
+                    .is_some_and(|(_, u, v)| {
+                        flags & PRIM_ALPHA == 0 || covered(self.prims[3 * i][3].to_bits(), u, v)
+                    }) {
                         blocked = true;
                         break 'search;
                     }

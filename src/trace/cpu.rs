@@ -1,10 +1,13 @@
 //! The integrator on the CPU: the twin of `shaders/trace/path.wgsl` (same data, same random
 //! numbers, same formulas, f32), used as the test oracle and as the fallback backend.
 //!
-//! One call of [`trace_sample`] is one path: a pinhole primary ray jittered inside the pixel,
-//! then at each vertex emission (MIS-weighted against next-event estimation), one light sample
-//! (the environment or an emissive triangle, power heuristic), one BSDF sample, and Russian
-//! roulette from the fourth vertex on, up to `max_depth` vertices.
+//! One call of [`trace_sample`] is one path: a pinhole (or orthographic) primary ray jittered
+//! inside the pixel, then at each vertex emission (MIS-weighted against next-event
+//! estimation), one light sample (the environment, a punctual light — a delta light, weight 1
+//! — or an emissive triangle, power heuristic), one BSDF sample (reflected, or refracted
+//! through glass), and Russian roulette from the fourth vertex on, up to `max_depth` vertices.
+//! Alpha-masked and blended triangles are tested during traversal (`alpha_covered`); the
+//! features a scene lacks (pack.rs's flags) cost a bit test.
 //!
 //! Random numbers: `pcg4d([pixel, sample, seed, stream::TRACE + dim])` where `sample` is the
 //! pixel's sample count before this sample (so a pixel's sequence does not depend on which
@@ -18,9 +21,14 @@ use rayon::prelude::*;
 
 use super::accum::{Accumulation, accumulate};
 use super::camera::RenderCamera;
-use super::pack::{NO_TEXTURE, PackedScene};
+use super::pack::{
+    EXTRAS_STRIDE, FEAT_ALPHA, FEAT_EXTRAS, LIGHT_DIRECTIONAL, LIGHT_SPOT, MAT_BASE_TEX, MAT_BLEND,
+    MAT_EMISSIVE_TEX, MAT_EXT_BSDF, MAT_MASK, MAT_MR_TEX, MAT_NORMAL_TEX, MATERIAL_STRIDE,
+    MIN_ALPHA, PackedScene,
+};
 use super::shading::{
-    Bsdf, direction_to_equirect, equirect_to_direction, offset_ray, srgb_to_linear, uniform_sphere,
+    Bsdf, BsdfExt, basis, direction_to_equirect, equirect_to_direction, offset_ray, srgb_to_linear,
+    uniform_sphere,
 };
 use crate::random::{pcg4d, stream, unit_f32};
 
@@ -71,34 +79,207 @@ fn sample_cdf(dist: &[f32], offset: u32, n: u32, u: f32) -> u32 {
     lo
 }
 
-fn texel(sc: &PackedScene, off: u32, w: u32, h: u32, x: i32, y: i32) -> Vec4 {
-    let xi = x.rem_euclid(w as i32) as u32;
-    let yi = y.rem_euclid(h as i32) as u32;
-    let c = sc.texels[(off + yi * w + xi) as usize];
-    let ch = |s: u32| ((c >> s) & 0xff) as f32 / 255.0;
-    Vec4::new(
-        srgb_to_linear(ch(0)),
-        srgb_to_linear(ch(8)),
-        srgb_to_linear(ch(16)),
-        ch(24),
-    )
+/// `i` wrapped into `0..n` by a glTF wrap mode (0 repeat, 1 clamp to edge, 2 mirrored repeat).
+#[inline]
+fn wrap(i: i32, n: u32, mode: u32) -> u32 {
+    let n = n as i32;
+    (match mode {
+        1 => i.clamp(0, n - 1),
+        2 => {
+            let k = i.rem_euclid(2 * n);
+            if k >= n { 2 * n - 1 - k } else { k }
+        }
+        _ => i.rem_euclid(n),
+    }) as u32
 }
 
-/// Bilinear, wrapping texture lookup in linear colour.
+fn texel(sc: &PackedScene, off: u32, w: u32, h: u32, sampler: u32, x: i32, y: i32) -> Vec4 {
+    let xi = wrap(x, w, sampler & 3);
+    let yi = wrap(y, h, (sampler >> 2) & 3);
+    let c = sc.texels[(off + yi * w + xi) as usize];
+    let ch = |s: u32| ((c >> s) & 0xff) as f32 / 255.0;
+    if sampler & 32 != 0 {
+        Vec4::new(
+            srgb_to_linear(ch(0)),
+            srgb_to_linear(ch(8)),
+            srgb_to_linear(ch(16)),
+            ch(24),
+        )
+    } else {
+        Vec4::new(ch(0), ch(8), ch(16), ch(24))
+    }
+}
+
+/// A texture lookup with the texture's sampler (wrap modes, nearest or bilinear), in linear
+/// values (sRGB-decoded for colour textures).
 fn texture(sc: &PackedScene, tex: u32, uv: Vec2) -> Vec4 {
-    let hdr = &sc.texels[4 * tex as usize..4 * tex as usize + 3];
-    let (off, w, h) = (hdr[0], hdr[1], hdr[2]);
+    let hdr = &sc.texels[4 * tex as usize..4 * tex as usize + 4];
+    let (off, w, h, sampler) = (hdr[0], hdr[1], hdr[2], hdr[3]);
     let uv = if uv.is_finite() { uv } else { Vec2::ZERO };
+    if sampler & 16 != 0 {
+        let x = (uv.x * w as f32).floor() as i32;
+        let y = (uv.y * h as f32).floor() as i32;
+        return texel(sc, off, w, h, sampler, x, y);
+    }
     let x = uv.x * w as f32 - 0.5;
     let y = uv.y * h as f32 - 0.5;
     let (x0, y0) = (x.floor(), y.floor());
     let (fx, fy) = (x - x0, y - y0);
     let (xi, yi) = (x0 as i32, y0 as i32);
-    let a = texel(sc, off, w, h, xi, yi);
-    let b = texel(sc, off, w, h, xi.wrapping_add(1), yi);
-    let c = texel(sc, off, w, h, xi, yi.wrapping_add(1));
-    let d = texel(sc, off, w, h, xi.wrapping_add(1), yi.wrapping_add(1));
+    let a = texel(sc, off, w, h, sampler, xi, yi);
+    let b = texel(sc, off, w, h, sampler, xi.wrapping_add(1), yi);
+    let c = texel(sc, off, w, h, sampler, xi, yi.wrapping_add(1));
+    let d = texel(
+        sc,
+        off,
+        w,
+        h,
+        sampler,
+        xi.wrapping_add(1),
+        yi.wrapping_add(1),
+    );
     (a * (1.0 - fx) + b * fx) * (1.0 - fy) + (c * (1.0 - fx) + d * fx) * fy
+}
+
+/// A point on a triangle: its index and the barycentrics of its second and third vertex.
+#[derive(Clone, Copy)]
+struct SurfacePoint {
+    tri: u32,
+    u: f32,
+    v: f32,
+}
+
+impl SurfacePoint {
+    fn lerp4(&self, a: [f32; 4], b: [f32; 4], c: [f32; 4]) -> Vec4 {
+        Vec4::from_array(a) * (1.0 - self.u - self.v)
+            + Vec4::from_array(b) * self.u
+            + Vec4::from_array(c) * self.v
+    }
+}
+
+/// The texture coordinates of set `set` at `sp` (TEXCOORD_1 from the vertex extras).
+fn surface_uv(sc: &PackedScene, sp: SurfacePoint, set: u32) -> Vec2 {
+    let b0 = 1.0 - sp.u - sp.v;
+    if set == 1 && sc.features & FEAT_EXTRAS != 0 {
+        let e = (sc.extras_offset + EXTRAS_STRIDE as u32 * sp.tri) as usize;
+        let (a, b) = (sc.shade[e + 3], sc.shade[e + 4]);
+        return Vec2::new(a[0], a[1]) * b0
+            + Vec2::new(a[2], a[3]) * sp.u
+            + Vec2::new(b[0], b[1]) * sp.v;
+    }
+    let sh = &sc.shade[4 * sp.tri as usize..4 * sp.tri as usize + 4];
+    Vec2::new(sh[0][3], sh[1][3]) * b0
+        + Vec2::new(sh[2][3], sh[3][0]) * sp.u
+        + Vec2::new(sh[3][1], sh[3][2]) * sp.v
+}
+
+/// Material `mb`'s texture slot `k` at `sp` (the slot's set and transform).
+fn slot(sc: &PackedScene, mb: usize, k: usize, sp: SurfacePoint) -> Vec4 {
+    let (r0, r1) = (sc.materials[mb + 5 + 2 * k], sc.materials[mb + 6 + 2 * k]);
+    let uv = surface_uv(sc, sp, r1[3].to_bits()).extend(1.0);
+    let t = Vec2::new(v3(r0).dot(uv), v3(r1).dot(uv));
+    texture(sc, r0[3].to_bits(), t)
+}
+
+/// The material base (vec4 index) of triangle `tri`.
+fn material_base(sc: &PackedScene, tri: u32) -> usize {
+    MATERIAL_STRIDE * sc.shade[4 * tri as usize + 3][3].to_bits() as usize
+}
+
+/// Base colour (factor × texture × vertex colour) at `sp` for material `mb` with `flags`.
+fn base_color(sc: &PackedScene, mb: usize, flags: u32, sp: SurfacePoint) -> Vec4 {
+    let mut base = Vec4::from_array(sc.materials[mb]);
+    if flags & MAT_BASE_TEX != 0 {
+        base *= slot(sc, mb, 0, sp);
+    }
+    if sc.features & FEAT_EXTRAS != 0 {
+        let e = (sc.extras_offset + EXTRAS_STRIDE as u32 * sp.tri) as usize;
+        base *= sp.lerp4(sc.shade[e], sc.shade[e + 1], sc.shade[e + 2]);
+    }
+    base
+}
+
+/// Coverage of an alpha-tested triangle at (u, v): MASK compares alpha with the cutoff, BLEND
+/// with a uniform threshold hashed from the ray's seed and the triangle (so a ray sees a
+/// blended surface with probability alpha). The twin of `alpha_covered` in path.wgsl.
+#[inline(never)]
+fn alpha_covered(sc: &PackedScene, tri: u32, u: f32, v: f32, seed: u32) -> bool {
+    let mb = material_base(sc, tri);
+    let flags = sc.materials[mb + 1][3] as u32;
+    let a = base_color(sc, mb, flags, SurfacePoint { tri, u, v }).w;
+    if flags & MAT_MASK != 0 {
+        return a >= sc.materials[mb + 2][3];
+    }
+    a > unit_f32(pcg4d([seed, tri, ALPHA_HASH, 0])[0])
+}
+
+/// The coverage hash's third word (any constant apart from the other streams).
+const ALPHA_HASH: u32 = 0x414c_5048;
+
+/// A ray's coverage seed: `which` 0 for the path's ray at `depth`, 1 for its shadow ray.
+#[inline]
+fn ray_seed(pixel: u32, sample: u32, seed: u32, depth: u32, which: u32) -> u32 {
+    pcg4d([
+        pixel,
+        sample,
+        seed,
+        stream::TRACE.wrapping_add(0x8000 + 2 * depth + which),
+    ])[0]
+}
+
+/// The emitted radiance of material `mb` (with `flags`) at `sp`: the factor × the emissive
+/// texture.
+fn emission_at(sc: &PackedScene, mb: usize, flags: u32, sp: SurfacePoint) -> Vec3 {
+    let mut e = v3(sc.materials[mb + 1]);
+    if flags & MAT_EMISSIVE_TEX != 0 {
+        e *= slot(sc, mb, 3, sp).truncate();
+    }
+    e
+}
+
+/// Next-event estimation of one punctual light (`u` the selection number): direction,
+/// radiance × falloff (inverse square, spot cone), selection probability, shadow ray length,
+/// and `true`: a delta light.
+#[inline(never)]
+fn sample_punctual(sc: &PackedScene, po: Vec3, u: f32) -> (Vec3, Vec3, f32, f32, bool) {
+    let n = sc.punctual_count;
+    let k = (((u - sc.env_select) / sc.punct_select * n as f32) as u32).min(n - 1);
+    let l = 3 * (sc.light_count + k) as usize;
+    let (la, lb, lc) = (sc.lights[l], sc.lights[l + 1], sc.lights[l + 2]);
+    let pdf = sc.punct_select / n as f32;
+    if la[3] as u32 == LIGHT_DIRECTIONAL {
+        return (v3(la), v3(lb), pdf, f32::INFINITY, true);
+    }
+    let to = v3(la) - po;
+    let dist2 = to.length_squared();
+    let dist = dist2.sqrt();
+    let wi = to / dist;
+    let mut le = v3(lb) / dist2;
+    if la[3] as u32 == LIGHT_SPOT {
+        // glTF's recommended smooth falloff between the cones.
+        let scale = 1.0 / (lc[3] - lb[3]).max(0.001);
+        let t = ((v3(lc).dot(-wi) - lb[3]) * scale).clamp(0.0, 1.0);
+        le *= t * t;
+    }
+    (wi, le, pdf, dist * (1.0 - 1e-4), true)
+}
+
+/// The normal-mapped shading normal: the slot-2 texel in the frame of the interpolated
+/// tangent (sign in w) and `ns` (before any flip to the viewer's side).
+#[inline(never)]
+fn normal_mapped(sc: &PackedScene, mb: usize, sp: SurfacePoint, ns: Vec3) -> Vec3 {
+    let tn = slot(sc, mb, 2, sp).truncate() * 2.0 - Vec3::ONE;
+    let scale = sc.materials[mb + 4][3];
+    let e = (sc.extras_offset + EXTRAS_STRIDE as u32 * sp.tri) as usize;
+    let t4 = sp.lerp4(sc.shade[e + 5], sc.shade[e + 6], sc.shade[e + 7]);
+    let mut t = t4.truncate() - ns * ns.dot(t4.truncate());
+    if !(t.length_squared() > 1e-12) {
+        t = basis(ns).0;
+    }
+    let t = t.normalize();
+    let b = ns.cross(t) * if t4.w < 0.0 { -1.0 } else { 1.0 };
+    let m = (t * (tn.x * scale) + b * (tn.y * scale) + ns * tn.z).normalize();
+    if m.is_finite() { m } else { ns }
 }
 
 /// Environment radiance arriving along `-d` (i.e. seen looking along `d`) and the density
@@ -173,18 +354,27 @@ pub fn trace_counted(sc: &PackedScene, s: &TraceSettings, pixel: u32, sample: u3
     let mut rays = 0u32;
     let (x, y) = (pixel % s.width, pixel / s.width);
     let r0 = rand4(pixel, sample, s.seed, 0);
-    let mut d = s
+    let (mut o, mut d) = s
         .camera
-        .direction(x as f32 + r0[0], y as f32 + r0[1], s.width, s.height);
-    let mut o = s.camera.position;
+        .ray(x as f32 + r0[0], y as f32 + r0[1], s.width, s.height);
     let mut throughput = Vec3::ONE;
     let mut radiance = Vec3::ZERO;
     // The BSDF density of the direction just taken; 0 for the camera ray (no MIS).
     let mut prev_pdf = 0.0f32;
     let bvh = &sc.bvh;
+    let alpha_scene = sc.features & FEAT_ALPHA != 0;
+    // Probability that next-event estimation picks an emissive triangle.
+    let tri_select = 1.0 - sc.env_select - sc.punct_select;
     for depth in 0..s.max_depth {
         rays += 1;
-        let Some(hit) = bvh.closest_hit(o, d, f32::INFINITY) else {
+        let seed = if alpha_scene {
+            ray_seed(pixel, sample, s.seed, depth, 0)
+        } else {
+            0
+        };
+        let Some(hit) = bvh.closest_hit_filtered(o, d, f32::INFINITY, |tri, u, v| {
+            alpha_covered(sc, tri, u, v, seed)
+        }) else {
             let (le, pdf_env) = env_eval(sc, d);
             let w = if prev_pdf == 0.0 {
                 1.0
@@ -206,55 +396,89 @@ pub fn trace_counted(sc: &PackedScene, s: &TraceSettings, pixel: u32, sample: u3
         let ti = 4 * hit.triangle as usize;
         let sh = &sc.shade[ti..ti + 4];
         let b0 = 1.0 - hit.u - hit.v;
+        let sp = SurfacePoint {
+            tri: hit.triangle,
+            u: hit.u,
+            v: hit.v,
+        };
         let mut ns = (v3(sh[0]) * b0 + v3(sh[1]) * hit.u + v3(sh[2]) * hit.v).normalize();
         if !ns.is_finite() {
             ns = ng;
         }
-        let uv = Vec2::new(sh[0][3], sh[1][3]) * b0
-            + Vec2::new(sh[2][3], sh[3][0]) * hit.u
-            + Vec2::new(sh[3][1], sh[3][2]) * hit.v;
-        let mi = 3 * sh[3][3].to_bits() as usize;
-        let (m0, m1, m2) = (sc.materials[mi], sc.materials[mi + 1], sc.materials[mi + 2]);
+        let mb = MATERIAL_STRIDE * sh[3][3].to_bits() as usize;
+        let (m1, m2) = (sc.materials[mb + 1], sc.materials[mb + 2]);
+        let flags = m1[3] as u32;
         let wo = -d;
         let cos_hit = ng.dot(d).abs();
-        if ng.dot(wo) < 0.0 {
+        let front = ng.dot(wo) >= 0.0;
+        if !front {
             ng = -ng;
+        }
+        if flags & MAT_NORMAL_TEX != 0 {
+            ns = normal_mapped(sc, mb, sp, ns);
         }
         if ns.dot(ng) < 0.0 {
             ns = -ns;
         }
-        let emission = v3(m1);
+        let emission = emission_at(sc, mb, flags, sp);
         if emission != Vec3::ZERO {
             let w = if prev_pdf == 0.0 {
                 1.0
             } else {
-                let pdf_light = (1.0 - sc.env_select) * light_density * hit.t * hit.t / cos_hit;
+                let pdf_light = tri_select * light_density * hit.t * hit.t / cos_hit;
                 mis(prev_pdf, pdf_light)
             };
             radiance += throughput * emission * w;
         }
-        let mut base = Vec4::from_array(m0);
-        let tex = m1[3].to_bits();
-        if tex != NO_TEXTURE {
-            base *= texture(sc, tex, uv);
+        let base = base_color(sc, mb, flags, sp);
+        let (mut metallic, mut alpha) = (m2[0], m2[1]);
+        if flags & MAT_MR_TEX != 0 {
+            let mr = slot(sc, mb, 1, sp);
+            alpha = (alpha * mr.y * mr.y).max(MIN_ALPHA);
+            metallic *= mr.z;
         }
         let bsdf = Bsdf {
             base: base.truncate(),
-            metallic: m2[0],
-            alpha: m2[1],
+            metallic,
+            alpha,
             specular: m2[2],
+        };
+        let ext = (flags & MAT_EXT_BSDF != 0).then(|| {
+            let (m3, m4) = (sc.materials[mb + 3], sc.materials[mb + 4]);
+            let ior = m4[0];
+            let f0 = (ior - 1.0) / (ior + 1.0);
+            BsdfExt {
+                core: bsdf,
+                specular_color: v3(m3),
+                f0: f0 * f0,
+                eta: if front { ior } else { 1.0 / ior },
+                transmission: m3[3],
+                clearcoat: m4[1],
+                clearcoat_alpha: m4[2],
+            }
+        });
+        let transmits = ext.is_some_and(|e| e.transmits());
+        let eval = |wi: Vec3| {
+            if let Some(e) = &ext {
+                e.eval(ns, wo, wi)
+            } else {
+                bsdf.eval(ns, wo, wi)
+            }
         };
         let r1 = rand4(pixel, sample, s.seed, 1 + 2 * depth);
         let r2 = rand4(pixel, sample, s.seed, 2 + 2 * depth);
         let po = offset_ray(p, ng);
 
-        // Next-event estimation: the environment or one emissive triangle.
-        if sc.env_select > 0.0 || sc.light_count > 0 {
-            let (wi, le, pdf_l, tmax) = if r1[0] < sc.env_select {
+        // Next-event estimation: the environment, a punctual light or one emissive triangle.
+        if sc.env_select > 0.0 || sc.light_count > 0 || sc.punctual_count > 0 {
+            // (direction, radiance × falloff, pdf, shadow ray length, a delta light)
+            let (wi, le, pdf_l, tmax, delta) = if r1[0] < sc.env_select {
                 let (wi, le, pdf) = sample_env(sc, r1[1], r1[2]);
-                (wi, le, sc.env_select * pdf, f32::INFINITY)
+                (wi, le, sc.env_select * pdf, f32::INFINITY, false)
+            } else if r1[0] < sc.env_select + sc.punct_select {
+                sample_punctual(sc, po, r1[0])
             } else {
-                let u = ((r1[0] - sc.env_select) / (1.0 - sc.env_select)).min(0.99999994);
+                let u = ((r1[0] - sc.env_select - sc.punct_select) / tri_select).min(0.99999994);
                 let k = sample_cdf(&sc.dist, 0, sc.light_count, u);
                 let l = 3 * k as usize;
                 let (lv0, le1, le2) =
@@ -279,30 +503,51 @@ pub fn trace_counted(sc: &PackedScene, s: &TraceSettings, pixel: u32, sample: u3
                 } else {
                     facing.max(0.0)
                 };
-                let tri = sc.lights[l][3].to_bits() as usize;
-                let lmi = 3 * sc.shade[4 * tri + 3][3].to_bits() as usize;
+                let tri = sc.lights[l][3].to_bits();
+                let lmb = material_base(sc, tri);
+                let lflags = sc.materials[lmb + 1][3] as u32;
+                let lsp = SurfacePoint { tri, u: a, v: b };
+                let mut le = emission_at(sc, lmb, lflags, lsp);
+                // A cut-out emitter emits only where it is there (BSDF rays see the same).
+                if lflags & MAT_MASK != 0 {
+                    let a = base_color(sc, lmb, lflags, lsp).w;
+                    if a < sc.materials[lmb + 2][3] {
+                        le = Vec3::ZERO;
+                    }
+                } else if lflags & MAT_BLEND != 0 {
+                    le *= base_color(sc, lmb, lflags, lsp).w;
+                }
                 let density = sc.dist[k as usize + 1] - sc.dist[k as usize];
                 let pdf = if cos_l > 0.0 {
-                    (1.0 - sc.env_select) * density / (0.5 * area2) * dist2 / cos_l
+                    tri_select * density / (0.5 * area2) * dist2 / cos_l
                 } else {
                     0.0
                 };
-                (wi, v3(sc.materials[lmi + 1]), pdf, dist * (1.0 - 1e-4))
+                (wi, le, pdf, dist * (1.0 - 1e-4), false)
             };
-            if pdf_l > 0.0 && pdf_l.is_finite() && wi.dot(ng) > 0.0 {
-                let (f, pdf_b) = bsdf.eval(ns, wo, wi);
+            let side = wi.dot(ng);
+            if pdf_l > 0.0 && pdf_l.is_finite() && (side > 0.0 || (transmits && side < 0.0)) {
+                let (f, pdf_b) = eval(wi);
                 // At the last vertex no BSDF ray follows to find this light, so its sample
                 // carries the whole estimate: MIS against a strategy that is never taken
-                // would drop that strategy's share.
-                let w = if depth + 1 == s.max_depth {
+                // would drop that strategy's share. A delta light cannot be hit at all.
+                let w = if delta || depth + 1 == s.max_depth {
                     1.0
                 } else {
                     mis(pdf_l, pdf_b)
                 };
-                let contrib = throughput * f * le * (ns.dot(wi) / pdf_l) * w;
+                let contrib = throughput * f * le * (ns.dot(wi).abs() / pdf_l) * w;
                 if contrib != Vec3::ZERO {
                     rays += 1;
-                    if !bvh.occluded(po, wi, tmax) {
+                    let from = if side > 0.0 { po } else { offset_ray(p, -ng) };
+                    let shadow_seed = if alpha_scene {
+                        ray_seed(pixel, sample, s.seed, depth, 1)
+                    } else {
+                        0
+                    };
+                    if !bvh.occluded_filtered(from, wi, tmax, |tri, u, v| {
+                        alpha_covered(sc, tri, u, v, shadow_seed)
+                    }) {
                         radiance += contrib;
                     }
                 }
@@ -310,15 +555,21 @@ pub fn trace_counted(sc: &PackedScene, s: &TraceSettings, pixel: u32, sample: u3
         }
 
         // Continue the path by sampling the BSDF.
-        let wi = bsdf.sample(ns, wo, r1[3], r2[0], r2[1]);
-        if wi.dot(ng) <= 0.0 {
+        let wi = match &ext {
+            Some(e) => e.sample(ns, wo, r1[3], r2[0], r2[1]),
+            None => bsdf.sample(ns, wo, r1[3], r2[0], r2[1]),
+        };
+        let side = wi.dot(ng);
+        // Below the surface only through a transmitting one, and on the same side of the
+        // shading normal as of the geometric one (no light leaks).
+        if !(side > 0.0 || (transmits && side < 0.0 && ns.dot(wi) < 0.0)) {
             break;
         }
-        let (f, pdf) = bsdf.eval(ns, wo, wi);
+        let (f, pdf) = eval(wi);
         if !(pdf > 0.0) {
             break;
         }
-        throughput *= f * (ns.dot(wi) / pdf);
+        throughput *= f * (ns.dot(wi).abs() / pdf);
         prev_pdf = pdf;
         if depth >= 3 {
             let q = throughput.max_element().min(0.95);
@@ -327,7 +578,7 @@ pub fn trace_counted(sc: &PackedScene, s: &TraceSettings, pixel: u32, sample: u3
             }
             throughput /= q;
         }
-        o = po;
+        o = if side > 0.0 { po } else { offset_ray(p, -ng) };
         d = wi;
     }
     let radiance = if radiance.is_finite() {

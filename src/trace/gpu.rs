@@ -52,6 +52,12 @@ pub struct GpuTraceParams {
     pub node_count: u32,
     pub cam_up: [f32; 3],
     pub _pad: u32,
+    pub features: u32,
+    pub extras_offset: u32,
+    pub punctual_count: u32,
+    pub punct_select: f32,
+    pub ortho_half_y: f32,
+    pub _pad1: [u32; 3],
 }
 
 /// The full-frame grid: threads (8 × 8 tiles, padded) and a 2D workgroup grid within the
@@ -90,6 +96,12 @@ impl GpuTraceParams {
             node_count: scene.bvh.cwbvh.nodes.len() as u32,
             cam_up: c.up.to_array(),
             _pad: 0,
+            features: scene.features,
+            extras_offset: scene.extras_offset,
+            punctual_count: scene.punctual_count,
+            punct_select: scene.punct_select,
+            ortho_half_y: c.ortho_half_y,
+            _pad1: [0; 3],
         }
     }
 }

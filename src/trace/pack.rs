@@ -4,26 +4,58 @@
 //! | array | per | layout |
 //! |---|---|---|
 //! | `nodes` | BVH node | obvhs `CwBvhNode` (80 bytes; see [`super::bvh`]) |
-//! | `prims` | BVH primitive | 3 × vec4: `[v0, bits(triangle)]`, `[e1, light density]`, `[e2, 1 if single-sided]` |
+//! | `prims` | BVH primitive | 3 × vec4: `[v0, bits(triangle)]`, `[e1, light density]`, `[e2, flags]` (flags: [`PRIM_CULL`] single-sided and opaque, [`PRIM_ALPHA`] alpha-tested; as a float) |
 //! | `shade` | triangle | 4 × vec4: `[n0, uv0.x]`, `[n1, uv0.y]`, `[n2, uv1.x]`, `[uv1.y, uv2, bits(material)]` |
-//! | `materials` | material | 3 × vec4: `[base colour rgba]`, `[emission, bits(texture or !0)]`, `[metallic, α, specular, 1 if double-sided]` |
-//! | `texels` | texture | header `[offset, width, height, 0]` per texture, then RGBA8 (sRGB) words |
+//! | `shade` from `extras_offset` | triangle, only with [`FEAT_EXTRAS`] | 8 × vec4: `[colour0 rgba]`, `[colour1]`, `[colour2]`, `[uv1₀, uv1₁]`, `[uv1₂, 0, 0]`, `[tangent0 xyz, sign]`, `[tangent1]`, `[tangent2]` (the TEXCOORD_1 set, tangents for normal maps) |
+//! | `materials` | material | [`MATERIAL_STRIDE`] × vec4: `[base colour rgba]`, `[emission, flags]`, `[metallic, α, specular, alpha cutoff]`, `[specular colour, transmission]`, `[ior, clearcoat, clearcoat α, normal scale]`, then four texture slots (base colour, metallic-roughness, normal, emissive) of 2 × vec4 `[uv row 0, bits(texture or !0)]`, `[uv row 1, bits(texCoord set)]` |
+//! | `texels` | texture | header `[offset, width, height, sampler]` per texture (sampler: wrap S in bits 0–1, wrap T in 2–3 — 0 repeat, 1 clamp, 2 mirror — bit 4 nearest, bit 5 sRGB), then RGBA8 words |
 //! | `lights` | emissive triangle | 3 × vec4: `[v0, bits(triangle)]`, `[e1, 1 if double-sided]`, `[e2, 0]` |
+//! | `lights` from `3 × light_count` | punctual light | 3 × vec4: `[position, or the unit direction towards a directional light, kind (0 point, 1 spot, 2 directional)]`, `[intensity rgb, cos outer cone]`, `[unit spot axis, cos inner cone]` |
 //! | `dist` | — | light CDF (L + 1), environment row CDF (H + 1), per-row column CDFs (H × (W + 1)) |
 //! | `env` | environment texel | `[rgb, pdf over the unit square]` |
+//!
+//! Material flags (`materials[13m + 1].w`, a small float): [`MAT_DOUBLE_SIDED`], one bit per
+//! texture slot in use ([`MAT_BASE_TEX`] …), [`MAT_MASK`] / [`MAT_BLEND`] for the alpha mode
+//! and [`MAT_EXT_BSDF`] when the material needs the glass / clear-coat / specular-colour
+//! terms. The tracer reads a slot, the extras or the extended BSDF only where its flag is set,
+//! so a scene without them pays two bit tests per hit ("model only what a scene needs").
 //!
 //! Empty arrays get one zeroed element: a GPU binding cannot be empty.
 
 use glam::{Vec3, Vec4};
 
 use super::accum::luminance;
-use super::bvh::SceneBvh;
-use crate::scene::{Environment, Scene};
+use super::bvh::{PRIM_ALPHA, PRIM_CULL, SceneBvh};
+use crate::scene::{AlphaMode, Environment, LightKind, Scene, TextureRef, Wrap};
 
 /// GGX α never goes below this: a perfect mirror has a Dirac BSDF that MIS cannot weigh.
 pub const MIN_ALPHA: f32 = 1e-3;
 /// `texture` word of a material without a texture.
 pub const NO_TEXTURE: u32 = u32::MAX;
+/// vec4s per material (`MATERIAL_STRIDE` in path.wgsl).
+pub const MATERIAL_STRIDE: usize = 13;
+/// vec4s of vertex extras per triangle.
+pub const EXTRAS_STRIDE: usize = 8;
+
+/// Material flags (see the module doc).
+pub const MAT_DOUBLE_SIDED: u32 = 1;
+pub const MAT_BASE_TEX: u32 = 2;
+pub const MAT_MR_TEX: u32 = 4;
+pub const MAT_NORMAL_TEX: u32 = 8;
+pub const MAT_EMISSIVE_TEX: u32 = 16;
+pub const MAT_MASK: u32 = 32;
+pub const MAT_BLEND: u32 = 64;
+pub const MAT_EXT_BSDF: u32 = 128;
+
+/// Scene features (the `features` parameter): vertex extras are packed; some primitive is
+/// alpha-tested (rays then carry a seed for stochastic coverage).
+pub const FEAT_EXTRAS: u32 = 1;
+pub const FEAT_ALPHA: u32 = 2;
+
+/// Punctual light kinds in `lights`.
+pub const LIGHT_POINT: u32 = 0;
+pub const LIGHT_SPOT: u32 = 1;
+pub const LIGHT_DIRECTIONAL: u32 = 2;
 
 /// Everything the integrator reads, in the GPU's layout.
 #[derive(Clone, Debug)]
@@ -44,7 +76,41 @@ pub struct PackedScene {
     pub env_conditional: u32,
     /// Probability that next-event estimation samples the environment rather than an emitter.
     pub env_select: f32,
+    /// Probability that it samples a punctual light (each of `punctual_count` equally likely).
+    pub punct_select: f32,
+    pub punctual_count: u32,
+    /// [`FEAT_EXTRAS`] | [`FEAT_ALPHA`].
+    pub features: u32,
+    /// Where the vertex extras start in `shade` (vec4 index; with [`FEAT_EXTRAS`]).
+    pub extras_offset: u32,
     pub triangle_count: usize,
+}
+
+/// A texture slot's two vec4s (see the module doc).
+fn slot(v: &mut Vec<[f32; 4]>, r: Option<TextureRef>) {
+    let (rows, tex, set) = match r {
+        Some(r) => (r.uv.transform.rows(), r.texture, r.uv.tex_coord),
+        None => (
+            [Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.0, 1.0, 0.0)],
+            NO_TEXTURE,
+            0,
+        ),
+    };
+    v.push([rows[0].x, rows[0].y, rows[0].z, f32::from_bits(tex)]);
+    v.push([rows[1].x, rows[1].y, rows[1].z, f32::from_bits(set)]);
+}
+
+/// A texture's sampler word (see the module doc).
+fn sampler_word(t: &crate::scene::Texture) -> u32 {
+    let wrap = |w: Wrap| match w {
+        Wrap::Repeat => 0,
+        Wrap::ClampToEdge => 1,
+        Wrap::MirroredRepeat => 2,
+    };
+    wrap(t.sampler.wrap_s)
+        | (wrap(t.sampler.wrap_t) << 2)
+        | (u32::from(t.sampler.nearest) << 4)
+        | (u32::from(t.srgb) << 5)
 }
 
 fn push3(v: &mut Vec<[f32; 4]>, a: Vec3, aw: f32, b: Vec3, bw: f32, c: Vec3, cw: f32) {
@@ -88,7 +154,12 @@ impl PackedScene {
             let m = &scene.materials[t.material as usize];
             let area = 0.5 * (t.p[1] - t.p[0]).cross(t.p[2] - t.p[0]).length();
             let sides = if m.double_sided { 2.0 } else { 1.0 };
-            let power = f64::from(area) * f64::from(luminance(m.emission)) * sides;
+            // An emissive texture scales the power by its mean over the triangle (black parts
+            // of a texture are no lamps: a triangle that is black all over is not sampled).
+            let power = f64::from(area)
+                * f64::from(luminance(m.emission))
+                * f64::from(scene.emission_scale(i))
+                * sides;
             if power > 0.0 && area > 0.0 {
                 light_tris.push(i);
                 light_weights.push(power);
@@ -113,11 +184,26 @@ impl PackedScene {
             );
         }
         let positions: Vec<[Vec3; 3]> = tris.iter().map(|t| t.p).collect();
-        let single_sided: Vec<bool> = tris
+        let mut features = 0;
+        let flags: Vec<u32> = tris
             .iter()
-            .map(|t| !scene.materials[t.material as usize].double_sided)
+            .map(|t| {
+                let m = &scene.materials[t.material as usize];
+                let ext = scene.material_ext(t.material);
+                let mut f = 0;
+                // A transmitting surface bounds a volume: a ray inside must be able to leave,
+                // so glass is never culled.
+                if !m.double_sided && ext.transmission == 0.0 {
+                    f |= PRIM_CULL;
+                }
+                if ext.alpha != AlphaMode::Opaque {
+                    f |= PRIM_ALPHA;
+                    features |= FEAT_ALPHA;
+                }
+                f
+            })
             .collect();
-        let bvh = SceneBvh::build_sided(&positions, &light_density, &single_sided);
+        let bvh = SceneBvh::build_flagged(&positions, &light_density, &flags);
 
         let mut shade = Vec::with_capacity(tris.len() * 4);
         for t in tris {
@@ -126,32 +212,75 @@ impl PackedScene {
             shade.push([t.n[2].x, t.n[2].y, t.n[2].z, t.uv[1].x]);
             shade.push([t.uv[1].y, t.uv[2].x, t.uv[2].y, f32::from_bits(t.material)]);
         }
+        let extras_offset = shade.len() as u32;
+        if !scene.vertex_extras.is_empty() {
+            features |= FEAT_EXTRAS;
+            shade.reserve(tris.len() * EXTRAS_STRIDE);
+            for i in 0..tris.len() {
+                let e = scene.vertex_extras(i);
+                for c in e.color {
+                    shade.push(c.to_array());
+                }
+                shade.push([e.uv1[0].x, e.uv1[0].y, e.uv1[1].x, e.uv1[1].y]);
+                shade.push([e.uv1[2].x, e.uv1[2].y, 0.0, 0.0]);
+                for t in e.tangent {
+                    shade.push(t.to_array());
+                }
+            }
+        }
 
-        let mut materials = Vec::with_capacity(scene.materials.len() * 3);
-        for m in &scene.materials {
+        let mut materials = Vec::with_capacity(scene.materials.len() * MATERIAL_STRIDE);
+        for (i, m) in scene.materials.iter().enumerate() {
+            let ext = scene.material_ext(i as u32);
             let b: Vec4 = m.base_color;
+            let base_ref = m.base_color_texture.map(|texture| TextureRef {
+                texture,
+                uv: ext.base_color_uv,
+            });
+            let mut flags = 0;
+            for (on, bit) in [
+                (m.double_sided, MAT_DOUBLE_SIDED),
+                (base_ref.is_some(), MAT_BASE_TEX),
+                (ext.metallic_roughness_texture.is_some(), MAT_MR_TEX),
+                (ext.normal_texture.is_some(), MAT_NORMAL_TEX),
+                (ext.emissive_texture.is_some(), MAT_EMISSIVE_TEX),
+                (matches!(ext.alpha, AlphaMode::Mask(_)), MAT_MASK),
+                (ext.alpha == AlphaMode::Blend, MAT_BLEND),
+                (
+                    ext.transmission > 0.0
+                        || ext.clearcoat > 0.0
+                        || ext.specular_color != Vec3::ONE
+                        || ext.ior != 1.5,
+                    MAT_EXT_BSDF,
+                ),
+            ] {
+                if on {
+                    flags |= bit;
+                }
+            }
+            let cutoff = match ext.alpha {
+                AlphaMode::Mask(c) => c,
+                _ => 0.0,
+            };
             materials.push([b.x, b.y, b.z, b.w]);
-            let tex = m.base_color_texture.unwrap_or(NO_TEXTURE);
-            materials.push([
-                m.emission.x,
-                m.emission.y,
-                m.emission.z,
-                f32::from_bits(tex),
-            ]);
+            materials.push([m.emission.x, m.emission.y, m.emission.z, flags as f32]);
             let alpha = (m.roughness * m.roughness).max(MIN_ALPHA);
-            materials.push([
-                m.metallic,
-                alpha,
-                m.specular,
-                if m.double_sided { 1.0 } else { 0.0 },
-            ]);
+            materials.push([m.metallic, alpha, m.specular, cutoff]);
+            let sc = ext.specular_color;
+            materials.push([sc.x, sc.y, sc.z, ext.transmission]);
+            let cc_alpha = (ext.clearcoat_roughness * ext.clearcoat_roughness).max(MIN_ALPHA);
+            materials.push([ext.ior, ext.clearcoat, cc_alpha, ext.normal_scale]);
+            slot(&mut materials, base_ref);
+            slot(&mut materials, ext.metallic_roughness_texture);
+            slot(&mut materials, ext.normal_texture);
+            slot(&mut materials, ext.emissive_texture);
         }
 
         let mut texels = Vec::new();
         let header = scene.textures.len() * 4;
         let mut offset = header as u32;
         for t in &scene.textures {
-            texels.extend_from_slice(&[offset, t.width, t.height, 0]);
+            texels.extend_from_slice(&[offset, t.width, t.height, sampler_word(t)]);
             offset += t.width * t.height;
         }
         for t in &scene.textures {
@@ -197,11 +326,38 @@ impl PackedScene {
             }
         };
         let env_conditional = env_marginal + env_size[1] + 1;
-        let env_select = match (env_power > 0.0, !light_tris.is_empty()) {
-            (true, true) => 0.5,
-            (true, false) => 1.0,
-            (false, _) => 0.0,
-        };
+        // Next-event estimation picks the environment, a punctual light or an emissive
+        // triangle, each kind the scene has equally likely.
+        let kinds = [
+            env_power > 0.0,
+            !scene.lights.is_empty(),
+            !light_tris.is_empty(),
+        ];
+        let share = 1.0 / kinds.iter().filter(|&&k| k).count().max(1) as f32;
+        let env_select = if kinds[0] { share } else { 0.0 };
+        let punct_select = if kinds[1] { share } else { 0.0 };
+        let light_count = light_tris.len() as u32;
+        for l in &scene.lights {
+            let (kind, cos_outer, cos_inner) = match l.kind {
+                LightKind::Point => (LIGHT_POINT, -1.0, -1.0),
+                LightKind::Spot { inner, outer } => (LIGHT_SPOT, outer.cos(), inner.cos()),
+                LightKind::Directional => (LIGHT_DIRECTIONAL, -1.0, -1.0),
+            };
+            let p = if kind == LIGHT_DIRECTIONAL {
+                -l.direction
+            } else {
+                l.position
+            };
+            push3(
+                &mut lights,
+                p,
+                kind as f32,
+                l.intensity,
+                cos_outer,
+                l.direction,
+                cos_inner,
+            );
+        }
 
         let mut packed = Self {
             bvh,
@@ -211,12 +367,16 @@ impl PackedScene {
             lights,
             dist,
             env,
-            light_count: light_tris.len() as u32,
+            light_count,
             env_size,
             env_constant,
             env_marginal,
             env_conditional,
             env_select,
+            punct_select,
+            punctual_count: scene.lights.len() as u32,
+            features,
+            extras_offset,
             triangle_count: tris.len(),
         };
         packed.pad_empty();

@@ -10,6 +10,16 @@
 //! Sampling picks the specular lobe with a probability from the Fresnel-weighted lobe albedos,
 //! then samples GGX normals (D·cos θh) or the cosine-weighted hemisphere; the returned pdf is
 //! the mixture's, as multiple importance sampling needs.
+//!
+//! Materials with glTF's extensions ([`BsdfExt`], only where a material's flag says so) add:
+//! KHR_materials_specular's colour (F0 = min(((ior − 1)/(ior + 1))² · colour, 1) · s, F90 = s),
+//! KHR_materials_ior, KHR_materials_transmission as a rough dielectric interface (Walter et al.
+//! 2007: GGX refraction with separable Smith masking, the relative index η from the side the
+//! ray arrives on, Schlick's Fresnel taken on the rarer side so that total internal reflection
+//! is exact; tinted by the base colour; radiance is not scaled by η², which cancels for light
+//! that enters and leaves a closed object), and KHR_materials_clearcoat as a GGX layer over
+//! everything, weighted by cc · F_c(n·v) with F_c Schlick at F0 = 0.04 (the specification's
+//! `fresnel_coat`). Lobes: specular reflection, diffuse, transmission, coat.
 
 use std::f32::consts::PI;
 
@@ -51,16 +61,8 @@ pub fn offset_ray(p: Vec3, n: Vec3) -> Vec3 {
     Vec3::new(one(p.x, n.x), one(p.y, n.y), one(p.z, n.z))
 }
 
-/// sRGB-encoded 8-bit channel to linear.
-#[inline]
-#[must_use]
-pub fn srgb_to_linear(c: f32) -> f32 {
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }
-}
+/// sRGB-encoded channel to linear: the scene's decoding (`shading.wgsl` has its WGSL twin).
+pub use crate::scene::srgb_to_linear;
 
 /// Cosine-weighted direction in the local frame (z up) from two uniform numbers.
 #[inline]
@@ -108,6 +110,22 @@ pub struct Bsdf {
     pub alpha: f32,
     /// KHR_materials_specular's factor (1 by default).
     pub specular: f32,
+}
+
+/// A surface point's material with glTF's BSDF extensions (see the module doc).
+#[derive(Clone, Copy, Debug)]
+pub struct BsdfExt {
+    pub core: Bsdf,
+    /// KHR_materials_specular's colour.
+    pub specular_color: Vec3,
+    /// ((ior − 1)/(ior + 1))².
+    pub f0: f32,
+    /// Relative index of refraction η_t / η_i for a ray leaving towards the far side (ior when
+    /// the surface is hit from its front, 1/ior from its back).
+    pub eta: f32,
+    pub transmission: f32,
+    pub clearcoat: f32,
+    pub clearcoat_alpha: f32,
 }
 
 /// x⁵ as WGSL's `pow5` computes it.
@@ -186,6 +204,187 @@ impl Bsdf {
         } else {
             let l = cosine_hemisphere(u, v);
             t * l.x + b * l.y + n * l.z
+        }
+    }
+}
+
+/// GGX D for `noh` and α² `a2`.
+#[inline]
+fn ggx_d(noh: f32, a2: f32) -> f32 {
+    let dd = noh * noh * (a2 - 1.0) + 1.0;
+    a2 / (PI * dd * dd)
+}
+
+/// Height-correlated Smith visibility V = G / (4 cos_i cos_o).
+#[inline]
+fn ggx_vis(cos_i: f32, cos_o: f32, a2: f32) -> f32 {
+    0.5 / (cos_i * (cos_o * cos_o * (1.0 - a2) + a2).sqrt()
+        + cos_o * (cos_i * cos_i * (1.0 - a2) + a2).sqrt())
+}
+
+/// Smith G1 for GGX at |cos θ| `c`.
+#[inline]
+fn ggx_g1(c: f32, a2: f32) -> f32 {
+    2.0 * c / (c + (a2 + (1.0 - a2) * c * c).sqrt())
+}
+
+/// A GGX microfacet normal (D·cos θh sampling) about the frame `(t, b, n)`.
+#[inline]
+fn ggx_half(t: Vec3, b: Vec3, n: Vec3, alpha: f32, u: f32, v: f32) -> Vec3 {
+    let a2 = alpha * alpha;
+    let cos_h = ((1.0 - u) / (1.0 + (a2 - 1.0) * u)).max(0.0).sqrt();
+    let sin_h = (1.0 - cos_h * cos_h).max(0.0).sqrt();
+    let phi = 2.0 * PI * v;
+    t * (sin_h * phi.cos()) + b * (sin_h * phi.sin()) + n * cos_h
+}
+
+#[inline]
+fn max3(v: Vec3) -> f32 {
+    v.x.max(v.y).max(v.z)
+}
+
+impl BsdfExt {
+    /// Whether light passes through (the path may continue below the surface).
+    #[must_use]
+    pub fn transmits(&self) -> bool {
+        self.transmission > 0.0 && self.core.metallic < 1.0
+    }
+
+    /// (dielectric Fresnel F_d, combined F) at microfacet cosine `c` on the view side; with
+    /// transmission, Schlick on the rarer side and 1 under total internal reflection.
+    fn fresnel(&self, c: f32) -> (Vec3, Vec3) {
+        let b = &self.core;
+        let f0 = (self.specular_color * self.f0).min(Vec3::ONE);
+        let mut cc = c;
+        let mut tir = false;
+        if self.transmission > 0.0 && self.eta < 1.0 {
+            let s2 = (1.0 - c * c) / (self.eta * self.eta);
+            tir = s2 >= 1.0;
+            cc = (1.0 - s2).max(0.0).sqrt();
+        }
+        let k = pow5((1.0 - cc).max(0.0));
+        let fd = if tir {
+            Vec3::ONE
+        } else {
+            (f0 + (Vec3::ONE - f0) * k) * b.specular
+        };
+        let km = pow5((1.0 - c).max(0.0));
+        let fm = b.base + (Vec3::ONE - b.base) * km;
+        (fd, mix3(fd, fm, b.metallic))
+    }
+
+    /// The coat's weight cc · F_c(n·v).
+    fn coat(&self, cos_o: f32) -> f32 {
+        if self.clearcoat > 0.0 {
+            self.clearcoat * (0.04 + 0.96 * pow5((1.0 - cos_o).max(0.0)))
+        } else {
+            0.0
+        }
+    }
+
+    /// Lobe sampling probabilities (specular, diffuse, transmission, coat) at `cos_o`.
+    #[must_use]
+    pub fn lobes(&self, cos_o: f32) -> [f32; 4] {
+        let b = &self.core;
+        let (fd, f) = self.fresnel(cos_o);
+        let coat = self.coat(cos_o);
+        let ws = lum(f) * (1.0 - coat);
+        let rest = lum(b.base) * (1.0 - b.metallic) * (1.0 - max3(fd)) * (1.0 - coat);
+        let wd = rest * (1.0 - self.transmission);
+        let wt = rest * self.transmission;
+        let total = ws + wd + wt + coat;
+        if total > 0.0 {
+            [ws / total, wd / total, wt / total, coat / total]
+        } else {
+            [0.5, 0.5, 0.0, 0.0]
+        }
+    }
+
+    /// BSDF value and sampling pdf (solid angle) for `wo`, `wi` about the shading normal `n`
+    /// (on `wo`'s side): reflection where `wi` is above, transmission where it is below.
+    /// Kept out of line: scenes without glass or coats never call it, and inlined it would
+    /// grow the integrator's hot loop (measured: ~8 % slower Cornell box on the CPU).
+    #[must_use]
+    #[inline(never)]
+    pub fn eval(&self, n: Vec3, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        let b = &self.core;
+        let cos_o = n.dot(wo);
+        let cos_i = n.dot(wi);
+        if cos_o <= 0.0 || cos_i == 0.0 {
+            return (Vec3::ZERO, 0.0);
+        }
+        let p = self.lobes(cos_o);
+        let coat = self.coat(cos_o);
+        let a2 = b.alpha * b.alpha;
+        if cos_i > 0.0 {
+            let h = (wo + wi).normalize();
+            let noh = n.dot(h).max(0.0);
+            let voh = wo.dot(h).max(1e-7);
+            let (fd, f) = self.fresnel(voh);
+            let d = ggx_d(noh, a2);
+            let spec = f * (d * ggx_vis(cos_i, cos_o, a2));
+            let diff =
+                b.base * ((1.0 - b.metallic) * (1.0 - max3(fd)) * (1.0 - self.transmission) / PI);
+            let mut value = (spec + diff) * (1.0 - coat);
+            let mut pdf = p[0] * d * noh / (4.0 * voh) + p[1] * cos_i / PI;
+            if coat > 0.0 {
+                let c2 = self.clearcoat_alpha * self.clearcoat_alpha;
+                let dc = ggx_d(noh, c2);
+                value += Vec3::splat(coat * dc * ggx_vis(cos_i, cos_o, c2));
+                pdf += p[3] * dc * noh / (4.0 * voh);
+            }
+            return (value, pdf);
+        }
+        if !self.transmits() {
+            return (Vec3::ZERO, 0.0);
+        }
+        let eta = self.eta;
+        let mut h = -(wo + wi * eta).normalize();
+        if n.dot(h) < 0.0 {
+            h = -h;
+        }
+        let (woh, wih) = (wo.dot(h), wi.dot(h));
+        let denom = woh + eta * wih;
+        if !(woh > 0.0 && wih < 0.0) || denom.abs() < 1e-7 || !h.is_finite() {
+            return (Vec3::ZERO, 0.0);
+        }
+        let noh = n.dot(h);
+        let (fd, _) = self.fresnel(woh);
+        let d = ggx_d(noh, a2);
+        let g = ggx_g1(cos_o, a2) * ggx_g1(-cos_i, a2);
+        let jac = eta * eta * -wih / (denom * denom);
+        let core = woh * d * g * jac / (cos_o * -cos_i);
+        let value = b.base
+            * ((1.0 - b.metallic) * (1.0 - max3(fd)) * self.transmission * core * (1.0 - coat));
+        (value, p[2] * d * noh * jac)
+    }
+
+    /// Samples an incoming direction (`u_lobe` picks the lobe); `Vec3::ZERO` where the
+    /// transmission lobe meets total internal reflection (no sample: the path ends there,
+    /// where that lobe's value is 0 anyway).
+    #[must_use]
+    #[inline(never)]
+    pub fn sample(&self, n: Vec3, wo: Vec3, u_lobe: f32, u: f32, v: f32) -> Vec3 {
+        let (t, b) = basis(n);
+        let p = self.lobes(n.dot(wo));
+        if u_lobe < p[0] {
+            let h = ggx_half(t, b, n, self.core.alpha, u, v);
+            2.0 * wo.dot(h) * h - wo
+        } else if u_lobe < p[0] + p[1] {
+            let l = cosine_hemisphere(u, v);
+            t * l.x + b * l.y + n * l.z
+        } else if u_lobe < p[0] + p[1] + p[2] {
+            let h = ggx_half(t, b, n, self.core.alpha, u, v);
+            let c = wo.dot(h);
+            let r = 1.0 / self.eta;
+            let k = 1.0 - r * r * (1.0 - c * c);
+            if c <= 0.0 || k < 0.0 {
+                return Vec3::ZERO;
+            }
+            -r * wo + (r * c - k.sqrt()) * h
+        } else {
+            let h = ggx_half(t, b, n, self.clearcoat_alpha, u, v);
+            2.0 * wo.dot(h) * h - wo
         }
     }
 }
@@ -283,5 +482,100 @@ mod tests {
                 assert!(albedo > 0.7, "albedo {albedo}");
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod ext_tests {
+    use super::*;
+
+    fn glass(alpha: f32, eta: f32) -> BsdfExt {
+        BsdfExt {
+            core: Bsdf {
+                base: Vec3::ONE,
+                metallic: 0.0,
+                alpha,
+                specular: 1.0,
+            },
+            specular_color: Vec3::ONE,
+            f0: 0.04,
+            eta,
+            transmission: 1.0,
+            clearcoat: 0.0,
+            clearcoat_alpha: 0.1,
+        }
+    }
+
+    /// ∫ f |cos| dωi over the sphere by sampling: reflection + transmission of rough glass
+    /// adds up to at most 1 (the Smith masking loses up to ~10 % at this roughness), and
+    /// the pdf from `eval` integrates to ≤ 1 (E[1/pdf] over the sampled support ≤ 4π).
+    #[test]
+    fn rough_glass_conserves_energy_and_its_pdf_matches_sampling() {
+        let n = Vec3::Z;
+        for (eta, alpha) in [(1.5f32, 0.3f32), (1.0 / 1.5, 0.3), (1.5, 0.05)] {
+            let bsdf = glass(alpha, eta);
+            let wo = Vec3::new(0.3, 0.0, 0.954).normalize();
+            let (mut total, mut transmitted, mut m) = (0.0f64, 0.0f64, 0u32);
+            for i in 0..200_000u32 {
+                let r = crate::random::pcg4d([i, 3, 1, 4]).map(crate::random::unit_f32);
+                m += 1;
+                let wi = bsdf.sample(n, wo, r[0], r[1], r[2]);
+                if wi == Vec3::ZERO {
+                    continue;
+                }
+                let (f, pdf) = bsdf.eval(n, wo, wi);
+                if pdf > 0.0 {
+                    let w = f64::from(f.x * n.dot(wi).abs() / pdf);
+                    total += w;
+                    if n.dot(wi) < 0.0 {
+                        transmitted += w;
+                    }
+                }
+            }
+            let total = total / f64::from(m);
+            let transmitted = transmitted / f64::from(m);
+            assert!(
+                // Smith masking loses energy at α = 0.3, most for light leaving the
+                // denser side (its transmitted directions spread towards grazing).
+                (0.85..=1.01).contains(&total),
+                "eta {eta}, alpha {alpha}: albedo {total}"
+            );
+            assert!(transmitted > 0.8, "eta {eta}: transmitted {transmitted}");
+        }
+    }
+
+    /// At normal incidence smooth glass reflects F0 = ((η − 1)/(η + 1))² and transmits the rest.
+    #[test]
+    fn smooth_glass_at_normal_incidence_transmits_one_minus_f0() {
+        let n = Vec3::Z;
+        let bsdf = glass(1e-3, 1.5);
+        let (mut refl, mut trans, m) = (0.0f64, 0.0f64, 100_000u32);
+        for i in 0..m {
+            let r = crate::random::pcg4d([i, 8, 8, 8]).map(crate::random::unit_f32);
+            let wi = bsdf.sample(n, Vec3::Z, r[0], r[1], r[2]);
+            let (f, pdf) = bsdf.eval(n, Vec3::Z, wi);
+            if pdf > 0.0 {
+                let w = f64::from(f.x * n.dot(wi).abs() / pdf);
+                if wi.z > 0.0 {
+                    refl += w;
+                } else {
+                    trans += w;
+                }
+            }
+        }
+        let (refl, trans) = (refl / f64::from(m), trans / f64::from(m));
+        assert!((refl - 0.04).abs() < 0.004, "reflected {refl}");
+        assert!((trans - 0.96).abs() < 0.01, "transmitted {trans}");
+    }
+
+    /// Leaving glass beyond the critical angle (41.8° for η = 1.5) everything is reflected.
+    #[test]
+    fn total_internal_reflection_beyond_the_critical_angle() {
+        let bsdf = glass(1e-3, 1.0 / 1.5);
+        let c = 50f32.to_radians().cos();
+        let (fd, _) = bsdf.fresnel(c);
+        assert_eq!(fd, Vec3::ONE);
+        let p = bsdf.lobes(c);
+        assert_eq!(p[2], 0.0, "no transmission sampled: {p:?}");
     }
 }

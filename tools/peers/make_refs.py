@@ -72,6 +72,8 @@ def build_scene_files() -> None:
                        lambda d: scenes.make_lambert(d))
     scenes.glossy_scene(os.path.join(SCN, "glossy.glb"))
     scenes.envmap_scene(os.path.join(SCN, "envmap.glb"))
+    scenes.glass_scene(os.path.join(SCN, "glass.glb"))
+    scenes.lights_scene(os.path.join(SCN, "lights.glb"))
     exr.write_rgb(os.path.join(SCN, "sky.exr"), scenes.sky_map())
 
 
@@ -129,6 +131,22 @@ SUITE = {
              "red-ish, -Z yellow-ish, -X green-ish, +Z blue-ish, a 2 x 2-texel sun of radiance "
              "60 towards (+X, -Z) at ~35 deg elevation, a brown ground). Mitsuba's envmap gets "
              "the map resampled 8x onto its grid (scenes.py)."),
+    "glass": dict(
+        scene="tests/data/peers/scenes/glass.glb", env="1,1,1", spp=512,
+        tolerance={"image": 0.02, "region": 0.03}, regions="glass",
+        note="A smooth glass sphere (Mitsuba dielectric) and a rough one (roughdielectric, GGX "
+             "alpha 0.09), ior 1.5, on a red/blue Lambert floor under the white sky. Model "
+             "differences: Mitsuba's exact dielectric Fresnel vs glTF's Schlick (taken on the "
+             "rarer side; equal at normal incidence and under total internal reflection), "
+             "raygun's smooth glass is GGX at alpha 1e-3, no eta^2 radiance scaling (cancels "
+             "for light entering and leaving the spheres)."),
+    "lights": dict(
+        scene="tests/data/peers/scenes/lights.glb", env="0,0,0", spp=512,
+        tolerance=LAMBERT_TOL,
+        note="A Lambert sphere on a Lambert floor lit only by KHR_lights_punctual: a point "
+             "light (intensity 2) and a spot light (intensity 6, cones 25 / 25.5 deg; Mitsuba "
+             "point and spot with beam_width / cutoff_angle). Exact models but for the spot's "
+             "0.5 deg transition (linear in angle in Mitsuba, quadratic in cos in glTF)."),
     "city-small-gltf": dict(
         scene="tests/data/scenes/city-small.glb", env="1,1,1", spp=256, tolerance=LAMBERT_TOL,
         model="gltf", variant="llvm_ad_rgb",
@@ -161,6 +179,9 @@ def regions_for(name: str, spec: dict, w: int, h: int) -> list[dict]:
         if kind == "spheres":
             spheres = [("sphere 0 (white metal)", [-0.45, 0.35, 0.0], 0.35),
                        ("sphere 1 (copper)", [0.45, 0.35, 0.0], 0.35)]
+        elif kind == "glass":
+            spheres = [("sphere 0 (smooth glass)", [-0.45, 0.35, 0.0], 0.35),
+                       ("sphere 1 (rough glass)", [0.45, 0.35, 0.0], 0.35)]
         else:
             spheres = [("sphere 0 (diffuse)", [-0.45, 0.35, 0.0], 0.35),
                        ("sphere 1 (metal)", [0.45, 0.35, 0.0], 0.35)]

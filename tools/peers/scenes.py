@@ -93,6 +93,20 @@ class Material:
     specular: float = 1.0
     emission: np.ndarray = field(default_factory=lambda: np.zeros(3))
     double_sided: bool = False
+    transmission: float = 0.0  # KHR_materials_transmission
+    ior: float = 1.5  # KHR_materials_ior
+
+
+@dataclass
+class Light:
+    """KHR_lights_punctual: kind "point" or "spot" (cones in radians), colour x intensity."""
+    name: str
+    kind: str
+    position: np.ndarray
+    direction: np.ndarray
+    intensity: np.ndarray
+    inner: float = 0.0
+    outer: float = math.pi / 4
 
 
 @dataclass
@@ -120,6 +134,7 @@ class Scene:
     primitives: list[Primitive]
     materials: list[Material]
     cameras: list[Camera]
+    lights: list[Light] = field(default_factory=list)
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         ps = np.concatenate([p.positions for p in self.primitives])
@@ -183,6 +198,8 @@ def _material(g: glb.Gltf, index: int | None, textures: dict) -> Material:
         specular=spec,
         emission=np.array([clamp(v) for v in m.get("emissiveFactor", [0, 0, 0])]) * strength,
         double_sided=bool(m.get("doubleSided", False)),
+        transmission=clamp(ext.get("KHR_materials_transmission", {}).get("transmissionFactor", 0.0)),
+        ior=float(ext.get("KHR_materials_ior", {}).get("ior", 1.5)),
     )
 
 
@@ -197,6 +214,8 @@ def load(path: str) -> Scene:
     textures: dict = {}
     prims: list[Primitive] = []
     cameras: list[Camera] = []
+    lights: list[Light] = []
+    light_defs = doc.get("extensions", {}).get("KHR_lights_punctual", {}).get("lights", [])
     stack = [(n, np.eye(4)) for n in reversed(roots)]
     while stack:
         ni, parent = stack.pop()
@@ -213,6 +232,17 @@ def load(path: str) -> Scene:
                 up /= np.linalg.norm(up)
                 name = node.get("name") or cam.get("name") or f"camera {ni}"
                 cameras.append(Camera(name, pos, fwd, up, float(cam["perspective"]["yfov"])))
+        li = node.get("extensions", {}).get("KHR_lights_punctual", {}).get("light")
+        if li is not None:
+            ld = light_defs[li]
+            fwd = world[:3, :3] @ np.array([0.0, 0.0, -1.0])
+            spot = ld.get("spot", {})
+            lights.append(Light(
+                name=ld.get("name", f"light {li}"), kind=ld["type"],
+                position=world[:3, 3].copy(), direction=fwd / np.linalg.norm(fwd),
+                intensity=np.array(ld.get("color", [1, 1, 1]), float) * ld.get("intensity", 1.0),
+                inner=float(spot.get("innerConeAngle", 0.0)),
+                outer=float(spot.get("outerConeAngle", math.pi / 4))))
         if "mesh" in node:
             mesh = doc["meshes"][node["mesh"]]
             lin = world[:3, :3]
@@ -250,7 +280,7 @@ def load(path: str) -> Scene:
                 prims.append(Primitive(name, mat_index[key], p, n, uv, faces))
         for c in reversed(node.get("children", [])):
             stack.append((c, world))
-    return Scene(path, prims, materials, cameras)
+    return Scene(path, prims, materials, cameras, lights)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -333,6 +363,14 @@ def bsdf_dict(mat: Material, model: str = "native") -> dict:
             "type": "gltf", "base_color": refl, "metallic": float(mat.metallic),
             "alpha": float(alpha), "specular": float(mat.specular)}}
     diffuse = {"type": "diffuse", "reflectance": refl}
+    if mat.transmission >= 1.0 and mat.metallic <= 0:
+        # Glass (KHR_materials_transmission + ior): Mitsuba's dielectric interfaces, exact
+        # Fresnel where raygun uses Schlick on the rarer side (equal at normal incidence and
+        # under total internal reflection). Not two-sided: the interface knows its inside.
+        if mat.roughness <= 0:
+            return {"type": "dielectric", "int_ior": float(mat.ior), "ext_ior": 1.0}
+        return {"type": "roughdielectric", "distribution": "ggx", "alpha": alpha,
+                "int_ior": float(mat.ior), "ext_ior": 1.0}
     if mat.specular > 0:
         f0 = 0.04 * mat.specular
         ior = (1 + math.sqrt(f0)) / (1 - math.sqrt(f0))
@@ -379,6 +417,9 @@ def material_model(mat: Material, model: str = "native") -> str:
     """A one-line statement of how exactly the material maps (for the reference JSON)."""
     if model == "gltf":
         return "gltf plugin (raygun's BSDF formulas, exact)"
+    if mat.transmission >= 1.0 and mat.metallic <= 0:
+        kind = "dielectric" if mat.roughness <= 0 else "roughdielectric ggx"
+        return f"{kind} ior {mat.ior} (exact Fresnel vs Schlick on the rarer side)"
     if mat.metallic <= 0 and mat.specular <= 0:
         return "diffuse (exact)"
     if mat.metallic >= 1:
@@ -563,6 +604,21 @@ def mitsuba_dict(
             if emissive:
                 props["emitter"] = mi.load_dict({"type": "area", "radiance": _rgb(mat.emission)})
             d[f"shape_{i}_{j}"] = _mesh(mi, f"{pr.name}", pr, props)
+    for k, light in enumerate(scene.lights):
+        if light.kind == "point":
+            d[f"light_{k}"] = {"type": "point", "position": [float(x) for x in light.position],
+                               "intensity": _rgb(light.intensity)}
+        elif light.kind == "spot":
+            # Mitsuba's falloff is linear in angle between beam_width and cutoff_angle, glTF's
+            # quadratic in cos: the suite uses a 0.5 deg transition so that they agree.
+            up = np.array([0.0, 1.0, 0.0]) if abs(light.direction[1]) < 0.9 else np.array([1.0, 0.0, 0.0])
+            d[f"light_{k}"] = {
+                "type": "spot", "intensity": _rgb(light.intensity),
+                "cutoff_angle": math.degrees(light.outer), "beam_width": math.degrees(light.inner),
+                "to_world": mi.ScalarTransform4f().look_at(
+                    origin=[float(x) for x in light.position],
+                    target=[float(x) for x in light.position + light.direction],
+                    up=[float(x) for x in up])}
     return d
 
 
@@ -648,9 +704,10 @@ def uv_sphere(centre, radius, rings=20, segments=40):
 
 
 def write_objects_glb(path: str, objects: list[dict], materials: list[dict],
-                      camera: dict) -> None:
+                      camera: dict, lights: list[dict] | None = None) -> None:
     """A GLB of `objects` ({name, positions, normals, faces, material}) in world space, glTF
-    `materials` as given and one camera {name, position, target, yfov}."""
+    `materials` as given, one camera {name, position, target, yfov} and KHR_lights_punctual
+    `lights` ({type, position, target, intensity[, inner, outer]})."""
     w = glb.GlbWriter()
     meshes, nodes = [], []
     for o in objects:
@@ -670,6 +727,18 @@ def write_objects_glb(path: str, objects: list[dict], materials: list[dict],
         "rotation": _quat_look(fwd, np.array([0.0, 1.0, 0.0])),
     })
     used = sorted({e for m in materials for e in m.get("extensions", {})})
+    light_defs = []
+    for k, li in enumerate(lights or []):
+        pos_l = np.asarray(li["position"], np.float64)
+        fwd_l = np.asarray(li.get("target", pos_l - [0, 1, 0]), np.float64) - pos_l
+        up_l = np.array([0.0, 1.0, 0.0]) if abs(fwd_l[1]) < 0.9 * np.linalg.norm(fwd_l) else np.array([1.0, 0.0, 0.0])
+        ld = {"type": li["type"], "intensity": float(li["intensity"])}
+        if li["type"] == "spot":
+            ld["spot"] = {"innerConeAngle": float(li["inner"]), "outerConeAngle": float(li["outer"])}
+        light_defs.append(ld)
+        nodes.append({"name": f"light {k}", "translation": [float(x) for x in pos_l],
+                      "rotation": _quat_look(fwd_l, up_l),
+                      "extensions": {"KHR_lights_punctual": {"light": k}}})
     doc = {
         "asset": {"version": "2.0", "generator": "raygun tools/peers/scenes.py"},
         "scene": 0,
@@ -680,6 +749,9 @@ def write_objects_glb(path: str, objects: list[dict], materials: list[dict],
         "cameras": [{"type": "perspective", "name": camera["name"],
                      "perspective": {"yfov": float(camera["yfov"]), "znear": 0.01}}],
     }
+    if light_defs:
+        used = sorted(set(used) | {"KHR_lights_punctual"})
+        doc["extensions"] = {"KHR_lights_punctual": {"lights": light_defs}}
     if used:
         doc["extensionsUsed"] = used
     w.write(path, doc)
@@ -742,6 +814,48 @@ def envmap_scene(path: str) -> None:
             metal("mirror-ish", [1.0, 1.0, 1.0], 0.2)]
     write_objects_glb(path, objs, mats, {"name": "front", "position": [0.0, 0.55, 2.4],
                                          "target": [0.0, 0.45, 0.0], "yfov": 0.75})
+
+
+def glass(name, roughness, ior=1.5) -> dict:
+    return {"name": name, "doubleSided": True,
+            "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0,
+                                     "roughnessFactor": float(roughness)},
+            "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1.0},
+                           "KHR_materials_ior": {"ior": float(ior)}}}
+
+
+def glass_scene(path: str) -> None:
+    """A smooth (dielectric) and a rough (roughness 0.3, alpha 0.09) glass sphere, ior 1.5,
+    radius 0.35 m, on a two-coloured Lambert floor under the white sky: the floor's halves
+    are seen refracted through them."""
+    objs = [dict(name="floor red", material=0,
+                 **quad([[-3, 0, 3], [0, 0, 3], [0, 0, -3], [-3, 0, -3]])),
+            dict(name="floor blue", material=1,
+                 **quad([[0, 0, 3], [3, 0, 3], [3, 0, -3], [0, 0, -3]]))]
+    for i, x in enumerate([-0.45, 0.45]):
+        p, n, f = uv_sphere([x, 0.35, 0.0], 0.35, rings=40, segments=80)
+        objs.append({"name": f"sphere {i}", "positions": p, "normals": n, "faces": f,
+                     "material": i + 2})
+    mats = [lambert("red", [0.7, 0.2, 0.15]), lambert("blue", [0.15, 0.3, 0.7]),
+            glass("smooth glass", 0.0), glass("rough glass", 0.3)]
+    write_objects_glb(path, objs, mats, {"name": "front", "position": [0.0, 0.7, 2.2],
+                                         "target": [0.0, 0.3, 0.0], "yfov": 0.6})
+
+
+def lights_scene(path: str) -> None:
+    """A Lambert sphere on a Lambert floor lit only by a point light (intensity 2) and a spot
+    light (intensity 6, cones 25 / 25.5 deg: a hard edge, where glTF's and Mitsuba's falloff
+    curves agree)."""
+    floor = quad([[-3, 0, 3], [3, 0, 3], [3, 0, -3], [-3, 0, -3]])
+    p, n, f = uv_sphere([0.2, 0.35, 0.0], 0.35)
+    objs = [dict(name="floor", material=0, **floor),
+            {"name": "sphere", "positions": p, "normals": n, "faces": f, "material": 1}]
+    mats = [lambert("floor", [0.6, 0.6, 0.6]), lambert("sphere", [0.8, 0.5, 0.3])]
+    lights = [{"type": "point", "position": [-0.8, 1.0, 0.6], "intensity": 2.0},
+              {"type": "spot", "position": [0.6, 1.4, 0.4], "target": [0.3, 0.0, -0.2],
+               "intensity": 6.0, "inner": math.radians(25.0), "outer": math.radians(25.5)}]
+    write_objects_glb(path, objs, mats, {"name": "front", "position": [0.0, 0.9, 2.4],
+                                         "target": [0.0, 0.3, 0.0], "yfov": 0.7}, lights)
 
 
 def sky_map(w: int = 64, h: int = 32) -> np.ndarray:

@@ -48,6 +48,16 @@ pub struct RenderArgs {
     /// Camera by name (default: the scene's first camera, else one framing the scene).
     #[arg(long, value_name = "NAME")]
     pub camera: Option<String>,
+    /// Look from this point (X,Y,Z, metres, the scene's frame) instead of a scene camera;
+    /// needs --look-at.
+    #[arg(long, value_name = "X,Y,Z", value_parser = crate::cli::args::parse_vec3, requires = "look_at", conflicts_with = "camera", allow_hyphen_values = true)]
+    pub look_from: Option<glam::DVec3>,
+    /// The point --look-from looks at (+Y up).
+    #[arg(long, value_name = "X,Y,Z", value_parser = crate::cli::args::parse_vec3, requires = "look_from", allow_hyphen_values = true)]
+    pub look_at: Option<glam::DVec3>,
+    /// Vertical field of view of --look-from, degrees (default 45).
+    #[arg(long, value_name = "DEG", requires = "look_from")]
+    pub yfov: Option<f32>,
     /// Image size.
     #[arg(long, value_name = "W,H", value_parser = parse_size, default_value = "1280,720")]
     pub size: [u32; 2],
@@ -311,13 +321,30 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
 /// The tracer's settings from the arguments and the scene's camera.
 fn settings(args: &RenderArgs, scene: &Scene) -> anyhow::Result<TraceSettings> {
     let [w, h] = args.size;
-    let camera = RenderCamera::choose(scene, args.camera.as_deref(), w, h)
-        .with_context(|| format!("scene {}", args.scene))?;
+    let look = look_at(args.look_from, args.look_at, args.yfov);
+    let camera =
+        RenderCamera::choose_or_look_at(scene, args.camera.as_deref(), look.as_ref(), w, h)
+            .with_context(|| format!("scene {}", args.scene))?;
     Ok(TraceSettings {
         width: w,
         height: h,
         seed: args.seed,
         max_depth: args.max_depth,
         camera,
+    })
+}
+
+/// `--look-from`, `--look-at` and `--yfov` as a viewpoint (clap makes the first two go
+/// together).
+#[must_use]
+pub fn look_at(
+    from: Option<glam::DVec3>,
+    at: Option<glam::DVec3>,
+    yfov: Option<f32>,
+) -> Option<crate::trace::camera::LookAt> {
+    Some(crate::trace::camera::LookAt {
+        from: from?.as_vec3(),
+        at: at?.as_vec3(),
+        yfov_deg: yfov.unwrap_or(45.0),
     })
 }

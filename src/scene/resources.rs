@@ -1,0 +1,509 @@
+//! The resources a glTF file refers to: buffers, images, textures and their samplers.
+//!
+//! Resolved here rather than with `gltf::import`, which is all-or-nothing: one undecodable
+//! image would fail the whole scene, where raygun falls back to the material's factor and says
+//! so. A missing file, though, is an error naming its URI. The scene walk (nodes, meshes,
+//! materials, cameras, lights) is in `load.rs`.
+
+use std::collections::HashMap;
+use std::io::Cursor;
+use std::path::{Path, PathBuf};
+
+use super::report::{Report, SceneError, label};
+use super::{Sampler, Texture, Wrap};
+
+/// Images larger than this (bytes of decoded RGBA8) are refused by the decoder: a 16k × 8k
+/// texture is 512 MiB, more than any texture the tracer can bind.
+const MAX_IMAGE_BYTES: u64 = 512 << 20;
+
+/// The largest EXT_meshopt_compression fallback buffer (decoded data) a file may declare: its
+/// bytes cost memory, not file size, so a hostile file could ask for terabytes.
+const MAX_DECODED_BYTES: usize = 1 << 30;
+
+/// The GLB header's declared length must cover the header itself: `gltf::binary::Glb` subtracts
+/// 12 from it unchecked (an overflow panic, found by fuzzing).
+pub(super) fn check_glb_header(bytes: &[u8], file: &str) -> Result<(), SceneError> {
+    let Some(rest) = bytes.strip_prefix(b"glTF") else {
+        return Ok(());
+    };
+    let declared = rest
+        .get(4..8)
+        .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]));
+    match declared {
+        Some(n) if n >= 12 => Ok(()),
+        _ => Err(SceneError::Parse {
+            file: file.into(),
+            reason: "the GLB header is truncated or declares less than its own 12 bytes".into(),
+        }),
+    }
+}
+
+pub(super) fn load_buffers(
+    doc: &gltf::Document,
+    blob: Option<&[u8]>,
+    file: &str,
+    base: Option<&Path>,
+) -> Result<Vec<Vec<u8>>, SceneError> {
+    let mut out = Vec::new();
+    for buffer in doc.buffers() {
+        let element = label("buffer", buffer.name(), buffer.index());
+        let fallback = buffer
+            .extension_value("EXT_meshopt_compression")
+            .and_then(|e| e.get("fallback"))
+            .and_then(serde_json::Value::as_bool)
+            == Some(true);
+        if fallback && matches!(buffer.source(), gltf::buffer::Source::Bin) {
+            // A placeholder for decoded views (EXT_meshopt_compression): filled below.
+            if buffer.length() > MAX_DECODED_BYTES {
+                return Err(SceneError::Element {
+                    file: file.into(),
+                    element,
+                    problem: format!(
+                        "declares {} bytes of decoded data (at most {MAX_DECODED_BYTES})",
+                        buffer.length()
+                    ),
+                });
+            }
+            out.push(vec![0; buffer.length()]);
+            continue;
+        }
+        let data = match buffer.source() {
+            gltf::buffer::Source::Bin => {
+                blob.map(<[u8]>::to_vec)
+                    .ok_or_else(|| SceneError::Element {
+                        file: file.into(),
+                        element: element.clone(),
+                        problem: "refers to the GLB binary chunk, but the file has none".into(),
+                    })?
+            }
+            gltf::buffer::Source::Uri(uri) => {
+                read_uri(uri, base).map_err(|reason| SceneError::Resource {
+                    file: file.into(),
+                    element: element.clone(),
+                    uri: short_uri(uri),
+                    reason,
+                })?
+            }
+        };
+        if data.len() < buffer.length() {
+            return Err(SceneError::Element {
+                file: file.into(),
+                element,
+                problem: format!(
+                    "has {} bytes, but its byteLength is {}",
+                    data.len(),
+                    buffer.length()
+                ),
+            });
+        }
+        out.push(data);
+    }
+    decode_meshopt_views(doc, &mut out, file)?;
+    Ok(out)
+}
+
+/// EXT_meshopt_compression: every buffer view with the extension is decoded from its
+/// compressed bytes into the bytes the view itself names (usually in a fallback buffer), with
+/// meshoptimizer's decoders (safe for untrusted input: bad data decodes to garbage or an
+/// error, never out of bounds) and filters.
+fn decode_meshopt_views(
+    doc: &gltf::Document,
+    buffers: &mut [Vec<u8>],
+    file: &str,
+) -> Result<(), SceneError> {
+    for view in doc.views() {
+        let Some(ext) = view.extension_value("EXT_meshopt_compression") else {
+            continue;
+        };
+        let element = label("buffer view", view.name(), view.index());
+        let error = |problem: String| SceneError::Element {
+            file: file.into(),
+            element: element.clone(),
+            problem: format!("EXT_meshopt_compression: {problem}"),
+        };
+        let num = |key: &str| ext.get(key).and_then(serde_json::Value::as_u64);
+        let str_of = |key: &str| ext.get(key).and_then(serde_json::Value::as_str);
+        let (Some(source), Some(length), Some(stride), Some(count)) = (
+            num("buffer"),
+            num("byteLength"),
+            num("byteStride"),
+            num("count"),
+        ) else {
+            return Err(error(
+                "buffer, byteLength, byteStride and count are required".into(),
+            ));
+        };
+        let (source, offset, length, stride, count) = (
+            source as usize,
+            num("byteOffset").unwrap_or(0) as usize,
+            length as usize,
+            stride as usize,
+            count as usize,
+        );
+        let mode = str_of("mode").unwrap_or("");
+        let filter = str_of("filter").unwrap_or("NONE");
+        let valid_stride = match mode {
+            "ATTRIBUTES" => stride % 4 == 0 && (4..=256).contains(&stride),
+            "TRIANGLES" | "INDICES" => stride == 2 || stride == 4,
+            _ => return Err(error(format!("unknown mode '{mode}'"))),
+        };
+        if !valid_stride {
+            return Err(error(format!(
+                "byteStride {stride} is not valid for {mode}"
+            )));
+        }
+        let out_len = count
+            .checked_mul(stride)
+            .filter(|&n| n <= view.length() && n <= MAX_DECODED_BYTES)
+            .ok_or_else(|| {
+                error(format!(
+                    "{count} × {stride} bytes do not fit the view's {} bytes",
+                    view.length()
+                ))
+            })?;
+        let compressed = buffers
+            .get(source)
+            .and_then(|b| b.get(offset..offset.checked_add(length)?))
+            .ok_or_else(|| {
+                error(format!(
+                    "bytes {offset}+{length} of buffer {source} do not exist"
+                ))
+            })?
+            .to_vec();
+        let mut decoded = vec![0u8; out_len];
+        // SAFETY: `decoded` holds exactly count × stride bytes, the size each decoder writes;
+        // the decoders read only `compressed` (its pointer and length) and check its format.
+        let rc = unsafe {
+            let (dst, src) = (decoded.as_mut_ptr().cast(), compressed.as_ptr());
+            match mode {
+                "ATTRIBUTES" => meshopt::ffi::meshopt_decodeVertexBuffer(
+                    dst,
+                    count,
+                    stride,
+                    src,
+                    compressed.len(),
+                ),
+                "TRIANGLES" => meshopt::ffi::meshopt_decodeIndexBuffer(
+                    dst,
+                    count,
+                    stride,
+                    src,
+                    compressed.len(),
+                ),
+                _ => meshopt::ffi::meshopt_decodeIndexSequence(
+                    dst,
+                    count,
+                    stride,
+                    src,
+                    compressed.len(),
+                ),
+            }
+        };
+        if rc != 0 {
+            return Err(error(format!(
+                "the compressed data does not decode (code {rc})"
+            )));
+        }
+        let filter_ok = match filter {
+            "NONE" => true,
+            "OCTAHEDRAL" => mode == "ATTRIBUTES" && (stride == 4 || stride == 8),
+            "QUATERNION" => mode == "ATTRIBUTES" && stride == 8,
+            "EXPONENTIAL" => mode == "ATTRIBUTES",
+            _ => false,
+        };
+        if !filter_ok {
+            return Err(error(format!(
+                "filter '{filter}' does not apply to {mode} of stride {stride}"
+            )));
+        }
+        // SAFETY: each filter rewrites count elements of `stride` bytes in place, the buffer's
+        // exact size; the strides are the ones the filters accept (checked above).
+        unsafe {
+            let p = decoded.as_mut_ptr().cast();
+            match filter {
+                "OCTAHEDRAL" => meshopt::ffi::meshopt_decodeFilterOct(p, count, stride),
+                "QUATERNION" => meshopt::ffi::meshopt_decodeFilterQuat(p, count, stride),
+                "EXPONENTIAL" => meshopt::ffi::meshopt_decodeFilterExp(p, count, stride),
+                _ => {}
+            }
+        }
+        let target = buffers
+            .get_mut(view.buffer().index())
+            .and_then(|b| b.get_mut(view.offset()..view.offset().checked_add(out_len)?))
+            .ok_or_else(|| error("the view lies outside its buffer".into()))?;
+        target.copy_from_slice(&decoded);
+    }
+    Ok(())
+}
+
+/// A URI for messages: data URIs are cut to their media type.
+pub(super) fn short_uri(uri: &str) -> String {
+    match uri.strip_prefix("data:") {
+        Some(rest) => format!("data:{}…", rest.split([',', ';']).next().unwrap_or("")),
+        None => uri.to_string(),
+    }
+}
+
+/// The bytes behind a glTF URI: `data:…;base64,…`, `file:` or a path relative to `base`.
+pub(super) fn read_uri(uri: &str, base: Option<&Path>) -> Result<Vec<u8>, String> {
+    if let Some(rest) = uri.strip_prefix("data:") {
+        let (_, payload) = rest
+            .split_once(";base64,")
+            .ok_or("a data URI must be base64-encoded (';base64,')")?;
+        return base64::decode(payload).map_err(|e| format!("bad base64: {e}"));
+    }
+    let path = if let Some(rest) = uri.strip_prefix("file:") {
+        PathBuf::from(percent_decode(rest.strip_prefix("//").unwrap_or(rest))?)
+    } else if uri.contains(':') {
+        return Err("only data: URIs and relative paths are supported".into());
+    } else {
+        let base = base.ok_or("an in-memory scene cannot refer to external files")?;
+        base.join(percent_decode(uri)?)
+    };
+    if base.is_none() {
+        return Err("an in-memory scene cannot refer to external files".into());
+    }
+    std::fs::read(&path).map_err(|e| format!("{} ({e})", path.display()))
+}
+
+/// RFC 3986 percent-decoding into UTF-8.
+fn percent_decode(s: &str) -> Result<String, String> {
+    let bytes = s.as_bytes();
+    let mut out = Vec::with_capacity(bytes.len());
+    let mut i = 0;
+    while i < bytes.len() {
+        if bytes[i] == b'%' {
+            let hex = bytes
+                .get(i + 1..i + 3)
+                .and_then(|h| std::str::from_utf8(h).ok())
+                .and_then(|h| u8::from_str_radix(h, 16).ok())
+                .ok_or_else(|| format!("bad percent-escape in URI '{s}'"))?;
+            out.push(hex);
+            i += 3;
+        } else {
+            out.push(bytes[i]);
+            i += 1;
+        }
+    }
+    String::from_utf8(out).map_err(|_| format!("URI '{s}' does not decode to UTF-8"))
+}
+
+/// A decoded image: its texels, or why there are none (reported once per texture).
+type Decoded = Result<(u32, u32, std::rc::Rc<Vec<[u8; 4]>>), Fallback>;
+
+#[derive(Clone)]
+enum Fallback {
+    /// A format raygun does not decode (reported as unsupported).
+    Format(String),
+    /// A PNG or JPEG that failed to decode (a warning).
+    Broken(String),
+}
+
+/// The file's buffers, and the textures converted so far.
+pub(super) struct Resources<'a> {
+    pub file: &'a str,
+    base: Option<&'a Path>,
+    pub buffers: Vec<Vec<u8>>,
+    /// glTF image index → decoded texels.
+    images: HashMap<usize, Decoded>,
+    /// (glTF texture index, sRGB) → index in the scene's textures (None: not decodable).
+    textures: HashMap<(usize, bool), Option<u32>>,
+}
+
+impl<'a> Resources<'a> {
+    pub fn new(file: &'a str, base: Option<&'a Path>, buffers: Vec<Vec<u8>>) -> Self {
+        Self {
+            file,
+            base,
+            buffers,
+            images: HashMap::new(),
+            textures: HashMap::new(),
+        }
+    }
+
+    /// The scene texture for glTF texture `tex` read as colour (`srgb`) or as data, converted
+    /// once (a texture used both ways is stored twice); `None` (reported) where its image cannot
+    /// be decoded. `what` names the use for messages ("its materials use the … factor").
+    pub fn texture(
+        &mut self,
+        tex: &gltf::Texture,
+        srgb: bool,
+        out: &mut Vec<Texture>,
+        report: &mut Report,
+    ) -> Result<Option<u32>, SceneError> {
+        if let Some(&t) = self.textures.get(&(tex.index(), srgb)) {
+            return Ok(t);
+        }
+        let image = tex.source();
+        let name = tex
+            .name()
+            .or(image.name())
+            .map_or_else(|| format!("texture {}", tex.index()), str::to_string);
+        let element = format!("texture '{name}'");
+        let sampler = convert_sampler(&tex.sampler());
+        let decoded = match self.images.get(&image.index()) {
+            Some(d) => d.clone(),
+            None => {
+                let d = self.decode(&image, &element)?;
+                self.images.insert(image.index(), d.clone());
+                d
+            }
+        };
+        let t = match decoded {
+            Ok((width, height, texels)) => {
+                out.push(Texture {
+                    name,
+                    width,
+                    height,
+                    texels: texels.as_ref().clone(),
+                    sampler,
+                    srgb,
+                });
+                Some(out.len() as u32 - 1)
+            }
+            Err(Fallback::Format(what)) => {
+                report.unsupported(format!(
+                    "image format {what} ({element}; its materials use their factors)"
+                ));
+                None
+            }
+            Err(Fallback::Broken(why)) => {
+                report.warn(format!(
+                    "{element}: cannot decode the {why}; its materials use their factors"
+                ));
+                None
+            }
+        };
+        self.textures.insert((tex.index(), srgb), t);
+        Ok(t)
+    }
+
+    fn decode(&self, image: &gltf::Image, element: &str) -> Result<Decoded, SceneError> {
+        let (bytes, mime, uri_ext) = match image.source() {
+            gltf::image::Source::View { view, mime_type } => {
+                let start = view.offset();
+                let bytes = start
+                    .checked_add(view.length())
+                    .and_then(|end| self.buffers.get(view.buffer().index())?.get(start..end))
+                    .ok_or_else(|| SceneError::Element {
+                        file: self.file.into(),
+                        element: element.into(),
+                        problem: format!("buffer view {} runs past its buffer", view.index()),
+                    })?;
+                (bytes.to_vec(), Some(mime_type.to_string()), None)
+            }
+            gltf::image::Source::Uri { uri, mime_type } => {
+                let bytes = read_uri(uri, self.base).map_err(|reason| SceneError::Resource {
+                    file: self.file.into(),
+                    element: element.into(),
+                    uri: short_uri(uri),
+                    reason,
+                })?;
+                let data_mime = uri
+                    .strip_prefix("data:")
+                    .and_then(|r| r.split(';').next())
+                    .filter(|m| !m.is_empty());
+                let mime = mime_type.or(data_mime).map(str::to_string);
+                let ext = (!uri.starts_with("data:"))
+                    .then(|| uri.rsplit('.').next().map(str::to_ascii_lowercase))
+                    .flatten();
+                (bytes, mime, ext)
+            }
+        };
+        let format = match (mime.as_deref(), uri_ext.as_deref()) {
+            (Some("image/png"), _) | (None, Some("png")) => Some(image::ImageFormat::Png),
+            (Some("image/jpeg"), _) | (None, Some("jpg" | "jpeg")) => {
+                Some(image::ImageFormat::Jpeg)
+            }
+            _ => image::guess_format(&bytes)
+                .ok()
+                .filter(|f| matches!(f, image::ImageFormat::Png | image::ImageFormat::Jpeg)),
+        };
+        let Some(format) = format else {
+            let what = mime.or(uri_ext).unwrap_or_else(|| "unknown".into());
+            return Ok(Err(Fallback::Format(what)));
+        };
+        Ok(match decode_rgba8(&bytes, format) {
+            Ok(img) => Ok((
+                img.width(),
+                img.height(),
+                std::rc::Rc::new(img.pixels().map(|p| p.0).collect()),
+            )),
+            Err(e) => Err(Fallback::Broken(format!("{format:?} image ({e})"))),
+        })
+    }
+}
+
+/// glTF sampler → [`Sampler`] (the minification filter does not matter: see [`Sampler`]).
+fn convert_sampler(s: &gltf::texture::Sampler) -> Sampler {
+    let wrap = |w| match w {
+        gltf::texture::WrappingMode::Repeat => Wrap::Repeat,
+        gltf::texture::WrappingMode::ClampToEdge => Wrap::ClampToEdge,
+        gltf::texture::WrappingMode::MirroredRepeat => Wrap::MirroredRepeat,
+    };
+    Sampler {
+        wrap_s: wrap(s.wrap_s()),
+        wrap_t: wrap(s.wrap_t()),
+        nearest: s.mag_filter() == Some(gltf::texture::MagFilter::Nearest),
+    }
+}
+
+/// Decodes PNG or JPEG into RGBA8 (grey, grey-alpha, RGB and 16-bit images are expanded the way
+/// the `image` crate does: 16-bit channels are rounded to 8 bits, missing alpha is opaque).
+fn decode_rgba8(bytes: &[u8], format: image::ImageFormat) -> Result<image::RgbaImage, String> {
+    let mut reader = image::ImageReader::with_format(Cursor::new(bytes), format);
+    let mut limits = image::Limits::default();
+    limits.max_alloc = Some(MAX_IMAGE_BYTES);
+    reader.limits(limits);
+    let img = reader.decode().map_err(|e| e.to_string())?;
+    let (w, h) = (u64::from(img.width()), u64::from(img.height()));
+    if w * h * 4 > MAX_IMAGE_BYTES {
+        return Err(format!(
+            "{w}×{h} is larger than {MAX_IMAGE_BYTES} bytes of RGBA8"
+        ));
+    }
+    if w == 0 || h == 0 {
+        return Err("the image is empty".into());
+    }
+    Ok(img.to_rgba8())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn percent_decoding_accepts_utf8_and_rejects_broken_escapes() {
+        assert_eq!(percent_decode("a%20b%C3%A9.png").unwrap(), "a bé.png");
+        assert_eq!(percent_decode("plain.bin").unwrap(), "plain.bin");
+        // The gltf crate unwraps this decoding and panics; here it is an error.
+        assert!(percent_decode("%FF.png").unwrap_err().contains("UTF-8"));
+        assert!(
+            percent_decode("%G1")
+                .unwrap_err()
+                .contains("percent-escape")
+        );
+        assert!(percent_decode("end%2").is_err());
+    }
+
+    #[test]
+    fn uris_resolve_data_and_relative_paths_and_refuse_the_rest() {
+        assert_eq!(
+            read_uri("data:application/octet-stream;base64,AAEC", None).unwrap(),
+            [0, 1, 2]
+        );
+        assert!(
+            read_uri("data:text/plain,hello", None)
+                .unwrap_err()
+                .contains("base64")
+        );
+        assert!(read_uri("https://example.com/a.bin", Some(Path::new("."))).is_err());
+        assert!(read_uri("a.bin", None).unwrap_err().contains("in-memory"));
+        assert!(
+            read_uri("file:///etc/hostname", None)
+                .unwrap_err()
+                .contains("in-memory")
+        );
+        assert_eq!(short_uri("data:image/png;base64,AAAA"), "data:image/png…");
+    }
+}

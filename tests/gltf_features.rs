@@ -1,0 +1,820 @@
+//! glTF features beyond the core material (the materials and meshes exporters write), each in a scene built in code with a
+//! known answer, on both backends; then GPU against the CPU twin on one scene using all of
+//! them.
+
+use glam::{Vec2, Vec3, Vec4};
+use raygun::gpu::GpuContext;
+use raygun::scene::{
+    AlphaMode, Camera, Environment, LightKind, Material, MaterialExt, OrthographicCamera,
+    PunctualLight, Sampler, Scene, Texture, TextureRef, Triangle, UvMap, UvTransform, VertexExtras,
+    Wrap,
+};
+use raygun::trace::accum::{Accumulation, luminance};
+use raygun::trace::camera::RenderCamera;
+use raygun::trace::cpu::{TraceSettings, render_cpu};
+use raygun::trace::gpu::{GpuAccum, GpuScene, TraceKernel, TraceRun};
+use raygun::trace::pack::PackedScene;
+
+fn material(base: Vec3, metallic: f32, roughness: f32, specular: f32, emission: Vec3) -> Material {
+    Material {
+        name: "m".into(),
+        base_color: base.extend(1.0),
+        base_color_texture: None,
+        metallic,
+        roughness,
+        specular,
+        emission,
+        double_sided: true,
+    }
+}
+
+fn flat(p: [Vec3; 3], uv: [Vec2; 3], material: u32) -> Triangle {
+    let n = (p[1] - p[0]).cross(p[2] - p[0]).normalize();
+    Triangle {
+        p,
+        n: [n; 3],
+        uv,
+        material,
+    }
+}
+
+/// An axis-aligned rectangle in the plane z = `z` from (x0, y0) to (x1, y1), facing +Z, with
+/// glTF texture coordinates (u along +x, v = 0 at the top edge).
+fn rect(x0: f32, y0: f32, x1: f32, y1: f32, z: f32, material: u32) -> Vec<Triangle> {
+    let (a, b, c, d) = (
+        Vec3::new(x0, y0, z),
+        Vec3::new(x1, y0, z),
+        Vec3::new(x1, y1, z),
+        Vec3::new(x0, y1, z),
+    );
+    let (ua, ub, uc, ud) = (
+        Vec2::new(0.0, 1.0),
+        Vec2::new(1.0, 1.0),
+        Vec2::new(1.0, 0.0),
+        Vec2::new(0.0, 0.0),
+    );
+    vec![
+        flat([a, b, c], [ua, ub, uc], material),
+        flat([a, c, d], [ua, uc, ud], material),
+    ]
+}
+
+fn texture(name: &str, width: u32, height: u32, texels: Vec<[u8; 4]>, srgb: bool) -> Texture {
+    Texture {
+        name: name.into(),
+        width,
+        height,
+        texels,
+        sampler: Sampler {
+            wrap_s: Wrap::ClampToEdge,
+            wrap_t: Wrap::ClampToEdge,
+            nearest: true,
+        },
+        srgb,
+    }
+}
+
+fn tex_ref(texture: u32) -> Option<TextureRef> {
+    Some(TextureRef {
+        texture,
+        uv: UvMap::default(),
+    })
+}
+
+fn ortho(position: Vec3, ymag: f32) -> OrthographicCamera {
+    OrthographicCamera {
+        name: "ortho".into(),
+        position,
+        forward: Vec3::NEG_Z,
+        up: Vec3::Y,
+        ymag,
+    }
+}
+
+fn settings(scene: &Scene, w: u32, h: u32, seed: u32, max_depth: u32) -> TraceSettings {
+    TraceSettings {
+        width: w,
+        height: h,
+        seed,
+        max_depth,
+        camera: RenderCamera::choose(scene, None, w, h).unwrap(),
+    }
+}
+
+fn render_gpu(ctx: &GpuContext, scene: &Scene, s: &TraceSettings, spp: u32) -> Accumulation {
+    let packed = PackedScene::new(scene);
+    let kernel = TraceKernel::new(ctx);
+    let gs = GpuScene::upload(ctx, &kernel, &packed).unwrap();
+    let acc = GpuAccum::new(ctx, s.width, s.height).unwrap();
+    let run = TraceRun::new(ctx, &kernel, &packed, s, &acc, None);
+    let mut enc = ctx.device.create_command_encoder(&Default::default());
+    acc.clear(&mut enc);
+    for _ in 0..spp {
+        run.record(&mut enc, &gs, None);
+    }
+    ctx.queue.submit([enc.finish()]);
+    acc.read(ctx).unwrap()
+}
+
+fn render_cpu_acc(scene: &Scene, s: &TraceSettings, spp: u32) -> Accumulation {
+    let packed = PackedScene::new(scene);
+    let mut acc = Accumulation::new(s.width, s.height);
+    for _ in 0..spp {
+        render_cpu(&packed, s, &mut acc, None);
+    }
+    acc
+}
+
+/// Both backends' renders, labelled.
+fn both(scene: &Scene, s: &TraceSettings, spp: u32) -> Vec<(Accumulation, &'static str)> {
+    let ctx = GpuContext::for_tests();
+    vec![
+        (render_cpu_acc(scene, s, spp), "CPU"),
+        (render_gpu(&ctx, scene, s, spp), "GPU"),
+    ]
+}
+
+/// Z statistic of the mean luminance of `pixels` against `expected` (their pooled samples).
+fn z_of(acc: &Accumulation, pixels: &[usize], expected: f64) -> f64 {
+    let (mut m, mut v) = (0f64, 0f64);
+    for &i in pixels {
+        m += f64::from(luminance(acc.mean(i)));
+        v += f64::from(acc.luminance_variance_of_mean(i).unwrap());
+    }
+    let n = pixels.len() as f64;
+    (m / n - expected) / (v.sqrt() / n).max(1e-12)
+}
+
+/// An emissive texture whose left half is white and right half black, on a black-based quad
+/// (exporters write emissiveFactor 1 beside every emissive texture): the left half glows with
+/// exactly the factor's radiance, the right half is black, and only the left triangles are
+/// lights.
+#[test]
+fn an_emissive_texture_half_white_half_black_glows_on_one_half_only() {
+    let lamp = |tris: &mut Vec<Triangle>, x0, x1| tris.extend(rect(x0, -1.0, x1, 1.0, 0.0, 0));
+    let mut tris = Vec::new();
+    lamp(&mut tris, -1.0, 0.0);
+    lamp(&mut tris, 0.0, 1.0);
+    // The halves carry their part of the texture's u range.
+    for t in &mut tris {
+        for (uv, p) in t.uv.iter_mut().zip(t.p) {
+            uv.x = (p.x + 1.0) / 2.0;
+        }
+    }
+    let scene = Scene {
+        triangles: tris,
+        materials: vec![material(Vec3::ZERO, 0.0, 1.0, 0.0, Vec3::splat(2.0))],
+        material_ext: vec![MaterialExt {
+            emissive_texture: tex_ref(0),
+            ..Default::default()
+        }],
+        textures: vec![texture(
+            "half",
+            2,
+            1,
+            vec![[255, 255, 255, 255], [0, 0, 0, 255]],
+            true,
+        )],
+        orthographic_cameras: vec![ortho(Vec3::new(0.0, 0.0, 2.0), 1.0)],
+        environment: Environment::Constant(Vec3::ZERO),
+        ..Default::default()
+    };
+    assert_eq!(
+        scene.emissive_triangle_count(),
+        2,
+        "the black half is no lamp"
+    );
+    assert_eq!(PackedScene::new(&scene).light_count, 2);
+    let s = settings(&scene, 16, 16, 1, 2);
+    for (acc, label) in both(&scene, &s, 4) {
+        for y in 0..16 {
+            for x in 0..16 {
+                let l = luminance(acc.mean(y * 16 + x));
+                let want = if x < 8 { 2.0 } else { 0.0 };
+                assert!(
+                    (l - want).abs() < 1e-4,
+                    "{label}: pixel ({x}, {y}) = {l}, want {want}"
+                );
+            }
+        }
+    }
+}
+
+/// A black cut-out quad (alphaMode MASK, cutoff 0.5) whose 4 × 1 alpha texture is opaque in
+/// one column, in front of a lamp of radiance 3: the camera sees the lamp through exactly the
+/// three transparent quarters; with BLEND and alpha 0.25 everywhere, 75 % of the light
+/// passes (stochastic coverage).
+#[test]
+fn an_alpha_masked_quad_in_front_of_an_emitter_lets_exactly_the_unmasked_area_through() {
+    let scene = |alpha: AlphaMode, texels: Vec<[u8; 4]>| Scene {
+        triangles: [
+            rect(-1.0, -1.0, 1.0, 1.0, 0.0, 0),
+            rect(-2.0, -2.0, 2.0, 2.0, -1.0, 1),
+        ]
+        .concat(),
+        materials: vec![
+            Material {
+                base_color_texture: Some(0),
+                ..material(Vec3::ZERO, 0.0, 1.0, 0.0, Vec3::ZERO)
+            },
+            material(Vec3::ZERO, 0.0, 1.0, 0.0, Vec3::splat(3.0)),
+        ],
+        material_ext: vec![MaterialExt {
+            alpha,
+            ..Default::default()
+        }],
+        textures: vec![texture("alpha", 4, 1, texels, true)],
+        orthographic_cameras: vec![ortho(Vec3::new(0.0, 0.0, 2.0), 1.0)],
+        environment: Environment::Constant(Vec3::ZERO),
+        ..Default::default()
+    };
+    let mask = scene(
+        AlphaMode::Mask(0.5),
+        vec![[0, 0, 0, 255], [0, 0, 0, 0], [0, 0, 0, 100], [0, 0, 0, 127]],
+    );
+    let s = settings(&mask, 16, 16, 3, 3);
+    for (acc, label) in both(&mask, &s, 4) {
+        let mean: f32 = acc.mean_image().iter().map(|c| luminance(*c)).sum::<f32>() / 256.0;
+        assert!(
+            (mean - 2.25).abs() < 1e-4,
+            "{label}: mean {mean}, want 3 × 3/4"
+        );
+        for y in 0..16 {
+            let l = luminance(acc.mean(y * 16 + 1));
+            assert!(
+                l.abs() < 1e-6,
+                "{label}: the opaque column lets light through: {l}"
+            );
+        }
+    }
+    let blend = scene(AlphaMode::Blend, vec![[0, 0, 0, 64]; 4]);
+    let alpha = 64.0 / 255.0;
+    for (acc, label) in both(&blend, &s, 64) {
+        let all: Vec<usize> = (0..256).collect();
+        let z = z_of(&acc, &all, 3.0 * (1.0 - alpha));
+        assert!(z.abs() < 5.0, "{label}: blended coverage z = {z}");
+        assert!(
+            z_of(&acc, &all, 3.0 * 0.72).abs() > 5.0,
+            "{label}: the test has power"
+        );
+    }
+}
+
+/// A smooth glass slab (a closed box) between the camera and a lamp of radiance 1 in a black
+/// world: at normal incidence each face transmits 1 − F0 with F0 = ((ior − 1)/(ior + 1))²,
+/// so the lamp is seen through it at (1 − F0)² (paths of three vertices: no light bouncing
+/// inside the slab yet).
+#[test]
+fn a_smooth_glass_slab_transmits_one_minus_f_squared() {
+    for ior in [1.5f32, 2.0] {
+        let mut tris = Vec::new();
+        // The slab: 4 × 4 m, 0.2 m thick, z from −0.2 to 0.
+        let (lo, hi) = (Vec3::new(-2.0, -2.0, -0.2), Vec3::new(2.0, 2.0, 0.0));
+        let c = |x: usize, y: usize, z: usize| {
+            Vec3::new([lo.x, hi.x][x], [lo.y, hi.y][y], [lo.z, hi.z][z])
+        };
+        let quads = [
+            [c(0, 0, 0), c(0, 1, 0), c(1, 1, 0), c(1, 0, 0)],
+            [c(0, 0, 1), c(1, 0, 1), c(1, 1, 1), c(0, 1, 1)],
+            [c(0, 0, 0), c(0, 0, 1), c(0, 1, 1), c(0, 1, 0)],
+            [c(1, 0, 0), c(1, 1, 0), c(1, 1, 1), c(1, 0, 1)],
+            [c(0, 0, 0), c(1, 0, 0), c(1, 0, 1), c(0, 0, 1)],
+            [c(0, 1, 0), c(0, 1, 1), c(1, 1, 1), c(1, 1, 0)],
+        ];
+        for q in quads {
+            // Outward faces (counter-clockwise seen from outside).
+            tris.push(flat([q[0], q[1], q[2]], [Vec2::ZERO; 3], 0));
+            tris.push(flat([q[0], q[2], q[3]], [Vec2::ZERO; 3], 0));
+        }
+        tris.extend(rect(-3.0, -3.0, 3.0, 3.0, -1.0, 1));
+        let scene = Scene {
+            triangles: tris,
+            materials: vec![
+                material(Vec3::ONE, 0.0, 0.0, 1.0, Vec3::ZERO),
+                material(Vec3::ZERO, 0.0, 1.0, 0.0, Vec3::ONE),
+            ],
+            material_ext: vec![MaterialExt {
+                transmission: 1.0,
+                ior,
+                ..Default::default()
+            }],
+            orthographic_cameras: vec![ortho(Vec3::new(0.0, 0.0, 1.0), 0.5)],
+            environment: Environment::Constant(Vec3::ZERO),
+            ..Default::default()
+        };
+        let f0 = ((ior - 1.0) / (ior + 1.0)).powi(2);
+        let expected = f64::from((1.0 - f0) * (1.0 - f0));
+        let s = settings(&scene, 8, 8, 5, 3);
+        let all: Vec<usize> = (0..64).collect();
+        for (acc, label) in both(&scene, &s, 256) {
+            let z = z_of(&acc, &all, expected);
+            assert!(
+                z.abs() < 5.0,
+                "{label}, ior {ior}: z = {z} against {expected}"
+            );
+            let lum: f64 = all
+                .iter()
+                .map(|&i| f64::from(luminance(acc.mean(i))))
+                .sum::<f64>()
+                / 64.0;
+            assert!(
+                (lum - expected).abs() < 0.02,
+                "{label}, ior {ior}: {lum} vs {expected}"
+            );
+            // Power: one interface's worth (1 − F0 alone) is told apart.
+            assert!(z_of(&acc, &all, f64::from(1.0 - f0)).abs() > 5.0);
+        }
+    }
+}
+
+/// A point light of intensity I at height h over a Lambertian floor of albedo ρ: the floor's
+/// radiance at distance d from the light is ρ/π · I h / d³ (inverse square × cosine); a spot
+/// light equals it inside its inner cone and is dark outside its outer cone; a directional
+/// light of irradiance E gives ρE/π everywhere.
+#[test]
+fn a_punctual_light_gives_inverse_square_irradiance_on_a_diffuse_plane() {
+    let (rho, intensity, h) = (0.8f32, 5.0f32, 1.0f32);
+    let floor = |kind: LightKind, direction: Vec3| Scene {
+        triangles: rect(-2.0, -2.0, 2.0, 2.0, 0.0, 0),
+        materials: vec![material(Vec3::splat(rho), 0.0, 1.0, 0.0, Vec3::ZERO)],
+        lights: vec![PunctualLight {
+            name: "lamp".into(),
+            kind,
+            position: Vec3::new(0.0, 0.0, h),
+            direction,
+            intensity: Vec3::splat(intensity),
+        }],
+        orthographic_cameras: vec![ortho(Vec3::new(0.0, 0.0, 3.0), 2.0)],
+        environment: Environment::Constant(Vec3::ZERO),
+        ..Default::default()
+    };
+    let (w, px) = (32usize, 4.0 / 32.0);
+    let centre = |i: usize| {
+        Vec2::new(
+            -2.0 + ((i % w) as f32 + 0.5) * px,
+            2.0 - ((i / w) as f32 + 0.5) * px,
+        )
+    };
+    let point = floor(LightKind::Point, Vec3::NEG_Z);
+    let s = settings(&point, 32, 32, 7, 1);
+    let expected = |i: usize| {
+        let d = (centre(i).length_squared() + h * h).sqrt();
+        rho / std::f32::consts::PI * intensity * h / (d * d * d)
+    };
+    // The mean over a pixel's footprint against the value at its centre: the pixel jitter
+    // is the only randomness (the light sample is exact), so the bound is 5 standard errors of
+    // the pixel mean plus the footprint's curvature (< 0.1 %).
+    let close = |acc: &Accumulation, i: usize, want: f32| {
+        let got = luminance(acc.mean(i));
+        let se = acc.luminance_variance_of_mean(i).unwrap().sqrt();
+        ((got - want).abs() <= 5.0 * se + 1e-3 * want, got)
+    };
+    for (acc, label) in both(&point, &s, 32) {
+        for i in 0..w * w {
+            let (ok, got) = close(&acc, i, expected(i));
+            assert!(ok, "{label}: pixel {i}: {got} vs {}", expected(i));
+        }
+    }
+    let spot = floor(
+        LightKind::Spot {
+            inner: 30f32.to_radians(),
+            outer: 40f32.to_radians(),
+        },
+        Vec3::NEG_Z,
+    );
+    for (acc, label) in both(&spot, &s, 32) {
+        for i in 0..w * w {
+            let angle = centre(i).length().atan2(h).to_degrees();
+            let got = luminance(acc.mean(i));
+            if angle < 27.0 {
+                assert!(
+                    close(&acc, i, expected(i)).0,
+                    "{label}: in the cone, pixel {i}"
+                );
+            } else if angle > 43.0 {
+                assert_eq!(got, 0.0, "{label}: outside the cone, pixel {i}");
+            }
+        }
+    }
+    // A directional light 60° from the zenith: E cos 60°.
+    let dir = Vec3::new(60f32.to_radians().sin(), 0.0, -60f32.to_radians().cos());
+    let sun = floor(LightKind::Directional, dir);
+    for (acc, label) in both(&sun, &s, 4) {
+        let want = rho / std::f32::consts::PI * intensity * 0.5;
+        for i in 0..w * w {
+            let got = luminance(acc.mean(i));
+            assert!(
+                (got / want - 1.0).abs() < 1e-4,
+                "{label}: sun, pixel {i}: {got}"
+            );
+        }
+    }
+}
+
+/// A glossy metal plane whose normal map tilts every shading normal by 10° towards +x, lit
+/// by a point light at the pinhole: the highlight sits where the tilted normal points at the
+/// camera, x = −c·tan 10° (c the camera's height), not under the camera.
+#[test]
+fn a_normal_map_that_tilts_the_normal_moves_the_highlight_to_the_predicted_pixel() {
+    let tilt = 10f32.to_radians();
+    let texel = |v: f32| ((v + 1.0) * 0.5 * 255.0).round() as u8;
+    let (sin, cos) = tilt.sin_cos();
+    let c = 2.0f32;
+    let scene = |mapped: bool| {
+        let tris = rect(-2.0, -2.0, 2.0, 2.0, 0.0, 0);
+        let n = tris.len();
+        Scene {
+            triangles: tris,
+            materials: vec![material(Vec3::ONE, 1.0, 0.1, 1.0, Vec3::ZERO)],
+            material_ext: if mapped {
+                vec![MaterialExt {
+                    normal_texture: tex_ref(0),
+                    ..Default::default()
+                }]
+            } else {
+                Vec::new()
+            },
+            vertex_extras: vec![
+                VertexExtras {
+                    tangent: [Vec4::new(1.0, 0.0, 0.0, 1.0); 3],
+                    ..Default::default()
+                };
+                n
+            ],
+            textures: vec![texture(
+                "tilt",
+                1,
+                1,
+                vec![[texel(sin), texel(0.0), texel(cos), 255]],
+                false,
+            )],
+            cameras: vec![Camera {
+                name: "top".into(),
+                position: Vec3::new(0.0, 0.0, c),
+                forward: Vec3::NEG_Z,
+                up: Vec3::Y,
+                yfov: 60f32.to_radians(),
+            }],
+            lights: vec![PunctualLight {
+                name: "flash".into(),
+                kind: LightKind::Point,
+                position: Vec3::new(0.0, 0.0, c),
+                direction: Vec3::NEG_Z,
+                intensity: Vec3::ONE,
+            }],
+            environment: Environment::Constant(Vec3::ZERO),
+            ..Default::default()
+        }
+    };
+    let w = 64u32;
+    let half_width = c * 30f32.to_radians().tan();
+    let column_of = |x: f32| (x / half_width + 1.0) * 0.5 * w as f32;
+    for (mapped, want) in [(false, column_of(0.0)), (true, column_of(-c * tilt.tan()))] {
+        let sc = scene(mapped);
+        let s = settings(&sc, w, w, 2, 1);
+        for (acc, label) in both(&sc, &s, 8) {
+            let row = w as usize / 2;
+            let brightest = (0..w as usize)
+                .max_by(|&a, &b| {
+                    luminance(acc.mean(row * w as usize + a))
+                        .total_cmp(&luminance(acc.mean(row * w as usize + b)))
+                })
+                .unwrap();
+            let got = brightest as f32 + 0.5;
+            assert!(
+                (got - want).abs() <= 1.5,
+                "{label}, mapped {mapped}: highlight at column {got}, predicted {want}"
+            );
+        }
+    }
+}
+
+/// An orthographic camera: a 1 m square covers the same pixels from 2 m and from 20 m.
+#[test]
+fn an_orthographic_camera_projects_in_parallel() {
+    for distance in [2.0f32, 20.0] {
+        let scene = Scene {
+            triangles: rect(-0.5, -0.5, 0.5, 0.5, 0.0, 0),
+            materials: vec![material(Vec3::ZERO, 0.0, 1.0, 0.0, Vec3::ONE)],
+            orthographic_cameras: vec![ortho(Vec3::new(0.0, 0.0, distance), 1.0)],
+            environment: Environment::Constant(Vec3::ZERO),
+            ..Default::default()
+        };
+        let s = settings(&scene, 16, 16, 1, 1);
+        for (acc, label) in both(&scene, &s, 2) {
+            for y in 0..16 {
+                for x in 0..16 {
+                    let inside = (4..12).contains(&x) && (4..12).contains(&y);
+                    let l = luminance(acc.mean(y * 16 + x));
+                    assert_eq!(
+                        l,
+                        if inside { 1.0 } else { 0.0 },
+                        "{label} at {distance} m: ({x}, {y})"
+                    );
+                }
+            }
+        }
+    }
+}
+
+/// Welch Z-test of two independent renders per 2 × 2 block (the twin test of tests/trace.rs).
+fn renders_agree(a: &Accumulation, b: &Accumulation, label: &str) -> Result<(), String> {
+    let (a, b) = (a.pooled(2), b.pooled(2));
+    for i in 0..a.count.len() {
+        let (ma, mb) = (luminance(a.mean(i)), luminance(b.mean(i)));
+        let v = a.luminance_variance_of_mean(i).unwrap() + b.luminance_variance_of_mean(i).unwrap();
+        let z = (ma - mb) / v.sqrt().max(1e-6);
+        if z.is_nan() || z.abs() >= 5.0 {
+            return Err(format!("{label}: block {i}: means {ma} vs {mb}, z = {z}"));
+        }
+    }
+    Ok(())
+}
+
+/// One scene with every one of these features: textures with transforms, wrap modes and both
+/// filters, TEXCOORD_1, vertex colours, a normal map, a metallic-roughness map, an emissive
+/// texture, MASK and BLEND, rough and smooth glass, clear coat, specular colour, point, spot
+/// and directional lights and an environment.
+fn everything() -> Scene {
+    let mut tris = Vec::new();
+    tris.extend(rect(-2.0, -2.0, 2.0, 2.0, -1.0, 0)); // back wall: textured, vertex colours
+    tris.extend(rect(-1.8, -1.8, -0.6, -0.6, -0.5, 1)); // normal + MR map, clear coat
+    tris.extend(rect(-0.4, -1.8, 0.8, -0.6, -0.5, 2)); // emissive texture, uv1
+    tris.extend(rect(-1.5, 0.2, -0.3, 1.4, -0.3, 3)); // MASK
+    tris.extend(rect(0.3, 0.2, 1.5, 1.4, -0.3, 4)); // BLEND
+    tris.extend(rect(-1.0, -1.0, 0.0, 0.0, 0.2, 5)); // rough glass
+    tris.extend(rect(0.1, -0.3, 1.1, 0.7, 0.3, 6)); // smooth glass, specular colour
+    let n = tris.len();
+    let mut extras = vec![VertexExtras::default(); n];
+    for (i, e) in extras.iter_mut().enumerate() {
+        let t = &tris[i];
+        e.color =
+            t.p.map(|p| Vec4::new(0.5 + 0.25 * p.x, 0.5 + 0.25 * p.y, 0.8, 1.0));
+        e.uv1 = t.uv.map(|uv| Vec2::new(uv.y, uv.x) * 2.0);
+        e.tangent = [Vec4::new(1.0, 0.0, 0.0, 1.0); 3];
+    }
+    let checker: Vec<[u8; 4]> = (0..64)
+        .map(|i| {
+            let (x, y) = (i % 8, i / 8);
+            if (x + y) % 2 == 0 {
+                [230, 200, 40, 255]
+            } else {
+                [30, 90, 200, 120]
+            }
+        })
+        .collect();
+    let bumps: Vec<[u8; 4]> = (0..16)
+        .map(|i| [128 + 60 * (i % 2) as u8, 128, 220, 255])
+        .collect();
+    let mr: Vec<[u8; 4]> = (0..4)
+        .map(|i| [255, 60 * i as u8, 255 - 50 * i as u8, 255])
+        .collect();
+    let glow: Vec<[u8; 4]> = (0..4)
+        .map(|i| {
+            if i % 3 == 0 {
+                [255, 180, 90, 255]
+            } else {
+                [0, 0, 0, 255]
+            }
+        })
+        .collect();
+    let tex = |name, w, h, texels, wrap, nearest, srgb| Texture {
+        name,
+        width: w,
+        height: h,
+        texels,
+        sampler: Sampler {
+            wrap_s: wrap,
+            wrap_t: Wrap::MirroredRepeat,
+            nearest,
+        },
+        srgb,
+    };
+    let textures = vec![
+        tex(
+            "checker".to_string(),
+            8,
+            8,
+            checker.clone(),
+            Wrap::Repeat,
+            false,
+            true,
+        ),
+        tex("bumps".to_string(), 4, 4, bumps, Wrap::Repeat, false, false),
+        tex("mr".to_string(), 2, 2, mr, Wrap::ClampToEdge, true, false),
+        tex(
+            "glow".to_string(),
+            2,
+            2,
+            glow,
+            Wrap::MirroredRepeat,
+            true,
+            true,
+        ),
+        tex(
+            "cutout".to_string(),
+            8,
+            8,
+            checker,
+            Wrap::ClampToEdge,
+            true,
+            true,
+        ),
+    ];
+    let transformed = |texture, tex_coord| {
+        Some(TextureRef {
+            texture,
+            uv: UvMap {
+                tex_coord,
+                transform: UvTransform {
+                    offset: Vec2::new(0.1, -0.2),
+                    rotation: 0.4,
+                    scale: Vec2::new(1.5, 0.75),
+                },
+            },
+        })
+    };
+    let m = |base: Vec3, metallic, roughness| material(base, metallic, roughness, 1.0, Vec3::ZERO);
+    let materials = vec![
+        Material {
+            base_color_texture: Some(0),
+            ..m(Vec3::splat(0.9), 0.0, 0.7)
+        },
+        m(Vec3::new(0.8, 0.3, 0.2), 0.5, 0.6),
+        Material {
+            emission: Vec3::splat(4.0),
+            ..m(Vec3::splat(0.2), 0.0, 0.5)
+        },
+        Material {
+            base_color_texture: Some(4),
+            ..m(Vec3::splat(0.8), 0.0, 0.4)
+        },
+        Material {
+            base_color: Vec4::new(0.2, 0.8, 0.3, 0.4),
+            ..m(Vec3::ONE, 0.0, 0.4)
+        },
+        m(Vec3::new(0.9, 0.95, 1.0), 0.0, 0.25),
+        m(Vec3::ONE, 0.0, 0.0),
+    ];
+    let material_ext = vec![
+        MaterialExt {
+            base_color_uv: transformed(0, 1).unwrap().uv,
+            ..Default::default()
+        },
+        MaterialExt {
+            normal_texture: transformed(1, 0),
+            normal_scale: 0.8,
+            metallic_roughness_texture: tex_ref(2),
+            clearcoat: 0.8,
+            clearcoat_roughness: 0.1,
+            ..Default::default()
+        },
+        MaterialExt {
+            emissive_texture: transformed(3, 1),
+            ..Default::default()
+        },
+        MaterialExt {
+            alpha: AlphaMode::Mask(0.5),
+            ..Default::default()
+        },
+        MaterialExt {
+            alpha: AlphaMode::Blend,
+            ..Default::default()
+        },
+        MaterialExt {
+            transmission: 1.0,
+            ior: 1.45,
+            ..Default::default()
+        },
+        MaterialExt {
+            transmission: 0.9,
+            ior: 1.6,
+            specular_color: Vec3::new(1.0, 0.7, 0.4),
+            ..Default::default()
+        },
+    ];
+    let light = |kind, position: Vec3, direction: Vec3, intensity: Vec3| PunctualLight {
+        name: "l".into(),
+        kind,
+        position,
+        direction: direction.normalize(),
+        intensity,
+    };
+    Scene {
+        triangles: tris,
+        materials,
+        material_ext,
+        vertex_extras: extras,
+        textures,
+        lights: vec![
+            light(
+                LightKind::Point,
+                Vec3::new(1.5, 1.5, 1.5),
+                Vec3::NEG_Z,
+                Vec3::splat(3.0),
+            ),
+            light(
+                LightKind::Spot {
+                    inner: 0.2,
+                    outer: 0.5,
+                },
+                Vec3::new(-1.0, 0.5, 2.0),
+                Vec3::new(0.3, -0.3, -1.0),
+                Vec3::new(8.0, 6.0, 4.0),
+            ),
+            light(
+                LightKind::Directional,
+                Vec3::ZERO,
+                Vec3::new(-0.3, -0.4, -1.0),
+                Vec3::splat(0.7),
+            ),
+        ],
+        cameras: vec![Camera {
+            name: "front".into(),
+            position: Vec3::new(0.0, 0.0, 4.0),
+            forward: Vec3::NEG_Z,
+            up: Vec3::Y,
+            yfov: 50f32.to_radians(),
+        }],
+        environment: Environment::Constant(Vec3::new(0.2, 0.25, 0.3)),
+        ..Default::default()
+    }
+}
+
+#[test]
+fn gpu_and_cpu_twin_agree_on_a_scene_with_every_feature() {
+    let ctx = GpuContext::for_tests();
+    let scene = everything();
+    let packed = PackedScene::new(&scene);
+    assert_eq!(packed.features, 3, "extras and alpha");
+    assert!(packed.light_count > 0 && packed.punctual_count == 3);
+    let cpu = render_cpu_acc(&scene, &settings(&scene, 32, 32, 11, 6), 64);
+    let gpu = render_gpu(&ctx, &scene, &settings(&scene, 32, 32, 12, 6), 64);
+    renders_agree(&gpu, &cpu, "every feature: GPU (seed 12) vs CPU (seed 11)").unwrap();
+    let mut brighter = cpu.clone();
+    for s in &mut brighter.sum {
+        for v in &mut s[..3] {
+            *v *= 1.1;
+        }
+        s[3] *= 1.21;
+    }
+    assert!(renders_agree(&gpu, &brighter, "GPU vs CPU × 1.1").is_err());
+    // Same seed, same paths: most first samples agree to rounding.
+    let s = settings(&scene, 32, 32, 5, 6);
+    let (c1, g1) = (
+        render_cpu_acc(&scene, &s, 1),
+        render_gpu(&ctx, &scene, &s, 1),
+    );
+    let close = (0..c1.count.len())
+        .filter(|&i| {
+            (c1.mean(i) - g1.mean(i)).abs().max_element()
+                <= 1e-3 * c1.mean(i).abs().max_element().max(1.0)
+        })
+        .count();
+    assert!(
+        close * 100 >= 90 * c1.count.len(),
+        "same seed: {close} of {} pixels agree",
+        c1.count.len()
+    );
+}
+
+/// KHR_materials_clearcoat over a black, non-reflecting base under a white sky, seen head-on
+/// through an orthographic camera: the smooth coat reflects cc · F_c(0°) = cc · 0.04 of the
+/// sky; without the coat the plane is black.
+#[test]
+fn a_clear_coat_on_black_reflects_its_fresnel_share_of_the_sky() {
+    for cc in [0.0f32, 0.5, 1.0] {
+        let scene = Scene {
+            triangles: rect(-2.0, -2.0, 2.0, 2.0, 0.0, 0),
+            materials: vec![material(Vec3::ZERO, 0.0, 1.0, 0.0, Vec3::ZERO)],
+            material_ext: vec![MaterialExt {
+                clearcoat: cc,
+                clearcoat_roughness: 0.0,
+                ..Default::default()
+            }],
+            orthographic_cameras: vec![ortho(Vec3::new(0.0, 0.0, 1.0), 1.0)],
+            environment: Environment::Constant(Vec3::ONE),
+            ..Default::default()
+        };
+        let s = settings(&scene, 8, 8, 4, 2);
+        let want = 0.04 * cc;
+        let all: Vec<usize> = (0..64).collect();
+        for (acc, label) in both(&scene, &s, 64) {
+            if cc == 0.0 {
+                assert!(
+                    acc.mean_image().iter().all(|c| *c == Vec3::ZERO),
+                    "{label}: no coat"
+                );
+                continue;
+            }
+            // The GGX tail (even at α = 10⁻³) hands some samples to the sky's light sample:
+            // unbiased, not exact per sample, so a Z-test over the pixels.
+            let z = z_of(&acc, &all, f64::from(want));
+            assert!(z.abs() < 5.0, "{label}, cc {cc}: z = {z}");
+            assert!(
+                z_of(&acc, &all, f64::from(want) * 1.03).abs() > 5.0,
+                "{label}: power"
+            );
+        }
+    }
+}
