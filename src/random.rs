@@ -1,4 +1,4 @@
-//! Counter-based random numbers, the CPU twin of `shaders/common/random.wgsl`.
+//! Counter-based random numbers, the CPU twin of `shaders/random.wgsl`.
 //!
 //! Every random decision in raygun — a scheduling coin flip, a path's direction — is a pure
 //! function of a counter such as (pixel, iteration, seed, stream). Nothing is carried between

@@ -11,9 +11,9 @@ use raygun::scene::{
 };
 use raygun::trace::accum::{Accumulation, luminance};
 use raygun::trace::camera::RenderCamera;
-use raygun::trace::cpu::{TraceSettings, render_cpu};
 use raygun::trace::gpu::{GpuAccum, GpuScene, TraceKernel, TraceRun};
 use raygun::trace::pack::PackedScene;
+use raygun::trace::path::{TraceSettings, render_cpu};
 
 fn material(base: Vec3, metallic: f32, roughness: f32, specular: f32, emission: Vec3) -> Material {
     Material {

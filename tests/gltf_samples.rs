@@ -7,8 +7,8 @@ use glam::{Vec2, Vec3};
 use raygun::scene::{Environment, Scene};
 use raygun::trace::accum::{Accumulation, luminance};
 use raygun::trace::camera::{LookAt, RenderCamera};
-use raygun::trace::cpu::{TraceSettings, render_cpu};
 use raygun::trace::pack::PackedScene;
+use raygun::trace::path::{TraceSettings, render_cpu};
 
 fn sample(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))

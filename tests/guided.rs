@@ -9,8 +9,8 @@ use raygun::roi::dgi::Roi;
 use raygun::scene::{Environment, Scene};
 use raygun::trace::accum::{Accumulation, luminance};
 use raygun::trace::camera::RenderCamera;
-use raygun::trace::cpu::{TraceSettings, render_cpu};
 use raygun::trace::pack::PackedScene;
+use raygun::trace::path::{TraceSettings, render_cpu};
 
 const W: u32 = 64;
 const H: u32 = 36;

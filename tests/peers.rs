@@ -16,7 +16,7 @@ use raygun::frame::Renderer;
 use raygun::gpu::{Backend, GpuContext};
 use raygun::scene::{Environment, Scene};
 use raygun::trace::camera::RenderCamera;
-use raygun::trace::cpu::TraceSettings;
+use raygun::trace::path::TraceSettings;
 use serde_json::Value;
 
 const ROOT: &str = env!("CARGO_MANIFEST_DIR");

@@ -6,9 +6,9 @@ use raygun::gpu::GpuContext;
 use raygun::scene::{Camera, Environment, Material, Scene, Triangle};
 use raygun::trace::accum::{Accumulation, luminance};
 use raygun::trace::camera::RenderCamera;
-use raygun::trace::cpu::{TraceSettings, render_cpu};
 use raygun::trace::gpu::{GpuAccum, GpuScene, TraceKernel, TraceRun};
 use raygun::trace::pack::PackedScene;
+use raygun::trace::path::{TraceSettings, render_cpu};
 
 /// A pure Lambertian reflector (KHR_materials_specular factor 0) of albedo `rho`.
 fn lambert(rho: f32, emission: Vec3) -> Material {

@@ -13,7 +13,7 @@ use raygun::scene::{Environment, Scene};
 use raygun::session::timeline::Timeline;
 use raygun::trace::accum::Accumulation;
 use raygun::trace::camera::RenderCamera;
-use raygun::trace::cpu::TraceSettings;
+use raygun::trace::path::TraceSettings;
 use raygun::viewer::core::{
     NOISE_UNDEFINED, NoiseContrast, NoiseRegions, OUTLINE, Overlay, RoiSource, ViewerCore,
     ViewerState, heat_map, median_finite, noise_image, noise_map, predicted_noise_ratio,
@@ -485,7 +485,7 @@ fn the_roi_is_less_noisy_than_the_periphery_and_a_uniform_sampler_is_not() {
         width: w,
         height: h,
         seed: 1,
-        max_depth: raygun::trace::cpu::DEFAULT_MAX_DEPTH,
+        max_depth: raygun::trace::path::DEFAULT_MAX_DEPTH,
         camera: RenderCamera::choose(&scene, None, w, h).unwrap(),
     };
     let asked = xvfb::P_MIN;

@@ -1,6 +1,6 @@
 // Mask and compaction in one pass (DESIGN.md §6). CPU twin: schedule_cpu_blocks in
 // src/schedule/mod.rs; dispatch: src/schedule/gpu.rs. Concatenated after
-// shaders/common/random.wgsl and shaders/schedule/select.wgsl.
+// shaders/random.wgsl and shaders/schedule/select.wgsl.
 //
 // One workgroup per block of 1024 slots (a 32 × 32 tile in the coherent order), one 2 × 2 quad
 // of slots per thread. Each thread draws its four Bernoulli decisions, the workgroup scans the

@@ -1,6 +1,6 @@
 // Per-pixel scheduling decisions (DESIGN.md §6), shared by the compaction kernel and tests.
 // CPU twin: src/schedule/mod.rs (`probability`, `selected`, `morton_decode`, `scatter`).
-// Concatenated after shaders/common/random.wgsl (pcg4d, unit_f32).
+// Concatenated after shaders/random.wgsl (pcg4d, unit_f32).
 
 // random::stream::SCHEDULE in src/random.rs (a test checks they agree).
 const STREAM_SCHEDULE: u32 = 0x5c4ed01eu;

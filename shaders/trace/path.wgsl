@@ -1,4 +1,4 @@
-// The path-tracing integrator (CPU twin: src/trace/cpu.rs). One thread traces one path for one
+// The path-tracing integrator (CPU twin: src/trace/path.rs). One thread traces one path for one
 // pixel — every pixel in tile order (full frame) or the pixels of the scheduler's list — and
 // adds it to the pixel's accumulation.
 

@@ -19,7 +19,7 @@ use crate::roi::cone::ConeError;
 use crate::scene::Scene;
 use crate::schedule::Order;
 use crate::trace::camera::CameraError;
-use crate::trace::cpu::TraceSettings;
+use crate::trace::path::TraceSettings;
 
 /// What to measure.
 #[derive(Clone, Debug, Serialize)]
@@ -52,7 +52,7 @@ impl Default for GuidedBenchConfig {
             orders: vec![Order::Coherent],
             origin: [0.0, 0.0, 1.0],
             dir: [0.0, 0.0, -1.0],
-            max_depth: crate::trace::cpu::DEFAULT_MAX_DEPTH,
+            max_depth: crate::trace::path::DEFAULT_MAX_DEPTH,
             seed: 1,
         }
     }
@@ -408,7 +408,7 @@ pub fn filter_input(
     reference_spp: u32,
     seed: u32,
 ) -> Result<crate::bench::filter::FilterBenchInput, GuidedBenchError> {
-    let base = paper::settings(scene, size, seed, crate::trace::cpu::DEFAULT_MAX_DEPTH).map_err(
+    let base = paper::settings(scene, size, seed, crate::trace::path::DEFAULT_MAX_DEPTH).map_err(
         |source| GuidedBenchError::Camera {
             scene: name.to_string(),
             source,

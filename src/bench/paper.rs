@@ -14,7 +14,7 @@ use crate::roi::dgi::{
 };
 use crate::scene::Scene;
 use crate::trace::camera::{CameraError, RenderCamera};
-use crate::trace::cpu::TraceSettings;
+use crate::trace::path::TraceSettings;
 
 /// The paper's image size.
 pub const SIZE: [u32; 2] = [3840, 2160];

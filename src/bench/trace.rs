@@ -29,7 +29,7 @@ impl Default for TraceBenchConfig {
             size: [3840, 2160],
             frames: 20,
             warmup: 2,
-            max_depth: crate::trace::cpu::DEFAULT_MAX_DEPTH,
+            max_depth: crate::trace::path::DEFAULT_MAX_DEPTH,
             seed: 1,
         }
     }

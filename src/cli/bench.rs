@@ -237,7 +237,7 @@ pub struct TraceBenchArgs {
     #[arg(long, value_name = "N", default_value_t = 20)]
     pub spp: u32,
     /// Maximum path vertices.
-    #[arg(long, value_name = "N", default_value_t = crate::trace::cpu::DEFAULT_MAX_DEPTH)]
+    #[arg(long, value_name = "N", default_value_t = crate::trace::path::DEFAULT_MAX_DEPTH)]
     pub max_depth: u32,
     /// Environment (R,G,B or an .hdr/.exr file); default white.
     #[arg(long, value_name = "R,G,B|FILE")]

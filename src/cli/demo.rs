@@ -19,7 +19,7 @@ use crate::session::guide::GuideSource;
 use crate::session::render::{GuidedResult, Stopping, render_guided};
 use crate::session::replay::{ReplayOptions, ReplayPlan};
 use crate::trace::camera::RenderCamera;
-use crate::trace::cpu::{DEFAULT_MAX_DEPTH, TraceSettings};
+use crate::trace::path::{DEFAULT_MAX_DEPTH, TraceSettings};
 
 /// The demo's scene.
 pub const SCENE: &str = "builtin:cornell-light";

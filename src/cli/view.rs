@@ -12,7 +12,7 @@ use crate::session::live::LiveTracking;
 use crate::session::replay::ReplayOptions;
 use crate::session::timeline::Timeline;
 use crate::trace::camera::RenderCamera;
-use crate::trace::cpu::{DEFAULT_MAX_DEPTH, TraceSettings};
+use crate::trace::path::{DEFAULT_MAX_DEPTH, TraceSettings};
 use crate::tracking::calibration::Calibration;
 use crate::tracking::event::DeviceId;
 use crate::tracking::ingest::Protocol;

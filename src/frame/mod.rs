@@ -39,9 +39,9 @@ use crate::scene::Scene;
 use crate::schedule::gpu::{ScheduleConfig, ScheduleKernel, ScheduleRun};
 use crate::schedule::{Order, ScheduleError, schedule_cpu};
 use crate::trace::accum::Accumulation;
-use crate::trace::cpu::{TraceSettings, render_cpu};
 use crate::trace::gpu::{GpuAccum, GpuScene, TraceKernel, TraceRun, WORKGROUP};
 use crate::trace::pack::PackedScene;
+use crate::trace::path::{TraceSettings, render_cpu};
 use stop::RoiProgress;
 
 /// How the ROI steers sampling.

@@ -54,14 +54,14 @@ use crate::gpu::{GpuContext, GpuError, PassTimer};
 /// Decision functions alone (pcg4d, probability, selected, the pixel orders), for kernels and
 /// tests that need the scheduler's per-pixel rule.
 pub const SELECT_WGSL: &str = concat!(
-    include_str!("../../shaders/common/random.wgsl"),
+    include_str!("../../shaders/random.wgsl"),
     "\n",
     include_str!("../../shaders/schedule/select.wgsl")
 );
 
 /// The mask-and-compaction kernel (WGSL has no includes: the shared files come first).
 pub const COMPACT_WGSL: &str = concat!(
-    include_str!("../../shaders/common/random.wgsl"),
+    include_str!("../../shaders/random.wgsl"),
     "\n",
     include_str!("../../shaders/schedule/select.wgsl"),
     "\n",

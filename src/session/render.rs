@@ -15,7 +15,7 @@ use crate::gpu::Backend;
 use crate::output::OutputError;
 use crate::roi::dgi::Roi;
 use crate::scene::Scene;
-use crate::trace::cpu::TraceSettings;
+use crate::trace::path::TraceSettings;
 
 /// When a guided render stops.
 #[derive(Clone, Debug, Default)]

@@ -1,4 +1,4 @@
-//! Dispatch of `shaders/trace/*.wgsl`, the GPU twin of [`super::cpu::render_cpu`].
+//! Dispatch of `shaders/trace/*.wgsl`, the GPU twin of [`super::path::render_cpu`].
 //!
 //! Bind group 0 is the scene ([`GpuScene`], uploaded once), bind group 1 the frame: the
 //! parameters, the accumulation ([`GpuAccum`]) and, for guided rendering, the scheduler's pixel
@@ -8,13 +8,13 @@ use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt;
 
 use super::accum::Accumulation;
-use super::cpu::TraceSettings;
 use super::pack::PackedScene;
+use super::path::TraceSettings;
 use crate::gpu::{GpuContext, GpuError, PassTimer};
 
 /// The kernel source (WGSL has no includes).
 pub const TRACE_WGSL: &str = concat!(
-    include_str!("../../shaders/common/random.wgsl"),
+    include_str!("../../shaders/random.wgsl"),
     "\n",
     include_str!("../../shaders/trace/bvh.wgsl"),
     "\n",

@@ -3,9 +3,9 @@
 pub mod accum;
 pub mod bvh;
 pub mod camera;
-pub mod cpu;
 pub mod gpu;
 pub mod pack;
+pub mod path;
 pub mod shading;
 
 pub use accum::{Accumulation, luminance};

@@ -18,7 +18,7 @@ use crate::roi::dgi::{Falloff, Metric, Roi};
 use crate::scene::Scene;
 use crate::schedule::Order;
 use crate::trace::accum::Accumulation;
-use crate::trace::cpu::TraceSettings;
+use crate::trace::path::TraceSettings;
 
 use crate::session::timeline::Timeline;
 

@@ -11,7 +11,7 @@ KHR_materials_specular's specularFactor, doubleSided) and perspective cameras.
 first). The mapping, and where it is exact:
 
 * Every BSDF is wrapped in `twosided`: raygun shades both sides of every triangle (it flips
-  the geometric and shading normals towards the viewer, src/trace/cpu.rs).
+  the geometric and shading normals towards the viewer, src/trace/path.rs).
 * metallic 0, specularFactor 0: `diffuse` (reflectance = base colour). Exact: raygun's BSDF is
   then exactly Lambertian (src/trace/shading.rs).
 * metallic 1: `roughconductor`, distribution `ggx`, alpha = roughness^2 (clamped to raygun's

@@ -13,7 +13,7 @@ use crate::frame::{GuideConfig, Renderer};
 use crate::gpu::Backend;
 use crate::scene::Scene;
 use crate::trace::accum::Accumulation;
-use crate::trace::cpu::TraceSettings;
+use crate::trace::path::TraceSettings;
 
 /// Target of the time-to-quality figure: RMSE inside the ROI ≤ this share of the reference's
 /// mean there.
@@ -147,7 +147,7 @@ pub fn convergence(
         scene,
         cfg.size,
         cfg.seed,
-        crate::trace::cpu::DEFAULT_MAX_DEPTH,
+        crate::trace::path::DEFAULT_MAX_DEPTH,
     )
     .map_err(|source| AllBenchError::Camera {
         scene: name.to_string(),

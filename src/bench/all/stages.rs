@@ -90,7 +90,7 @@ pub fn measure(
 ) -> Result<StageRow, AllBenchError> {
     let [w, h] = size;
     let settings =
-        crate::bench::paper::settings(scene, size, seed, crate::trace::cpu::DEFAULT_MAX_DEPTH)
+        crate::bench::paper::settings(scene, size, seed, crate::trace::path::DEFAULT_MAX_DEPTH)
             .map_err(|source| AllBenchError::Camera {
                 scene: name.to_string(),
                 source,
@@ -192,7 +192,7 @@ pub fn markdown(rows: &[StageRow], device: &str) -> String {
 mod tests {
     use super::*;
     use crate::trace::camera::RenderCamera;
-    use crate::trace::cpu::TraceSettings;
+    use crate::trace::path::TraceSettings;
     use crate::viewer::core::{RoiSource, ViewerCore, ViewerState};
 
     /// The display stage converts exactly as the viewer's picture does.

@@ -22,7 +22,7 @@ use crate::scene::Scene;
 use crate::session::guide::GuideSource;
 use crate::session::render::{Stopping, render_guided};
 use crate::session::replay::{ReplayOptions, ReplayPlan};
-use crate::trace::cpu::TraceSettings;
+use crate::trace::path::TraceSettings;
 
 /// Parses `pose:X,Y,Z:DX,DY,DZ:FOV[,FOV_V]` (room frame, metres, degrees; up is +Y) or
 /// `mouse:X,Y:A,B` (centre and semi-axes in image pixels) against `model`; `None` for

@@ -24,7 +24,7 @@ use crate::memory::{Budget, Work};
 use crate::output::{Format, check_image_path, write_rgb};
 use crate::scene::Scene;
 use crate::trace::camera::RenderCamera;
-use crate::trace::cpu::{DEFAULT_MAX_DEPTH, TraceSettings};
+use crate::trace::path::{DEFAULT_MAX_DEPTH, TraceSettings};
 
 /// Samples per pixel of a full-frame render when `--spp` is not given.
 pub const DEFAULT_SPP: u32 = 64;
