@@ -8,7 +8,7 @@ pub mod guided;
 pub mod paper;
 pub mod schedule;
 pub mod solver;
-
+pub mod solver_study;
 pub mod trace;
 pub mod tracking;
 
