@@ -14,7 +14,7 @@
 @group(0) @binding(12) var<storage, read> level7: array<vec4<f32>>;
 @group(0) @binding(13) var<storage, read> level8: array<vec4<f32>>;
 
-// src/filter/fast.rs K_DIRECT and RIM_WEIGHT (exp(−4.5)).
+// src/filter/pyramid.rs K_DIRECT and src/filter/fast.rs RIM_WEIGHT (exp(−4.5)).
 const K_DIRECT: f32 = 4.0;
 const RIM_WEIGHT: f32 = 0.011108996538242306;
 const TAU: f32 = 6.283185307179586;

@@ -1,6 +1,6 @@
 // One separable blur pass of the fast filter's pyramid: out(X) = Σ_t w_t · in(X·dec + first + t)
 // along one axis, reads outside the source being 0 (unsampled). The passes and their weights
-// come from `Plan` in src/filter/fast.rs (the CPU twin, `run_pass`); dispatch: src/filter/gpu.rs.
+// come from `Plan` in src/filter/pyramid.rs (the CPU twin, `run_pass`); dispatch: src/filter/gpu.rs.
 // Texels hold (Σ g·u.rgb, Σ g): a normalised convolution over sampled pixels only.
 
 // Mirrors `GpuPass` in src/filter/gpu.rs (112 bytes).

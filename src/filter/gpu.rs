@@ -9,7 +9,7 @@
 use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt;
 
-use super::fast::{MAX_LEVELS, MAX_TAPS, Plan, Source, Target};
+use super::pyramid::{MAX_LEVELS, MAX_TAPS, Plan, Source, Target};
 use super::{Blend, FilterInputError, FilterKind, FilterParams, check_inputs};
 use crate::gpu::{GpuContext, GpuError, PassTimer};
 use crate::trace::accum::Accumulation;

@@ -51,6 +51,7 @@
 pub mod exact;
 pub mod fast;
 pub mod gpu;
+pub mod pyramid;
 pub mod synth;
 
 use glam::{DVec3, Vec3};
@@ -110,7 +111,7 @@ impl FilterParams {
     /// τ = 1e-4: a standard error of the mean luminance of 0.01, 1 % of a white diffuse surface
     /// under a unit environment.
     pub const DEFAULT_VARIANCE_THRESHOLD: f32 = 1e-4;
-    /// Largest accepted k_max: the fast pyramid has at most [`fast::MAX_LEVELS`] levels, which
+    /// Largest accepted k_max: the fast pyramid has at most [`pyramid::MAX_LEVELS`] levels, which
     /// reach σ = 64/3; the exact loop then visits 129² pixels per pixel.
     pub const MAX_K_MAX: f32 = 64.0;
 
