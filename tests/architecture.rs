@@ -9,6 +9,12 @@
 //!   re-exports, the children use the parent's types).
 //!
 //! A failure names both ends of the offending import.
+//!
+//! GPU kernels pair with their CPU twins by name, as Vello's do ([`twin_of`]): the kernel
+//! `shaders/<stage>/<k>.wgsl` is computed by `src/<stage>/<k>.rs` (or `src/<stage>/<k>/`), the
+//! definitions every kernel of a stage shares (`shaders/<stage>/common.wgsl`) live in
+//! `src/<stage>/mod.rs`, `shaders/<k>.wgsl` pairs with `src/<k>.rs`, each twin names its kernel
+//! file, and a stage's kernels are dispatched from its `src/<stage>/gpu.rs`.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -486,4 +492,103 @@ fn the_path_reader_expands_use_trees_and_skips_comments_strings_and_tests() {
     assert_eq!(find_cycle(&edges), None);
     edges.insert(3, [1].into());
     assert_eq!(find_cycle(&edges), Some(vec![1, 2, 3, 1]));
+}
+
+/// The CPU twin of a kernel file (relative to the crate root): `shaders/<stage>/<k>.wgsl` →
+/// `src/<stage>/<k>.rs` or `src/<stage>/<k>/mod.rs`; `shaders/<stage>/common.wgsl` →
+/// `src/<stage>/mod.rs`; `shaders/<k>.wgsl` → `src/<k>.rs`. The candidates, first preferred.
+fn twin_of(kernel: &Path) -> Vec<PathBuf> {
+    let rel = kernel.strip_prefix("shaders").unwrap();
+    let stem = rel.file_stem().unwrap().to_string_lossy().into_owned();
+    match rel.parent().filter(|p| !p.as_os_str().is_empty()) {
+        None => vec![Path::new("src").join(format!("{stem}.rs"))],
+        Some(stage) if stem == "common" => vec![Path::new("src").join(stage).join("mod.rs")],
+        Some(stage) => vec![
+            Path::new("src").join(stage).join(format!("{stem}.rs")),
+            Path::new("src").join(stage).join(&stem).join("mod.rs"),
+        ],
+    }
+}
+
+fn wgsl_files(dir: &Path, out: &mut Vec<PathBuf>) {
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.is_dir() {
+            wgsl_files(&path, out);
+        } else if path.extension().is_some_and(|e| e == "wgsl") {
+            out.push(path);
+        }
+    }
+}
+
+#[test]
+fn every_kernel_has_a_cpu_twin_of_its_name_and_is_dispatched_from_its_stage() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut kernels = Vec::new();
+    wgsl_files(&root.join("shaders"), &mut kernels);
+    assert!(kernels.len() >= 10, "found only {kernels:?}");
+    let mut problems = Vec::new();
+    for kernel in &kernels {
+        let rel = kernel.strip_prefix(root).unwrap().to_path_buf();
+        let name = rel.file_name().unwrap().to_string_lossy().into_owned();
+        let candidates = twin_of(&rel);
+        let Some(twin) = candidates.iter().find(|c| root.join(c).is_file()) else {
+            problems.push(format!(
+                "{}: no CPU twin (looked for {})",
+                rel.display(),
+                candidates
+                    .iter()
+                    .map(|c| c.display().to_string())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ));
+            continue;
+        };
+        let text = std::fs::read_to_string(root.join(twin)).unwrap();
+        if !text.contains(&name) {
+            problems.push(format!(
+                "{}: its twin {} does not name it",
+                rel.display(),
+                twin.display()
+            ));
+        }
+        // Dispatch: a stage kernel is included by its stage's gpu.rs.
+        if let Some(stage) = rel.parent().and_then(|p| p.strip_prefix("shaders").ok()) {
+            if stage.as_os_str().is_empty() {
+                continue;
+            }
+            let gpu = Path::new("src").join(stage).join("gpu.rs");
+            let include = format!("shaders/{}/{name}\")", stage.display());
+            let dispatch = std::fs::read_to_string(root.join(&gpu)).unwrap_or_default();
+            if !dispatch.contains(&include) {
+                problems.push(format!(
+                    "{}: not included by {} (dispatch lives in the stage's gpu.rs)",
+                    rel.display(),
+                    gpu.display()
+                ));
+            }
+        }
+    }
+    assert!(
+        problems.is_empty(),
+        "kernels and twins:\n  {}",
+        problems.join("\n  ")
+    );
+}
+
+#[test]
+fn twin_names_follow_the_rule() {
+    let t = |k: &str| twin_of(Path::new(k));
+    assert_eq!(t("shaders/random.wgsl"), [PathBuf::from("src/random.rs")]);
+    assert_eq!(
+        t("shaders/filter/common.wgsl"),
+        [PathBuf::from("src/filter/mod.rs")]
+    );
+    assert_eq!(
+        t("shaders/roi/ellipse.wgsl"),
+        [
+            PathBuf::from("src/roi/ellipse.rs"),
+            PathBuf::from("src/roi/ellipse/mod.rs")
+        ]
+    );
 }

@@ -38,7 +38,10 @@
 //!   k_i ≤ [`fast::K_DIRECT`] run the exact loop; larger kernels interpolate between the two
 //!   pyramid levels that bracket σ_i² (matching the kernel's variance). Its error against the
 //!   exact filter is measured and bounded in `tests/filter_fast.rs`. CPU twin
-//!   [`fast::filter_cpu`]; kernels `shaders/filter/pyramid.wgsl` and `shaders/filter/fast.wgsl`.
+//!   [`fast::filter_cpu`] (the pyramid in [`pyramid`]); kernels `shaders/filter/pyramid.wgsl` and
+//!   `shaders/filter/fast.wgsl`.
+//! * This file: the definitions both kernels share (w_i, k_i, the per-pixel state), whose WGSL
+//!   is `shaders/filter/common.wgsl`.
 //! * [`gpu`]: the dispatch of both.
 //! * [`Filter`]: the stage's one entry point, on either backend.
 //!
