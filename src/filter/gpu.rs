@@ -424,7 +424,7 @@ impl FilterKernels {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::gpu::wgsl::{struct_size, validated};
+    use crate::gpu::wgsl::{assert_same_layout, validated};
 
     /// The kernels parse and validate without a GPU, and every struct shared with Rust has the
     /// same size on both sides.
@@ -432,11 +432,24 @@ mod tests {
     fn kernels_validate_and_shared_structs_match_their_rust_twins() {
         for (src, name) in [(EXACT_WGSL, "exact.wgsl"), (FAST_WGSL, "fast.wgsl")] {
             let m = validated(name, src);
-            assert_eq!(struct_size(&m, "Params"), size_of::<GpuParams>());
-            assert_eq!(struct_size(&m, "LevelDesc"), size_of::<GpuLevel>());
+            assert_same_layout(
+                &m,
+                "Params",
+                &crate::rust_layout!(GpuParams; size, mode, blend, level_count, k_max, c,
+                    variance_threshold, levels),
+            );
+            assert_same_layout(
+                &m,
+                "LevelDesc",
+                &crate::rust_layout!(GpuLevel; size, origin, step, sigma2, _pad),
+            );
         }
         let m = validated("pyramid.wgsl", PYRAMID_WGSL);
-        assert_eq!(struct_size(&m, "Pass"), size_of::<GpuPass>());
+        assert_same_layout(
+            &m,
+            "Pass",
+            &crate::rust_layout!(GpuPass; src_size, dst_size, axis, dec, first, taps, weights),
+        );
     }
 
     /// The WGSL constants repeat the Rust ones.

@@ -323,19 +323,29 @@ impl DgiRun {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::gpu::wgsl::{struct_size, validated};
+    use crate::gpu::wgsl::{assert_same_layout, validated};
 
     /// The kernel parses and validates without a GPU, and every struct shared with Rust has the
     /// same size on both sides (a mismatch would scramble the buffers silently).
     #[test]
     fn kernel_validates_and_shared_structs_match_their_rust_twins() {
         let module = validated("dgi.wgsl", DGI_WGSL);
-        let size_of = |name: &str| struct_size(&module, name);
-        assert_eq!(size_of("Params"), size_of_val(&GpuParams::zeroed()));
-        assert_eq!(size_of("Piece"), size_of_val(&GpuPiece::zeroed()));
-        assert_eq!(
-            size_of("AngularTile"),
-            size_of_val(&GpuAngularTile::zeroed())
+        assert_same_layout(
+            &module,
+            "Params",
+            &crate::rust_layout!(GpuParams; size, mode, count, scale, inv_falloff, px_per_radian,
+                tan_hv, cap, _pad),
+        );
+        assert_same_layout(
+            &module,
+            "Piece",
+            &crate::rust_layout!(GpuPiece; center_i, center_f, half, to_origin, axis_u, shape,
+                kind, edge_start, edge_count, _pad, bounds),
+        );
+        assert_same_layout(
+            &module,
+            "AngularTile",
+            &crate::rust_layout!(GpuAngularTile; center_i, center_f, half, _pad, w0, ex, ey),
         );
     }
 }

@@ -417,7 +417,7 @@ impl ScheduleRun {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::gpu::wgsl::{struct_size, validated};
+    use crate::gpu::wgsl::{assert_same_layout, validated};
     use wgpu::naga;
 
     /// The kernels parse and validate without a GPU, and the structs shared with Rust have the
@@ -426,14 +426,17 @@ mod tests {
     fn kernels_validate_and_shared_structs_match_their_rust_twins() {
         validated("select.wgsl", SELECT_WGSL);
         let compact = validated("compact.wgsl", COMPACT_WGSL);
-        assert_eq!(
-            struct_size(&compact, "Params"),
-            size_of_val(&GpuParams::zeroed())
+        assert_same_layout(
+            &compact,
+            "Params",
+            &crate::rust_layout!(GpuParams; size, tiles_x, order, iteration, seed, p_min,
+                scatter_half_bits),
         );
         let args = validated("args.wgsl", ARGS_WGSL);
-        assert_eq!(
-            struct_size(&args, "ArgsParams"),
-            size_of_val(&GpuArgsParams::zeroed())
+        assert_same_layout(
+            &args,
+            "ArgsParams",
+            &crate::rust_layout!(GpuArgsParams; workgroup_size, max_per_dim, _pad),
         );
     }
 

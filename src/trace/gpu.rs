@@ -359,14 +359,18 @@ impl TraceRun {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::gpu::wgsl::{struct_size, validated};
+    use crate::gpu::wgsl::{assert_same_layout, struct_size, validated};
 
     #[test]
     fn kernel_validates_and_params_match_their_rust_twin() {
         let module = validated("path.wgsl", TRACE_WGSL);
-        assert_eq!(
-            struct_size(&module, "Params"),
-            std::mem::size_of::<GpuTraceParams>()
+        assert_same_layout(
+            &module,
+            "Params",
+            &crate::rust_layout!(GpuTraceParams; size, count, mode, seed, max_depth, light_count,
+                groups_x, env_size, env_marginal, env_conditional, env_constant, env_select,
+                cam_pos, tan_half_y, cam_fwd, aspect, cam_right, node_count, cam_up, _pad,
+                features, extras_offset, punctual_count, punct_select, ortho_half_y, _pad1),
         );
         assert_eq!(
             struct_size(&module, "Node"),
