@@ -1,22 +1,11 @@
 //! The `raygun` binary end to end: arguments, outputs and error messages.
 
+#[path = "support/cli.rs"]
+mod support;
+use support::{raygun, tmp_file};
+
 use std::path::PathBuf;
 use std::process::Command;
-
-fn raygun(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_raygun"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
-        .output()
-        .expect("the raygun binary runs")
-}
-
-fn tmp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("raygun-cli-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
-}
 
 fn read_exr_gray(path: &PathBuf) -> (usize, usize, Vec<f32>) {
     let img = exr::prelude::read_first_flat_layer_from_file(path).unwrap();
@@ -32,7 +21,7 @@ fn read_exr_gray(path: &PathBuf) -> (usize, usize, Vec<f32>) {
 fn dgi_writes_exr_on_both_backends_and_they_agree() {
     let mut results = Vec::new();
     for backend in ["cpu", "gpu"] {
-        let out = tmp(&format!("dgi-{backend}.exr"));
+        let out = tmp_file(&format!("dgi-{backend}.exr"));
         let o = raygun(&[
             "dgi",
             "--display",
@@ -69,7 +58,7 @@ fn dgi_writes_exr_on_both_backends_and_they_agree() {
 
 #[test]
 fn dgi_mouse_variant_and_png() {
-    let out = tmp("mouse.png");
+    let out = tmp_file("mouse.png");
     let o = raygun(&[
         "dgi",
         "--display",
@@ -98,7 +87,7 @@ fn dgi_mouse_variant_and_png() {
 
 #[test]
 fn dgi_raw_distances_are_canvas_pixels() {
-    let out = tmp("raw.exr");
+    let out = tmp_file("raw.exr");
     // Mouse ellipse with semi-axes 100 × 100 image px on a 3840×2160 image of the 4K monitor:
     // image px = canvas px, so the raw distance at 300 px right of the centre is 200.
     let o = raygun(&[
@@ -247,7 +236,7 @@ fn display_expand_round_trips_through_the_loader() {
 
 #[test]
 fn record_stops_on_ctrl_c_and_keeps_every_datagram() {
-    let out = tmp("recorded.jsonl");
+    let out = tmp_file("recorded.jsonl");
     let port = 40000 + (std::process::id() % 20000) as u16;
     let child = Command::new(env!("CARGO_BIN_EXE_raygun"))
         .args([

@@ -1,9 +1,11 @@
 //! The block-pruned CPU DGI (`compute_cpu`) against the straightforward per-pixel reference
 //! (`compute_cpu_reference`) on many walls, poses, FOVs and metrics, raw and normalised.
 
-use glam::{DVec2, DVec3};
+#[path = "support/walls.rs"]
+mod walls;
+
+use glam::DVec2;
 use raygun::display::DisplayModel;
-use raygun::roi::cone::Cone;
 use raygun::roi::conic::ConicKind;
 use raygun::roi::dgi::{
     BLOCK, DgiParams, Falloff, Guide, Metric, Roi, Surface, compute_cpu, compute_cpu_f64,
@@ -31,9 +33,7 @@ fn curved_wall() -> Surface {
 }
 
 fn cone(o: [f64; 3], d: [f64; 3], fh: f64, fv: f64) -> Roi {
-    Roi::Cone(
-        Cone::from_pose(DVec3::from_array(o), DVec3::from_array(d), DVec3::Y, fh, fv).unwrap(),
-    )
+    Roi::Cone(walls::cone(o, d, fh, fv))
 }
 
 /// The pruned DGI may differ from the reference only by the solvers' rounding: which pieces are

@@ -2,7 +2,10 @@
 //! continuity across seams and bezels, symmetry, hard poses, the falloff calibration, and the
 //! GPU kernel against its CPU twin.
 
-use glam::{DVec2, DVec3};
+#[path = "support/walls.rs"]
+mod walls;
+
+use glam::DVec2;
 use raygun::display::DisplayModel;
 use raygun::gpu::GpuContext;
 use raygun::roi::cone::Cone;
@@ -20,14 +23,7 @@ fn model(name: &str) -> DisplayModel {
 }
 
 fn cone(o: [f64; 3], d: [f64; 3], fov: f64) -> Cone {
-    Cone::from_pose(
-        DVec3::from_array(o),
-        DVec3::from_array(d),
-        DVec3::Y,
-        fov,
-        fov,
-    )
-    .unwrap()
+    walls::cone(o, d, fov, fov)
 }
 
 fn raw_params(w: u32, h: u32) -> DgiParams {

@@ -1,15 +1,8 @@
 //! `raygun bench filter` end to end, small, on the CPU twins.
 
-use std::process::Command;
-
-fn raygun(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_raygun"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
-        .output()
-        .expect("the raygun binary runs")
-}
+#[path = "support/cli.rs"]
+mod support;
+use support::raygun;
 
 #[test]
 fn bench_filter_json_has_every_timing_and_variant_and_filtering_helps_in_the_band() {

@@ -1,10 +1,11 @@
 //! Guided rendering (DESIGN.md §1, §6): the frame function's DGI → schedule → trace on both backends.
 
-use glam::DVec3;
-use raygun::display::DisplayModel;
+#[path = "support/walls.rs"]
+mod walls;
+use walls::hornet;
+
 use raygun::frame::{GuideConfig, Renderer};
 use raygun::gpu::{Backend, GpuContext};
-use raygun::roi::cone::Cone;
 use raygun::roi::dgi::Roi;
 use raygun::scene::{Environment, Scene};
 use raygun::trace::accum::{Accumulation, luminance};
@@ -14,14 +15,6 @@ use raygun::trace::path::{TraceSettings, render_cpu};
 
 const W: u32 = 64;
 const H: u32 = 36;
-
-fn hornet() -> DisplayModel {
-    DisplayModel::load(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/display-models/hornet.json"
-    ))
-    .unwrap()
-}
 
 fn cornell() -> Scene {
     let mut s = Scene::load(concat!(
@@ -44,7 +37,7 @@ fn settings(scene: &Scene, seed: u32) -> TraceSettings {
 }
 
 fn cone(fov: f64) -> Roi {
-    Roi::Cone(Cone::from_pose(DVec3::new(0.0, 0.0, 1.0), DVec3::NEG_Z, DVec3::Y, fov, fov).unwrap())
+    Roi::Cone(walls::cone([0.0, 0.0, 1.0], [0.0, 0.0, -1.0], fov, fov))
 }
 
 fn gpu_backend() -> Backend {

@@ -1,22 +1,9 @@
 //! `raygun scene …` end to end: the generators write what the library generates, and `info`
 //! summarises files and built-ins.
 
-use std::path::PathBuf;
-use std::process::Command;
-
-fn raygun(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_raygun"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("the raygun binary runs")
-}
-
-fn tmp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("raygun-scene-cli-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
-}
+#[path = "support/cli.rs"]
+mod support;
+use support::{raygun, tmp_file};
 
 #[test]
 fn scene_generators_write_the_shipped_files_and_print_triangle_counts() {
@@ -29,7 +16,7 @@ fn scene_generators_write_the_shipped_files_and_print_triangle_counts() {
             3862,
         ),
     ] {
-        let out = tmp(golden);
+        let out = tmp_file(golden);
         let mut args = cmd.clone();
         args.extend(["--out", out.to_str().unwrap()]);
         let o = raygun(&args);
@@ -93,7 +80,7 @@ fn render_takes_orthographic_cameras_and_look_from_viewpoints() {
         env!("CARGO_MANIFEST_DIR"),
         "/tests/data/gltf-samples/Cameras.gltf"
     );
-    let png = tmp("cameras.png");
+    let png = tmp_file("cameras.png");
     let png = png.to_str().unwrap();
     let common = [
         "--size",

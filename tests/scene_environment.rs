@@ -1,16 +1,12 @@
 //! The `--env` argument: a constant radiance or an equirectangular .hdr / .exr in linear RGB;
 //! bad values are errors naming the argument, the file or the pixel.
 
-use std::path::PathBuf;
+#[path = "support/cli.rs"]
+mod support;
+use support::tmp_file;
 
 use glam::Vec3;
 use raygun::scene::{Environment, EnvironmentError};
-
-fn tmp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("raygun-env-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
-}
 
 /// 3×2 texels, all exactly representable in RGBE (a power-of-two scale of an 8-bit mantissa
 /// shared by the channels), so the .hdr round trip is exact: (x + 1, y + 1, 0.5) / 4.
@@ -47,7 +43,7 @@ fn constant_radiance_parses() {
 
 #[test]
 fn radiance_hdr_loads_in_linear_rgb_with_row_zero_on_top() {
-    let path = tmp("sky.hdr");
+    let path = tmp_file("sky.hdr");
     let pixels: Vec<image::Rgb<f32>> = expected_texels()
         .iter()
         .map(|t| image::Rgb(t.to_array()))
@@ -66,7 +62,7 @@ fn radiance_hdr_loads_in_linear_rgb_with_row_zero_on_top() {
 
 #[test]
 fn openexr_loads_exactly_and_bad_texels_name_the_pixel() {
-    let path = tmp("sky.exr");
+    let path = tmp_file("sky.exr");
     exr::prelude::write_rgb_file(&path, 3, 2, |x, y| {
         let t = texel(x, y);
         (t.x, t.y, t.z)
@@ -78,7 +74,7 @@ fn openexr_loads_exactly_and_bad_texels_name_the_pixel() {
     assert_eq!(map.texels, expected_texels());
 
     for (value, what) in [(-1.0f32, "-1"), (f32::NAN, "NaN"), (f32::INFINITY, "inf")] {
-        let bad = tmp("bad.exr");
+        let bad = tmp_file("bad.exr");
         exr::prelude::write_rgb_file(&bad, 3, 2, |x, y| {
             if (x, y) == (2, 1) {
                 (0.5f32, value, 0.5f32)
@@ -106,7 +102,7 @@ fn unreadable_environment_files_name_the_file() {
         .unwrap_err()
         .to_string();
     assert!(e.starts_with("/no/such/sky.hdr: cannot read"), "{e}");
-    let junk = tmp("junk.exr");
+    let junk = tmp_file("junk.exr");
     std::fs::write(&junk, b"not an exr").unwrap();
     let e = Environment::parse(junk.to_str().unwrap())
         .unwrap_err()
@@ -115,7 +111,7 @@ fn unreadable_environment_files_name_the_file() {
         e.contains("junk.exr: cannot read the environment image"),
         "{e}"
     );
-    let junk = tmp("junk.hdr");
+    let junk = tmp_file("junk.hdr");
     std::fs::write(&junk, b"#?RADIANCE\nnonsense").unwrap();
     let e = Environment::parse(junk.to_str().unwrap())
         .unwrap_err()

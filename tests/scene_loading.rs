@@ -2,6 +2,10 @@
 //! and textures arrive as the file says, every unsupported feature is named, bad files give
 //! errors naming the file and element, and bad data never reaches the tracer.
 
+#[path = "support/cli.rs"]
+mod support;
+use support::tmp_dir;
+
 use std::path::{Path, PathBuf};
 
 use glam::{Vec2, Vec3};
@@ -16,12 +20,6 @@ fn data(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("tests/data/scenes")
         .join(name)
-}
-
-fn tmp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("raygun-scene-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
 }
 
 fn geometric_normal(t: &Triangle) -> Vec3 {

@@ -2,24 +2,17 @@
 //! twin's, the measured share tracks the expected one, wider cones select more). Speed itself is
 //! never asserted.
 
+#[path = "support/walls.rs"]
+mod walls;
+
 use raygun::bench::schedule::{ScheduleBenchConfig, run};
-use raygun::display::DisplayModel;
 use raygun::gpu::{Backend, GpuContext};
 use raygun::roi::dgi::Surface;
 use raygun::schedule::Order;
 
-fn hornet() -> Surface {
-    let model = DisplayModel::load(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/display-models/hornet.json"
-    ))
-    .unwrap();
-    Surface::from_model(&model)
-}
-
 #[test]
 fn schedule_benchmark_rows_agree_across_backends_and_fovs() {
-    let surface = hornet();
+    let surface = Surface::from_model(&walls::hornet());
     let backend = Backend::Gpu(Box::new(GpuContext::for_tests()));
     let config = ScheduleBenchConfig {
         size: [192, 108],

@@ -8,6 +8,9 @@
 //!
 //! `RAYGUN_BLESS=1 cargo test --test tracking_vrpn` rewrites the replays and golden files.
 
+#[path = "support/walls.rs"]
+mod walls;
+
 use std::collections::BTreeMap;
 use std::io::{Read, Write};
 use std::net::{Shutdown, SocketAddr, TcpListener, TcpStream, UdpSocket};
@@ -45,10 +48,6 @@ fn read(name: &str) -> Vec<u8> {
 
 fn listing(name: &str) -> Value {
     serde_json::from_slice(&read(name)).unwrap()
-}
-
-fn hornet() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("display-models/hornet.json")
 }
 
 fn bless() -> bool {
@@ -838,7 +837,7 @@ fn the_udp_capture_decodes_exactly_what_its_listing_says_in_classic_mode() {
 /// `raygun replay` does, and prints the ROI changes in the golden files' form.
 fn replay_roi_changes(file: &Path) -> (String, ProblemLog) {
     let args = ReplayOptions {
-        display: Some(hornet().display().to_string()),
+        display: Some(PathBuf::from(walls::HORNET).display().to_string()),
         ..ReplayOptions::of(file.to_owned())
     };
     let (plan, mut reader) = ReplayPlan::new(&args).unwrap();
@@ -939,7 +938,7 @@ fn a_live_tcp_session_gives_the_golden_roi_changes() {
     let mut source = VrpnSource::new(client_config(&format!("DTrack@tcp://{addr}"))).unwrap();
     let mut ingest = Ingest::vrpn_only("DTrack", golden_config(), TimeSource::Tracker).unwrap();
     ingest.problems.quiet = true;
-    let surface = DisplayModel::load(hornet()).unwrap();
+    let surface = DisplayModel::load(PathBuf::from(walls::HORNET)).unwrap();
     let mut pipeline = Pipeline::new(ingest, Interaction::new(InteractionConfig::default()));
     let stop = AtomicBool::new(false);
     let live = Live::default();
@@ -983,7 +982,7 @@ fn a_live_classic_udp_session_gives_the_golden_roi_changes() {
     let (addr, server) = serve_classic(reads_of(&cap.tcp, &cap.udp), progress.clone());
     let mut source = VrpnSource::new(client_config(&format!("DTrack@{addr}"))).unwrap();
     let ingest = Ingest::vrpn_only("DTrack", golden_config(), TimeSource::Tracker).unwrap();
-    let surface = DisplayModel::load(hornet()).unwrap();
+    let surface = DisplayModel::load(PathBuf::from(walls::HORNET)).unwrap();
     let mut pipeline = Pipeline::new(ingest, Interaction::new(InteractionConfig::default()));
     let mut printer = ChangePrinter::new(Vec::new());
     let start = Instant::now();
@@ -1578,7 +1577,7 @@ fn the_viewers_vrpn_source_delivers_the_shots() {
         Path::new("lab.json"),
     )
     .unwrap();
-    let model = DisplayModel::load(hornet()).unwrap();
+    let model = DisplayModel::load(PathBuf::from(walls::HORNET)).unwrap();
     let mut live = LiveTracking::start_vrpn(
         format!("DTrack@tcp://{addr}").parse().unwrap(),
         false,

@@ -1,10 +1,13 @@
 //! The viewer's logic without a screen: clicks, panel settings and what the renderer receives,
 //! overlays, replay playback and saving (the egui front end only maps widgets onto these).
 
+#[path = "support/walls.rs"]
+mod walls;
+use walls::hornet;
+
 use std::time::Duration;
 
 use glam::DVec2;
-use raygun::display::DisplayModel;
 use raygun::filter::FilterKind;
 use raygun::gpu::Backend;
 use raygun::interaction::CursorMark;
@@ -25,14 +28,6 @@ mod xvfb;
 
 const W: u32 = 64;
 const H: u32 = 26;
-
-fn hornet() -> DisplayModel {
-    DisplayModel::load(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/display-models/hornet.json"
-    ))
-    .unwrap()
-}
 
 fn scene() -> Scene {
     let mut s = Scene::open("builtin:cornell-light").unwrap();

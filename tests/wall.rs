@@ -1,13 +1,11 @@
 //! Wall output (`render --tiles DIR`): one image per display tile, cut from the canvas.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+#[path = "support/cli.rs"]
+mod support;
+use support::tmp_dir;
 
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("raygun-wall-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+use std::path::Path;
+use std::process::Command;
 
 fn read_rgb_exr(path: &Path) -> (usize, usize, Vec<[f32; 3]>) {
     let img = exr::prelude::read_first_flat_layer_from_file(path).unwrap();
@@ -35,7 +33,7 @@ const MODEL: &str = r#"{
 
 #[test]
 fn render_tiles_writes_each_tiles_canvas_pixels() {
-    let dir = tmp("cli");
+    let dir = tmp_dir("cli");
     let model = dir.join("two.json");
     std::fs::write(&model, MODEL).unwrap();
     let out = dir.join("canvas.exr");

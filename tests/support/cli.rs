@@ -35,6 +35,14 @@ pub fn tmp_dir(name: &str) -> PathBuf {
     d
 }
 
+/// A path for a file named `name` in this test binary's folder (created; names must be unique
+/// among the tests of a binary).
+pub fn tmp_file(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("raygun-test-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d.join(name)
+}
+
 pub fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
