@@ -70,7 +70,7 @@ pub struct RecordArgs {
     /// Listen for OSC on this UDP port (0: any free port, said at start).
     #[arg(long, value_name = "PORT")]
     pub osc: Option<u16>,
-    /// Record a VRPN server's device (DEVICE@HOST[:PORT], or DEVICE@tcp://HOST[:PORT]): the raw
+    /// Record a VRPN server's device (`DEVICE@HOST[:PORT]`, or `DEVICE@tcp://HOST[:PORT]`): the raw
     /// messages, replayed through the same decoder; the recording ends at --seconds or when the
     /// server closes.
     #[arg(long, value_name = "DEVICE@HOST[:PORT]")]

@@ -65,8 +65,8 @@ pub struct ViewArgs {
     /// Live OSC on this loopback UDP port.
     #[arg(long, value_name = "PORT")]
     pub osc: Option<u16>,
-    /// Live VRPN from a server (`vrpn_Tracker_DTrack`, Vicon, …): DEVICE@HOST[:PORT] (VRPN's
-    /// classic UDP mode) or DEVICE@tcp://HOST[:PORT]; reconnects when the server goes away.
+    /// Live VRPN from a server (`vrpn_Tracker_DTrack`, Vicon, …): `DEVICE@HOST[:PORT]` (VRPN's
+    /// classic UDP mode) or `DEVICE@tcp://HOST[:PORT]`; reconnects when the server goes away.
     #[arg(long, value_name = "DEVICE@HOST[:PORT]")]
     pub vrpn: Option<VrpnAddress>,
     /// Allow a VRPN server that is not on this machine.

@@ -93,7 +93,7 @@ pub enum FilterGpuError {
     },
 }
 
-/// The GPU inputs: the accumulation (`accum`: vec4<f32> per pixel, `counts`: u32 per pixel) and
+/// The GPU inputs: the accumulation (`accum`: `vec4<f32>` per pixel, `counts`: u32 per pixel) and
 /// the DGI (f32 per pixel), row-major, all with `STORAGE` usage.
 #[derive(Clone, Copy)]
 pub struct GpuFilterInputs<'a> {
@@ -188,7 +188,7 @@ struct Dispatch {
 /// A prepared filter: record it once per frame (benchmarks repeat it).
 pub struct FilterRun {
     dispatches: Vec<Dispatch>,
-    /// The filtered image: vec4<f32> per pixel (linear RGB, alpha 1), row-major.
+    /// The filtered image: `vec4<f32>` per pixel (linear RGB, alpha 1), row-major.
     pub output: wgpu::Buffer,
 }
 

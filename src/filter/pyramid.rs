@@ -63,7 +63,7 @@ pub enum Target {
     Level(usize),
 }
 
-/// One separable blur pass: out(X) = Σ_t weights[t]·in(X·dec + first + t) along `axis`
+/// One separable blur pass: `out(X) = Σ_t weights[t]·in(X·dec + first + t)` along `axis`
 /// (0 = x, 1 = y), the other coordinate unchanged; reads outside `src_size` are 0.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Pass {
@@ -89,7 +89,7 @@ pub struct Plan {
 
 impl Plan {
     /// Levels up to σ ≥ k_max/3 (none when k_max ≤ K_DIRECT: every pixel runs the exact loop).
-    /// `k_max` must have passed [`FilterParams::validate`].
+    /// `k_max` must have passed [`FilterParams::validate`](crate::filter::FilterParams::validate).
     #[must_use]
     pub fn new(width: u32, height: u32, k_max: f32) -> Self {
         let sigma_max = f64::from(k_max) / 3.0;

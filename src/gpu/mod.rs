@@ -225,7 +225,7 @@ impl GpuContext {
         self.compute_pipeline_in(&self.shader_module(label, source), label, entry)
     }
 
-    /// Picks the best adapter (see [`adapter_rank`]); the environment variable `RAYGUN_ADAPTER`
+    /// Picks the best adapter (see `adapter_rank`); the environment variable `RAYGUN_ADAPTER`
     /// restricts the choice to adapters whose name contains its value.
     pub fn new() -> Result<Self, GpuError> {
         pollster::block_on(Self::new_async())

@@ -1,5 +1,5 @@
 //! Output: images on disk (EXR for the numbers, PNG for people), chosen by file extension, each
-//! written through a temporary name and renamed into place ([`file`]).
+//! written through a temporary name and renamed into place ([`file`](mod@file)).
 
 use std::path::{Path, PathBuf};
 

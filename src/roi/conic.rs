@@ -163,7 +163,7 @@ struct Even<F, D, D2> {
     d2f: D2,
 }
 
-/// Maximum iterations of the safeguarded Newton iteration in [`closest_on_epigraph`]. Bisection
+/// Maximum iterations of the safeguarded Newton iteration in `closest_on_epigraph`. Bisection
 /// alone halves the bracket, so 200 steps reduce any f64 bracket below one ulp; Newton usually
 /// stops after 3–8 (measured on the tests' cases).
 pub const EPIGRAPH_MAX_ITERATIONS: u32 = 200;
@@ -555,7 +555,7 @@ impl Prepared<'_> {
     }
 }
 
-/// Relative padding of [`tight_bounds`] (times the rectangle's diagonal): covers the rounding of
+/// Relative padding of `tight_bounds` (times the rectangle's diagonal): covers the rounding of
 /// the extreme points (a few ulps of the canvas coordinates) and the GPU's f32 copy of the box
 /// (relative to the rectangle's centre: ~1e-7 of the half-size), with margin to spare.
 pub const BOUNDS_PAD: f64 = 1e-6;

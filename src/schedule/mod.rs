@@ -2,7 +2,7 @@
 //!
 //! Pixel i with DGI value d_i is sampled with probability p_i = max(p_min, 1 − d_i) (the paper's
 //! preset is p_min = 0), decided by one Bernoulli draw from the counter-based hash of
-//! (pixel, iteration, seed, [`stream::SCHEDULE`]) in `src/random.rs`, so this CPU twin and the
+//! (pixel, iteration, seed, [`stream::SCHEDULE`](crate::random::stream::SCHEDULE)) in `src/random.rs`, so this CPU twin and the
 //! kernel (`shaders/schedule/`, dispatched by [`gpu`]) select exactly the same pixels. The
 //! selected pixels are compacted into a list of pixel indices `y * width + x` that the tracer
 //! runs one thread per entry over.

@@ -23,7 +23,7 @@ const NEWTON_TOL_F32: f32 = 4.0 * f32::EPSILON;
 /// 2¹⁰⁰, the f32 counterpart of [`FAR_F64`]; equals `ELLIPSE_FAR` in the WGSL.
 const FAR_F32: f32 = 1.267_650_6e30;
 
-/// The f32 counterpart of [`ClosestPoint`], as the WGSL's `EllipseClosest` returns it.
+/// The f32 counterpart of [`ClosestPoint`](super::ClosestPoint), as the WGSL's `EllipseClosest` returns it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ClosestPointF32 {
     pub distance: f32,

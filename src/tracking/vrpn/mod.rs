@@ -24,7 +24,7 @@
 //! Bad input of every kind (wrong cookie or major version, lengths below 24 or above
 //! [`wire::MAX_MESSAGE_LEN`], truncated messages, unknown or redefined ids, NaN, infinite or
 //! non-unit poses, a silent or flooding server) is counted per kind in a
-//! [`ProblemLog`] and logged once; nothing panics, and
+//! [`ProblemLog`](crate::tracking::problems::ProblemLog) and logged once; nothing panics, and
 //! every buffer is bounded (one partial message per connection, one read at a time).
 
 pub mod config;
