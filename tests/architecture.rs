@@ -592,3 +592,41 @@ fn twin_names_follow_the_rule() {
         ]
     );
 }
+
+/// The README's Architecture section shows the layers of [`LAYERS`] and the frame function's
+/// steps as they are in `src/frame/mod.rs`.
+#[test]
+fn the_readme_shows_the_layers_and_the_frame_steps_as_they_are() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let readme = std::fs::read_to_string(root.join("README.md")).unwrap();
+    for (layer, modules) in LAYERS {
+        let listed = modules
+            .iter()
+            .map(|m| format!("`{m}`"))
+            .collect::<Vec<_>>()
+            .join(", ");
+        let row = format!("| {layer}");
+        let line = readme
+            .lines()
+            .find(|l| l.starts_with(&row))
+            .unwrap_or_else(|| panic!("README: no row for the layer {layer}"));
+        assert!(
+            line.contains(&format!("| {listed} |")),
+            "README's row for {layer} does not list {listed}: {line}"
+        );
+    }
+    let frame = std::fs::read_to_string(root.join("src/frame/mod.rs")).unwrap();
+    let body = frame
+        .split("pub fn run_frame(")
+        .nth(1)
+        .and_then(|rest| rest.split("\n    }\n").next())
+        .expect("run_frame in src/frame/mod.rs");
+    let steps: Vec<&str> = body.lines().skip(1).map(str::trim).collect();
+    assert!(steps.len() >= 4, "{steps:?}");
+    for step in steps {
+        assert!(
+            readme.lines().any(|l| l.trim_start().starts_with(step)),
+            "README does not show the frame step `{step}`"
+        );
+    }
+}
