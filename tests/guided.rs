@@ -183,6 +183,7 @@ fn bench_guided_report_is_consistent() {
         &hornet(),
         &[("cornell".into(), scene)],
         &cfg,
+        None,
         |_| {},
     )
     .unwrap();
