@@ -24,7 +24,12 @@ use raygun::trace::gpu::{GpuAccum, GpuScene, TraceKernel, TraceRun};
 use raygun::trace::pack::PackedScene;
 use raygun::trace::path::{TraceSettings, render_cpu_with};
 use raygun::trace::shading::direction_to_equirect;
-use raygun::trace::wall::{WallCamera, WorldFromRoom};
+use raygun::trace::wall::{SceneFromRoom, WallCamera, WorldFromRoom};
+
+const IDENTITY: SceneFromRoom = SceneFromRoom {
+    rotation: glam::DMat3::IDENTITY,
+    translation: DVec3::ZERO,
+};
 
 /// The index map's size: 2048 × 1024 texels of 0.18°, 3 mm at a metre (32 MiB packed, inside
 /// lavapipe's 128 MiB binding).
@@ -113,12 +118,13 @@ fn expected_texel(
     model: &DisplayModel,
     size: [u32; 2],
     eye: DVec3,
+    xf: &SceneFromRoom,
     tile: usize,
     p: DVec2,
 ) -> (i64, i64) {
     let c = model.image_to_canvas(p, size);
     let point = model.tiles()[tile].canvas_to_point(c);
-    let d = (point - eye).normalize().as_vec3();
+    let d = (xf.point(point) - xf.point(eye)).normalize().as_vec3();
     let (u, v) = direction_to_equirect(d);
     (
         ((u * MAP[0] as f32) as i64).min(i64::from(MAP[0]) - 1),
@@ -133,6 +139,7 @@ fn check_image(
     model: &DisplayModel,
     size: [u32; 2],
     eye: DVec3,
+    xf: &SceneFromRoom,
     seed: u32,
     label: &str,
 ) {
@@ -157,7 +164,7 @@ fn check_image(
                 f64::from(x) + f64::from(r[0]),
                 f64::from(y) + f64::from(r[1]),
             );
-            let (ec, er) = expected_texel(model, size, eye, tile, p);
+            let (ec, er) = expected_texel(model, size, eye, xf, tile, p);
             let s = acc.sum[pixel as usize];
             let (gc, gr) = (s[0] as i64, s[1] as i64);
             let dc = (gc - ec).rem_euclid(i64::from(MAP[0]));
@@ -193,6 +200,7 @@ fn cpu_twin_rays_pass_through_every_pixels_wall_point_on_every_shipped_model() {
                 &model,
                 size,
                 eye,
+                &IDENTITY,
                 seed,
                 &format!("CPU, {}, eye {eye}", model.name()),
             );
@@ -225,10 +233,59 @@ fn gpu_rays_pass_through_every_pixels_wall_point_on_every_shipped_model() {
                 &model,
                 size,
                 eye,
+                &IDENTITY,
                 seed,
                 &format!("GPU, {}, eye {eye}", model.name()),
             );
         }
+    }
+}
+
+/// `--world-from-room X,Y,Z,YAW_DEG,SCALE` and `auto` turn the rays into the scene's frame: the
+/// texel met is the one in the turned direction (the translation and scale move the eye, not
+/// the directions), and `auto` looks along the scene camera's forward at the wall's centre.
+#[test]
+fn world_from_room_turns_the_rays_into_the_scene() {
+    let scene = index_scene();
+    let packed = PackedScene::new(&scene);
+    let model = DisplayModel::open("hornet").unwrap().0;
+    let size = size_of(&model, 32.0);
+    let eye = DVec3::new(0.4, -0.2, 1.3);
+    let camera = (
+        DVec3::new(5.0, 1.0, -2.0),
+        DVec3::new(1.0, -0.2, 0.3),
+        DVec3::Y,
+    );
+    for placement in [
+        WorldFromRoom::Explicit {
+            translation: DVec3::new(3.0, -1.0, 2.0),
+            yaw_deg: 35.0,
+            scale: 2.5,
+        },
+        WorldFromRoom::Auto,
+    ] {
+        let wc = WallCamera::new(&model, size, eye, &placement, camera).unwrap();
+        if placement == WorldFromRoom::Auto {
+            assert!(wc.eye.as_dvec3().abs_diff_eq(camera.0, 1e-5));
+            let centre = model.canvas_to_point(model.canvas_rect().center()).unwrap();
+            let f = wc.scene_from_room.vector(centre - eye).normalize();
+            assert!(
+                f.abs_diff_eq(camera.1.normalize(), 1e-9),
+                "auto looks along {f}"
+            );
+        }
+        let s = settings(size[0], size[1], 11);
+        let mut acc = Accumulation::new(size[0], size[1]);
+        render_cpu_with(&packed, &s, Some(&wc), &mut acc, None);
+        check_image(
+            &acc,
+            &model,
+            size,
+            eye,
+            &wc.scene_from_room,
+            11,
+            &format!("CPU, {placement:?}"),
+        );
     }
 }
 
