@@ -176,6 +176,7 @@ fn bench_guided_report_is_consistent() {
         &hornet(),
         &[("cornell".into(), scene)],
         &cfg,
+        None,
         |_| {},
     )
     .unwrap();

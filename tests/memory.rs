@@ -70,8 +70,8 @@ struct Cli {
 
 #[derive(clap::Subcommand)]
 enum Command {
-    Render(raygun::cli::render::RenderArgs),
-    Dgi(raygun::cli::dgi::DgiArgs),
+    Render(Box<raygun::cli::render::RenderArgs>),
+    Dgi(Box<raygun::cli::dgi::DgiArgs>),
 }
 
 fn run(args: &[String]) {

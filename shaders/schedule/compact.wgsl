@@ -14,7 +14,7 @@
 // it behind a Features::SUBGROUP check, but whether that pays on a real GPU is unmeasured (no
 // GPU was available when this was written), so the portable version is the only one.
 
-// Mirrors `GpuParams` in src/schedule/gpu.rs (32 bytes).
+// Mirrors `GpuParams` in src/schedule/gpu.rs (48 bytes).
 struct Params {
     size: vec2<u32>,
     // Tiles per row; the dispatch is (tiles_x, tiles_y).
@@ -25,6 +25,11 @@ struct Params {
     seed: u32,
     p_min: f32,
     scatter_half_bits: u32,
+    // 1: a pixel whose bit in `shown` is clear has probability 0 (the wall camera's bezels).
+    masked: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: Params;
@@ -32,6 +37,8 @@ struct Params {
 @group(0) @binding(2) var<storage, read_write> list: array<u32>;
 // The append position; shaders/schedule/args.wgsl reads it and resets it to 0.
 @group(0) @binding(3) var<storage, read_write> counter: atomic<u32>;
+// Bit p % 32 of word p / 32: pixel p is shown (read only when params.masked == 1).
+@group(0) @binding(4) var<storage, read> shown: array<u32>;
 
 const TILE_EDGE: u32 = 32u;
 const THREADS: u32 = 256u;
@@ -60,6 +67,15 @@ fn slot_pixel(block: u32, tile: vec2<u32>, slot: u32) -> u32 {
     return scatter(linear, params.scatter_half_bits, n);
 }
 
+// The pixel's probability: 0 where the mask hides it, else max(p_min, 1 − d)
+// (twin: Draw::take in src/schedule/compact.rs).
+fn shown_probability(px: u32) -> f32 {
+    if params.masked == 1u && ((shown[px >> 5u] >> (px & 31u)) & 1u) == 0u {
+        return 0.0;
+    }
+    return probability(dgi[px], params.p_min);
+}
+
 @compute @workgroup_size(256)
 fn main(
     @builtin(workgroup_id) wg: vec3<u32>,
@@ -72,7 +88,7 @@ fn main(
         let px = slot_pixel(block, wg.xy, SLOTS * t + j);
         pixels[j] = px;
         if px != OUTSIDE
-            && selected(px, params.iteration, params.seed, probability(dgi[px], params.p_min)) {
+            && selected(px, params.iteration, params.seed, shown_probability(px)) {
             flags |= 1u << j;
         }
     }

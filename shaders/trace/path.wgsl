@@ -22,7 +22,7 @@ struct Params {
     cam_right: vec3<f32>,
     node_count: u32,
     cam_up: vec3<f32>,
-    _pad: u32,
+    wall_tiles: u32,     // the wall camera's tile count (0: pinhole or orthographic)
     features: u32,       // 1 vertex extras packed, 2 some primitive alpha-tested
     extras_offset: u32,  // vec4 index of the vertex extras in `shade`
     punctual_count: u32,
@@ -68,6 +68,12 @@ const WORKGROUP: u32 = 64u;
 @group(1) @binding(4) var<storage, read> args: array<u32>; // (x, y, z, count)
 // [0]: rays traced (closest-hit and shadow), summed per workgroup then added once.
 @group(1) @binding(5) var<storage, read_write> stats: array<atomic<u32>>;
+// The wall camera's tiles (DESIGN.md §11; layout: src/trace/wall.rs, `WallCamera::gpu_table`):
+// 4 vec4s each — the image pixels x0..x1 × y0..y1 it shows (u32 bits), then the scene-frame
+// vector from the eye to image point (x0, y0)'s wall point and the steps of one image pixel.
+@group(1) @binding(6) var<storage, read> wall: array<vec4<f32>>;
+
+const NO_TILE: u32 = 0xffffffffu;
 
 var<private> rays_traced: u32;
 var<workgroup> workgroup_rays: atomic<u32>;
@@ -306,17 +312,42 @@ fn camera_origin(x: f32, y: f32) -> vec3<f32> {
     return params.cam_pos + params.cam_right * sx + params.cam_up * sy;
 }
 
+// The wall tile that shows image pixel (x, y), the first listed; NO_TILE where none does
+// (twin: WallCamera::tile_of).
+fn wall_tile(x: u32, y: u32) -> u32 {
+    for (var i = 0u; i < params.wall_tiles; i++) {
+        let b = bitcast<vec4<u32>>(wall[4u * i]);
+        if x >= b.x && x < b.y && y >= b.z && y < b.w {
+            return i;
+        }
+    }
+    return NO_TILE;
+}
+
+// The wall camera's primary direction through image point (x + j.x, y + j.y) of a pixel on
+// tile `tile` (twin: WallCamera::ray).
+fn wall_direction(tile: u32, x: u32, y: u32, j: vec2<f32>) -> vec3<f32> {
+    let b = bitcast<vec4<u32>>(wall[4u * tile]);
+    let fx = f32(x - b.x) + j.x;
+    let fy = f32(y - b.z) + j.y;
+    return normalize(wall[4u * tile + 1u].xyz + wall[4u * tile + 2u].xyz * fx + wall[4u * tile + 3u].xyz * fy);
+}
+
 fn is_finite3(v: vec3<f32>) -> bool {
     return all(abs(v) <= vec3<f32>(T_FAR));
 }
 
-fn trace_sample(pixel: u32, sample: u32) -> vec3<f32> {
+// One path of `pixel`; `tile` is its wall tile when the wall camera is on.
+fn trace_sample(pixel: u32, sample: u32, tile: u32) -> vec3<f32> {
     let x = pixel % params.size.x;
     let y = pixel / params.size.x;
     let r0 = rand4(pixel, sample, 0u);
     var d: vec3<f32>;
     var o: vec3<f32>;
-    if params.ortho_half_y > 0.0 {
+    if params.wall_tiles > 0u {
+        d = wall_direction(tile, x, y, r0.xy);
+        o = params.cam_pos;
+    } else if params.ortho_half_y > 0.0 {
         o = camera_origin(f32(x) + r0.x, f32(y) + r0.y);
         d = params.cam_fwd;
     } else {
@@ -590,10 +621,16 @@ fn trace(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) 
             live = true;
         }
     }
+    // The wall camera traces only pixels a tile shows (the schedule lists no others).
+    var tile = 0u;
+    if live && params.wall_tiles > 0u {
+        tile = wall_tile(pixel % params.size.x, pixel / params.size.x);
+        live = tile != NO_TILE;
+    }
     rays_traced = 0u;
     if live {
         let sample = counts[pixel];
-        let rgb = trace_sample(pixel, sample);
+        let rgb = trace_sample(pixel, sample, tile);
         let l = lum(rgb);
         accum[pixel] += vec4<f32>(rgb, l * l);
         counts[pixel] = sample + 1u;

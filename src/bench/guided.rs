@@ -20,6 +20,7 @@ use crate::scene::Scene;
 use crate::schedule::Order;
 use crate::trace::camera::CameraError;
 use crate::trace::path::TraceSettings;
+use crate::trace::wall::{WallCameraError, WallSpec};
 
 /// What to measure.
 #[derive(Clone, Debug, Serialize)]
@@ -121,6 +122,12 @@ pub enum GuidedBenchError {
         #[source]
         source: CameraError,
     },
+    #[error("scene '{scene}': --camera wall: {source}")]
+    Wall {
+        scene: String,
+        #[source]
+        source: WallCameraError,
+    },
     #[error("plot {path}: {reason}")]
     Plot { path: String, reason: String },
 }
@@ -148,6 +155,7 @@ pub fn run(
     display: &DisplayModel,
     scenes: &[(String, Scene)],
     cfg: &GuidedBenchConfig,
+    wall: Option<&WallSpec>,
     mut progress: impl FnMut(&str),
 ) -> Result<GuidedBenchReport, GuidedBenchError> {
     let [w, h] = cfg.size;
@@ -162,8 +170,18 @@ pub fn run(
             }
         })?;
         let settings = |seed: u32| TraceSettings { seed, ..base };
+        let wc = wall
+            .map(|spec| spec.camera(cfg.size, &base.camera))
+            .transpose()
+            .map_err(|source| GuidedBenchError::Wall {
+                scene: name.clone(),
+                source,
+            })?;
         progress(&format!("{name}: full-frame baseline"));
-        let mut full = Renderer::full(backend, scene, settings(cfg.seed))?;
+        let mut full = match &wc {
+            Some(c) => Renderer::full_wall(backend, scene, settings(cfg.seed), c.clone())?,
+            None => Renderer::full(backend, scene, settings(cfg.seed))?,
+        };
         full.iterate(2)?;
         let timed = full.timed_iterations(cfg.full_frames.max(1))?;
         let ms_full = median(timed.ms.clone());
@@ -174,11 +192,12 @@ pub fn run(
         });
         drop(full);
         progress(&format!("{name}: reference ({} spp)", cfg.reference_spp));
-        let reference = paper::reference_image(
+        let reference = paper::reference_image_wall(
             backend,
             scene,
             settings(cfg.seed ^ 0x5eed),
             cfg.reference_spp,
+            wc.as_ref(),
         )?;
         for &fov in &cfg.fovs_deg {
             for &order in &cfg.orders {
@@ -189,13 +208,14 @@ pub fn run(
                     order,
                     ..Default::default()
                 };
-                let mut g = paper::guided(
+                let mut g = paper::guided_wall(
                     backend,
                     scene,
                     settings(cfg.seed.wrapping_add(1)),
                     display,
                     config,
                     roi,
+                    wc.as_ref(),
                 )?;
                 let (mut per_iter, mut sched, mut trace) = (Vec::new(), Vec::new(), Vec::new());
                 let (mut pixels, mut ms_dgi, mut stamps, mut total) = (0u64, None, false, 0.0);
@@ -216,15 +236,21 @@ pub fn run(
                 let share = pixels as f64 / n / (megapixels * 1e6);
                 let ms_iter = median(per_iter);
                 let dgi = g.dgi()?;
-                let mask: Vec<bool> = dgi.iter().map(|&d| d == 0.0).collect();
+                // ROI pixels (a wall camera's unshown ones are black in every image: left out).
+                let mask: Vec<bool> = dgi
+                    .iter()
+                    .enumerate()
+                    .map(|(p, &d)| d == 0.0 && wc.as_ref().is_none_or(|c| c.is_shown(p as u32)))
+                    .collect();
                 let guided_image = g.accumulation()?.mean_image();
                 drop(g);
                 let spp_eq = ((total / ms_full).floor() as u32).max(1);
-                let full_image = paper::reference_image(
+                let full_image = paper::reference_image_wall(
                     backend,
                     scene,
                     settings(cfg.seed.wrapping_add(2)),
                     spp_eq,
+                    wc.as_ref(),
                 )?;
                 let (rg, mean_ref) = rmse(&guided_image, &reference, &mask);
                 let (rf, _) = rmse(&full_image, &reference, &mask);

@@ -3,6 +3,7 @@
 //! the exact metric with the default falloff, the scene's own camera (or the automatic one),
 //! 3840 × 2160 pixels.
 
+use crate::trace::wall::WallCamera;
 use glam::DVec3;
 
 use crate::display::DisplayModel;
@@ -92,7 +93,20 @@ pub fn guided<'a>(
     config: GuideConfig,
     roi: Roi,
 ) -> Result<Renderer<'a>, FrameError> {
-    let mut r = Renderer::guided(backend, scene, settings, display, config)?;
+    guided_wall(backend, scene, settings, display, config, roi, None)
+}
+
+/// [`guided`] through the wall camera `wall` when given (DESIGN.md §11).
+pub fn guided_wall<'a>(
+    backend: &'a Backend,
+    scene: &Scene,
+    settings: TraceSettings,
+    display: &DisplayModel,
+    config: GuideConfig,
+    roi: Roi,
+    wall: Option<&WallCamera>,
+) -> Result<Renderer<'a>, FrameError> {
+    let mut r = Renderer::guided_wall(backend, scene, settings, display, config, wall.cloned())?;
     r.set_roi(Some(roi))?;
     Ok(r)
 }
@@ -105,7 +119,21 @@ pub fn reference_image(
     settings: TraceSettings,
     spp: u32,
 ) -> Result<Vec<glam::Vec3>, FrameError> {
-    let mut r = Renderer::full(backend, scene, settings)?;
+    reference_image_wall(backend, scene, settings, spp, None)
+}
+
+/// [`reference_image`] through the wall camera `wall` when given (its unshown pixels black).
+pub fn reference_image_wall(
+    backend: &Backend,
+    scene: &Scene,
+    settings: TraceSettings,
+    spp: u32,
+    wall: Option<&WallCamera>,
+) -> Result<Vec<glam::Vec3>, FrameError> {
+    let mut r = match wall {
+        Some(w) => Renderer::full_wall(backend, scene, settings, w.clone())?,
+        None => Renderer::full(backend, scene, settings)?,
+    };
     let mut left = spp;
     while left > 0 {
         let n = left.min(64);

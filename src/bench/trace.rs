@@ -1,6 +1,11 @@
 //! `raygun bench trace`: full-frame path tracing speed — ms per frame at one sample per pixel,
 //! ms per megasample and rays per second — for the paper's two scenes, beside the paper's
 //! figures (DESIGN.md §9) and raygun's targets (the report's Targets table).
+//!
+//! With a wall camera (DESIGN.md §11) each scene is measured twice in the same run, the pinhole
+//! and the wall camera's frames interleaved (pinhole, wall, pinhole, …) so that both see the
+//! same machine state; the wall camera traces only the pixels a tile shows, so its rows compare
+//! by ms per megasample of traced pixels.
 
 use serde::Serialize;
 
@@ -10,6 +15,7 @@ use crate::frame::Renderer;
 use crate::gpu::{Backend, GpuError};
 use crate::scene::Scene;
 use crate::trace::camera::CameraError;
+use crate::trace::wall::{WallCameraError, WallSpec};
 
 /// What to measure.
 #[derive(Clone, Debug, Serialize)]
@@ -39,6 +45,10 @@ impl Default for TraceBenchConfig {
 #[derive(Clone, Debug, Serialize)]
 pub struct TraceBenchRow {
     pub scene: String,
+    /// "pinhole" (the scene's camera) or "wall" (the wall camera).
+    pub camera: &'static str,
+    /// Pixels traced per frame (the wall camera skips those no tile shows).
+    pub pixels: u64,
     pub triangles: usize,
     pub bvh_nodes: usize,
     /// BVH build and packing, seconds (CPU, once per scene).
@@ -71,6 +81,12 @@ pub enum TraceBenchError {
         #[source]
         source: CameraError,
     },
+    #[error("scene '{scene}': --camera wall: {source}")]
+    Wall {
+        scene: String,
+        #[source]
+        source: WallCameraError,
+    },
 }
 
 /// The paper's full-frame figure and our target for a scene name ("cornell…", "city…").
@@ -84,17 +100,18 @@ fn reference(scene: &str) -> (Option<f64>, Option<f64>) {
     }
 }
 
-/// Measures each scene; `progress` is told the scene name before it starts.
+/// Measures each scene (with `wall`, the pinhole and the wall camera interleaved); `progress`
+/// is told the scene name before it starts.
 pub fn run(
     backend: &Backend,
     scenes: &[(String, Scene)],
     cfg: &TraceBenchConfig,
+    wall: Option<&WallSpec>,
     mut progress: impl FnMut(&str),
 ) -> Result<Vec<TraceBenchRow>, TraceBenchError> {
     let mut rows = Vec::new();
     for (name, scene) in scenes {
         progress(name);
-        let [w, h] = cfg.size;
         let settings =
             super::paper::settings(scene, cfg.size, cfg.seed, cfg.max_depth).map_err(|source| {
                 TraceBenchError::Camera {
@@ -102,28 +119,57 @@ pub fn run(
                     source,
                 }
             })?;
-        let mut r = Renderer::full(backend, scene, settings)?;
-        r.iterate(cfg.warmup)?;
-        let timed = r.timed_iterations(cfg.frames.max(1))?;
-        let med = median(timed.ms.clone());
-        let ms_min = timed.ms.iter().copied().fold(f64::NAN, f64::min);
-        let megasamples = f64::from(w) * f64::from(h) / 1e6;
-        let (paper, target) = reference(name);
-        rows.push(TraceBenchRow {
-            scene: name.clone(),
-            triangles: scene.triangles.len(),
-            bvh_nodes: r.packed.bvh.cwbvh.nodes.len(),
-            build_s: r.build_seconds,
-            size: cfg.size,
-            ms_per_frame_median: med,
-            ms_per_frame_min: ms_min,
-            ms_per_megasample: med / megasamples,
-            rays_per_second: timed.rays_per_iteration / (med * 1e-3),
-            rays_per_pixel: timed.rays_per_iteration / (megasamples * 1e6),
-            gpu_timestamps: timed.gpu_timestamps,
-            paper_ms_per_frame: paper,
-            target_ms_per_frame: target,
-        });
+        let mut renderers = vec![("pinhole", Renderer::full(backend, scene, settings)?)];
+        if let Some(spec) = wall {
+            let wc = spec.camera(cfg.size, &settings.camera).map_err(|source| {
+                TraceBenchError::Wall {
+                    scene: name.clone(),
+                    source,
+                }
+            })?;
+            renderers.push(("wall", Renderer::full_wall(backend, scene, settings, wc)?));
+        }
+        for (_, r) in &mut renderers {
+            r.iterate(cfg.warmup)?;
+        }
+        let mut ms = vec![Vec::new(); renderers.len()];
+        let mut rays = vec![0u64; renderers.len()];
+        let mut pixels = vec![0u64; renderers.len()];
+        let mut stamps = false;
+        for _ in 0..cfg.frames.max(1) {
+            for (k, (_, r)) in renderers.iter_mut().enumerate() {
+                let s = r.run_frame(true)?;
+                ms[k].push(s.ms_trace.unwrap_or(f64::NAN));
+                rays[k] += s.rays.unwrap_or(0);
+                pixels[k] = u64::from(s.pixels.unwrap_or(0));
+                stamps = s.gpu_timestamps;
+            }
+        }
+        let frames = f64::from(cfg.frames.max(1));
+        for (k, (camera, r)) in renderers.iter().enumerate() {
+            let med = median(ms[k].clone());
+            let ms_min = ms[k].iter().copied().fold(f64::NAN, f64::min);
+            let megasamples = pixels[k] as f64 / 1e6;
+            let rays_per_frame = rays[k] as f64 / frames;
+            let (paper, target) = reference(name);
+            rows.push(TraceBenchRow {
+                scene: name.clone(),
+                camera,
+                pixels: pixels[k],
+                triangles: scene.triangles.len(),
+                bvh_nodes: r.packed.bvh.cwbvh.nodes.len(),
+                build_s: r.build_seconds,
+                size: cfg.size,
+                ms_per_frame_median: med,
+                ms_per_frame_min: ms_min,
+                ms_per_megasample: med / megasamples,
+                rays_per_second: rays_per_frame / (med * 1e-3),
+                rays_per_pixel: rays_per_frame / (megasamples * 1e6),
+                gpu_timestamps: stamps,
+                paper_ms_per_frame: paper,
+                target_ms_per_frame: target,
+            });
+        }
     }
     Ok(rows)
 }
@@ -132,13 +178,15 @@ pub fn run(
 #[must_use]
 pub fn markdown(rows: &[TraceBenchRow], device: &str) -> String {
     let mut s = format!(
-        "Device: {device}\n\n| scene | triangles | size | ms/frame (median) | ms/megasample | Mrays/s | rays/pixel | paper ms/frame (3840×2160, GTX 980) | target ms/frame (3840×2160, H100) |\n|---|---|---|---|---|---|---|---|---|\n"
+        "Device: {device}\n\n| scene | camera | pixels traced | triangles | size | ms/frame (median) | ms/megasample | Mrays/s | rays/pixel | paper ms/frame (3840×2160, GTX 980) | target ms/frame (3840×2160, H100) |\n|---|---|---|---|---|---|---|---|---|---|---|\n"
     );
     let opt = |v: Option<f64>| v.map_or("–".to_string(), |v| format!("{v:.0}"));
     for r in rows {
         s += &format!(
-            "| {} | {} | {}×{} | {:.2} | {:.2} | {:.1} | {:.2} | {} | {} |\n",
+            "| {} | {} | {} | {} | {}×{} | {:.2} | {:.2} | {:.1} | {:.2} | {} | {} |\n",
             r.scene,
+            r.camera,
+            r.pixels,
             r.triangles,
             r.size[0],
             r.size[1],

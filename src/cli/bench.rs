@@ -185,11 +185,23 @@ pub struct GuidedBenchArgs {
     /// Write the Figure 5 plot (PNG) here.
     #[arg(long, value_name = "FILE.png")]
     pub plot: Option<PathBuf>,
+    /// `wall`: every render of the benchmark through the wall camera from --eye (its pixels
+    /// off the tiles never traced); default: the scene's pinhole stretched over the canvas.
+    #[arg(long, value_name = "wall")]
+    pub camera: Option<String>,
+    #[command(flatten)]
+    pub wall: crate::cli::wall::WallArgs,
 }
 
 fn run_guided_bench(args: &GuidedBenchArgs) -> anyhow::Result<()> {
+    let display = DisplayModel::open(&args.display).context("--display")?.0;
+    if let Some(c) = args.camera.as_deref()
+        && c != crate::cli::wall::WALL_CAMERA
+    {
+        anyhow::bail!("--camera {c}: bench guided measures the pinhole (default) or wall");
+    }
+    let wall = crate::cli::wall::wall_spec(args.camera.as_deref(), &args.wall, Some(&display))?;
     let backend = Backend::select(args.backend)?;
-    let display = DisplayModel::open(&args.display)?.0;
     let scenes = crate::cli::scene::load_scenes(&args.scene, args.env.as_deref())?;
     let cfg = crate::bench::guided::GuidedBenchConfig {
         size: args.size,
@@ -204,7 +216,8 @@ fn run_guided_bench(args: &GuidedBenchArgs) -> anyhow::Result<()> {
         args.json,
         (scenes.len() * (2 + cfg.fovs_deg.len() * cfg.orders.len())) as u64,
     );
-    let report = crate::bench::guided::run(&backend, &display, &scenes, &cfg, progress)?;
+    let report =
+        crate::bench::guided::run(&backend, &display, &scenes, &cfg, wall.as_ref(), progress)?;
     bar.finish_and_clear();
     let text = if args.json {
         serde_json::to_string_pretty(&report)?
@@ -250,9 +263,29 @@ pub struct TraceBenchArgs {
     /// Also write the output to this file.
     #[arg(long, value_name = "FILE")]
     pub out: Option<PathBuf>,
+    /// `wall`: measure the wall camera beside the pinhole, frames interleaved (needs --eye
+    /// and --display); default: the pinhole alone.
+    #[arg(long, value_name = "pinhole|wall")]
+    pub camera: Option<String>,
+    /// The wall camera's display model (a file or a built-in name).
+    #[arg(long, value_name = "MODEL")]
+    pub display: Option<String>,
+    #[command(flatten)]
+    pub wall: crate::cli::wall::WallArgs,
 }
 
 fn run_trace_bench(args: &TraceBenchArgs) -> anyhow::Result<()> {
+    let camera = args.camera.as_deref().filter(|c| *c != "pinhole");
+    if let Some(c) = camera
+        && c != crate::cli::wall::WALL_CAMERA
+    {
+        anyhow::bail!("--camera {c}: bench trace measures pinhole or wall");
+    }
+    let model = match (&args.display, camera) {
+        (Some(d), Some(_)) => Some(DisplayModel::open(d).context("--display")?.0),
+        _ => None,
+    };
+    let wall = crate::cli::wall::wall_spec(camera, &args.wall, model.as_ref())?;
     let backend = Backend::select(args.backend)?;
     let scenes = crate::cli::scene::load_scenes(&args.scene, args.env.as_deref())?;
     let cfg = crate::bench::trace::TraceBenchConfig {
@@ -262,7 +295,7 @@ fn run_trace_bench(args: &TraceBenchArgs) -> anyhow::Result<()> {
         ..Default::default()
     };
     let (bar, progress) = bench_progress(args.json, scenes.len() as u64);
-    let rows = crate::bench::trace::run(&backend, &scenes, &cfg, progress)?;
+    let rows = crate::bench::trace::run(&backend, &scenes, &cfg, wall.as_ref(), progress)?;
     bar.finish_and_clear();
     let device = backend.describe();
     let text = if args.json {

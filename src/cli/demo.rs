@@ -16,7 +16,7 @@ use crate::filter::FilterParams;
 use crate::frame::GuideConfig;
 use crate::gpu::{Backend, BackendChoice};
 use crate::session::guide::GuideSource;
-use crate::session::render::{GuidedResult, Stopping, render_guided};
+use crate::session::render::{GuidedResult, Stopping, render_guided_wall};
 use crate::session::replay::{ReplayOptions, ReplayPlan};
 use crate::trace::camera::RenderCamera;
 use crate::trace::path::{DEFAULT_MAX_DEPTH, TraceSettings};
@@ -57,6 +57,12 @@ pub struct DemoArgs {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+    /// `wall`: render through the wall camera from --eye (headless: the viewer
+    /// does not show it yet).
+    #[arg(long, value_name = "wall")]
+    pub camera: Option<String>,
+    #[command(flatten)]
+    pub wall: crate::cli::wall::WallArgs,
 }
 
 /// Writes the embedded display model and replay under `<out>/inputs/`; returns their paths.
@@ -80,11 +86,13 @@ pub struct DemoOutput {
 pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     // Without the `viewer` feature there is no window to open: the demo renders headless.
     let windowed = cfg!(feature = "viewer") && has_display();
-    if !args.headless && windowed {
+    if args.camera.is_some() && !args.headless && windowed {
+        eprintln!("raygun demo: the viewer does not show the wall camera yet: rendering headless");
+    } else if !args.headless && windowed {
         let (display, replay) = write_inputs(&args.out)?;
         return crate::cli::view::run(&view_args(args, &display, &replay));
     }
-    if !args.headless {
+    if !args.headless && args.camera.is_none() {
         if cfg!(feature = "viewer") {
             eprintln!(
                 "raygun demo: no display (DISPLAY / WAYLAND_DISPLAY unset): rendering headless"
@@ -113,6 +121,14 @@ pub fn run_headless(args: &DemoArgs) -> anyhow::Result<DemoOutput> {
     if args.iterations == 0 {
         anyhow::bail!("--iterations must be at least 1");
     }
+    if let Some(c) = args.camera.as_deref()
+        && c != crate::cli::wall::WALL_CAMERA
+    {
+        anyhow::bail!("--camera {c}: the demo's only other camera is `wall`");
+    }
+    let embedded = DisplayModel::from_json(DISPLAY_JSON, DISPLAY_FILE)?;
+    let wall_spec =
+        crate::cli::wall::wall_spec(args.camera.as_deref(), &args.wall, Some(&embedded))?;
     crate::output::check_folder(&args.out)?;
     let backend = Backend::select(args.backend)?;
     let filter = FilterParams::default();
@@ -151,11 +167,16 @@ pub fn run_headless(args: &DemoArgs) -> anyhow::Result<DemoOutput> {
         Some(u64::from(args.iterations)),
         "iterations",
     );
-    let result = render_guided(
+    let wall = wall_spec
+        .map(|w| w.camera(args.size, &settings.camera))
+        .transpose()
+        .context("--camera wall")?;
+    let result = render_guided_wall(
         &backend,
         &scene,
         settings,
         &model,
+        wall,
         config,
         &filter,
         &source,

@@ -14,6 +14,7 @@ pub mod render;
 pub mod scene;
 pub mod tracking;
 pub mod view;
+pub mod wall;
 
 /// An error and its causes as one line, "what failed: why: why that", leaving out a cause whose
 /// text the message already holds (library errors often quote their source in their own text).

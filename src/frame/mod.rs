@@ -37,11 +37,12 @@ use crate::roi::dgi::{
 use crate::roi::gpu::{DgiKernel, DgiRun};
 use crate::scene::Scene;
 use crate::schedule::gpu::{ScheduleConfig, ScheduleKernel, ScheduleRun};
-use crate::schedule::{Order, ScheduleError, schedule_cpu};
+use crate::schedule::{Order, ScheduleError, schedule_cpu_shown};
 use crate::trace::accum::Accumulation;
 use crate::trace::gpu::{GpuAccum, GpuScene, TraceKernel, TraceRun, WORKGROUP};
 use crate::trace::pack::PackedScene;
-use crate::trace::path::{TraceSettings, render_cpu};
+use crate::trace::path::{TraceSettings, render_cpu_with};
+use crate::trace::wall::WallCamera;
 use stop::RoiProgress;
 
 /// How the ROI steers sampling.
@@ -80,6 +81,11 @@ pub enum FrameError {
         "a full-frame renderer has no display to aim an ROI at (build it with Renderer::guided)"
     )]
     NotGuided,
+    #[error(
+        "the wall camera was built for a {}×{} image, the renderer's is {}×{}",
+        wall[0], wall[1], image[0], image[1]
+    )]
+    WallSize { wall: [u32; 2], image: [u32; 2] },
 }
 
 /// What one frame did.
@@ -193,6 +199,9 @@ pub struct Renderer<'a> {
     iteration: u32,
     /// The filter stage, made on the first picture (its GPU kernels compile once).
     filter: OnceCell<Filter<'a>>,
+    /// The wall camera (DESIGN.md §11): primary rays from its eye through each pixel's wall
+    /// point, and only the pixels its display shows are scheduled and traced.
+    wall: Option<WallCamera>,
 }
 
 impl<'a> Renderer<'a> {
@@ -202,7 +211,18 @@ impl<'a> Renderer<'a> {
         scene: &Scene,
         settings: TraceSettings,
     ) -> Result<Self, FrameError> {
-        Self::new(backend, scene, settings, None)
+        Self::new(backend, scene, settings, None, None)
+    }
+
+    /// A full-frame render through the wall camera `wall`: every pixel its display shows, every
+    /// frame; the others are never traced.
+    pub fn full_wall(
+        backend: &'a Backend,
+        scene: &Scene,
+        settings: TraceSettings,
+        wall: WallCamera,
+    ) -> Result<Self, FrameError> {
+        Self::new(backend, scene, settings, None, Some(wall))
     }
 
     /// A render of `settings.width × settings.height` pixels covering `display`'s canvas,
@@ -214,6 +234,19 @@ impl<'a> Renderer<'a> {
         display: &DisplayModel,
         config: GuideConfig,
     ) -> Result<Self, FrameError> {
+        Self::guided_wall(backend, scene, settings, display, config, None)
+    }
+
+    /// [`Self::guided`] through the wall camera `wall` when given: the schedule never lists a
+    /// pixel its display does not show.
+    pub fn guided_wall(
+        backend: &'a Backend,
+        scene: &Scene,
+        settings: TraceSettings,
+        display: &DisplayModel,
+        config: GuideConfig,
+        wall: Option<WallCamera>,
+    ) -> Result<Self, FrameError> {
         crate::schedule::validate_p_min(config.p_min)?;
         let guidance = Guidance {
             config,
@@ -221,7 +254,7 @@ impl<'a> Renderer<'a> {
             pitch_m: display.pitch_m(),
             roi: None,
         };
-        Self::new(backend, scene, settings, Some(guidance))
+        Self::new(backend, scene, settings, Some(guidance), wall)
     }
 
     /// Packs the scene, builds its BVH and prepares every stage (on the GPU: uploads and
@@ -231,7 +264,16 @@ impl<'a> Renderer<'a> {
         scene: &Scene,
         settings: TraceSettings,
         guidance: Option<Guidance>,
+        wall: Option<WallCamera>,
     ) -> Result<Self, FrameError> {
+        if let Some(wc) = &wall
+            && [wc.width, wc.height] != [settings.width, settings.height]
+        {
+            return Err(FrameError::WallSize {
+                wall: [wc.width, wc.height],
+                image: [settings.width, settings.height],
+            });
+        }
         let t0 = Instant::now();
         let packed = PackedScene::new(scene);
         let build_seconds = t0.elapsed().as_secs_f64();
@@ -244,14 +286,21 @@ impl<'a> Renderer<'a> {
                 let gscene = GpuScene::upload(ctx, &kernel, &packed)?;
                 let accum = GpuAccum::new(ctx, w, h)?;
                 let guide = match &guidance {
-                    Some(g) => Some(gpu_guide(ctx, w, h, &g.config)?),
+                    Some(g) => Some(gpu_guide(
+                        ctx,
+                        w,
+                        h,
+                        &g.config,
+                        wall.as_ref().map(WallCamera::shown_mask),
+                    )?),
                     None => None,
                 };
-                let trace = TraceRun::new(
+                let trace = TraceRun::with_wall(
                     ctx,
                     &kernel,
                     &packed,
                     &settings,
+                    wall.as_ref(),
                     &accum,
                     guide
                         .as_ref()
@@ -289,6 +338,7 @@ impl<'a> Renderer<'a> {
             engine,
             iteration: 0,
             filter: OnceCell::new(),
+            wall,
         })
     }
 
@@ -471,8 +521,9 @@ impl<'a> Renderer<'a> {
             (Engine::Cpu { guide: Some(g), .. }, Some(guidance)) => {
                 let t0 = Instant::now();
                 let c = &guidance.config;
-                frame.list = Some(schedule_cpu(
-                    &g.dgi, w, h, c.p_min, iteration, seed, c.order,
+                let shown = self.wall.as_ref().map(WallCamera::shown_mask);
+                frame.list = Some(schedule_cpu_shown(
+                    &g.dgi, shown, w, h, c.p_min, iteration, seed, c.order,
                 )?);
                 if frame.timed {
                     frame.stats.ms_schedule = Some(t0.elapsed().as_secs_f64() * 1e3);
@@ -500,10 +551,14 @@ impl<'a> Renderer<'a> {
             Engine::Cpu { accum, .. } => {
                 let t0 = Instant::now();
                 let list = frame.list.as_deref();
-                let rays = render_cpu(&self.packed, &self.settings, accum, list);
-                let pixels = list.map_or(self.settings.width * self.settings.height, |l| {
-                    l.len() as u32
-                });
+                let rays = render_cpu_with(
+                    &self.packed,
+                    &self.settings,
+                    self.wall.as_ref(),
+                    accum,
+                    list,
+                );
+                let pixels = list.map_or_else(|| self.full_frame_pixels(), |l| l.len() as u32);
                 frame.stats.pixels = Some(pixels);
                 frame.stats.rays = Some(rays);
                 if frame.timed {
@@ -538,7 +593,7 @@ impl<'a> Renderer<'a> {
             }
             ctx.queue.submit([enc.finish()]);
             if guide.is_none() {
-                stats.pixels = Some(self.settings.width * self.settings.height);
+                stats.pixels = Some(self.full_frame_pixels());
             }
             if timed {
                 ctx.wait()?;
@@ -564,6 +619,21 @@ impl<'a> Renderer<'a> {
         }
         self.iteration += 1;
         Ok(stats)
+    }
+
+    /// Pixels a full frame traces: every pixel, or those the wall camera's display shows.
+    fn full_frame_pixels(&self) -> u32 {
+        self.wall
+            .as_ref()
+            .map_or(self.settings.width * self.settings.height, |w| {
+                w.shown_count() as u32
+            })
+    }
+
+    /// The wall camera, if the frames trace through one.
+    #[must_use]
+    pub fn wall(&self) -> Option<&WallCamera> {
+        self.wall.as_ref()
     }
 
     /// Runs `n` frames and waits for them.
@@ -649,7 +719,11 @@ impl<'a> Renderer<'a> {
         dgi: &[f32],
     ) -> Result<Vec<Vec3>, FrameError> {
         let filter = self.filter.get_or_init(|| Filter::new(self.backend));
-        Ok(filter.image(params, acc, dgi)?)
+        let mut image = filter.image(params, acc, dgi)?;
+        if let Some(w) = &self.wall {
+            w.blank_unshown(&mut image);
+        }
+        Ok(image)
     }
 
     /// The accumulation and the DGI the last frame used, ending the render (moved out on the
@@ -669,6 +743,7 @@ fn gpu_guide(
     w: u32,
     h: u32,
     config: &GuideConfig,
+    shown: Option<&[u32]>,
 ) -> Result<GpuGuide, FrameError> {
     let dgi = ctx.device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("frame dgi"),
@@ -678,9 +753,10 @@ fn gpu_guide(
             | wgpu::BufferUsages::COPY_SRC,
         mapped_at_creation: false,
     });
-    let schedule = ScheduleKernel::new(ctx).prepare(
+    let schedule = ScheduleKernel::new(ctx).prepare_shown(
         ctx,
         &dgi,
+        shown,
         &ScheduleConfig {
             width: w,
             height: h,

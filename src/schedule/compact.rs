@@ -91,9 +91,25 @@ fn check_dgi(dgi: &[f32], layout: &Layout) -> Result<(), ScheduleError> {
     Ok(())
 }
 
+/// Checks that a shown mask has one bit for each pixel.
+pub(crate) fn check_shown(shown: Option<&[u32]>, layout: &Layout) -> Result<(), ScheduleError> {
+    let expected = u64::from(layout.pixels()).div_ceil(32);
+    match shown {
+        Some(m) if m.len() as u64 != expected => Err(ScheduleError::ShownLength {
+            width: layout.width,
+            height: layout.height,
+            expected,
+            found: m.len() as u64,
+        }),
+        _ => Ok(()),
+    }
+}
+
 /// One iteration's draw over a validated DGI: what a compaction workgroup knows.
 struct Draw<'a> {
     dgi: &'a [f32],
+    /// Bit `p % 32` of word `p / 32`: pixel `p` may be selected (`None`: every pixel).
+    shown: Option<&'a [u32]>,
     layout: Layout,
     p_min: f32,
     iteration: u32,
@@ -106,6 +122,7 @@ struct Draw<'a> {
 impl<'a> Draw<'a> {
     fn new(
         dgi: &'a [f32],
+        shown: Option<&'a [u32]>,
         (width, height): (u32, u32),
         p_min: f32,
         iteration: u32,
@@ -115,6 +132,7 @@ impl<'a> Draw<'a> {
         let p_min = validate_p_min(p_min)?;
         let layout = Layout::new(width, height)?;
         check_dgi(dgi, &layout)?;
+        check_shown(shown, &layout)?;
         let offsets = (0..BLOCK_PIXELS)
             .map(|m| {
                 let (x, y) = morton_decode(m);
@@ -123,6 +141,7 @@ impl<'a> Draw<'a> {
             .collect();
         Ok(Self {
             dgi,
+            shown,
             layout,
             p_min,
             iteration,
@@ -134,6 +153,12 @@ impl<'a> Draw<'a> {
 
     #[inline]
     fn take(&self, px: u32) -> bool {
+        // A hidden pixel has probability 0 (the kernel's `shown_probability`).
+        if let Some(m) = self.shown
+            && m[(px / 32) as usize] >> (px % 32) & 1 == 0
+        {
+            return false;
+        }
         let p = probability(self.dgi[px as usize], self.p_min);
         selected(px, self.iteration, self.seed, p)
     }
@@ -178,7 +203,7 @@ pub fn schedule_cpu_blocks(
     seed: u32,
     order: Order,
 ) -> Result<Vec<Vec<u32>>, ScheduleError> {
-    let draw = Draw::new(dgi, (width, height), p_min, iteration, seed, order)?;
+    let draw = Draw::new(dgi, None, (width, height), p_min, iteration, seed, order)?;
     Ok((0..draw.layout.blocks())
         .into_par_iter()
         .map(|block| {
@@ -200,7 +225,24 @@ pub fn schedule_cpu(
     seed: u32,
     order: Order,
 ) -> Result<Vec<u32>, ScheduleError> {
-    let draw = Draw::new(dgi, (width, height), p_min, iteration, seed, order)?;
+    schedule_cpu_shown(dgi, None, width, height, p_min, iteration, seed, order)
+}
+
+/// [`schedule_cpu`] with a shown mask (bit `p % 32` of word `p / 32` for pixel `p`): pixels
+/// whose bit is clear have probability 0 and are never listed (the wall camera's bezels and
+/// gaps, DESIGN.md §11). The twin of the kernel with `Params.masked = 1`.
+#[allow(clippy::too_many_arguments)]
+pub fn schedule_cpu_shown(
+    dgi: &[f32],
+    shown: Option<&[u32]>,
+    width: u32,
+    height: u32,
+    p_min: f32,
+    iteration: u32,
+    seed: u32,
+    order: Order,
+) -> Result<Vec<u32>, ScheduleError> {
+    let draw = Draw::new(dgi, shown, (width, height), p_min, iteration, seed, order)?;
     let [tiles_x, tiles_y] = draw.layout.tiles;
     // One task per row of blocks: few allocations, and rows balance well across threads.
     let rows: Vec<Vec<u32>> = (0..tiles_y)

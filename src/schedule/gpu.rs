@@ -40,7 +40,7 @@
 //! the last value written before a submit to every iteration recorded in it (writes are
 //! staged ahead of the submit's command buffers), so a frame that records several iterations
 //! in one encoder, or a benchmark's repetitions, would all draw the same coin flips. Instead
-//! [`ScheduleRun::record`] copies a 32-byte buffer with this iteration's parameters into the
+//! [`ScheduleRun::record`] copies a 48-byte buffer with this iteration's parameters into the
 //! uniform inside the encoder, ordered with the passes around it. The copy is one small
 //! transfer per iteration; [`ScheduleRun::params`] exposes the uniform so the tracer can read
 //! the same iteration and seed instead of uploading its own.
@@ -82,6 +82,10 @@ pub struct GpuParams {
     pub seed: u32,
     pub p_min: f32,
     pub scatter_half_bits: u32,
+    /// 1: only pixels whose bit is set in the shown mask may be selected (the wall camera's
+    /// display shows them, DESIGN.md §11); 0: every pixel.
+    pub masked: u32,
+    pub _pad: [u32; 3],
 }
 
 /// Mirrors `ArgsParams` in shaders/schedule/args.wgsl.
@@ -135,8 +139,28 @@ impl ScheduleKernel {
         dgi: &wgpu::Buffer,
         config: &ScheduleConfig,
     ) -> Result<ScheduleRun, ScheduleError> {
+        self.prepare_shown(ctx, dgi, None, config)
+    }
+
+    /// [`Self::prepare`] with a shown mask (bit `p % 32` of word `p / 32` for pixel `p`): pixels
+    /// whose bit is clear get probability 0, as in [`super::schedule_cpu_shown`].
+    pub fn prepare_shown(
+        &self,
+        ctx: &GpuContext,
+        dgi: &wgpu::Buffer,
+        shown: Option<&[u32]>,
+        config: &ScheduleConfig,
+    ) -> Result<ScheduleRun, ScheduleError> {
         let p_min = validate_p_min(config.p_min)?;
         let layout = Layout::new(config.width, config.height)?;
+        super::compact::check_shown(shown, &layout)?;
+        let mask = ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("schedule shown mask"),
+                contents: bytemuck::cast_slice(shown.unwrap_or(&[0u32; 4])),
+                usage: wgpu::BufferUsages::STORAGE,
+            });
         let list_bytes = u64::from(layout.pixels()) * 4;
         if dgi.size() < list_bytes || !dgi.usage().contains(wgpu::BufferUsages::STORAGE) {
             return Err(ScheduleError::DgiBuffer {
@@ -184,6 +208,7 @@ impl ScheduleKernel {
                 entry(1, dgi),
                 entry(2, &list),
                 entry(3, &counter),
+                entry(4, &mask),
             ],
         });
         let args =
@@ -198,6 +223,7 @@ impl ScheduleKernel {
             layout,
             order: config.order,
             p_min,
+            masked: shown.is_some(),
         })
     }
 
@@ -314,6 +340,7 @@ pub struct ScheduleRun {
     layout: Layout,
     order: Order,
     p_min: f32,
+    masked: bool,
 }
 
 impl ScheduleRun {
@@ -358,6 +385,8 @@ impl ScheduleRun {
             seed,
             p_min: self.p_min,
             scatter_half_bits: self.layout.scatter_half_bits,
+            masked: u32::from(self.masked),
+            _pad: [0; 3],
         }
     }
 
@@ -430,7 +459,7 @@ mod tests {
             &compact,
             "Params",
             &crate::rust_layout!(GpuParams; size, tiles_x, order, iteration, seed, p_min,
-                scatter_half_bits),
+                scatter_half_bits, masked, _pad),
         );
         let args = validated("args.wgsl", ARGS_WGSL);
         assert_same_layout(

@@ -29,7 +29,7 @@ pub mod gpu;
 pub mod select;
 
 pub use args::indirect_grid;
-pub use compact::{Layout, schedule_cpu, schedule_cpu_blocks};
+pub use compact::{Layout, schedule_cpu, schedule_cpu_blocks, schedule_cpu_shown};
 pub use select::{morton_decode, probability, scatter, scatter_half_bits, selected};
 
 /// Edge of a block's tile in pixels (a block holds `TILE_EDGE²` slots).
@@ -83,6 +83,15 @@ pub enum ScheduleError {
     },
     #[error("the DGI has {found} values; a {width}×{height} image needs {expected}")]
     DgiLength {
+        width: u32,
+        height: u32,
+        expected: u64,
+        found: u64,
+    },
+    #[error(
+        "shown mask of {found} words for a {width}×{height} image: expected {expected} (one bit per pixel)"
+    )]
+    ShownLength {
         width: u32,
         height: u32,
         expected: u64,

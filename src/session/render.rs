@@ -16,6 +16,7 @@ use crate::output::OutputError;
 use crate::roi::dgi::Roi;
 use crate::scene::Scene;
 use crate::trace::path::TraceSettings;
+use crate::trace::wall::WallCamera;
 
 /// When a guided render stops.
 #[derive(Clone, Debug, Default)]
@@ -82,9 +83,38 @@ pub fn render_guided(
     filter: &FilterParams,
     source: &GuideSource,
     stopping: &Stopping,
+    on_iteration: impl FnMut(u32, Option<&RoiProgress>),
+) -> Result<GuidedResult, FrameError> {
+    render_guided_wall(
+        backend,
+        scene,
+        settings,
+        model,
+        None,
+        config,
+        filter,
+        source,
+        stopping,
+        on_iteration,
+    )
+}
+
+/// [`render_guided`] through the wall camera `wall` when given (DESIGN.md §11): only the pixels
+/// its display shows are scheduled and traced, and the others come out black.
+#[allow(clippy::too_many_arguments)]
+pub fn render_guided_wall(
+    backend: &Backend,
+    scene: &Scene,
+    settings: TraceSettings,
+    model: &DisplayModel,
+    wall: Option<WallCamera>,
+    config: GuideConfig,
+    filter: &FilterParams,
+    source: &GuideSource,
+    stopping: &Stopping,
     mut on_iteration: impl FnMut(u32, Option<&RoiProgress>),
 ) -> Result<GuidedResult, FrameError> {
-    let mut r = Renderer::guided(backend, scene, settings, model, config)?;
+    let mut r = Renderer::guided_wall(backend, scene, settings, model, config, wall)?;
     let t0 = Instant::now();
     let needs_progress = stopping.until.iter().any(StopCondition::needs_progress);
     let spread = stopping.iterations.unwrap_or(1);
@@ -116,8 +146,12 @@ pub fn render_guided(
         }
     };
     let seconds = t0.elapsed().as_secs_f64();
+    let wall = r.wall().cloned();
     let (acc, dgi) = r.finish()?;
-    let image = Filter::new(backend).image(filter, &acc, &dgi)?;
+    let mut image = Filter::new(backend).image(filter, &acc, &dgi)?;
+    if let Some(w) = &wall {
+        w.blank_unshown(&mut image);
+    }
     Ok(GuidedResult {
         size: [settings.width, settings.height],
         iterations: k,

@@ -10,6 +10,7 @@ use wgpu::util::DeviceExt;
 use super::accum::Accumulation;
 use super::pack::PackedScene;
 use super::path::TraceSettings;
+use super::wall::WallCamera;
 use crate::gpu::{GpuContext, GpuError, PassTimer};
 
 /// The kernel source (WGSL has no includes).
@@ -25,6 +26,8 @@ pub const TRACE_WGSL: &str = concat!(
 
 /// Threads per workgroup of the trace kernel (`WORKGROUP` in path.wgsl).
 pub const WORKGROUP: u32 = 64;
+/// Vec4s of the stand-in wall table when there is no wall camera (a binding is never empty).
+const TILE_VEC4S_MIN: usize = 4;
 /// The most workgroups in one dimension of a dispatch.
 const MAX_GROUPS_X: u32 = 65_535;
 
@@ -51,7 +54,8 @@ pub struct GpuTraceParams {
     pub cam_right: [f32; 3],
     pub node_count: u32,
     pub cam_up: [f32; 3],
-    pub _pad: u32,
+    /// The wall camera's tile count (0: pinhole or orthographic).
+    pub wall_tiles: u32,
     pub features: u32,
     pub extras_offset: u32,
     pub punctual_count: u32,
@@ -73,6 +77,17 @@ pub fn full_frame_grid(width: u32, height: u32) -> (u32, [u32; 2]) {
 impl GpuTraceParams {
     #[must_use]
     pub fn new(scene: &PackedScene, s: &TraceSettings, list_mode: bool) -> Self {
+        Self::with_wall(scene, s, None, list_mode)
+    }
+
+    /// The parameters with `wall`'s eye and tile count when given.
+    #[must_use]
+    pub fn with_wall(
+        scene: &PackedScene,
+        s: &TraceSettings,
+        wall: Option<&WallCamera>,
+        list_mode: bool,
+    ) -> Self {
         let (threads, [gx, _]) = full_frame_grid(s.width, s.height);
         let c = &s.camera;
         Self {
@@ -88,14 +103,14 @@ impl GpuTraceParams {
             env_conditional: scene.env_conditional,
             env_constant: scene.env_constant.to_array(),
             env_select: scene.env_select,
-            cam_pos: c.position.to_array(),
+            cam_pos: wall.map_or(c.position, |w| w.eye).to_array(),
             tan_half_y: c.tan_half_y,
             cam_fwd: c.forward.to_array(),
             aspect: c.aspect,
             cam_right: c.right.to_array(),
             node_count: scene.bvh.cwbvh.nodes.len() as u32,
             cam_up: c.up.to_array(),
-            _pad: 0,
+            wall_tiles: wall.map_or(0, |w| w.tiles.len() as u32),
             features: scene.features,
             extras_offset: scene.extras_offset,
             punctual_count: scene.punctual_count,
@@ -264,6 +279,8 @@ pub struct TraceRun {
     /// The scheduler's `(x, y, z, count)` buffer in list mode.
     args: Option<wgpu::Buffer>,
     groups: [u32; 2],
+    /// The wall camera the tile table was uploaded for (its eye goes into the parameters).
+    wall: Option<WallCamera>,
 }
 
 impl TraceRun {
@@ -278,16 +295,39 @@ impl TraceRun {
         accum: &GpuAccum,
         schedule: Option<(&wgpu::Buffer, &wgpu::Buffer)>,
     ) -> Self {
+        Self::with_wall(ctx, kernel, scene, settings, None, accum, schedule)
+    }
+
+    /// [`Self::new`] through `wall`'s primary rays when given (its tile table is uploaded:
+    /// [`TILE_VEC4S`](super::wall::TILE_VEC4S) vec4s a tile).
+    pub fn with_wall(
+        ctx: &GpuContext,
+        kernel: &TraceKernel,
+        scene: &PackedScene,
+        settings: &TraceSettings,
+        wall: Option<&WallCamera>,
+        accum: &GpuAccum,
+        schedule: Option<(&wgpu::Buffer, &wgpu::Buffer)>,
+    ) -> Self {
         let params = ctx
             .device
             .create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("trace params"),
-                contents: bytemuck::bytes_of(&GpuTraceParams::new(
+                contents: bytemuck::bytes_of(&GpuTraceParams::with_wall(
                     scene,
                     settings,
+                    wall,
                     schedule.is_some(),
                 )),
                 usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            });
+        let table = wall.map_or_else(|| vec![[0.0f32; 4]; TILE_VEC4S_MIN], WallCamera::gpu_table);
+        let wall_buf = ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("trace wall tiles"),
+                contents: bytemuck::cast_slice(&table),
+                usage: wgpu::BufferUsages::STORAGE,
             });
         let dummy = || {
             ctx.device.create_buffer(&wgpu::BufferDescriptor {
@@ -316,6 +356,7 @@ impl TraceRun {
                 entry(3, list),
                 entry(4, args),
                 entry(5, &accum.stats),
+                entry(6, &wall_buf),
             ],
         });
         let (_, groups) = full_frame_grid(settings.width, settings.height);
@@ -325,12 +366,13 @@ impl TraceRun {
             bind,
             args: schedule.map(|(_, a)| a.clone()),
             groups,
+            wall: wall.cloned(),
         }
     }
 
     /// Rewrites the parameters (a new camera, seed or depth) before the next submit.
     pub fn set_settings(&self, ctx: &GpuContext, scene: &PackedScene, settings: &TraceSettings) {
-        let p = GpuTraceParams::new(scene, settings, self.args.is_some());
+        let p = GpuTraceParams::with_wall(scene, settings, self.wall.as_ref(), self.args.is_some());
         ctx.queue
             .write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
     }
@@ -369,7 +411,7 @@ mod tests {
             "Params",
             &crate::rust_layout!(GpuTraceParams; size, count, mode, seed, max_depth, light_count,
                 groups_x, env_size, env_marginal, env_conditional, env_constant, env_select,
-                cam_pos, tan_half_y, cam_fwd, aspect, cam_right, node_count, cam_up, _pad,
+                cam_pos, tan_half_y, cam_fwd, aspect, cam_right, node_count, cam_up, wall_tiles,
                 features, extras_offset, punctual_count, punct_select, ortho_half_y, _pad1),
         );
         assert_eq!(

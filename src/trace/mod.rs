@@ -7,5 +7,6 @@ pub mod gpu;
 pub mod pack;
 pub mod path;
 pub mod shading;
+pub mod wall;
 
 pub use accum::{Accumulation, luminance};

@@ -2,9 +2,10 @@
 //! numbers, same formulas, f32), used as the test oracle and as the fallback backend.
 //!
 //! One call of [`trace_sample`] is one path: a pinhole (or orthographic) primary ray jittered
-//! inside the pixel, then at each vertex emission (MIS-weighted against next-event
-//! estimation), one light sample (the environment, a punctual light — a delta light, weight 1
-//! — or an emissive triangle, power heuristic), one BSDF sample (reflected, or refracted
+//! inside the pixel (or the wall camera's, [`trace_counted_with`]: from the eye through the
+//! pixel's point on the display, `super::wall`), then at each vertex emission (MIS-weighted
+//! against next-event estimation), one light sample (the environment, a punctual light — a
+//! delta light, weight 1 — or an emissive triangle, power heuristic), one BSDF sample (reflected, or refracted
 //! through glass), and Russian roulette from the fourth vertex on, up to `max_depth` vertices.
 //! Alpha-masked and blended triangles are tested during traversal (`alpha_covered`); the
 //! features a scene lacks (pack.rs's flags) cost a bit test.
@@ -30,6 +31,7 @@ use super::shading::{
     Bsdf, BsdfExt, basis, direction_to_equirect, equirect_to_direction, offset_ray, srgb_to_linear,
     uniform_sphere,
 };
+use super::wall::WallCamera;
 use crate::random::{pcg4d, stream, unit_f32};
 
 /// What one iteration of the integrator needs besides the scene.
@@ -351,12 +353,44 @@ pub fn trace_sample(sc: &PackedScene, s: &TraceSettings, pixel: u32, sample: u32
 /// [`trace_sample`] and the number of rays it traced (closest-hit and shadow rays).
 #[must_use]
 pub fn trace_counted(sc: &PackedScene, s: &TraceSettings, pixel: u32, sample: u32) -> (Vec3, u32) {
-    let mut rays = 0u32;
     let (x, y) = (pixel % s.width, pixel / s.width);
     let r0 = rand4(pixel, sample, s.seed, 0);
-    let (mut o, mut d) = s
+    let (o, d) = s
         .camera
         .ray(x as f32 + r0[0], y as f32 + r0[1], s.width, s.height);
+    trace_path(sc, s, pixel, sample, o, d)
+}
+
+/// [`trace_counted`] with `wall`'s primary ray when given (DESIGN.md §11); `None` for a pixel
+/// the wall camera's display does not show (nothing traced).
+#[must_use]
+pub fn trace_counted_with(
+    sc: &PackedScene,
+    s: &TraceSettings,
+    wall: Option<&WallCamera>,
+    pixel: u32,
+    sample: u32,
+) -> Option<(Vec3, u32)> {
+    let Some(wall) = wall else {
+        return Some(trace_counted(sc, s, pixel, sample));
+    };
+    let (x, y) = (pixel % s.width, pixel / s.width);
+    let tile = wall.tile_of(x, y)?;
+    let r0 = rand4(pixel, sample, s.seed, 0);
+    let (o, d) = wall.ray(tile, x, y, r0[0], r0[1]);
+    Some(trace_path(sc, s, pixel, sample, o, d))
+}
+
+/// The path from primary ray `(o, d)` of `pixel`'s sample `sample`: radiance and rays traced.
+fn trace_path(
+    sc: &PackedScene,
+    s: &TraceSettings,
+    pixel: u32,
+    sample: u32,
+    mut o: Vec3,
+    mut d: Vec3,
+) -> (Vec3, u32) {
+    let mut rays = 0u32;
     let mut throughput = Vec3::ONE;
     let mut radiance = Vec3::ZERO;
     // The BSDF density of the direction just taken; 0 for the camera ray (no MIS).
@@ -597,6 +631,18 @@ pub fn render_cpu(
     accum: &mut Accumulation,
     list: Option<&[u32]>,
 ) -> u64 {
+    render_cpu_with(sc, s, None, accum, list)
+}
+
+/// [`render_cpu`] through `wall`'s primary rays when given: pixels its display does not show
+/// are skipped (no sample, no count), in the list or not.
+pub fn render_cpu_with(
+    sc: &PackedScene,
+    s: &TraceSettings,
+    wall: Option<&WallCamera>,
+    accum: &mut Accumulation,
+    list: Option<&[u32]>,
+) -> u64 {
     match list {
         None => {
             let w = s.width as usize;
@@ -609,21 +655,22 @@ pub fn render_cpu(
                     let mut rays = 0u64;
                     for x in 0..w {
                         let pixel = (y * w + x) as u32;
-                        let (rgb, r) = trace_counted(sc, s, pixel, counts[x]);
-                        accumulate(&mut sums[x], &mut counts[x], rgb);
-                        rays += u64::from(r);
+                        if let Some((rgb, r)) = trace_counted_with(sc, s, wall, pixel, counts[x]) {
+                            accumulate(&mut sums[x], &mut counts[x], rgb);
+                            rays += u64::from(r);
+                        }
                     }
                     rays
                 })
                 .sum()
         }
         Some(list) => {
-            let samples: Vec<(Vec3, u32)> = list
+            let samples: Vec<Option<(Vec3, u32)>> = list
                 .par_iter()
-                .map(|&p| trace_counted(sc, s, p, accum.count[p as usize]))
+                .map(|&p| trace_counted_with(sc, s, wall, p, accum.count[p as usize]))
                 .collect();
             let mut rays = 0u64;
-            for (&p, (rgb, r)) in list.iter().zip(samples) {
+            for (&p, (rgb, r)) in list.iter().zip(samples).filter_map(|(p, s)| Some((p, s?))) {
                 let i = p as usize;
                 accumulate(&mut accum.sum[i], &mut accum.count[i], rgb);
                 rays += u64::from(r);

@@ -249,6 +249,7 @@ pub fn run(
             seed: cfg.seed,
             ..TraceBenchConfig::default()
         },
+        None,
         &mut progress,
     )?;
     drop(trace_scenes);
@@ -266,6 +267,7 @@ pub fn run(
             seed: cfg.seed,
             ..GuidedBenchConfig::default()
         },
+        None,
         &mut progress,
     )?;
     progress("filter");

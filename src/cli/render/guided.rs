@@ -20,9 +20,10 @@ use crate::roi::cone::Cone;
 use crate::roi::dgi::{Falloff, Roi};
 use crate::scene::Scene;
 use crate::session::guide::GuideSource;
-use crate::session::render::{Stopping, render_guided};
+use crate::session::render::{Stopping, render_guided_wall};
 use crate::session::replay::{ReplayOptions, ReplayPlan};
 use crate::trace::path::TraceSettings;
+use crate::trace::wall::WallCamera;
 
 /// Parses `pose:X,Y,Z:DX,DY,DZ:FOV[,FOV_V]` (room frame, metres, degrees; up is +Y) or
 /// `mouse:X,Y:A,B` (centre and semi-axes in image pixels) against `model`; `None` for
@@ -212,6 +213,7 @@ pub fn run(
     plan: &GuidedPlan,
     scene: &Scene,
     settings: TraceSettings,
+    wall: Option<WallCamera>,
     backend: &Backend,
 ) -> anyhow::Result<()> {
     eprintln!("raygun: display: {}", plan.display_note);
@@ -226,11 +228,12 @@ pub fn run(
         _ => None,
     });
     let t0 = Instant::now();
-    let res = render_guided(
+    let res = render_guided_wall(
         backend,
         scene,
         settings,
         &plan.model,
+        wall,
         plan.config,
         &plan.filter,
         &plan.source,

@@ -16,6 +16,7 @@ use clap::ArgGroup;
 use crate::cli::args::parse_size;
 use crate::cli::progress::Progress;
 use crate::cli::scene::load_scene;
+use crate::cli::wall::{WALL_CAMERA, wall_spec};
 use crate::display::DisplayModel;
 use crate::frame::Renderer;
 use crate::frame::stop::StopCondition;
@@ -25,6 +26,7 @@ use crate::output::{Format, check_image_path, write_rgb};
 use crate::scene::Scene;
 use crate::trace::camera::RenderCamera;
 use crate::trace::path::{DEFAULT_MAX_DEPTH, TraceSettings};
+use crate::trace::wall::{WallCamera, WallSpec};
 
 /// Samples per pixel of a full-frame render when `--spp` is not given.
 pub const DEFAULT_SPP: u32 = 64;
@@ -45,9 +47,13 @@ pub struct RenderArgs {
     /// builtin:city-small.
     #[arg(long, value_name = "FILE|builtin:NAME")]
     pub scene: String,
-    /// Camera by name (default: the scene's first camera, else one framing the scene).
-    #[arg(long, value_name = "NAME")]
+    /// Camera by name (default: the scene's first camera, else one framing the scene), or
+    /// `wall`: the wall camera — each pixel's primary ray from --eye through its point on
+    /// --display; pixels no tile shows (bezels) are never traced and stay black.
+    #[arg(long, value_name = "NAME|wall")]
     pub camera: Option<String>,
+    #[command(flatten)]
+    pub wall: crate::cli::wall::WallArgs,
     /// Look from this point (X,Y,Z, metres, the scene's frame) instead of a scene camera;
     /// needs --look-at.
     #[arg(long, value_name = "X,Y,Z", value_parser = crate::cli::args::parse_vec3, requires = "look_at", conflicts_with = "camera", allow_hyphen_values = true)]
@@ -245,6 +251,7 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
         Some(guide) => Some(guided::GuidedPlan::new(args, guide)?),
         None => None,
     };
+    let wall = resolve_wall(args, plan.as_ref())?;
     let backend = Backend::select(args.backend)?;
     let work = if plan.is_some() {
         Work::Render {
@@ -260,10 +267,12 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     if let Some(plan) = &plan {
         let scene = load_scene(&args.scene, args.env.as_deref())?;
         let settings = settings(args, &scene)?;
-        return guided::run(args, plan, &scene, settings, &backend);
+        let wall = wall_camera(wall.as_ref(), &settings)?;
+        return guided::run(args, plan, &scene, settings, wall, &backend);
     }
-    // A full frame: --display matters only for the tiles.
-    let wall = match &args.tiles {
+    // A full frame: --display matters only for the tiles and the wall camera.
+    let tiles_model = match &args.tiles {
+        Some(_) if wall.is_some() => wall.as_ref().map(|w| w.model.clone()),
         Some(_) => {
             let spec = args
                 .display
@@ -279,7 +288,10 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     let settings = settings(args, &scene)?;
     let [w, h] = args.size;
     let spp = args.spp.unwrap_or(DEFAULT_SPP);
-    let mut renderer = Renderer::full(&backend, &scene, settings)?;
+    let mut renderer = match wall_camera(wall.as_ref(), &settings)? {
+        Some(wc) => Renderer::full_wall(&backend, &scene, settings, wc)?,
+        None => Renderer::full(&backend, &scene, settings)?,
+    };
     let mut bar = Progress::new(args.quiet, "rendering", Some(u64::from(spp)), "spp");
     // Batches of about a quarter second keep the bar moving without starving the GPU.
     let t0 = Instant::now();
@@ -303,7 +315,7 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     for out in &args.out {
         write_rgb(out, w, h, &image, args.exposure)?;
     }
-    if let Some(model) = &wall {
+    if let Some(model) = &tiles_model {
         write_wall_tiles(args, model, &image)?;
     }
     let megasamples = f64::from(w) * f64::from(h) * f64::from(spp) / 1e6;
@@ -318,13 +330,41 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The tracer's settings from the arguments and the scene's camera.
+/// The wall camera's flags checked against the display (`--camera wall`), before any work: the
+/// guided plan's display, else `--display`'s.
+fn resolve_wall(
+    args: &RenderArgs,
+    plan: Option<&guided::GuidedPlan>,
+) -> anyhow::Result<Option<WallSpec>> {
+    let wants = args.camera.as_deref() == Some(WALL_CAMERA);
+    let model = match (&args.display, plan) {
+        (Some(_), Some(p)) if wants => Some(p.model.clone()),
+        (Some(d), None) if wants => Some(DisplayModel::open(d).context("--display")?.0),
+        _ => None,
+    };
+    wall_spec(args.camera.as_deref(), &args.wall, model.as_ref())
+}
+
+/// The wall camera of `spec` for the settings' image, `auto` placing their camera at the eye.
+fn wall_camera(
+    spec: Option<&WallSpec>,
+    settings: &TraceSettings,
+) -> anyhow::Result<Option<WallCamera>> {
+    spec.map(|s| {
+        s.camera([settings.width, settings.height], &settings.camera)
+            .context("--camera wall")
+    })
+    .transpose()
+}
+
+/// The tracer's settings from the arguments and the scene's camera (with `--camera wall`, the
+/// camera `--world-from-room auto` puts at the eye: the scene's first).
 fn settings(args: &RenderArgs, scene: &Scene) -> anyhow::Result<TraceSettings> {
     let [w, h] = args.size;
     let look = look_at(args.look_from, args.look_at, args.yfov);
-    let camera =
-        RenderCamera::choose_or_look_at(scene, args.camera.as_deref(), look.as_ref(), w, h)
-            .with_context(|| format!("scene {}", args.scene))?;
+    let name = args.camera.as_deref().filter(|c| *c != WALL_CAMERA);
+    let camera = RenderCamera::choose_or_look_at(scene, name, look.as_ref(), w, h)
+        .with_context(|| format!("scene {}", args.scene))?;
     Ok(TraceSettings {
         width: w,
         height: h,

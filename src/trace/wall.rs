@@ -1,0 +1,426 @@
+//! The wall camera (DESIGN.md §11): the primary ray of image pixel c starts at the eye and
+//! passes through c's own point on the display surface (DESIGN.md §3), jittered over the
+//! pixel's footprint on its tile (the box filter of the pinhole).
+//!
+//! # What is uploaded, and why no per-pixel table
+//!
+//! Each tile's map from tile pixels to room points is affine (`top_left + step_x·x +
+//! step_y·y`), and the image covers the canvas by a per-axis scale, so the map from *image*
+//! pixels to room points is affine per tile too. [`WallCamera`] keeps, per tile, the range of
+//! image pixels whose centres lie on the tile's active area (integers: every backend agrees on
+//! which pixel belongs to which tile, bit for bit) and that affine map, already turned into the
+//! scene's frame and taken relative to the eye. The kernel (`shaders/trace/path.wgsl`,
+//! `wall_ray`) and the CPU twin ([`WallCamera::ray`]) compute the same f32 expression from
+//! these 16 floats per tile, so the wall is exact at any image size (HORNET's 73.8 MP canvas
+//! included) for 64 bytes a tile.
+//!
+//! # Pixels no display shows
+//!
+//! An image pixel whose centre falls on no tile's active area (bezels, gaps, the corners of a
+//! canvas that is no full rectangle) is not shown: it is never scheduled (the schedule reads
+//! the [`WallCamera::shown_mask`] bitmask, 1 bit a pixel, 9.2 MB at 73.8 MP), never traced,
+//! keeps zero samples and comes out black.
+//!
+//! # Room and scene
+//!
+//! The eye is in the room frame (DESIGN.md §2, metres). [`WorldFromRoom`] places the room in
+//! the scene: `identity` (the room frame is the scene frame), an explicit translation, yaw
+//! about +Y and scale, or `auto`: the scene's chosen camera sits at the eye and looks at the
+//! wall's centre (its up vector kept as up).
+
+use glam::{DMat3, DVec2, DVec3, Vec3};
+
+use super::camera::RenderCamera;
+use crate::display::DisplayModel;
+
+/// The eye must be at least this far (metres) in front of every tile's plane: closer, the rays
+/// through that tile graze it (and on or behind it they would leave through the panel's back).
+pub const MIN_EYE_DISTANCE_M: f64 = 1e-3;
+
+/// A tile index no pixel has (the kernel's `NO_TILE`).
+pub const NO_TILE: u32 = u32::MAX;
+
+/// Vec4s per tile in the GPU table (`wall` in shaders/trace/path.wgsl).
+pub const TILE_VEC4S: usize = 4;
+
+/// Where the room frame sits in the scene (`--world-from-room`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum WorldFromRoom {
+    /// The scene's chosen camera at the eye, looking at the wall's centre.
+    Auto,
+    /// The room frame is the scene's frame.
+    Identity,
+    /// `scene = translation + R_y(yaw) · scale · room` (scene units per metre: `scale`).
+    Explicit {
+        translation: DVec3,
+        yaw_deg: f64,
+        scale: f64,
+    },
+}
+
+/// Why a wall camera could not be built.
+#[derive(Debug, thiserror::Error)]
+pub enum WallCameraError {
+    #[error("--eye {eye}: not a finite point")]
+    EyeNotFinite { eye: DVec3 },
+    #[error(
+        "--eye {eye}: the eye is {distance_m:.4} m in front of tile {tile}'s plane (on it or behind it when ≤ 0); it must be at least {MIN_EYE_DISTANCE_M} m in front of every tile of {model}"
+    )]
+    EyeBehindTile {
+        eye: DVec3,
+        tile: String,
+        model: String,
+        distance_m: f64,
+    },
+    #[error(
+        "--world-from-room: scale {scale} must be a finite number above 0 (scene units per metre)"
+    )]
+    Scale { scale: f64 },
+    #[error("--world-from-room: the translation and yaw must be finite numbers")]
+    NotFinite,
+    #[error(
+        "--world-from-room auto: the scene camera looks straight up or down, or the eye looks at the wall's centre along ±Y: no up direction to keep"
+    )]
+    AutoDegenerate,
+    #[error("image size {width}×{height} has no pixels")]
+    Size { width: u32, height: u32 },
+}
+
+/// The room → scene similarity: `scene = translation + rotation · room` (`rotation` includes
+/// the scale).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SceneFromRoom {
+    pub rotation: DMat3,
+    pub translation: DVec3,
+}
+
+impl SceneFromRoom {
+    #[must_use]
+    pub fn point(&self, p: DVec3) -> DVec3 {
+        self.translation + self.rotation * p
+    }
+
+    #[must_use]
+    pub fn vector(&self, v: DVec3) -> DVec3 {
+        self.rotation * v
+    }
+}
+
+/// Right, up and backward of a viewing direction with `up` as the up hint (columns of a
+/// camera-to-frame rotation looking along −Z); `None` when they are parallel.
+fn view_basis(forward: DVec3, up: DVec3) -> Option<DMat3> {
+    let f = forward.try_normalize()?;
+    let r = f.cross(up).try_normalize()?;
+    let u = r.cross(f);
+    Some(DMat3::from_cols(r, u, -f))
+}
+
+impl WorldFromRoom {
+    /// The similarity for an eye and the wall's centre (room frame), and the scene camera's
+    /// position, forward and up (scene frame) for `auto`.
+    pub fn resolve(
+        &self,
+        eye: DVec3,
+        wall_centre: DVec3,
+        camera: (DVec3, DVec3, DVec3),
+    ) -> Result<SceneFromRoom, WallCameraError> {
+        match *self {
+            Self::Identity => Ok(SceneFromRoom {
+                rotation: DMat3::IDENTITY,
+                translation: DVec3::ZERO,
+            }),
+            Self::Explicit {
+                translation,
+                yaw_deg,
+                scale,
+            } => {
+                if !(scale.is_finite() && scale > 0.0) {
+                    return Err(WallCameraError::Scale { scale });
+                }
+                if !translation.is_finite() || !yaw_deg.is_finite() {
+                    return Err(WallCameraError::NotFinite);
+                }
+                Ok(SceneFromRoom {
+                    rotation: DMat3::from_rotation_y(yaw_deg.to_radians()) * scale,
+                    translation,
+                })
+            }
+            Self::Auto => {
+                let (pos, fwd, up) = camera;
+                let room = view_basis(wall_centre - eye, DVec3::Y)
+                    .ok_or(WallCameraError::AutoDegenerate)?;
+                let scene = view_basis(fwd, up).ok_or(WallCameraError::AutoDegenerate)?;
+                let rotation = scene * room.transpose();
+                Ok(SceneFromRoom {
+                    rotation,
+                    translation: pos - rotation * eye,
+                })
+            }
+        }
+    }
+}
+
+/// What the command line asks for (`--camera wall --eye … --world-from-room …` with a
+/// display): a wall camera once the image size and the scene camera are known.
+#[derive(Clone, Debug, PartialEq)]
+pub struct WallSpec {
+    pub model: DisplayModel,
+    /// Room frame, metres.
+    pub eye: DVec3,
+    pub placement: WorldFromRoom,
+}
+
+impl WallSpec {
+    /// Checks what needs no scene: the eye in front of every tile, the placement's numbers.
+    pub fn check(&self) -> Result<(), WallCameraError> {
+        let any = (DVec3::ZERO, DVec3::NEG_Z, DVec3::Y);
+        WallCamera::new(&self.model, [1, 1], self.eye, &self.placement, any).map(|_| ())
+    }
+
+    /// The wall camera for a `size` image, `auto` placing `scene_camera` at the eye.
+    pub fn camera(
+        &self,
+        size: [u32; 2],
+        scene_camera: &RenderCamera,
+    ) -> Result<WallCamera, WallCameraError> {
+        let c = scene_camera;
+        WallCamera::new(
+            &self.model,
+            size,
+            self.eye,
+            &self.placement,
+            (c.position.as_dvec3(), c.forward.as_dvec3(), c.up.as_dvec3()),
+        )
+    }
+}
+
+/// One tile as the tracer sees it: the image pixels it shows and its affine map.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WallTile {
+    /// Image pixels `x0..x1` × `y0..y1` have their centres on this tile's active area.
+    pub x0: u32,
+    pub x1: u32,
+    pub y0: u32,
+    pub y1: u32,
+    /// Scene frame: the vector from the eye to the wall point of image point `(x0, y0)` (the
+    /// corner of pixel `(x0, y0)`, extended in the tile's plane), and the steps of one image
+    /// pixel along x and y.
+    pub origin: Vec3,
+    pub step_x: Vec3,
+    pub step_y: Vec3,
+}
+
+/// The wall camera for one display model, image size, eye and placement.
+#[derive(Clone, Debug, PartialEq)]
+pub struct WallCamera {
+    pub width: u32,
+    pub height: u32,
+    /// Room frame, metres.
+    pub eye_room: DVec3,
+    /// The eye in the scene's frame: every primary ray's origin.
+    pub eye: Vec3,
+    pub scene_from_room: SceneFromRoom,
+    pub tiles: Vec<WallTile>,
+    /// Bit `p % 32` of word `p / 32`: image pixel `p = y·width + x` is shown by some tile.
+    shown: Vec<u32>,
+    shown_count: u64,
+}
+
+/// The first image pixel whose centre `(i + 0.5)·scale + min` is at or past canvas coordinate
+/// `c`, clamped to `0..=n`.
+fn first_pixel_at(c: f64, min: f64, scale: f64, n: u32) -> u32 {
+    let i = ((c - min) / scale - 0.5).ceil();
+    i.clamp(0.0, f64::from(n)) as u32
+}
+
+impl WallCamera {
+    /// The wall camera of `model` for a `width × height` image covering its canvas, with the
+    /// eye at `eye` (room frame) and the room placed in the scene by `placement`. `camera` is the
+    /// scene camera `auto` puts at the eye: position, forward, up (scene frame).
+    pub fn new(
+        model: &DisplayModel,
+        [width, height]: [u32; 2],
+        eye: DVec3,
+        placement: &WorldFromRoom,
+        camera: (DVec3, DVec3, DVec3),
+    ) -> Result<Self, WallCameraError> {
+        if width == 0 || height == 0 {
+            return Err(WallCameraError::Size { width, height });
+        }
+        if !eye.is_finite() {
+            return Err(WallCameraError::EyeNotFinite { eye });
+        }
+        for t in model.tiles() {
+            let distance_m = (eye - t.corners()[0]).dot(t.normal());
+            if !(distance_m >= MIN_EYE_DISTANCE_M) {
+                return Err(WallCameraError::EyeBehindTile {
+                    eye,
+                    tile: t.id().to_owned(),
+                    model: model.name().to_owned(),
+                    distance_m,
+                });
+            }
+        }
+        let canvas = model.canvas_rect();
+        let centre_c = canvas.center();
+        let centre = model.canvas_to_point(centre_c).unwrap_or_else(|| {
+            model.tiles()[model.nearest_tile(centre_c)].canvas_to_point(centre_c)
+        });
+        let xf = placement.resolve(eye, centre, camera)?;
+        let scale = canvas.size() / DVec2::new(f64::from(width), f64::from(height));
+        let mut tiles = Vec::with_capacity(model.tiles().len());
+        for t in model.tiles() {
+            let a = t.active_rect();
+            let x0 = first_pixel_at(a.min.x, canvas.min.x, scale.x, width);
+            let x1 = first_pixel_at(a.max.x, canvas.min.x, scale.x, width);
+            let y0 = first_pixel_at(a.min.y, canvas.min.y, scale.y, height);
+            let y1 = first_pixel_at(a.max.y, canvas.min.y, scale.y, height);
+            // Image point (x0, y0) on the canvas, and its wall point in the tile's plane.
+            let c0 = canvas.min + DVec2::new(f64::from(x0), f64::from(y0)) * scale;
+            let p0 = t.canvas_to_point(c0);
+            let sx = t.canvas_to_point(c0 + DVec2::new(scale.x, 0.0)) - p0;
+            let sy = t.canvas_to_point(c0 + DVec2::new(0.0, scale.y)) - p0;
+            tiles.push(WallTile {
+                x0,
+                x1,
+                y0,
+                y1,
+                origin: xf.vector(p0 - eye).as_vec3(),
+                step_x: xf.vector(sx).as_vec3(),
+                step_y: xf.vector(sy).as_vec3(),
+            });
+        }
+        let n = u64::from(width) * u64::from(height);
+        let mut shown = vec![0u32; n.div_ceil(32) as usize];
+        let mut shown_count = 0u64;
+        for y in 0..height {
+            for t in tiles.iter().filter(|t| (t.y0..t.y1).contains(&y)) {
+                for x in t.x0..t.x1 {
+                    let p = u64::from(y) * u64::from(width) + u64::from(x);
+                    let (w, b) = ((p / 32) as usize, p % 32);
+                    if shown[w] & (1 << b) == 0 {
+                        shown[w] |= 1 << b;
+                        shown_count += 1;
+                    }
+                }
+            }
+        }
+        Ok(Self {
+            width,
+            height,
+            eye_room: eye,
+            eye: xf.point(eye).as_vec3(),
+            scene_from_room: xf,
+            tiles,
+            shown,
+            shown_count,
+        })
+    }
+
+    /// The tile that shows image pixel `(x, y)` (the first listed), else `None`: the twin of
+    /// `wall_tile` in path.wgsl.
+    #[inline]
+    #[must_use]
+    pub fn tile_of(&self, x: u32, y: u32) -> Option<usize> {
+        self.tiles
+            .iter()
+            .position(|t| x >= t.x0 && x < t.x1 && y >= t.y0 && y < t.y1)
+    }
+
+    /// Whether pixel `p = y·width + x` is shown by some tile (reads the bitmask).
+    #[inline]
+    #[must_use]
+    pub fn is_shown(&self, p: u32) -> bool {
+        shown_bit(&self.shown, p)
+    }
+
+    /// The bitmask the schedule reads (bit `p % 32` of word `p / 32`).
+    #[must_use]
+    pub fn shown_mask(&self) -> &[u32] {
+        &self.shown
+    }
+
+    /// How many image pixels some tile shows.
+    #[must_use]
+    pub fn shown_count(&self) -> u64 {
+        self.shown_count
+    }
+
+    /// The primary ray (origin, unit direction) through image point `(x + jx, y + jy)` of the
+    /// shown pixel `(x, y)` on tile `tile`: the same f32 operations as `wall_ray` in path.wgsl.
+    #[inline]
+    #[must_use]
+    pub fn ray(&self, tile: usize, x: u32, y: u32, jx: f32, jy: f32) -> (Vec3, Vec3) {
+        let t = &self.tiles[tile];
+        let fx = (x - t.x0) as f32 + jx;
+        let fy = (y - t.y0) as f32 + jy;
+        let d = t.origin + t.step_x * fx + t.step_y * fy;
+        (self.eye, d.normalize())
+    }
+
+    /// Sets every pixel no tile shows to black (a filtered picture spreads neighbours' light
+    /// into unsampled pixels; those on bezels must stay dark).
+    pub fn blank_unshown<T: Copy + Default>(&self, image: &mut [T]) {
+        for (p, v) in image.iter_mut().enumerate() {
+            if !self.is_shown(p as u32) {
+                *v = T::default();
+            }
+        }
+    }
+
+    /// The GPU table: [`TILE_VEC4S`] vec4s per tile — `(x0, x1, y0, y1)` as u32 bits, then
+    /// origin, step_x and step_y (w = 0).
+    #[must_use]
+    pub fn gpu_table(&self) -> Vec<[f32; 4]> {
+        let mut out = Vec::with_capacity(self.tiles.len() * TILE_VEC4S);
+        for t in &self.tiles {
+            out.push([t.x0, t.x1, t.y0, t.y1].map(f32::from_bits));
+            out.push(t.origin.extend(0.0).to_array());
+            out.push(t.step_x.extend(0.0).to_array());
+            out.push(t.step_y.extend(0.0).to_array());
+        }
+        out
+    }
+}
+
+/// Bit `p` of a shown-pixel bitmask.
+#[inline]
+#[must_use]
+pub fn shown_bit(mask: &[u32], p: u32) -> bool {
+    mask[(p / 32) as usize] >> (p % 32) & 1 != 0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cam() -> (DVec3, DVec3, DVec3) {
+        (DVec3::new(1.0, 2.0, 3.0), DVec3::NEG_X, DVec3::Y)
+    }
+
+    #[test]
+    fn auto_puts_the_scene_camera_at_the_eye_looking_at_the_centre() {
+        let eye = DVec3::new(0.2, 0.1, 1.5);
+        let centre = DVec3::new(0.0, 0.0, 0.0);
+        let xf = WorldFromRoom::Auto.resolve(eye, centre, cam()).unwrap();
+        assert!(xf.point(eye).abs_diff_eq(cam().0, 1e-12));
+        let f = xf.vector((centre - eye).normalize());
+        assert!(f.abs_diff_eq(DVec3::NEG_X, 1e-12), "{f}");
+    }
+
+    #[test]
+    fn explicit_placement_turns_about_y_and_scales() {
+        let xf = WorldFromRoom::Explicit {
+            translation: DVec3::new(1.0, 0.0, 0.0),
+            yaw_deg: 90.0,
+            scale: 2.0,
+        }
+        .resolve(DVec3::ZERO, DVec3::NEG_Z, cam())
+        .unwrap();
+        // +X turned 90° about +Y is −Z; doubled, then shifted.
+        assert!(
+            xf.point(DVec3::X)
+                .abs_diff_eq(DVec3::new(1.0, 0.0, -2.0), 1e-12)
+        );
+    }
+}
