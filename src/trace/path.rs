@@ -458,11 +458,17 @@ pub fn trace_counted(sc: &PackedScene, s: &TraceSettings, pixel: u32, sample: u3
             }
         });
         let transmits = ext.is_some_and(|e| e.transmits());
+        // The core BSDF's lobe probability, shared by its two evaluations and its sample.
+        let ps = if ext.is_none() {
+            bsdf.specular_probability(ns.dot(wo))
+        } else {
+            0.0
+        };
         let eval = |wi: Vec3| {
             if let Some(e) = &ext {
                 e.eval(ns, wo, wi)
             } else {
-                bsdf.eval(ns, wo, wi)
+                bsdf.eval_with(ps, ns, wo, wi)
             }
         };
         let r1 = rand4(pixel, sample, s.seed, 1 + 2 * depth);
@@ -557,7 +563,7 @@ pub fn trace_counted(sc: &PackedScene, s: &TraceSettings, pixel: u32, sample: u3
         // Continue the path by sampling the BSDF.
         let wi = match &ext {
             Some(e) => e.sample(ns, wo, r1[3], r2[0], r2[1]),
-            None => bsdf.sample(ns, wo, r1[3], r2[0], r2[1]),
+            None => bsdf.sample_with(ps, ns, wo, r1[3], r2[0], r2[1]),
         };
         let side = wi.dot(ng);
         // Below the surface only through a transmitting one, and on the same side of the
