@@ -16,6 +16,7 @@
 //! 2 + 2·depth serve the path vertex at `depth`.
 
 use std::f32::consts::PI;
+use std::sync::LazyLock;
 
 use glam::{Vec2, Vec3, Vec4};
 use rayon::prelude::*;
@@ -95,18 +96,21 @@ fn wrap(i: i32, n: u32, mode: u32) -> u32 {
     }) as u32
 }
 
+/// `srgb_to_linear(i / 255)` for every 8-bit channel value `i`: the decoding of a colour
+/// texel, computed once (the same values; a `powf` per channel was 7 % of the small city's
+/// profile, BENCHMARKS.md).
+static SRGB_TO_LINEAR: LazyLock<[f32; 256]> =
+    LazyLock::new(|| std::array::from_fn(|i| srgb_to_linear(i as f32 / 255.0)));
+
 fn texel(sc: &PackedScene, off: u32, w: u32, h: u32, sampler: u32, x: i32, y: i32) -> Vec4 {
     let xi = wrap(x, w, sampler & 3);
     let yi = wrap(y, h, (sampler >> 2) & 3);
     let c = sc.texels[(off + yi * w + xi) as usize];
     let ch = |s: u32| ((c >> s) & 0xff) as f32 / 255.0;
     if sampler & 32 != 0 {
-        Vec4::new(
-            srgb_to_linear(ch(0)),
-            srgb_to_linear(ch(8)),
-            srgb_to_linear(ch(16)),
-            ch(24),
-        )
+        let lut = &*SRGB_TO_LINEAR;
+        let lin = |s: u32| lut[((c >> s) & 0xff) as usize];
+        Vec4::new(lin(0), lin(8), lin(16), ch(24))
     } else {
         Vec4::new(ch(0), ch(8), ch(16), ch(24))
     }
@@ -492,11 +496,17 @@ fn trace_path(
             }
         });
         let transmits = ext.is_some_and(|e| e.transmits());
+        // The core BSDF's lobe probability, shared by its two evaluations and its sample.
+        let ps = if ext.is_none() {
+            bsdf.specular_probability(ns.dot(wo))
+        } else {
+            0.0
+        };
         let eval = |wi: Vec3| {
             if let Some(e) = &ext {
                 e.eval(ns, wo, wi)
             } else {
-                bsdf.eval(ns, wo, wi)
+                bsdf.eval_with(ps, ns, wo, wi)
             }
         };
         let r1 = rand4(pixel, sample, s.seed, 1 + 2 * depth);
@@ -591,7 +601,7 @@ fn trace_path(
         // Continue the path by sampling the BSDF.
         let wi = match &ext {
             Some(e) => e.sample(ns, wo, r1[3], r2[0], r2[1]),
-            None => bsdf.sample(ns, wo, r1[3], r2[0], r2[1]),
+            None => bsdf.sample_with(ps, ns, wo, r1[3], r2[0], r2[1]),
         };
         let side = wi.dot(ng);
         // Below the surface only through a transmitting one, and on the same side of the

@@ -155,6 +155,14 @@ impl Bsdf {
         (fd, mix3(Vec3::splat(fd), fm, self.metallic))
     }
 
+    /// Whether this is a pure Lambertian surface (KHR_materials_specular 0, not metallic, a
+    /// finite base colour) whose specular lobe probability `ps` is 0 (a base colour that is not
+    /// black): then [`Self::eval_with`] skips the GGX terms, which are exactly zero.
+    #[inline]
+    fn is_lambert(&self, ps: f32) -> bool {
+        self.specular == 0.0 && self.metallic == 0.0 && ps == 0.0 && self.base.is_finite()
+    }
+
     /// Probability of sampling the specular lobe when leaving in direction with cosine `cos_o`.
     #[must_use]
     pub fn specular_probability(&self, cos_o: f32) -> f32 {
@@ -168,10 +176,25 @@ impl Bsdf {
     /// shading normal `n`; zero below the surface.
     #[must_use]
     pub fn eval(&self, n: Vec3, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        self.eval_with(self.specular_probability(n.dot(wo)), n, wo, wi)
+    }
+
+    /// [`Self::eval`] with the lobe probability `ps = specular_probability(n·wo)` computed by
+    /// the caller (once per path vertex: the light sample's and the BSDF sample's evaluation
+    /// and the sampling itself share it).
+    #[must_use]
+    #[inline]
+    pub fn eval_with(&self, ps: f32, n: Vec3, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
         let cos_o = n.dot(wo);
         let cos_i = n.dot(wi);
         if cos_o <= 0.0 || cos_i <= 0.0 {
             return (Vec3::ZERO, 0.0);
+        }
+        if self.is_lambert(ps) {
+            // What the general formulas give, to the bit, when s = metallic = 0 (F = F_d = 0,
+            // so the specular term is +0) and the specular lobe is never picked (ps = 0): the
+            // diffuse lobe base · (1 · 1 / π) and its pdf 0 + (1 · cos_i) / π.
+            return (self.base * (1.0 / PI), cos_i / PI);
         }
         let h = (wo + wi).normalize();
         let noh = n.dot(h).max(0.0);
@@ -185,7 +208,6 @@ impl Bsdf {
                 + cos_o * (cos_i * cos_i * (1.0 - a2) + a2).sqrt());
         let spec = fresnel * (d * vis);
         let diff = self.base * ((1.0 - self.metallic) * (1.0 - fd) / PI);
-        let ps = self.specular_probability(cos_o);
         let pdf = ps * d * noh / (4.0 * voh) + (1.0 - ps) * cos_i / PI;
         (diff + spec, pdf)
     }
@@ -193,8 +215,15 @@ impl Bsdf {
     /// Samples an incoming direction: `u_lobe` picks the lobe, `(u, v)` the direction.
     #[must_use]
     pub fn sample(&self, n: Vec3, wo: Vec3, u_lobe: f32, u: f32, v: f32) -> Vec3 {
+        self.sample_with(self.specular_probability(n.dot(wo)), n, wo, u_lobe, u, v)
+    }
+
+    /// [`Self::sample`] with `ps = specular_probability(n·wo)` from the caller.
+    #[must_use]
+    #[inline]
+    pub fn sample_with(&self, ps: f32, n: Vec3, wo: Vec3, u_lobe: f32, u: f32, v: f32) -> Vec3 {
         let (t, b) = basis(n);
-        if u_lobe < self.specular_probability(n.dot(wo)) {
+        if u_lobe < ps {
             let a2 = self.alpha * self.alpha;
             let cos_h = ((1.0 - u) / (1.0 + (a2 - 1.0) * u)).max(0.0).sqrt();
             let sin_h = (1.0 - cos_h * cos_h).max(0.0).sqrt();
