@@ -19,7 +19,7 @@ pub struct WallArgs {
     pub eye: Option<DVec3>,
     /// Where `--camera wall`'s room sits in the scene: auto (the scene's camera at the eye,
     /// looking at the wall's centre), identity (the room frame is the scene's), or
-    /// X,Y,Z,YAW_DEG[,SCALE] (scene = X,Y,Z + yaw about +Y · SCALE · room; SCALE default 1).
+    /// X,Y,Z,YAW_DEG or X,Y,Z,YAW_DEG,SCALE (scene = X,Y,Z + yaw about +Y · SCALE · room; SCALE default 1).
     #[arg(long, value_name = "auto|identity|X,Y,Z,YAW_DEG[,SCALE]", value_parser = parse_world_from_room, allow_hyphen_values = true)]
     pub world_from_room: Option<WorldFromRoom>,
 }

@@ -51,7 +51,7 @@ pub struct SceneBvh {
 }
 
 /// The BVH primitives' triangles as ten arrays (v0, e1, e2 by component, then 1.0 for a
-/// single-sided one), each padded by [`LANE_PAD`] zeros, so that the triangles of a node's
+/// single-sided one), each padded by `LANE_PAD` zeros, so that the triangles of a node's
 /// leaves — contiguous, at most 24 from the node's first primitive — load as 8-wide lanes.
 /// `alpha`: whether any primitive is alpha-tested (then the per-triangle test runs, in order,
 /// since coverage is decided per hit).
