@@ -1569,7 +1569,7 @@ fn the_record_and_replay_commands_reproduce_the_golden_roi_changes() {
 fn the_viewers_vrpn_source_delivers_the_shots() {
     use raygun::session::live::LiveTracking;
     use raygun::tracking::calibration::Calibration;
-    use raygun::viewer::core::{RoiSource, ViewerState};
+    use raygun::viewer::state::{RoiSource, ViewerState};
     let cap = tcp_capture();
     let (addr, _server) = serve(vec![cap.tcp.clone()], 4096);
     let cal = Calibration::from_json(

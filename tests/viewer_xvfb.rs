@@ -7,7 +7,7 @@
 use std::path::Path;
 use std::process::Command;
 
-use raygun::viewer::core::{NoiseContrast, NoiseRegions, predicted_noise_ratio};
+use raygun::viewer::diagnostics::{NoiseContrast, NoiseRegions, predicted_noise_ratio};
 
 #[path = "support/xvfb_settings.rs"]
 mod xvfb;

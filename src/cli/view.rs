@@ -19,7 +19,8 @@ use crate::tracking::ingest::Protocol;
 use crate::tracking::vrpn::VrpnAddress;
 #[cfg(feature = "viewer")]
 use crate::viewer::app::ViewerApp;
-use crate::viewer::core::{RoiSource, ViewerCore, ViewerState};
+use crate::viewer::core::ViewerCore;
+use crate::viewer::state::{RoiSource, ViewerState};
 
 #[derive(Clone, Debug, clap::Args)]
 #[command(group(clap::ArgGroup::new("tracking").args(["dtrack", "osc", "vrpn", "replay"])))]

@@ -10,7 +10,8 @@ use std::time::{Duration, Instant};
 use eframe::egui;
 use glam::DVec2;
 
-use super::core::{Overlay, RoiSource, ViewerCore, save_picture};
+use super::core::{ViewerCore, save_picture};
+use super::state::{Overlay, RoiSource};
 use crate::filter::{Blend, FilterKind};
 use crate::interaction::CursorMark;
 use crate::session::live::LiveTracking;
@@ -352,7 +353,7 @@ impl eframe::App for ViewerApp<'_> {
             let dir = self.save_dir.join("recording");
             let path = dir.join(format!("frame-{:05}.png", self.recorded));
             let saved = std::fs::create_dir_all(&dir)
-                .map_err(|error| super::core::ViewerError::CreateDir {
+                .map_err(|error| super::ViewerError::CreateDir {
                     dir: dir.clone(),
                     error,
                 })
@@ -403,7 +404,7 @@ impl eframe::App for ViewerApp<'_> {
                     .map(|i| {
                         crate::output::replace_with(&path, |tmp| {
                             i.save_with_format(tmp, image::ImageFormat::Png)
-                                .map_err(|error| super::core::ViewerError::Png {
+                                .map_err(|error| super::ViewerError::Png {
                                     path: path.clone(),
                                     error,
                                 })

@@ -193,7 +193,8 @@ mod tests {
     use super::*;
     use crate::trace::camera::RenderCamera;
     use crate::trace::path::TraceSettings;
-    use crate::viewer::core::{RoiSource, ViewerCore, ViewerState};
+    use crate::viewer::core::ViewerCore;
+    use crate::viewer::state::{RoiSource, ViewerState};
 
     /// The display stage converts exactly as the viewer's picture does.
     #[test]
