@@ -247,8 +247,7 @@ impl DgiBenchReport {
             s.push_str(&format!(
                 "| {}° | {} | {}{} | {:.3} | {:.3} | {:.3} | {:.2} % | {:.3} | {:.4} | {} |\n",
                 r.fov_deg,
-                clap::ValueEnum::to_possible_value(&r.metric)
-                    .map_or_else(String::new, |v| v.get_name().to_owned()),
+                r.metric.name(),
                 r.backend,
                 if r.gpu_timestamps {
                     " (timestamps)"

@@ -194,4 +194,14 @@ mod tests {
             Err(ListParseError::Count { found: 1, .. })
         ));
     }
+
+    /// The reports' metric names are the command line's.
+    #[test]
+    fn metric_names_are_the_flags_values() {
+        use crate::roi::dgi::Metric;
+        use clap::ValueEnum;
+        for m in Metric::value_variants() {
+            assert_eq!(m.to_possible_value().unwrap().get_name(), m.name());
+        }
+    }
 }

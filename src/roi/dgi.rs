@@ -32,6 +32,18 @@ pub enum Metric {
     Angular,
 }
 
+impl Metric {
+    /// The name the command line and the reports use (`exact`, `ellipse`, `angular`).
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Exact => "exact",
+            Self::Ellipse => "ellipse",
+            Self::Angular => "angular",
+        }
+    }
+}
+
 /// The region of interest, as the interaction stage hands it over.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Roi {
