@@ -45,21 +45,6 @@ pub fn shell_join(args: impl IntoIterator<Item = String>) -> String {
         .join(" ")
 }
 
-/// The processor model (from `/proc/cpuinfo` where there is one) and rayon's thread count.
-#[must_use]
-pub fn cpu_description() -> String {
-    let model = std::fs::read_to_string("/proc/cpuinfo")
-        .ok()
-        .and_then(|t| {
-            t.lines()
-                .find(|l| l.starts_with("model name"))
-                .and_then(|l| l.split(':').nth(1))
-                .map(|m| m.trim().to_string())
-        })
-        .unwrap_or_else(|| std::env::consts::ARCH.to_string());
-    format!("{model}, {} threads", rayon::current_num_threads())
-}
-
 fn git_dirty() -> bool {
     std::process::Command::new("git")
         .args(["status", "--porcelain", "--untracked-files=no"])
@@ -77,7 +62,7 @@ impl Header {
             command: shell_join(std::env::args()),
             device: backend.describe(),
             adapter: backend.adapter(),
-            cpu: cpu_description(),
+            cpu: crate::bench::cpu_description(),
             commit: commit(),
             dirty: git_dirty(),
             profile: if cfg!(debug_assertions) {
