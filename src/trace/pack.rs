@@ -84,6 +84,10 @@ pub struct PackedScene {
     /// Where the vertex extras start in `shade` (vec4 index; with [`FEAT_EXTRAS`]).
     pub extras_offset: u32,
     pub triangle_count: usize,
+    /// Nothing beyond the core glTF material: no alpha tests, vertex extras, punctual lights,
+    /// normal or metallic-roughness maps or extension BSDFs, so the CPU twin traces with its
+    /// plain instantiation, from which those branches are compiled out (DESIGN.md §9).
+    pub plain: bool,
 }
 
 /// A texture slot's two vec4s (see the module doc).
@@ -378,9 +382,22 @@ impl PackedScene {
             features,
             extras_offset,
             triangle_count: tris.len(),
+            plain: false,
         };
+        packed.plain = packed.needs_only_the_core();
         packed.pad_empty();
         packed
+    }
+
+    /// Whether [`Self::plain`] holds: see there.
+    fn needs_only_the_core(&self) -> bool {
+        const FULL_ONLY: u32 = MAT_MR_TEX | MAT_NORMAL_TEX | MAT_MASK | MAT_BLEND | MAT_EXT_BSDF;
+        self.features == 0
+            && self.punctual_count == 0
+            && self
+                .materials
+                .chunks(MATERIAL_STRIDE)
+                .all(|m| m[1][3] as u32 & FULL_ONLY == 0)
     }
 
     fn pad_empty(&mut self) {

@@ -362,7 +362,7 @@ pub fn trace_counted(sc: &PackedScene, s: &TraceSettings, pixel: u32, sample: u3
     let (o, d) = s
         .camera
         .ray(x as f32 + r0[0], y as f32 + r0[1], s.width, s.height);
-    trace_path(sc, s, pixel, sample, o, d)
+    trace(sc, s, pixel, sample, o, d)
 }
 
 /// [`trace_counted`] with `wall`'s primary ray when given (DESIGN.md §11); `None` for a pixel
@@ -382,11 +382,32 @@ pub fn trace_counted_with(
     let tile = wall.tile_of(x, y)?;
     let r0 = rand4(pixel, sample, s.seed, 0);
     let (o, d) = wall.ray(tile, x, y, r0[0], r0[1]);
-    Some(trace_path(sc, s, pixel, sample, o, d))
+    Some(trace(sc, s, pixel, sample, o, d))
+}
+
+/// [`trace_path`] in the instantiation the scene needs: the plain one where
+/// [`PackedScene::plain`] holds (the same function, its other branches compiled out).
+#[inline]
+fn trace(
+    sc: &PackedScene,
+    s: &TraceSettings,
+    pixel: u32,
+    sample: u32,
+    o: Vec3,
+    d: Vec3,
+) -> (Vec3, u32) {
+    if sc.plain {
+        trace_path::<false>(sc, s, pixel, sample, o, d)
+    } else {
+        trace_path::<true>(sc, s, pixel, sample, o, d)
+    }
 }
 
 /// The path from primary ray `(o, d)` of `pixel`'s sample `sample`: radiance and rays traced.
-fn trace_path(
+/// `FULL`: the scene may use every material feature; `false` only for a
+/// [`PackedScene::plain`] scene, where the alpha tests, normal and metallic-roughness maps,
+/// extension BSDFs and punctual lights it lacks are not even tested for.
+fn trace_path<const FULL: bool>(
     sc: &PackedScene,
     s: &TraceSettings,
     pixel: u32,
@@ -400,7 +421,7 @@ fn trace_path(
     // The BSDF density of the direction just taken; 0 for the camera ray (no MIS).
     let mut prev_pdf = 0.0f32;
     let bvh = &sc.bvh;
-    let alpha_scene = sc.features & FEAT_ALPHA != 0;
+    let alpha_scene = FULL && sc.features & FEAT_ALPHA != 0;
     // Probability that next-event estimation picks an emissive triangle.
     let tri_select = 1.0 - sc.env_select - sc.punct_select;
     for depth in 0..s.max_depth {
@@ -410,9 +431,14 @@ fn trace_path(
         } else {
             0
         };
-        let Some(hit) = bvh.closest_hit_filtered(o, d, f32::INFINITY, |tri, u, v| {
-            alpha_covered(sc, tri, u, v, seed)
-        }) else {
+        let hit = if FULL {
+            bvh.closest_hit_filtered(o, d, f32::INFINITY, |tri, u, v| {
+                alpha_covered(sc, tri, u, v, seed)
+            })
+        } else {
+            bvh.closest_hit(o, d, f32::INFINITY)
+        };
+        let Some(hit) = hit else {
             let (le, pdf_env) = env_eval(sc, d);
             let w = if prev_pdf == 0.0 {
                 1.0
@@ -452,7 +478,7 @@ fn trace_path(
         if !front {
             ng = -ng;
         }
-        if flags & MAT_NORMAL_TEX != 0 {
+        if FULL && flags & MAT_NORMAL_TEX != 0 {
             ns = normal_mapped(sc, mb, sp, ns);
         }
         if ns.dot(ng) < 0.0 {
@@ -470,7 +496,7 @@ fn trace_path(
         }
         let base = base_color(sc, mb, flags, sp);
         let (mut metallic, mut alpha) = (m2[0], m2[1]);
-        if flags & MAT_MR_TEX != 0 {
+        if FULL && flags & MAT_MR_TEX != 0 {
             let mr = slot(sc, mb, 1, sp);
             alpha = (alpha * mr.y * mr.y).max(MIN_ALPHA);
             metallic *= mr.z;
@@ -481,7 +507,7 @@ fn trace_path(
             alpha,
             specular: m2[2],
         };
-        let ext = (flags & MAT_EXT_BSDF != 0).then(|| {
+        let ext = (FULL && flags & MAT_EXT_BSDF != 0).then(|| {
             let (m3, m4) = (sc.materials[mb + 3], sc.materials[mb + 4]);
             let ior = m4[0];
             let f0 = (ior - 1.0) / (ior + 1.0);
@@ -514,12 +540,12 @@ fn trace_path(
         let po = offset_ray(p, ng);
 
         // Next-event estimation: the environment, a punctual light or one emissive triangle.
-        if sc.env_select > 0.0 || sc.light_count > 0 || sc.punctual_count > 0 {
+        if sc.env_select > 0.0 || sc.light_count > 0 || (FULL && sc.punctual_count > 0) {
             // (direction, radiance × falloff, pdf, shadow ray length, a delta light)
             let (wi, le, pdf_l, tmax, delta) = if r1[0] < sc.env_select {
                 let (wi, le, pdf) = sample_env(sc, r1[1], r1[2]);
                 (wi, le, sc.env_select * pdf, f32::INFINITY, false)
-            } else if r1[0] < sc.env_select + sc.punct_select {
+            } else if FULL && r1[0] < sc.env_select + sc.punct_select {
                 sample_punctual(sc, po, r1[0])
             } else {
                 let u = ((r1[0] - sc.env_select - sc.punct_select) / tri_select).min(0.99999994);
@@ -553,12 +579,12 @@ fn trace_path(
                 let lsp = SurfacePoint { tri, u: a, v: b };
                 let mut le = emission_at(sc, lmb, lflags, lsp);
                 // A cut-out emitter emits only where it is there (BSDF rays see the same).
-                if lflags & MAT_MASK != 0 {
+                if FULL && lflags & MAT_MASK != 0 {
                     let a = base_color(sc, lmb, lflags, lsp).w;
                     if a < sc.materials[lmb + 2][3] {
                         le = Vec3::ZERO;
                     }
-                } else if lflags & MAT_BLEND != 0 {
+                } else if FULL && lflags & MAT_BLEND != 0 {
                     le *= base_color(sc, lmb, lflags, lsp).w;
                 }
                 let density = sc.dist[k as usize + 1] - sc.dist[k as usize];
@@ -589,9 +615,14 @@ fn trace_path(
                     } else {
                         0
                     };
-                    if !bvh.occluded_filtered(from, wi, tmax, |tri, u, v| {
-                        alpha_covered(sc, tri, u, v, shadow_seed)
-                    }) {
+                    let blocked = if FULL {
+                        bvh.occluded_filtered(from, wi, tmax, |tri, u, v| {
+                            alpha_covered(sc, tri, u, v, shadow_seed)
+                        })
+                    } else {
+                        bvh.occluded(from, wi, tmax)
+                    };
+                    if !blocked {
                         radiance += contrib;
                     }
                 }
@@ -694,6 +725,7 @@ pub fn render_cpu_with(
 mod tests {
     use super::*;
     use crate::scene::{Environment, EnvironmentMap, Scene};
+    use crate::trace::camera::RenderCamera;
 
     fn map_scene() -> PackedScene {
         // A dim sky with one bright patch (a "sun") near the zenith and a coloured band.
@@ -758,5 +790,78 @@ mod tests {
             })
             .count();
         assert!(sun > 10_000, "the sun was sampled {sun} times of 20 000");
+    }
+
+    /// The plain instantiation is the same function on a plain scene: every sample of the
+    /// builtin scenes (area light, environment, textures, single-sided emitters) equal bit for
+    /// bit to the full one's; and any feature beyond the core makes a scene not plain.
+    #[test]
+    fn the_plain_path_is_the_full_path_on_plain_scenes() {
+        for name in ["cornell", "cornell-light", "city-small"] {
+            let scene = Scene::builtin(name).unwrap();
+            let sc = PackedScene::new(&scene);
+            assert!(sc.plain, "builtin:{name} should be plain");
+            let (width, height) = (24, 16);
+            let camera = RenderCamera::choose(&scene, None, width, height).unwrap();
+            let s = TraceSettings {
+                width,
+                height,
+                seed: 7,
+                max_depth: 8,
+                camera,
+            };
+            let mut lit = 0;
+            for pixel in 0..width * height {
+                for sample in 0..3 {
+                    let r0 = rand4(pixel, sample, s.seed, 0);
+                    let (x, y) = ((pixel % width) as f32, (pixel / width) as f32);
+                    let (o, d) = s.camera.ray(x + r0[0], y + r0[1], width, height);
+                    let (full, full_rays) = trace_path::<true>(&sc, &s, pixel, sample, o, d);
+                    let (plain, plain_rays) = trace_path::<false>(&sc, &s, pixel, sample, o, d);
+                    assert_eq!(
+                        full.to_array().map(f32::to_bits),
+                        plain.to_array().map(f32::to_bits),
+                        "builtin:{name} pixel {pixel} sample {sample}"
+                    );
+                    assert_eq!(full_rays, plain_rays);
+                    lit += usize::from(full != Vec3::ZERO);
+                }
+            }
+            assert!(lit > 100, "builtin:{name}: only {lit} samples saw light");
+        }
+        let base = Scene::builtin("cornell-light").unwrap();
+        let mut glass = base.clone();
+        glass.material_ext = vec![
+            crate::scene::MaterialExt {
+                transmission: 1.0,
+                ..Default::default()
+            };
+            glass.materials.len()
+        ];
+        assert!(!PackedScene::new(&glass).plain, "glass is not plain");
+        let mut masked = base.clone();
+        masked.material_ext = vec![
+            crate::scene::MaterialExt {
+                alpha: crate::scene::AlphaMode::Mask(0.5),
+                ..Default::default()
+            };
+            masked.materials.len()
+        ];
+        assert!(
+            !PackedScene::new(&masked).plain,
+            "alpha masks are not plain"
+        );
+        let mut lamp = base;
+        lamp.lights.push(crate::scene::PunctualLight {
+            name: "lamp".into(),
+            kind: crate::scene::LightKind::Point,
+            position: Vec3::new(0.0, 1.0, 0.0),
+            direction: Vec3::NEG_Y,
+            intensity: Vec3::ONE,
+        });
+        assert!(
+            !PackedScene::new(&lamp).plain,
+            "punctual lights are not plain"
+        );
     }
 }
