@@ -900,7 +900,7 @@ fn material_textures_vertex_colours_lights_and_cameras_load_as_the_file_says() {
 }
 
 /// Quantized geometry (KHR_mesh_quantization: normalized i16 positions under a node scale)
-/// loads; Draco and KTX2 are clean errors naming the extension.
+/// loads; Draco and WebP are clean errors naming the extension.
 #[test]
 fn quantized_meshes_load_and_compressed_ones_are_named() {
     let mut d = Doc::default();
@@ -918,7 +918,7 @@ fn quantized_meshes_load_and_compressed_ones_are_named() {
     }));
     let scene = load(&bytes).unwrap();
     assert_eq!(scene.triangles[0].p[1], Vec3::new(2.0, 0.0, 0.0));
-    for ext in ["KHR_draco_mesh_compression", "KHR_texture_basisu"] {
+    for ext in ["KHR_draco_mesh_compression", "EXT_texture_webp"] {
         let doc = format!(
             r#"{{"asset":{{"version":"2.0"}},"extensionsUsed":["{ext}"],"extensionsRequired":["{ext}"]}}"#
         );

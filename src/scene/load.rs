@@ -52,6 +52,7 @@ pub const SUPPORTED_EXTENSIONS: &[&str] = &[
     "KHR_lights_punctual",
     "KHR_mesh_quantization",
     "EXT_meshopt_compression",
+    "KHR_texture_basisu",
 ];
 
 impl Scene {
@@ -711,9 +712,13 @@ impl Loader<'_> {
             ));
             return Ok(None);
         }
-        let texture = self
-            .res
-            .texture(tex, srgb, &mut self.scene.textures, &mut self.report)?;
+        let texture = self.res.texture(
+            self.doc,
+            tex,
+            srgb,
+            &mut self.scene.textures,
+            &mut self.report,
+        )?;
         Ok(texture.map(|texture| TextureRef { texture, uv }))
     }
 

@@ -22,6 +22,7 @@
 mod accessor;
 pub mod environment;
 pub mod generate;
+pub mod ktx2;
 pub mod load;
 mod report;
 mod resources;

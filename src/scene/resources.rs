@@ -288,6 +288,11 @@ fn percent_decode(s: &str) -> Result<String, String> {
     String::from_utf8(out).map_err(|_| format!("URI '{s}' does not decode to UTF-8"))
 }
 
+/// The first bytes of every KTX2 file ("«KTX 20»\r\n\x1a\n").
+const KTX2_MAGIC: [u8; 12] = [
+    0xab, 0x4b, 0x54, 0x58, 0x20, 0x32, 0x30, 0xbb, 0x0d, 0x0a, 0x1a, 0x0a,
+];
+
 /// A decoded image: its texels, or why there are none (reported once per texture).
 type Decoded = Result<(u32, u32, std::rc::Rc<Vec<[u8; 4]>>), Fallback>;
 
@@ -326,6 +331,7 @@ impl<'a> Resources<'a> {
     /// be decoded. `what` names the use for messages ("its materials use the … factor").
     pub fn texture(
         &mut self,
+        doc: &gltf::Document,
         tex: &gltf::Texture,
         srgb: bool,
         out: &mut Vec<Texture>,
@@ -334,21 +340,44 @@ impl<'a> Resources<'a> {
         if let Some(&t) = self.textures.get(&(tex.index(), srgb)) {
             return Ok(t);
         }
-        let image = tex.source();
+        // KHR_texture_basisu: the KTX2 image is preferred; `source`, when there is one, is
+        // the fallback for viewers without the extension (and raygun's when the KTX2 fails).
+        let basisu = tex
+            .extension_value("KHR_texture_basisu")
+            .map(|ext| {
+                ext.get("source")
+                    .and_then(serde_json::Value::as_u64)
+                    .and_then(|i| doc.images().nth(usize::try_from(i).ok()?))
+                    .ok_or_else(|| SceneError::Element {
+                        file: self.file.into(),
+                        element: format!("texture {}", tex.index()),
+                        problem: "KHR_texture_basisu: source does not name an image".into(),
+                    })
+            })
+            .transpose()?;
+        let fallback = tex.source();
+        let Some(image) = basisu.clone().or(fallback.clone()) else {
+            return Err(SceneError::Element {
+                file: self.file.into(),
+                element: format!("texture {}", tex.index()),
+                problem: "it has no image (no source and no KHR_texture_basisu)".into(),
+            });
+        };
         let name = tex
             .name()
             .or(image.name())
             .map_or_else(|| format!("texture {}", tex.index()), str::to_string);
         let element = format!("texture '{name}'");
         let sampler = convert_sampler(&tex.sampler());
-        let decoded = match self.images.get(&image.index()) {
-            Some(d) => d.clone(),
-            None => {
-                let d = self.decode(&image, &element)?;
-                self.images.insert(image.index(), d.clone());
-                d
-            }
-        };
+        let mut decoded = self.image(&image, &element)?;
+        if let (Some(_), Some(fallback), Err(Fallback::Broken(why))) =
+            (&basisu, &fallback, &decoded)
+        {
+            report.warn(format!(
+                "{element}: cannot decode the {why}; its fallback image is used"
+            ));
+            decoded = self.image(fallback, &element)?;
+        }
         let t = match decoded {
             Ok((width, height, texels)) => {
                 out.push(Texture {
@@ -376,6 +405,16 @@ impl<'a> Resources<'a> {
         };
         self.textures.insert((tex.index(), srgb), t);
         Ok(t)
+    }
+
+    /// Image `image` decoded, once.
+    fn image(&mut self, image: &gltf::Image, element: &str) -> Result<Decoded, SceneError> {
+        if let Some(d) = self.images.get(&image.index()) {
+            return Ok(d.clone());
+        }
+        let d = self.decode(image, element)?;
+        self.images.insert(image.index(), d.clone());
+        Ok(d)
     }
 
     fn decode(&self, image: &gltf::Image, element: &str) -> Result<Decoded, SceneError> {
@@ -410,6 +449,15 @@ impl<'a> Resources<'a> {
                 (bytes, mime, ext)
             }
         };
+        if mime.as_deref() == Some("image/ktx2")
+            || (mime.is_none() && uri_ext.as_deref() == Some("ktx2"))
+            || bytes.starts_with(&KTX2_MAGIC)
+        {
+            return Ok(match super::ktx2::decode(&bytes) {
+                Ok((w, h, texels)) => Ok((w, h, std::rc::Rc::new(texels))),
+                Err(e) => Err(Fallback::Broken(format!("KTX2 image ({e})"))),
+            });
+        }
         let format = match (mime.as_deref(), uri_ext.as_deref()) {
             (Some("image/png"), _) | (None, Some("png")) => Some(image::ImageFormat::Png),
             (Some("image/jpeg"), _) | (None, Some("jpg" | "jpeg")) => {
