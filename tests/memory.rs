@@ -190,3 +190,56 @@ fn a_full_frame_render_and_a_dgi_stay_within_their_budgets() {
         }),
     );
 }
+
+/// A guided iteration at HORNET's native resolution (13519×5457, 73.8 MP) on the CPU twin: the
+/// paper's 10° ROI, the DGI's frame and one more, holding no more than the stated budget (the
+/// whole peak, scene and BVH included, against the budget with its fixed part; the picture's
+/// share is not used by iterations, so this has room: 2.1 GB of 3.0 GB when measured).
+#[test]
+fn a_guided_iteration_at_hornets_native_size_fits_its_budget() {
+    let _guard = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let model = raygun::display::DisplayModel::open("hornet").unwrap().0;
+    let size = raygun::output::tiles::canvas_pixel_size(&model);
+    assert_eq!(size, [13519, 5457]);
+    let backend = raygun::gpu::Backend::select(raygun::gpu::BackendChoice::Cpu).unwrap();
+    let budget = raygun::bench::native::budget(&backend, size);
+    budget
+        .check(raygun::memory::available_host_bytes(), None)
+        .unwrap();
+    let scene = raygun::scene::Scene::builtin("cornell-light").unwrap();
+    let base = CURRENT.load(Ordering::Relaxed);
+    PEAK.store(base, Ordering::Relaxed);
+    let settings = raygun::bench::paper::settings(&scene, size, 1, 8).unwrap();
+    let roi = raygun::bench::paper::roi(10.0).unwrap();
+    let config = raygun::frame::GuideConfig::default();
+    let mut r =
+        raygun::bench::paper::guided(&backend, &scene, settings, &model, config, roi).unwrap();
+    let first = r.run_frame(true).unwrap();
+    assert!(first.dgi_recomputed);
+    let sampled = r.run_frame(true).unwrap().pixels.unwrap();
+    let peak = PEAK.load(Ordering::Relaxed) - base;
+    let acc = r.accumulation().unwrap();
+    assert_eq!(acc.count.len() as u64, budget.pixels());
+    assert!(
+        acc.count.iter().any(|&c| c == 2),
+        "the ROI's pixels took two samples"
+    );
+    drop((acc, r));
+    let share = f64::from(sampled) / budget.pixels() as f64;
+    eprintln!(
+        "native guided iteration: peak heap {} of a stated {} ({}), {:.2} % sampled",
+        raygun::memory::bytes(peak as u64),
+        raygun::memory::bytes(budget.host_bytes()),
+        budget.breakdown(),
+        100.0 * share
+    );
+    assert!(
+        share > 0.0 && share < 0.2,
+        "10° samples a small share, not {share}"
+    );
+    assert!(
+        (peak as u64) <= budget.host_bytes(),
+        "peak {peak} B > stated {} B",
+        budget.host_bytes()
+    );
+}

@@ -103,3 +103,92 @@ fn tiles_format_must_be_exr_or_png() {
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("exr or png"));
 }
+
+/// `--size native` is the canvas's own pixel size: the same files as spelling that size out,
+/// no resampling note, and on a curved wall (columns turned 10° apart, like HORNET) every
+/// tile written at its own resolution; `dgi` takes it too; a display that cannot be opened is
+/// named.
+#[test]
+fn size_native_is_the_canvas_size_and_cuts_tiles_without_resampling() {
+    let dir = tmp_dir("native");
+    let model = dir.join("two.json");
+    std::fs::write(&model, MODEL).unwrap();
+    let render = |size: &str, out: &str, tiles: &str, display: &Path| {
+        Command::new(env!("CARGO_BIN_EXE_raygun"))
+            .args(["render", "--scene", "builtin:cornell-light", "--size", size])
+            .args(["--spp", "2", "--backend", "cpu", "--quiet", "--display"])
+            .arg(display)
+            .arg("--out")
+            .arg(dir.join(out))
+            .arg("--tiles")
+            .arg(dir.join(tiles))
+            .output()
+            .unwrap()
+    };
+    let spelled = render("40,13", "spelled.exr", "spelled", &model);
+    let native = render("native", "native.exr", "native", &model);
+    for o in [&spelled, &native] {
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        assert!(!String::from_utf8_lossy(&o.stderr).contains("resampled"));
+    }
+    let read = |p: &str| std::fs::read(dir.join(p)).unwrap();
+    assert_eq!(read("spelled.exr"), read("native.exr"));
+    for t in ["c0r0.exr", "c1r0.exr"] {
+        assert_eq!(read(&format!("spelled/{t}")), read(&format!("native/{t}")));
+    }
+    // A curved wall: 3 columns turned 10° apart, 20×10-pixel tiles, 1-pixel bezels.
+    let curved = dir.join("curved.json");
+    std::fs::write(
+        &curved,
+        r#"{ "name": "curved", "generator": {
+            "columns": 3, "rows": 2, "resolution": [20, 10], "active_size": [0.2, 0.1],
+            "bezel": { "left": 0.01, "right": 0.01, "top": 0.01, "bottom": 0.01 },
+            "yaw_step_deg": 10.0, "center": [0, 0, 0], "normal": [0, 0, 1], "up": [0, 1, 0] } }"#,
+    )
+    .unwrap();
+    let o = render("native", "curved.exr", "curved", &curved);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (w, h, canvas) = read_rgb_exr(&dir.join("curved.exr"));
+    assert_eq!((w, h), (66, 24), "3 × (20 + 2) by 2 × (10 + 2)");
+    for (c, r) in [(0, 0), (1, 0), (2, 1)] {
+        let (tw, th, px) = read_rgb_exr(&dir.join(format!("curved/c{c}r{r}.exr")));
+        assert_eq!((tw, th), (20, 10));
+        let (x0, y0) = (22 * c + 1, 12 * r + 1);
+        for y in 0..10 {
+            for x in 0..20 {
+                assert_eq!(
+                    px[y * 20 + x],
+                    canvas[(y0 + y) * 66 + x0 + x],
+                    "c{c}r{r} {x},{y}"
+                );
+            }
+        }
+    }
+    let dgi = Command::new(env!("CARGO_BIN_EXE_raygun"))
+        .args([
+            "dgi", "--size", "native", "--origin", "0,0,1", "--dir", "0,0,-1",
+        ])
+        .args(["--fov", "20,20", "--display"])
+        .arg(&curved)
+        .arg("--out")
+        .arg(dir.join("dgi.exr"))
+        .output()
+        .unwrap();
+    assert!(
+        dgi.status.success(),
+        "{}",
+        String::from_utf8_lossy(&dgi.stderr)
+    );
+    let img = exr::prelude::read_first_flat_layer_from_file(dir.join("dgi.exr")).unwrap();
+    assert_eq!(img.layer_data.size.0, 66);
+    assert_eq!(img.layer_data.size.1, 24);
+    let missing = render("native", "x.exr", "x", &dir.join("no-such-wall.json"));
+    assert!(!missing.status.success());
+    let e = String::from_utf8_lossy(&missing.stderr);
+    assert!(
+        e.contains("--size native is the canvas size of --display")
+            && e.contains("no-such-wall.json"),
+        "{e}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -5,6 +5,7 @@ pub mod all;
 pub mod dgi;
 pub mod filter;
 pub mod guided;
+pub mod native;
 pub mod paper;
 pub mod schedule;
 pub mod solver;

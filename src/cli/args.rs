@@ -81,6 +81,31 @@ pub fn parse_pair(text: &str) -> Result<DVec2, ListParseError> {
     floats::<2>(text, "A,B").map(DVec2::from_array)
 }
 
+/// `--size native` as parsed, before the display is known: [`resolve_size`] replaces it with the
+/// canvas's own pixel size. No real size is 0×0 ([`parse_size`] refuses zeros).
+pub const NATIVE_SIZE: [u32; 2] = [0, 0];
+
+/// "W,H", or "native" ([`NATIVE_SIZE`]: the display canvas's own pixel size, resolved by
+/// [`resolve_size`] once the command's display is open).
+pub fn parse_size_or_native(text: &str) -> Result<[u32; 2], ListParseError> {
+    if text.trim().eq_ignore_ascii_case("native") {
+        return Ok(NATIVE_SIZE);
+    }
+    parse_size(text)
+}
+
+/// `size`, with `--size native` replaced by the pixel size of `display`'s canvas (the size at
+/// which `--tiles` cuts every tile at its own resolution, DESIGN.md §3).
+pub fn resolve_size(size: [u32; 2], display: &str) -> anyhow::Result<[u32; 2]> {
+    if size != NATIVE_SIZE {
+        return Ok(size);
+    }
+    let (model, _) = crate::display::DisplayModel::open(display).map_err(|e| {
+        anyhow::anyhow!("--size native is the canvas size of --display {display}: {e}")
+    })?;
+    Ok(crate::output::tiles::canvas_pixel_size(&model))
+}
+
 /// "W,H" → two whole numbers ≥ 1.
 pub fn parse_size(text: &str) -> Result<[u32; 2], ListParseError> {
     let items: Vec<&str> = text.split(',').map(str::trim).collect();

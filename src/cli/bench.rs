@@ -27,6 +27,9 @@ pub enum BenchCommand {
     /// The paper's benchmark: guided vs full-frame per FOV (share sampled, ms per iteration,
     /// speed-up, equal-time RMSE in the ROI) and the Figure 5 plot.
     Guided(GuidedBenchArgs),
+    /// A guided iteration at the display canvas's own resolution (HORNET: 13519×5457, 73.8 MP)
+    /// per FOV: ms per iteration (DGI, schedule, trace), share sampled, memory by stage.
+    Native(NativeBenchArgs),
     /// Every benchmark plus convergence curves (RMSE vs time, guided vs full frame, filtered
     /// and not), DGI metrics and the closest-point solver (time vs error), per-stage times, and
     /// the paper's table and the targets beside ours, into DIR: report.md, report.json,
@@ -193,6 +196,79 @@ pub struct GuidedBenchArgs {
     pub wall: crate::cli::wall::WallArgs,
 }
 
+#[derive(Clone, Debug, clap::Args)]
+pub struct NativeBenchArgs {
+    /// Scenes (files or builtin:NAME).
+    #[arg(
+        long,
+        value_name = "SCENE,…",
+        value_delimiter = ',',
+        default_value = "builtin:cornell"
+    )]
+    pub scene: Vec<String>,
+    /// Display model, rendered at its canvas's own pixel size.
+    #[arg(long, value_name = "MODEL", default_value = crate::display::DEFAULT_MODEL)]
+    pub display: String,
+    /// Fields of view, degrees.
+    #[arg(
+        long,
+        value_name = "DEG,…",
+        value_delimiter = ',',
+        default_value = "10,60"
+    )]
+    pub fov: Vec<f64>,
+    /// Timed iterations per FOV (after the frame that computes the DGI).
+    #[arg(long, value_name = "N", default_value_t = 5)]
+    pub iterations: u32,
+    /// Lowest sampling probability (paper preset 0).
+    #[arg(long, value_name = "P", default_value_t = 0.0)]
+    pub p_min: f32,
+    /// Environment (R,G,B or an .hdr/.exr file); default white.
+    #[arg(long, value_name = "R,G,B|FILE")]
+    pub env: Option<String>,
+    #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
+    pub backend: BackendChoice,
+    /// Print JSON instead of Markdown.
+    #[arg(long)]
+    pub json: bool,
+    /// Also write the output to this file.
+    #[arg(long, value_name = "FILE")]
+    pub out: Option<PathBuf>,
+}
+
+fn run_native_bench(args: &NativeBenchArgs) -> anyhow::Result<()> {
+    let display = DisplayModel::open(&args.display).context("--display")?.0;
+    if !(0.0..=1.0).contains(&args.p_min) {
+        anyhow::bail!(
+            "--p-min must be a probability from 0 to 1, not {}",
+            args.p_min
+        );
+    }
+    let backend = Backend::select(args.backend)?;
+    let scenes = crate::cli::scene::load_scenes(&args.scene, args.env.as_deref())?;
+    let cfg = crate::bench::native::NativeBenchConfig {
+        fovs_deg: args.fov.clone(),
+        iterations: args.iterations.max(1),
+        p_min: args.p_min,
+        ..Default::default()
+    };
+    let (bar, progress) = bench_progress(args.json, (scenes.len() * cfg.fovs_deg.len()) as u64);
+    let report = crate::bench::native::run(&backend, &display, &scenes, &cfg, progress)?;
+    bar.finish_and_clear();
+    let device = backend.describe();
+    let text = if args.json {
+        serde_json::to_string_pretty(&serde_json::json!({
+            "device": device,
+            "config": cfg,
+            "report": report,
+        }))?
+    } else {
+        crate::bench::native::markdown(&report, &device)
+    };
+    print_and_save(&text, args.out.as_deref())?;
+    Ok(())
+}
+
 fn run_guided_bench(args: &GuidedBenchArgs) -> anyhow::Result<()> {
     let display = DisplayModel::open(&args.display).context("--display")?.0;
     if let Some(c) = args.camera.as_deref()
@@ -353,6 +429,7 @@ fn check_before(cmd: &BenchCommand) -> anyhow::Result<()> {
         BenchCommand::Schedule(a) => a.out.as_deref(),
         BenchCommand::Trace(a) => a.out.as_deref(),
         BenchCommand::Guided(a) => a.out.as_deref(),
+        BenchCommand::Native(a) => a.out.as_deref(),
         BenchCommand::All(a) => {
             crate::output::check_folder(&a.out).context("--out")?;
             None
@@ -388,6 +465,7 @@ pub fn run(cmd: &BenchCommand) -> anyhow::Result<()> {
         BenchCommand::Schedule(args) => run_schedule(args),
         BenchCommand::Trace(args) => run_trace_bench(args),
         BenchCommand::Guided(args) => run_guided_bench(args),
+        BenchCommand::Native(args) => run_native_bench(args),
         BenchCommand::All(args) => run_all_bench(args),
         BenchCommand::Dgi(args) => {
             let model = DisplayModel::open(&args.display)?.0;

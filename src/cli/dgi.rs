@@ -6,7 +6,7 @@ use anyhow::{Context, bail};
 use clap::ValueEnum;
 use glam::{DVec2, DVec3};
 
-use crate::cli::args::{parse_pair, parse_size, parse_vec3};
+use crate::cli::args::{parse_pair, parse_vec3};
 use crate::display::DisplayModel;
 use crate::gpu::{Backend, BackendChoice};
 use crate::roi::cone::Cone;
@@ -42,8 +42,9 @@ pub struct DgiArgs {
     /// Distance measure.
     #[arg(long, value_enum, default_value_t = Metric::Exact)]
     pub metric: Metric,
-    /// Image size (the image covers the display's canvas).
-    #[arg(long, value_name = "W,H", value_parser = parse_size, default_value = "3840,2160")]
+    /// Image size (the image covers the display's canvas), or `native`: the canvas's own
+    /// pixel size.
+    #[arg(long, value_name = "W,H|native", value_parser = crate::cli::args::parse_size_or_native, default_value = "3840,2160")]
     pub size: [u32; 2],
     /// Falloff L = BASE + SCALE × ROI radius: the base, metres along the wall.
     #[arg(long, value_name = "METRES", default_value_t = Falloff::DEFAULT_BASE_M)]
@@ -96,6 +97,9 @@ pub fn roi_from_args(args: &DgiArgs, model: &DisplayModel) -> anyhow::Result<Roi
 }
 
 pub fn run(args: &DgiArgs) -> anyhow::Result<()> {
+    let mut args = args.clone();
+    args.size = crate::cli::args::resolve_size(args.size, &args.display)?;
+    let args = &args;
     // The output first: a bad path or extension fails before any work.
     crate::output::check_image_path(&args.out)?;
     if args.raw

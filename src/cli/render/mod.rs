@@ -13,7 +13,6 @@ use std::time::Instant;
 use anyhow::Context;
 use clap::ArgGroup;
 
-use crate::cli::args::parse_size;
 use crate::cli::progress::Progress;
 use crate::cli::scene::load_scene;
 use crate::cli::wall::{WALL_CAMERA, wall_spec};
@@ -64,8 +63,9 @@ pub struct RenderArgs {
     /// Vertical field of view of --look-from, degrees (default 45).
     #[arg(long, value_name = "DEG", requires = "look_from")]
     pub yfov: Option<f32>,
-    /// Image size.
-    #[arg(long, value_name = "W,H", value_parser = parse_size, default_value = "1280,720")]
+    /// Image size, or `native`: the display canvas's own pixel size (13519×5457 for HORNET),
+    /// at which --tiles writes every tile at its own resolution without resampling.
+    #[arg(long, value_name = "W,H|native", value_parser = crate::cli::args::parse_size_or_native, default_value = "1280,720")]
     pub size: [u32; 2],
     /// Samples per pixel of a full-frame render (default 64; guided renders take
     /// --iterations instead).
@@ -231,6 +231,13 @@ fn check_outputs(args: &RenderArgs) -> anyhow::Result<()> {
 }
 
 pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
+    let mut args = args.clone();
+    let display = args
+        .display
+        .as_deref()
+        .unwrap_or(crate::display::DEFAULT_MODEL);
+    args.size = crate::cli::args::resolve_size(args.size, display)?;
+    let args = &args;
     if args.spp == Some(0) {
         anyhow::bail!("--spp must be at least 1");
     }
