@@ -6,12 +6,13 @@
 use std::path::Path;
 use std::process::Command;
 
-const GROUPS: [&str; 9] = [
+const GROUPS: [&str; 10] = [
     "adapter",
     "dgi",
     "schedule",
     "trace",
     "guided",
+    "native",
     "filter",
     "all-quick",
     "all",
@@ -84,6 +85,7 @@ fn the_smoke_run_leaves_a_summary_and_a_tarball_that_names_every_group() {
         "schedule/schedule.md",
         "trace/trace.md",
         "guided/guided.md",
+        "native/native.md",
         "filter/filter.md",
         "all/report.md",
         "all-quick/report.md",

@@ -57,11 +57,11 @@ setup_device() {
 }
 
 # The groups, most important first: NAME BUDGET_SECONDS (the H200's; smoke mode has its own).
-BENCH_GROUPS=(adapter dgi schedule trace guided filter all-quick all wall)
-declare -A BUDGET=([adapter]=20 [dgi]=60 [schedule]=30 [trace]=90 [guided]=120 [filter]=45
-  [all-quick]=60 [all]=150 [wall]=60)
+BENCH_GROUPS=(adapter dgi schedule trace guided native filter all-quick all wall)
+declare -A BUDGET=([adapter]=20 [dgi]=60 [schedule]=30 [trace]=90 [guided]=120 [native]=60
+  [filter]=45 [all-quick]=60 [all]=150 [wall]=60)
 declare -A SMOKE_BUDGET=([adapter]=10 [dgi]=20 [schedule]=20 [trace]=20 [guided]=40
-  [filter]=30 [all-quick]=60 [all]=60 [wall]=20)
+  [native]=20 [filter]=30 [all-quick]=60 [all]=60 [wall]=20)
 
 # One group's command line (printed, then run by `run_group`), for size S.
 group_command() {
@@ -73,6 +73,10 @@ group_command() {
     schedule) echo "$BIN bench schedule --backend gpu --size $s --fov 10,30,60 --order coherent,scattered --reps $REPS --cpu-reps 1 --out $d/schedule.md" ;;
     trace) echo "$BIN bench trace --backend gpu --size $s --scene builtin:cornell,$CITY --spp $SPP --out $d/trace.md" ;;
     guided) echo "$BIN bench guided --backend gpu --size $s --scene builtin:cornell --fov 10,20,30,40,50,60 --iterations $ITERATIONS --reference-spp $REFERENCE_SPP --plot $d/fig5.png --out $d/guided.md" ;;
+    native)
+      # A guided iteration at the canvas's own resolution (HORNET: 73.8 MP), wall camera.
+      echo "$BIN bench native --backend gpu --camera wall --eye 0,0,1 --fov 10,60 --iterations $NATIVE_ITERATIONS $NATIVE_DISPLAY --out $d/native.md"
+      ;;
     filter) echo "$BIN bench filter --backend gpu --size $s --fov 10,60 --time-k-max 8,16,32 --reps $REPS --out $d/filter.md" ;;
     all-quick) echo "$BIN bench all --quick --backend gpu $ALL_QUICK_SIZE --out $d" ;;
     all) echo "$BIN bench all --backend gpu $ALL_SIZE --out $d" ;;
@@ -163,7 +167,7 @@ main() {
       BIN="${RAYGUN_BIN:-.dev/raygun}"
       LIMIT="${GPU_BENCH_LIMIT_S:-420}"
       SIZE=3840,2160 REPS=20 SPP=4 ITERATIONS=100 REFERENCE_SPP=256 CITY=builtin:city
-      ALL_QUICK_SIZE="" ALL_SIZE="" WALL_SIZE=native
+      ALL_QUICK_SIZE="" ALL_SIZE="" WALL_SIZE=native NATIVE_ITERATIONS=20 NATIVE_DISPLAY=""
       declare -gA BUDGETS
       for g in "${BENCH_GROUPS[@]}"; do BUDGETS[$g]=${BUDGET[$g]}; done
       ;;
@@ -174,7 +178,7 @@ main() {
       LIMIT="${GPU_BENCH_LIMIT_S:-120}"
       SIZE=32,18 REPS=1 SPP=1 ITERATIONS=2 REFERENCE_SPP=2 CITY=builtin:city-small
       ALL_QUICK_SIZE="--size 16,9 --scene builtin:cornell" ALL_SIZE="--size 24,12 --scene builtin:cornell"
-      WALL_SIZE=64,26
+      WALL_SIZE=64,26 NATIVE_ITERATIONS=2 NATIVE_DISPLAY=tiny
       declare -gA BUDGETS
       for g in "${BENCH_GROUPS[@]}"; do BUDGETS[$g]=${SMOKE_BUDGET[$g]}; done
       export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-/tmp}"
@@ -190,6 +194,16 @@ main() {
   mkdir -p "$WORK"
   if [ "$MODE" = run ]; then
     setup_device >"$WORK/setup.log" 2>&1
+  fi
+  if [ "$NATIVE_DISPLAY" = tiny ]; then
+    # Smoke: a 3×2 curved wall of 24×12-pixel tiles (lavapipe's 128 MiB bindings hold no
+    # native HORNET).
+    cat >"$WORK/tiny-wall.json" <<'JSON'
+{ "name": "tiny curved wall", "generator": { "columns": 3, "rows": 2, "resolution": [24, 12],
+  "active_size": [0.24, 0.12], "bezel": { "left": 0.01, "right": 0.01, "top": 0.01, "bottom": 0.01 },
+  "yaw_step_deg": 10.0, "center": [0, 0, 0], "normal": [0, 0, 1], "up": [0, 1, 0] } }
+JSON
+    NATIVE_DISPLAY="--display $WORK/tiny-wall.json"
   fi
   run_groups
   write_summary "$out"

@@ -18,6 +18,7 @@ use crate::gpu::Backend;
 use crate::memory::{Budget, MemoryError, Work};
 use crate::output::tiles::canvas_pixel_size;
 use crate::scene::Scene;
+use crate::trace::wall::{WallCameraError, WallSpec};
 
 /// What to measure.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -91,6 +92,12 @@ pub enum NativeBenchError {
         #[source]
         source: crate::trace::camera::CameraError,
     },
+    #[error("scene {scene}: {source}")]
+    Wall {
+        scene: String,
+        #[source]
+        source: WallCameraError,
+    },
     #[error("{fov}° ROI: {source}")]
     Roi {
         fov: f64,
@@ -111,12 +118,14 @@ pub fn budget(backend: &Backend, size: [u32; 2]) -> Budget {
     )
 }
 
-/// Runs the benchmark on `display`'s canvas at its own pixel size.
+/// Runs the benchmark on `display`'s canvas at its own pixel size, through the wall camera of
+/// `wall` when given (its pixels off the tiles never traced).
 pub fn run(
     backend: &Backend,
     display: &DisplayModel,
     scenes: &[(String, Scene)],
     cfg: &NativeBenchConfig,
+    wall: Option<&WallSpec>,
     mut progress: impl FnMut(&str),
 ) -> Result<NativeBenchReport, NativeBenchError> {
     let size = canvas_pixel_size(display);
@@ -131,6 +140,13 @@ pub fn run(
                 source,
             }
         })?;
+        let wc = wall
+            .map(|spec| spec.camera(size, &settings.camera))
+            .transpose()
+            .map_err(|source| NativeBenchError::Wall {
+                scene: name.clone(),
+                source,
+            })?;
         for &fov in &cfg.fovs_deg {
             progress(&format!("{name}: {fov}° at {}×{}", size[0], size[1]));
             let roi = paper::roi(fov).map_err(|source| NativeBenchError::Roi { fov, source })?;
@@ -138,7 +154,8 @@ pub fn run(
                 p_min: cfg.p_min,
                 ..GuideConfig::default()
             };
-            let mut renderer = paper::guided(backend, scene, settings, display, config, roi)?;
+            let mut renderer =
+                paper::guided_wall(backend, scene, settings, display, config, roi, wc.as_ref())?;
             let first = renderer.run_frame(true)?;
             let (mut whole, mut schedule, mut trace, mut share) =
                 (Vec::new(), Vec::new(), Vec::new(), Vec::new());

@@ -151,8 +151,8 @@ pub struct GuidedBenchArgs {
     /// Display model (the paper's setup: HORNET).
     #[arg(long, value_name = "MODEL", default_value = crate::display::DEFAULT_MODEL)]
     pub display: String,
-    /// Image size.
-    #[arg(long, value_name = "W,H", value_parser = crate::cli::args::parse_size, default_value = "3840,2160")]
+    /// Image size, or `native`: the display canvas's own pixel size.
+    #[arg(long, value_name = "W,H|native", value_parser = crate::cli::args::parse_size_or_native, default_value = "3840,2160")]
     pub size: [u32; 2],
     /// Fields of view, degrees.
     #[arg(
@@ -234,10 +234,22 @@ pub struct NativeBenchArgs {
     /// Also write the output to this file.
     #[arg(long, value_name = "FILE")]
     pub out: Option<PathBuf>,
+    /// `wall`: through the wall camera from --eye (pixels off the tiles never traced); default:
+    /// the scene's pinhole stretched over the canvas.
+    #[arg(long, value_name = "wall")]
+    pub camera: Option<String>,
+    #[command(flatten)]
+    pub wall: crate::cli::wall::WallArgs,
 }
 
 fn run_native_bench(args: &NativeBenchArgs) -> anyhow::Result<()> {
     let display = DisplayModel::open(&args.display).context("--display")?.0;
+    if let Some(c) = args.camera.as_deref()
+        && c != crate::cli::wall::WALL_CAMERA
+    {
+        anyhow::bail!("--camera {c}: bench native measures the pinhole (default) or wall");
+    }
+    let wall = crate::cli::wall::wall_spec(args.camera.as_deref(), &args.wall, Some(&display))?;
     if !(0.0..=1.0).contains(&args.p_min) {
         anyhow::bail!(
             "--p-min must be a probability from 0 to 1, not {}",
@@ -253,7 +265,8 @@ fn run_native_bench(args: &NativeBenchArgs) -> anyhow::Result<()> {
         ..Default::default()
     };
     let (bar, progress) = bench_progress(args.json, (scenes.len() * cfg.fovs_deg.len()) as u64);
-    let report = crate::bench::native::run(&backend, &display, &scenes, &cfg, progress)?;
+    let report =
+        crate::bench::native::run(&backend, &display, &scenes, &cfg, wall.as_ref(), progress)?;
     bar.finish_and_clear();
     let device = backend.describe();
     let text = if args.json {
@@ -280,7 +293,7 @@ fn run_guided_bench(args: &GuidedBenchArgs) -> anyhow::Result<()> {
     let backend = Backend::select(args.backend)?;
     let scenes = crate::cli::scene::load_scenes(&args.scene, args.env.as_deref())?;
     let cfg = crate::bench::guided::GuidedBenchConfig {
-        size: args.size,
+        size: crate::cli::args::resolve_size(args.size, &args.display)?,
         fovs_deg: args.fov.clone(),
         iterations: args.iterations,
         reference_spp: args.reference_spp.max(1),
