@@ -1,0 +1,148 @@
+//! The render loop across ranks (DESIGN.md §12): rank 0 follows the guide source and the stop
+//! rule and broadcasts each frame's control (iteration, stop, ROI change); every rank runs the
+//! cluster frame; at the end rank 0 gathers the owners' sums.
+
+use std::time::Instant;
+
+use super::guide::GuideSource;
+use super::render::Stopping;
+use crate::cluster::exchange::ExchangeError;
+use crate::cluster::{Cluster, ClusterError, ClusterFrameStats, ClusterRenderer, FrameControl};
+use crate::frame::stop::{StopReason, reached};
+use crate::roi::dgi::Roi;
+use crate::trace::accum::Accumulation;
+
+/// A fault a test injects (`--cluster-fault`): that rank ends, or stops answering, at the
+/// start of that iteration — what the other ranks' deadlines are for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Fault {
+    Exit { rank: usize, iteration: u32 },
+    Hang { rank: usize, iteration: u32 },
+}
+
+impl Fault {
+    /// Acts if the fault is this rank's at iteration `k`.
+    fn strike(&self, rank: usize, k: u32) {
+        match *self {
+            Self::Exit { rank: r, iteration } if r == rank && iteration == k => {
+                eprintln!("raygun: rank {rank}: --cluster-fault: ending at iteration {k}");
+                std::process::exit(9);
+            }
+            Self::Hang { rank: r, iteration } if r == rank && iteration == k => {
+                eprintln!(
+                    "raygun: rank {rank}: --cluster-fault: no longer answering at iteration {k}"
+                );
+                loop {
+                    std::thread::sleep(std::time::Duration::from_secs(3600));
+                }
+            }
+            _ => {}
+        }
+    }
+}
+
+/// What a render across ranks did on this rank.
+pub struct ClusterRun {
+    pub iterations: u32,
+    /// Wall-clock seconds of the iterations on this rank (the gather excluded).
+    pub seconds: f64,
+    pub stop: StopReason,
+    /// This rank's frames.
+    pub frames: Vec<ClusterFrameStats>,
+    /// Rank 0: the whole accumulation and the DGI of the last frame (`None` elsewhere).
+    pub gathered: Option<(Accumulation, Vec<f32>)>,
+}
+
+/// Runs frames on every rank until rank 0's stop rule says so. `source` steers a guided render
+/// (read on rank 0 only; `None`: a full frame). Stop conditions on the ROI's progress need the
+/// owners' statistics and are not taken here (the command line rejects them); `--until time:S`
+/// is rank 0's clock. `fault` is a test's. `on_iteration` hears each finished frame on this rank.
+pub fn run_cluster(
+    c: &mut Cluster,
+    r: &mut ClusterRenderer,
+    source: Option<&GuideSource>,
+    stopping: &Stopping,
+    fault: Option<Fault>,
+    mut on_iteration: impl FnMut(&ClusterFrameStats),
+) -> Result<ClusterRun, ClusterError> {
+    let t0 = Instant::now();
+    let spread = stopping.iterations.unwrap_or(1);
+    let mut current: Option<Roi> = None;
+    let mut frames = Vec::new();
+    let mut k = 0u32;
+    let eye = r.wall().map(|w| w.eye_room);
+    let stop = loop {
+        if let Some(f) = &fault {
+            f.strike(c.rank(), k);
+        }
+        let control = if c.is_root() {
+            let elapsed = t0.elapsed().as_secs_f64();
+            let stop = match stopping.iterations {
+                Some(n) if k >= n => Some(StopReason::Iterations(k)),
+                _ => reached(&stopping.until, None, elapsed).map(StopReason::Reached),
+            };
+            let roi = source.map(|s| s.roi_at(k, spread));
+            let changed = roi.filter(|&roi| k == 0 || roi != current);
+            if let Some(roi) = changed {
+                current = roi;
+            }
+            FrameControl {
+                iteration: k,
+                stop: stop.is_some(),
+                roi: changed,
+                eye,
+            }
+        } else {
+            FrameControl {
+                iteration: k,
+                stop: false,
+                roi: None,
+                eye: None,
+            }
+        };
+        let bytes = c.broadcast(&format!("the control of iteration {k}"), control.encode())?;
+        let got = FrameControl::decode(&bytes).ok_or_else(|| ExchangeError::Malformed {
+            rank: 0,
+            what: format!("the control of iteration {k}"),
+            reason: format!("{} bytes that are no control message", bytes.len()),
+        })?;
+        if got.iteration != k || got.eye != eye {
+            return Err(ExchangeError::Malformed {
+                rank: 0,
+                what: format!("the control of iteration {k}"),
+                reason: format!(
+                    "iteration {} and eye {:?}, this rank is at iteration {k} with eye {eye:?} (a moving eye is not followed across ranks yet)",
+                    got.iteration, got.eye
+                ),
+            }
+            .into());
+        }
+        if got.stop {
+            break match stopping.iterations {
+                Some(n) if k >= n => StopReason::Iterations(k),
+                _ => stopping
+                    .until
+                    .iter()
+                    .copied()
+                    .find(|c| !c.needs_progress())
+                    .map_or(StopReason::Iterations(k), StopReason::Reached),
+            };
+        }
+        if let Some(roi) = got.roi {
+            r.set_roi(roi)?;
+        }
+        let stats = r.run_frame(c)?;
+        on_iteration(&stats);
+        frames.push(stats);
+        k += 1;
+    };
+    let seconds = t0.elapsed().as_secs_f64();
+    let gathered = r.gather(c)?;
+    Ok(ClusterRun {
+        iterations: k,
+        seconds,
+        stop,
+        frames,
+        gathered,
+    })
+}
