@@ -289,8 +289,8 @@ pub fn exchange(
                 for g in got.iter_mut().skip(1) {
                     *g += CONTROL_BYTES;
                 }
-                for i in 0..list.blocks.len() {
-                    let t = tracer[i] as usize;
+                for (i, &t) in tracer.iter().enumerate() {
+                    let t = t as usize;
                     let o = owners.owner[list.blocks[i] as usize] as usize;
                     // Its rays to every other rank.
                     sent[t] += BLOCK_RAYS_BYTES * (n - 1);

@@ -2,7 +2,6 @@
 //! (`mpirun -np N raygun render … --cluster`, DESIGN.md §12), with the `cluster` feature.
 
 use std::path::PathBuf;
-use std::time::Duration;
 
 use anyhow::{Context, bail};
 
@@ -90,7 +89,7 @@ pub fn start(args: &ClusterArgs) -> anyhow::Result<Cluster> {
     });
     Ok(Cluster::new(
         Box::new(mpi),
-        Duration::from_secs_f64(args.cluster_timeout),
+        std::time::Duration::from_secs_f64(args.cluster_timeout),
     ))
 }
 

@@ -25,7 +25,7 @@
 //!
 //! Every wait has a deadline ([`Cluster`]): a rank that stops answering ends the job with an
 //! error naming it. The transport is [`exchange::Exchange`]: threads in one process for the
-//! tests ([`exchange::InProcess`]), MPI with the `cluster` feature (`mpi`). Modules: [`deal`]
+//! tests ([`exchange::InProcess`]), MPI with the `cluster` feature (`mpi`). Modules: [`mod@deal`]
 //! (blocks and the deal), [`owners`] (the tile map and the `--tile-owners` file), [`handshake`]
 //! (the start-up check), [`exchange`].
 
