@@ -356,11 +356,21 @@ mod mpi {
             with(guided(&dir), &["--cluster", "--tile-owners", s(&bad)]),
         )]);
         fails_with(&o, &["bad.owners:3: rank \"five\""]);
-        let o = mpirun(&[(
-            2,
-            &exe(),
-            with(guided(&dir), &["--cluster", "--until", "roi-spp:4"]),
-        )]);
-        fails_with(&o, &["--until roi-spp:4 with --cluster"]);
+    }
+
+    #[test]
+    fn a_stop_on_the_rois_progress_is_measured_from_the_owners() {
+        // Every ROI pixel sampled twice, on 3 ranks; the ROI summary in the closing message.
+        let dir = tmp_dir("until");
+        let mut args: Vec<String> = guided(&dir)
+            .into_iter()
+            .map(|a| if a == "6" { "400".to_owned() } else { a })
+            .collect();
+        args.extend(strings(&["--until", "roi-spp:2", "--cluster"]));
+        let o = mpirun(&[(3, &exe(), args)]);
+        ok(&o);
+        let e = stderr(&o);
+        assert!(e.contains("roi-spp:2 reached"), "{e}");
+        assert!(e.contains("fewest samples"), "{e}");
     }
 }

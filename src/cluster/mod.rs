@@ -42,6 +42,7 @@ use glam::{DVec2, DVec3, Vec3};
 use rayon::prelude::*;
 
 use crate::display::DisplayModel;
+use crate::frame::stop::RoiProgress;
 use crate::frame::{FrameError, GuideConfig, dgi_cpu};
 use crate::roi::cone::Cone;
 use crate::roi::dgi::{Roi, Surface};
@@ -208,6 +209,9 @@ pub struct FrameControl {
     pub iteration: u32,
     /// No frame: the render ends here.
     pub stop: bool,
+    /// After this frame, the owners send rank 0 the sums of the ROI's pixels
+    /// ([`ClusterRenderer::roi_progress`]: a stop condition on the ROI's progress).
+    pub measure: bool,
     /// `Some`: the ROI changed to this (`Some(None)`: no ROI, sample everything).
     pub roi: Option<Option<Roi>>,
     /// The wall camera's eye (room frame), where it has one: a moved eye restarts the render
@@ -221,7 +225,7 @@ impl FrameControl {
     pub fn encode(&self) -> Vec<u8> {
         let mut b = self.iteration.to_le_bytes().to_vec();
         let flags = u8::from(self.stop) | u8::from(self.roi.is_some()) << 1;
-        let flags = flags | u8::from(self.eye.is_some()) << 2;
+        let flags = flags | u8::from(self.eye.is_some()) << 2 | u8::from(self.measure) << 3;
         b.push(flags);
         let mut f = Vec::new();
         let kind = match self.roi {
@@ -260,7 +264,7 @@ impl FrameControl {
             .collect::<Option<_>>()?;
         let roi_len = [0, 14, 4][usize::from(kind.min(2))];
         let eye_len = if flags & 4 != 0 { 3 } else { 0 };
-        if kind > 2 || f.len() != roi_len + eye_len || flags > 7 {
+        if kind > 2 || f.len() != roi_len + eye_len || flags > 15 {
             return None;
         }
         let v3 = |i: usize| DVec3::new(f[i], f[i + 1], f[i + 2]);
@@ -282,6 +286,7 @@ impl FrameControl {
         Some(Self {
             iteration,
             stop: flags & 1 != 0,
+            measure: flags & 8 != 0,
             roi: (flags & 2 != 0).then_some(roi),
             eye: (eye_len > 0).then(|| v3(roi_len)),
         })
@@ -706,6 +711,61 @@ impl ClusterRenderer {
             }
         }
         out
+    }
+
+    /// How far the ROI has come, on rank 0 (`Some(None)` without ROI pixels; `None` on the
+    /// other ranks): every owner sends rank 0 the sums of its pixels inside the ROI (d = 0),
+    /// 16 bytes each, and rank 0 measures them with every pixel's count, as one process does.
+    pub fn roi_progress(
+        &self,
+        c: &mut Cluster,
+    ) -> Result<Option<Option<RoiProgress>>, ClusterError> {
+        let size = [self.settings.width, self.settings.height];
+        let tiles_x = self.owners.tiles[0];
+        let in_roi = |p: &u32| self.dgi.get(*p as usize) == Some(&0.0);
+        let mut mine = Vec::new();
+        for b in self.owners.owned_by(self.rank) {
+            let slot = self.slot[b as usize] as usize;
+            for p in block_pixels(b, size, tiles_x).filter(in_roi) {
+                let (x, y) = (p % size[0], p / size[0]);
+                let local = ((y % TILE_EDGE) * TILE_EDGE + x % TILE_EDGE) as usize;
+                mine.extend(f32_bytes(&self.sums[slot * BLOCK_PIXELS as usize + local]));
+            }
+        }
+        let Some(all) = c.gather("the ROI's sums", mine)? else {
+            return Ok(None);
+        };
+        let (mut sum, mut count) = (Vec::new(), Vec::new());
+        for (src, bytes) in all.iter().enumerate() {
+            let pixels: Vec<u32> = self
+                .owners
+                .owned_by(src)
+                .into_iter()
+                .flat_map(|b| block_pixels(b, size, tiles_x).filter(in_roi))
+                .collect();
+            if bytes.len() != 16 * pixels.len() {
+                return Err(ExchangeError::Length {
+                    rank: src,
+                    what: "the ROI's sums".into(),
+                    got: bytes.len(),
+                    expected: 16 * pixels.len(),
+                }
+                .into());
+            }
+            let v = f32s(bytes, 4);
+            for (k, &p) in pixels.iter().enumerate() {
+                sum.push([v[4 * k], v[4 * k + 1], v[4 * k + 2], v[4 * k + 3]]);
+                count.push(self.counts[p as usize]);
+            }
+        }
+        let n = sum.len();
+        let acc = Accumulation {
+            width: n as u32,
+            height: 1,
+            sum,
+            count,
+        };
+        Ok(Some(RoiProgress::measure(&acc, &vec![0.0; n])))
     }
 
     /// The whole accumulation and the DGI the last frame used, on rank 0 (`None` on the

@@ -117,6 +117,7 @@ fn ranks(
                         let control = FrameControl {
                             iteration: k,
                             stop: false,
+                            measure: false,
                             roi: if guided.is_some() { roi_at(k) } else { None },
                             eye: None,
                         };
@@ -129,7 +130,18 @@ fn ranks(
                         let st = r.run_frame(&mut c).unwrap();
                         assert_eq!(st.iteration, k);
                     }
-                    r.gather(&mut c).unwrap()
+                    let progress = if guided.is_some() {
+                        r.roi_progress(&mut c).unwrap()
+                    } else {
+                        None
+                    };
+                    let g = r.gather(&mut c).unwrap();
+                    if let (Some(g), Some(p)) = (&g, progress) {
+                        // Measured from the owners' ROI sums as from the whole accumulation.
+                        assert_eq!(p, RoiProgress::measure(&g.0, &g.1));
+                        assert!(p.is_some());
+                    }
+                    g
                 })
             })
             .collect();
@@ -227,18 +239,21 @@ fn the_control_message_round_trips_and_rejects_other_bytes() {
         FrameControl {
             iteration: 7,
             stop: false,
+            measure: true,
             roi: Some(Some(cone(30.0, 0.5))),
             eye: Some(DVec3::new(0.1, -0.2, 1.5)),
         },
         FrameControl {
             iteration: 0,
             stop: true,
+            measure: false,
             roi: Some(None),
             eye: None,
         },
         FrameControl {
             iteration: u32::MAX,
             stop: false,
+            measure: true,
             roi: Some(Some(Roi::CanvasEllipse {
                 center: DVec2::new(3.0, 4.0),
                 semi_axes: DVec2::new(5.0, 6.5),
@@ -248,6 +263,7 @@ fn the_control_message_round_trips_and_rejects_other_bytes() {
         FrameControl {
             iteration: 3,
             stop: false,
+            measure: false,
             roi: None,
             eye: None,
         },
@@ -256,7 +272,7 @@ fn the_control_message_round_trips_and_rejects_other_bytes() {
         assert_eq!(FrameControl::decode(&b), Some(c));
         assert_eq!(FrameControl::decode(&b[..b.len() - 1]), None);
     }
-    assert_eq!(FrameControl::decode(&[0, 0, 0, 0, 8, 0]), None);
+    assert_eq!(FrameControl::decode(&[0, 0, 0, 0, 16, 0]), None);
     assert_eq!(FrameControl::decode(&[0, 0, 0, 0, 0, 3]), None);
 }
 

@@ -8,7 +8,7 @@ use super::guide::GuideSource;
 use super::render::Stopping;
 use crate::cluster::exchange::ExchangeError;
 use crate::cluster::{Cluster, ClusterError, ClusterFrameStats, ClusterRenderer, FrameControl};
-use crate::frame::stop::{StopReason, reached};
+use crate::frame::stop::{RoiProgress, StopCondition, StopReason, reached};
 use crate::roi::dgi::Roi;
 use crate::trace::accum::Accumulation;
 
@@ -51,21 +51,31 @@ pub struct ClusterRun {
     pub frames: Vec<ClusterFrameStats>,
     /// Rank 0: the whole accumulation and the DGI of the last frame (`None` elsewhere).
     pub gathered: Option<(Accumulation, Vec<f32>)>,
+    /// Rank 0: the ROI's last measured progress (with stop conditions on it only).
+    pub progress: Option<RoiProgress>,
 }
 
+/// How often rank 0 measures the ROI's progress for a stop condition (the one-process loop's
+/// interval): a gather of the ROI pixels' sums.
+const PROGRESS_INTERVAL_S: f64 = 0.5;
+
 /// Runs frames on every rank until rank 0's stop rule says so. `source` steers a guided render
-/// (read on rank 0 only; `None`: a full frame). Stop conditions on the ROI's progress need the
-/// owners' statistics and are not taken here (the command line rejects them); `--until time:S`
-/// is rank 0's clock. `fault` is a test's. `on_iteration` hears each finished frame on this rank.
+/// (read on rank 0 only; `None`: a full frame). `--until time:S` is rank 0's clock; a condition
+/// on the ROI's progress is measured every half second from the owners' ROI sums
+/// ([`ClusterRenderer::roi_progress`]). `fault` is a test's. `on_iteration` hears each finished
+/// frame on this rank, and rank 0's progress when it was measured.
 pub fn run_cluster(
     c: &mut Cluster,
     r: &mut ClusterRenderer,
     source: Option<&GuideSource>,
     stopping: &Stopping,
     fault: Option<Fault>,
-    mut on_iteration: impl FnMut(&ClusterFrameStats),
+    mut on_iteration: impl FnMut(&ClusterFrameStats, Option<&RoiProgress>),
 ) -> Result<ClusterRun, ClusterError> {
     let t0 = Instant::now();
+    let needs_progress = stopping.until.iter().any(StopCondition::needs_progress);
+    let mut last_check = f64::NEG_INFINITY;
+    let mut progress: Option<RoiProgress> = None;
     let spread = stopping.iterations.unwrap_or(1);
     let mut current: Option<Roi> = None;
     let mut frames = Vec::new();
@@ -79,8 +89,12 @@ pub fn run_cluster(
             let elapsed = t0.elapsed().as_secs_f64();
             let stop = match stopping.iterations {
                 Some(n) if k >= n => Some(StopReason::Iterations(k)),
-                _ => reached(&stopping.until, None, elapsed).map(StopReason::Reached),
+                _ => reached(&stopping.until, progress.as_ref(), elapsed).map(StopReason::Reached),
             };
+            let measure = needs_progress && elapsed - last_check >= PROGRESS_INTERVAL_S;
+            if measure {
+                last_check = elapsed;
+            }
             let roi = source.map(|s| s.roi_at(k, spread));
             let changed = roi.filter(|&roi| k == 0 || roi != current);
             if let Some(roi) = changed {
@@ -89,6 +103,7 @@ pub fn run_cluster(
             FrameControl {
                 iteration: k,
                 stop: stop.is_some(),
+                measure,
                 roi: changed,
                 eye,
             }
@@ -96,6 +111,7 @@ pub fn run_cluster(
             FrameControl {
                 iteration: k,
                 stop: false,
+                measure: false,
                 roi: None,
                 eye: None,
             }
@@ -118,21 +134,28 @@ pub fn run_cluster(
             .into());
         }
         if got.stop {
-            break match stopping.iterations {
-                Some(n) if k >= n => StopReason::Iterations(k),
-                _ => stopping
-                    .until
-                    .iter()
-                    .copied()
-                    .find(|c| !c.needs_progress())
+            let elapsed = t0.elapsed().as_secs_f64();
+            break match (stopping.iterations, c.is_root()) {
+                (Some(n), _) if k >= n => StopReason::Iterations(k),
+                (_, true) => reached(&stopping.until, progress.as_ref(), elapsed)
                     .map_or(StopReason::Iterations(k), StopReason::Reached),
+                // Only rank 0 knows which condition it was.
+                (_, false) => StopReason::Iterations(k),
             };
         }
         if let Some(roi) = got.roi {
             r.set_roi(roi)?;
         }
         let stats = r.run_frame(c)?;
-        on_iteration(&stats);
+        let measured = if got.measure {
+            if let Some(p) = r.roi_progress(c)? {
+                progress = p;
+            }
+            c.is_root()
+        } else {
+            false
+        };
+        on_iteration(&stats, progress.as_ref().filter(|_| measured));
         frames.push(stats);
         k += 1;
     };
@@ -144,5 +167,6 @@ pub fn run_cluster(
         stop,
         frames,
         gathered,
+        progress,
     })
 }

@@ -64,14 +64,6 @@ fn prepare(args: &RenderArgs, c: &Cluster) -> anyhow::Result<Prepared> {
         Some(guide) => Some(GuidedPlan::new(args, guide)?),
         None => None,
     };
-    if let Some(cond) = plan
-        .as_ref()
-        .and_then(|p| p.stopping.until.iter().find(|c| c.needs_progress()))
-    {
-        bail!(
-            "--until {cond} with --cluster: the ROI's statistics live on the tiles' owners and are not gathered while rendering; use --iterations N or --until time:S"
-        );
-    }
     let wall = resolve_wall(args, plan.as_ref())?;
     let work = if plan.is_some() {
         Work::Render {
@@ -194,7 +186,15 @@ fn work(c: &mut Cluster, args: &RenderArgs, p: Prepared) -> anyhow::Result<()> {
         p.plan.as_ref().map(|plan| &plan.source),
         &stopping,
         args.cluster.cluster_fault,
-        |s| bar.set(u64::from(s.iteration) + 1),
+        |s, progress| {
+            if let Some(p) = progress {
+                bar.note(&format!(
+                    "ROI: median SE {:.4}, fewest samples {}",
+                    p.median_se, p.min_samples
+                ));
+            }
+            bar.set(u64::from(s.iteration) + 1);
+        },
     )?;
     bar.finish();
     let Some((acc, dgi)) = run.gathered.as_ref() else {
@@ -217,7 +217,7 @@ fn work(c: &mut Cluster, args: &RenderArgs, p: Prepared) -> anyhow::Result<()> {
                 counts: acc.count.clone(),
                 seconds: run.seconds,
                 stop: run.stop,
-                progress: None,
+                progress: run.progress,
             };
             super::guided::write_outputs(args, plan, &res, &device, &summary)
         }
