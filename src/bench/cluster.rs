@@ -107,6 +107,9 @@ impl ScalingRow {
 /// One size × FOV × rank count of the exchange count.
 #[derive(Clone, Debug, Serialize)]
 pub struct ExchangeRow {
+    /// `columns` (the default map: whole columns dealt evenly) or `tiles` (tile i to rank
+    /// i mod N, which spreads the ROI's tiles).
+    pub tile_map: &'static str,
     pub size: [u32; 2],
     pub fov_deg: f64,
     pub ranks: usize,
@@ -251,8 +254,8 @@ pub fn scaling(
 }
 
 /// The exact exchange of one iteration (the first: iteration 0, seed 1) of the paper's setup
-/// for each size, FOV and rank count 1..=`max_ranks`, from the real schedule, the deal with
-/// equal weights and the default tile map (whole columns).
+/// for each size, FOV and rank count 1..=`max_ranks`, from the real schedule and the deal with
+/// equal weights, for the default tile map (whole columns) and for tiles dealt round-robin.
 pub fn exchange(
     display: &DisplayModel,
     sizes: &[[u32; 2]],
@@ -278,9 +281,18 @@ pub fn exchange(
             let list = BlockList::group(&list, size);
             let nblocks = (size[0].div_ceil(32) * size[1].div_ceil(32)) as usize;
             let costs = CostTable::new(nblocks);
-            for ranks in 1..=max_ranks {
-                let owners =
-                    BlockOwners::of_display(display, &TileOwners::columns(display, ranks), size);
+            for (tile_map, ranks) in ["columns", "tiles"]
+                .into_iter()
+                .flat_map(|m| (1..=max_ranks).map(move |n| (m, n)))
+            {
+                let map = if tile_map == "columns" {
+                    TileOwners::columns(display, ranks)
+                } else {
+                    TileOwners {
+                        ranks: (0..display.tiles().len()).map(|t| t % ranks).collect(),
+                    }
+                };
+                let owners = BlockOwners::of_display(display, &map, size);
                 let tracer = deal(&list, &costs, ranks);
                 let (mut sent, mut got) = (vec![0u64; ranks], vec![0u64; ranks]);
                 let n = ranks as u64;
@@ -306,6 +318,7 @@ pub fn exchange(
                     }
                 }
                 rows.push(ExchangeRow {
+                    tile_map,
                     size,
                     fov_deg: fov,
                     ranks,
@@ -330,7 +343,7 @@ fn mb(bytes: f64) -> String {
 pub fn markdown(r: &ClusterBenchReport) -> String {
     let c = &r.config;
     let mut s = format!(
-        "Device: {}\n\n## Strong scaling (measured)\n\n{} at {}×{}, max depth {}, HORNET, viewer 1 m in front of the centre, {} timed iterations per FOV after the DGI's.\n\n| FOV | ranks | share sampled | ms/iteration (rank 0) | rank | ms trace | ms schedule | ms exchange | samples traced/it | bytes sent/it | bytes received/it | DGI computed ms | DGI broadcast ms |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "Device: {}\n\n## Strong scaling (measured)\n\n{} at {}×{}, max depth {}, HORNET, viewer 1 m in front of the centre, {} timed iterations per FOV after the DGI's.\n\n| FOV | ranks | share sampled | ms/iteration (rank 0) | rank | ms trace | ms schedule | ms exchange | samples traced/it | bytes sent/it | bytes received/it | DGI computed ms | DGI broadcast ms |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
         r.device, c.scene, c.size[0], c.size[1], c.max_depth, c.iterations
     );
     for row in &r.scaling {
@@ -369,7 +382,7 @@ pub fn markdown(r: &ClusterBenchReport) -> String {
         .map(|p| p.samples_traced_per_iteration / (p.ms_trace / 1e3))
         .fold(f64::NAN, f64::max);
     s += &format!(
-        "\n## Exchange per iteration (counted from the real schedule and deal; default tile map)\n\nBytes per iteration: 12 per sample traced for another rank's tile, 4 per block traced to every other rank, the control message ({CONTROL_BYTES} bytes with an ROI change). The DGI's broadcast ({}) is per ROI change, not per iteration.\n\n| size | FOV | ranks | samples/it | max sent MB/it | mean sent MB/it | max received MB/it | DGI broadcast MB | link ms/it at {} Gb/s | break-even rate per rank (Msamples/s) | iterations/s at the measured rate |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "\n## Exchange per iteration (counted from the real schedule and deal)\n\nBytes per iteration: 12 per sample traced for another rank's tile, 4 per block traced to every other rank, the control message ({CONTROL_BYTES} bytes with an ROI change). The DGI's broadcast ({}) is per ROI change, not per iteration.\n\n| tile map | size | FOV | ranks | samples/it | max sent MB/it | mean sent MB/it | max received MB/it | DGI broadcast MB | link ms/it at {} Gb/s | break-even rate per rank (Msamples/s) | iterations/s at the measured rate |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n",
         "4 bytes a pixel to every other rank", c.link_gbps
     );
     for e in &r.exchange {
@@ -379,7 +392,8 @@ pub fn markdown(r: &ClusterBenchReport) -> String {
         let link = e.link_seconds(c.link_gbps);
         let trace = e.samples_per_iteration as f64 / e.ranks as f64 / rate;
         s += &format!(
-            "| {}×{} | {}° | {} | {} | {} | {} | {} | {} | {:.3} | {:.0} | {:.2} |\n",
+            "| {} | {}×{} | {}° | {} | {} | {} | {} | {} | {} | {:.3} | {:.0} | {:.2} |\n",
+            e.tile_map,
             e.size[0],
             e.size[1],
             e.fov_deg,
