@@ -176,9 +176,9 @@ pub fn scaling(
             ranks,
         )?;
         r.set_roi(Some(roi))?;
-        // The first frame computes the DGI on every rank.
-        let first = r.run_frame(c)?;
-        // The broadcast alternative, timed: rank 0's DGI to every rank.
+        // The broadcast alternative: rank 0's DGI, computed before the first frame so that the
+        // timed broadcast right after it (the frame's exchange leaves the ranks in step) is the
+        // transfer alone.
         let surface = Surface::from_model(display);
         let dgi = if c.is_root() {
             f32_bytes(&dgi_cpu(
@@ -191,6 +191,8 @@ pub fn scaling(
         } else {
             Vec::new()
         };
+        // The first frame computes the DGI on every rank.
+        let first = r.run_frame(c)?;
         let t0 = Instant::now();
         c.broadcast("the DGI (timed)", dgi)
             .map_err(ClusterError::from)?;
