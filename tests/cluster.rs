@@ -359,6 +359,60 @@ mod mpi {
     }
 
     #[test]
+    fn the_cluster_benchmark_reports_every_rank_and_counts_bytes_consistently() {
+        let out = tmp_file("bench.json");
+        let o = mpirun(&[(
+            2,
+            &exe(),
+            strings(&[
+                "bench",
+                "guided",
+                "--cluster",
+                "--scene",
+                "builtin:cornell",
+                "--size",
+                "96,40",
+                "--fov",
+                "10,60",
+                "--iterations",
+                "2",
+                "--model-size",
+                "96,40",
+                "--model-ranks",
+                "3",
+                "--json",
+                "--out",
+                s(&out),
+            ]),
+        )]);
+        ok(&o);
+        let r: serde_json::Value = serde_json::from_slice(&std::fs::read(&out).unwrap()).unwrap();
+        let scaling = r["scaling"].as_array().unwrap();
+        assert_eq!(scaling.len(), 2);
+        for row in scaling {
+            let per_rank = row["per_rank"].as_array().unwrap();
+            assert_eq!(per_rank.len(), 2);
+            // Every scheduled sample was traced by exactly one rank.
+            let traced: f64 = per_rank
+                .iter()
+                .map(|p| p["samples_traced_per_iteration"].as_f64().unwrap())
+                .sum();
+            assert_eq!(traced, row["samples_per_iteration"].as_f64().unwrap());
+            // What one rank sent the other received.
+            assert_eq!(
+                per_rank[0]["bytes_sent_per_iteration"],
+                per_rank[1]["bytes_received_per_iteration"]
+            );
+        }
+        let exchange = r["exchange"].as_array().unwrap();
+        assert_eq!(exchange.len(), 2 * 2 * 3, "maps × FOVs × rank counts");
+        for e in exchange {
+            let one = e["ranks"] == 1;
+            assert_eq!(e["bytes_sent_max"] == 0, one, "{e}");
+        }
+    }
+
+    #[test]
     fn a_stop_on_the_rois_progress_is_measured_from_the_owners() {
         // Every ROI pixel sampled twice, on 3 ranks; the ROI summary in the closing message.
         let dir = tmp_dir("until");

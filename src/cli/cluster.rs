@@ -31,15 +31,15 @@ pub struct ClusterArgs {
     pub tile_owners: Option<PathBuf>,
     /// Seconds a rank waits for another beyond its own work (plus twice that work) before it
     /// ends the job naming the rank that did not answer.
-    #[arg(long, value_name = "S", default_value_t = 20.0)]
+    #[arg(long, value_name = "S", default_value_t = 20.0, requires = "cluster")]
     pub cluster_timeout: f64,
     /// How a new ROI's DGI reaches the ranks: every rank computes it, or rank 0 computes and
     /// broadcasts it.
-    #[arg(long, value_enum, default_value_t = DgiMode::Compute)]
+    #[arg(long, value_enum, default_value_t = DgiMode::Compute, requires = "cluster")]
     pub cluster_dgi: DgiMode,
     /// Test hook: RANK:ITERATION:exit|hang makes that rank end (exit status 9) or stop
     /// answering at the start of that iteration.
-    #[arg(long, value_name = "RANK:ITERATION:exit|hang", hide = true, value_parser = parse_fault)]
+    #[arg(long, value_name = "RANK:ITERATION:exit|hang", hide = true, value_parser = parse_fault, requires = "cluster")]
     pub cluster_fault: Option<Fault>,
 }
 
@@ -168,5 +168,55 @@ pub fn or_abort<T>(c: &Cluster, r: anyhow::Result<T>) -> T {
             );
             c.abort(1)
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn faults_parse_and_bad_ones_say_the_form() {
+        assert_eq!(
+            parse_fault("2:3:hang"),
+            Ok(Fault::Hang {
+                rank: 2,
+                iteration: 3
+            })
+        );
+        assert_eq!(
+            parse_fault("0:0:exit"),
+            Ok(Fault::Exit {
+                rank: 0,
+                iteration: 0
+            })
+        );
+        for bad in ["2:3", "x:3:hang", "2:-1:exit", "2:3:crash"] {
+            let e = parse_fault(bad).unwrap_err();
+            assert!(e.contains(bad), "{e}");
+        }
+    }
+
+    #[test]
+    fn tile_owners_need_a_display_and_strips_serve_a_plain_frame() {
+        let args = ClusterArgs {
+            cluster: true,
+            tile_owners: Some(PathBuf::from("o.txt")),
+            ..ClusterArgs::default()
+        };
+        let e = block_owners(&args, None, [64, 32], 2).unwrap_err();
+        assert!(e.to_string().contains("no --display"), "{e}");
+        let args = ClusterArgs {
+            cluster: true,
+            ..ClusterArgs::default()
+        };
+        let (b, map) = block_owners(&args, None, [64, 32], 2).unwrap();
+        assert_eq!((b.owner, map.as_str()), (vec![0, 1], "2 strips"));
+        let hornet = DisplayModel::open("hornet").unwrap().0;
+        let (_, map) = block_owners(&args, Some(&hornet), [64, 32], 2).unwrap();
+        assert!(
+            map.starts_with("c0r0=0") && map.ends_with("c6r4=1"),
+            "{map}"
+        );
     }
 }
