@@ -40,6 +40,7 @@
 
 pub mod bench;
 pub mod cli;
+pub mod cluster;
 pub mod display;
 pub mod filter;
 pub mod frame;

@@ -36,7 +36,7 @@ const LAYERS: &[(&str, &[&str])] = &[
             "output",
         ],
     ),
-    ("frame", &["frame", "memory"]),
+    ("frame", &["frame", "memory", "cluster"]),
     ("session", &["session"]),
     ("front ends", &["bench", "viewer"]),
     ("command line", &["cli"]),

@@ -2,6 +2,7 @@
 //! the hardware they ran on. Never timed tests.
 
 pub mod all;
+pub mod cluster;
 pub mod dgi;
 pub mod filter;
 pub mod guided;

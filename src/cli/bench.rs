@@ -194,6 +194,115 @@ pub struct GuidedBenchArgs {
     pub camera: Option<String>,
     #[command(flatten)]
     pub wall: crate::cli::wall::WallArgs,
+    /// With --cluster (under `mpirun -np N`): the guided iterations across the ranks (strong
+    /// scaling: ms per iteration, trace and exchange per rank, bytes per iteration, the DGI
+    /// computed against broadcast), the exact exchange of larger images for 1 to
+    /// --model-ranks ranks, and the link model. Takes the first --scene.
+    #[command(flatten)]
+    pub cluster: crate::cli::cluster::ClusterArgs,
+    /// Image sizes of the exchange count and the model (repeatable; default 3840,2160 and
+    /// HORNET's native 13519,5457).
+    #[arg(long, value_name = "W,H", value_parser = crate::cli::args::parse_size, requires = "cluster")]
+    pub model_size: Vec<[u32; 2]>,
+    /// Most ranks of the exchange count.
+    #[arg(long, value_name = "N", default_value_t = 35, requires = "cluster")]
+    pub model_ranks: usize,
+    /// The model's link speed per rank, Gbit/s (full duplex).
+    #[arg(
+        long,
+        value_name = "GBPS",
+        default_value_t = 100.0,
+        requires = "cluster"
+    )]
+    pub link_gbps: f64,
+}
+
+/// `bench guided --cluster`: the cluster benchmark (`bench::cluster`).
+fn run_cluster_bench(args: &GuidedBenchArgs) -> anyhow::Result<()> {
+    use crate::cli::cluster::{check, identity, or_abort};
+    if !(args.link_gbps.is_finite() && args.link_gbps > 0.0) {
+        anyhow::bail!("--link-gbps must be a positive number of Gbit/s");
+    }
+    if args.model_ranks == 0 {
+        anyhow::bail!("--model-ranks must be at least 1");
+    }
+    if args.camera.is_some() || args.backend == BackendChoice::Gpu {
+        anyhow::bail!(
+            "bench guided --cluster measures the pinhole on the CPU twins (no --camera, no --backend gpu)"
+        );
+    }
+    let mut c = crate::cli::cluster::start(&args.cluster)?;
+    let scene_name = args.scene[0].clone();
+    let prepared = (|| -> anyhow::Result<_> {
+        let display = DisplayModel::open(&args.display).context("--display")?.0;
+        let scene = crate::cli::scene::load_scene(&scene_name, args.env.as_deref())?;
+        Ok((display, scene))
+    })();
+    let mine = match &prepared {
+        Ok((d, s)) => identity(
+            c.ranks(),
+            &[
+                ("command", "bench guided --cluster".to_owned()),
+                ("display model", crate::cli::cluster::model_field(d)),
+                (
+                    "scene",
+                    format!(
+                        "{scene_name} ({:016x})",
+                        crate::cluster::handshake::scene_hash(s)
+                    ),
+                ),
+                (
+                    "settings",
+                    format!("{:?} {:?} {}", args.size, args.fov, args.iterations),
+                ),
+            ],
+        ),
+        Err(e) => Err(crate::cli::error_chain(e)),
+    };
+    check(&mut c, mine)?;
+    let (display, scene) = prepared?;
+    let model_sizes = if args.model_size.is_empty() {
+        vec![[3840, 2160], [13519, 5457]]
+    } else {
+        args.model_size.clone()
+    };
+    let cfg = crate::bench::cluster::ClusterBenchConfig {
+        scene: scene_name,
+        size: args.size,
+        fovs_deg: args.fov.clone(),
+        iterations: args.iterations,
+        max_depth: crate::trace::path::DEFAULT_MAX_DEPTH,
+        model_sizes,
+        model_ranks: args.model_ranks,
+        link_gbps: args.link_gbps,
+    };
+    let ranks = c.ranks();
+    let rows = crate::bench::cluster::scaling(&mut c, &scene, &display, &cfg);
+    let Some(scaling) = or_abort(&c, rows.map_err(anyhow::Error::from)) else {
+        return Ok(());
+    };
+    let exchange = crate::bench::cluster::exchange(
+        &display,
+        &cfg.model_sizes,
+        &cfg.fovs_deg,
+        cfg.model_ranks,
+        |what| eprintln!("raygun: {what}"),
+    )?;
+    let report = crate::bench::cluster::ClusterBenchReport {
+        device: format!(
+            "{ranks} rank(s) of CPU twins, each {}",
+            crate::bench::cpu_description()
+        ),
+        config: cfg,
+        scaling,
+        exchange,
+    };
+    let text = if args.json {
+        serde_json::to_string_pretty(&report)?
+    } else {
+        crate::bench::cluster::markdown(&report)
+    };
+    print_and_save(&text, args.out.as_deref())
 }
 
 #[derive(Clone, Debug, clap::Args)]
@@ -283,6 +392,9 @@ fn run_native_bench(args: &NativeBenchArgs) -> anyhow::Result<()> {
 }
 
 fn run_guided_bench(args: &GuidedBenchArgs) -> anyhow::Result<()> {
+    if args.cluster.cluster {
+        return run_cluster_bench(args);
+    }
     let display = DisplayModel::open(&args.display).context("--display")?.0;
     if let Some(c) = args.camera.as_deref()
         && c != crate::cli::wall::WALL_CAMERA

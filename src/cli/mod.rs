@@ -4,6 +4,7 @@
 pub mod args;
 pub mod bench;
 pub mod calibrate;
+pub mod cluster;
 pub mod demo;
 pub mod dgi;
 pub mod display;

@@ -372,21 +372,7 @@ impl<'a> Renderer<'a> {
         let (w, h) = (self.settings.width, self.settings.height);
         let g = self.guidance.as_mut().ok_or(FrameError::NotGuided)?;
         let prepared = match &roi {
-            Some(r) => {
-                let guide = Guide::new(&g.surface, r, g.config.metric)?;
-                let length = g
-                    .config
-                    .falloff
-                    .length_px(roi_radius_m(&g.surface, r), g.pitch_m);
-                Some((
-                    guide,
-                    DgiParams {
-                        width: w,
-                        height: h,
-                        falloff_px: Some(length),
-                    },
-                ))
-            }
+            Some(r) => Some(prepare_dgi(&g.surface, g.pitch_m, &g.config, r, [w, h])?),
             None => None,
         };
         match &mut self.engine {
@@ -735,6 +721,47 @@ impl<'a> Renderer<'a> {
             Engine::Cpu { accum, .. } => (accum, dgi),
         })
     }
+}
+
+/// The DGI job of `roi` for a `size` image on `surface` (pitch `pitch_m` metres per canvas
+/// pixel): the guide and the parameters with the falloff `config` gives that ROI's radius.
+pub fn prepare_dgi(
+    surface: &Surface,
+    pitch_m: f64,
+    config: &GuideConfig,
+    roi: &Roi,
+    [width, height]: [u32; 2],
+) -> Result<(Guide, DgiParams), FrameError> {
+    let guide = Guide::new(surface, roi, config.metric)?;
+    let length = config
+        .falloff
+        .length_px(roi_radius_m(surface, roi), pitch_m);
+    Ok((
+        guide,
+        DgiParams {
+            width,
+            height,
+            falloff_px: Some(length),
+        },
+    ))
+}
+
+/// The DGI of `roi` (`None`: 0 everywhere) computed by the CPU twin: what a CPU renderer's
+/// [`Renderer::set_roi`] installs, value for value.
+pub fn dgi_cpu(
+    surface: &Surface,
+    pitch_m: f64,
+    config: &GuideConfig,
+    roi: Option<&Roi>,
+    size: [u32; 2],
+) -> Result<Vec<f32>, FrameError> {
+    Ok(match roi {
+        Some(r) => {
+            let (guide, params) = prepare_dgi(surface, pitch_m, config, r, size)?;
+            compute_cpu(surface, &guide, &params)
+        }
+        None => vec![0.0; size[0] as usize * size[1] as usize],
+    })
 }
 
 /// The guided stages on the GPU for a `w × h` frame, with a cleared DGI.

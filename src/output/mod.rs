@@ -74,6 +74,16 @@ pub fn check_image_path(path: &Path) -> Result<Format, OutputError> {
     Ok(format)
 }
 
+/// The EXR encoding of every file raygun writes: exr's fast lossless one (RLE, 64×64 tiles)
+/// with its tiles in increasing order. exr compresses tiles on several threads; in its default
+/// unspecified order they are written as they finish, so the same image gave different bytes
+/// from run to run. Sorted, the same pixels always give the same file (what the cluster's
+/// byte-for-byte tests compare).
+const REPRODUCIBLE_EXR: exr::prelude::Encoding = exr::prelude::Encoding {
+    line_order: exr::prelude::LineOrder::Increasing,
+    ..exr::prelude::Encoding::FAST_LOSSLESS
+};
+
 /// Writes a one-channel float image (row-major): EXR keeps the values as 32-bit floats in a
 /// channel named `channel`; PNG shows them as 8-bit grey, mapping [0, 1] to [0, 255] (values
 /// outside are clamped, NaN is black).
@@ -92,7 +102,7 @@ pub fn write_gray(
             let layer = Layer::new(
                 (width as usize, height as usize),
                 LayerAttributes::named(channel),
-                Encoding::FAST_LOSSLESS,
+                REPRODUCIBLE_EXR,
                 AnyChannels::sort(SmallVec::from_vec(vec![ch])),
             );
             replace_with(path, |tmp| {
@@ -142,7 +152,7 @@ pub fn write_rgb(
             let layer = Layer::new(
                 (width as usize, height as usize),
                 LayerAttributes::named("rgb"),
-                Encoding::FAST_LOSSLESS,
+                REPRODUCIBLE_EXR,
                 AnyChannels::sort(SmallVec::from_vec(vec![
                     channel("R", 0),
                     channel("G", 1),

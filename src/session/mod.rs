@@ -19,6 +19,7 @@
 //! [`calibrate`] (calibration presses), [`synth`] (the shipped synthetic sessions).
 
 pub mod calibrate;
+pub mod cluster;
 pub mod guide;
 pub mod live;
 pub mod pipeline;

@@ -252,6 +252,18 @@ pub fn run(
         },
     )?;
     bar.finish();
+    write_outputs(args, plan, &res, &backend.describe(), "")
+}
+
+/// Writes a guided render's image, tiles, DGI and counts, and says what was done (`device`
+/// ran it; `extra` closes the message).
+pub fn write_outputs(
+    args: &RenderArgs,
+    plan: &GuidedPlan,
+    res: &crate::session::render::GuidedResult,
+    device: &str,
+    extra: &str,
+) -> anyhow::Result<()> {
     let samples = res.samples();
     if samples == 0 {
         bail!(
@@ -276,11 +288,14 @@ pub fn run(
         res.stop,
         res.iterations,
         res.seconds,
-        backend.describe(),
+        device,
         100.0 * res.sample_share(),
         res.seconds * 1e3 / (samples as f64 / 1e6),
         plan.dgi_out.display(),
         plan.counts_out.display(),
     );
+    if !extra.is_empty() {
+        eprintln!("raygun: {extra}");
+    }
     Ok(())
 }

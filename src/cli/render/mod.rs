@@ -5,6 +5,7 @@
 //! exist and take files), and so is the memory the size needs; every file is written through a
 //! temporary name and renamed into place.
 
+pub mod cluster;
 pub mod guided;
 
 use std::path::PathBuf;
@@ -156,6 +157,8 @@ pub struct RenderArgs {
     /// Format of the tile images (default: the first --out file's).
     #[arg(long, value_name = "exr|png", requires = "tiles", value_parser = parse_format)]
     pub tiles_format: Option<Format>,
+    #[command(flatten)]
+    pub cluster: crate::cli::cluster::ClusterArgs,
 }
 
 fn parse_format(s: &str) -> Result<Format, String> {
@@ -213,6 +216,23 @@ pub fn check_memory(work: Work, size: [u32; 2], backend: &Backend) -> anyhow::Re
     Ok(())
 }
 
+/// The numbers that need no file or scene.
+fn check_args(args: &RenderArgs) -> anyhow::Result<()> {
+    if args.spp == Some(0) {
+        anyhow::bail!("--spp must be at least 1");
+    }
+    if args.max_depth == 0 {
+        anyhow::bail!("--max-depth must be at least 1");
+    }
+    if !args.exposure.is_finite() {
+        anyhow::bail!(
+            "--exposure must be a finite number of stops, not {}",
+            crate::messages::number(f64::from(args.exposure))
+        );
+    }
+    Ok(())
+}
+
 /// Every output the render will write, checked before any work.
 fn check_outputs(args: &RenderArgs) -> anyhow::Result<()> {
     for out in &args.out {
@@ -238,18 +258,10 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
         .unwrap_or(crate::display::DEFAULT_MODEL);
     args.size = crate::cli::args::resolve_size(args.size, display)?;
     let args = &args;
-    if args.spp == Some(0) {
-        anyhow::bail!("--spp must be at least 1");
+    if args.cluster.cluster {
+        return cluster::run(args);
     }
-    if args.max_depth == 0 {
-        anyhow::bail!("--max-depth must be at least 1");
-    }
-    if !args.exposure.is_finite() {
-        anyhow::bail!(
-            "--exposure must be a finite number of stops, not {}",
-            crate::messages::number(f64::from(args.exposure))
-        );
-    }
+    check_args(args)?;
     check_outputs(args)?;
     let filter = args.filter.params()?;
     // Guide, display and calibration are validated before the GPU is looked for and the scene

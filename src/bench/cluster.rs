@@ -1,0 +1,418 @@
+//! `raygun bench cluster`: the paper's guided setup across ranks (DESIGN.md §12).
+//!
+//! * **Strong scaling**, measured: the same guided iterations (HORNET, viewer 1 m in front of
+//!   the centre, 10° and 60°) on the ranks of the job it runs in — under `mpirun -np N` with
+//!   the `cluster` feature, else one in-process rank. Per rank: ms per iteration, of it
+//!   tracing and exchanging, bytes sent and received per iteration; and the DGI's two ways
+//!   to reach the ranks, each rank computing it against rank 0 broadcasting it.
+//! * **Exchange**, counted exactly: for larger images (default 3840×2160 and HORNET's native
+//!   13519×5457) the real schedule, deal and default tile map of one iteration, without
+//!   tracing — the bytes each rank sends and receives for 1 to 35 ranks (the deal's weights
+//!   taken equal: a real run weights by measured rays, which moves blocks, not bytes' total).
+//! * **Model**: from those bytes and a stated link speed, the per-GPU trace rate at which the
+//!   exchange takes as long as the tracing, for 1–35 ranks, and the iterations per second at a
+//!   measured rate (the CPU twin's here; a GPU's when one is measured).
+
+use std::time::Instant;
+
+use serde::Serialize;
+
+use super::{median, paper};
+use crate::cluster::deal::{BlockList, CostTable, deal};
+use crate::cluster::owners::{BlockOwners, TileOwners};
+use crate::cluster::{
+    Cluster, ClusterError, ClusterFrameStats, ClusterRenderer, DgiMode, f32_bytes,
+};
+use crate::display::DisplayModel;
+use crate::frame::{FrameError, GuideConfig, dgi_cpu};
+use crate::roi::cone::ConeError;
+use crate::roi::dgi::Surface;
+use crate::scene::Scene;
+use crate::schedule::{Order, ScheduleError, schedule_cpu};
+use crate::trace::camera::CameraError;
+
+/// Bytes of one sample on the link (linear RGB, f32) and of one block's rays.
+pub const SAMPLE_BYTES: u64 = 12;
+pub const BLOCK_RAYS_BYTES: u64 = 4;
+/// A control message with an ROI change (6 bytes of header, a cone's 14 f64s).
+pub const CONTROL_BYTES: u64 = 6 + 14 * 8;
+
+#[derive(Debug, thiserror::Error)]
+pub enum ClusterBenchError {
+    #[error(transparent)]
+    Cluster(#[from] ClusterError),
+    #[error(transparent)]
+    Frame(#[from] FrameError),
+    #[error(transparent)]
+    Cone(#[from] ConeError),
+    #[error(transparent)]
+    Schedule(#[from] ScheduleError),
+    #[error(transparent)]
+    Camera(#[from] CameraError),
+}
+
+/// What to measure and model.
+#[derive(Clone, Debug, Serialize)]
+pub struct ClusterBenchConfig {
+    pub scene: String,
+    pub size: [u32; 2],
+    pub fovs_deg: Vec<f64>,
+    pub iterations: u32,
+    pub max_depth: u32,
+    /// Sizes of the exchange count and the model.
+    pub model_sizes: Vec<[u32; 2]>,
+    /// Largest rank count of the exchange count.
+    pub model_ranks: usize,
+    /// The stated link speed of the model, Gbit/s.
+    pub link_gbps: f64,
+}
+
+/// One FOV's measured run on one rank.
+#[derive(Clone, Debug, Default, Serialize, serde::Deserialize)]
+pub struct RankRun {
+    pub rank: usize,
+    pub ms_per_iteration: f64,
+    pub ms_trace: f64,
+    pub ms_schedule: f64,
+    pub ms_exchange: f64,
+    pub samples_traced_per_iteration: f64,
+    pub bytes_sent_per_iteration: f64,
+    pub bytes_received_per_iteration: f64,
+    /// The DGI computed on this rank (ms).
+    pub ms_dgi_compute: f64,
+    /// The DGI broadcast from rank 0, received (or sent) here (ms).
+    pub ms_dgi_broadcast: f64,
+}
+
+/// One FOV's measured run on all ranks.
+#[derive(Clone, Debug, Serialize)]
+pub struct ScalingRow {
+    pub fov_deg: f64,
+    pub ranks: usize,
+    /// Samples per iteration on all ranks, as a share of the image.
+    pub share_sampled: f64,
+    pub samples_per_iteration: f64,
+    pub per_rank: Vec<RankRun>,
+}
+
+impl ScalingRow {
+    /// Rank 0's ms per iteration (the job's pace: every rank waits for the slowest each
+    /// iteration).
+    #[must_use]
+    pub fn ms_per_iteration(&self) -> f64 {
+        self.per_rank[0].ms_per_iteration
+    }
+}
+
+/// One size × FOV × rank count of the exchange count.
+#[derive(Clone, Debug, Serialize)]
+pub struct ExchangeRow {
+    /// `columns` (the default map: whole columns dealt evenly) or `tiles` (tile i to rank
+    /// i mod N, which spreads the ROI's tiles).
+    pub tile_map: &'static str,
+    pub size: [u32; 2],
+    pub fov_deg: f64,
+    pub ranks: usize,
+    pub samples_per_iteration: u64,
+    pub bytes_sent_max: u64,
+    pub bytes_sent_mean: f64,
+    pub bytes_received_max: u64,
+    /// The DGI broadcast's bytes per ROI change, sent by rank 0.
+    pub dgi_broadcast_bytes: u64,
+}
+
+impl ExchangeRow {
+    /// Seconds the busiest rank's link needs per iteration at `gbps` (sending and receiving
+    /// overlap on a full-duplex link: the larger of the two).
+    #[must_use]
+    pub fn link_seconds(&self, gbps: f64) -> f64 {
+        self.bytes_sent_max.max(self.bytes_received_max) as f64 * 8.0 / (gbps * 1e9)
+    }
+
+    /// The per-rank trace rate (samples/s) at which tracing a rank's share takes as long as its
+    /// exchange: above it, the link dominates.
+    #[must_use]
+    pub fn break_even_rate(&self, gbps: f64) -> f64 {
+        let t = self.link_seconds(gbps);
+        if t == 0.0 {
+            f64::INFINITY
+        } else {
+            self.samples_per_iteration as f64 / self.ranks as f64 / t
+        }
+    }
+}
+
+/// Everything.
+#[derive(Clone, Debug, Serialize)]
+pub struct ClusterBenchReport {
+    pub device: String,
+    pub config: ClusterBenchConfig,
+    pub scaling: Vec<ScalingRow>,
+    pub exchange: Vec<ExchangeRow>,
+}
+
+/// The measured guided run on this job's ranks (rank 0 gets the rows).
+pub fn scaling(
+    c: &mut Cluster,
+    scene: &Scene,
+    display: &DisplayModel,
+    cfg: &ClusterBenchConfig,
+) -> Result<Option<Vec<ScalingRow>>, ClusterBenchError> {
+    let (rank, ranks) = (c.rank(), c.ranks());
+    let owners = BlockOwners::of_display(display, &TileOwners::columns(display, ranks), cfg.size);
+    let mut rows = Vec::new();
+    for &fov in &cfg.fovs_deg {
+        let settings = paper::settings(scene, cfg.size, 1, cfg.max_depth)?;
+        let roi = paper::roi(fov)?;
+        let config = GuideConfig::default();
+        let mut r = ClusterRenderer::new(
+            scene,
+            settings,
+            Some((display, config)),
+            None,
+            owners.clone(),
+            DgiMode::Compute,
+            rank,
+            ranks,
+        )?;
+        r.set_roi(Some(roi))?;
+        // The broadcast alternative: rank 0's DGI, computed before the first frame so that the
+        // timed broadcast right after it (the frame's exchange leaves the ranks in step) is the
+        // transfer alone.
+        let surface = Surface::from_model(display);
+        let dgi = if c.is_root() {
+            f32_bytes(&dgi_cpu(
+                &surface,
+                display.pitch_m(),
+                &config,
+                Some(&roi),
+                cfg.size,
+            )?)
+        } else {
+            Vec::new()
+        };
+        // The first frame computes the DGI on every rank.
+        let first = r.run_frame(c)?;
+        let t0 = Instant::now();
+        c.broadcast("the DGI (timed)", dgi)
+            .map_err(ClusterError::from)?;
+        let ms_dgi_broadcast = t0.elapsed().as_secs_f64() * 1e3;
+        let mut frames: Vec<(f64, ClusterFrameStats)> = Vec::new();
+        for _ in 0..cfg.iterations.max(1) {
+            let t = Instant::now();
+            let s = r.run_frame(c)?;
+            frames.push((t.elapsed().as_secs_f64() * 1e3, s));
+        }
+        let n = frames.len() as f64;
+        let med = |f: &dyn Fn(&ClusterFrameStats) -> f64| {
+            median(frames.iter().map(|(_, s)| f(s)).collect())
+        };
+        let mine = RankRun {
+            rank,
+            ms_per_iteration: median(frames.iter().map(|(ms, _)| *ms).collect()),
+            ms_trace: med(&|s| s.ms_trace),
+            ms_schedule: med(&|s| s.ms_schedule),
+            ms_exchange: med(&|s| s.ms_exchange),
+            samples_traced_per_iteration: frames
+                .iter()
+                .map(|(_, s)| s.pixels_traced as f64)
+                .sum::<f64>()
+                / n,
+            bytes_sent_per_iteration: frames
+                .iter()
+                .map(|(_, s)| s.traffic.bytes_sent as f64)
+                .sum::<f64>()
+                / n,
+            bytes_received_per_iteration: frames
+                .iter()
+                .map(|(_, s)| s.traffic.bytes_received as f64)
+                .sum::<f64>()
+                / n,
+            ms_dgi_compute: first.ms_dgi,
+            ms_dgi_broadcast,
+        };
+        let samples = frames.iter().map(|(_, s)| s.pixels as f64).sum::<f64>() / n;
+        let gathered = c
+            .gather(
+                "the benchmark's numbers",
+                serde_json::to_vec(&mine).expect("numbers serialise"),
+            )
+            .map_err(ClusterError::from)?;
+        if let Some(all) = gathered {
+            let per_rank = all
+                .iter()
+                .map(|b| serde_json::from_slice(b).unwrap_or_default())
+                .collect();
+            rows.push(ScalingRow {
+                fov_deg: fov,
+                ranks,
+                share_sampled: samples / (f64::from(cfg.size[0]) * f64::from(cfg.size[1])),
+                samples_per_iteration: samples,
+                per_rank,
+            });
+        }
+    }
+    Ok(c.is_root().then_some(rows))
+}
+
+/// The exact exchange of one iteration (the first: iteration 0, seed 1) of the paper's setup
+/// for each size, FOV and rank count 1..=`max_ranks`, from the real schedule and the deal with
+/// equal weights, for the default tile map (whole columns) and for tiles dealt round-robin.
+pub fn exchange(
+    display: &DisplayModel,
+    sizes: &[[u32; 2]],
+    fovs: &[f64],
+    max_ranks: usize,
+    mut progress: impl FnMut(&str),
+) -> Result<Vec<ExchangeRow>, ClusterBenchError> {
+    let surface = Surface::from_model(display);
+    let mut rows = Vec::new();
+    for &size in sizes {
+        for &fov in fovs {
+            progress(&format!("exchange: {}×{}, {fov}°", size[0], size[1]));
+            let roi = paper::roi(fov)?;
+            let dgi = dgi_cpu(
+                &surface,
+                display.pitch_m(),
+                &GuideConfig::default(),
+                Some(&roi),
+                size,
+            )?;
+            let list = schedule_cpu(&dgi, size[0], size[1], 0.0, 0, 1, Order::Coherent)?;
+            drop(dgi);
+            let list = BlockList::group(&list, size);
+            let nblocks = (size[0].div_ceil(32) * size[1].div_ceil(32)) as usize;
+            let costs = CostTable::new(nblocks);
+            for (tile_map, ranks) in ["columns", "tiles"]
+                .into_iter()
+                .flat_map(|m| (1..=max_ranks).map(move |n| (m, n)))
+            {
+                let map = if tile_map == "columns" {
+                    TileOwners::columns(display, ranks)
+                } else {
+                    TileOwners {
+                        ranks: (0..display.tiles().len()).map(|t| t % ranks).collect(),
+                    }
+                };
+                let owners = BlockOwners::of_display(display, &map, size);
+                let tracer = deal(&list, &costs, ranks);
+                let (mut sent, mut got) = (vec![0u64; ranks], vec![0u64; ranks]);
+                let n = ranks as u64;
+                // The control (with an ROI change: the largest) from rank 0.
+                sent[0] += CONTROL_BYTES * (n - 1);
+                for g in got.iter_mut().skip(1) {
+                    *g += CONTROL_BYTES;
+                }
+                for (i, &t) in tracer.iter().enumerate() {
+                    let t = t as usize;
+                    let o = owners.owner[list.blocks[i] as usize] as usize;
+                    // Its rays to every other rank.
+                    sent[t] += BLOCK_RAYS_BYTES * (n - 1);
+                    for (r, g) in got.iter_mut().enumerate() {
+                        if r != t {
+                            *g += BLOCK_RAYS_BYTES;
+                        }
+                    }
+                    if t != o {
+                        let b = SAMPLE_BYTES * u64::from(list.len_of(i));
+                        sent[t] += b;
+                        got[o] += b;
+                    }
+                }
+                rows.push(ExchangeRow {
+                    tile_map,
+                    size,
+                    fov_deg: fov,
+                    ranks,
+                    samples_per_iteration: list.pixels.len() as u64,
+                    bytes_sent_max: sent.iter().copied().max().unwrap_or(0),
+                    bytes_sent_mean: sent.iter().sum::<u64>() as f64 / ranks as f64,
+                    bytes_received_max: got.iter().copied().max().unwrap_or(0),
+                    dgi_broadcast_bytes: 4 * u64::from(size[0]) * u64::from(size[1]) * (n - 1),
+                });
+            }
+        }
+    }
+    Ok(rows)
+}
+
+fn mb(bytes: f64) -> String {
+    format!("{:.2}", bytes / 1e6)
+}
+
+/// The report as Markdown.
+#[must_use]
+pub fn markdown(r: &ClusterBenchReport) -> String {
+    let c = &r.config;
+    let mut s = format!(
+        "Device: {}\n\n## Strong scaling (measured)\n\n{} at {}×{}, max depth {}, HORNET, viewer 1 m in front of the centre, {} timed iterations per FOV after the DGI's.\n\n| FOV | ranks | share sampled | ms/iteration (rank 0) | rank | ms trace | ms schedule | ms exchange | samples traced/it | bytes sent/it | bytes received/it | DGI computed ms | DGI broadcast ms |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        r.device, c.scene, c.size[0], c.size[1], c.max_depth, c.iterations
+    );
+    for row in &r.scaling {
+        for (k, p) in row.per_rank.iter().enumerate() {
+            let head = if k == 0 {
+                format!(
+                    "| {}° | {} | {:.3} | {:.1} ",
+                    row.fov_deg,
+                    row.ranks,
+                    row.share_sampled,
+                    row.ms_per_iteration()
+                )
+            } else {
+                "| | | | ".to_owned()
+            };
+            s += &format!(
+                "{head}| {} | {:.1} | {:.1} | {:.1} | {:.0} | {:.0} | {:.0} | {:.1} | {:.1} |\n",
+                p.rank,
+                p.ms_trace,
+                p.ms_schedule,
+                p.ms_exchange,
+                p.samples_traced_per_iteration,
+                p.bytes_sent_per_iteration,
+                p.bytes_received_per_iteration,
+                p.ms_dgi_compute,
+                p.ms_dgi_broadcast
+            );
+        }
+    }
+    // The CPU twin's trace rate per rank, measured above: the model's one measured rate.
+    let rate = r
+        .scaling
+        .iter()
+        .flat_map(|row| &row.per_rank)
+        .filter(|p| p.ms_trace > 0.0)
+        .map(|p| p.samples_traced_per_iteration / (p.ms_trace / 1e3))
+        .fold(f64::NAN, f64::max);
+    s += &format!(
+        "\n## Exchange per iteration (counted from the real schedule and deal)\n\nBytes per iteration: 12 per sample traced for another rank's tile, 4 per block traced to every other rank, the control message ({CONTROL_BYTES} bytes with an ROI change). The DGI's broadcast ({}) is per ROI change, not per iteration.\n\n| tile map | size | FOV | ranks | samples/it | max sent MB/it | mean sent MB/it | max received MB/it | DGI broadcast MB | link ms/it at {} Gb/s | break-even rate per rank (Msamples/s) | iterations/s at the measured rate |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "4 bytes a pixel to every other rank", c.link_gbps
+    );
+    for e in &r.exchange {
+        if !(e.ranks <= 4 || e.ranks % 5 == 0 || e.ranks == c.model_ranks) {
+            continue;
+        }
+        let link = e.link_seconds(c.link_gbps);
+        let trace = e.samples_per_iteration as f64 / e.ranks as f64 / rate;
+        s += &format!(
+            "| {} | {}×{} | {}° | {} | {} | {} | {} | {} | {} | {:.3} | {:.0} | {:.2} |\n",
+            e.tile_map,
+            e.size[0],
+            e.size[1],
+            e.fov_deg,
+            e.ranks,
+            e.samples_per_iteration,
+            mb(e.bytes_sent_max as f64),
+            mb(e.bytes_sent_mean),
+            mb(e.bytes_received_max as f64),
+            mb(e.dgi_broadcast_bytes as f64),
+            link * 1e3,
+            e.break_even_rate(c.link_gbps) / 1e6,
+            1.0 / (trace + link),
+        );
+    }
+    s += &format!(
+        "\nThe measured rate: {:.3} Msamples/s per rank (the CPU twin, best of the rows above). Iterations/s = 1 / (samples/(ranks × rate) + link time): tracing and exchange do not overlap, the schedule and the DGI are left out. A rank whose trace rate exceeds the break-even rate spends longer on the link than on tracing.\n",
+        rate / 1e6
+    );
+    s
+}

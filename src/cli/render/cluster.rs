@@ -1,0 +1,260 @@
+//! `raygun render … --cluster`: the render of `render` (full frame or guided) across the ranks
+//! of an MPI job. Every rank validates the command and loads the scene; the start-up check
+//! compares what the ranks are about to do; rank 0 follows the guide, shows the progress and
+//! writes every output, bit for bit what one process writes.
+
+use anyhow::{Context, bail};
+
+use super::guided::GuidedPlan;
+use super::{RenderArgs, check_args, check_outputs, resolve_wall, settings, wall_camera};
+use crate::cli::cluster::{block_owners, check, identity, model_field, or_abort};
+use crate::cli::progress::Progress;
+use crate::cli::scene::load_scene;
+use crate::cluster::handshake::scene_hash;
+use crate::cluster::owners::BlockOwners;
+use crate::cluster::{Cluster, ClusterRenderer};
+use crate::display::DisplayModel;
+use crate::filter::Filter;
+use crate::gpu::{Backend, BackendChoice};
+use crate::memory::Work;
+use crate::scene::Scene;
+use crate::session::cluster::{ClusterRun, run_cluster};
+use crate::session::render::{GuidedResult, Stopping};
+use crate::trace::path::TraceSettings;
+use crate::trace::wall::WallCamera;
+
+/// What every rank has checked and loaded before the start-up check.
+struct Prepared {
+    plan: Option<GuidedPlan>,
+    scene: Scene,
+    settings: TraceSettings,
+    wall: Option<WallCamera>,
+    /// The display of `--tiles` for a full frame.
+    tiles_model: Option<DisplayModel>,
+    owners: BlockOwners,
+    fields: Vec<(&'static str, String)>,
+}
+
+pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
+    let mut c = crate::cli::cluster::start(&args.cluster)?;
+    let prepared = prepare(args, &c);
+    let mine = match &prepared {
+        Ok(p) => identity(c.ranks(), &p.fields),
+        Err(e) => Err(crate::cli::error_chain(e)),
+    };
+    check(&mut c, mine)?;
+    // The check passed, so this rank prepared (its error would have failed the check).
+    let p = prepared?;
+    let done = work(&mut c, args, p);
+    or_abort(&c, done);
+    Ok(())
+}
+
+fn prepare(args: &RenderArgs, c: &Cluster) -> anyhow::Result<Prepared> {
+    check_args(args)?;
+    if c.is_root() {
+        check_outputs(args)?;
+    }
+    if args.backend == BackendChoice::Gpu {
+        bail!(
+            "--cluster traces on the CPU twins; --backend gpu is not taken with it (use --backend cpu or auto)"
+        );
+    }
+    let plan = match &args.guide {
+        Some(guide) => Some(GuidedPlan::new(args, guide)?),
+        None => None,
+    };
+    let wall = resolve_wall(args, plan.as_ref())?;
+    let work = if plan.is_some() {
+        Work::Render {
+            gpu: false,
+            filter: args.filter.params()?.kind,
+        }
+    } else {
+        Work::FullFrame { gpu: false }
+    };
+    super::check_memory(work, args.size, &Backend::Cpu)?;
+    let tiles_model = match (&args.tiles, &wall, &plan) {
+        (Some(_), Some(w), None) => Some(w.model.clone()),
+        (Some(_), None, None) => {
+            let spec = args
+                .display
+                .as_deref()
+                .unwrap_or(crate::display::DEFAULT_MODEL);
+            let (model, origin) = DisplayModel::open(spec)?;
+            if c.is_root() {
+                super::warn_if_resampled(args.size, &model, &origin.to_string());
+            }
+            Some(model)
+        }
+        _ => None,
+    };
+    let scene = load_scene(&args.scene, args.env.as_deref())?;
+    let settings = settings(args, &scene)?;
+    let wc = wall_camera(wall.as_ref(), &settings)?;
+    let model = plan
+        .as_ref()
+        .map(|p| &p.model)
+        .or(wall.as_ref().map(|w| &w.model))
+        .or(tiles_model.as_ref());
+    let (owners, tile_map) = block_owners(&args.cluster, model, args.size, c.ranks())?;
+    let mut fields = vec![
+        (
+            "command",
+            if plan.is_some() {
+                "render, guided".to_owned()
+            } else {
+                "render, full frame".to_owned()
+            },
+        ),
+        ("display model", model.map_or("none".into(), model_field)),
+        ("tile map", tile_map),
+        (
+            "scene",
+            format!("{} ({:016x})", args.scene, scene_hash(&scene)),
+        ),
+        ("settings", format!("{settings:?}")),
+        (
+            "wall camera",
+            format!("{:?}", wc.as_ref().map(|w| w.eye_room)),
+        ),
+        ("DGI mode", format!("{:?}", args.cluster.cluster_dgi)),
+    ];
+    match &plan {
+        Some(p) => {
+            fields.push(("guide", format!("{:?}", p.source)));
+            fields.push((
+                "guide settings",
+                format!("{:?} {:?} {:?}", p.config, p.filter, p.stopping),
+            ));
+        }
+        None => fields.push(("spp", format!("{:?}", args.spp))),
+    }
+    Ok(Prepared {
+        plan,
+        scene,
+        settings,
+        wall: wc,
+        tiles_model,
+        owners,
+        fields,
+    })
+}
+
+fn work(c: &mut Cluster, args: &RenderArgs, p: Prepared) -> anyhow::Result<()> {
+    let (rank, ranks) = (c.rank(), c.ranks());
+    let guide = p.plan.as_ref().map(|plan| (&plan.model, plan.config));
+    let mut r = ClusterRenderer::new(
+        &p.scene,
+        p.settings,
+        guide,
+        p.wall.clone(),
+        p.owners,
+        args.cluster.cluster_dgi,
+        rank,
+        ranks,
+    )?;
+    let stopping = match &p.plan {
+        Some(plan) => plan.stopping.clone(),
+        None => Stopping {
+            iterations: Some(args.spp.unwrap_or(super::DEFAULT_SPP)),
+            until: Vec::new(),
+        },
+    };
+    if c.is_root()
+        && let Some(plan) = &p.plan
+    {
+        eprintln!("raygun: display: {}", plan.display_note);
+    }
+    let mut bar = Progress::new(
+        args.quiet || !c.is_root(),
+        if p.plan.is_some() {
+            "guided render"
+        } else {
+            "rendering"
+        },
+        stopping.iterations.map(u64::from),
+        if p.plan.is_some() {
+            "iterations"
+        } else {
+            "spp"
+        },
+    );
+    let run = run_cluster(
+        c,
+        &mut r,
+        p.plan.as_ref().map(|plan| &plan.source),
+        &stopping,
+        args.cluster.cluster_fault,
+        |s, progress| {
+            if let Some(p) = progress {
+                bar.note(&format!(
+                    "ROI: median SE {:.4}, fewest samples {}",
+                    p.median_se, p.min_samples
+                ));
+            }
+            bar.set(u64::from(s.iteration) + 1);
+        },
+    )?;
+    bar.finish();
+    let Some((acc, dgi)) = run.gathered.as_ref() else {
+        return Ok(());
+    };
+    let device = format!("{ranks} rank(s), CPU twins");
+    let summary = summary(&run, ranks);
+    let [w, h] = args.size;
+    match &p.plan {
+        Some(plan) => {
+            let mut image = Filter::new(&Backend::Cpu).image(&plan.filter, acc, dgi)?;
+            if let Some(wc) = &p.wall {
+                wc.blank_unshown(&mut image);
+            }
+            let res = GuidedResult {
+                size: args.size,
+                iterations: run.iterations,
+                image,
+                dgi: dgi.clone(),
+                counts: acc.count.clone(),
+                seconds: run.seconds,
+                stop: run.stop,
+                progress: run.progress,
+            };
+            super::guided::write_outputs(args, plan, &res, &device, &summary)
+        }
+        None => {
+            let image = acc.mean_image();
+            for out in &args.out {
+                crate::output::write_rgb(out, w, h, &image, args.exposure)
+                    .with_context(|| out.display().to_string())?;
+            }
+            if let Some(model) = &p.tiles_model {
+                super::write_wall_tiles(args, model, &image)?;
+            }
+            let samples: u64 = acc.count.iter().map(|&n| u64::from(n)).sum();
+            eprintln!(
+                "raygun: {} triangles, {w}×{h}, {} spp in {:.2} s on {device}: {:.2} ms per megasample (BVH build {:.2} s); {summary}",
+                p.scene.triangles.len(),
+                run.iterations,
+                run.seconds,
+                run.seconds * 1e3 / (samples as f64 / 1e6),
+                r.build_seconds,
+            );
+            Ok(())
+        }
+    }
+}
+
+/// Rank 0's share of the work and of the traffic, per iteration.
+fn summary(run: &ClusterRun, ranks: usize) -> String {
+    let n = run.frames.len().max(1) as f64;
+    let traced: u64 = run.frames.iter().map(|f| f.pixels_traced).sum();
+    let all: u64 = run.frames.iter().map(|f| f.pixels).sum();
+    let sent: u64 = run.frames.iter().map(|f| f.traffic.bytes_sent).sum();
+    let got: u64 = run.frames.iter().map(|f| f.traffic.bytes_received).sum();
+    format!(
+        "rank 0 of {ranks} traced {:.1} % of the samples and sent {:.0} / received {:.0} bytes per iteration",
+        100.0 * traced as f64 / all.max(1) as f64,
+        sent as f64 / n,
+        got as f64 / n
+    )
+}

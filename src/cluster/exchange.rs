@@ -1,0 +1,218 @@
+//! The seam between the cluster frame and its transport: a rank sends byte messages to other
+//! ranks and receives one message from each rank it expects, with a bound on every wait.
+//!
+//! [`Exchange`] is that one operation ([`Exchange::round`]); the collectives the frame needs
+//! (broadcast from rank 0, all-to-all, gather to rank 0) are built on it in [`super::Cluster`].
+//! Two backends: [`InProcess`] (N ranks as threads of one process, joined by channels — the unit
+//! tests' ranks) and, with the `cluster` feature, MPI (`super::mpi`). Messages between a pair of
+//! ranks arrive in the order they were sent (MPI's non-overtaking rule; a channel's order), and
+//! every rank runs the same sequence of rounds, so no tags or sequence numbers are needed.
+
+use std::sync::mpsc::{Receiver, RecvTimeoutError, Sender, channel};
+use std::time::Duration;
+
+/// Why a round failed. Every variant names the rank at fault.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ExchangeError {
+    #[error("rank {rank} did not answer within {seconds:.1} s ({what}): it stopped or hangs")]
+    Timeout {
+        rank: usize,
+        seconds: f64,
+        what: String,
+    },
+    #[error("rank {rank} is gone ({what}): it ended or failed (its own message says why)")]
+    Gone { rank: usize, what: String },
+    #[error("rank {rank} sent {got} bytes for {what}; {expected} were expected")]
+    Length {
+        rank: usize,
+        what: String,
+        got: usize,
+        expected: usize,
+    },
+    #[error("rank {rank}: {what}: {reason}")]
+    Malformed {
+        rank: usize,
+        what: String,
+        reason: String,
+    },
+    #[error("MPI: {0}")]
+    Mpi(String),
+}
+
+/// Bytes and messages a rank has sent and received so far.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct Traffic {
+    pub bytes_sent: u64,
+    pub bytes_received: u64,
+    pub messages_sent: u64,
+    pub messages_received: u64,
+}
+
+impl Traffic {
+    /// What was exchanged since `earlier`.
+    #[must_use]
+    pub fn since(&self, earlier: &Self) -> Self {
+        Self {
+            bytes_sent: self.bytes_sent - earlier.bytes_sent,
+            bytes_received: self.bytes_received - earlier.bytes_received,
+            messages_sent: self.messages_sent - earlier.messages_sent,
+            messages_received: self.messages_received - earlier.messages_received,
+        }
+    }
+
+    pub(crate) fn count_round(&mut self, sends: &[(usize, Vec<u8>)], received: &[Vec<u8>]) {
+        self.bytes_sent += sends.iter().map(|(_, b)| b.len() as u64).sum::<u64>();
+        self.messages_sent += sends.len() as u64;
+        self.bytes_received += received.iter().map(|b| b.len() as u64).sum::<u64>();
+        self.messages_received += received.len() as u64;
+    }
+}
+
+/// A rank's link to the others.
+pub trait Exchange {
+    /// This rank, `0..ranks()`.
+    fn rank(&self) -> usize;
+    /// How many ranks the job has.
+    fn ranks(&self) -> usize;
+    /// One round: sends each `(rank, bytes)` of `sends` (never to itself), then receives one
+    /// message from each rank of `from`, in that order, waiting at most `wait` for each.
+    /// `what` names the round in an error.
+    fn round(
+        &mut self,
+        sends: Vec<(usize, Vec<u8>)>,
+        from: &[usize],
+        what: &str,
+        wait: Duration,
+    ) -> Result<Vec<Vec<u8>>, ExchangeError>;
+    /// What this rank has exchanged so far.
+    fn traffic(&self) -> Traffic;
+    /// Ends the whole job at once (MPI_Abort) after an error this rank has printed: the other
+    /// ranks would otherwise wait for it until their deadline.
+    fn abort(&self, code: i32) -> !;
+}
+
+/// One rank of an in-process job: N ranks as threads, one channel per ordered pair of ranks.
+pub struct InProcess {
+    rank: usize,
+    /// `to[r]`: the channel to rank `r` (`None` for this rank itself).
+    to: Vec<Option<Sender<Vec<u8>>>>,
+    /// `from[r]`: the channel from rank `r`.
+    from: Vec<Option<Receiver<Vec<u8>>>>,
+    traffic: Traffic,
+}
+
+impl InProcess {
+    /// The `ranks` ends of a new in-process job, rank 0 first.
+    #[must_use]
+    pub fn job(ranks: usize) -> Vec<Self> {
+        let mut ends: Vec<Self> = (0..ranks)
+            .map(|rank| Self {
+                rank,
+                to: (0..ranks).map(|_| None).collect(),
+                from: (0..ranks).map(|_| None).collect(),
+                traffic: Traffic::default(),
+            })
+            .collect();
+        for a in 0..ranks {
+            for b in 0..ranks {
+                if a != b {
+                    let (tx, rx) = channel();
+                    ends[a].to[b] = Some(tx);
+                    ends[b].from[a] = Some(rx);
+                }
+            }
+        }
+        ends
+    }
+}
+
+impl Exchange for InProcess {
+    fn rank(&self) -> usize {
+        self.rank
+    }
+
+    fn ranks(&self) -> usize {
+        self.to.len()
+    }
+
+    fn round(
+        &mut self,
+        sends: Vec<(usize, Vec<u8>)>,
+        from: &[usize],
+        what: &str,
+        wait: Duration,
+    ) -> Result<Vec<Vec<u8>>, ExchangeError> {
+        let gone = |rank| ExchangeError::Gone {
+            rank,
+            what: what.to_owned(),
+        };
+        for (dest, bytes) in &sends {
+            let tx = self.to[*dest]
+                .as_ref()
+                .expect("a round sends to other ranks only");
+            tx.send(bytes.clone()).map_err(|_| gone(*dest))?;
+        }
+        let mut got = Vec::with_capacity(from.len());
+        for &src in from {
+            let rx = self.from[src]
+                .as_ref()
+                .expect("a round receives from other ranks only");
+            got.push(rx.recv_timeout(wait).map_err(|e| match e {
+                RecvTimeoutError::Timeout => ExchangeError::Timeout {
+                    rank: src,
+                    seconds: wait.as_secs_f64(),
+                    what: what.to_owned(),
+                },
+                RecvTimeoutError::Disconnected => gone(src),
+            })?);
+        }
+        self.traffic.count_round(&sends, &got);
+        Ok(got)
+    }
+
+    fn traffic(&self) -> Traffic {
+        self.traffic
+    }
+
+    fn abort(&self, code: i32) -> ! {
+        panic!("rank {} ended the in-process job (code {code})", self.rank)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn messages_arrive_in_order_and_are_counted() {
+        let mut ends = InProcess::job(2);
+        let mut b = ends.pop().unwrap();
+        let mut a = ends.pop().unwrap();
+        let w = Duration::from_secs(5);
+        a.round(vec![(1, vec![1, 2]), (1, vec![3])], &[], "t", w)
+            .unwrap();
+        let got = b.round(vec![], &[0, 0], "t", w).unwrap();
+        assert_eq!(got, vec![vec![1, 2], vec![3]]);
+        assert_eq!(a.traffic().bytes_sent, 3);
+        assert_eq!(b.traffic().bytes_received, 3);
+        assert_eq!(b.traffic().messages_received, 2);
+    }
+
+    #[test]
+    fn a_silent_rank_times_out_and_a_dropped_one_is_gone_both_named() {
+        let mut ends = InProcess::job(3);
+        let c = ends.pop().unwrap();
+        let _b = ends.pop().unwrap();
+        let mut a = ends.pop().unwrap();
+        let e = a
+            .round(vec![], &[1], "samples", Duration::from_millis(20))
+            .unwrap_err();
+        assert!(matches!(e, ExchangeError::Timeout { rank: 1, .. }), "{e:?}");
+        assert!(e.to_string().contains("rank 1"), "{e}");
+        drop(c);
+        let e = a
+            .round(vec![], &[2], "samples", Duration::from_secs(5))
+            .unwrap_err();
+        assert!(matches!(e, ExchangeError::Gone { rank: 2, .. }), "{e:?}");
+    }
+}

@@ -1,0 +1,849 @@
+//! One wall rendered by several ranks (DESIGN.md §12): the frame of [`crate::frame`] with its
+//! samples computed across ranks and accumulated by the ranks that own the wall's tiles.
+//!
+//! ```text
+//! rank 0: ROI, iteration ──broadcast──► every rank
+//! every rank: install the DGI (computed, or broadcast by rank 0) ──► schedule (the whole
+//!     list: the same on every rank) ──► deal its 32×32 blocks, weighted by measured cost
+//!     ──► trace the blocks dealt to this rank ──all-to-all──► each block's samples to the
+//!     owner of its tile, which accumulates them
+//! rank 0, when asked (save, report): gathers the owners' sums ──► filter ──► picture
+//! ```
+//!
+//! [`ClusterRenderer::run_frame`] is that function. Samples are exact: a sample depends only
+//! on (pixel, sample index, seed), every rank keeps every pixel's sample count (the schedule is
+//! the same everywhere, so the counts are), and a pixel gets at most one sample an iteration,
+//! which its owner adds as the one-process renderer does. N ranks therefore give the
+//! accumulation of one process bit for bit, whatever the deal — the tests compare them.
+//!
+//! What crosses the link each iteration, per rank: the control message from rank 0 (tens of
+//! bytes), 12 bytes (linear RGB, f32) per sample traced for another rank's tiles — the sum of
+//! squared luminance and the count follow from it exactly — and 4 bytes per block traced (its
+//! rays, the deal's weights) to every other rank. On an ROI change the DGI is computed by every
+//! rank ([`DgiMode::Compute`]: no traffic) or by rank 0 and broadcast ([`DgiMode::Broadcast`]:
+//! 4 bytes a pixel); `raygun bench guided --cluster` measures both.
+//!
+//! Every wait has a deadline ([`Cluster`]): a rank that stops answering ends the job with an
+//! error naming it. The transport is [`exchange::Exchange`]: threads in one process for the
+//! tests ([`exchange::InProcess`]), MPI with the `cluster` feature (`mpi`). Modules: [`mod@deal`]
+//! (blocks and the deal), [`owners`] (the tile map and the `--tile-owners` file), [`handshake`]
+//! (the start-up check), [`exchange`].
+
+pub mod deal;
+pub mod exchange;
+pub mod handshake;
+#[cfg(feature = "cluster")]
+pub mod mpi;
+pub mod owners;
+
+use std::time::{Duration, Instant};
+
+use glam::{DVec2, DVec3, Vec3};
+use rayon::prelude::*;
+
+use crate::display::DisplayModel;
+use crate::frame::stop::RoiProgress;
+use crate::frame::{FrameError, GuideConfig, dgi_cpu};
+use crate::roi::cone::Cone;
+use crate::roi::dgi::{Roi, Surface};
+use crate::scene::Scene;
+use crate::schedule::{BLOCK_PIXELS, ScheduleError, TILE_EDGE, schedule_cpu_shown};
+use crate::trace::accum::{Accumulation, accumulate};
+use crate::trace::pack::PackedScene;
+use crate::trace::path::{TraceSettings, trace_counted_with};
+use crate::trace::wall::WallCamera;
+use deal::{BlockList, CostTable, deal};
+use exchange::{Exchange, ExchangeError, Traffic};
+use owners::{BlockOwners, block_grid, block_of, block_pixels};
+
+/// Why a cluster frame (or the job's start) failed.
+#[derive(Debug, thiserror::Error)]
+pub enum ClusterError {
+    #[error(transparent)]
+    Exchange(#[from] ExchangeError),
+    #[error(transparent)]
+    Frame(#[from] FrameError),
+    #[error(transparent)]
+    Schedule(#[from] ScheduleError),
+    #[error("the start-up check rejected the job: {0}")]
+    Rejected(String),
+    #[error("the block map is for a {map:?} image, the render's is {image:?}")]
+    MapSize { map: [u32; 2], image: [u32; 2] },
+}
+
+/// How the DGI of a new ROI reaches every rank.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum DgiMode {
+    /// Every rank computes it (no traffic; each rank spends the DGI's time).
+    #[default]
+    Compute,
+    /// Rank 0 computes it and broadcasts it (4 bytes a pixel to every rank).
+    Broadcast,
+}
+
+/// A rank's handle on the job: the transport, and the deadline rule for every wait.
+///
+/// A wait may last the timeout plus twice the time this rank spent on its own since its last
+/// round (a peer doing the same step may take three times as long as this rank did), doubled
+/// on ranks other than 0 so that rank 0, which holds the user's terminal, is the one that
+/// reports a rank that stopped answering.
+pub struct Cluster {
+    x: Box<dyn Exchange>,
+    timeout: Duration,
+    last: Instant,
+}
+
+impl Cluster {
+    #[must_use]
+    pub fn new(x: Box<dyn Exchange>, timeout: Duration) -> Self {
+        Self {
+            x,
+            timeout,
+            last: Instant::now(),
+        }
+    }
+
+    #[must_use]
+    pub fn rank(&self) -> usize {
+        self.x.rank()
+    }
+
+    #[must_use]
+    pub fn ranks(&self) -> usize {
+        self.x.ranks()
+    }
+
+    #[must_use]
+    pub fn is_root(&self) -> bool {
+        self.rank() == 0
+    }
+
+    /// What this rank has exchanged so far.
+    #[must_use]
+    pub fn traffic(&self) -> Traffic {
+        self.x.traffic()
+    }
+
+    /// Ends the whole job now (after an error this rank printed).
+    pub fn abort(&self, code: i32) -> ! {
+        self.x.abort(code)
+    }
+
+    fn wait(&self) -> Duration {
+        let local = self.last.elapsed();
+        if self.is_root() {
+            self.timeout + 2 * local
+        } else {
+            2 * self.timeout + 3 * local
+        }
+    }
+
+    fn round(
+        &mut self,
+        sends: Vec<(usize, Vec<u8>)>,
+        from: &[usize],
+        what: &str,
+    ) -> Result<Vec<Vec<u8>>, ExchangeError> {
+        let wait = self.wait();
+        let got = self.x.round(sends, from, what, wait);
+        self.last = Instant::now();
+        got
+    }
+
+    /// Rank 0's `data` on every rank (other ranks' `data` is ignored).
+    pub fn broadcast(&mut self, what: &str, data: Vec<u8>) -> Result<Vec<u8>, ExchangeError> {
+        let n = self.ranks();
+        if self.is_root() {
+            let sends = (1..n).map(|r| (r, data.clone())).collect();
+            self.round(sends, &[], what)?;
+            Ok(data)
+        } else {
+            Ok(self.round(vec![], &[0], what)?.remove(0))
+        }
+    }
+
+    /// Every rank's `data` on rank 0, by rank (`None` on the other ranks).
+    pub fn gather(
+        &mut self,
+        what: &str,
+        data: Vec<u8>,
+    ) -> Result<Option<Vec<Vec<u8>>>, ExchangeError> {
+        let n = self.ranks();
+        if self.is_root() {
+            let from: Vec<usize> = (1..n).collect();
+            let mut all = vec![data];
+            all.extend(self.round(vec![], &from, what)?);
+            Ok(Some(all))
+        } else {
+            self.round(vec![(0, data)], &[], what)?;
+            Ok(None)
+        }
+    }
+
+    /// `parts[r]` to rank `r`; returns what each rank sent this one (its own part at its own
+    /// index).
+    pub fn all_to_all(
+        &mut self,
+        what: &str,
+        mut parts: Vec<Vec<u8>>,
+    ) -> Result<Vec<Vec<u8>>, ExchangeError> {
+        let (me, n) = (self.rank(), self.ranks());
+        assert_eq!(parts.len(), n, "one part per rank");
+        let own = std::mem::take(&mut parts[me]);
+        let sends = parts
+            .into_iter()
+            .enumerate()
+            .filter(|(r, _)| *r != me)
+            .collect();
+        let from: Vec<usize> = (0..n).filter(|&r| r != me).collect();
+        let mut got = self.round(sends, &from, what)?;
+        got.insert(me, own);
+        Ok(got)
+    }
+}
+
+/// What rank 0 tells every rank before a frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrameControl {
+    pub iteration: u32,
+    /// No frame: the render ends here.
+    pub stop: bool,
+    /// After this frame, the owners send rank 0 the sums of the ROI's pixels
+    /// ([`ClusterRenderer::roi_progress`]: a stop condition on the ROI's progress).
+    pub measure: bool,
+    /// `Some`: the ROI changed to this (`Some(None)`: no ROI, sample everything).
+    pub roi: Option<Option<Roi>>,
+    /// The wall camera's eye (room frame), where it has one: a moved eye restarts the render
+    /// (DESIGN.md §11), which the ranks check against their own.
+    pub eye: Option<DVec3>,
+}
+
+impl FrameControl {
+    /// Little-endian bytes: iteration, flags, ROI kind, then the ROI's and the eye's f64s.
+    #[must_use]
+    pub fn encode(&self) -> Vec<u8> {
+        let mut b = self.iteration.to_le_bytes().to_vec();
+        let flags = u8::from(self.stop) | u8::from(self.roi.is_some()) << 1;
+        let flags = flags | u8::from(self.eye.is_some()) << 2 | u8::from(self.measure) << 3;
+        b.push(flags);
+        let mut f = Vec::new();
+        let kind = match self.roi {
+            Some(Some(Roi::Cone(c))) => {
+                for v in [c.apex, c.axis, c.right, c.up] {
+                    f.extend(v.to_array());
+                }
+                f.extend([c.tan_h, c.tan_v]);
+                1
+            }
+            Some(Some(Roi::CanvasEllipse { center, semi_axes })) => {
+                f.extend([center.x, center.y, semi_axes.x, semi_axes.y]);
+                2
+            }
+            _ => 0,
+        };
+        b.push(kind);
+        if let Some(e) = self.eye {
+            f.extend(e.to_array());
+        }
+        for v in f {
+            b.extend(v.to_le_bytes());
+        }
+        b
+    }
+
+    /// The inverse of [`Self::encode`]; `None` for bytes it does not produce.
+    #[must_use]
+    pub fn decode(b: &[u8]) -> Option<Self> {
+        let iteration = u32::from_le_bytes(b.get(..4)?.try_into().ok()?);
+        let (flags, kind) = (*b.get(4)?, *b.get(5)?);
+        let f: Vec<f64> = b
+            .get(6..)?
+            .chunks(8)
+            .map(|c| c.try_into().ok().map(f64::from_le_bytes))
+            .collect::<Option<_>>()?;
+        let roi_len = [0, 14, 4][usize::from(kind.min(2))];
+        let eye_len = if flags & 4 != 0 { 3 } else { 0 };
+        if kind > 2 || f.len() != roi_len + eye_len || flags > 15 {
+            return None;
+        }
+        let v3 = |i: usize| DVec3::new(f[i], f[i + 1], f[i + 2]);
+        let roi = match kind {
+            1 => Some(Roi::Cone(Cone {
+                apex: v3(0),
+                axis: v3(3),
+                right: v3(6),
+                up: v3(9),
+                tan_h: f[12],
+                tan_v: f[13],
+            })),
+            2 => Some(Roi::CanvasEllipse {
+                center: DVec2::new(f[0], f[1]),
+                semi_axes: DVec2::new(f[2], f[3]),
+            }),
+            _ => None,
+        };
+        Some(Self {
+            iteration,
+            stop: flags & 1 != 0,
+            measure: flags & 8 != 0,
+            roi: (flags & 2 != 0).then_some(roi),
+            eye: (eye_len > 0).then(|| v3(roi_len)),
+        })
+    }
+}
+
+/// What one cluster frame did on this rank.
+#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+pub struct ClusterFrameStats {
+    pub iteration: u32,
+    pub dgi_recomputed: bool,
+    /// Pixels scheduled on all ranks together.
+    pub pixels: u64,
+    /// Of those, the ones this rank traced.
+    pub pixels_traced: u64,
+    /// Rays this rank traced.
+    pub rays: u64,
+    /// Wall-clock ms of each step on this rank.
+    pub ms_dgi: f64,
+    pub ms_schedule: f64,
+    pub ms_trace: f64,
+    /// Sending, waiting for and adding the others' samples.
+    pub ms_exchange: f64,
+    /// What this rank sent and received in this frame (the DGI's broadcast included).
+    pub traffic: Traffic,
+}
+
+/// Where the ROI is aimed and how it steers sampling.
+struct Guidance {
+    config: GuideConfig,
+    surface: Surface,
+    pitch_m: f64,
+}
+
+/// One rank's part of a progressive render across ranks: the schedule, sample counts and DGI
+/// of the whole image, the sums of the blocks this rank owns.
+pub struct ClusterRenderer {
+    pub packed: PackedScene,
+    pub settings: TraceSettings,
+    /// Seconds spent building the BVH and packing the scene.
+    pub build_seconds: f64,
+    wall: Option<WallCamera>,
+    guidance: Option<Guidance>,
+    dgi_mode: DgiMode,
+    rank: usize,
+    ranks: usize,
+    iteration: u32,
+    /// The DGI in use (guided renders; empty for a full frame).
+    dgi: Vec<f32>,
+    /// A new ROI for the next frame to install.
+    pending: Option<Option<Roi>>,
+    roi: Option<Roi>,
+    /// Every pixel's sample count (every rank keeps all of them).
+    counts: Vec<u32>,
+    owners: BlockOwners,
+    /// Per block: its index among this rank's blocks, or `u32::MAX`.
+    slot: Vec<u32>,
+    /// `BLOCK_PIXELS` sums per owned block, row-major inside the block.
+    sums: Vec<[f32; 4]>,
+    costs: CostTable,
+    /// A full frame's list (every shown pixel), made once.
+    full_list: Option<BlockList>,
+}
+
+impl ClusterRenderer {
+    /// Rank `rank` of `ranks`: a render of `scene` (guided when `guide` gives the display and
+    /// how the ROI steers; a full frame otherwise), through `wall` when given, with the blocks
+    /// owned as `owners` says.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        scene: &Scene,
+        settings: TraceSettings,
+        guide: Option<(&DisplayModel, GuideConfig)>,
+        wall: Option<WallCamera>,
+        owners: BlockOwners,
+        dgi_mode: DgiMode,
+        rank: usize,
+        ranks: usize,
+    ) -> Result<Self, ClusterError> {
+        let size = [settings.width, settings.height];
+        if [owners.width, owners.height] != size {
+            return Err(ClusterError::MapSize {
+                map: [owners.width, owners.height],
+                image: size,
+            });
+        }
+        if let Some(wc) = &wall
+            && [wc.width, wc.height] != size
+        {
+            return Err(FrameError::WallSize {
+                wall: [wc.width, wc.height],
+                image: size,
+            }
+            .into());
+        }
+        let guidance = match guide {
+            Some((model, config)) => {
+                crate::schedule::validate_p_min(config.p_min)?;
+                Some(Guidance {
+                    config,
+                    surface: Surface::from_model(model),
+                    pitch_m: model.pitch_m(),
+                })
+            }
+            None => None,
+        };
+        let t0 = Instant::now();
+        let packed = PackedScene::new(scene);
+        let build_seconds = t0.elapsed().as_secs_f64();
+        let n = size[0] as usize * size[1] as usize;
+        let mine = owners.owned_by(rank);
+        let mut slot = vec![u32::MAX; owners.owner.len()];
+        for (i, &b) in mine.iter().enumerate() {
+            slot[b as usize] = i as u32;
+        }
+        Ok(Self {
+            packed,
+            settings,
+            build_seconds,
+            wall,
+            dgi: if guidance.is_some() {
+                vec![0.0; n]
+            } else {
+                Vec::new()
+            },
+            guidance,
+            dgi_mode,
+            rank,
+            ranks,
+            iteration: 0,
+            pending: None,
+            roi: None,
+            counts: vec![0; n],
+            costs: CostTable::new(owners.owner.len()),
+            sums: vec![[0.0; 4]; mine.len() * BLOCK_PIXELS as usize],
+            owners,
+            slot,
+            full_list: None,
+        })
+    }
+
+    /// Iterations run so far.
+    #[must_use]
+    pub fn iteration(&self) -> u32 {
+        self.iteration
+    }
+
+    /// The ROI set last (`None` also for a full frame).
+    #[must_use]
+    pub fn roi(&self) -> Option<&Roi> {
+        self.roi.as_ref()
+    }
+
+    /// The wall camera, if the frames trace through one.
+    #[must_use]
+    pub fn wall(&self) -> Option<&WallCamera> {
+        self.wall.as_ref()
+    }
+
+    /// Sets the ROI; the next frame installs its DGI. The accumulation is kept.
+    pub fn set_roi(&mut self, roi: Option<Roi>) -> Result<(), ClusterError> {
+        if self.guidance.is_none() {
+            return Err(FrameError::NotGuided.into());
+        }
+        self.pending = Some(roi);
+        self.roi = roi;
+        Ok(())
+    }
+
+    /// One frame on this rank, in step with the others: the DGI of a changed ROI, the
+    /// schedule, the deal, this rank's samples, and the exchange that brings every owner the
+    /// samples of its blocks.
+    pub fn run_frame(&mut self, c: &mut Cluster) -> Result<ClusterFrameStats, ClusterError> {
+        let before = c.traffic();
+        let mut stats = ClusterFrameStats {
+            iteration: self.iteration,
+            ..Default::default()
+        };
+        self.install_dgi(c, &mut stats)?;
+        let list = self.schedule(&mut stats)?;
+        let tracer = deal(&list, &self.costs, self.ranks);
+        let samples = self.trace(&list, &tracer, &mut stats);
+        self.exchange(c, &list, &tracer, &samples, &mut stats)?;
+        for &p in &list.pixels {
+            self.counts[p as usize] += 1;
+        }
+        stats.pixels = list.pixels.len() as u64;
+        stats.traffic = c.traffic().since(&before);
+        self.iteration += 1;
+        Ok(stats)
+    }
+
+    /// Step 1: the DGI of a changed ROI, computed here or received from rank 0.
+    fn install_dgi(
+        &mut self,
+        c: &mut Cluster,
+        stats: &mut ClusterFrameStats,
+    ) -> Result<(), ClusterError> {
+        let (Some(roi), Some(g)) = (self.pending.take(), &self.guidance) else {
+            return Ok(());
+        };
+        let t0 = Instant::now();
+        let size = [self.settings.width, self.settings.height];
+        let compute = || dgi_cpu(&g.surface, g.pitch_m, &g.config, roi.as_ref(), size);
+        self.dgi = match self.dgi_mode {
+            DgiMode::Compute => compute()?,
+            DgiMode::Broadcast => {
+                let mine = if c.is_root() {
+                    f32_bytes(&compute()?)
+                } else {
+                    Vec::new()
+                };
+                let got = c.broadcast("the DGI", mine)?;
+                let dgi = f32s(&got, 1);
+                if dgi.len() != self.counts.len() {
+                    return Err(ExchangeError::Length {
+                        rank: 0,
+                        what: "the DGI".into(),
+                        got: got.len(),
+                        expected: self.counts.len() * 4,
+                    }
+                    .into());
+                }
+                dgi
+            }
+        };
+        stats.dgi_recomputed = true;
+        stats.ms_dgi = t0.elapsed().as_secs_f64() * 1e3;
+        Ok(())
+    }
+
+    /// Step 2: the whole iteration's list, grouped by block (the same on every rank).
+    fn schedule(&mut self, stats: &mut ClusterFrameStats) -> Result<BlockList, ClusterError> {
+        let t0 = Instant::now();
+        let size = [self.settings.width, self.settings.height];
+        let shown = self.wall.as_ref().map(WallCamera::shown_mask);
+        let list = match &self.guidance {
+            Some(g) => {
+                let c = &g.config;
+                let list = schedule_cpu_shown(
+                    &self.dgi,
+                    shown,
+                    size[0],
+                    size[1],
+                    c.p_min,
+                    self.iteration,
+                    self.settings.seed,
+                    c.order,
+                )?;
+                BlockList::group(&list, size)
+            }
+            None => self
+                .full_list
+                .get_or_insert_with(|| BlockList::every(size, shown))
+                .clone(),
+        };
+        stats.ms_schedule = t0.elapsed().as_secs_f64() * 1e3;
+        Ok(list)
+    }
+
+    /// Step 3: one sample for each pixel of the blocks dealt to this rank, in block order, and
+    /// the rays each block took.
+    fn trace(&self, list: &BlockList, tracer: &[u32], stats: &mut ClusterFrameStats) -> Traced {
+        let t0 = Instant::now();
+        let mine: Vec<usize> = (0..list.blocks.len())
+            .filter(|&i| tracer[i] as usize == self.rank)
+            .collect();
+        let pixels: Vec<u32> = mine
+            .iter()
+            .flat_map(|&i| list.pixels_of(i).iter().copied())
+            .collect();
+        let (sc, s, wall) = (&self.packed, &self.settings, self.wall.as_ref());
+        let samples: Vec<(Vec3, u32)> = pixels
+            .par_iter()
+            .map(|&p| {
+                trace_counted_with(sc, s, wall, p, self.counts[p as usize])
+                    .expect("the schedule lists shown pixels only")
+            })
+            .collect();
+        let mut rays = Vec::with_capacity(mine.len());
+        let mut at = 0;
+        for &i in &mine {
+            let n = list.len_of(i) as usize;
+            rays.push(samples[at..at + n].iter().map(|s| s.1).sum::<u32>());
+            at += n;
+        }
+        stats.pixels_traced = pixels.len() as u64;
+        stats.rays = rays.iter().map(|&r| u64::from(r)).sum();
+        stats.ms_trace = t0.elapsed().as_secs_f64() * 1e3;
+        Traced {
+            blocks: mine,
+            rgb: samples.into_iter().map(|s| s.0).collect(),
+            rays,
+        }
+    }
+
+    /// Step 4: every rank's samples to the owners of their blocks, and every block's rays to
+    /// every rank (the next deal's weights); owners add the samples of their blocks.
+    fn exchange(
+        &mut self,
+        c: &mut Cluster,
+        list: &BlockList,
+        tracer: &[u32],
+        mine: &Traced,
+        stats: &mut ClusterFrameStats,
+    ) -> Result<(), ClusterError> {
+        let t0 = Instant::now();
+        let n = self.ranks;
+        let rays: Vec<u8> = mine.rays.iter().flat_map(|r| r.to_le_bytes()).collect();
+        let mut parts: Vec<Vec<u8>> = (0..n)
+            .map(|r| {
+                if r == self.rank {
+                    Vec::new()
+                } else {
+                    rays.clone()
+                }
+            })
+            .collect();
+        let mut at = 0;
+        for &i in &mine.blocks {
+            let len = list.len_of(i) as usize;
+            let owner = self.owners.owner[list.blocks[i] as usize] as usize;
+            if owner != self.rank {
+                for rgb in &mine.rgb[at..at + len] {
+                    for v in rgb.to_array() {
+                        parts[owner].extend(v.to_le_bytes());
+                    }
+                }
+            }
+            at += len;
+        }
+        let what = format!("the samples of iteration {}", self.iteration);
+        let got = c.all_to_all(&what, parts)?;
+        // Own blocks first (no bytes), then each other rank's, by the same layout.
+        let mut at = 0;
+        for (k, &i) in mine.blocks.iter().enumerate() {
+            let len = list.len_of(i) as usize;
+            let b = list.blocks[i];
+            if self.owners.owner[b as usize] as usize == self.rank {
+                for (j, &p) in list.pixels_of(i).iter().enumerate() {
+                    self.add(p, mine.rgb[at + j]);
+                }
+            }
+            self.costs.record(b, mine.rays[k], len as u32);
+            at += len;
+        }
+        for (src, bytes) in got.iter().enumerate() {
+            if src == self.rank {
+                continue;
+            }
+            let theirs: Vec<usize> = (0..list.blocks.len())
+                .filter(|&i| tracer[i] as usize == src)
+                .collect();
+            let owned: Vec<bool> = theirs
+                .iter()
+                .map(|&i| self.owners.owner[list.blocks[i] as usize] as usize == self.rank)
+                .collect();
+            let samples: usize = theirs
+                .iter()
+                .zip(&owned)
+                .filter(|(_, o)| **o)
+                .map(|(&i, _)| list.len_of(i) as usize)
+                .sum();
+            let expected = 4 * theirs.len() + 12 * samples;
+            if bytes.len() != expected {
+                return Err(ExchangeError::Length {
+                    rank: src,
+                    what,
+                    got: bytes.len(),
+                    expected,
+                }
+                .into());
+            }
+            let (ray_bytes, rgb_bytes) = bytes.split_at(4 * theirs.len());
+            let rgb = f32s(rgb_bytes, 3);
+            let mut at = 0;
+            for (k, &i) in theirs.iter().enumerate() {
+                let b = list.blocks[i];
+                let r = u32::from_le_bytes(ray_bytes[4 * k..4 * k + 4].try_into().expect("4"));
+                self.costs.record(b, r, list.len_of(i));
+                if owned[k] {
+                    for &p in list.pixels_of(i) {
+                        let v = Vec3::new(rgb[at], rgb[at + 1], rgb[at + 2]);
+                        self.add(p, v);
+                        at += 3;
+                    }
+                }
+            }
+        }
+        stats.ms_exchange = t0.elapsed().as_secs_f64() * 1e3;
+        Ok(())
+    }
+
+    /// Adds one sample to an owned pixel's sums, with the one-process renderer's arithmetic
+    /// (its count is kept in `counts`).
+    fn add(&mut self, p: u32, rgb: Vec3) {
+        let w = self.settings.width;
+        let b = block_of(p, w, self.owners.tiles[0]);
+        let slot = self.slot[b as usize] as usize;
+        let (x, y) = (p % w, p / w);
+        let local = (y % TILE_EDGE) * TILE_EDGE + x % TILE_EDGE;
+        let mut count = 0;
+        accumulate(
+            &mut self.sums[slot * BLOCK_PIXELS as usize + local as usize],
+            &mut count,
+            rgb,
+        );
+    }
+
+    /// This rank's owned sums as bytes: owned blocks ascending, each block's pixels row-major.
+    fn owned_bytes(&self) -> Vec<u8> {
+        let size = [self.settings.width, self.settings.height];
+        let mut out = Vec::new();
+        for b in self.owners.owned_by(self.rank) {
+            let slot = self.slot[b as usize] as usize;
+            for p in block_pixels(b, size, self.owners.tiles[0]) {
+                let (x, y) = (p % size[0], p / size[0]);
+                let local = ((y % TILE_EDGE) * TILE_EDGE + x % TILE_EDGE) as usize;
+                for v in self.sums[slot * BLOCK_PIXELS as usize + local] {
+                    out.extend(v.to_le_bytes());
+                }
+            }
+        }
+        out
+    }
+
+    /// How far the ROI has come, on rank 0 (`Some(None)` without ROI pixels; `None` on the
+    /// other ranks): every owner sends rank 0 the sums of its pixels inside the ROI (d = 0),
+    /// 16 bytes each, and rank 0 measures them with every pixel's count, as one process does.
+    pub fn roi_progress(
+        &self,
+        c: &mut Cluster,
+    ) -> Result<Option<Option<RoiProgress>>, ClusterError> {
+        let size = [self.settings.width, self.settings.height];
+        let tiles_x = self.owners.tiles[0];
+        let in_roi = |p: &u32| self.dgi.get(*p as usize) == Some(&0.0);
+        let mut mine = Vec::new();
+        for b in self.owners.owned_by(self.rank) {
+            let slot = self.slot[b as usize] as usize;
+            for p in block_pixels(b, size, tiles_x).filter(in_roi) {
+                let (x, y) = (p % size[0], p / size[0]);
+                let local = ((y % TILE_EDGE) * TILE_EDGE + x % TILE_EDGE) as usize;
+                mine.extend(f32_bytes(&self.sums[slot * BLOCK_PIXELS as usize + local]));
+            }
+        }
+        let Some(all) = c.gather("the ROI's sums", mine)? else {
+            return Ok(None);
+        };
+        let (mut sum, mut count) = (Vec::new(), Vec::new());
+        for (src, bytes) in all.iter().enumerate() {
+            let pixels: Vec<u32> = self
+                .owners
+                .owned_by(src)
+                .into_iter()
+                .flat_map(|b| block_pixels(b, size, tiles_x).filter(in_roi))
+                .collect();
+            if bytes.len() != 16 * pixels.len() {
+                return Err(ExchangeError::Length {
+                    rank: src,
+                    what: "the ROI's sums".into(),
+                    got: bytes.len(),
+                    expected: 16 * pixels.len(),
+                }
+                .into());
+            }
+            let v = f32s(bytes, 4);
+            for (k, &p) in pixels.iter().enumerate() {
+                sum.push([v[4 * k], v[4 * k + 1], v[4 * k + 2], v[4 * k + 3]]);
+                count.push(self.counts[p as usize]);
+            }
+        }
+        let n = sum.len();
+        let acc = Accumulation {
+            width: n as u32,
+            height: 1,
+            sum,
+            count,
+        };
+        Ok(Some(RoiProgress::measure(&acc, &vec![0.0; n])))
+    }
+
+    /// The whole accumulation and the DGI the last frame used, on rank 0 (`None` on the
+    /// others): every owner sends rank 0 its sums.
+    pub fn gather(
+        &self,
+        c: &mut Cluster,
+    ) -> Result<Option<(Accumulation, Vec<f32>)>, ClusterError> {
+        let size = [self.settings.width, self.settings.height];
+        let Some(all) = c.gather("the owners' sums", self.owned_bytes())? else {
+            return Ok(None);
+        };
+        let mut acc = Accumulation::new(size[0], size[1]);
+        acc.count.clone_from(&self.counts);
+        for (src, bytes) in all.iter().enumerate() {
+            let blocks = self.owners.owned_by(src);
+            let pixels: usize = blocks
+                .iter()
+                .map(|&b| block_pixels(b, size, self.owners.tiles[0]).count())
+                .sum();
+            if bytes.len() != 16 * pixels {
+                return Err(ExchangeError::Length {
+                    rank: src,
+                    what: "the owners' sums".into(),
+                    got: bytes.len(),
+                    expected: 16 * pixels,
+                }
+                .into());
+            }
+            let v = f32s(bytes, 4);
+            let mut at = 0;
+            for &b in &blocks {
+                for p in block_pixels(b, size, self.owners.tiles[0]) {
+                    acc.sum[p as usize] = [v[at], v[at + 1], v[at + 2], v[at + 3]];
+                    at += 4;
+                }
+            }
+        }
+        let dgi = if self.guidance.is_some() {
+            self.dgi.clone()
+        } else {
+            vec![0.0; self.counts.len()]
+        };
+        Ok(Some((acc, dgi)))
+    }
+
+    /// The blocks per row and column of the image.
+    #[must_use]
+    pub fn block_grid(&self) -> [u32; 2] {
+        block_grid([self.settings.width, self.settings.height])
+    }
+}
+
+/// The samples this rank traced in a frame.
+struct Traced {
+    /// Indices into the frame's [`BlockList`], ascending.
+    blocks: Vec<usize>,
+    /// One per pixel of those blocks, in block order.
+    rgb: Vec<Vec3>,
+    /// Rays per block.
+    rays: Vec<u32>,
+}
+
+/// f32s as little-endian bytes.
+#[must_use]
+pub fn f32_bytes(v: &[f32]) -> Vec<u8> {
+    v.iter().flat_map(|x| x.to_le_bytes()).collect()
+}
+
+/// Little-endian bytes as f32s (a multiple of `group` values; a shorter tail is dropped, and
+/// the callers check lengths first).
+fn f32s(b: &[u8], group: usize) -> Vec<f32> {
+    let whole = b.len() / (4 * group) * 4 * group;
+    b[..whole]
+        .chunks_exact(4)
+        .map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes")))
+        .collect()
+}
+
+#[cfg(test)]
+mod tests;

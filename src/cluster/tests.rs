@@ -1,0 +1,334 @@
+//! N in-process ranks against the one-process renderer, bit for bit; the deadlines.
+
+use std::time::Duration;
+
+use glam::DVec3;
+
+use super::exchange::InProcess;
+use super::owners::TileOwners;
+use super::*;
+use crate::frame::Renderer;
+use crate::gpu::Backend;
+use crate::schedule::Order;
+use crate::trace::wall::{WallSpec, WorldFromRoom};
+
+const SIZE: [u32; 2] = [96, 40];
+
+fn scene() -> Scene {
+    Scene::builtin("cornell").unwrap()
+}
+
+fn hornet() -> DisplayModel {
+    DisplayModel::open("hornet").unwrap().0
+}
+
+fn settings(scene: &Scene) -> TraceSettings {
+    crate::trace::path::TraceSettings {
+        width: SIZE[0],
+        height: SIZE[1],
+        seed: 5,
+        max_depth: 4,
+        camera: crate::trace::camera::RenderCamera::choose(scene, None, SIZE[0], SIZE[1]).unwrap(),
+    }
+}
+
+fn cone(fov: f64, x: f64) -> Roi {
+    Roi::Cone(Cone::from_pose(DVec3::new(x, 0.0, 1.0), DVec3::NEG_Z, DVec3::Y, fov, fov).unwrap())
+}
+
+/// The ROI of iteration `k`: none first, then one cone, then another.
+fn roi_at(k: u32) -> Option<Option<Roi>> {
+    match k {
+        0 => Some(None),
+        2 => Some(Some(cone(20.0, 0.0))),
+        5 => Some(Some(cone(40.0, -1.0))),
+        _ => None,
+    }
+}
+
+const ITERATIONS: u32 = 8;
+
+fn config(order: Order) -> GuideConfig {
+    GuideConfig {
+        p_min: 0.05,
+        order,
+        ..GuideConfig::default()
+    }
+}
+
+fn wall(scene: &Scene) -> WallCamera {
+    WallSpec {
+        model: hornet(),
+        eye: DVec3::new(0.0, 0.0, 1.5),
+        placement: WorldFromRoom::Auto,
+    }
+    .camera(SIZE, &settings(scene).camera)
+    .unwrap()
+}
+
+/// One process: the renderer every command uses.
+fn single(guided: Option<Order>, with_wall: bool) -> (Accumulation, Vec<f32>) {
+    let s = scene();
+    let w = with_wall.then(|| wall(&s));
+    let b = Backend::Cpu;
+    let mut r = match guided {
+        Some(o) => Renderer::guided_wall(&b, &s, settings(&s), &hornet(), config(o), w).unwrap(),
+        None => match w {
+            Some(w) => Renderer::full_wall(&b, &s, settings(&s), w).unwrap(),
+            None => Renderer::full(&b, &s, settings(&s)).unwrap(),
+        },
+    };
+    for k in 0..ITERATIONS {
+        if guided.is_some()
+            && let Some(roi) = roi_at(k)
+        {
+            r.set_roi(roi).unwrap();
+        }
+        r.run_frame(false).unwrap();
+    }
+    r.finish().unwrap()
+}
+
+/// `ranks` in-process ranks, rank 0 broadcasting the ROI each frame; rank 0's gathered
+/// accumulation.
+fn ranks(
+    n: usize,
+    guided: Option<Order>,
+    with_wall: bool,
+    mode: DgiMode,
+    owners: impl Fn(usize) -> BlockOwners + Sync,
+) -> (Accumulation, Vec<f32>) {
+    let results: Vec<Option<(Accumulation, Vec<f32>)>> = std::thread::scope(|sc| {
+        let handles: Vec<_> = InProcess::job(n)
+            .into_iter()
+            .map(|end| {
+                let owners = &owners;
+                sc.spawn(move || {
+                    let rank = end.rank();
+                    let mut c = Cluster::new(Box::new(end), Duration::from_secs(30));
+                    let s = scene();
+                    let w = with_wall.then(|| wall(&s));
+                    let model = hornet();
+                    let guide = guided.map(|o| (&model, config(o)));
+                    let mut r =
+                        ClusterRenderer::new(&s, settings(&s), guide, w, owners(n), mode, rank, n)
+                            .unwrap();
+                    for k in 0..ITERATIONS {
+                        let control = FrameControl {
+                            iteration: k,
+                            stop: false,
+                            measure: false,
+                            roi: if guided.is_some() { roi_at(k) } else { None },
+                            eye: None,
+                        };
+                        let got = c.broadcast("control", control.encode()).unwrap();
+                        let got = FrameControl::decode(&got).unwrap();
+                        assert_eq!(got, control);
+                        if let Some(roi) = got.roi {
+                            r.set_roi(roi).unwrap();
+                        }
+                        let st = r.run_frame(&mut c).unwrap();
+                        assert_eq!(st.iteration, k);
+                    }
+                    let progress = if guided.is_some() {
+                        r.roi_progress(&mut c).unwrap()
+                    } else {
+                        None
+                    };
+                    let g = r.gather(&mut c).unwrap();
+                    if let (Some(g), Some(p)) = (&g, progress) {
+                        // Measured from the owners' ROI sums as from the whole accumulation.
+                        assert_eq!(p, RoiProgress::measure(&g.0, &g.1));
+                        assert!(p.is_some());
+                    }
+                    g
+                })
+            })
+            .collect();
+        handles.into_iter().map(|h| h.join().unwrap()).collect()
+    });
+    let mut it = results.into_iter();
+    let root = it.next().unwrap().expect("rank 0 gathers");
+    assert!(it.all(|r| r.is_none()), "only rank 0 gathers");
+    root
+}
+
+fn assert_bits_equal(a: &(Accumulation, Vec<f32>), b: &(Accumulation, Vec<f32>), what: &str) {
+    assert_eq!(a.0.count, b.0.count, "{what}: counts");
+    let bits = |acc: &Accumulation| -> Vec<u32> {
+        acc.sum.iter().flatten().map(|v| v.to_bits()).collect()
+    };
+    assert!(bits(&a.0) == bits(&b.0), "{what}: sums differ");
+    let dgi = |d: &[f32]| -> Vec<u32> { d.iter().map(|v| v.to_bits()).collect() };
+    assert!(dgi(&a.1) == dgi(&b.1), "{what}: DGI differs");
+    assert!(
+        a.0.count.iter().any(|&c| c > 0),
+        "{what}: nothing was sampled"
+    );
+}
+
+fn columns(n: usize) -> BlockOwners {
+    let m = hornet();
+    BlockOwners::of_display(&m, &TileOwners::columns(&m, n), SIZE)
+}
+
+#[test]
+fn guided_ranks_give_the_one_process_accumulation_bit_for_bit() {
+    for order in [Order::Coherent, Order::Scattered] {
+        let one = single(Some(order), false);
+        for n in 1..=3 {
+            let got = ranks(n, Some(order), false, DgiMode::Compute, columns);
+            assert_bits_equal(&got, &one, &format!("{n} ranks, {order:?}"));
+        }
+    }
+}
+
+#[test]
+fn the_dgi_broadcast_and_any_tile_map_change_nothing() {
+    let one = single(Some(Order::Coherent), false);
+    let got = ranks(3, Some(Order::Coherent), false, DgiMode::Broadcast, columns);
+    assert_bits_equal(&got, &one, "broadcast DGI");
+    // Every tile owned by the last rank; then strips that ignore the display.
+    let m = hornet();
+    let last = |n: usize| {
+        BlockOwners::of_display(
+            &m,
+            &TileOwners {
+                ranks: vec![n - 1; m.tiles().len()],
+            },
+            SIZE,
+        )
+    };
+    assert_bits_equal(
+        &ranks(2, Some(Order::Coherent), false, DgiMode::Compute, last),
+        &one,
+        "one owner",
+    );
+    let strips = |n| BlockOwners::strips(SIZE, n);
+    assert_bits_equal(
+        &ranks(3, Some(Order::Coherent), false, DgiMode::Compute, strips),
+        &one,
+        "strips",
+    );
+}
+
+#[test]
+fn full_frames_and_the_wall_camera_match_too() {
+    let strips = |n| BlockOwners::strips(SIZE, n);
+    let one = single(None, false);
+    assert_bits_equal(
+        &ranks(2, None, false, DgiMode::Compute, strips),
+        &one,
+        "full frame",
+    );
+    let one = single(None, true);
+    let got = ranks(3, None, true, DgiMode::Compute, columns);
+    assert_bits_equal(&got, &one, "full frame, wall camera");
+    // Pixels no tile shows are never traced (at this size no bezel covers a pixel centre;
+    // tests/wall_camera.rs covers the bezels).
+    let w = wall(&scene());
+    assert!((0..SIZE[0] * SIZE[1]).all(|p| w.is_shown(p) || got.0.count[p as usize] == 0));
+    let one = single(Some(Order::Coherent), true);
+    let got = ranks(2, Some(Order::Coherent), true, DgiMode::Compute, columns);
+    assert_bits_equal(&got, &one, "guided, wall camera");
+}
+
+#[test]
+fn the_control_message_round_trips_and_rejects_other_bytes() {
+    for c in [
+        FrameControl {
+            iteration: 7,
+            stop: false,
+            measure: true,
+            roi: Some(Some(cone(30.0, 0.5))),
+            eye: Some(DVec3::new(0.1, -0.2, 1.5)),
+        },
+        FrameControl {
+            iteration: 0,
+            stop: true,
+            measure: false,
+            roi: Some(None),
+            eye: None,
+        },
+        FrameControl {
+            iteration: u32::MAX,
+            stop: false,
+            measure: true,
+            roi: Some(Some(Roi::CanvasEllipse {
+                center: DVec2::new(3.0, 4.0),
+                semi_axes: DVec2::new(5.0, 6.5),
+            })),
+            eye: None,
+        },
+        FrameControl {
+            iteration: 3,
+            stop: false,
+            measure: false,
+            roi: None,
+            eye: None,
+        },
+    ] {
+        let b = c.encode();
+        assert_eq!(FrameControl::decode(&b), Some(c));
+        assert_eq!(FrameControl::decode(&b[..b.len() - 1]), None);
+    }
+    assert_eq!(FrameControl::decode(&[0, 0, 0, 0, 16, 0]), None);
+    assert_eq!(FrameControl::decode(&[0, 0, 0, 0, 0, 3]), None);
+}
+
+/// A rank that stops answering ends the others' frame with an error naming it, within the
+/// deadline; one that ends is named at once.
+#[test]
+fn a_silent_or_ended_rank_is_named_within_the_deadline() {
+    for hang in [true, false] {
+        let errors: Vec<Option<String>> = std::thread::scope(|sc| {
+            let handles: Vec<_> = InProcess::job(3)
+                .into_iter()
+                .map(|end| {
+                    sc.spawn(move || {
+                        let rank = end.rank();
+                        let mut c = Cluster::new(Box::new(end), Duration::from_millis(300));
+                        let s = scene();
+                        let mut r = ClusterRenderer::new(
+                            &s,
+                            settings(&s),
+                            None,
+                            None,
+                            BlockOwners::strips(SIZE, 3),
+                            DgiMode::Compute,
+                            rank,
+                            3,
+                        )
+                        .unwrap();
+                        for k in 0..4 {
+                            if rank == 2 && k == 2 {
+                                if hang {
+                                    std::thread::sleep(Duration::from_secs(4));
+                                }
+                                return None;
+                            }
+                            if let Err(e) = r.run_frame(&mut c) {
+                                // A rank that failed stays until rank 0 has seen what it sees
+                                // (under MPI it lives until the job is ended): dropped at
+                                // once, it would be the first gone rank rank 0 meets.
+                                if rank != 0 {
+                                    std::thread::sleep(Duration::from_secs(2));
+                                }
+                                return Some(e.to_string());
+                            }
+                        }
+                        Some("no error".into())
+                    })
+                })
+                .collect();
+            handles.into_iter().map(|h| h.join().unwrap()).collect()
+        });
+        let root = errors[0].as_deref().unwrap();
+        let want = if hang { "did not answer" } else { "is gone" };
+        assert!(
+            root.contains("rank 2") && root.contains(want),
+            "hang {hang}: {errors:?}"
+        );
+        assert!(root.contains("iteration 2"), "{root}");
+    }
+}

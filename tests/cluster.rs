@@ -1,0 +1,430 @@
+//! `render … --cluster` under `mpirun` (the `cluster` feature; CI runs
+//! `cargo test --features cluster --test cluster`): N ranks write exactly the files one
+//! process writes, byte for byte, for 1, 2 and 3 ranks; a rank that stops answering or ends
+//! ends the job within seconds with an error naming it; ranks that disagree are stopped
+//! before any work. Without the feature, `--cluster` says how to get it.
+
+#[path = "support/cli.rs"]
+mod support;
+
+#[cfg(not(feature = "cluster"))]
+use support::*;
+
+#[cfg(not(feature = "cluster"))]
+#[test]
+fn without_the_feature_cluster_says_how_to_get_it() {
+    let o = raygun(&[
+        "render",
+        "--scene",
+        "builtin:cornell",
+        "--size",
+        "8,8",
+        "--out",
+        "x.exr",
+        "--cluster",
+    ]);
+    fails_with(
+        &o,
+        &[
+            "--cluster",
+            "cargo build --release --features cluster",
+            "openmpi-bin",
+            "mpirun",
+        ],
+    );
+}
+
+#[cfg(feature = "cluster")]
+mod mpi {
+    use std::path::{Path, PathBuf};
+    use std::process::{Command, Output};
+    use std::time::{Duration, Instant};
+
+    use super::support::*;
+
+    /// `mpirun -np N` with what a CI container needs: root allowed, more ranks than cores,
+    /// shared memory between the ranks on one machine.
+    fn mpirun(apps: &[(usize, &Path, Vec<String>)]) -> Output {
+        let mut c = Command::new("mpirun");
+        c.args([
+            "--allow-run-as-root",
+            "--oversubscribe",
+            "--mca",
+            "btl",
+            "self,vader",
+        ])
+        .current_dir(ROOT)
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        // Each rank on one core's worth of threads: the ranks share the machine.
+        .env("RAYON_NUM_THREADS", "1");
+        for (i, (np, exe, args)) in apps.iter().enumerate() {
+            if i > 0 {
+                c.arg(":");
+            }
+            c.args(["-np", &np.to_string()]).arg(exe).args(args);
+        }
+        c.output()
+            .expect("mpirun runs (apt-get install openmpi-bin)")
+    }
+
+    fn exe() -> PathBuf {
+        PathBuf::from(env!("CARGO_BIN_EXE_raygun"))
+    }
+
+    fn strings(v: &[&str]) -> Vec<String> {
+        v.iter().map(|s| (*s).to_owned()).collect()
+    }
+
+    /// A guided render on a replay (the ROI changes), p_min 0.05, at a tiny size.
+    fn guided(dir: &Path) -> Vec<String> {
+        let out = dir.join("img.exr");
+        strings(&[
+            "render",
+            "--scene",
+            "builtin:cornell",
+            "--size",
+            "90,36",
+            "--max-depth",
+            "4",
+            "--guide",
+            "tracking-replays/flystick-1-centre-sweeps.dtrack.jsonl",
+            "--iterations",
+            "6",
+            "--p-min",
+            "0.05",
+            "--backend",
+            "cpu",
+            "--quiet",
+            "--out",
+            s(&out),
+        ])
+    }
+
+    /// A full frame through the wall camera.
+    fn full_wall(dir: &Path) -> Vec<String> {
+        strings(&[
+            "render",
+            "--scene",
+            "builtin:cornell",
+            "--size",
+            "70,28",
+            "--spp",
+            "3",
+            "--max-depth",
+            "3",
+            "--camera",
+            "wall",
+            "--display",
+            "hornet",
+            "--eye",
+            "0,0,1.5",
+            "--backend",
+            "cpu",
+            "--quiet",
+            "--out",
+            s(&dir.join("img.exr")),
+        ])
+    }
+
+    fn files(dir: &Path) -> Vec<(String, Vec<u8>)> {
+        let mut out = Vec::new();
+        let mut stack = vec![dir.to_owned()];
+        while let Some(d) = stack.pop() {
+            for e in std::fs::read_dir(&d).unwrap() {
+                let p = e.unwrap().path();
+                if p.is_dir() {
+                    stack.push(p);
+                } else {
+                    let name = p.strip_prefix(dir).unwrap().to_string_lossy().into_owned();
+                    out.push((name, std::fs::read(&p).unwrap()));
+                }
+            }
+        }
+        out.sort();
+        out
+    }
+
+    fn with(mut args: Vec<String>, more: &[&str]) -> Vec<String> {
+        args.extend(strings(more));
+        args
+    }
+
+    fn same_files_as_one_process(name: &str, make: fn(&Path) -> Vec<String>, extra: &[&str]) {
+        let one = tmp_dir(&format!("{name}-one"));
+        let args = make(&one);
+        let refs: Vec<&str> = args.iter().map(String::as_str).collect();
+        ok(&raygun(&refs));
+        let want = files(&one);
+        assert!(!want.is_empty(), "{want:?}");
+        for np in 1..=3 {
+            let dir = tmp_dir(&format!("{name}-{np}"));
+            let o = mpirun(&[(
+                np,
+                &exe(),
+                with(
+                    make(&dir),
+                    &with(strings(&["--cluster"]), extra)
+                        .iter()
+                        .map(String::as_str)
+                        .collect::<Vec<_>>(),
+                ),
+            )]);
+            ok(&o);
+            let got = files(&dir);
+            assert_eq!(
+                got.iter().map(|f| &f.0).collect::<Vec<_>>(),
+                want.iter().map(|f| &f.0).collect::<Vec<_>>(),
+                "{np} ranks: the same files"
+            );
+            for ((n, a), (_, b)) in got.iter().zip(&want) {
+                assert!(a == b, "{np} ranks: {n} differs from the one-process file");
+            }
+        }
+    }
+
+    #[test]
+    fn guided_renders_on_1_2_and_3_ranks_write_the_one_process_files_byte_for_byte() {
+        same_files_as_one_process("guided", guided, &[]);
+    }
+
+    #[test]
+    fn broadcast_dgi_renders_match_too() {
+        same_files_as_one_process("broadcast", guided, &["--cluster-dgi", "broadcast"]);
+    }
+
+    #[test]
+    fn full_wall_frames_match_too() {
+        same_files_as_one_process("wall", full_wall, &[]);
+    }
+
+    #[test]
+    fn a_tile_owners_file_changes_who_accumulates_not_the_image() {
+        let one = tmp_dir("owners-one");
+        let args = guided(&one);
+        let refs: Vec<&str> = args.iter().map(String::as_str).collect();
+        ok(&raygun(&refs));
+        // Rows to ranks, against the default columns.
+        let text: String = (0..7)
+            .flat_map(|c| (0..5).map(move |r| format!("c{c}r{r} {}\n", r % 3)))
+            .collect();
+        let owners = tmp_file("rows.owners");
+        std::fs::write(&owners, format!("# rows\n{text}")).unwrap();
+        let dir = tmp_dir("owners-3");
+        let o = mpirun(&[(
+            3,
+            &exe(),
+            with(guided(&dir), &["--cluster", "--tile-owners", s(&owners)]),
+        )]);
+        ok(&o);
+        assert!(files(&dir) == files(&one), "a tile map changed the files");
+    }
+
+    fn timed(apps: &[(usize, &Path, Vec<String>)]) -> (Output, Duration) {
+        let t0 = Instant::now();
+        let o = mpirun(apps);
+        (o, t0.elapsed())
+    }
+
+    #[test]
+    fn a_rank_that_stops_answering_is_named_on_rank_0_within_seconds() {
+        let dir = tmp_dir("hang");
+        let (o, took) = timed(&[(
+            3,
+            &exe(),
+            with(
+                guided(&dir),
+                &[
+                    "--cluster",
+                    "--cluster-timeout",
+                    "2",
+                    "--cluster-fault",
+                    "2:3:hang",
+                ],
+            ),
+        )]);
+        let e = stderr(&o);
+        assert!(!o.status.success(), "{e}");
+        assert!(
+            e.contains("raygun: error: rank 0: cluster: rank 2 did not answer"),
+            "{e}"
+        );
+        assert!(took < Duration::from_secs(30), "took {took:?}: {e}");
+    }
+
+    #[test]
+    fn a_rank_that_ends_ends_the_job_within_seconds() {
+        let dir = tmp_dir("exit");
+        let (o, took) = timed(&[(
+            3,
+            &exe(),
+            with(
+                guided(&dir),
+                &[
+                    "--cluster",
+                    "--cluster-timeout",
+                    "2",
+                    "--cluster-fault",
+                    "1:2:exit",
+                ],
+            ),
+        )]);
+        let e = stderr(&o);
+        assert!(!o.status.success(), "{e}");
+        assert!(e.contains("rank 1"), "{e}");
+        assert!(took < Duration::from_secs(30), "took {took:?}: {e}");
+        assert!(
+            !dir.join("img.exr").exists(),
+            "no output after a failed job"
+        );
+    }
+
+    #[test]
+    fn ranks_that_disagree_are_stopped_before_any_work_naming_the_rank() {
+        let dir = tmp_dir("mismatch");
+        // A pose guide (it hits both displays below).
+        let base: Vec<String> = guided(&dir)
+            .into_iter()
+            .map(|a| {
+                if a.ends_with(".jsonl") {
+                    "pose:0,0,1:0,0,-1:30".to_owned()
+                } else {
+                    a
+                }
+            })
+            .collect();
+        let base = with(base, &["--cluster"]);
+        // Another display model on rank 1.
+        let o = mpirun(&[
+            (1, &exe(), base.clone()),
+            (
+                1,
+                &exe(),
+                with(base.clone(), &["--display", "desktop-27in-4k"]),
+            ),
+        ]);
+        let e = fails_with(&o, &["rank 1's display model differs from rank 0's"]);
+        assert!(e.contains("desktop-27in-4k"), "{e}");
+        // Another tile map on rank 2.
+        let all: String = (0..7)
+            .flat_map(|c| (0..5).map(move |r| format!("c{c}r{r} {}\n", c % 3)))
+            .collect();
+        let other = tmp_file("other.owners");
+        std::fs::write(&other, all.replace("c6r4 0", "c6r4 1")).unwrap();
+        let mine = tmp_file("mine.owners");
+        std::fs::write(&mine, &all).unwrap();
+        let o = mpirun(&[
+            (2, &exe(), with(base.clone(), &["--tile-owners", s(&mine)])),
+            (1, &exe(), with(base.clone(), &["--tile-owners", s(&other)])),
+        ]);
+        fails_with(
+            &o,
+            &["rank 2's tile map differs from rank 0's: c6r4=1 on rank 2, c6r4=0 on rank 0"],
+        );
+        // Another binary on rank 1 (the same program with a byte appended).
+        let copy = tmp_file("raygun-copy");
+        let mut bytes = std::fs::read(exe()).unwrap();
+        bytes.push(0);
+        std::fs::write(&copy, bytes).unwrap();
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            std::fs::set_permissions(&copy, std::fs::Permissions::from_mode(0o755)).unwrap();
+        }
+        let o = mpirun(&[(1, &exe(), base.clone()), (1, &copy, base.clone())]);
+        fails_with(&o, &["rank 1's binary differs from rank 0's"]);
+        // A rank that cannot start says why through rank 0.
+        let o = mpirun(&[
+            (1, &exe(), base.clone()),
+            (
+                1,
+                &exe(),
+                with(base, &["--tile-owners", "/nonexistent/owners"]),
+            ),
+        ]);
+        fails_with(&o, &["rank 1 could not start", "/nonexistent/owners"]);
+        assert!(!dir.join("img.exr").exists());
+    }
+
+    #[test]
+    fn a_bad_tile_owners_file_is_rejected_naming_file_and_line() {
+        let bad = tmp_file("bad.owners");
+        std::fs::write(&bad, "# owners\nc0r0 0\nc0r1 five\n").unwrap();
+        let dir = tmp_dir("bad-owners");
+        let o = mpirun(&[(
+            2,
+            &exe(),
+            with(guided(&dir), &["--cluster", "--tile-owners", s(&bad)]),
+        )]);
+        fails_with(&o, &["bad.owners:3: rank \"five\""]);
+    }
+
+    #[test]
+    fn the_cluster_benchmark_reports_every_rank_and_counts_bytes_consistently() {
+        let out = tmp_file("bench.json");
+        let o = mpirun(&[(
+            2,
+            &exe(),
+            strings(&[
+                "bench",
+                "guided",
+                "--cluster",
+                "--scene",
+                "builtin:cornell",
+                "--size",
+                "96,40",
+                "--fov",
+                "10,60",
+                "--iterations",
+                "2",
+                "--model-size",
+                "96,40",
+                "--model-ranks",
+                "3",
+                "--json",
+                "--out",
+                s(&out),
+            ]),
+        )]);
+        ok(&o);
+        let r: serde_json::Value = serde_json::from_slice(&std::fs::read(&out).unwrap()).unwrap();
+        let scaling = r["scaling"].as_array().unwrap();
+        assert_eq!(scaling.len(), 2);
+        for row in scaling {
+            let per_rank = row["per_rank"].as_array().unwrap();
+            assert_eq!(per_rank.len(), 2);
+            // Every scheduled sample was traced by exactly one rank.
+            let traced: f64 = per_rank
+                .iter()
+                .map(|p| p["samples_traced_per_iteration"].as_f64().unwrap())
+                .sum();
+            assert_eq!(traced, row["samples_per_iteration"].as_f64().unwrap());
+            // What one rank sent the other received.
+            assert_eq!(
+                per_rank[0]["bytes_sent_per_iteration"],
+                per_rank[1]["bytes_received_per_iteration"]
+            );
+        }
+        let exchange = r["exchange"].as_array().unwrap();
+        assert_eq!(exchange.len(), 2 * 2 * 3, "maps × FOVs × rank counts");
+        for e in exchange {
+            let one = e["ranks"] == 1;
+            assert_eq!(e["bytes_sent_max"] == 0, one, "{e}");
+        }
+    }
+
+    #[test]
+    fn a_stop_on_the_rois_progress_is_measured_from_the_owners() {
+        // Every ROI pixel sampled twice, on 3 ranks; the ROI summary in the closing message.
+        let dir = tmp_dir("until");
+        let mut args: Vec<String> = guided(&dir)
+            .into_iter()
+            .map(|a| if a == "6" { "400".to_owned() } else { a })
+            .collect();
+        args.extend(strings(&["--until", "roi-spp:2", "--cluster"]));
+        let o = mpirun(&[(3, &exe(), args)]);
+        ok(&o);
+        let e = stderr(&o);
+        assert!(e.contains("roi-spp:2 reached"), "{e}");
+        assert!(e.contains("fewest samples"), "{e}");
+    }
+}
