@@ -775,14 +775,17 @@ impl<'a> Renderer<'a> {
         })
     }
 
-    /// How far the ROI has come (a read-back on the GPU); `None` without ROI pixels.
+    /// How far the ROI has come (a read-back on the GPU; with a wall camera over the pixels
+    /// its display shows); `None` without ROI pixels.
     pub fn roi_progress(&self) -> Result<Option<RoiProgress>, FrameError> {
+        let wall = self.wall.as_ref();
+        let shown = |i: usize| wall.is_none_or(|w| w.is_shown(i as u32));
         Ok(match &self.engine {
             Engine::Cpu {
                 accum,
                 guide: Some(g),
-            } => RoiProgress::measure(accum, &g.dgi),
-            _ => RoiProgress::measure(&self.accumulation()?, &self.dgi()?),
+            } => RoiProgress::measure_where(accum, &g.dgi, shown),
+            _ => RoiProgress::measure_where(&self.accumulation()?, &self.dgi()?, shown),
         })
     }
 
