@@ -247,6 +247,19 @@ fn replay_prints_eye_restarts_and_old_replays_take_a_head_from_the_command_line(
     let o = raygun(&["replay", s(&old), "--head", "mouse:0"]);
     assert!(!o.status.success());
     assert!(stderr(&o).contains("--head"), "{}", stderr(&o));
+    // An eye offset for a live recording needs the head it sits on.
+    let dir = tmp_dir("head-flags");
+    let o = raygun(&[
+        "record",
+        "--dtrack",
+        "0",
+        "--out",
+        s(&dir.join("x.jsonl")),
+        "--eye-offset",
+        "0,0,0.1",
+    ]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("--head"), "{}", stderr(&o));
 }
 
 /// The synthetic sessions' tracker frame as a calibration file (tests/lab.rs has the same).
