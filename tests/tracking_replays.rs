@@ -13,6 +13,7 @@ use raygun::cli::tracking::{ReplayArgs, run_replay};
 use raygun::session::replay::{ChangePrinter, ReplayPlan, golden_path};
 use raygun::session::synth;
 use raygun::session::udp::{ListenerConfig, Live, UdpSource, run_live};
+use raygun::tracking::head::EyeRule;
 use raygun::tracking::replay::ReplayPayload;
 
 fn replay_dir() -> PathBuf {
@@ -41,6 +42,7 @@ fn args(file: &Path) -> ReplayArgs {
         device: None,
         calibration: None,
         realtime: false,
+        head: Default::default(),
     }
 }
 
@@ -150,6 +152,8 @@ fn run_over_udp(file: &Path) -> String {
         std::thread::spawn(move || {
             let mut pipeline = plan.pipeline();
             let mut printer = ChangePrinter::new(Vec::new());
+            let head = plan.head;
+            let mut rule = head.map(|h| EyeRule::new(h.eye_threshold_m));
             run_live(
                 &mut source,
                 protocol,
@@ -160,6 +164,16 @@ fn run_over_udp(file: &Path) -> String {
                 |events, changes| {
                     if let Some(e) = events.iter().find(|e| e.device == device) {
                         printer.saw_event(e.t);
+                    }
+                    // A tracked head's eyes that restart the accumulation, as `raygun replay`
+                    // prints them.
+                    for e in events {
+                        if let (Some(h), Some(r)) = (head, &mut rule)
+                            && let Some(eye) = h.eye_of(e)
+                            && r.offer(eye)
+                        {
+                            printer.print_eye(e.t, eye).unwrap();
+                        }
                     }
                     for c in changes {
                         printer.print(c).unwrap();
@@ -205,7 +219,7 @@ fn every_raw_replay_gives_its_golden_sequence_through_the_live_udp_listener() {
             n.ends_with(".dtrack.jsonl") || n.ends_with(".osc.jsonl")
         })
         .collect();
-    assert_eq!(raw.len(), 12);
+    assert_eq!(raw.len(), 14);
     for file in raw {
         let got = run_over_udp(&file);
         let expect = std::fs::read_to_string(golden_path(&file)).unwrap();

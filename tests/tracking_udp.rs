@@ -307,6 +307,7 @@ fn record_arguments_are_validated_before_binding() {
         allow_network: false,
         allow_from: vec![],
         seconds,
+        head: Default::default(),
     };
     assert!(listener_config(&args(Some(5000), None, None)).is_ok());
     let (c, p) = listener_config(&args(None, Some(9000), Some(1.0))).unwrap();

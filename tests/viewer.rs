@@ -217,6 +217,7 @@ fn bundled_replay() -> Timeline {
         device: None,
         calibration: None,
         realtime: false,
+        head: Default::default(),
     })
     .unwrap()
 }
@@ -569,4 +570,205 @@ fn replay_cursor_is_smoothed_and_settles_the_same_after_a_scrub() {
     fresh.advance(0.0, &timeline);
     assert_eq!(s.cursor_mark(5.0), fresh.cursor_mark(5.0));
     assert!(s.cursor_mark(5.0).is_some());
+}
+
+/// A wall camera for the viewer's image, 1 m in front of the centre, the scene's camera at
+/// the eye.
+fn wall_camera(
+    model: &raygun::display::DisplayModel,
+    scene: &Scene,
+) -> raygun::trace::wall::WallCamera {
+    let c = base(scene).camera;
+    raygun::trace::wall::WallCamera::new(
+        model,
+        [W, H],
+        glam::DVec3::new(0.0, 0.0, 1.0),
+        &raygun::trace::wall::WorldFromRoom::Auto,
+        (c.position.as_dvec3(), c.forward.as_dvec3(), c.up.as_dvec3()),
+    )
+    .unwrap()
+}
+
+/// `view --camera wall`: the eye follows the desktop user's orbit, pan and dolly and a tracked
+/// head under the restart rule — within the threshold the accumulation goes on, past it the
+/// accumulation restarts and the ROI stays; an eye on or behind the wall is refused.
+#[test]
+fn the_wall_cameras_eye_follows_gestures_and_the_head_under_the_restart_rule() {
+    use glam::DVec3;
+    use raygun::viewer::orbit::Gesture;
+    let (model, scene, backend) = (hornet(), scene(), Backend::Cpu);
+    let mut state = ViewerState::new(RoiSource::Mouse, 2);
+    state.click(&model, DVec2::new(32.5, 13.5), [W, H]);
+    let wall = wall_camera(&model, &scene);
+    let mut core =
+        ViewerCore::with_wall(&backend, &scene, &model, base(&scene), state, Some(wall)).unwrap();
+    for _ in 0..3 {
+        core.step(ONE).unwrap();
+    }
+    assert_eq!(core.renderer().iteration(), 3);
+    let start = core.eye().unwrap();
+    assert_eq!(start, DVec3::new(0.0, 0.0, 1.0));
+    let roi = *core.renderer().roi().unwrap();
+    // One pixel of orbit about the wall's centre 1 m away: 5 mm, below 1 cm — kept.
+    core.state.gesture(Gesture::Orbit(DVec2::new(1.0, 0.0)));
+    core.step(ONE).unwrap();
+    assert_eq!(core.renderer().iteration(), 4, "the accumulation goes on");
+    assert_eq!(core.eye(), Some(start));
+    assert_eq!(core.restarts, 0);
+    // Ten more: 5.5 cm from where it started — restarted, at the viewpoint, the ROI kept.
+    core.state.gesture(Gesture::Orbit(DVec2::new(10.0, 0.0)));
+    core.step(ONE).unwrap();
+    assert_eq!(core.restarts, 1);
+    assert_eq!(
+        core.renderer().iteration(),
+        1,
+        "one frame since the restart"
+    );
+    let eye = core.eye().unwrap();
+    let want = core.state.view.as_ref().unwrap().position();
+    assert!(eye.abs_diff_eq(want, 1e-12), "{eye} vs {want}");
+    assert!(eye.x < -0.05, "dragging right moves the eye left: {eye}");
+    assert_eq!(core.renderer().roi(), Some(&roi));
+    // Pan and dolly move it too.
+    let before = core.eye().unwrap();
+    core.state.gesture(Gesture::Dolly(100.0));
+    core.step(ONE).unwrap();
+    let closer = core.eye().unwrap();
+    assert!(
+        closer.distance(raygun::trace::wall::wall_centre(&model))
+            < before.distance(raygun::trace::wall::wall_centre(&model))
+    );
+    core.state.gesture(Gesture::Pan(DVec2::new(0.0, 20.0)));
+    core.step(ONE).unwrap();
+    assert!(
+        core.eye().unwrap().y > closer.y + 0.01,
+        "panning down moves the eye up"
+    );
+    // A tracked head leads while it is followed.
+    let head = DVec3::new(0.2, 0.1, 1.3);
+    core.state.head = Some(head);
+    core.state.follow_head = true;
+    core.step(ONE).unwrap();
+    assert_eq!(core.eye(), Some(head));
+    // Its sway below the threshold keeps the accumulation.
+    let n = core.renderer().iteration();
+    core.state.head = Some(head + DVec3::new(0.004, 0.0, 0.0));
+    core.step(ONE).unwrap();
+    assert_eq!(core.renderer().iteration(), n + 1);
+    assert_eq!(core.eye(), Some(head));
+    // A gesture takes over from the head (from where the head was).
+    core.state.gesture(Gesture::Dolly(-100.0));
+    assert!(!core.state.follow_head);
+    core.step(ONE).unwrap();
+    assert!(core.eye().unwrap().distance(head) > 0.05);
+    // Behind the wall: refused; the eye stays and the viewpoint goes back to it.
+    let at = core.eye().unwrap();
+    core.state.head = Some(DVec3::new(0.0, 0.0, -1.0));
+    core.state.follow_head = true;
+    core.step(ONE).unwrap();
+    assert_eq!(core.eye(), Some(at));
+    assert!(
+        core.eye_refused.as_deref().unwrap_or("").contains("tile"),
+        "{:?}",
+        core.eye_refused
+    );
+    // A panel change that rebuilds the renderer keeps the moved eye.
+    core.state.follow_head = false;
+    core.state.view.as_mut().unwrap().set_position(at);
+    core.state.max_depth = 3;
+    core.step(ONE).unwrap();
+    assert_eq!(core.eye(), Some(at));
+}
+
+/// Without a wall camera the gestures move the pinhole camera, under the same rule.
+#[test]
+fn the_pinhole_camera_orbits_under_the_restart_rule() {
+    use raygun::viewer::orbit::Gesture;
+    let (model, scene, backend) = (hornet(), scene(), Backend::Cpu);
+    let mut state = ViewerState::new(RoiSource::Mouse, 2);
+    state.click(&model, DVec2::new(32.5, 13.5), [W, H]);
+    let mut core = ViewerCore::new(&backend, &scene, &model, base(&scene), state).unwrap();
+    core.step(ONE).unwrap();
+    core.step(ONE).unwrap();
+    let cam0 = core.renderer().settings.camera;
+    assert_eq!(cam0.position, base(&scene).camera.position);
+    // A tiny drag: far below the threshold's angle.
+    core.state.eye_threshold_m = 0.05;
+    core.state.gesture(Gesture::Orbit(DVec2::new(1.0, 0.0)));
+    core.step(ONE).unwrap();
+    assert_eq!(core.renderer().iteration(), 3);
+    assert_eq!(core.renderer().settings.camera.position, cam0.position);
+    core.state.gesture(Gesture::Orbit(DVec2::new(40.0, 0.0)));
+    core.step(ONE).unwrap();
+    assert_eq!(core.restarts, 1);
+    assert_eq!(core.renderer().iteration(), 1);
+    let cam = core.renderer().settings.camera;
+    assert!(cam.position.distance(cam0.position) > 0.05);
+    assert!(core.renderer().roi().is_some(), "the ROI stays");
+    assert!(core.eye().is_none());
+}
+
+/// A replay's tracked head reaches the viewer's state as the replay plays.
+#[test]
+fn a_head_replay_moves_the_viewers_eye_as_it_plays() {
+    let root = env!("CARGO_MANIFEST_DIR");
+    let t = Timeline::collect(&raygun::session::replay::ReplayOptions::of(
+        format!("{root}/tracking-replays/head-1-walk.dtrack.jsonl").into(),
+    ))
+    .unwrap();
+    assert!(t.eyes.len() > 1000);
+    let mut s = ViewerState::new(RoiSource::Replay, 4);
+    s.advance(0.0, &t);
+    let e0 = s.head.unwrap();
+    assert!(e0.distance(glam::DVec3::new(0.0, 0.0, 1.0)) < 0.005, "{e0}");
+    s.advance(5.0, &t);
+    let e = s.head.unwrap();
+    assert!(e.distance(glam::DVec3::new(0.35, 0.0, 1.0)) < 0.005, "{e}");
+    assert_eq!(s.wanted_eye(), Some(e));
+}
+
+/// Live DTrack with a tracked head: a `6d` body's poses go through the same calibration as the
+/// ray gun's and reach the state as the eye (body pose · eye offset, room frame).
+#[test]
+fn live_dtrack_moves_the_eye_of_a_tracked_head_through_the_calibration() {
+    use raygun::session::live::LiveTracking;
+    use raygun::tracking::calibration::Calibration;
+    use raygun::tracking::head::HeadConfig;
+    use raygun::tracking::ingest::Protocol;
+    let model = hornet();
+    // DTrack's factory Z-up frame with its origin 1.45 m below the room's.
+    let cal = Calibration::from_json(
+        r#"{"raygun_calibration":1,"rotation_rows":[[1,0,0],[0,0,1],[0,-1,0]],"translation_m":[0,-1.45,0]}"#,
+        std::path::Path::new("lab.json"),
+    )
+    .unwrap();
+    let live = LiveTracking::start_calibrated(
+        0,
+        Protocol::Dtrack,
+        raygun::interaction::InteractionConfig::default(),
+        model,
+        Some(&cal),
+    )
+    .unwrap();
+    live.follow_head(HeadConfig {
+        eye_offset_m: [0.0, 0.0, -0.1],
+        ..HeadConfig::new("body:3".parse().unwrap())
+    });
+    let mut live = live;
+    let sender = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    // Body 3 at tracker (200, -1000, 1500) mm — room (0.2, 0.05, 1.0) — turned as the tracker's
+    // frame is: the body's −Z is the tracker's −Z (down), the room's −Y, so the eye 10 cm along
+    // the body's −Z is 10 cm below the body.
+    let frame = b"fr 1\n6d 1 [3 1.0][200 -1000 1500][1 0 0 0 1 0 0 0 1]\n".to_vec();
+    let mut state = ViewerState::new(RoiSource::Live, 4);
+    let deadline = std::time::Instant::now() + Duration::from_secs(10);
+    while state.head.is_none() {
+        assert!(std::time::Instant::now() < deadline, "no eye arrived");
+        sender.send_to(&frame, ("127.0.0.1", live.port)).unwrap();
+        std::thread::sleep(Duration::from_millis(20));
+        state.apply_live(live.update());
+    }
+    let eye = state.head.unwrap();
+    let want = glam::DVec3::new(0.2, -0.05, 1.0);
+    assert!(eye.abs_diff_eq(want, 1e-9), "{eye} vs {want}");
 }

@@ -156,3 +156,48 @@ fn viewer_under_xvfb_renders_and_saves_a_screenshot() {
     assert!(shot.pixels().any(|p| p.0 != [0, 0, 0]));
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// `view --camera wall` in the real window, its eye following the replay's tracked head: the
+/// window opens, renders through the wall camera and saves; bezel pixels are never sampled.
+#[test]
+fn viewer_under_xvfb_renders_through_the_wall_camera_with_a_tracked_head() {
+    let dir = std::env::temp_dir().join(format!("raygun-xvfb-wall-{}", std::process::id()));
+    let replay =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tracking-replays/head-1-walk.dtrack.jsonl");
+    let o = Command::new("xvfb-run")
+        .args(["-a", "-s", "-screen 0 1280x700x24"])
+        .arg(env!("CARGO_BIN_EXE_raygun"))
+        // 1/16 of HORNET's canvas: bezels then hold pixel centres.
+        .args(["view", "--backend", "cpu", "--size", "845,341"])
+        .args(["--camera", "wall", "--max-depth", "1", "--replay"])
+        .arg(&replay)
+        .args(["--screenshot-after", "6", "--save-dir"])
+        .arg(&dir)
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .output()
+        .unwrap();
+    let log = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{log}");
+    assert!(dir.join("screenshot.window.png").exists(), "{log}");
+    let counts = gray_exr(&dir.join("screenshot.counts.exr"));
+    let model = raygun::display::DisplayModel::open("hornet").unwrap().0;
+    let any = (glam::DVec3::ZERO, glam::DVec3::NEG_Z, glam::DVec3::Y);
+    let wall = raygun::trace::wall::WallCamera::new(
+        &model,
+        [845, 341],
+        glam::DVec3::new(0.0, 0.0, 1.0),
+        &raygun::trace::wall::WorldFromRoom::Identity,
+        any,
+    )
+    .unwrap();
+    let hidden: Vec<usize> = (0..counts.len())
+        .filter(|&p| !wall.is_shown(p as u32))
+        .collect();
+    assert!(!hidden.is_empty());
+    assert!(
+        hidden.iter().all(|&p| counts[p] == 0.0),
+        "a bezel pixel was sampled"
+    );
+    assert!(counts.iter().any(|&c| c > 0.0));
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -57,8 +57,8 @@ pub struct DemoArgs {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
-    /// `wall`: render through the wall camera from --eye (headless: the viewer
-    /// does not show it yet).
+    /// `wall`: render through the wall camera from --eye (in the viewer too, where the mouse
+    /// moves the eye).
     #[arg(long, value_name = "wall")]
     pub camera: Option<String>,
     #[command(flatten)]
@@ -86,13 +86,14 @@ pub struct DemoOutput {
 pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     // Without the `viewer` feature there is no window to open: the demo renders headless.
     let windowed = cfg!(feature = "viewer") && has_display();
-    if args.camera.is_some() && !args.headless && windowed {
-        eprintln!("raygun demo: the viewer does not show the wall camera yet: rendering headless");
-    } else if !args.headless && windowed {
+    if !args.headless && windowed {
+        check_camera(args)?;
+        let embedded = DisplayModel::from_json(DISPLAY_JSON, DISPLAY_FILE)?;
+        crate::cli::wall::wall_spec(args.camera.as_deref(), &args.wall, Some(&embedded))?;
         let (display, replay) = write_inputs(&args.out)?;
         return crate::cli::view::run(&view_args(args, &display, &replay));
     }
-    if !args.headless && args.camera.is_none() {
+    if !args.headless {
         if cfg!(feature = "viewer") {
             eprintln!(
                 "raygun demo: no display (DISPLAY / WAYLAND_DISPLAY unset): rendering headless"
@@ -121,11 +122,7 @@ pub fn run_headless(args: &DemoArgs) -> anyhow::Result<DemoOutput> {
     if args.iterations == 0 {
         anyhow::bail!("--iterations must be at least 1");
     }
-    if let Some(c) = args.camera.as_deref()
-        && c != crate::cli::wall::WALL_CAMERA
-    {
-        anyhow::bail!("--camera {c}: the demo's only other camera is `wall`");
-    }
+    check_camera(args)?;
     let embedded = DisplayModel::from_json(DISPLAY_JSON, DISPLAY_FILE)?;
     let wall_spec =
         crate::cli::wall::wall_spec(args.camera.as_deref(), &args.wall, Some(&embedded))?;
@@ -249,6 +246,16 @@ pub fn run_headless(args: &DemoArgs) -> anyhow::Result<DemoOutput> {
     })
 }
 
+/// The demo's scene camera, or `--camera wall`.
+fn check_camera(args: &DemoArgs) -> anyhow::Result<()> {
+    if let Some(c) = args.camera.as_deref()
+        && c != crate::cli::wall::WALL_CAMERA
+    {
+        anyhow::bail!("--camera {c}: the demo's only other camera is `wall`");
+    }
+    Ok(())
+}
+
 /// A file the demo wrote and what it is.
 struct FileNote {
     path: PathBuf,
@@ -362,7 +369,9 @@ pub fn view_args(args: &DemoArgs, display: &Path, replay: &Path) -> ViewArgs {
         display: display.display().to_string(),
         size: args.size,
         env: Some(ENV.to_owned()),
-        camera: None,
+        camera: args.camera.clone(),
+        wall: args.wall.clone(),
+        head: crate::cli::head::HeadArgs::default(),
         look_from: None,
         look_at: None,
         yfov: None,

@@ -10,6 +10,7 @@ pub mod dgi;
 pub mod display;
 pub mod ellipse_distance;
 pub mod filter;
+pub mod head;
 pub mod progress;
 pub mod render;
 pub mod scene;

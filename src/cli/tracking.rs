@@ -13,10 +13,11 @@ use anyhow::{Context, bail};
 use clap::{ArgGroup, Args};
 
 use crate::display::DisplayModel;
-use crate::session::replay::{ChangePrinter, ReplayOptions, replay_changes};
+use crate::session::replay::{ChangePrinter, ReplayOptions, ReplayPlan, replay_changes_with};
 use crate::session::udp::{ListenerConfig, UdpSource, record};
 use crate::tracking::calibration::Calibration;
 use crate::tracking::event::DeviceId;
+use crate::tracking::head::EyeRule;
 use crate::tracking::ingest::Protocol;
 use crate::tracking::problems::ProblemLog;
 use crate::tracking::replay::{LineFile, ReplayHeader, ReplayWriter};
@@ -43,6 +44,10 @@ pub struct ReplayArgs {
     /// Play at recorded speed instead of as fast as possible.
     #[arg(long)]
     pub realtime: bool,
+    /// A tracked head (default: the recording's): its eyes that restart the accumulation are
+    /// printed as `"kind":"eye"` lines.
+    #[command(flatten)]
+    pub head: crate::cli::head::HeadArgs,
 }
 
 impl ReplayArgs {
@@ -56,6 +61,7 @@ impl ReplayArgs {
             device: self.device,
             calibration: self.calibration.clone(),
             realtime: self.realtime,
+            head: self.head.overrides(),
         }
     }
 }
@@ -98,6 +104,10 @@ pub struct RecordArgs {
     /// Stop after this many seconds; default: run until killed.
     #[arg(long)]
     pub seconds: Option<f64>,
+    /// The tracked head, named in the recording's header so that replays move the wall
+    /// camera's eye (its poses are in the recorded datagrams with every other device's).
+    #[command(flatten)]
+    pub head: crate::cli::head::HeadArgs,
 }
 
 /// `raygun synth-replays`.
@@ -108,21 +118,37 @@ pub struct SynthArgs {
     pub out: PathBuf,
 }
 
-/// Runs a replay, printing changes to `out`; returns the problem counts (reader and decoders).
+/// Runs a replay, printing changes to `out` (and, with a tracked head, the eyes that restart
+/// the accumulation); returns the problem counts (reader and decoders).
 pub fn run_replay(args: &ReplayArgs, out: impl Write) -> anyhow::Result<ProblemLog> {
+    args.head.check()?;
+    let options = args.options();
+    let (plan, _) = ReplayPlan::new(&options)?;
+    let mut rule = plan.head.map(|h| EyeRule::new(h.eye_threshold_m));
     let mut printer = ChangePrinter::new(out);
-    let mut io_result = Ok(());
+    let io_result = std::cell::RefCell::new(Ok(()));
     let printer_ref = std::cell::RefCell::new(&mut printer);
-    let problems = replay_changes(
-        &args.options(),
+    let problems = replay_changes_with(
+        &plan,
+        &options.file,
         |t| printer_ref.borrow_mut().saw_event(t),
         |c| {
-            if io_result.is_ok() {
-                io_result = printer_ref.borrow_mut().print(c);
+            let mut r = io_result.borrow_mut();
+            if r.is_ok() {
+                *r = printer_ref.borrow_mut().print(c);
+            }
+        },
+        |t, eye| {
+            let mut r = io_result.borrow_mut();
+            if let Some(rule) = &mut rule
+                && rule.offer(eye)
+                && r.is_ok()
+            {
+                *r = printer_ref.borrow_mut().print_eye(t, eye);
             }
         },
     )?;
-    io_result.context("writing ROI changes")?;
+    io_result.into_inner().context("writing ROI changes")?;
     Ok(problems)
 }
 
@@ -157,13 +183,14 @@ pub fn run_record(args: &RecordArgs, stop: &AtomicBool) -> anyhow::Result<u64> {
         bail!("--seconds must be a positive number of seconds, not {s}");
     }
     crate::output::check_writable(&args.out)?;
+    let head = args.head.head()?;
     let (model, origin) = DisplayModel::open(&args.display)?;
     let calibration = match &args.calibration {
         Some(p) => Some(Calibration::load(p)?),
         None => None,
     };
     if let Some(address) = &args.vrpn {
-        return record_vrpn(args, address, model, origin, calibration, stop);
+        return record_vrpn(args, address, model, origin, calibration, head, stop);
     }
     let (config, protocol) = listener_config(args)?;
     let mut source = UdpSource::bind(config)?;
@@ -177,6 +204,7 @@ pub fn run_record(args: &RecordArgs, stop: &AtomicBool) -> anyhow::Result<u64> {
     });
     header.display_model = Some(model);
     header.calibration = calibration;
+    header.head = head;
     let file =
         LineFile::create(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
     let mut writer = ReplayWriter::new(file, &header)?;
@@ -211,6 +239,7 @@ fn record_vrpn(
     model: DisplayModel,
     origin: crate::display::ModelOrigin,
     calibration: Option<Calibration>,
+    head: Option<crate::tracking::head::HeadConfig>,
     stop: &AtomicBool,
 ) -> anyhow::Result<u64> {
     use crate::session::vrpn::{VrpnClientConfig, VrpnSource};
@@ -227,6 +256,7 @@ fn record_vrpn(
     });
     header.display_model = Some(model);
     header.calibration = calibration;
+    header.head = head;
     let mut ingest = header.ingest(None)?;
     ingest.problems.quiet = true;
     let file =

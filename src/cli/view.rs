@@ -1,4 +1,5 @@
-//! `raygun view --scene FILE --display MODEL [--dtrack PORT | --osc PORT | --replay FILE]`.
+//! `raygun view --scene FILE --display MODEL [--dtrack PORT | --osc PORT | --replay FILE]
+//! [--camera wall --eye X,Y,Z] [--head KIND:N --eye-offset X,Y,Z --eye-threshold M]`.
 
 use std::path::PathBuf;
 
@@ -42,9 +43,17 @@ pub struct ViewArgs {
     /// Environment light: linear radiance R,G,B or an equirectangular .hdr/.exr image.
     #[arg(long, value_name = "R,G,B|FILE")]
     pub env: Option<String>,
-    /// Camera by name.
-    #[arg(long, value_name = "NAME")]
+    /// Camera by name, or `wall`: the wall camera — each pixel's primary ray from --eye
+    /// through its point on --display (the eye follows a tracked head, or the mouse: drag to
+    /// orbit, shift- or middle-drag to pan, the wheel to dolly).
+    #[arg(long, value_name = "NAME|wall")]
     pub camera: Option<String>,
+    #[command(flatten)]
+    pub wall: crate::cli::wall::WallArgs,
+    /// The tracked head that moves the wall camera's eye (live input, or a replay's; default:
+    /// the replay's header's head).
+    #[command(flatten)]
+    pub head: crate::cli::head::HeadArgs,
     /// Look from this point (X,Y,Z, metres, the scene's frame) instead of a scene camera;
     /// needs --look-at.
     #[arg(long, value_name = "X,Y,Z", value_parser = crate::cli::args::parse_vec3, requires = "look_at", conflicts_with = "camera", allow_hyphen_values = true)]
@@ -149,6 +158,7 @@ pub fn run(args: &ViewArgs) -> anyhow::Result<()> {
     }
     crate::output::check_folder(&args.save_dir).context("--save-dir")?;
     let filter = args.filter.params()?;
+    let head = args.head.head()?;
     let (model, _) = DisplayModel::open(&args.display)?;
     let mut interaction = match &args.config {
         Some(p) => InteractionConfig::load(p)?,
@@ -181,9 +191,12 @@ pub fn run(args: &ViewArgs) -> anyhow::Result<()> {
     let scene = crate::cli::scene::load_scene(&args.scene, args.env.as_deref())?;
     let [w, h] = args.size;
     let look = crate::cli::render::look_at(args.look_from, args.look_at, args.yfov);
-    let camera =
-        RenderCamera::choose_or_look_at(&scene, args.camera.as_deref(), look.as_ref(), w, h)
-            .with_context(|| format!("scene {}", args.scene))?;
+    let name = args
+        .camera
+        .as_deref()
+        .filter(|c| *c != crate::cli::wall::WALL_CAMERA);
+    let camera = RenderCamera::choose_or_look_at(&scene, name, look.as_ref(), w, h)
+        .with_context(|| format!("scene {}", args.scene))?;
     eprintln!("raygun view: rendering on {}", backend.describe());
     let base = TraceSettings {
         width: w,
@@ -198,10 +211,22 @@ pub fn run(args: &ViewArgs) -> anyhow::Result<()> {
             config: args.config.clone(),
             device: args.device,
             calibration: args.calibration.clone(),
+            head: args.head.overrides(),
             ..ReplayOptions::of(file.clone())
         })?),
         None => None,
     };
+    // The wall camera: --eye, else the tracked head's first eye in the replay.
+    let first_eye = timeline.as_ref().and_then(|t| t.eyes.first().map(|e| e.1));
+    let wall = crate::cli::wall::wall_spec_or_eye(
+        args.camera.as_deref(),
+        &args.wall,
+        Some(&model),
+        first_eye,
+    )?
+    .map(|spec| spec.camera(args.size, &camera))
+    .transpose()
+    .context("--camera wall")?;
     let protocol = match (args.dtrack, args.osc) {
         (Some(p), _) => Some((p, Protocol::Dtrack)),
         (_, Some(p)) => Some((p, Protocol::Osc)),
@@ -235,6 +260,10 @@ pub fn run(args: &ViewArgs) -> anyhow::Result<()> {
         }
         (None, None) => None,
     };
+    if let (Some(l), Some(h)) = (&live, head) {
+        l.follow_head(h);
+        eprintln!("raygun view: the wall camera's eye follows {}", h.device);
+    }
     let source = if timeline.is_some() {
         RoiSource::Replay
     } else if live.is_some() {
@@ -248,10 +277,15 @@ pub fn run(args: &ViewArgs) -> anyhow::Result<()> {
     state.p_min = args.p_min;
     state.target_se = args.target_se;
     state.cursor = CursorSmoother::new(interaction.cursor.clone());
+    state.eye_threshold_m = args
+        .head
+        .eye_threshold
+        .or(head.map(|h| h.eye_threshold_m))
+        .unwrap_or_else(|| args.head.threshold_m());
     if let Some(c) = args.roi_at {
         state.click(&model, c, args.size);
     }
-    let core = ViewerCore::new(&backend, &scene, &model, base, state)?;
+    let core = ViewerCore::with_wall(&backend, &scene, &model, base, state, wall)?;
     open_window(core, timeline, live, args)
 }
 

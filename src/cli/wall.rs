@@ -75,6 +75,17 @@ pub fn wall_spec(
     wall: &WallArgs,
     display: Option<&DisplayModel>,
 ) -> anyhow::Result<Option<WallSpec>> {
+    wall_spec_or_eye(camera, wall, display, None)
+}
+
+/// [`wall_spec`] with `head_eye` (a tracked head's first eye) standing in for a missing
+/// `--eye`.
+pub fn wall_spec_or_eye(
+    camera: Option<&str>,
+    wall: &WallArgs,
+    display: Option<&DisplayModel>,
+    head_eye: Option<DVec3>,
+) -> anyhow::Result<Option<WallSpec>> {
     if camera != Some(WALL_CAMERA) {
         if wall.eye.is_some() {
             bail!("--eye is the eye of the wall camera: it needs --camera wall");
@@ -89,7 +100,7 @@ pub fn wall_spec(
             "--camera wall needs --display MODEL: the display whose pixels the primary rays pass through"
         );
     };
-    let Some(eye) = wall.eye else {
+    let Some(eye) = wall.eye.or(head_eye) else {
         bail!("--camera wall needs --eye X,Y,Z (the eye in the room frame, metres)");
     };
     let spec = WallSpec {

@@ -39,10 +39,11 @@ use crate::scene::Scene;
 use crate::schedule::gpu::{ScheduleConfig, ScheduleKernel, ScheduleRun};
 use crate::schedule::{Order, ScheduleError, schedule_cpu_shown};
 use crate::trace::accum::Accumulation;
+use crate::trace::camera::RenderCamera;
 use crate::trace::gpu::{GpuAccum, GpuScene, TraceKernel, TraceRun, WORKGROUP};
 use crate::trace::pack::PackedScene;
 use crate::trace::path::{TraceSettings, render_cpu_with};
-use crate::trace::wall::WallCamera;
+use crate::trace::wall::{WallCamera, WallCameraError};
 use stop::RoiProgress;
 
 /// How the ROI steers sampling.
@@ -86,6 +87,23 @@ pub enum FrameError {
         wall[0], wall[1], image[0], image[1]
     )]
     WallSize { wall: [u32; 2], image: [u32; 2] },
+    #[error("this renderer has no wall camera whose eye could move (build it with a wall camera)")]
+    NoWall,
+    #[error(transparent)]
+    Wall(#[from] WallCameraError),
+}
+
+/// What [`Renderer::follow_eye`] did with an eye.
+#[derive(Debug)]
+pub enum EyeFollow {
+    /// Within the threshold of the eye the accumulation started with: nothing changed.
+    Kept,
+    /// Moved past the threshold: the wall camera was rebuilt at the new eye and the
+    /// accumulation restarted (the ROI and its DGI kept).
+    Restarted,
+    /// Moved past the threshold to where no wall camera can be (on or behind a tile's plane):
+    /// nothing changed.
+    Refused(WallCameraError),
 }
 
 /// What one frame did.
@@ -622,6 +640,71 @@ impl<'a> Renderer<'a> {
         self.wall.as_ref()
     }
 
+    /// Restarts the accumulation: every pixel's sum and count back to zero and the iteration
+    /// counter to 0 (the schedule draws as a fresh renderer's do). The ROI, its DGI (installed
+    /// or pending) and the scene stay.
+    pub fn restart(&mut self) {
+        match &mut self.engine {
+            Engine::Gpu { ctx, accum, .. } => {
+                let mut enc = ctx.device.create_command_encoder(&Default::default());
+                accum.clear(&mut enc);
+                ctx.queue.submit([enc.finish()]);
+            }
+            Engine::Cpu { accum, .. } => {
+                accum.sum.fill([0.0; 4]);
+                accum.count.fill(0);
+            }
+        }
+        self.iteration = 0;
+    }
+
+    /// Moves the wall camera's eye to `eye` (room frame; the room's placement in the scene
+    /// kept, [`WallCamera::with_eye`]) and restarts the accumulation ([`Self::restart`]).
+    pub fn set_wall_eye(&mut self, eye: glam::DVec3) -> Result<(), FrameError> {
+        let wall = self
+            .wall
+            .as_ref()
+            .ok_or(FrameError::NoWall)?
+            .with_eye(eye)?;
+        if let Engine::Gpu { ctx, trace, .. } = &mut self.engine {
+            let done = trace.set_wall(ctx, &self.packed, &self.settings, &wall);
+            debug_assert!(done, "a moved wall camera keeps its tiles");
+        }
+        self.wall = Some(wall);
+        self.restart();
+        Ok(())
+    }
+
+    /// The restart rule of a moving eye (a tracked head, a desktop user's orbit): when `eye`
+    /// lies more than `threshold_m` from the eye the accumulation started with, the wall camera
+    /// moves there and the accumulation restarts, the ROI kept; otherwise nothing changes.
+    pub fn follow_eye(
+        &mut self,
+        eye: glam::DVec3,
+        threshold_m: f64,
+    ) -> Result<EyeFollow, FrameError> {
+        let wall = self.wall.as_ref().ok_or(FrameError::NoWall)?;
+        if !wall.eye_moved(eye, threshold_m) {
+            return Ok(EyeFollow::Kept);
+        }
+        match self.set_wall_eye(eye) {
+            Ok(()) => Ok(EyeFollow::Restarted),
+            Err(FrameError::Wall(e)) => Ok(EyeFollow::Refused(e)),
+            Err(e) => Err(e),
+        }
+    }
+
+    /// Replaces the pinhole (or orthographic) camera and restarts the accumulation
+    /// ([`Self::restart`]); the ROI stays. (With a wall camera the primary rays come from its
+    /// eye: move that with [`Self::set_wall_eye`].)
+    pub fn set_camera(&mut self, camera: RenderCamera) {
+        self.settings.camera = camera;
+        if let Engine::Gpu { ctx, trace, .. } = &self.engine {
+            trace.set_settings(ctx, &self.packed, &self.settings);
+        }
+        self.restart();
+    }
+
     /// Runs `n` frames and waits for them.
     pub fn iterate(&mut self, n: u32) -> Result<(), FrameError> {
         for _ in 0..n {
@@ -678,14 +761,17 @@ impl<'a> Renderer<'a> {
         })
     }
 
-    /// How far the ROI has come (a read-back on the GPU); `None` without ROI pixels.
+    /// How far the ROI has come (a read-back on the GPU; with a wall camera over the pixels
+    /// its display shows); `None` without ROI pixels.
     pub fn roi_progress(&self) -> Result<Option<RoiProgress>, FrameError> {
+        let wall = self.wall.as_ref();
+        let shown = |i: usize| wall.is_none_or(|w| w.is_shown(i as u32));
         Ok(match &self.engine {
             Engine::Cpu {
                 accum,
                 guide: Some(g),
-            } => RoiProgress::measure(accum, &g.dgi),
-            _ => RoiProgress::measure(&self.accumulation()?, &self.dgi()?),
+            } => RoiProgress::measure_where(accum, &g.dgi, shown),
+            _ => RoiProgress::measure_where(&self.accumulation()?, &self.dgi()?, shown),
         })
     }
 

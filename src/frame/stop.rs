@@ -84,10 +84,20 @@ impl RoiProgress {
     /// Measures `acc` over the pixels where `dgi` is 0; `None` when there are none.
     #[must_use]
     pub fn measure(acc: &Accumulation, dgi: &[f32]) -> Option<Self> {
+        Self::measure_where(acc, dgi, |_| true)
+    }
+
+    /// [`Self::measure`] over the ROI pixels `shown` keeps (a wall camera's: pixels no tile
+    /// shows are never sampled and would hold the fewest samples at 0 for ever).
+    pub fn measure_where(
+        acc: &Accumulation,
+        dgi: &[f32],
+        shown: impl Fn(usize) -> bool,
+    ) -> Option<Self> {
         let mut se = Vec::new();
         let mut min_samples = u32::MAX;
         for (i, d) in dgi.iter().enumerate() {
-            if *d != 0.0 {
+            if *d != 0.0 || !shown(i) {
                 continue;
             }
             min_samples = min_samples.min(acc.count[i]);

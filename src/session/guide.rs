@@ -1,7 +1,10 @@
 //! Where a guided render's ROI comes from: a fixed ROI, or a replay's ROI changes spread
-//! evenly over the iterations.
+//! evenly over the iterations — and, where the replay has a tracked head, its eyes on the same
+//! time axis, which move the wall camera under the restart rule.
 
 use std::path::{Path, PathBuf};
+
+use glam::DVec3;
 
 use super::replay::{ReplayPlan, replay_changes_with};
 use crate::roi::dgi::Roi;
@@ -29,6 +32,11 @@ pub enum GuideSource {
     Replay {
         changes: Vec<(f64, Option<Roi>)>,
         duration: f64,
+        /// The tracked head's eyes (seconds on the same axis, room frame), in time order;
+        /// empty without a head.
+        eyes: Vec<(f64, DVec3)>,
+        /// The head's restart threshold, metres.
+        eye_threshold_m: f64,
     },
 }
 
@@ -36,6 +44,7 @@ impl GuideSource {
     /// The ROI changes of a replay, timed from its first event of the followed device.
     pub fn from_replay(plan: &ReplayPlan, file: &Path) -> Result<Self, GuideSourceError> {
         let mut changes = Vec::new();
+        let mut eyes = Vec::new();
         let mut first = None;
         let mut last = 0.0f64;
         replay_changes_with(
@@ -48,6 +57,7 @@ impl GuideSource {
             |c| {
                 changes.push((c.t, c.roi.to_roi().ok().flatten()));
             },
+            |t, eye| eyes.push((t, eye)),
         )?;
         if !changes.iter().any(|(_, r)| r.is_some()) {
             return Err(GuideSourceError::NoShot {
@@ -58,10 +68,51 @@ impl GuideSource {
         let t0 = first.unwrap_or(0.0);
         let changes: Vec<(f64, Option<Roi>)> =
             changes.into_iter().map(|(t, r)| (t - t0, r)).collect();
+        let eyes = eyes.into_iter().map(|(t, e)| (t - t0, e)).collect();
         Ok(Self::Replay {
             changes,
             duration: (last - t0).max(0.0),
+            eyes,
+            eye_threshold_m: plan
+                .head
+                .map_or(crate::tracking::head::DEFAULT_THRESHOLD_M, |h| {
+                    h.eye_threshold_m
+                }),
         })
+    }
+
+    /// The tracked head's eye for iteration `k` of `n` (the last at or before its time, else
+    /// the first); `None` without a head.
+    #[must_use]
+    pub fn eye_at(&self, k: u32, n: u32) -> Option<DVec3> {
+        match self {
+            Self::Fixed(_) => None,
+            Self::Replay { eyes, duration, .. } => {
+                let t = duration * f64::from(k) / f64::from(n.max(1));
+                let i = eyes.partition_point(|(te, _)| *te <= t);
+                eyes.get(i.saturating_sub(1)).map(|(_, e)| *e)
+            }
+        }
+    }
+
+    /// The restart threshold of the head's eyes, metres.
+    #[must_use]
+    pub fn eye_threshold_m(&self) -> f64 {
+        match self {
+            Self::Replay {
+                eye_threshold_m, ..
+            } => *eye_threshold_m,
+            Self::Fixed(_) => crate::tracking::head::DEFAULT_THRESHOLD_M,
+        }
+    }
+
+    /// The first eye of the tracked head, if any.
+    #[must_use]
+    pub fn first_eye(&self) -> Option<DVec3> {
+        match self {
+            Self::Fixed(_) => None,
+            Self::Replay { eyes, .. } => eyes.first().map(|(_, e)| *e),
+        }
     }
 
     /// The ROI for iteration `k` of `n`.
@@ -69,7 +120,9 @@ impl GuideSource {
     pub fn roi_at(&self, k: u32, n: u32) -> Option<Roi> {
         match self {
             Self::Fixed(r) => Some(*r),
-            Self::Replay { changes, duration } => {
+            Self::Replay {
+                changes, duration, ..
+            } => {
                 let t = duration * f64::from(k) / f64::from(n.max(1));
                 changes
                     .iter()

@@ -1,12 +1,13 @@
-//! Live DTrack / OSC input for the viewer: the UDP receive loop on its own thread, feeding the
-//! tracking pipeline; the window reads the latest ROI and the device's aim each frame.
+//! Live DTrack / OSC / VRPN input for the viewer: the receive loop on its own thread, feeding
+//! the tracking pipeline; the window reads the latest ROI, the device's aim and a tracked head's
+//! eye ([`LiveTracking::follow_head`]) each frame.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::Instant;
 
-use glam::DVec2;
+use glam::{DVec2, DVec3};
 
 use super::pipeline::Pipeline;
 use super::udp::{ListenerConfig, Live, UdpSource, run_live};
@@ -17,6 +18,7 @@ use crate::interaction::{RoiChange, RoiState};
 use crate::tracking::calibration::Calibration;
 use crate::tracking::dtrack::TimeSource;
 use crate::tracking::event::{DeviceId, Tracking, TrackingEvent};
+use crate::tracking::head::HeadConfig;
 use crate::tracking::ingest::{Ingest, Protocol};
 use crate::tracking::vrpn::{VrpnAddress, VrpnConfig};
 
@@ -40,16 +42,22 @@ pub struct LiveUpdate {
     pub roi: Option<Option<RoiState>>,
     /// (event time, canvas point or `None` while untracked or aiming off the wall).
     pub aim: Vec<(f64, Option<DVec2>)>,
+    /// The tracked head's latest eye (room frame), when a new one arrived.
+    pub eye: Option<DVec3>,
 }
 
 /// Aim samples of the followed device: (event time, canvas point or `None` while untracked or
 /// aiming off the wall).
 type AimQueue = Arc<Mutex<Vec<(f64, Option<DVec2>)>>>;
 
+/// The tracked head and its latest eye (taken by [`LiveTracking::update`]).
+type HeadSlot = Arc<Mutex<(Option<HeadConfig>, Option<DVec3>)>>;
+
 /// A running listener; stops and joins its thread when dropped.
 pub struct LiveTracking {
     live: Arc<Live>,
     aim: AimQueue,
+    head: HeadSlot,
     /// The newest sample's event time and when the window took it: the events' clock now is
     /// that time plus the time since.
     clock: Option<(f64, Instant)>,
@@ -157,15 +165,23 @@ impl LiveTracking {
     ) -> Result<Self, LiveError> {
         let live = Arc::new(Live::default());
         let aim: AimQueue = Arc::new(Mutex::new(Vec::new()));
+        let head: HeadSlot = Arc::new(Mutex::new((None, None)));
         let stop = Arc::new(AtomicBool::new(false));
         let device = config.device;
         pipeline.interaction = Interaction::new(config);
         let (pointing, _, _) = pipeline.interaction.config().axes();
         let (l, a, s) = (Arc::clone(&live), Arc::clone(&aim), Arc::clone(&stop));
+        let hd = Arc::clone(&head);
         let thread = std::thread::Builder::new()
             .name("raygun live tracking".into())
             .spawn(move || {
                 let mut on = |events: &[TrackingEvent], _: &[RoiChange]| {
+                    if let Ok(mut g) = hd.lock()
+                        && let Some(h) = g.0
+                        && let Some(eye) = events.iter().rev().find_map(|e| h.eye_of(e))
+                    {
+                        g.1 = Some(eye);
+                    }
                     for e in events.iter().filter(|e| e.device == device) {
                         let new = match e.pose {
                             Some(Tracking::Tracked(p)) => model
@@ -184,6 +200,7 @@ impl LiveTracking {
         Ok(Self {
             live,
             aim,
+            head,
             clock: None,
             stop,
             thread: Some(thread),
@@ -208,7 +225,16 @@ impl LiveTracking {
         if let Some(&(t, _)) = aim.last() {
             self.clock = Some((t, Instant::now()));
         }
-        LiveUpdate { roi, aim }
+        let eye = self.head.lock().ok().and_then(|mut g| g.1.take());
+        LiveUpdate { roi, aim, eye }
+    }
+
+    /// Follows `head` too: its tracked poses' eyes (room frame, through the same decoders and
+    /// calibration as the ray gun's) arrive in [`LiveUpdate::eye`].
+    pub fn follow_head(&self, head: HeadConfig) {
+        if let Ok(mut g) = self.head.lock() {
+            *g = (Some(head), None);
+        }
     }
 
     /// The events' clock now (for drawing the cursor); `None` before the first sample.

@@ -12,6 +12,10 @@
 //! synth (synthetic sessions), calibrate (presses for `raygun calibrate`)
 //! ```
 //!
+//! A tracked head (`crate::tracking::head`) rides along every path: replay plans name it
+//! (`ReplayPlan::head`), the guide source and the timeline carry its eyes, live tracking reports
+//! them, and the render loop moves the wall camera's eye under the restart rule.
+//!
 //! Modules: [`pipeline`] (raw input to ROI changes), [`udp`] (DTrack / OSC listeners and the
 //! recorder), [`vrpn`] (the VRPN client), [`live`] (live tracking for the viewer), [`replay`]
 //! (replay plans and their ROI changes), [`timeline`] (a replay collected for the viewer),

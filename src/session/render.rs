@@ -10,7 +10,7 @@ use super::guide::GuideSource;
 use crate::display::DisplayModel;
 use crate::filter::{Filter, FilterParams};
 use crate::frame::stop::{RoiProgress, StopCondition, StopReason, reached};
-use crate::frame::{FrameError, GuideConfig, Renderer};
+use crate::frame::{EyeFollow, FrameError, GuideConfig, Renderer};
 use crate::gpu::Backend;
 use crate::output::OutputError;
 use crate::roi::dgi::Roi;
@@ -44,6 +44,14 @@ pub struct GuidedResult {
     pub stop: StopReason,
     /// The ROI's last measured progress (with stop conditions only).
     pub progress: Option<RoiProgress>,
+    /// Iterations in the accumulation the picture shows (since the last restart of a moving
+    /// eye; `iterations` without one).
+    pub accumulated: u32,
+    /// (iteration, eye): where a tracked head's eye restarted the accumulation (the wall
+    /// camera only; the ROI and its DGI are kept).
+    pub eye_restarts: Vec<(u32, glam::DVec3)>,
+    /// Head eyes refused (on or behind a tile's plane: the eye stayed where it was).
+    pub eyes_refused: u32,
 }
 
 impl GuidedResult {
@@ -53,11 +61,11 @@ impl GuidedResult {
         self.counts.iter().map(|&c| u64::from(c)).sum()
     }
 
-    /// Samples as a share of `iterations` full frames.
+    /// Samples as a share of full frames over the accumulated iterations.
     #[must_use]
     pub fn sample_share(&self) -> f64 {
         self.samples() as f64
-            / (f64::from(self.size[0]) * f64::from(self.size[1]) * f64::from(self.iterations))
+            / (f64::from(self.size[0]) * f64::from(self.size[1]) * f64::from(self.accumulated))
     }
 
     /// Writes the DGI and the sample counts (EXR or PNG by extension).
@@ -100,7 +108,10 @@ pub fn render_guided(
 }
 
 /// [`render_guided`] through the wall camera `wall` when given (DESIGN.md §11): only the pixels
-/// its display shows are scheduled and traced, and the others come out black.
+/// its display shows are scheduled and traced, and the others come out black. A replay with a
+/// tracked head moves the wall camera's eye along with the ROI (its eyes spread over the
+/// iterations on the same time axis), under the restart rule: an eye past the threshold from
+/// the one the accumulation started with restarts it, the ROI kept.
 #[allow(clippy::too_many_arguments)]
 pub fn render_guided_wall(
     backend: &Backend,
@@ -121,6 +132,9 @@ pub fn render_guided_wall(
     let mut current: Option<Roi> = None;
     let mut last_check = f64::NEG_INFINITY;
     let mut progress = None;
+    let mut eye_restarts = Vec::new();
+    let mut eyes_refused = 0;
+    let threshold = source.eye_threshold_m();
     let mut k = 0;
     let stop = loop {
         if stopping.iterations.is_some_and(|n| k >= n) {
@@ -130,6 +144,15 @@ pub fn render_guided_wall(
         if k == 0 || roi != current {
             r.set_roi(roi)?;
             current = roi;
+        }
+        if r.wall().is_some()
+            && let Some(eye) = source.eye_at(k, spread)
+        {
+            match r.follow_eye(eye, threshold)? {
+                EyeFollow::Kept => {}
+                EyeFollow::Restarted => eye_restarts.push((k, eye)),
+                EyeFollow::Refused(_) => eyes_refused += 1,
+            }
         }
         r.run_frame(false)?;
         k += 1;
@@ -146,6 +169,7 @@ pub fn render_guided_wall(
         }
     };
     let seconds = t0.elapsed().as_secs_f64();
+    let accumulated = r.iteration();
     let wall = r.wall().cloned();
     let (acc, dgi) = r.finish()?;
     let mut image = Filter::new(backend).image(filter, &acc, &dgi)?;
@@ -161,5 +185,8 @@ pub fn render_guided_wall(
         seconds,
         stop,
         progress,
+        accumulated,
+        eye_restarts,
+        eyes_refused,
     })
 }

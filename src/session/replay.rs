@@ -20,6 +20,7 @@ use crate::interaction::config::ConfigError;
 use crate::interaction::{Interaction, InteractionConfig, RoiChange};
 use crate::tracking::calibration::{Calibration, CalibrationError};
 use crate::tracking::event::DeviceId;
+use crate::tracking::head::{EyeRule, HeadConfig, HeadError, HeadOverride};
 use crate::tracking::ingest::Ingest;
 use crate::tracking::problems::ProblemLog;
 use crate::tracking::replay::{
@@ -39,6 +40,8 @@ pub struct ReplayOptions {
     pub calibration: Option<PathBuf>,
     /// At recorded speed instead of as fast as possible.
     pub realtime: bool,
+    /// Changes to the header's tracked head (`--head`, `--eye-offset`, `--eye-threshold`).
+    pub head: HeadOverride,
 }
 
 impl ReplayOptions {
@@ -52,6 +55,7 @@ impl ReplayOptions {
             device: None,
             calibration: None,
             realtime: false,
+            head: HeadOverride::default(),
         }
     }
 }
@@ -80,6 +84,12 @@ pub enum ReplayPlanError {
         file: PathBuf,
         #[source]
         source: HeaderConfigError,
+    },
+    #[error("{}: the head", file.display())]
+    Head {
+        file: PathBuf,
+        #[source]
+        source: HeadError,
     },
 }
 
@@ -113,6 +123,8 @@ pub struct ReplayPlan {
     /// The decoders the header asks for, with the calibration applied, before any input.
     pub ingest: Ingest,
     pub playback: Playback,
+    /// The tracked head: the options' or the header's (`None`: the eye stays put).
+    pub head: Option<HeadConfig>,
 }
 
 impl ReplayPlan {
@@ -164,6 +176,13 @@ impl ReplayPlan {
                     file: args.file.clone(),
                     source,
                 })?;
+        let head = args.head.apply(header.head);
+        if let Some(h) = &head {
+            h.validate().map_err(|source| ReplayPlanError::Head {
+                file: args.file.clone(),
+                source,
+            })?;
+        }
         let playback = if args.realtime {
             Playback::RealTime
         } else {
@@ -178,6 +197,7 @@ impl ReplayPlan {
                 calibration,
                 ingest,
                 playback,
+                head,
             },
             reader,
         ))
@@ -219,6 +239,14 @@ impl<W: Write> ChangePrinter<W> {
         self.out.write_all(b"\n")
     }
 
+    /// Prints an eye that restarts the accumulation: `{"t":…,"kind":"eye","eye_room_m":[x,y,z]}`
+    /// (millimetre-rounded metres).
+    pub fn print_eye(&mut self, t: f64, eye: glam::DVec3) -> io::Result<()> {
+        let origin = *self.t_origin.get_or_insert(t);
+        serde_json::to_writer(&mut self.out, &EyeReport::new(t - origin, eye))?;
+        self.out.write_all(b"\n")
+    }
+
     /// The underlying writer.
     #[must_use]
     pub fn into_inner(self) -> W {
@@ -226,16 +254,42 @@ impl<W: Write> ChangePrinter<W> {
     }
 }
 
+/// The printed form of an eye restart (`raygun replay`, golden files), rounded like
+/// [`RoiChange::report`].
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct EyeReport {
+    pub t: f64,
+    pub kind: &'static str,
+    pub eye_room_m: [f64; 3],
+}
+
+impl EyeReport {
+    #[must_use]
+    pub fn new(t: f64, eye: glam::DVec3) -> Self {
+        let r = |v: f64, d: usize| {
+            let x: f64 = format!("{v:.d$}").parse().unwrap_or(v);
+            if x == 0.0 { 0.0 } else { x }
+        };
+        Self {
+            t: r(t, 6),
+            kind: "eye",
+            eye_room_m: eye.to_array().map(|v| r(v, 4)),
+        }
+    }
+}
+
 /// Plays a replay through the live parsers and the interaction state machine: `saw_event` gets
-/// the time of each event of the configured device, `on_change` each ROI change. Returns the
-/// problem counts (reader and decoders).
+/// the time of each event of the configured device, `on_change` each ROI change and `on_eye`
+/// (with a head, [`ReplayPlan::head`]) the time and room-frame eye of each tracked head pose,
+/// before the changes of the same record. Returns the problem counts (reader and decoders).
 pub fn replay_changes(
     args: &ReplayOptions,
     saw_event: impl FnMut(f64),
     on_change: impl FnMut(&RoiChange),
+    on_eye: impl FnMut(f64, glam::DVec3),
 ) -> Result<ProblemLog, ReplayPlanError> {
     let (plan, reader) = ReplayPlan::new(args)?;
-    Ok(play_plan(&plan, reader, saw_event, on_change))
+    Ok(play_plan(&plan, reader, saw_event, on_change, on_eye))
 }
 
 /// [`replay_changes`] for a plan made already (its file is read again from the start).
@@ -244,9 +298,10 @@ pub fn replay_changes_with(
     file: &Path,
     saw_event: impl FnMut(f64),
     on_change: impl FnMut(&RoiChange),
+    on_eye: impl FnMut(f64, glam::DVec3),
 ) -> Result<ProblemLog, ReplayError> {
     let reader = ReplayReader::open(file)?;
-    Ok(play_plan(plan, reader, saw_event, on_change))
+    Ok(play_plan(plan, reader, saw_event, on_change, on_eye))
 }
 
 fn play_plan(
@@ -254,9 +309,16 @@ fn play_plan(
     reader: ReplayReader<io::BufReader<std::fs::File>>,
     mut saw_event: impl FnMut(f64),
     mut on_change: impl FnMut(&RoiChange),
+    mut on_eye: impl FnMut(f64, glam::DVec3),
 ) -> ProblemLog {
     let mut pipeline = plan.pipeline();
     let device = plan.interaction.device;
+    let head = plan.head;
+    let mut eyes = |e: &crate::tracking::event::TrackingEvent| {
+        if let Some(eye) = head.and_then(|h| h.eye_of(e)) {
+            on_eye(e.t, eye);
+        }
+    };
     let reader_problems = play(reader, plan.playback, |item| {
         let changes = match &item.payload {
             ReplayPayload::Datagram(protocol, bytes) => {
@@ -264,12 +326,14 @@ fn play_plan(
                 if let Some(e) = events.iter().find(|e| e.device == device) {
                     saw_event(e.t);
                 }
+                events.iter().for_each(&mut eyes);
                 changes
             }
             ReplayPayload::Event(e) => {
                 if e.device == device && e.is_valid() {
                     saw_event(e.t);
                 }
+                eyes(e);
                 pipeline.event(e.clone(), &plan.surface)
             }
         };
@@ -280,6 +344,17 @@ fn play_plan(
     let mut problems = reader_problems;
     problems.merge(&pipeline.ingest.problems);
     problems
+}
+
+/// The eyes of a head stream that restart the accumulation under `threshold_m`
+/// ([`EyeRule`]): (time, eye) in order.
+#[must_use]
+pub fn eye_restarts(eyes: &[(f64, glam::DVec3)], threshold_m: f64) -> Vec<(f64, glam::DVec3)> {
+    let mut rule = EyeRule::new(threshold_m);
+    eyes.iter()
+        .copied()
+        .filter(|&(_, e)| rule.offer(e))
+        .collect()
 }
 
 /// The golden file of a replay: `tracking-replays/golden/<stem>.roi.jsonl`.

@@ -35,6 +35,7 @@ use glam::{DMat3, DQuat, DVec2, DVec3};
 use crate::interaction::{HingedWall, InteractionConfig, RaySurface};
 use crate::tracking::dtrack::{DtrackConfig, TrackerToRoom, format_flystick_block};
 use crate::tracking::event::{DeviceId, DeviceKind, Pose, TrackingEvent};
+use crate::tracking::head::HeadConfig;
 use crate::tracking::ingest::Protocol;
 use crate::tracking::osc::encode;
 use crate::tracking::replay::{ReplayHeader, ReplayWriter};
@@ -108,6 +109,9 @@ pub struct SessionSpec {
     pub extra_devices: bool,
     /// DTrack line ending.
     pub crlf: bool,
+    /// Also track a walking head (DTrack `6d` body 3, OSC `osc:1`) named in the header as the
+    /// head that moves the wall camera's eye ([`head_pose`]).
+    pub head_walk: bool,
 }
 
 /// The six FlyStick sessions shipped in `tracking-replays/`.
@@ -125,6 +129,7 @@ pub fn flystick_sessions() -> Vec<SessionSpec> {
         dropouts: 1,
         extra_devices: false,
         crlf: false,
+        head_walk: false,
     };
     vec![
         SessionSpec {
@@ -169,6 +174,78 @@ pub fn flystick_sessions() -> Vec<SessionSpec> {
             ..base
         },
     ]
+}
+
+/// The session with a tracked head shipped in `tracking-replays/` (`head-1-walk`): the
+/// centre-sweeps FlyStick script (seed 7) while the viewer steps right, in, left and back
+/// ([`head_pose`]).
+#[must_use]
+pub fn head_sessions() -> Vec<SessionSpec> {
+    vec![SessionSpec {
+        name: "head-1-walk",
+        seed: 7,
+        duration_s: 20.0,
+        rate_hz: 60.0,
+        flystick_plus: false,
+        ts_start: 36_000.0,
+        ts2: false,
+        targets: Targets::Centre,
+        dropouts: 1,
+        extra_devices: false,
+        crlf: false,
+        head_walk: true,
+    }]
+}
+
+/// The head's DTrack body id and OSC device number in the head sessions.
+pub const HEAD_BODY: u32 = 3;
+pub const HEAD_OSC: u32 = 1;
+/// Where the eye sits on the head's marker tree (its body frame, metres): 8 cm below and 6 cm
+/// in front of the tree's origin.
+pub const HEAD_EYE_OFFSET_M: [f64; 3] = [0.0, -0.08, -0.06];
+
+/// The walking viewer's eye over a head session: standing 1 m in front of the centre with a
+/// 2 mm sway (below the restart threshold), then minimum-jerk steps — 35 cm right (3.0–4.2 s),
+/// 25 cm in (7.0–8.0 s), to 40 cm left of the centre and 1.2 m out (11.0–12.5 s) and back
+/// (15.0–16.0 s) — with an untracked interval at 13.5–13.9 s (`None`).
+#[must_use]
+pub fn head_eye(t: f64) -> Option<DVec3> {
+    if (13.5..13.9).contains(&t) {
+        return None;
+    }
+    let steps = [
+        (3.0, 1.2, DVec3::new(0.35, 0.0, 1.0)),
+        (7.0, 1.0, DVec3::new(0.35, 0.0, 0.75)),
+        (11.0, 1.5, DVec3::new(-0.4, 0.05, 1.2)),
+        (15.0, 1.0, EYE),
+    ];
+    let mut at = EYE;
+    for (start, dur, to) in steps {
+        at = at.lerp(to, min_jerk((t - start) / dur));
+    }
+    let sway = 0.002 * (std::f64::consts::TAU * 0.3 * t).sin();
+    Some(at + DVec3::new(sway, 0.5 * sway, 0.0))
+}
+
+/// The head body's pose in a head session (room frame): the eye of [`head_eye`] less the eye
+/// offset, facing the wall's centre, with `rng`'s tracker noise (σ = 0.15 mm).
+#[must_use]
+pub fn head_pose(t: f64, rng: &mut Rng) -> Option<Pose> {
+    let eye = head_eye(t)?;
+    let q = aim(-eye);
+    let noise = DVec3::new(rng.gauss(), rng.gauss(), rng.gauss()) * 0.15e-3;
+    Some(Pose {
+        position: eye - q * DVec3::from_array(HEAD_EYE_OFFSET_M) + noise,
+        orientation: q,
+    })
+}
+
+/// The head a head session's header names.
+fn head_header(device: DeviceId) -> HeadConfig {
+    HeadConfig {
+        eye_offset_m: HEAD_EYE_OFFSET_M,
+        ..HeadConfig::new(device)
+    }
 }
 
 /// One simulated tracker sample of the stick (room frame).
@@ -493,6 +570,11 @@ fn header(spec: &SessionSpec, device: DeviceId, form: &str) -> ReplayHeader {
     h.synthetic = true;
     h.display = Some("display-models/hornet.json".into());
     h.device = Some(device);
+    if spec.head_walk {
+        h.description.push_str(
+            " A tracked head walks (right, in, left and out, back; one untracked interval): the header's `head`.",
+        );
+    }
     h
 }
 
@@ -516,6 +598,9 @@ pub fn dtrack_replay(spec: &SessionSpec, samples: &[Sample]) -> io::Result<Vec<u
         tracker_to_room: to_room.clone(),
         ..DtrackConfig::default()
     });
+    if spec.head_walk {
+        h.head = Some(head_header(DeviceId::new(DeviceKind::Body, HEAD_BODY)));
+    }
     let mut w = ReplayWriter::new(Vec::new(), &h)?;
     let eol = if spec.crlf { "\r\n" } else { "\n" };
     let (nb, seconds0) = (if spec.flystick_plus { 8 } else { 6 }, spec.ts_start);
@@ -523,6 +608,7 @@ pub fn dtrack_replay(spec: &SessionSpec, samples: &[Sample]) -> io::Result<Vec<u
         position: EYE + DVec3::new(0.0, 0.05, 0.0),
         orientation: DQuat::IDENTITY,
     };
+    let mut head_rng = Rng::new(spec.seed ^ 0x4EAD);
     for (i, s) in samples.iter().enumerate() {
         let mut text = String::with_capacity(400);
         let _ = write!(text, "fr {}{eol}", 1000 + i);
@@ -541,8 +627,35 @@ pub fn dtrack_replay(spec: &SessionSpec, samples: &[Sample]) -> io::Result<Vec<u
         let _ = write!(
             text,
             "6dcal {}{eol}",
-            if spec.extra_devices { 4 } else { 1 }
+            if spec.extra_devices || spec.head_walk {
+                4
+            } else {
+                1
+            }
         );
+        if spec.head_walk {
+            let block = match head_pose(s.t, &mut head_rng) {
+                Some(p) => {
+                    let (p, r) = to_tracker(&p, &to_room);
+                    let rc: Vec<String> = r
+                        .to_cols_array()
+                        .iter()
+                        .map(|v| format!("{v:.6}"))
+                        .collect();
+                    format!(
+                        "[{HEAD_BODY} 0.980][{:.3} {:.3} {:.3}][{}]",
+                        p.x,
+                        p.y,
+                        p.z,
+                        rc.join(" ")
+                    )
+                }
+                None => format!(
+                    "[{HEAD_BODY} -1.000][0.000 0.000 0.000][0.000000 0.000000 0.000000 0.000000 0.000000 0.000000 0.000000 0.000000 0.000000]"
+                ),
+            };
+            let _ = write!(text, "6d 1 {block}{eol}");
+        }
         if spec.extra_devices {
             let (p, r) = to_tracker(&head, &to_room);
             let rc = r.to_cols_array();
@@ -577,17 +690,27 @@ pub const OSC_TIME_BASE: f64 = 3_976_000_000.0;
 
 /// The OSC form of a session as replay text.
 pub fn osc_replay(spec: &SessionSpec, samples: &[Sample]) -> io::Result<Vec<u8>> {
-    let h = header(
+    let mut h = header(
         spec,
         DeviceId::new(DeviceKind::Osc, 0),
         "OSC bundles, raygun address space",
     );
+    if spec.head_walk {
+        h.head = Some(head_header(DeviceId::new(DeviceKind::Osc, HEAD_OSC)));
+    }
     let mut w = ReplayWriter::new(Vec::new(), &h)?;
+    let mut head_rng = Rng::new(spec.seed ^ 0x4EAD);
     for s in samples {
         let mut content = vec![match &s.pose {
             Some(p) => encode::pose(0, p),
             None => encode::lost(0),
         }];
+        if spec.head_walk {
+            content.push(match head_pose(s.t, &mut head_rng) {
+                Some(p) => encode::pose(HEAD_OSC, &p),
+                None => encode::lost(HEAD_OSC),
+            });
+        }
         content.push(encode::buttons(0, s.buttons));
         content.push(encode::axes(0, &s.axes));
         let b = encode::bundle(OSC_TIME_BASE + s.t, content);
@@ -651,7 +774,7 @@ pub fn mouse_replay() -> io::Result<Vec<u8>> {
 /// Every shipped replay: (file name, contents).
 pub fn all_replays() -> io::Result<Vec<(String, Vec<u8>)>> {
     let mut v = Vec::new();
-    for spec in flystick_sessions() {
+    for spec in flystick_sessions().into_iter().chain(head_sessions()) {
         let samples = simulate(&spec);
         v.push((
             format!("{}.dtrack.jsonl", spec.name),
@@ -793,6 +916,28 @@ mod tests {
             "band {band} vs 3 Hz {}",
             power(3.0)
         );
+    }
+
+    #[test]
+    fn the_head_walks_past_the_threshold_and_sways_below_it() {
+        // Standing: the sway stays within 1 cm of the start.
+        for i in 0..180 {
+            let e = head_eye(f64::from(i) / 60.0).unwrap();
+            assert!(e.distance(EYE) < 0.005, "{e}");
+        }
+        assert!(head_eye(4.5).unwrap().distance(EYE) > 0.3);
+        assert!(head_eye(13.7).is_none());
+        assert!(head_eye(19.0).unwrap().distance(EYE) < 0.005);
+        // Every eye is in front of every HORNET tile (z ≥ 0.7 m, within the wall's width).
+        for i in 0..1200 {
+            if let Some(e) = head_eye(f64::from(i) / 60.0) {
+                assert!(e.z >= 0.7 && e.x.abs() < 0.5, "{e}");
+            }
+        }
+        let mut rng = Rng::new(1);
+        let p = head_pose(5.0, &mut rng).unwrap();
+        let eye = p.position + p.orientation * DVec3::from_array(HEAD_EYE_OFFSET_M);
+        assert!(eye.distance(head_eye(5.0).unwrap()) < 1e-3);
     }
 
     #[test]

@@ -1,7 +1,8 @@
 //! A tracking replay collected ahead of time for the viewer's play / pause / scrub: every ROI
-//! change and the ray gun's aim (where its pointing ray meets the wall) over the session.
+//! change and the ray gun's aim (where its pointing ray meets the wall) over the session, and a
+//! tracked head's eye where the replay has one.
 
-use glam::DVec2;
+use glam::{DVec2, DVec3};
 
 use super::replay::{ReplayOptions, ReplayPlan, ReplayPlanError};
 use crate::interaction::RaySurface;
@@ -16,6 +17,8 @@ pub struct Timeline {
     pub changes: Vec<(f64, RoiState)>,
     /// (t, canvas pixel the device points at; `None` while untracked or aiming off the wall).
     pub aim: Vec<(f64, Option<DVec2>)>,
+    /// (t, the tracked head's eye, room frame), in time order; empty without a head.
+    pub eyes: Vec<(f64, DVec3)>,
     pub duration: f64,
 }
 
@@ -29,6 +32,8 @@ impl Timeline {
         let (pointing, _, _) = plan.interaction.axes();
         let mut changes = Vec::new();
         let mut aim = Vec::new();
+        let mut eyes = Vec::new();
+        let head = plan.head;
         let surface = &plan.surface;
         let note = |e: &crate::tracking::event::TrackingEvent,
                     aim: &mut Vec<(f64, Option<DVec2>)>| {
@@ -55,12 +60,14 @@ impl Timeline {
                         let (events, new) = pipeline.datagram(*protocol, bytes, item.t, surface);
                         for e in events {
                             note(e, &mut aim);
+                            eyes.extend(head.and_then(|h| h.eye_of(e)).map(|eye| (e.t, eye)));
                         }
                         new
                     }
                     ReplayPayload::Event(e) => {
                         if e.is_valid() {
                             note(e, &mut aim);
+                            eyes.extend(head.and_then(|h| h.eye_of(e)).map(|eye| (e.t, eye)));
                         }
                         pipeline.event(e.clone(), surface)
                     }
@@ -89,6 +96,9 @@ impl Timeline {
         for a in &mut aim {
             a.0 -= t0;
         }
+        for e in &mut eyes {
+            e.0 -= t0;
+        }
         let duration = aim
             .last()
             .map(|a| a.0)
@@ -98,6 +108,7 @@ impl Timeline {
         Ok(Self {
             changes,
             aim,
+            eyes,
             duration,
         })
     }
@@ -115,6 +126,14 @@ impl Timeline {
         let a = self.aim.partition_point(|a| a.0 <= t0);
         let b = self.aim.partition_point(|a| a.0 <= t1).max(a);
         &self.aim[a..b]
+    }
+
+    /// The tracked head's eye at time `t` (the last at or before it, else the first); `None`
+    /// without a head.
+    #[must_use]
+    pub fn eye_at(&self, t: f64) -> Option<DVec3> {
+        let i = self.eyes.partition_point(|e| e.0 <= t);
+        self.eyes.get(i.saturating_sub(1)).map(|e| e.1)
     }
 
     /// Where the device points at time `t`.
@@ -139,6 +158,7 @@ mod tests {
             device: None,
             calibration: None,
             realtime: false,
+            head: Default::default(),
         })
         .unwrap();
         // The session is 20 s long (its header says so).

@@ -281,6 +281,8 @@ pub struct TraceRun {
     groups: [u32; 2],
     /// The wall camera the tile table was uploaded for (its eye goes into the parameters).
     wall: Option<WallCamera>,
+    /// The tile table ([`TILE_VEC4S`](super::wall::TILE_VEC4S) vec4s a tile).
+    wall_table: wgpu::Buffer,
 }
 
 impl TraceRun {
@@ -327,7 +329,7 @@ impl TraceRun {
             .create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("trace wall tiles"),
                 contents: bytemuck::cast_slice(&table),
-                usage: wgpu::BufferUsages::STORAGE,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             });
         let dummy = || {
             ctx.device.create_buffer(&wgpu::BufferDescriptor {
@@ -367,7 +369,30 @@ impl TraceRun {
             args: schedule.map(|(_, a)| a.clone()),
             groups,
             wall: wall.cloned(),
+            wall_table: wall_buf,
         }
+    }
+
+    /// Replaces the wall camera by `wall` (a moved eye: the same display, image size and tile
+    /// count) before the next submit: its tile table and its eye in the parameters. Returns
+    /// `false`, changing nothing, where this run has no wall camera or `wall` has another
+    /// tile count.
+    pub fn set_wall(
+        &mut self,
+        ctx: &GpuContext,
+        scene: &PackedScene,
+        settings: &TraceSettings,
+        wall: &WallCamera,
+    ) -> bool {
+        match &self.wall {
+            Some(w) if w.tiles.len() == wall.tiles.len() => {}
+            _ => return false,
+        }
+        ctx.queue
+            .write_buffer(&self.wall_table, 0, bytemuck::cast_slice(&wall.gpu_table()));
+        self.wall = Some(wall.clone());
+        self.set_settings(ctx, scene, settings);
+        true
     }
 
     /// Rewrites the parameters (a new camera, seed or depth) before the next submit.

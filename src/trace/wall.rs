@@ -27,6 +27,16 @@
 //! the scene: `identity` (the room frame is the scene frame), an explicit translation, yaw
 //! about +Y and scale, or `auto`: the scene's chosen camera sits at the eye and looks at the
 //! wall's centre (its up vector kept as up).
+//!
+//! # A moving eye
+//!
+//! A tracked head (or a desktop user's orbit) moves the eye while the room stays where it was
+//! put: [`WallCamera::with_eye`] keeps the room→scene similarity, the tiles' pixel ranges and
+//! the shown mask (none depends on the eye), and recomputes only each tile's vector from the
+//! eye to its anchor point, from the same f64 room points as [`WallCamera::new`] — so a moved
+//! camera equals one built afresh at that eye with that placement, bit for bit. Whether a move
+//! restarts the accumulation is [`eye_moved`]: more than a threshold
+//! ([`DEFAULT_EYE_THRESHOLD_M`], 1 cm) from the eye the accumulation started with.
 
 use glam::{DMat3, DVec2, DVec3, Vec3};
 
@@ -42,6 +52,18 @@ pub const NO_TILE: u32 = u32::MAX;
 
 /// Vec4s per tile in the GPU table (`wall` in shaders/trace/path.wgsl).
 pub const TILE_VEC4S: usize = 4;
+
+/// How far (metres) the eye may move from the eye the accumulation started with before the
+/// accumulation restarts (`--eye-threshold`).
+pub const DEFAULT_EYE_THRESHOLD_M: f64 = 0.01;
+
+/// The restart rule of a moving eye: whether `eye` lies more than `threshold_m` from `started`
+/// (the eye the accumulation started with). A non-finite eye never restarts (it is refused
+/// where it is used).
+#[must_use]
+pub fn eye_moved(started: DVec3, eye: DVec3, threshold_m: f64) -> bool {
+    eye.is_finite() && eye.distance(started) > threshold_m
+}
 
 /// Where the room frame sits in the scene (`--world-from-room`).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -224,6 +246,20 @@ pub struct WallCamera {
     /// Bit `p % 32` of word `p / 32`: image pixel `p = y·width + x` is shown by some tile.
     shown: Vec<u32>,
     shown_count: u64,
+    /// Per tile, room frame: the wall point of image point `(x0, y0)`, a point of the tile's
+    /// plane and its normal, and its id — what a moved eye needs ([`Self::with_eye`]).
+    anchors: Vec<TileAnchor>,
+    /// The display model's name, for errors.
+    model_name: String,
+}
+
+/// What [`WallCamera::with_eye`] keeps of a tile: its anchor point and plane (room frame).
+#[derive(Clone, Debug, PartialEq)]
+struct TileAnchor {
+    id: String,
+    anchor: DVec3,
+    plane_point: DVec3,
+    normal: DVec3,
 }
 
 /// The first image pixel whose centre `(i + 0.5)·scale + min` is at or past canvas coordinate
@@ -239,10 +275,39 @@ impl WallCamera {
     /// scene camera `auto` puts at the eye: position, forward, up (scene frame).
     pub fn new(
         model: &DisplayModel,
-        [width, height]: [u32; 2],
+        size: [u32; 2],
         eye: DVec3,
         placement: &WorldFromRoom,
         camera: (DVec3, DVec3, DVec3),
+    ) -> Result<Self, WallCameraError> {
+        if size.contains(&0) {
+            return Err(WallCameraError::Size {
+                width: size[0],
+                height: size[1],
+            });
+        }
+        if !eye.is_finite() {
+            return Err(WallCameraError::EyeNotFinite { eye });
+        }
+        check_eye(
+            model.name(),
+            eye,
+            model
+                .tiles()
+                .iter()
+                .map(|t| (t.id(), t.corners()[0], t.normal())),
+        )?;
+        let xf = placement.resolve(eye, wall_centre(model), camera)?;
+        Self::placed(model, size, eye, xf)
+    }
+
+    /// The wall camera of `model` for a `width × height` image with the eye at `eye` (room
+    /// frame) and the room placed in the scene by the resolved similarity `xf`.
+    pub fn placed(
+        model: &DisplayModel,
+        [width, height]: [u32; 2],
+        eye: DVec3,
+        xf: SceneFromRoom,
     ) -> Result<Self, WallCameraError> {
         if width == 0 || height == 0 {
             return Err(WallCameraError::Size { width, height });
@@ -250,25 +315,18 @@ impl WallCamera {
         if !eye.is_finite() {
             return Err(WallCameraError::EyeNotFinite { eye });
         }
-        for t in model.tiles() {
-            let distance_m = (eye - t.corners()[0]).dot(t.normal());
-            if !(distance_m >= MIN_EYE_DISTANCE_M) {
-                return Err(WallCameraError::EyeBehindTile {
-                    eye,
-                    tile: t.id().to_owned(),
-                    model: model.name().to_owned(),
-                    distance_m,
-                });
-            }
-        }
+        check_eye(
+            model.name(),
+            eye,
+            model
+                .tiles()
+                .iter()
+                .map(|t| (t.id(), t.corners()[0], t.normal())),
+        )?;
         let canvas = model.canvas_rect();
-        let centre_c = canvas.center();
-        let centre = model.canvas_to_point(centre_c).unwrap_or_else(|| {
-            model.tiles()[model.nearest_tile(centre_c)].canvas_to_point(centre_c)
-        });
-        let xf = placement.resolve(eye, centre, camera)?;
         let scale = canvas.size() / DVec2::new(f64::from(width), f64::from(height));
         let mut tiles = Vec::with_capacity(model.tiles().len());
+        let mut anchors = Vec::with_capacity(model.tiles().len());
         for t in model.tiles() {
             let a = t.active_rect();
             let x0 = first_pixel_at(a.min.x, canvas.min.x, scale.x, width);
@@ -288,6 +346,12 @@ impl WallCamera {
                 origin: xf.vector(p0 - eye).as_vec3(),
                 step_x: xf.vector(sx).as_vec3(),
                 step_y: xf.vector(sy).as_vec3(),
+            });
+            anchors.push(TileAnchor {
+                id: t.id().to_owned(),
+                anchor: p0,
+                plane_point: t.corners()[0],
+                normal: t.normal(),
             });
         }
         let n = u64::from(width) * u64::from(height);
@@ -314,7 +378,40 @@ impl WallCamera {
             tiles,
             shown,
             shown_count,
+            anchors,
+            model_name: model.name().to_owned(),
         })
+    }
+
+    /// This camera with the eye moved to `eye` (room frame): the placement, the pixel ranges
+    /// and the shown mask are kept; equal to [`Self::placed`] at `eye` with this placement.
+    /// An eye on or behind a tile's plane is an error naming the tile, as at the start.
+    pub fn with_eye(&self, eye: DVec3) -> Result<Self, WallCameraError> {
+        if !eye.is_finite() {
+            return Err(WallCameraError::EyeNotFinite { eye });
+        }
+        check_eye(
+            &self.model_name,
+            eye,
+            self.anchors
+                .iter()
+                .map(|a| (a.id.as_str(), a.plane_point, a.normal)),
+        )?;
+        let xf = self.scene_from_room;
+        let mut moved = self.clone();
+        for (t, a) in moved.tiles.iter_mut().zip(&self.anchors) {
+            t.origin = xf.vector(a.anchor - eye).as_vec3();
+        }
+        moved.eye_room = eye;
+        moved.eye = xf.point(eye).as_vec3();
+        Ok(moved)
+    }
+
+    /// Whether moving the eye to `eye` restarts the accumulation under `threshold_m`
+    /// ([`eye_moved`] from this camera's eye, the one its accumulation started with).
+    #[must_use]
+    pub fn eye_moved(&self, eye: DVec3, threshold_m: f64) -> bool {
+        eye_moved(self.eye_room, eye, threshold_m)
     }
 
     /// The tile that shows image pixel `(x, y)` (the first listed), else `None`: the twin of
@@ -383,6 +480,37 @@ impl WallCamera {
     }
 }
 
+/// The room point at the centre of `model`'s canvas (on the nearest tile's plane where the
+/// centre falls on no tile): what `auto` looks at, and what the viewer orbits about.
+#[must_use]
+pub fn wall_centre(model: &DisplayModel) -> DVec3 {
+    let c = model.canvas_rect().center();
+    model
+        .canvas_to_point(c)
+        .unwrap_or_else(|| model.tiles()[model.nearest_tile(c)].canvas_to_point(c))
+}
+
+/// The eye must lie at least [`MIN_EYE_DISTANCE_M`] in front of every tile's plane (`tiles`:
+/// id, a point of the plane, its normal).
+fn check_eye<'t>(
+    model: &str,
+    eye: DVec3,
+    tiles: impl Iterator<Item = (&'t str, DVec3, DVec3)>,
+) -> Result<(), WallCameraError> {
+    for (id, point, normal) in tiles {
+        let distance_m = (eye - point).dot(normal);
+        if !(distance_m >= MIN_EYE_DISTANCE_M) {
+            return Err(WallCameraError::EyeBehindTile {
+                eye,
+                tile: id.to_owned(),
+                model: model.to_owned(),
+                distance_m,
+            });
+        }
+    }
+    Ok(())
+}
+
 /// Bit `p` of a shown-pixel bitmask.
 #[inline]
 #[must_use]
@@ -406,6 +534,34 @@ mod tests {
         assert!(xf.point(eye).abs_diff_eq(cam().0, 1e-12));
         let f = xf.vector((centre - eye).normalize());
         assert!(f.abs_diff_eq(DVec3::NEG_X, 1e-12), "{f}");
+    }
+
+    #[test]
+    fn a_moved_eye_equals_a_camera_built_there_and_keeps_the_placement() {
+        let model = DisplayModel::open("hornet").unwrap().0;
+        let size = [331, 134];
+        let a = WallCamera::new(
+            &model,
+            size,
+            DVec3::new(0.0, 0.0, 1.0),
+            &WorldFromRoom::Auto,
+            cam(),
+        )
+        .unwrap();
+        let eye = DVec3::new(0.3, -0.1, 1.4);
+        let moved = a.with_eye(eye).unwrap();
+        let fresh = WallCamera::placed(&model, size, eye, a.scene_from_room).unwrap();
+        assert_eq!(moved, fresh);
+        assert_eq!(moved.scene_from_room, a.scene_from_room);
+        assert_eq!(moved.shown_mask(), a.shown_mask());
+        assert!(!a.eye_moved(DVec3::new(0.0, 0.009, 1.0), DEFAULT_EYE_THRESHOLD_M));
+        assert!(a.eye_moved(DVec3::new(0.0, 0.011, 1.0), DEFAULT_EYE_THRESHOLD_M));
+        assert!(!a.eye_moved(DVec3::NAN, DEFAULT_EYE_THRESHOLD_M));
+        let behind = a.with_eye(DVec3::new(0.0, 0.0, -0.5)).unwrap_err();
+        assert!(
+            matches!(behind, WallCameraError::EyeBehindTile { .. }),
+            "{behind}"
+        );
     }
 
     #[test]

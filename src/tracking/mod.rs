@@ -15,12 +15,14 @@
 //!
 //! Modules: [`event`] (normalised events), [`dtrack`] and [`osc`] (parsers), [`vrpn`] (VRPN
 //! wire format and decoder), [`calibration`] (the tracker→room transform of every source),
+//! [`head`] (the tracked head that moves the wall camera's eye, and the restart rule),
 //! [`ingest`] (every decoder behind one call), [`replay`] (JSON Lines files), [`problems`]
 //! (bad-input counters).
 
 pub mod calibration;
 pub mod dtrack;
 pub mod event;
+pub mod head;
 pub mod ingest;
 pub mod osc;
 pub mod problems;

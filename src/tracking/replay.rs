@@ -3,7 +3,7 @@
 //! Line 1 is a header; every further line is one timed record holding exactly one payload:
 //!
 //! ```text
-//! {"raygun_replay":1,"synthetic":true,"display":"hornet","device":"flystick:0","description":"…"}
+//! {"raygun_replay":1,"synthetic":true,"display":"hornet","device":"flystick:0","description":"…","head":{"device":"body:3","eye_offset_m":[0,-0.05,-0.08],"eye_threshold_m":0.01}}
 //! {"t":0.0,"dtrack":"fr 1\nts 36000.000000\n6df2 1 1 [0 1.000 6 2][…][…][0 0.000000 0.000000]\n"}
 //! {"t":0.016,"dtrack_hex":"66722031…"}       DTrack bytes that are not text (recorded garbage)
 //! {"t":0.016,"osc_hex":"2362756e646c65…"}   OSC packet bytes
@@ -16,7 +16,8 @@
 //! decoded by the same decoders as live traffic ([`super::ingest::Ingest`], built from the
 //! header by [`ReplayHeader::ingest`]). VRPN reads are kept exactly as the socket returned
 //! them, so a TCP message may span several lines; the header's `vrpn` names the device and
-//! its mapping. A line that is not
+//! its mapping; its `head` (optional) names the tracked head whose poses move the wall camera's
+//! eye ([`super::head`]). A line that is not
 //! JSON, has no or several payloads, or whose `t` goes back in time is skipped, counted and
 //! reported once per kind; reading never stops on a bad line. Only a missing or unreadable
 //! header is an error, because then the file is not a replay.
@@ -73,6 +74,10 @@ pub struct ReplayHeader {
     /// of `dtrack` and `osc` (written by `raygun record`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub calibration: Option<Calibration>,
+    /// The tracked head that moves the wall camera's eye, and the eye's offset on it (written
+    /// by `raygun record --head`; older replays have none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub head: Option<super::head::HeadConfig>,
 }
 
 /// Why a header's decoder configuration cannot be used.
@@ -113,6 +118,7 @@ impl ReplayHeader {
             vrpn: None,
             time_source: TimeSource::default(),
             calibration: None,
+            head: None,
         }
     }
 

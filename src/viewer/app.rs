@@ -11,6 +11,7 @@ use eframe::egui;
 use glam::DVec2;
 
 use super::core::{ViewerCore, save_picture};
+use super::orbit::{Gesture, ViewKey, key_gesture, wall_plan};
 use super::state::{Overlay, RoiSource};
 use crate::filter::{Blend, FilterKind};
 use crate::interaction::CursorMark;
@@ -288,6 +289,143 @@ impl<'a> ViewerApp<'a> {
         ui.separator();
         save
     }
+
+    /// The eye (wall camera) or the pinhole camera: where it is, the restart threshold, and a
+    /// sketch of the wall and the eye from above.
+    fn eye_panel(&mut self, ui: &mut egui::Ui) {
+        let eye = self.core.eye();
+        let restarts = self.core.restarts;
+        let refused = self.core.eye_refused.clone();
+        let camera_at = self.core.renderer().settings.camera.position;
+        let model = self.core.model;
+        let s = &mut self.core.state;
+        ui.heading(if eye.is_some() {
+            "Eye (wall camera)"
+        } else {
+            "Camera"
+        });
+        match eye {
+            Some(e) => {
+                ui.label(format!(
+                    "eye (room frame) {:+.3}, {:+.3}, {:+.3} m",
+                    e.x, e.y, e.z
+                ));
+                if let Some(h) = s.head {
+                    ui.label(format!(
+                        "tracked head's eye {:+.3}, {:+.3}, {:+.3} m",
+                        h.x, h.y, h.z
+                    ));
+                    ui.checkbox(&mut s.follow_head, "follow the tracked head");
+                }
+            }
+            None => {
+                let p = camera_at;
+                ui.label(format!(
+                    "camera (scene frame) {:+.3}, {:+.3}, {:+.3}",
+                    p.x, p.y, p.z
+                ));
+            }
+        }
+        let mut mm = s.eye_threshold_m * 1e3;
+        ui.add(egui::Slider::new(&mut mm, 0.0..=100.0).text("restart when moved (mm)"));
+        s.eye_threshold_m = mm * 1e-3;
+        ui.label(format!(
+            "restarts {restarts} · drag: orbit · shift/middle drag: pan · wheel: dolly (or arrows, shift+arrows, +/−)"
+        ));
+        if let Some(r) = refused {
+            ui.colored_label(egui::Color32::YELLOW, format!("eye refused: {r}"));
+        }
+        if let Some(e) = eye {
+            let plan = wall_plan(model);
+            let (response, painter) = ui.allocate_painter(
+                egui::vec2(ui.available_width().min(260.0), 140.0),
+                egui::Sense::hover(),
+            );
+            let rect = response.rect;
+            painter.rect_filled(rect, 2.0, egui::Color32::from_gray(24));
+            let eye2 = DVec2::new(e.x, e.z);
+            let head2 = s.head.map(|h| DVec2::new(h.x, h.z));
+            let pts: Vec<DVec2> = plan
+                .iter()
+                .flatten()
+                .copied()
+                .chain([eye2])
+                .chain(head2)
+                .collect();
+            let lo = pts
+                .iter()
+                .copied()
+                .fold(DVec2::splat(f64::INFINITY), DVec2::min);
+            let hi = pts
+                .iter()
+                .copied()
+                .fold(DVec2::splat(f64::NEG_INFINITY), DVec2::max);
+            let span = (hi - lo).max(DVec2::splat(1e-3));
+            let inner = rect.shrink(10.0);
+            let scale = (f64::from(inner.width()) / span.x).min(f64::from(inner.height()) / span.y);
+            let mid = (lo + hi) * 0.5;
+            let to = |p: DVec2| {
+                let q = (p - mid) * scale;
+                egui::pos2(inner.center().x + q.x as f32, inner.center().y + q.y as f32)
+            };
+            let ends = plan.iter().flatten().copied();
+            let left = ends.clone().fold(None::<DVec2>, |a, p| {
+                Some(a.map_or(p, |a| if p.x < a.x { p } else { a }))
+            });
+            let right = ends.fold(None::<DVec2>, |a, p| {
+                Some(a.map_or(p, |a| if p.x > a.x { p } else { a }))
+            });
+            for end in [left, right].into_iter().flatten() {
+                painter.line_segment(
+                    [to(eye2), to(end)],
+                    egui::Stroke::new(1.0, egui::Color32::from_gray(90)),
+                );
+            }
+            for [a, b] in &plan {
+                painter.line_segment(
+                    [to(*a), to(*b)],
+                    egui::Stroke::new(2.0, egui::Color32::LIGHT_GRAY),
+                );
+            }
+            if let Some(h) = head2 {
+                painter.circle_stroke(to(h), 5.0, egui::Stroke::new(1.5, CURSOR_LIVE));
+            }
+            painter.circle_filled(to(eye2), 4.0, egui::Color32::YELLOW);
+            painter.text(
+                rect.left_top() + egui::vec2(4.0, 2.0),
+                egui::Align2::LEFT_TOP,
+                "from above: wall, eye (yellow), head (cyan)",
+                egui::FontId::proportional(10.0),
+                egui::Color32::GRAY,
+            );
+        }
+        ui.separator();
+    }
+}
+
+/// The keys that move the viewpoint, pressed this frame (none while a widget has the focus).
+fn view_keys(ui: &egui::Ui) -> Vec<Gesture> {
+    if ui.ctx().memory(|m| m.focused().is_some()) {
+        return Vec::new();
+    }
+    ui.input(|i| {
+        let shift = i.modifiers.shift;
+        [
+            (egui::Key::ArrowLeft, ViewKey::Left),
+            (egui::Key::ArrowRight, ViewKey::Right),
+            (egui::Key::ArrowUp, ViewKey::Up),
+            (egui::Key::ArrowDown, ViewKey::Down),
+            (egui::Key::Plus, ViewKey::In),
+            (egui::Key::Equals, ViewKey::In),
+            (egui::Key::PageUp, ViewKey::In),
+            (egui::Key::Minus, ViewKey::Out),
+            (egui::Key::PageDown, ViewKey::Out),
+        ]
+        .into_iter()
+        .filter(|(k, _)| i.key_pressed(*k))
+        .map(|(_, v)| key_gesture(v, shift))
+        .collect()
+    })
 }
 
 impl eframe::App for ViewerApp<'_> {
@@ -318,6 +456,7 @@ impl eframe::App for ViewerApp<'_> {
                     .show(ui, |ui| {
                         self.statistics(ui);
                         ui.separator();
+                        self.eye_panel(ui);
                         self.controls(ui)
                     })
                     .inner
@@ -449,8 +588,33 @@ impl eframe::App for ViewerApp<'_> {
             let r = ui.add(
                 egui::Image::new(tex)
                     .fit_to_exact_size(fit)
-                    .sense(egui::Sense::click()),
+                    .sense(egui::Sense::click_and_drag()),
             );
+            // Orbit (drag), pan (shift- or middle-drag, or the right button), dolly (wheel),
+            // and the keys: the eye of a wall camera or the pinhole camera, under the restart
+            // rule (applied by the core's next sync).
+            let d = r.drag_delta();
+            if d != egui::Vec2::ZERO {
+                let px = DVec2::new(f64::from(d.x), f64::from(d.y));
+                let shift = ui.input(|i| i.modifiers.shift);
+                if r.dragged_by(egui::PointerButton::Middle)
+                    || r.dragged_by(egui::PointerButton::Secondary)
+                    || (shift && r.dragged_by(egui::PointerButton::Primary))
+                {
+                    self.core.state.gesture(Gesture::Pan(px));
+                } else if r.dragged_by(egui::PointerButton::Primary) {
+                    self.core.state.gesture(Gesture::Orbit(px));
+                }
+            }
+            if r.hovered() {
+                let wheel = ui.input(|i| i.smooth_scroll_delta.y);
+                if wheel != 0.0 {
+                    self.core.state.gesture(Gesture::Dolly(f64::from(wheel)));
+                }
+            }
+            for g in view_keys(ui) {
+                self.core.state.gesture(g);
+            }
             let to_image = |p: egui::Pos2| {
                 DVec2::new(
                     f64::from((p.x - r.rect.min.x) / r.rect.width() * w as f32),

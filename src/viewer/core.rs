@@ -9,22 +9,24 @@
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 
 use crate::display::DisplayModel;
-use crate::frame::{FrameStats, GuideConfig, Renderer};
+use crate::frame::{EyeFollow, FrameStats, GuideConfig, Renderer};
 use crate::gpu::Backend;
 use crate::output::tiles::wall_view;
 use crate::roi::dgi::{Falloff, Metric};
 use crate::scene::Scene;
 use crate::schedule::Order;
 use crate::trace::path::TraceSettings;
+use crate::trace::wall::WallCamera;
 
 use super::ViewerError;
 use super::diagnostics::{
     NoiseContrast, NoiseRegions, OUTLINE, heat_map, noise_image, noise_map, roi_outline,
     roi_samples,
 };
+use super::orbit::{camera_moved, camera_orbit, eye_orbit};
 use super::state::{Overlay, ViewerState};
 
 /// Live statistics.
@@ -116,6 +118,10 @@ pub struct ViewerCore<'a> {
     /// When the ROI last changed (or the accumulation restarted).
     roi_since: Instant,
     pub stats: Stats,
+    /// Why the last eye the state asked for was refused (on or behind a tile's plane).
+    pub eye_refused: Option<String>,
+    /// Accumulation restarts since the start because the eye or the camera moved.
+    pub restarts: u32,
 }
 
 /// Every this many frames one is timed (stage times, pixel count), which makes the GPU wait.
@@ -129,12 +135,31 @@ impl<'a> ViewerCore<'a> {
         base: TraceSettings,
         state: ViewerState,
     ) -> Result<Self, ViewerError> {
+        Self::with_wall(backend, scene, model, base, state, None)
+    }
+
+    /// [`Self::new`] through the wall camera `wall` when given (`view --camera wall`): its eye
+    /// follows [`ViewerState::wanted_eye`] under the restart rule.
+    pub fn with_wall(
+        backend: &'a Backend,
+        scene: &'a Scene,
+        model: &'a DisplayModel,
+        base: TraceSettings,
+        mut state: ViewerState,
+        wall: Option<WallCamera>,
+    ) -> Result<Self, ViewerError> {
         let config = state.guide_config()?;
         let settings = TraceSettings {
             max_depth: state.max_depth,
             ..base
         };
-        let renderer = Renderer::guided(backend, scene, settings, model, config)?;
+        if state.view.is_none() {
+            state.view = match &wall {
+                Some(w) => eye_orbit(model, w.eye_room),
+                None => camera_orbit(&base.camera, focus_distance(scene, &base)),
+            };
+        }
+        let renderer = Renderer::guided_wall(backend, scene, settings, model, config, wall)?;
         Ok(Self {
             backend,
             scene,
@@ -149,7 +174,15 @@ impl<'a> ViewerCore<'a> {
             window: (0, Instant::now()),
             roi_since: Instant::now(),
             stats: Stats::default(),
+            eye_refused: None,
+            restarts: 0,
         })
+    }
+
+    /// The wall camera's eye (room frame), the one the accumulation started with.
+    #[must_use]
+    pub fn eye(&self) -> Option<DVec3> {
+        self.renderer.wall().map(|w| w.eye_room)
     }
 
     #[must_use]
@@ -184,16 +217,23 @@ impl<'a> ViewerCore<'a> {
         if want != self.built || self.state.reset {
             let settings = TraceSettings {
                 max_depth: self.state.max_depth,
+                camera: self.renderer.settings.camera,
                 ..self.base
             };
-            self.renderer =
-                Renderer::guided(self.backend, self.scene, settings, self.model, config)?;
+            let wall = self.renderer.wall().cloned();
+            self.renderer = Renderer::guided_wall(
+                self.backend,
+                self.scene,
+                settings,
+                self.model,
+                config,
+                wall,
+            )?;
             self.built = want;
             self.state.reset = false;
-            self.window = (0, Instant::now());
-            self.roi_since = Instant::now();
-            self.stats = Stats::default();
+            self.restarted();
         }
+        self.follow_viewpoint()?;
         let roi = self.state.roi();
         let changed = self.renderer.roi() != roi.as_ref();
         if changed {
@@ -207,6 +247,55 @@ impl<'a> ViewerCore<'a> {
             }
         }
         Ok(changed)
+    }
+
+    /// The frame counter and the statistics start again (the accumulation did).
+    fn restarted(&mut self) {
+        self.window = (0, Instant::now());
+        self.roi_since = Instant::now();
+        self.stats = Stats::default();
+    }
+
+    /// Moves the wall camera's eye to the one the state asks for, or the pinhole camera to the
+    /// desktop viewpoint, under the restart rule: past the threshold from where the
+    /// accumulation started, it restarts (the ROI kept); within it, nothing changes. A
+    /// refused eye leaves the camera as it was and puts the desktop viewpoint back there.
+    fn follow_viewpoint(&mut self) -> Result<(), ViewerError> {
+        let threshold = self.state.eye_threshold_m;
+        if self.renderer.wall().is_some() {
+            // While the head leads, the desktop viewpoint follows it, so a drag starts there.
+            if self.state.follow_head
+                && let (Some(h), Some(v)) = (self.state.head, &mut self.state.view)
+            {
+                v.set_position(h);
+            }
+            let Some(eye) = self.state.wanted_eye() else {
+                return Ok(());
+            };
+            match self.renderer.follow_eye(eye, threshold)? {
+                EyeFollow::Kept => {}
+                EyeFollow::Restarted => {
+                    self.eye_refused = None;
+                    self.restarts += 1;
+                    self.restarted();
+                }
+                EyeFollow::Refused(e) => {
+                    self.eye_refused = Some(e.to_string());
+                    let at = self.eye();
+                    if let (Some(v), Some(at)) = (&mut self.state.view, at) {
+                        v.set_position(at);
+                    }
+                }
+            }
+        } else if let Some(v) = &self.state.view {
+            let camera = v.camera(&self.renderer.settings.camera);
+            if camera_moved(&self.renderer.settings.camera, &camera, threshold) {
+                self.renderer.set_camera(camera);
+                self.restarts += 1;
+                self.restarted();
+            }
+        }
+        Ok(())
     }
 
     /// Syncs, then runs frames for about `budget` (at least one).
@@ -259,10 +348,12 @@ impl<'a> ViewerCore<'a> {
         });
         self.stats.roi_noise = contrast.map(|c| c.roi);
         self.stats.periphery_noise = contrast.map(|c| c.periphery);
-        self.stats.roi_progress = self
-            .renderer
-            .roi()
-            .and_then(|_| crate::frame::stop::RoiProgress::measure(&acc, &dgi));
+        let wall = self.renderer.wall();
+        self.stats.roi_progress = self.renderer.roi().and_then(|_| {
+            crate::frame::stop::RoiProgress::measure_where(&acc, &dgi, |i| {
+                wall.is_none_or(|w| w.is_shown(i as u32))
+            })
+        });
         self.stats.seconds_on_roi = self.roi_since.elapsed().as_secs_f64();
         let size = self.size();
         let mut rgba = match self.state.overlay {
@@ -309,6 +400,17 @@ impl<'a> ViewerCore<'a> {
             noise,
         })
     }
+}
+
+/// How far in front of the pinhole its orbit's target lies: to the scene's centre along the
+/// view (at least a tenth of the scene's size), or 1 without triangles.
+fn focus_distance(scene: &Scene, base: &TraceSettings) -> f64 {
+    let Some(b) = scene.bounds() else {
+        return 1.0;
+    };
+    let c = base.camera;
+    let along = (b.center() - c.position).dot(c.forward);
+    f64::from(along.max(0.1 * b.size().length()).max(1e-3))
 }
 
 /// Writes the picture's image (`<stem>.exr` linear, `<stem>.png` as shown with the exposure),

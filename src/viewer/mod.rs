@@ -5,12 +5,14 @@
 //! * [`core`]: the renderer kept in step with them and the picture it composes, without a
 //!   screen;
 //! * [`diagnostics`]: the images that explain a render (ROI outline, heat map, noise);
+//! * [`orbit`]: the desktop user's orbit, pan and dolly of the eye or the pinhole camera;
 //! * `app`: the eframe front end (with the `viewer` feature, on by default).
 
 #[cfg(feature = "viewer")]
 pub mod app;
 pub mod core;
 pub mod diagnostics;
+pub mod orbit;
 pub mod state;
 
 use std::path::PathBuf;

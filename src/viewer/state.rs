@@ -1,6 +1,6 @@
 //! The viewer panel's settings and what they mean for the renderer ([`ViewerState`]).
 
-use glam::DVec2;
+use glam::{DVec2, DVec3};
 
 use crate::display::DisplayModel;
 use crate::filter::{FilterKind, FilterParams};
@@ -12,6 +12,7 @@ use crate::schedule::Order;
 use crate::session::timeline::Timeline;
 
 use super::ViewerError;
+use super::orbit::{Gesture, Orbit};
 
 /// Where the ROI comes from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -74,6 +75,17 @@ pub struct ViewerState {
     pub reset: bool,
     /// The ROI's target standard error (`view --target-se`): the panel shows the time to it.
     pub target_se: Option<f64>,
+    /// The desktop user's viewpoint (orbit, pan, dolly): the wall camera's eye (room frame)
+    /// or the pinhole camera (scene frame); set up by the core when `None`.
+    pub view: Option<Orbit>,
+    /// The tracked head's eye (room frame, metres; replay or live), and whether the wall
+    /// camera follows it (a desktop gesture stops that; the panel turns it back on).
+    pub head: Option<DVec3>,
+    pub follow_head: bool,
+    /// The restart rule's threshold (`--eye-threshold`): the accumulation restarts when the
+    /// eye (or the pinhole) moves more than this many metres from where it started (a pinhole
+    /// also when it turns by more than this many radians).
+    pub eye_threshold_m: f64,
 }
 
 impl ViewerState {
@@ -106,6 +118,28 @@ impl ViewerState {
             cursor_fed_t: None,
             reset: false,
             target_se: None,
+            view: None,
+            head: None,
+            follow_head: true,
+            eye_threshold_m: crate::trace::wall::DEFAULT_EYE_THRESHOLD_M,
+        }
+    }
+
+    /// A desktop gesture moves the viewpoint (and stops following a tracked head).
+    pub fn gesture(&mut self, g: Gesture) {
+        if let Some(v) = &mut self.view {
+            v.apply(g);
+            self.follow_head = false;
+        }
+    }
+
+    /// The wall camera's eye the state asks for: the tracked head's while following it, else
+    /// the desktop viewpoint's.
+    #[must_use]
+    pub fn wanted_eye(&self) -> Option<DVec3> {
+        match (self.follow_head, self.head) {
+            (true, Some(h)) => Some(h),
+            _ => self.view.as_ref().map(Orbit::position),
         }
     }
 
@@ -173,6 +207,9 @@ impl ViewerState {
         if let Some(&(_, aim)) = update.aim.last() {
             self.aim = aim;
         }
+        if let Some(eye) = update.eye {
+            self.head = Some(eye);
+        }
     }
 
     /// Advances the replay clock by `dt` seconds while playing (stops at the end).
@@ -185,6 +222,9 @@ impl ViewerState {
         }
         self.tracked = timeline.roi_at(self.replay_t).cloned();
         self.aim = timeline.aim_at(self.replay_t);
+        if let Some(eye) = timeline.eye_at(self.replay_t) {
+            self.head = Some(eye);
+        }
         self.feed_cursor(timeline);
     }
 

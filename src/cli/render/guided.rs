@@ -144,6 +144,7 @@ impl GuidedPlan {
     pub fn new(args: &RenderArgs, guide: &str) -> anyhow::Result<Self> {
         let config = guide_config(args)?;
         let filter = args.filter.params()?;
+        args.head.check()?;
         if args.iterations == Some(0) {
             bail!("--iterations must be at least 1");
         }
@@ -162,6 +163,7 @@ impl GuidedPlan {
             let replay = ReplayOptions {
                 display: args.display.clone(),
                 calibration: args.calibration.clone(),
+                head: args.head.overrides(),
                 ..ReplayOptions::of(file.clone())
             };
             let (plan, _) =
@@ -277,6 +279,21 @@ pub fn write_outputs(
     }
     crate::cli::render::write_wall_tiles(args, &plan.model, &res.image)?;
     res.write_guides(&plan.dgi_out, &plan.counts_out)?;
+    if !res.eye_restarts.is_empty() || res.eyes_refused > 0 {
+        eprintln!(
+            "raygun: the tracked head moved the eye {} times (the accumulation restarted each time, the ROI kept; the picture holds the last {} iterations){}",
+            res.eye_restarts.len(),
+            res.accumulated,
+            if res.eyes_refused > 0 {
+                format!(
+                    "; {} eyes on or behind a tile's plane were refused",
+                    res.eyes_refused
+                )
+            } else {
+                String::new()
+            }
+        );
+    }
     let roi = res.progress.map_or(String::new(), |p| {
         format!(
             "; ROI: {} pixels, median SE {:.4}, fewest samples {}",

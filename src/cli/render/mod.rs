@@ -16,7 +16,7 @@ use clap::ArgGroup;
 
 use crate::cli::progress::Progress;
 use crate::cli::scene::load_scene;
-use crate::cli::wall::{WALL_CAMERA, wall_spec};
+use crate::cli::wall::WALL_CAMERA;
 use crate::display::DisplayModel;
 use crate::frame::Renderer;
 use crate::frame::stop::StopCondition;
@@ -38,7 +38,7 @@ pub const DEFAULT_SPP: u32 = 64;
         .args([
             "iterations", "until", "p_min", "metric", "falloff_base", "falloff_scale", "order",
             "filter", "blend", "k_max", "c", "variance_threshold", "dgi_out", "counts_out",
-            "calibration",
+            "calibration", "head", "eye_offset", "eye_threshold",
         ])
         .requires("guide")
 ))]
@@ -54,6 +54,10 @@ pub struct RenderArgs {
     pub camera: Option<String>,
     #[command(flatten)]
     pub wall: crate::cli::wall::WallArgs,
+    /// A replay guide's tracked head moves the wall camera's eye (default: the replay's header's
+    /// head); `--eye` may then be left out (the head's first eye).
+    #[command(flatten)]
+    pub head: crate::cli::head::HeadArgs,
     /// Look from this point (X,Y,Z, metres, the scene's frame) instead of a scene camera;
     /// needs --look-at.
     #[arg(long, value_name = "X,Y,Z", value_parser = crate::cli::args::parse_vec3, requires = "look_at", conflicts_with = "camera", allow_hyphen_values = true)]
@@ -350,18 +354,21 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
 }
 
 /// The wall camera's flags checked against the display (`--camera wall`), before any work: the
-/// guided plan's display, else `--display`'s.
+/// guided plan's display (`--display`'s or the replay's), else `--display`'s; a replay's tracked
+/// head gives the eye where `--eye` is left out.
 fn resolve_wall(
     args: &RenderArgs,
     plan: Option<&guided::GuidedPlan>,
 ) -> anyhow::Result<Option<WallSpec>> {
     let wants = args.camera.as_deref() == Some(WALL_CAMERA);
     let model = match (&args.display, plan) {
-        (Some(_), Some(p)) if wants => Some(p.model.clone()),
+        // A guided render's display: --display's, else the replay's.
+        (_, Some(p)) if wants => Some(p.model.clone()),
         (Some(d), None) if wants => Some(DisplayModel::open(d).context("--display")?.0),
         _ => None,
     };
-    wall_spec(args.camera.as_deref(), &args.wall, model.as_ref())
+    let head_eye = plan.and_then(|p| p.source.first_eye());
+    crate::cli::wall::wall_spec_or_eye(args.camera.as_deref(), &args.wall, model.as_ref(), head_eye)
 }
 
 /// The wall camera of `spec` for the settings' image, `auto` placing their camera at the eye.
