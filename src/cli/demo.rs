@@ -8,7 +8,6 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 
-use crate::cli::args::parse_size;
 use crate::cli::progress::Progress;
 use crate::cli::view::{ViewArgs, has_display};
 use crate::display::DisplayModel;
@@ -46,8 +45,9 @@ pub struct DemoArgs {
     /// Guided iterations (the replay is spread evenly over them).
     #[arg(long, value_name = "N", default_value_t = 64)]
     pub iterations: u32,
-    /// Image size; the image covers HORNET's canvas (aspect about 2.48:1).
-    #[arg(long, value_name = "W,H", value_parser = parse_size, default_value = "992,400")]
+    /// Image size; the image covers HORNET's canvas (aspect about 2.48:1); `native`: its own
+    /// 13519×5457 pixels.
+    #[arg(long, value_name = "W,H|native", value_parser = crate::cli::args::parse_size_or_native, default_value = "992,400")]
     pub size: [u32; 2],
     #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
     pub backend: BackendChoice,
@@ -84,6 +84,12 @@ pub struct DemoOutput {
 }
 
 pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
+    let mut args = args.clone();
+    if args.size == crate::cli::args::NATIVE_SIZE {
+        let embedded = DisplayModel::from_json(DISPLAY_JSON, DISPLAY_FILE)?;
+        args.size = crate::output::tiles::canvas_pixel_size(&embedded);
+    }
+    let args = &args;
     // Without the `viewer` feature there is no window to open: the demo renders headless.
     let windowed = cfg!(feature = "viewer") && has_display();
     if !args.headless && windowed {

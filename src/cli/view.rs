@@ -5,7 +5,6 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 
-use crate::cli::args::parse_size;
 use crate::display::DisplayModel;
 use crate::gpu::{Backend, BackendChoice};
 use crate::interaction::{CursorSmoother, InteractionConfig};
@@ -37,8 +36,9 @@ pub struct ViewArgs {
     /// desktop-27in-4k, projection-4m-4k).
     #[arg(long, value_name = "MODEL", default_value = crate::display::DEFAULT_MODEL)]
     pub display: String,
-    /// Image size (the renderer's; the window scales it to fit).
-    #[arg(long, value_name = "W,H", value_parser = parse_size, default_value = "992,400")]
+    /// Image size (the renderer's; the window scales it to fit), or `native`: the display
+    /// canvas's own pixel size.
+    #[arg(long, value_name = "W,H|native", value_parser = crate::cli::args::parse_size_or_native, default_value = "992,400")]
     pub size: [u32; 2],
     /// Environment light: linear radiance R,G,B or an equirectangular .hdr/.exr image.
     #[arg(long, value_name = "R,G,B|FILE")]
@@ -139,6 +139,9 @@ pub fn run(args: &ViewArgs) -> anyhow::Result<()> {
     if !cfg!(feature = "viewer") {
         anyhow::bail!(NO_WINDOW);
     }
+    let mut args = args.clone();
+    args.size = crate::cli::args::resolve_size(args.size, &args.display)?;
+    let args = &args;
     if !has_display() {
         anyhow::bail!(NO_DISPLAY);
     }
