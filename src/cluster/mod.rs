@@ -36,6 +36,7 @@ pub mod handshake;
 pub mod mpi;
 pub mod owners;
 
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use glam::{DVec2, DVec3, Vec3};
@@ -375,7 +376,7 @@ pub struct ClusterRenderer {
     sums: Vec<[f32; 4]>,
     costs: CostTable,
     /// A full frame's list (every shown pixel), made once.
-    full_list: Option<BlockList>,
+    full_list: Option<Arc<BlockList>>,
 }
 
 impl ClusterRenderer {
@@ -546,7 +547,7 @@ impl ClusterRenderer {
     }
 
     /// Step 2: the whole iteration's list, grouped by block (the same on every rank).
-    fn schedule(&mut self, stats: &mut ClusterFrameStats) -> Result<BlockList, ClusterError> {
+    fn schedule(&mut self, stats: &mut ClusterFrameStats) -> Result<Arc<BlockList>, ClusterError> {
         let t0 = Instant::now();
         let size = [self.settings.width, self.settings.height];
         let shown = self.wall.as_ref().map(WallCamera::shown_mask);
@@ -563,12 +564,12 @@ impl ClusterRenderer {
                     self.settings.seed,
                     c.order,
                 )?;
-                BlockList::group(&list, size)
+                Arc::new(BlockList::group(&list, size))
             }
-            None => self
-                .full_list
-                .get_or_insert_with(|| BlockList::every(size, shown))
-                .clone(),
+            None => Arc::clone(
+                self.full_list
+                    .get_or_insert_with(|| Arc::new(BlockList::every(size, shown))),
+            ),
         };
         stats.ms_schedule = t0.elapsed().as_secs_f64() * 1e3;
         Ok(list)
