@@ -414,11 +414,16 @@ mod mpi {
 
     #[test]
     fn a_stop_on_the_rois_progress_is_measured_from_the_owners() {
-        // Every ROI pixel sampled twice, on 3 ranks; the ROI summary in the closing message.
+        // A fixed ROI until every pixel in it has two samples (measured every half second),
+        // on 3 ranks; the ROI summary in the closing message.
         let dir = tmp_dir("until");
         let mut args: Vec<String> = guided(&dir)
             .into_iter()
-            .map(|a| if a == "6" { "400".to_owned() } else { a })
+            .map(|a| match a.as_str() {
+                "6" => "1000000".to_owned(),
+                _ if a.ends_with(".jsonl") => "pose:0,0,1:0,0,-1:30".to_owned(),
+                _ => a,
+            })
             .collect();
         args.extend(strings(&["--until", "roi-spp:2", "--cluster"]));
         let o = mpirun(&[(3, &exe(), args)]);

@@ -117,7 +117,8 @@ pub struct ExchangeRow {
     pub bytes_sent_max: u64,
     pub bytes_sent_mean: f64,
     pub bytes_received_max: u64,
-    /// The DGI broadcast's bytes per ROI change, sent by rank 0.
+    /// The bytes the DGI's broadcast moves per ROI change over all links (every rank but 0
+    /// receives 4 bytes a pixel; down the binomial tree rank 0 sends ⌈log₂ N⌉ of those copies).
     pub dgi_broadcast_bytes: u64,
 }
 
@@ -385,7 +386,8 @@ pub fn markdown(r: &ClusterBenchReport) -> String {
         .fold(f64::NAN, f64::max);
     s += &format!(
         "\n## Exchange per iteration (counted from the real schedule and deal)\n\nBytes per iteration: 12 per sample traced for another rank's tile, 4 per block traced to every other rank, the control message ({CONTROL_BYTES} bytes with an ROI change). The DGI's broadcast ({}) is per ROI change, not per iteration.\n\n| tile map | size | FOV | ranks | samples/it | max sent MB/it | mean sent MB/it | max received MB/it | DGI broadcast MB | link ms/it at {} Gb/s | break-even rate per rank (Msamples/s) | iterations/s at the measured rate |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n",
-        "4 bytes a pixel to every other rank", c.link_gbps
+        "4 bytes a pixel to every other rank, down a binomial tree; the column sums all links",
+        c.link_gbps
     );
     for e in &r.exchange {
         if !(e.ranks <= 4 || e.ranks % 5 == 0 || e.ranks == c.model_ranks) {

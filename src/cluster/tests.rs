@@ -332,3 +332,28 @@ fn a_silent_or_ended_rank_is_named_within_the_deadline() {
         assert!(root.contains("iteration 2"), "{root}");
     }
 }
+
+#[test]
+fn the_broadcast_tree_reaches_every_rank_once_and_sends_at_most_log2_copies() {
+    for n in 1..=40usize {
+        let mut reached = vec![0u32; n];
+        reached[0] = 1;
+        for me in 0..n {
+            let (parent, children) = binomial_tree(me, n);
+            assert_eq!(parent.is_none(), me == 0);
+            if let Some(p) = parent {
+                assert!(
+                    p < me && binomial_tree(p, n).1.contains(&me),
+                    "{n}: {me} ← {p}"
+                );
+            }
+            assert!(children.len() <= n.next_power_of_two().trailing_zeros() as usize);
+            for c in children {
+                reached[c] += 1;
+            }
+        }
+        assert!(reached.iter().all(|&r| r == 1), "{n} ranks: {reached:?}");
+    }
+    assert_eq!(binomial_tree(0, 8), (None, vec![4, 2, 1]));
+    assert_eq!(binomial_tree(6, 8), (Some(4), vec![7]));
+}
