@@ -335,7 +335,12 @@ impl<'a> ViewerCore<'a> {
         let image = self
             .renderer
             .picture_of(&self.state.filter_params(), &acc, &dgi)?;
-        let (roi_samples, roi_pixels) = roi_samples(&acc, &dgi, self.renderer.roi().is_some());
+        let (roi_samples, roi_pixels) = roi_samples(
+            &acc,
+            &dgi,
+            self.renderer.roi().is_some(),
+            self.renderer.wall(),
+        );
         self.stats.roi_samples = roi_samples;
         self.stats.roi_pixels = roi_pixels;
         let noise = noise_image(&acc);

@@ -2,6 +2,7 @@
 //! the noise contrast between ROI and periphery.
 
 use crate::trace::accum::Accumulation;
+use crate::trace::wall::WallCamera;
 
 /// The ROI outline colour (opaque yellow).
 pub const OUTLINE: [u8; 4] = [255, 220, 0, 255];
@@ -191,15 +192,21 @@ pub fn noise_map(noise: &[f32]) -> Vec<u8> {
         .collect()
 }
 
-/// Samples taken in the ROI (pixels with d = 0) and how many pixels it covers; (0, 0) without
-/// an ROI.
+/// Samples taken in the ROI (pixels with d = 0) and how many pixels it covers — with a wall
+/// camera only the pixels a tile shows (bezels are never sampled); (0, 0) without an ROI.
 #[must_use]
-pub fn roi_samples(acc: &Accumulation, dgi: &[f32], has_roi: bool) -> (u64, u64) {
+pub fn roi_samples(
+    acc: &Accumulation,
+    dgi: &[f32],
+    has_roi: bool,
+    wall: Option<&WallCamera>,
+) -> (u64, u64) {
     if !has_roi {
         return (0, 0);
     }
     dgi.iter()
         .zip(&acc.count)
-        .filter(|(d, _)| **d == 0.0)
-        .fold((0, 0), |(s, n), (_, &c)| (s + u64::from(c), n + 1))
+        .enumerate()
+        .filter(|&(p, (d, _))| *d == 0.0 && wall.is_none_or(|w| w.is_shown(p as u32)))
+        .fold((0, 0), |(s, n), (_, (_, &c))| (s + u64::from(c), n + 1))
 }
