@@ -197,6 +197,39 @@ mod mpi {
         same_files_as_one_process("wall", full_wall, &[]);
     }
 
+    /// A guided render through the wall camera whose eye follows the replay's tracked head:
+    /// rank 0 applies the restart rule and sends the eyes it restarted at, so every rank
+    /// restarts in the same frames as one process does.
+    fn head_wall(dir: &Path) -> Vec<String> {
+        strings(&[
+            "render",
+            "--scene",
+            "builtin:cornell",
+            "--camera",
+            "wall",
+            "--size",
+            "62,25",
+            "--max-depth",
+            "2",
+            "--guide",
+            "tracking-replays/head-1-walk.dtrack.jsonl",
+            "--iterations",
+            "20",
+            "--p-min",
+            "0.2",
+            "--backend",
+            "cpu",
+            "--quiet",
+            "--out",
+            s(&dir.join("img.exr")),
+        ])
+    }
+
+    #[test]
+    fn a_tracked_heads_restarts_match_too() {
+        same_files_as_one_process("head", head_wall, &[]);
+    }
+
     #[test]
     fn a_tile_owners_file_changes_who_accumulates_not_the_image() {
         let one = tmp_dir("owners-one");

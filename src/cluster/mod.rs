@@ -44,7 +44,7 @@ use rayon::prelude::*;
 
 use crate::display::DisplayModel;
 use crate::frame::stop::RoiProgress;
-use crate::frame::{FrameError, GuideConfig, dgi_cpu};
+use crate::frame::{EyeFollow, FrameError, GuideConfig, dgi_cpu};
 use crate::roi::cone::Cone;
 use crate::roi::dgi::{Roi, Surface};
 use crate::scene::Scene;
@@ -242,8 +242,9 @@ pub struct FrameControl {
     pub measure: bool,
     /// `Some`: the ROI changed to this (`Some(None)`: no ROI, sample everything).
     pub roi: Option<Option<Roi>>,
-    /// The wall camera's eye (room frame), where it has one: a moved eye restarts the render
-    /// (DESIGN.md §11), which the ranks check against their own.
+    /// `Some`: rank 0's tracked head moved the wall camera's eye here (room frame) and
+    /// restarted the accumulation (DESIGN.md §11); every other rank does the same before
+    /// this frame.
     pub eye: Option<DVec3>,
 }
 
@@ -472,6 +473,36 @@ impl ClusterRenderer {
     #[must_use]
     pub fn wall(&self) -> Option<&WallCamera> {
         self.wall.as_ref()
+    }
+
+    /// The restart rule of a moving eye, as [`crate::frame::Renderer::follow_eye`] applies it:
+    /// past `threshold_m` from the eye the accumulation started with, the wall camera moves
+    /// there and every pixel's count and this rank's owned sums restart (the ROI and its DGI
+    /// kept); otherwise nothing changes. Every rank applies the same eyes in the same frames,
+    /// so they stay in step.
+    pub fn follow_eye(&mut self, eye: DVec3, threshold_m: f64) -> Result<EyeFollow, ClusterError> {
+        let wall = self.wall.as_ref().ok_or(FrameError::NoWall)?;
+        if !wall.eye_moved(eye, threshold_m) {
+            return Ok(EyeFollow::Kept);
+        }
+        match wall.with_eye(eye) {
+            Ok(_) => {
+                self.move_eye(eye)?;
+                Ok(EyeFollow::Restarted)
+            }
+            Err(e) => Ok(EyeFollow::Refused(e)),
+        }
+    }
+
+    /// Moves the eye to `eye` and restarts, unconditionally: what the other ranks do with an
+    /// eye rank 0's [`Self::follow_eye`] restarted at.
+    pub fn move_eye(&mut self, eye: DVec3) -> Result<(), ClusterError> {
+        let wall = self.wall.as_ref().ok_or(FrameError::NoWall)?;
+        self.wall = Some(wall.with_eye(eye).map_err(FrameError::Wall)?);
+        self.counts.fill(0);
+        self.sums.fill([0.0; 4]);
+        self.iteration = 0;
+        Ok(())
     }
 
     /// Sets the ROI; the next frame installs its DGI. The accumulation is kept.

@@ -8,6 +8,7 @@ use super::guide::GuideSource;
 use super::render::Stopping;
 use crate::cluster::exchange::ExchangeError;
 use crate::cluster::{Cluster, ClusterError, ClusterFrameStats, ClusterRenderer, FrameControl};
+use crate::frame::EyeFollow;
 use crate::frame::stop::{RoiProgress, StopCondition, StopReason, reached};
 use crate::roi::dgi::Roi;
 use crate::trace::accum::Accumulation;
@@ -53,6 +54,12 @@ pub struct ClusterRun {
     pub gathered: Option<(Accumulation, Vec<f32>)>,
     /// Rank 0: the ROI's last measured progress (with stop conditions on it only).
     pub progress: Option<RoiProgress>,
+    /// Iterations in the accumulation at the end (since the last restart of a moving eye).
+    pub accumulated: u32,
+    /// Rank 0: (iteration, eye) where the guide's tracked head restarted the accumulation.
+    pub eye_restarts: Vec<(u32, glam::DVec3)>,
+    /// Rank 0: head eyes refused (on or behind a tile's plane).
+    pub eyes_refused: u32,
 }
 
 /// How often rank 0 measures the ROI's progress for a stop condition (the one-process loop's
@@ -80,7 +87,7 @@ pub fn run_cluster(
     let mut current: Option<Roi> = None;
     let mut frames = Vec::new();
     let mut k = 0u32;
-    let eye = r.wall().map(|w| w.eye_room);
+    let (mut eye_restarts, mut eyes_refused) = (Vec::new(), 0);
     let stop = loop {
         if let Some(f) = &fault {
             f.strike(c.rank(), k);
@@ -100,12 +107,28 @@ pub fn run_cluster(
             if let Some(roi) = changed {
                 current = roi;
             }
+            // The tracked head (a wall camera only): rank 0 applies the restart rule, and an
+            // eye it restarted at goes to the other ranks with this frame's control.
+            let mut moved = None;
+            if r.wall().is_some()
+                && let Some(s) = source
+                && let Some(e) = s.eye_at(k, spread)
+            {
+                match r.follow_eye(e, s.eye_threshold_m())? {
+                    EyeFollow::Kept => {}
+                    EyeFollow::Restarted => {
+                        eye_restarts.push((k, e));
+                        moved = Some(e);
+                    }
+                    EyeFollow::Refused(_) => eyes_refused += 1,
+                }
+            }
             FrameControl {
                 iteration: k,
                 stop: stop.is_some(),
                 measure,
                 roi: changed,
-                eye,
+                eye: moved,
             }
         } else {
             FrameControl {
@@ -122,16 +145,18 @@ pub fn run_cluster(
             what: format!("the control of iteration {k}"),
             reason: format!("{} bytes that are no control message", bytes.len()),
         })?;
-        if got.iteration != k || got.eye != eye {
+        if got.iteration != k {
             return Err(ExchangeError::Malformed {
                 rank: 0,
                 what: format!("the control of iteration {k}"),
-                reason: format!(
-                    "iteration {} and eye {:?}, this rank is at iteration {k} with eye {eye:?} (a moving eye is not followed across ranks yet)",
-                    got.iteration, got.eye
-                ),
+                reason: format!("iteration {}, this rank is at iteration {k}", got.iteration),
             }
             .into());
+        }
+        if !c.is_root()
+            && let Some(e) = got.eye
+        {
+            r.move_eye(e)?;
         }
         if got.stop {
             let elapsed = t0.elapsed().as_secs_f64();
@@ -160,6 +185,7 @@ pub fn run_cluster(
         k += 1;
     };
     let seconds = t0.elapsed().as_secs_f64();
+    let accumulated = r.iteration();
     let gathered = r.gather(c)?;
     Ok(ClusterRun {
         iterations: k,
@@ -168,5 +194,8 @@ pub fn run_cluster(
         frames,
         gathered,
         progress,
+        accumulated,
+        eye_restarts,
+        eyes_refused,
     })
 }

@@ -65,16 +65,6 @@ fn prepare(args: &RenderArgs, c: &Cluster) -> anyhow::Result<Prepared> {
         None => None,
     };
     let wall = resolve_wall(args, plan.as_ref())?;
-    if wall.is_some()
-        && let Some(plan) = &plan
-        && plan.source.first_eye().is_some()
-    {
-        anyhow::bail!(
-            "--cluster does not follow a tracked head yet (every rank would need the eye of \
-             every iteration), and this guide has one: render it without --cluster, or guide \
-             the wall camera from a fixed --eye with a replay that has no head"
-        );
-    }
     let work = if plan.is_some() {
         Work::Render {
             gpu: false,
@@ -228,9 +218,9 @@ fn work(c: &mut Cluster, args: &RenderArgs, p: Prepared) -> anyhow::Result<()> {
                 seconds: run.seconds,
                 stop: run.stop,
                 progress: run.progress,
-                accumulated: run.iterations,
-                eye_restarts: Vec::new(),
-                eyes_refused: 0,
+                accumulated: run.accumulated,
+                eye_restarts: run.eye_restarts.clone(),
+                eyes_refused: run.eyes_refused,
             };
             super::guided::write_outputs(args, plan, &res, &device, &summary)
         }
