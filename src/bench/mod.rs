@@ -14,6 +14,15 @@ pub mod solver_study;
 pub mod trace;
 pub mod tracking;
 
+/// A `/proc/self/status` figure in KiB ("VmRSS:", the resident set; "VmHWM:", its peak), where
+/// the system has one (Linux).
+#[must_use]
+pub fn proc_status_kib(key: &str) -> Option<u64> {
+    let s = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = s.lines().find(|l| l.starts_with(key))?;
+    line.split_whitespace().nth(1)?.parse().ok()
+}
+
 /// The median (mean of the two middle values for an even count; NaN when empty).
 #[must_use]
 pub fn median(mut v: Vec<f64>) -> f64 {

@@ -47,12 +47,6 @@ fn cpu_model() -> String {
         .unwrap_or_else(|| "unknown CPU".into())
 }
 
-fn rss_kib() -> Option<u64> {
-    let s = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = s.lines().find(|l| l.starts_with("VmRSS:"))?;
-    line.split_whitespace().nth(1)?.parse().ok()
-}
-
 /// Runs every benchmark and returns a Markdown report.
 #[must_use]
 pub fn run() -> String {
@@ -289,7 +283,7 @@ pub fn vrpn_stream_10khz(duration: Duration) -> String {
     let handled = Arc::new(AtomicU64::new(0));
     let stop = Arc::new(AtomicBool::new(false));
     let live = Arc::new(Live::default());
-    let rss_before = rss_kib();
+    let rss_before = super::proc_status_kib("VmRSS:");
     let server = {
         let handled = handled.clone();
         std::thread::spawn(
@@ -377,7 +371,7 @@ pub fn vrpn_stream_10khz(duration: Duration) -> String {
     stop.store(true, Ordering::Relaxed);
     let (decoded, problems) = client.join().unwrap_or((0, u64::MAX));
     drop(connection);
-    let rss_after = rss_kib();
+    let rss_after = super::proc_status_kib("VmRSS:");
     let snap = live.snapshot();
     format!(
         "| 10 kHz VRPN Pos_Quat stream over loopback TCP into the live client, {send_secs:.1} s | sent {sent}, decoded {decoded} ({:.2} % lost), \
@@ -405,7 +399,7 @@ pub fn stream_10khz(duration: Duration) -> String {
     let addr = source.local_addr().expect("local address");
     let stop = Arc::new(AtomicBool::new(false));
     let live = Arc::new(Live::default());
-    let rss_before = rss_kib();
+    let rss_before = super::proc_status_kib("VmRSS:");
     let listener = {
         let (stop, live) = (stop.clone(), live.clone());
         std::thread::spawn(move || {
@@ -452,7 +446,7 @@ pub fn stream_10khz(duration: Duration) -> String {
     let received = live.datagrams();
     stop.store(true, Ordering::Relaxed);
     let problems = listener.join().unwrap_or(u64::MAX);
-    let rss_after = rss_kib();
+    let rss_after = super::proc_status_kib("VmRSS:");
     let snap = live.snapshot();
     format!(
         "| 10 kHz DTrack stream over loopback, {send_secs:.1} s | sent {sent}, handled {received} ({:.2} % lost), \

@@ -486,8 +486,8 @@ impl ClusterRenderer {
             return Ok(EyeFollow::Kept);
         }
         match wall.with_eye(eye) {
-            Ok(_) => {
-                self.move_eye(eye)?;
+            Ok(moved) => {
+                self.restart_with(moved);
                 Ok(EyeFollow::Restarted)
             }
             Err(e) => Ok(EyeFollow::Refused(e)),
@@ -498,11 +498,18 @@ impl ClusterRenderer {
     /// eye rank 0's [`Self::follow_eye`] restarted at.
     pub fn move_eye(&mut self, eye: DVec3) -> Result<(), ClusterError> {
         let wall = self.wall.as_ref().ok_or(FrameError::NoWall)?;
-        self.wall = Some(wall.with_eye(eye).map_err(FrameError::Wall)?);
+        let moved = wall.with_eye(eye).map_err(FrameError::Wall)?;
+        self.restart_with(moved);
+        Ok(())
+    }
+
+    /// The wall camera `wall` from now on, and every pixel's count and this rank's owned sums
+    /// back to zero (the one-process renderer's restart).
+    fn restart_with(&mut self, wall: WallCamera) {
+        self.wall = Some(wall);
         self.counts.fill(0);
         self.sums.fill([0.0; 4]);
         self.iteration = 0;
-        Ok(())
     }
 
     /// Sets the ROI; the next frame installs its DGI. The accumulation is kept.

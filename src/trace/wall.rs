@@ -57,6 +57,28 @@ pub const TILE_VEC4S: usize = 4;
 /// accumulation restarts (`--eye-threshold`).
 pub const DEFAULT_EYE_THRESHOLD_M: f64 = 0.01;
 
+/// A wall camera's inputs: an image with pixels, and a finite eye in front of every tile.
+fn check_inputs(
+    model: &DisplayModel,
+    [width, height]: [u32; 2],
+    eye: DVec3,
+) -> Result<(), WallCameraError> {
+    if width == 0 || height == 0 {
+        return Err(WallCameraError::Size { width, height });
+    }
+    if !eye.is_finite() {
+        return Err(WallCameraError::EyeNotFinite { eye });
+    }
+    check_eye(
+        model.name(),
+        eye,
+        model
+            .tiles()
+            .iter()
+            .map(|t| (t.id(), t.corners()[0], t.normal())),
+    )
+}
+
 /// The restart rule of a moving eye: whether `eye` lies more than `threshold_m` from `started`
 /// (the eye the accumulation started with). A non-finite eye never restarts (it is refused
 /// where it is used).
@@ -280,23 +302,8 @@ impl WallCamera {
         placement: &WorldFromRoom,
         camera: (DVec3, DVec3, DVec3),
     ) -> Result<Self, WallCameraError> {
-        if size.contains(&0) {
-            return Err(WallCameraError::Size {
-                width: size[0],
-                height: size[1],
-            });
-        }
-        if !eye.is_finite() {
-            return Err(WallCameraError::EyeNotFinite { eye });
-        }
-        check_eye(
-            model.name(),
-            eye,
-            model
-                .tiles()
-                .iter()
-                .map(|t| (t.id(), t.corners()[0], t.normal())),
-        )?;
+        // Checked before the placement resolves, whose errors would otherwise come first.
+        check_inputs(model, size, eye)?;
         let xf = placement.resolve(eye, wall_centre(model), camera)?;
         Self::placed(model, size, eye, xf)
     }
@@ -309,20 +316,7 @@ impl WallCamera {
         eye: DVec3,
         xf: SceneFromRoom,
     ) -> Result<Self, WallCameraError> {
-        if width == 0 || height == 0 {
-            return Err(WallCameraError::Size { width, height });
-        }
-        if !eye.is_finite() {
-            return Err(WallCameraError::EyeNotFinite { eye });
-        }
-        check_eye(
-            model.name(),
-            eye,
-            model
-                .tiles()
-                .iter()
-                .map(|t| (t.id(), t.corners()[0], t.normal())),
-        )?;
+        check_inputs(model, [width, height], eye)?;
         let canvas = model.canvas_rect();
         let scale = canvas.size() / DVec2::new(f64::from(width), f64::from(height));
         let mut tiles = Vec::with_capacity(model.tiles().len());
