@@ -959,6 +959,17 @@ fn errors_name_the_file_and_the_element() {
         "test.gltf: mesh 0 primitive 0: POSITION accessor 9 does not exist"
     );
 
+    // glTF 2.0 §5.18: an image is a uri or a bufferView with a mimeType.
+    let e = err(br#"{"asset":{"version":"2.0"},"images":[{"name":"Label"}]}"#);
+    assert_eq!(
+        e,
+        "test.gltf: image 'Label': has neither a uri nor a bufferView"
+    );
+    let e = err(
+        br#"{"asset":{"version":"2.0"},"buffers":[{"byteLength":4,"uri":"data:application/octet-stream;base64,AAAAAA=="}],"bufferViews":[{"buffer":0,"byteLength":4}],"images":[{"bufferView":0}]}"#,
+    );
+    assert_eq!(e, "test.gltf: image 0: has a bufferView but no mimeType");
+
     let e = err(b"{\"asset\": {\"version\": \"2.0\"}, ");
     assert!(
         e.starts_with("test.gltf: not a glTF 2.0 file:") && e.contains("line 1"),

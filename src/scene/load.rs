@@ -176,6 +176,20 @@ fn precheck(root: &gltf::json::Root, file: &str) -> Result<(), SceneError> {
             extension: ext.clone(),
         });
     }
+    // glTF 2.0 §5.18: an image has a uri or a bufferView, and a bufferView needs a
+    // mimeType; the gltf crate's `Image::source` unwraps both (a panic otherwise).
+    for (ii, image) in root.images.iter().enumerate() {
+        let problem = match (&image.uri, &image.buffer_view, &image.mime_type) {
+            (None, None, _) => "has neither a uri nor a bufferView",
+            (_, Some(_), None) => "has a bufferView but no mimeType",
+            _ => continue,
+        };
+        return Err(SceneError::Element {
+            file: file.into(),
+            element: label("image", image.name.as_deref(), ii),
+            problem: problem.into(),
+        });
+    }
     for (mi, mesh) in root.meshes.iter().enumerate() {
         for (pi, prim) in mesh.primitives.iter().enumerate() {
             let key = Checked::Valid(gltf::json::mesh::Semantic::Positions);
