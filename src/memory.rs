@@ -168,13 +168,15 @@ impl Budget {
             });
         }
         if let Some(max) = max_buffer {
-            // The largest single buffer: the accumulation's 16 bytes per pixel.
-            let largest = 16 * self.pixels();
-            if !self.device.is_empty() && largest > max {
+            // The frame is split into bands of rows to fit the bindings (DESIGN.md §11): the
+            // largest buffer is then one row of the accumulation's 16 bytes per pixel at least.
+            // (A guided picture larger than one binding is filtered by the CPU twin.)
+            let row = 16 * u64::from(w);
+            if !self.device.is_empty() && crate::gpu::Band::split(w, h, 16, max).is_none() {
                 return Err(MemoryError::DeviceBuffer {
                     width: w,
                     height: h,
-                    need: largest,
+                    need: row,
                     max,
                 });
             }
@@ -216,7 +218,7 @@ pub enum MemoryError {
         breakdown: String,
     },
     #[error(
-        "--size {width},{height}: the accumulation needs one GPU buffer of {}, and this adapter's largest is {}; use a smaller size or --backend cpu",
+        "--size {width},{height}: one row of the accumulation needs a GPU buffer of {}, and this adapter's largest is {}; use a smaller size or --backend cpu",
         bytes(*need),
         bytes(*max)
     )]
@@ -308,8 +310,14 @@ mod tests {
                 .check(Some(24 * GB), Some(128 << 20))
                 .is_ok()
         );
+        // Larger than one binding: split into bands of rows; only a row too wide is refused.
+        assert!(
+            Budget::of(gpu, [4096, 2160])
+                .check(Some(24 * GB), Some(128 << 20))
+                .is_ok()
+        );
         let e = Budget::of(gpu, [4096, 2160])
-            .check(Some(24 * GB), Some(128 << 20))
+            .check(Some(24 * GB), Some(4096 * 16 - 1))
             .unwrap_err();
         assert!(matches!(e, MemoryError::DeviceBuffer { .. }), "{e}");
         let cpu = Work::Render {

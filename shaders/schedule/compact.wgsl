@@ -27,7 +27,9 @@ struct Params {
     scatter_half_bits: u32,
     // 1: a pixel whose bit in `shown` is clear has probability 0 (the wall camera's bezels).
     masked: u32,
-    _pad0: u32,
+    // The image's index of this schedule's pixel 0 (a frame split into bands of rows): the coin
+    // of list pixel p is the image pixel pixel_base + p's.
+    pixel_base: u32,
     _pad1: u32,
     _pad2: u32,
 }
@@ -88,7 +90,8 @@ fn main(
         let px = slot_pixel(block, wg.xy, SLOTS * t + j);
         pixels[j] = px;
         if px != OUTSIDE
-            && selected(px, params.iteration, params.seed, shown_probability(px)) {
+            && selected(params.pixel_base + px, params.iteration, params.seed,
+                shown_probability(px)) {
             flags |= 1u << j;
         }
     }

@@ -28,9 +28,11 @@ struct Params {
     punctual_count: u32,
     punct_select: f32,
     ortho_half_y: f32,   // orthographic window half height (0: pinhole)
+    // The band of image rows this dispatch covers (a frame split to fit the bindings): the
+    // buffers hold size.x × rows pixels from image row row0 (src/gpu/mod.rs, `Band`).
+    row0: u32,
+    rows: u32,
     _pad1: u32,
-    _pad2: u32,
-    _pad3: u32,
 }
 
 // Layout constants: src/trace/pack.rs (module doc).
@@ -600,12 +602,13 @@ fn trace_sample(pixel: u32, sample: u32, tile: u32) -> vec3<f32> {
 @compute @workgroup_size(64)
 fn trace(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
     // No early return: the ray count is reduced per workgroup behind a barrier.
-    var pixel = 0u;
+    // `slot` indexes this band's buffers; `pixel` is the image pixel it holds.
+    var slot = 0u;
     var live = false;
     if params.mode == 1u {
         let linear = (wg.y * args[0] + wg.x) * WORKGROUP + li;
         if linear < args[3] {
-            pixel = list[linear];
+            slot = list[linear];
             live = true;
         }
     } else {
@@ -616,11 +619,12 @@ fn trace(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) 
         let l = linear % 64u;
         let x = (tile % tiles_x) * 8u + l % 8u;
         let y = (tile / tiles_x) * 8u + l / 8u;
-        if linear < params.count && x < params.size.x && y < params.size.y {
-            pixel = y * params.size.x + x;
+        if linear < params.count && x < params.size.x && y < params.rows {
+            slot = y * params.size.x + x;
             live = true;
         }
     }
+    let pixel = params.row0 * params.size.x + slot;
     // The wall camera traces only pixels a tile shows (the schedule lists no others).
     var tile = 0u;
     if live && params.wall_tiles > 0u {
@@ -629,11 +633,11 @@ fn trace(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) 
     }
     rays_traced = 0u;
     if live {
-        let sample = counts[pixel];
+        let sample = counts[slot];
         let rgb = trace_sample(pixel, sample, tile);
         let l = lum(rgb);
-        accum[pixel] += vec4<f32>(rgb, l * l);
-        counts[pixel] = sample + 1u;
+        accum[slot] += vec4<f32>(rgb, l * l);
+        counts[slot] = sample + 1u;
     }
     atomicAdd(&workgroup_rays, rays_traced);
     workgroupBarrier();

@@ -327,8 +327,21 @@ pub fn filter_cpu(
     })
 }
 
+/// Whether the filter kernels can hold `acc`'s image: each of their per-pixel buffers (the
+/// input sums, the output, the finest pyramid level) is 16 bytes a pixel in one binding.
+/// A larger picture (a frame the tracer splits into bands of rows, DESIGN.md §11) is
+/// filtered by the CPU twin, the same function.
+fn fits_one_binding(ctx: &GpuContext, acc: &Accumulation) -> bool {
+    let max = ctx
+        .limits
+        .max_storage_buffer_binding_size
+        .min(ctx.limits.max_buffer_size);
+    16 * u64::from(acc.width) * u64::from(acc.height) <= max
+}
+
 /// The filter stage on one backend: the GPU kernels (compiled once, at [`Filter::new`]) or
-/// the CPU twin. Every caller that wants a filtered image goes through here.
+/// the CPU twin. Every caller that wants a filtered image goes through here; on the GPU, a
+/// picture larger than one storage binding is filtered by the CPU twin.
 pub enum Filter<'a> {
     Gpu {
         ctx: &'a GpuContext,
@@ -366,12 +379,12 @@ impl<'a> Filter<'a> {
         dgi: &[f32],
     ) -> Result<Vec<DVec3>, gpu::FilterGpuError> {
         Ok(match self {
-            Self::Gpu { ctx, kernels } => kernels
+            Self::Gpu { ctx, kernels } if fits_one_binding(ctx, acc) => kernels
                 .filter(ctx, params, acc, dgi)?
                 .iter()
                 .map(|p| DVec3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2])))
                 .collect(),
-            Self::Cpu => filter_cpu(params, acc, dgi)?,
+            _ => filter_cpu(params, acc, dgi)?,
         })
     }
 
@@ -386,7 +399,9 @@ impl<'a> Filter<'a> {
         dgi: &[f32],
     ) -> Result<(Vec<Vec3>, f64, bool), gpu::FilterGpuError> {
         match self {
-            Self::Gpu { ctx, kernels } if params.kind != FilterKind::Off => {
+            Self::Gpu { ctx, kernels }
+                if params.kind != FilterKind::Off && fits_one_binding(ctx, acc) =>
+            {
                 check_inputs(params, acc, dgi)?;
                 let uploaded = gpu::UploadedInputs::new(ctx, acc, dgi)?;
                 let run = kernels.prepare(ctx, params, &uploaded.inputs())?;
@@ -427,12 +442,12 @@ impl<'a> Filter<'a> {
         // Straight to f32: a widened copy of a large image would only raise the peak.
         Ok(match (self, params.kind) {
             (_, FilterKind::Off) => acc.mean_image(),
-            (Self::Gpu { ctx, kernels }, _) => kernels
+            (Self::Gpu { ctx, kernels }, _) if fits_one_binding(ctx, acc) => kernels
                 .filter(ctx, params, acc, dgi)?
                 .iter()
                 .map(|p| Vec3::new(p[0], p[1], p[2]))
                 .collect(),
-            (Self::Cpu, _) => filter_cpu(params, acc, dgi)?
+            _ => filter_cpu(params, acc, dgi)?
                 .iter()
                 .map(|p| p.as_vec3())
                 .collect(),

@@ -30,7 +30,7 @@ use glam::Vec3;
 
 use crate::display::DisplayModel;
 use crate::filter::{Filter, FilterGpuError, FilterParams};
-use crate::gpu::{Backend, GpuContext, GpuError, PassTimer};
+use crate::gpu::{Backend, Band, GpuContext, GpuError, PassTimer};
 use crate::roi::dgi::{
     DgiParams, Falloff, Guide, GuideError, Metric, Roi, Surface, compute_cpu, roi_radius_m,
 };
@@ -154,14 +154,23 @@ enum PendingDgi {
     Zero,
 }
 
-/// The guided stages on the GPU: the DGI kernel, the DGI the scheduler reads (a DGI run's
-/// output is copied in on ROI changes), the scheduler, and a DGI change waiting for the next
-/// frame.
+/// The guided stages of one band on the GPU: the DGI the scheduler reads (a DGI run's output
+/// is copied in on ROI changes), the scheduler, and a DGI change waiting for the next frame.
 struct GpuGuide {
-    dgi_kernel: DgiKernel,
     dgi: wgpu::Buffer,
     schedule: ScheduleRun,
     pending: Option<PendingDgi>,
+}
+
+/// One band of rows of a GPU frame (DESIGN.md §11): a frame whose buffers fit the adapter's
+/// storage bindings is one band; a larger one is split into bands of rows, each with its own
+/// accumulation, DGI, schedule and trace dispatch, recorded one after another into the same
+/// passes. Every kernel computes the image pixel's values, so the split changes nothing.
+struct GpuBand {
+    band: Band,
+    accum: GpuAccum,
+    trace: TraceRun,
+    guide: Option<GpuGuide>,
 }
 
 /// The guided stages on the CPU: the DGI in use and the next one with the ms it took.
@@ -176,9 +185,9 @@ enum Engine<'a> {
     Gpu {
         ctx: &'a GpuContext,
         scene: GpuScene,
-        accum: GpuAccum,
-        trace: TraceRun,
-        guide: Option<GpuGuide>,
+        bands: Vec<GpuBand>,
+        /// The DGI kernel of a guided renderer.
+        dgi_kernel: Option<DgiKernel>,
         timer: Option<PassTimer>,
     },
     Cpu {
@@ -302,40 +311,51 @@ impl<'a> Renderer<'a> {
                 let ctx: &GpuContext = ctx;
                 let kernel = TraceKernel::new(ctx);
                 let gscene = GpuScene::upload(ctx, &kernel, &packed)?;
-                let accum = GpuAccum::new(ctx, w, h)?;
-                let guide = match &guidance {
-                    Some(g) => Some(gpu_guide(
-                        ctx,
-                        w,
-                        h,
-                        &g.config,
-                        wall.as_ref().map(WallCamera::shown_mask),
-                    )?),
-                    None => None,
-                };
-                let trace = TraceRun::with_wall(
-                    ctx,
-                    &kernel,
-                    &packed,
-                    &settings,
-                    wall.as_ref(),
-                    &accum,
-                    guide
-                        .as_ref()
-                        .map(|g| (g.schedule.list(), g.schedule.args())),
-                );
+                let schedule_kernel = guidance.as_ref().map(|_| ScheduleKernel::new(ctx));
                 let mut enc = ctx.device.create_command_encoder(&Default::default());
-                accum.clear(&mut enc);
-                if let Some(g) = &guide {
-                    enc.clear_buffer(&g.dgi, 0, None);
+                let mut bands = Vec::new();
+                for band in frame_bands(ctx, w, h)? {
+                    let accum = GpuAccum::new(ctx, w, band.rows)?;
+                    let guide = match (&guidance, &schedule_kernel) {
+                        (Some(g), Some(k)) => Some(gpu_guide(
+                            ctx,
+                            k,
+                            w,
+                            band,
+                            &g.config,
+                            wall.as_ref().map(WallCamera::shown_mask),
+                        )?),
+                        _ => None,
+                    };
+                    let trace = TraceRun::for_band(
+                        ctx,
+                        &kernel,
+                        &packed,
+                        &settings,
+                        wall.as_ref(),
+                        &accum,
+                        guide
+                            .as_ref()
+                            .map(|g| (g.schedule.list(), g.schedule.args())),
+                        band,
+                    );
+                    accum.clear(&mut enc);
+                    if let Some(g) = &guide {
+                        enc.clear_buffer(&g.dgi, 0, None);
+                    }
+                    bands.push(GpuBand {
+                        band,
+                        accum,
+                        trace,
+                        guide,
+                    });
                 }
                 ctx.queue.submit([enc.finish()]);
                 Engine::Gpu {
                     ctx,
                     scene: gscene,
-                    accum,
-                    trace,
-                    guide,
+                    bands,
+                    dgi_kernel: guidance.as_ref().map(|_| DgiKernel::new(ctx)),
                     timer: PassTimer::new(ctx, 3),
                 }
             }
@@ -396,15 +416,24 @@ impl<'a> Renderer<'a> {
         match &mut self.engine {
             Engine::Gpu {
                 ctx,
-                guide: Some(gg),
+                bands,
+                dgi_kernel: Some(kernel),
                 ..
             } => {
-                gg.pending = Some(match prepared {
-                    Some((guide, params)) => {
-                        PendingDgi::Run(gg.dgi_kernel.prepare(ctx, &g.surface, &guide, &params)?)
-                    }
-                    None => PendingDgi::Zero,
-                });
+                for b in bands.iter_mut() {
+                    let gg = b.guide.as_mut().ok_or(FrameError::NotGuided)?;
+                    gg.pending = Some(match &prepared {
+                        Some((guide, params)) => PendingDgi::Run(kernel.prepare_band(
+                            ctx,
+                            &g.surface,
+                            guide,
+                            params,
+                            b.band.row0,
+                            b.band.rows,
+                        )?),
+                        None => PendingDgi::Zero,
+                    });
+                }
             }
             Engine::Cpu {
                 guide: Some(cg), ..
@@ -417,7 +446,10 @@ impl<'a> Renderer<'a> {
                 cg.pending = Some((dgi, t0.elapsed().as_secs_f64() * 1e3));
             }
             // A guided renderer always has its guided stages.
-            Engine::Gpu { guide: None, .. } | Engine::Cpu { guide: None, .. } => {
+            Engine::Gpu {
+                dgi_kernel: None, ..
+            }
+            | Engine::Cpu { guide: None, .. } => {
                 return Err(FrameError::NotGuided);
             }
         }
@@ -441,10 +473,10 @@ impl<'a> Renderer<'a> {
     /// cleared ray counter).
     fn begin(&self, timed: bool) -> FrameInProgress {
         let encoder = match &self.engine {
-            Engine::Gpu { ctx, accum, .. } => {
+            Engine::Gpu { ctx, bands, .. } => {
                 let mut enc = ctx.device.create_command_encoder(&Default::default());
                 if timed {
-                    accum.clear_stats(&mut enc);
+                    bands.iter().for_each(|b| b.accum.clear_stats(&mut enc));
                 }
                 Some(enc)
             }
@@ -466,24 +498,27 @@ impl<'a> Renderer<'a> {
     /// [`Self::set_roi`] on the CPU). Nothing for a full frame or an unchanged ROI.
     fn install_dgi(&mut self, frame: &mut FrameInProgress) {
         match &mut self.engine {
-            Engine::Gpu {
-                guide: Some(g),
-                timer,
-                ..
-            } => {
+            Engine::Gpu { bands, timer, .. } => {
                 let timer = timer.as_ref().filter(|_| frame.timed);
                 let enc = frame.encoder.as_mut().expect("a GPU frame has an encoder");
-                match g.pending.take() {
-                    Some(PendingDgi::Run(run)) => {
-                        run.record(enc, timer.map(|t| (t, PASS_DGI)));
-                        enc.copy_buffer_to_buffer(&run.output, 0, &g.dgi, 0, g.dgi.size());
-                        frame.stats.dgi_recomputed = true;
+                let last = bands.len() - 1;
+                for (i, g) in bands.iter_mut().enumerate() {
+                    let Some(g) = g.guide.as_mut() else { continue };
+                    match g.pending.take() {
+                        Some(PendingDgi::Run(run)) => {
+                            run.record_with(
+                                enc,
+                                timer.and_then(|t| t.writes_part(PASS_DGI, i == 0, i == last)),
+                            );
+                            enc.copy_buffer_to_buffer(&run.output, 0, &g.dgi, 0, g.dgi.size());
+                            frame.stats.dgi_recomputed = true;
+                        }
+                        Some(PendingDgi::Zero) => {
+                            enc.clear_buffer(&g.dgi, 0, None);
+                            frame.stats.dgi_recomputed = true;
+                        }
+                        None => {}
                     }
-                    Some(PendingDgi::Zero) => {
-                        enc.clear_buffer(&g.dgi, 0, None);
-                        frame.stats.dgi_recomputed = true;
-                    }
-                    None => {}
                 }
             }
             Engine::Cpu { guide: Some(g), .. } => {
@@ -495,7 +530,7 @@ impl<'a> Renderer<'a> {
                     }
                 }
             }
-            Engine::Gpu { guide: None, .. } | Engine::Cpu { guide: None, .. } => {}
+            Engine::Cpu { guide: None, .. } => {}
         }
     }
 
@@ -509,18 +544,20 @@ impl<'a> Renderer<'a> {
         );
         let iteration = self.iteration;
         match (&mut self.engine, &self.guidance) {
-            (
-                Engine::Gpu {
-                    guide: Some(g),
-                    timer,
-                    ..
-                },
-                _,
-            ) => {
+            (Engine::Gpu { bands, timer, .. }, Some(_)) => {
                 let timer = timer.as_ref().filter(|_| frame.timed);
                 let enc = frame.encoder.as_mut().expect("a GPU frame has an encoder");
-                g.schedule
-                    .record(enc, iteration, seed, timer.map(|t| (t, PASS_SCHEDULE)));
+                let last = bands.len() - 1;
+                for (i, b) in bands.iter().enumerate() {
+                    if let Some(g) = &b.guide {
+                        g.schedule.record_with(
+                            enc,
+                            iteration,
+                            seed,
+                            timer.and_then(|t| t.writes_part(PASS_SCHEDULE, i == 0, i == last)),
+                        );
+                    }
+                }
             }
             (Engine::Cpu { guide: Some(g), .. }, Some(guidance)) => {
                 let t0 = Instant::now();
@@ -544,13 +581,20 @@ impl<'a> Renderer<'a> {
         match &mut self.engine {
             Engine::Gpu {
                 scene,
-                trace,
+                bands,
                 timer,
                 ..
             } => {
                 let timer = timer.as_ref().filter(|_| frame.timed);
                 let enc = frame.encoder.as_mut().expect("a GPU frame has an encoder");
-                trace.record(enc, scene, timer.map(|t| (t, PASS_TRACE)));
+                let last = bands.len() - 1;
+                for (i, b) in bands.iter().enumerate() {
+                    b.trace.record_with(
+                        enc,
+                        scene,
+                        timer.and_then(|t| t.writes_part(PASS_TRACE, i == 0, i == last)),
+                    );
+                }
             }
             Engine::Cpu { accum, .. } => {
                 let t0 = Instant::now();
@@ -584,32 +628,37 @@ impl<'a> Renderer<'a> {
         } = frame;
         if let Engine::Gpu {
             ctx,
-            accum,
-            guide,
+            bands,
+            dgi_kernel,
             timer,
             ..
         } = &self.engine
         {
+            let guided = dgi_kernel.is_some();
             let timer = timer.as_ref().filter(|_| timed);
             let mut enc = encoder.expect("a GPU frame has an encoder");
             if let Some(t) = timer {
                 t.resolve(&mut enc);
             }
             ctx.queue.submit([enc.finish()]);
-            if guide.is_none() {
+            if !guided {
                 stats.pixels = Some(self.full_frame_pixels());
             }
             if timed {
                 ctx.wait()?;
                 let wall = started.elapsed().as_secs_f64() * 1e3;
-                if let Some(g) = guide {
-                    stats.pixels = Some(g.schedule.read_args(ctx)?[3]);
+                if guided {
+                    let mut pixels = 0;
+                    for g in bands.iter().filter_map(|b| b.guide.as_ref()) {
+                        pixels += g.schedule.read_args(ctx)?[3];
+                    }
+                    stats.pixels = Some(pixels);
                 }
                 match timer {
                     Some(t) => {
                         let ms = t.read_ms(ctx)?;
                         stats.ms_dgi = stats.dgi_recomputed.then_some(ms[PASS_DGI as usize]);
-                        if guide.is_some() {
+                        if guided {
                             stats.ms_schedule = Some(ms[PASS_SCHEDULE as usize]);
                         }
                         stats.ms_trace = Some(ms[PASS_TRACE as usize]);
@@ -618,7 +667,11 @@ impl<'a> Renderer<'a> {
                     // Without timestamps only the whole frame can be timed.
                     None => stats.ms_trace = Some(wall),
                 }
-                stats.rays = Some(accum.rays(ctx)?);
+                let mut rays = 0;
+                for b in bands {
+                    rays += b.accum.rays(ctx)?;
+                }
+                stats.rays = Some(rays);
             }
         }
         self.iteration += 1;
@@ -645,9 +698,9 @@ impl<'a> Renderer<'a> {
     /// or pending) and the scene stay.
     pub fn restart(&mut self) {
         match &mut self.engine {
-            Engine::Gpu { ctx, accum, .. } => {
+            Engine::Gpu { ctx, bands, .. } => {
                 let mut enc = ctx.device.create_command_encoder(&Default::default());
-                accum.clear(&mut enc);
+                bands.iter().for_each(|b| b.accum.clear(&mut enc));
                 ctx.queue.submit([enc.finish()]);
             }
             Engine::Cpu { accum, .. } => {
@@ -666,9 +719,11 @@ impl<'a> Renderer<'a> {
             .as_ref()
             .ok_or(FrameError::NoWall)?
             .with_eye(eye)?;
-        if let Engine::Gpu { ctx, trace, .. } = &mut self.engine {
-            let done = trace.set_wall(ctx, &self.packed, &self.settings, &wall);
-            debug_assert!(done, "a moved wall camera keeps its tiles");
+        if let Engine::Gpu { ctx, bands, .. } = &mut self.engine {
+            for b in bands.iter_mut() {
+                let done = b.trace.set_wall(ctx, &self.packed, &self.settings, &wall);
+                debug_assert!(done, "a moved wall camera keeps its tiles");
+            }
         }
         self.wall = Some(wall);
         self.restart();
@@ -699,8 +754,10 @@ impl<'a> Renderer<'a> {
     /// eye: move that with [`Self::set_wall_eye`].)
     pub fn set_camera(&mut self, camera: RenderCamera) {
         self.settings.camera = camera;
-        if let Engine::Gpu { ctx, trace, .. } = &self.engine {
-            trace.set_settings(ctx, &self.packed, &self.settings);
+        if let Engine::Gpu { ctx, bands, .. } = &self.engine {
+            for b in bands {
+                b.trace.set_settings(ctx, &self.packed, &self.settings);
+            }
         }
         self.restart();
     }
@@ -742,7 +799,7 @@ impl<'a> Renderer<'a> {
     /// The accumulation so far (a read-back on the GPU).
     pub fn accumulation(&self) -> Result<Accumulation, FrameError> {
         Ok(match &self.engine {
-            Engine::Gpu { ctx, accum, .. } => accum.read(ctx)?,
+            Engine::Gpu { ctx, bands, .. } => read_bands(ctx, bands)?,
             Engine::Cpu { accum, .. } => accum.clone(),
         })
     }
@@ -753,11 +810,21 @@ impl<'a> Renderer<'a> {
         Ok(match &self.engine {
             Engine::Gpu {
                 ctx,
-                guide: Some(g),
+                bands,
+                dgi_kernel: Some(_),
                 ..
-            } => ctx.read_buffer::<f32>(&g.dgi)?,
+            } => {
+                let mut dgi = Vec::with_capacity(n);
+                for g in bands.iter().filter_map(|b| b.guide.as_ref()) {
+                    dgi.extend(ctx.read_buffer::<f32>(&g.dgi)?);
+                }
+                dgi
+            }
             Engine::Cpu { guide: Some(g), .. } => g.dgi.clone(),
-            Engine::Gpu { guide: None, .. } | Engine::Cpu { guide: None, .. } => vec![0.0; n],
+            Engine::Gpu {
+                dgi_kernel: None, ..
+            }
+            | Engine::Cpu { guide: None, .. } => vec![0.0; n],
         })
     }
 
@@ -803,7 +870,7 @@ impl<'a> Renderer<'a> {
     pub fn finish(self) -> Result<(Accumulation, Vec<f32>), FrameError> {
         let dgi = self.dgi()?;
         Ok(match self.engine {
-            Engine::Gpu { ctx, accum, .. } => (accum.read(ctx)?, dgi),
+            Engine::Gpu { ctx, bands, .. } => (read_bands(ctx, &bands)?, dgi),
             Engine::Cpu { accum, .. } => (accum, dgi),
         })
     }
@@ -850,36 +917,92 @@ pub fn dgi_cpu(
     })
 }
 
-/// The guided stages on the GPU for a `w × h` frame, with a cleared DGI.
+/// The bands of a `w × h` frame on this adapter: one where every buffer fits a storage
+/// binding, else as few bands of rows as fit (the accumulation's 16 bytes a pixel is the
+/// largest buffer).
+fn frame_bands(ctx: &GpuContext, w: u32, h: u32) -> Result<Vec<Band>, FrameError> {
+    let max = ctx
+        .limits
+        .max_storage_buffer_binding_size
+        .min(ctx.limits.max_buffer_size);
+    Band::split(w, h, ACCUM_BYTES_PER_PIXEL, max).ok_or_else(|| {
+        GpuError::TooLarge {
+            what: "one row of the accumulation (16 bytes per pixel)",
+            bytes: u64::from(w) * ACCUM_BYTES_PER_PIXEL,
+            max,
+        }
+        .into()
+    })
+}
+
+/// Bytes per pixel of the largest per-pixel GPU buffer, the accumulation's RGB sum and
+/// Σ luminance².
+const ACCUM_BYTES_PER_PIXEL: u64 = 16;
+
+/// The bands' accumulations read back and joined into the whole frame's.
+fn read_bands(ctx: &GpuContext, bands: &[GpuBand]) -> Result<Accumulation, GpuError> {
+    let (w, h) = (
+        bands[0].accum.width,
+        bands.iter().map(|b| b.band.rows).sum(),
+    );
+    let mut acc = Accumulation {
+        width: w,
+        height: h,
+        sum: Vec::with_capacity(w as usize * h as usize),
+        count: Vec::with_capacity(w as usize * h as usize),
+    };
+    for b in bands {
+        let part = b.accum.read(ctx)?;
+        acc.sum.extend(part.sum);
+        acc.count.extend(part.count);
+    }
+    Ok(acc)
+}
+
+/// The bits of `shown` (bit `p % 32` of word `p / 32` for image pixel `p`) for the `n` pixels
+/// from `base`, as a mask of their own.
+fn band_mask(shown: &[u32], base: u32, n: u32) -> Vec<u32> {
+    let bit = |p: u32| (shown[(p / 32) as usize] >> (p % 32)) & 1;
+    let mut out = vec![0u32; n.div_ceil(32) as usize];
+    for p in 0..n {
+        out[(p / 32) as usize] |= bit(base + p) << (p % 32);
+    }
+    out
+}
+
+/// The guided stages on the GPU for one `band` of a `w`-wide frame, with a cleared DGI.
 fn gpu_guide(
     ctx: &GpuContext,
+    kernel: &ScheduleKernel,
     w: u32,
-    h: u32,
+    band: Band,
     config: &GuideConfig,
     shown: Option<&[u32]>,
 ) -> Result<GpuGuide, FrameError> {
     let dgi = ctx.device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("frame dgi"),
-        size: u64::from(w) * u64::from(h) * 4,
+        size: u64::from(w) * u64::from(band.rows) * 4,
         usage: wgpu::BufferUsages::STORAGE
             | wgpu::BufferUsages::COPY_DST
             | wgpu::BufferUsages::COPY_SRC,
         mapped_at_creation: false,
     });
-    let schedule = ScheduleKernel::new(ctx).prepare_shown(
+    let base = band.pixel_base(w);
+    let mask = shown.map(|m| band_mask(m, base, w * band.rows));
+    let schedule = kernel.prepare_band(
         ctx,
         &dgi,
-        shown,
+        mask.as_deref(),
         &ScheduleConfig {
             width: w,
-            height: h,
+            height: band.rows,
             p_min: config.p_min,
             order: config.order,
             trace_workgroup_size: WORKGROUP,
         },
+        base,
     )?;
     Ok(GpuGuide {
-        dgi_kernel: DgiKernel::new(ctx),
         dgi,
         schedule,
         pending: None,

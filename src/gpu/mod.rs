@@ -122,10 +122,70 @@ pub enum GpuError {
         bytes: u64,
         max: u64,
     },
+    #[error("RAYGUN_MAX_BINDING={value:?}: expected a number of bytes, at least 4")]
+    BadMaxBinding { value: String },
     #[error("GPU buffer read-back failed: {0}")]
     Map(#[from] wgpu::BufferAsyncError),
     #[error("GPU poll failed: {0}")]
     Poll(#[from] wgpu::PollError),
+}
+
+/// A band of image rows: the part of a frame one set of GPU buffers holds when the whole
+/// frame does not fit the adapter's storage bindings (DESIGN.md §11). Kernels index their
+/// buffers by the band's pixel `p` and draw random numbers, cameras and guides for the image
+/// pixel `row0 · width + p`, so a frame split into bands computes the whole frame's values.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Band {
+    pub row0: u32,
+    pub rows: u32,
+}
+
+impl Band {
+    /// All `height` rows: the frame unsplit.
+    #[must_use]
+    pub fn whole(height: u32) -> Self {
+        Self {
+            row0: 0,
+            rows: height,
+        }
+    }
+
+    /// The image index of the band's pixel 0 in a `width`-wide image.
+    #[must_use]
+    pub fn pixel_base(&self, width: u32) -> u32 {
+        self.row0 * width
+    }
+
+    /// The bands of a `width × height` image whose every buffer holds at most
+    /// `bytes_per_pixel` bytes a pixel and must fit `max_binding` bytes: as few as can be, of
+    /// equal height but the last; `None` when not even one row fits.
+    #[must_use]
+    pub fn split(
+        width: u32,
+        height: u32,
+        bytes_per_pixel: u64,
+        max_binding: u64,
+    ) -> Option<Vec<Self>> {
+        let row_bytes = u64::from(width.max(1)) * bytes_per_pixel;
+        let fit = max_binding / row_bytes;
+        if fit == 0 {
+            return None;
+        }
+        let count = u64::from(height).div_ceil(fit).max(1) as u32;
+        let rows = height.div_ceil(count).max(1);
+        Some(
+            (0..count)
+                .map(|i| {
+                    let row0 = i * rows;
+                    Self {
+                        row0,
+                        rows: rows.min(height - row0),
+                    }
+                })
+                .filter(|b| b.rows > 0)
+                .collect(),
+        )
+    }
 }
 
 /// A device and queue on the chosen adapter, with what the stages need to know about it.
@@ -227,11 +287,32 @@ impl GpuContext {
 
     /// Picks the best adapter (see `adapter_rank`); the environment variable `RAYGUN_ADAPTER`
     /// restricts the choice to adapters whose name contains its value.
+    ///
+    /// `RAYGUN_MAX_BINDING=BYTES` caps the storage binding the device is created with (wgpu
+    /// then enforces it): a frame larger than one binding is split into bands of rows
+    /// (DESIGN.md §11), and this exercises that split on an adapter whose own limit is large.
     pub fn new() -> Result<Self, GpuError> {
-        pollster::block_on(Self::new_async())
+        let cap = match std::env::var("RAYGUN_MAX_BINDING") {
+            Ok(v) => Some(
+                v.trim()
+                    .parse::<u64>()
+                    .ok()
+                    .filter(|&b| b >= 4)
+                    .ok_or(GpuError::BadMaxBinding { value: v })?,
+            ),
+            Err(_) => None,
+        };
+        pollster::block_on(Self::new_async(cap))
     }
 
-    async fn new_async() -> Result<Self, GpuError> {
+    /// [`Self::new`] with the storage binding capped at `max_binding` bytes (rounded down to a
+    /// multiple of 4; the adapter's own limit if smaller), whatever `RAYGUN_MAX_BINDING` says:
+    /// for tests of the split into bands.
+    pub fn with_max_binding(max_binding: u64) -> Result<Self, GpuError> {
+        pollster::block_on(Self::new_async(Some(max_binding)))
+    }
+
+    async fn new_async(max_binding: Option<u64>) -> Result<Self, GpuError> {
         let instance =
             wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
         let mut adapters = instance.enumerate_adapters(wgpu::Backends::all()).await;
@@ -268,7 +349,11 @@ impl GpuContext {
         // Ask for everything the adapter offers: big images need big storage bindings
         // (3840×2160 RGBA f32 is 133 MB, over lavapipe's 128 MiB binding limit but far under
         // an H100's 2 GiB), and stages check the limits they need themselves.
-        let limits = adapter.limits();
+        let mut limits = adapter.limits();
+        if let Some(cap) = max_binding {
+            limits.max_storage_buffer_binding_size =
+                limits.max_storage_buffer_binding_size.min(cap / 4 * 4);
+        }
         let (device, queue) = adapter
             .request_device(&wgpu::DeviceDescriptor {
                 label: Some("raygun"),
@@ -452,6 +537,24 @@ impl PassTimer {
             beginning_of_pass_write_index: Some(2 * pass),
             end_of_pass_write_index: Some(2 * pass + 1),
         }
+    }
+
+    /// The timestamp writes of one part of pass number `pass`, a stage recorded as several
+    /// compute passes (one per band of rows): the first part writes the begin stamp, the last
+    /// the end stamp, so the pass's time spans them all; the parts between write none.
+    #[must_use]
+    pub fn writes_part(
+        &self,
+        pass: u32,
+        first: bool,
+        last: bool,
+    ) -> Option<wgpu::ComputePassTimestampWrites<'_>> {
+        let w = self.writes(pass);
+        (first || last).then(|| wgpu::ComputePassTimestampWrites {
+            beginning_of_pass_write_index: w.beginning_of_pass_write_index.filter(|_| first),
+            end_of_pass_write_index: w.end_of_pass_write_index.filter(|_| last),
+            ..w
+        })
     }
 
     /// Resolves the queries into the read-back buffer (record after the measured passes).

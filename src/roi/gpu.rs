@@ -6,7 +6,7 @@ use wgpu::util::DeviceExt;
 
 use super::conic::{ConicKind, Rect};
 use super::dgi::{DgiParams, Guide, Surface};
-use crate::gpu::{GpuContext, GpuError, PassTimer};
+use crate::gpu::{Band, GpuContext, GpuError, PassTimer};
 
 /// The kernel source: the ellipse solver, then the DGI kernel (WGSL has no includes).
 pub const DGI_WGSL: &str = concat!(
@@ -177,6 +177,19 @@ impl GpuGuide {
         }
         out
     }
+
+    /// The same guide for the band of `rows` image rows from row `row0` (a frame split to fit
+    /// the adapter's binding limit): the kernel's row `y` is image row `row0 + y`. Only the
+    /// integer parts of the centres move, so every band pixel's offset from a centre, and
+    /// its value, is the whole image's to the bit.
+    #[must_use]
+    pub fn band(mut self, row0: u32, rows: u32) -> Self {
+        self.params.size[1] = rows;
+        let shift = |c: &mut [i32; 2]| c[1] = c[1].saturating_sub_unsigned(row0);
+        self.pieces.iter_mut().for_each(|p| shift(&mut p.center_i));
+        self.tiles.iter_mut().for_each(|t| shift(&mut t.center_i));
+        self
+    }
 }
 
 /// The compiled DGI kernel.
@@ -202,11 +215,27 @@ impl DgiKernel {
         guide: &Guide,
         params: &DgiParams,
     ) -> Result<Vec<f32>, GpuError> {
-        let run = self.prepare(ctx, surface, guide, params)?;
-        let mut enc = ctx.device.create_command_encoder(&Default::default());
-        run.record(&mut enc, None);
-        ctx.queue.submit([enc.finish()]);
-        ctx.read_buffer(&run.output)
+        let max = ctx
+            .limits
+            .max_storage_buffer_binding_size
+            .min(ctx.limits.max_buffer_size);
+        // An image larger than one binding is computed in bands of rows (DESIGN.md §11).
+        let bands = Band::split(params.width, params.height, VALUE_BYTES, max).ok_or(
+            GpuError::TooLarge {
+                what: "one row of the DGI output",
+                bytes: u64::from(params.width) * VALUE_BYTES,
+                max,
+            },
+        )?;
+        let mut out = Vec::with_capacity(params.width as usize * params.height as usize);
+        for band in bands {
+            let run = self.prepare_band(ctx, surface, guide, params, band.row0, band.rows)?;
+            let mut enc = ctx.device.create_command_encoder(&Default::default());
+            run.record(&mut enc, None);
+            ctx.queue.submit([enc.finish()]);
+            out.extend(ctx.read_buffer::<f32>(&run.output)?);
+        }
+        Ok(out)
     }
 
     /// Uploads the guide and allocates the output: everything but the dispatch.
@@ -217,8 +246,23 @@ impl DgiKernel {
         guide: &Guide,
         params: &DgiParams,
     ) -> Result<DgiRun, GpuError> {
-        let g = GpuGuide::new(surface, guide, params);
-        let bytes = u64::from(params.width) * u64::from(params.height) * VALUE_BYTES;
+        self.prepare_band(ctx, surface, guide, params, 0, params.height)
+    }
+
+    /// [`Self::prepare`] for the band of `rows` rows from image row `row0` alone: the output
+    /// holds `width × rows` values, the band's rows of the whole image's DGI.
+    pub fn prepare_band(
+        &self,
+        ctx: &GpuContext,
+        surface: &Surface,
+        guide: &Guide,
+        params: &DgiParams,
+        row0: u32,
+        rows: u32,
+    ) -> Result<DgiRun, GpuError> {
+        debug_assert!(u64::from(row0) + u64::from(rows) <= u64::from(params.height));
+        let g = GpuGuide::new(surface, guide, params).band(row0, rows);
+        let bytes = u64::from(params.width) * u64::from(rows) * VALUE_BYTES;
         let max = ctx
             .limits
             .max_storage_buffer_binding_size
@@ -279,7 +323,7 @@ impl DgiKernel {
             pipeline: self.pipeline.clone(),
             bind,
             output,
-            groups: [params.width.div_ceil(16), params.height.div_ceil(16)],
+            groups: [params.width.div_ceil(16), rows.div_ceil(16)],
         })
     }
 }
@@ -310,9 +354,19 @@ pub struct DgiRun {
 impl DgiRun {
     /// Records the dispatch; with a timer, pass `pass` of it measures the kernel.
     pub fn record(&self, enc: &mut wgpu::CommandEncoder, timer: Option<(&PassTimer, u32)>) {
+        self.record_with(enc, timer.map(|(t, i)| t.writes(i)));
+    }
+
+    /// Records the dispatch with these timestamp writes (a part of a split pass:
+    /// [`PassTimer::writes_part`]).
+    pub fn record_with(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
+    ) {
         let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("roi/dgi"),
-            timestamp_writes: timer.map(|(t, i)| t.writes(i)),
+            timestamp_writes,
         });
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &self.bind, &[]);

@@ -85,7 +85,11 @@ pub struct GpuParams {
     /// 1: only pixels whose bit is set in the shown mask may be selected (the wall camera's
     /// display shows them, DESIGN.md §11); 0: every pixel.
     pub masked: u32,
-    pub _pad: [u32; 3],
+    /// The image's index of this schedule's pixel 0 (a frame split into bands of rows): the
+    /// coin flips are drawn for image pixel `pixel_base + p`, so every band flips the whole
+    /// image's coins.
+    pub pixel_base: u32,
+    pub _pad: [u32; 2],
 }
 
 /// Mirrors `ArgsParams` in shaders/schedule/args.wgsl.
@@ -150,6 +154,20 @@ impl ScheduleKernel {
         dgi: &wgpu::Buffer,
         shown: Option<&[u32]>,
         config: &ScheduleConfig,
+    ) -> Result<ScheduleRun, ScheduleError> {
+        self.prepare_band(ctx, dgi, shown, config, 0)
+    }
+
+    /// [`Self::prepare_shown`] for a band of an image split to fit the adapter's bindings:
+    /// `config` gives the band's size, `dgi`, `shown` and the list are the band's own (pixel
+    /// `p` of them is image pixel `pixel_base + p`), and the coin flips are the whole image's.
+    pub fn prepare_band(
+        &self,
+        ctx: &GpuContext,
+        dgi: &wgpu::Buffer,
+        shown: Option<&[u32]>,
+        config: &ScheduleConfig,
+        pixel_base: u32,
     ) -> Result<ScheduleRun, ScheduleError> {
         let p_min = validate_p_min(config.p_min)?;
         let layout = Layout::new(config.width, config.height)?;
@@ -224,6 +242,7 @@ impl ScheduleKernel {
             order: config.order,
             p_min,
             masked: shown.is_some(),
+            pixel_base,
         })
     }
 
@@ -341,6 +360,7 @@ pub struct ScheduleRun {
     order: Order,
     p_min: f32,
     masked: bool,
+    pixel_base: u32,
 }
 
 impl ScheduleRun {
@@ -355,6 +375,18 @@ impl ScheduleRun {
         seed: u32,
         timer: Option<(&PassTimer, u32)>,
     ) {
+        self.record_with(enc, iteration, seed, timer.map(|(t, i)| t.writes(i)));
+    }
+
+    /// [`Self::record`] with these timestamp writes (a part of a split pass:
+    /// [`PassTimer::writes_part`]).
+    pub fn record_with(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        iteration: u32,
+        seed: u32,
+        timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
+    ) {
         let upload = self
             .device
             .create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -365,7 +397,7 @@ impl ScheduleRun {
         enc.copy_buffer_to_buffer(&upload, 0, &self.params, 0, self.params.size());
         let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("schedule"),
-            timestamp_writes: timer.map(|(t, i)| t.writes(i)),
+            timestamp_writes,
         });
         pass.set_pipeline(&self.compact);
         pass.set_bind_group(0, &self.bind, &[]);
@@ -386,7 +418,8 @@ impl ScheduleRun {
             p_min: self.p_min,
             scatter_half_bits: self.layout.scatter_half_bits,
             masked: u32::from(self.masked),
-            _pad: [0; 3],
+            pixel_base: self.pixel_base,
+            _pad: [0; 2],
         }
     }
 
@@ -459,7 +492,7 @@ mod tests {
             &compact,
             "Params",
             &crate::rust_layout!(GpuParams; size, tiles_x, order, iteration, seed, p_min,
-                scatter_half_bits, masked, _pad),
+                scatter_half_bits, masked, pixel_base, _pad),
         );
         let args = validated("args.wgsl", ARGS_WGSL);
         assert_same_layout(

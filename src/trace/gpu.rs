@@ -11,7 +11,7 @@ use super::accum::Accumulation;
 use super::pack::PackedScene;
 use super::path::TraceSettings;
 use super::wall::WallCamera;
-use crate::gpu::{GpuContext, GpuError, PassTimer};
+use crate::gpu::{Band, GpuContext, GpuError, PassTimer};
 
 /// The kernel source (WGSL has no includes).
 pub const TRACE_WGSL: &str = concat!(
@@ -61,7 +61,11 @@ pub struct GpuTraceParams {
     pub punctual_count: u32,
     pub punct_select: f32,
     pub ortho_half_y: f32,
-    pub _pad1: [u32; 3],
+    /// The band of rows this dispatch covers ([`Band`]): its buffers hold `size.x × rows`
+    /// pixels from image row `row0`.
+    pub row0: u32,
+    pub rows: u32,
+    pub _pad1: u32,
 }
 
 /// The full-frame grid: threads (8 × 8 tiles, padded) and a 2D workgroup grid within the
@@ -88,7 +92,19 @@ impl GpuTraceParams {
         wall: Option<&WallCamera>,
         list_mode: bool,
     ) -> Self {
-        let (threads, [gx, _]) = full_frame_grid(s.width, s.height);
+        Self::for_band(scene, s, wall, list_mode, Band::whole(s.height))
+    }
+
+    /// [`Self::with_wall`] for the rows of `band` alone.
+    #[must_use]
+    pub fn for_band(
+        scene: &PackedScene,
+        s: &TraceSettings,
+        wall: Option<&WallCamera>,
+        list_mode: bool,
+        band: Band,
+    ) -> Self {
+        let (threads, [gx, _]) = full_frame_grid(s.width, band.rows);
         let c = &s.camera;
         Self {
             size: [s.width, s.height],
@@ -116,7 +132,9 @@ impl GpuTraceParams {
             punctual_count: scene.punctual_count,
             punct_select: scene.punct_select,
             ortho_half_y: c.ortho_half_y,
-            _pad1: [0; 3],
+            row0: band.row0,
+            rows: band.rows,
+            _pad1: 0,
         }
     }
 }
@@ -283,6 +301,8 @@ pub struct TraceRun {
     wall: Option<WallCamera>,
     /// The tile table ([`TILE_VEC4S`](super::wall::TILE_VEC4S) vec4s a tile).
     wall_table: wgpu::Buffer,
+    /// The rows of the image this run's accumulation holds.
+    band: Band,
 }
 
 impl TraceRun {
@@ -311,15 +331,34 @@ impl TraceRun {
         accum: &GpuAccum,
         schedule: Option<(&wgpu::Buffer, &wgpu::Buffer)>,
     ) -> Self {
+        let band = Band::whole(settings.height);
+        Self::for_band(ctx, kernel, scene, settings, wall, accum, schedule, band)
+    }
+
+    /// [`Self::with_wall`] for the rows of `band` alone: `accum` holds those rows (it is
+    /// `width × band.rows`), and `schedule`'s list, if any, holds band pixel indices.
+    #[allow(clippy::too_many_arguments)]
+    pub fn for_band(
+        ctx: &GpuContext,
+        kernel: &TraceKernel,
+        scene: &PackedScene,
+        settings: &TraceSettings,
+        wall: Option<&WallCamera>,
+        accum: &GpuAccum,
+        schedule: Option<(&wgpu::Buffer, &wgpu::Buffer)>,
+        band: Band,
+    ) -> Self {
+        debug_assert_eq!([accum.width, accum.height], [settings.width, band.rows]);
         let params = ctx
             .device
             .create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("trace params"),
-                contents: bytemuck::bytes_of(&GpuTraceParams::with_wall(
+                contents: bytemuck::bytes_of(&GpuTraceParams::for_band(
                     scene,
                     settings,
                     wall,
                     schedule.is_some(),
+                    band,
                 )),
                 usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             });
@@ -361,7 +400,7 @@ impl TraceRun {
                 entry(6, &wall_buf),
             ],
         });
-        let (_, groups) = full_frame_grid(settings.width, settings.height);
+        let (_, groups) = full_frame_grid(settings.width, band.rows);
         Self {
             pipeline: kernel.pipeline.clone(),
             params,
@@ -370,6 +409,7 @@ impl TraceRun {
             groups,
             wall: wall.cloned(),
             wall_table: wall_buf,
+            band,
         }
     }
 
@@ -397,7 +437,13 @@ impl TraceRun {
 
     /// Rewrites the parameters (a new camera, seed or depth) before the next submit.
     pub fn set_settings(&self, ctx: &GpuContext, scene: &PackedScene, settings: &TraceSettings) {
-        let p = GpuTraceParams::with_wall(scene, settings, self.wall.as_ref(), self.args.is_some());
+        let p = GpuTraceParams::for_band(
+            scene,
+            settings,
+            self.wall.as_ref(),
+            self.args.is_some(),
+            self.band,
+        );
         ctx.queue
             .write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
     }
@@ -409,9 +455,20 @@ impl TraceRun {
         scene: &GpuScene,
         timer: Option<(&PassTimer, u32)>,
     ) {
+        self.record_with(enc, scene, timer.map(|(t, i)| t.writes(i)));
+    }
+
+    /// [`Self::record`] with these timestamp writes (a part of a split pass:
+    /// [`PassTimer::writes_part`]).
+    pub fn record_with(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        scene: &GpuScene,
+        timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
+    ) {
         let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("trace/path"),
-            timestamp_writes: timer.map(|(t, i)| t.writes(i)),
+            timestamp_writes,
         });
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &scene.bind, &[]);
@@ -437,7 +494,8 @@ mod tests {
             &crate::rust_layout!(GpuTraceParams; size, count, mode, seed, max_depth, light_count,
                 groups_x, env_size, env_marginal, env_conditional, env_constant, env_select,
                 cam_pos, tan_half_y, cam_fwd, aspect, cam_right, node_count, cam_up, wall_tiles,
-                features, extras_offset, punctual_count, punct_select, ortho_half_y, _pad1),
+                features, extras_offset, punctual_count, punct_select, ortho_half_y, row0, rows,
+                _pad1),
         );
         assert_eq!(
             struct_size(&module, "Node"),

@@ -1,0 +1,246 @@
+//! A frame larger than the adapter's storage bindings is split into bands of rows
+//! (DESIGN.md §11): on a device created with a small binding limit (wgpu enforces it), a
+//! guided render through the wall camera — ROI changes, both pixel orders, a moved eye, timed
+//! frames — and a full-frame render give bit for bit the accumulation, DGI and counts of the
+//! same render in one band. lavapipe in CI.
+
+use glam::DVec3;
+use raygun::display::DisplayModel;
+use raygun::filter::FilterParams;
+use raygun::frame::{FrameStats, GuideConfig, Renderer};
+use raygun::gpu::{Backend, Band, GpuContext, GpuError};
+use raygun::roi::cone::Cone;
+use raygun::roi::dgi::{DgiParams, Guide, Metric, Roi, Surface};
+use raygun::roi::gpu::DgiKernel;
+use raygun::scene::Scene;
+use raygun::schedule::Order;
+use raygun::trace::accum::Accumulation;
+use raygun::trace::camera::RenderCamera;
+use raygun::trace::gpu::GpuAccum;
+use raygun::trace::path::TraceSettings;
+use raygun::trace::wall::{WallCamera, WorldFromRoom};
+
+const SIZE: [u32; 2] = [61, 37];
+/// Seven rows of the accumulation (16 bytes a pixel) and a little: 6 bands of 7 rows and one
+/// of 2, the schedule's 32 × 32 blocks and the tracer's 8 × 8 tiles cut across band edges.
+const SMALL_BINDING: u64 = 16 * 61 * 7 + 20;
+
+fn settings(scene: &Scene) -> TraceSettings {
+    TraceSettings {
+        width: SIZE[0],
+        height: SIZE[1],
+        seed: 11,
+        max_depth: 3,
+        camera: RenderCamera::choose(scene, None, SIZE[0], SIZE[1]).unwrap(),
+    }
+}
+
+fn cone(x: f64, deg: f64) -> Roi {
+    Roi::Cone(Cone::from_pose(DVec3::new(x, 0.0, 1.0), DVec3::NEG_Z, DVec3::Y, deg, deg).unwrap())
+}
+
+fn small_device() -> Backend {
+    let ctx = GpuContext::with_max_binding(SMALL_BINDING).unwrap_or_else(|e| {
+        panic!("GPU tests need a wgpu adapter ({e}); `bash .ci/run` installs lavapipe")
+    });
+    assert_eq!(
+        ctx.limits.max_storage_buffer_binding_size,
+        SMALL_BINDING / 4 * 4,
+        "the device is created with the capped limit"
+    );
+    // The whole frame's accumulation does not fit one binding on it: the split is needed.
+    assert!(matches!(
+        GpuAccum::new(&ctx, SIZE[0], SIZE[1]),
+        Err(GpuError::TooLarge { .. })
+    ));
+    Backend::Gpu(Box::new(ctx))
+}
+
+/// What a render leaves: the accumulation, the DGI and each frame's scheduled pixels and rays.
+struct Run {
+    acc: Accumulation,
+    dgi: Vec<f32>,
+    stats: Vec<(Option<u32>, Option<u64>, bool)>,
+}
+
+fn frames(r: &mut Renderer, n: u32, stats: &mut Vec<(Option<u32>, Option<u64>, bool)>) {
+    for _ in 0..n {
+        let s: FrameStats = r.run_frame(true).unwrap();
+        assert!(
+            s.ms_trace.is_some_and(f64::is_finite),
+            "a timed frame is timed"
+        );
+        stats.push((s.pixels, s.rays, s.dgi_recomputed));
+    }
+}
+
+fn guided(backend: &Backend, order: Order) -> Run {
+    let model = DisplayModel::open("hornet").unwrap().0;
+    let scene = Scene::builtin("cornell").unwrap();
+    let s = settings(&scene);
+    let c = &s.camera;
+    let wall = WallCamera::new(
+        &model,
+        SIZE,
+        DVec3::new(0.0, 0.0, 1.0),
+        &WorldFromRoom::Auto,
+        (c.position.as_dvec3(), c.forward.as_dvec3(), c.up.as_dvec3()),
+    )
+    .unwrap();
+    let config = GuideConfig {
+        p_min: 0.05,
+        order,
+        ..GuideConfig::default()
+    };
+    let mut r = Renderer::guided_wall(backend, &scene, s, &model, config, Some(wall)).unwrap();
+    let mut stats = Vec::new();
+    frames(&mut r, 1, &mut stats);
+    r.set_roi(Some(cone(0.0, 15.0))).unwrap();
+    frames(&mut r, 3, &mut stats);
+    r.set_roi(Some(cone(0.8, 25.0))).unwrap();
+    frames(&mut r, 2, &mut stats);
+    r.set_wall_eye(DVec3::new(0.05, 0.02, 1.1)).unwrap();
+    frames(&mut r, 2, &mut stats);
+    r.set_roi(None).unwrap();
+    frames(&mut r, 1, &mut stats);
+    r.set_roi(Some(cone(-0.5, 10.0))).unwrap();
+    frames(&mut r, 2, &mut stats);
+    Run {
+        acc: r.accumulation().unwrap(),
+        dgi: r.dgi().unwrap(),
+        stats,
+    }
+}
+
+fn same(name: &str, banded: &Run, whole: &Run) {
+    assert_eq!(
+        banded.stats, whole.stats,
+        "{name}: pixels and rays per frame"
+    );
+    assert_eq!(banded.acc.count, whole.acc.count, "{name}: sample counts");
+    assert!(
+        banded.acc.sum == whole.acc.sum,
+        "{name}: the banded accumulation differs from the whole frame's"
+    );
+    assert_eq!(banded.dgi, whole.dgi, "{name}: DGI");
+    assert!(
+        banded.acc.count.iter().any(|&c| c > 0),
+        "{name}: something was traced"
+    );
+}
+
+#[test]
+fn a_guided_wall_render_in_bands_is_the_whole_frames_render_bit_for_bit() {
+    let small = small_device();
+    let whole = Backend::Gpu(Box::new(GpuContext::for_tests()));
+    for order in [Order::Coherent, Order::Scattered] {
+        let b = guided(&small, order);
+        let w = guided(&whole, order);
+        same(&format!("{order:?}"), &b, &w);
+        // The ROI steers both: its pixels (d = 0) have more samples than the rest on average.
+        let (mut roi, mut rest) = ((0u64, 0u64), (0u64, 0u64));
+        for (i, &d) in b.dgi.iter().enumerate() {
+            let c = u64::from(b.acc.count[i]);
+            let slot = if d == 0.0 { &mut roi } else { &mut rest };
+            *slot = (slot.0 + c, slot.1 + 1);
+        }
+        assert!(roi.1 > 0 && rest.1 > 0);
+        assert!(
+            roi.0 * rest.1 > rest.0 * roi.1,
+            "{order:?}: the ROI is sampled more"
+        );
+    }
+}
+
+#[test]
+fn a_full_frame_in_bands_and_its_picture_are_the_whole_frames() {
+    let small = small_device();
+    let whole = Backend::Gpu(Box::new(GpuContext::for_tests()));
+    let scene = Scene::builtin("cornell").unwrap();
+    let run = |backend: &Backend| {
+        let mut r = Renderer::full(backend, &scene, settings(&scene)).unwrap();
+        let mut stats = Vec::new();
+        frames(&mut r, 3, &mut stats);
+        let acc = r.accumulation().unwrap();
+        // The banded picture is larger than the filter's bindings: the CPU twin filters it.
+        let picture = r.picture(&FilterParams::default()).unwrap();
+        (acc, stats, picture)
+    };
+    let (acc_b, stats_b, picture_b) = run(&small);
+    let (acc_w, stats_w, _) = run(&whole);
+    assert_eq!(stats_b, stats_w);
+    assert_eq!(acc_b.count, acc_w.count);
+    assert!(acc_b.sum == acc_w.sum, "full frame: banded sums differ");
+    assert!(acc_b.count.iter().all(|&c| c == 3));
+    let cpu = Renderer::full(&Backend::Cpu, &scene, settings(&scene)).unwrap();
+    let want = cpu
+        .picture_of(
+            &FilterParams::default(),
+            &acc_b,
+            &vec![0.0; acc_b.sum.len()],
+        )
+        .unwrap();
+    assert_eq!(
+        picture_b, want,
+        "the CPU twin's filter of the same accumulation"
+    );
+}
+
+#[test]
+fn the_dgi_kernel_computes_a_large_image_in_bands() {
+    let Backend::Gpu(small) = small_device() else {
+        unreachable!()
+    };
+    let whole = GpuContext::for_tests();
+    let model = DisplayModel::open("hornet").unwrap().0;
+    let surface = Surface::from_model(&model);
+    // 4 bytes a pixel: 200 × 120 needs 96 kB, more than the small device's one binding.
+    let params = DgiParams {
+        width: 200,
+        height: 120,
+        falloff_px: Some(40.0),
+    };
+    for metric in [Metric::Exact, Metric::Angular] {
+        let guide = Guide::new(&surface, &cone(0.3, 20.0), metric).unwrap();
+        let kernel_b = DgiKernel::new(&small);
+        let kernel_w = DgiKernel::new(&whole);
+        let b = kernel_b.compute(&small, &surface, &guide, &params).unwrap();
+        let w = kernel_w.compute(&whole, &surface, &guide, &params).unwrap();
+        assert_eq!(b.len(), 200 * 120);
+        assert_eq!(b, w, "{metric:?}: banded DGI");
+        assert!(b.contains(&0.0) && b.iter().any(|&d| d > 0.5));
+    }
+}
+
+#[test]
+fn bands_cover_the_image_and_fit_the_binding() {
+    for (w, h, bpp, max) in [
+        (61, 37, 16, SMALL_BINDING),
+        (13519, 5457, 16, 128 << 20),
+        (13519, 5457, 16, (2 << 30) - 4),
+        (1, 1, 16, 16),
+        (7, 100, 4, 28),
+    ] {
+        let bands = Band::split(w, h, bpp, max).unwrap();
+        assert_eq!(bands[0].row0, 0);
+        for pair in bands.windows(2) {
+            assert_eq!(pair[0].row0 + pair[0].rows, pair[1].row0);
+        }
+        let last = bands.last().unwrap();
+        assert_eq!(last.row0 + last.rows, h);
+        assert!(
+            bands
+                .iter()
+                .all(|b| b.rows > 0 && u64::from(w) * u64::from(b.rows) * bpp <= max)
+        );
+        // As few as fit: one band fewer would need more rows than a binding holds.
+        let fit = max / (u64::from(w) * bpp);
+        assert_eq!(bands.len() as u64, u64::from(h).div_ceil(fit));
+    }
+    assert_eq!(
+        Band::split(13519, 5457, 16, (2 << 30) - 4).unwrap().len(),
+        1
+    );
+    assert_eq!(Band::split(13519, 5457, 16, 128 << 20).unwrap().len(), 9);
+    assert!(Band::split(100, 10, 16, 1599).is_none(), "not one row fits");
+}
