@@ -170,7 +170,7 @@ impl Budget {
         if let Some(max) = max_buffer {
             // The frame is split into bands of rows to fit the bindings (DESIGN.md §11): the
             // largest buffer is then one row of the accumulation's 16 bytes per pixel at least.
-            // (A guided picture larger than one binding is filtered by the CPU twin.)
+            // (A picture larger than one binding is filtered in bands with halos.)
             let row = 16 * u64::from(w);
             if !self.device.is_empty() && crate::gpu::Band::split(w, h, 16, max).is_none() {
                 return Err(MemoryError::DeviceBuffer {

@@ -327,10 +327,10 @@ pub fn filter_cpu(
     })
 }
 
-/// Whether the filter kernels can hold `acc`'s image: each of their per-pixel buffers (the
-/// input sums, the output, the finest pyramid level) is 16 bytes a pixel in one binding.
-/// A larger picture (a frame the tracer splits into bands of rows, DESIGN.md §11) is
-/// filtered by the CPU twin, the same function.
+/// Whether the filter kernels can hold `acc`'s image in one binding (the input sums and the
+/// output are 16 bytes a pixel): [`Filter::timed_image`] times the kernels of such a picture;
+/// a larger one (a frame the tracer splits into bands of rows, DESIGN.md §11) is filtered in
+/// bands ([`gpu::FilterKernels::filter_banded`]) and timed by the wall clock.
 fn fits_one_binding(ctx: &GpuContext, acc: &Accumulation) -> bool {
     let max = ctx
         .limits
@@ -341,7 +341,7 @@ fn fits_one_binding(ctx: &GpuContext, acc: &Accumulation) -> bool {
 
 /// The filter stage on one backend: the GPU kernels (compiled once, at [`Filter::new`]) or
 /// the CPU twin. Every caller that wants a filtered image goes through here; on the GPU, a
-/// picture larger than one storage binding is filtered by the CPU twin.
+/// picture larger than one storage binding is filtered in bands of rows.
 pub enum Filter<'a> {
     Gpu {
         ctx: &'a GpuContext,
@@ -378,14 +378,32 @@ impl<'a> Filter<'a> {
         acc: &Accumulation,
         dgi: &[f32],
     ) -> Result<Vec<DVec3>, gpu::FilterGpuError> {
-        Ok(match self {
-            Self::Gpu { ctx, kernels } if fits_one_binding(ctx, acc) => kernels
-                .filter(ctx, params, acc, dgi)?
+        Ok(match self.gpu_banded(params, acc, dgi)? {
+            Some(image) => image
                 .iter()
                 .map(|p| DVec3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2])))
                 .collect(),
-            _ => filter_cpu(params, acc, dgi)?,
+            None => filter_cpu(params, acc, dgi)?,
         })
+    }
+
+    /// The GPU kernels' picture, in bands where it exceeds one binding; `None` on the CPU
+    /// backend, and where not even one band with its halo fits a binding (a binding of fewer
+    /// rows than the filter reaches): the CPU twin, the same function, filters those.
+    fn gpu_banded(
+        &self,
+        params: &FilterParams,
+        acc: &Accumulation,
+        dgi: &[f32],
+    ) -> Result<Option<Vec<[f32; 4]>>, gpu::FilterGpuError> {
+        let Self::Gpu { ctx, kernels } = self else {
+            return Ok(None);
+        };
+        match kernels.filter_banded(ctx, params, acc, dgi) {
+            Ok(image) => Ok(Some(image)),
+            Err(gpu::FilterGpuError::Gpu(crate::gpu::GpuError::TooLarge { .. })) => Ok(None),
+            Err(e) => Err(e),
+        }
     }
 
     /// [`Self::image`] with the filter's own time in ms: the kernels' (GPU timestamps where
@@ -442,15 +460,13 @@ impl<'a> Filter<'a> {
         // Straight to f32: a widened copy of a large image would only raise the peak.
         Ok(match (self, params.kind) {
             (_, FilterKind::Off) => acc.mean_image(),
-            (Self::Gpu { ctx, kernels }, _) if fits_one_binding(ctx, acc) => kernels
-                .filter(ctx, params, acc, dgi)?
-                .iter()
-                .map(|p| Vec3::new(p[0], p[1], p[2]))
-                .collect(),
-            _ => filter_cpu(params, acc, dgi)?
-                .iter()
-                .map(|p| p.as_vec3())
-                .collect(),
+            _ => match self.gpu_banded(params, acc, dgi)? {
+                Some(image) => image.iter().map(|p| Vec3::new(p[0], p[1], p[2])).collect(),
+                None => filter_cpu(params, acc, dgi)?
+                    .iter()
+                    .map(|p| p.as_vec3())
+                    .collect(),
+            },
         })
     }
 }

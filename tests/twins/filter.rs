@@ -137,3 +137,64 @@ fn gpu_converged_pixels_pass_through_exactly() {
         assert!(kernels.filter(&ctx, &p, &acc, &dgi).unwrap() != raw);
     }
 }
+
+/// A picture larger than the adapter's bindings is filtered in bands of rows with halos
+/// (`FilterKernels::filter_banded`): on a device whose binding holds 260 of its 700 rows, the
+/// exact filter's bands give the one-binding kernels' values bit for bit, the fast filter's
+/// agree with them and with the CPU twin within the twin tolerance (its final read forms level
+/// coordinates in f32 from band rows).
+#[test]
+fn a_picture_larger_than_one_binding_is_filtered_in_bands() {
+    const BW: u32 = 96;
+    const BH: u32 = 700;
+    let small = GpuContext::with_max_binding(16 * u64::from(BW) * 260).unwrap();
+    let whole = GpuContext::for_tests();
+    let (ks, kw) = (FilterKernels::new(&small), FilterKernels::new(&whole));
+    let dgi: Vec<f32> = (0..BW * BH)
+        .map(|i| (((i / BW) % 128) as f32 / 127.0 * 64.0).round() / 64.0)
+        .collect();
+    let edges = synth::reference(synth::Pattern::Edges, BW, BH);
+    let acc = synth::accumulate(&edges, BW, BH, |i| 1.0 - dgi[i], 6, 5);
+    for (kind, k_max) in [
+        (FilterKind::Exact, 8.0),
+        (FilterKind::Fast, 8.0),
+        (FilterKind::Fast, 16.0),
+        (FilterKind::Fast, 32.0),
+    ] {
+        let params = FilterParams {
+            kind,
+            blend: Blend::Count,
+            k_max,
+            c: 8.0,
+            variance_threshold: 1e-2,
+        };
+        let label = format!("{kind:?} k_max {k_max}");
+        assert!(
+            ks.filter(&small, &params, &acc, &dgi).is_err(),
+            "{label}: the image does not fit the small device in one piece"
+        );
+        let banded = ks.filter_banded(&small, &params, &acc, &dgi).unwrap();
+        let one = kw.filter(&whole, &params, &acc, &dgi).unwrap();
+        if kind == FilterKind::Exact {
+            assert!(banded == one, "{label}: banded exact filter differs");
+        }
+        let cpu = filter::filter_cpu(&params, &acc, &dgi).unwrap();
+        let one64: Vec<DVec3> = one
+            .iter()
+            .map(|p| DVec3::new(p[0].into(), p[1].into(), p[2].into()))
+            .collect();
+        for (reference, what) in [(&cpu, "CPU twin"), (&one64, "one binding")] {
+            for (i, (c, g)) in reference.iter().zip(&banded).enumerate() {
+                for ch in 0..3 {
+                    let (c, g) = (c[ch], f64::from(g[ch]));
+                    assert!(
+                        (c - g).abs() <= TWIN_ABS + TWIN_REL * c.abs(),
+                        "{label} against the {what}: pixel ({}, {}) channel {ch}: {c} vs {g}",
+                        i as u32 % BW,
+                        i as u32 / BW
+                    );
+                }
+            }
+        }
+    }
+}
