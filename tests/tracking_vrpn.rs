@@ -1616,3 +1616,76 @@ fn the_viewers_vrpn_source_delivers_the_shots() {
         "{got} vs {want:?}"
     );
 }
+
+/// The eyes a replay's tracked head gives (`render --guide` and `replay` read the same).
+fn head_eyes(file: PathBuf, head: DeviceId, offset: [f64; 3]) -> Vec<(f64, glam::DVec3)> {
+    let mut options = ReplayOptions::of(file.clone());
+    options.head = raygun::tracking::head::HeadOverride {
+        device: Some(head),
+        eye_offset_m: Some(offset),
+        eye_threshold_m: None,
+    };
+    let (plan, _) = ReplayPlan::new(&options).unwrap();
+    match raygun::session::guide::GuideSource::from_replay(&plan, &file).unwrap() {
+        raygun::session::guide::GuideSource::Replay { eyes, .. } => eyes,
+        other => panic!("a replay gives a replay source, not {other:?}"),
+    }
+}
+
+/// The eye the listing's sensor-0 report `which` ("first" or "last") puts through the golden
+/// calibration (identity rotation, origin at room (0, −1.2, 1.25)) with `offset`.
+fn listed_eye(listing: &Value, which: &str, offset: [f64; 3]) -> glam::DVec3 {
+    let r = &listing["tracker"]["sensors"]["0"][which];
+    let v = |key: &str| -> Vec<f64> {
+        r[key]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect()
+    };
+    let (p, q) = (v("pos"), v("quat_xyzw"));
+    let q = DQuat::from_xyzw(q[0], q[1], q[2], q[3]);
+    glam::DVec3::new(p[0], p[1] - 1.2, p[2] + 1.25) + q * glam::DVec3::from_array(offset)
+}
+
+/// A VRPN tracker sensor is the wall camera's head (DESIGN.md §11): `--head` names the device
+/// the VRPN mapping gives it, through the same calibration as the ray gun — with the default
+/// mapping (sensor 0 is body:0) and with a mapping that puts the sensor on another body. A
+/// head the mapping gives no sensor is refused by name.
+#[test]
+fn a_vrpn_sensor_is_the_tracked_head_under_any_mapping() {
+    let cap = tcp_capture();
+    let offset = [0.03, 0.08, -0.1];
+    let eyes = head_eyes(cap.replay_path(), body(), offset);
+    let sensor0 = &cap.listing["tracker"]["sensors"]["0"];
+    assert_eq!(eyes.len() as u64, sensor0["count"].as_u64().unwrap());
+    // 1 µm: the decoder renormalises the wire's quaternion.
+    let close = |a: glam::DVec3, b: glam::DVec3| (a - b).length() < 1e-6;
+    assert!(close(eyes[0].1, listed_eye(&cap.listing, "first", offset)));
+    assert!(close(
+        eyes.last().unwrap().1,
+        listed_eye(&cap.listing, "last", offset)
+    ));
+    assert!(eyes.windows(2).all(|w| w[0].0 <= w[1].0), "in time order");
+
+    // The same bytes with sensor 0 mapped to body:4 (a lab's own numbering).
+    let mut config = golden_config();
+    config.sensors = BTreeMap::from([(0, DeviceId::new(DeviceKind::Body, 4)), (1, flystick())]);
+    let mut header =
+        ReplayHeader::vrpn_recording(&"DTrack@tcp://127.0.0.1:3883".parse().unwrap(), &config);
+    header.description = "the TCP capture, sensor 0 mapped to body:4".into();
+    header.display = Some("display-models/hornet.json".into());
+    header.device = Some(flystick());
+    let mut w = ReplayWriter::new(Vec::new(), &header).unwrap();
+    for (p, t, bytes) in reads_of(&cap.tcp, &cap.udp) {
+        w.datagram(t, p, &bytes).unwrap();
+    }
+    let dir = std::env::temp_dir().join(format!("raygun-vrpn-head-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("body4.vrpn.jsonl");
+    std::fs::write(&file, w.into_inner()).unwrap();
+    let mapped = head_eyes(file.clone(), DeviceId::new(DeviceKind::Body, 4), offset);
+    assert_eq!(mapped, eyes, "the sensor's eyes under its new name");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
