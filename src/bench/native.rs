@@ -76,6 +76,9 @@ pub struct NativeBenchReport {
     pub device_budget: Vec<(&'static str, u64)>,
     /// The process's peak resident set over the run (bytes; Linux only).
     pub peak_resident_bytes: Option<u64>,
+    /// On the GPU: the bands of rows the frame's buffers are split into to fit the adapter's
+    /// storage bindings (1: unsplit), and that binding limit in bytes.
+    pub gpu_bands: Option<(usize, u64)>,
     pub rows: Vec<NativeBenchRow>,
 }
 
@@ -133,6 +136,7 @@ pub fn run(
     budget.check(crate::memory::available_host_bytes(), backend.max_binding())?;
     let pixels = budget.pixels() as f64;
     let mut rows = Vec::new();
+    let mut gpu_bands = None;
     for (name, scene) in scenes {
         let settings = paper::settings(scene, size, cfg.seed, cfg.max_depth).map_err(|source| {
             NativeBenchError::Camera {
@@ -156,6 +160,7 @@ pub fn run(
             };
             let mut renderer =
                 paper::guided_wall(backend, scene, settings, display, config, roi, wc.as_ref())?;
+            gpu_bands = renderer.gpu_bands().zip(backend.max_binding());
             let first = renderer.run_frame(true)?;
             let (mut whole, mut schedule, mut trace, mut share) =
                 (Vec::new(), Vec::new(), Vec::new(), Vec::new());
@@ -190,6 +195,7 @@ pub fn run(
         host_budget: budget.host.clone(),
         device_budget: budget.device.clone(),
         peak_resident_bytes: proc_status_bytes("VmHWM:"),
+        gpu_bands,
         rows,
     })
 }
@@ -250,6 +256,14 @@ pub fn markdown(r: &NativeBenchReport, device: &str) -> String {
     );
     if !r.device_budget.is_empty() {
         let _ = writeln!(s, "Stated memory (GPU): {}", stages(&r.device_budget));
+    }
+    if let Some((bands, max)) = r.gpu_bands {
+        let _ = writeln!(
+            s,
+            "GPU buffers: {bands} band{} of rows (the adapter's storage binding: {})",
+            if bands == 1 { "" } else { "s" },
+            bytes(max)
+        );
     }
     if let Some(peak) = r.peak_resident_bytes {
         let _ = writeln!(

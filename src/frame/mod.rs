@@ -687,6 +687,16 @@ impl<'a> Renderer<'a> {
             })
     }
 
+    /// The bands of rows a GPU frame is split into to fit the adapter's storage bindings
+    /// (1: unsplit); `None` on the CPU backend.
+    #[must_use]
+    pub fn gpu_bands(&self) -> Option<usize> {
+        match &self.engine {
+            Engine::Gpu { bands, .. } => Some(bands.len()),
+            Engine::Cpu { .. } => None,
+        }
+    }
+
     /// The wall camera, if the frames trace through one.
     #[must_use]
     pub fn wall(&self) -> Option<&WallCamera> {
