@@ -257,23 +257,37 @@ fn raygun_max_binding_splits_a_render_and_changes_none_of_its_files() {
     std::fs::create_dir_all(&dir).unwrap();
     let render = |name: &str, max: Option<&str>| {
         let mut c = std::process::Command::new(env!("CARGO_BIN_EXE_raygun"));
-        c.args(["render", "--scene", "builtin:cornell-light", "--backend", "gpu"])
-            .args(["--size", "96,54", "--iterations", "4"])
-            .args(["--filter", "exact", "--k-max", "8"])
-            .args(["--guide", "pose:0,0,1:0,0,-1:20", "--display", "hornet"])
-            .arg("--out")
-            .arg(dir.join(name));
+        c.args([
+            "render",
+            "--scene",
+            "builtin:cornell-light",
+            "--backend",
+            "gpu",
+        ])
+        .args(["--size", "96,54", "--iterations", "4"])
+        .args(["--filter", "exact", "--k-max", "8"])
+        .args(["--guide", "pose:0,0,1:0,0,-1:20", "--display", "hornet"])
+        .arg("--out")
+        .arg(dir.join(name));
         if let Some(m) = max {
             c.env("RAYGUN_MAX_BINDING", m);
         }
         c.output().unwrap()
     };
     let whole = render("whole.exr", None);
-    assert!(whole.status.success(), "{}", String::from_utf8_lossy(&whole.stderr));
+    assert!(
+        whole.status.success(),
+        "{}",
+        String::from_utf8_lossy(&whole.stderr)
+    );
     // 30 rows of the accumulation: the tracer's frame in two bands, the filter's (a window of
     // 8 rows, 9 of halo on each side) in five.
     let banded = render("banded.exr", Some(&(16 * 96 * 30).to_string()));
-    assert!(banded.status.success(), "{}", String::from_utf8_lossy(&banded.stderr));
+    assert!(
+        banded.status.success(),
+        "{}",
+        String::from_utf8_lossy(&banded.stderr)
+    );
     let mut compared = 0;
     for entry in std::fs::read_dir(&dir).unwrap() {
         let name = entry.unwrap().file_name().into_string().unwrap();
@@ -286,7 +300,10 @@ fn raygun_max_binding_splits_a_render_and_changes_none_of_its_files() {
             compared += 1;
         }
     }
-    assert!(compared >= 3, "the image, the DGI and the counts: {compared} files");
+    assert!(
+        compared >= 3,
+        "the image, the DGI and the counts: {compared} files"
+    );
     let bad = render("bad.exr", Some("lots"));
     assert!(!bad.status.success());
     let err = String::from_utf8_lossy(&bad.stderr);

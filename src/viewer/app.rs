@@ -476,8 +476,9 @@ impl eframe::App for ViewerApp<'_> {
             }
         };
         let [w, h] = picture.size;
-        let image =
-            egui::ColorImage::from_rgba_unmultiplied([w as usize, h as usize], &picture.rgba);
+        let max_side = ui.ctx().input(|i| i.max_texture_side) as u32;
+        let (texels, [tw, th]) = super::core::fit_texture(&picture.rgba, [w, h], max_side);
+        let image = egui::ColorImage::from_rgba_unmultiplied([tw as usize, th as usize], &texels);
         match &mut self.texture {
             Some(t) => t.set(image, egui::TextureOptions::NEAREST),
             None => {
