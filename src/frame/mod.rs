@@ -14,6 +14,10 @@
 //! live in the accumulation and persist across ROI changes. [`Renderer::picture`] filters the
 //! accumulation with the DGI when a picture is wanted.
 //!
+//! On the GPU a frame whose buffers exceed the adapter's largest storage binding runs in bands
+//! of rows (`GpuBand`, DESIGN.md §11): every step records one dispatch per band into its pass,
+//! and every kernel computes the image pixel's values, so the split changes nothing.
+//!
 //! A full-frame render ([`Renderer::full`]) is a guided frame without an ROI and without a
 //! display: its DGI is 0 everywhere, so every pixel is traced every frame and the scheduling
 //! step has nothing to decide (the tracer covers the frame directly). A guided render before
