@@ -113,25 +113,9 @@ pub struct UploadedInputs {
     pub dgi: wgpu::Buffer,
 }
 
-/// The largest buffer this adapter can bind.
-fn binding_limit(ctx: &GpuContext) -> u64 {
-    ctx.limits
-        .max_storage_buffer_binding_size
-        .min(ctx.limits.max_buffer_size)
-}
-
-fn check_size(ctx: &GpuContext, what: &'static str, bytes: u64) -> Result<(), GpuError> {
-    let max = binding_limit(ctx);
-    if bytes > max {
-        return Err(GpuError::TooLarge { what, bytes, max });
-    }
-    Ok(())
-}
-
 impl UploadedInputs {
     pub fn new(ctx: &GpuContext, acc: &Accumulation, dgi: &[f32]) -> Result<Self, GpuError> {
-        check_size(
-            ctx,
+        ctx.check_binding(
             "filter input accumulation",
             size_of_val(&acc.sum[..]) as u64,
         )?;
@@ -290,7 +274,7 @@ impl FilterKernels {
         check_inputs(params, acc, dgi)?;
         params.validate().map_err(FilterInputError::from)?;
         let (w, h) = (acc.width, acc.height);
-        let max = binding_limit(ctx);
+        let max = ctx.max_binding();
         let fits = |rows: u32| {
             let px = u64::from(w) * u64::from(rows);
             let mut largest = 16 * px;
@@ -381,7 +365,7 @@ impl FilterKernels {
                 });
             }
         }
-        check_size(ctx, "filter output", n * 16)?;
+        ctx.check_binding("filter output", n * 16)?;
         let output = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("filter output"),
             size: n * 16,
@@ -448,7 +432,7 @@ impl FilterKernels {
         let dummy;
         if params.kind == FilterKind::Fast {
             let storage = |label: &str, texels: u64| -> Result<wgpu::Buffer, GpuError> {
-                check_size(ctx, "filter pyramid level", texels * 16)?;
+                ctx.check_binding("filter pyramid level", texels * 16)?;
                 Ok(ctx.device.create_buffer(&wgpu::BufferDescriptor {
                     label: Some(label),
                     size: texels.max(1) * 16,

@@ -332,10 +332,7 @@ pub fn filter_cpu(
 /// a larger one (a frame the tracer splits into bands of rows, DESIGN.md §11) is filtered in
 /// bands ([`gpu::FilterKernels::filter_banded`]) and timed by the wall clock.
 fn fits_one_binding(ctx: &GpuContext, acc: &Accumulation) -> bool {
-    let max = ctx
-        .limits
-        .max_storage_buffer_binding_size
-        .min(ctx.limits.max_buffer_size);
+    let max = ctx.max_binding();
     16 * u64::from(acc.width) * u64::from(acc.height) <= max
 }
 

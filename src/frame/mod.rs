@@ -935,10 +935,7 @@ pub fn dgi_cpu(
 /// binding, else as few bands of rows as fit (the accumulation's 16 bytes a pixel is the
 /// largest buffer).
 fn frame_bands(ctx: &GpuContext, w: u32, h: u32) -> Result<Vec<Band>, FrameError> {
-    let max = ctx
-        .limits
-        .max_storage_buffer_binding_size
-        .min(ctx.limits.max_buffer_size);
+    let max = ctx.max_binding();
     Band::split(w, h, ACCUM_BYTES_PER_PIXEL, max).ok_or_else(|| {
         GpuError::TooLarge {
             what: "one row of the accumulation (16 bytes per pixel)",

@@ -64,11 +64,7 @@ impl Backend {
     #[must_use]
     pub fn max_binding(&self) -> Option<u64> {
         match self {
-            Self::Gpu(ctx) => Some(
-                ctx.limits
-                    .max_storage_buffer_binding_size
-                    .min(ctx.limits.max_buffer_size),
-            ),
+            Self::Gpu(ctx) => Some(ctx.max_binding()),
             Self::Cpu => None,
         }
     }
@@ -245,6 +241,24 @@ fn adapter_rank(device_type: wgpu::DeviceType, backend: wgpu::Backend) -> (u8, u
 }
 
 impl GpuContext {
+    /// The largest storage binding in bytes (what one buffer a kernel reads may hold): the
+    /// binding limit the device was created with, or the largest buffer if that is smaller.
+    #[must_use]
+    pub fn max_binding(&self) -> u64 {
+        self.limits
+            .max_storage_buffer_binding_size
+            .min(self.limits.max_buffer_size)
+    }
+
+    /// A clear error where `bytes` of `what` would not fit one storage binding.
+    pub fn check_binding(&self, what: &'static str, bytes: u64) -> Result<(), GpuError> {
+        let max = self.max_binding();
+        if bytes > max {
+            return Err(GpuError::TooLarge { what, bytes, max });
+        }
+        Ok(())
+    }
+
     /// A WGSL shader module.
     #[must_use]
     pub fn shader_module(&self, label: &str, source: &str) -> wgpu::ShaderModule {

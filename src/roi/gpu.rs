@@ -215,10 +215,7 @@ impl DgiKernel {
         guide: &Guide,
         params: &DgiParams,
     ) -> Result<Vec<f32>, GpuError> {
-        let max = ctx
-            .limits
-            .max_storage_buffer_binding_size
-            .min(ctx.limits.max_buffer_size);
+        let max = ctx.max_binding();
         // An image larger than one binding is computed in bands of rows (DESIGN.md §11).
         let bands = Band::split(params.width, params.height, VALUE_BYTES, max).ok_or(
             GpuError::TooLarge {
@@ -263,17 +260,7 @@ impl DgiKernel {
         debug_assert!(u64::from(row0) + u64::from(rows) <= u64::from(params.height));
         let g = GpuGuide::new(surface, guide, params).band(row0, rows);
         let bytes = u64::from(params.width) * u64::from(rows) * VALUE_BYTES;
-        let max = ctx
-            .limits
-            .max_storage_buffer_binding_size
-            .min(ctx.limits.max_buffer_size);
-        if bytes > max {
-            return Err(GpuError::TooLarge {
-                what: "DGI output",
-                bytes,
-                max,
-            });
-        }
+        ctx.check_binding("DGI output", bytes)?;
         let storage = |label: &str, data: &[u8]| {
             ctx.device
                 .create_buffer_init(&wgpu::util::BufferInitDescriptor {

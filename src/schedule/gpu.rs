@@ -187,18 +187,7 @@ impl ScheduleKernel {
                 storage: dgi.usage().contains(wgpu::BufferUsages::STORAGE),
             });
         }
-        let max = ctx
-            .limits
-            .max_storage_buffer_binding_size
-            .min(ctx.limits.max_buffer_size);
-        if list_bytes > max {
-            return Err(GpuError::TooLarge {
-                what: "schedule list",
-                bytes: list_bytes,
-                max,
-            }
-            .into());
-        }
+        ctx.check_binding("schedule list", list_bytes)?;
         let list = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("schedule list"),
             size: list_bytes,

@@ -152,17 +152,6 @@ impl TraceKernel {
     }
 }
 
-fn check_binding(ctx: &GpuContext, what: &'static str, bytes: u64) -> Result<(), GpuError> {
-    let max = ctx
-        .limits
-        .max_storage_buffer_binding_size
-        .min(ctx.limits.max_buffer_size);
-    if bytes > max {
-        return Err(GpuError::TooLarge { what, bytes, max });
-    }
-    Ok(())
-}
-
 fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
     wgpu::BindGroupEntry {
         binding,
@@ -202,7 +191,7 @@ impl GpuScene {
         let mut bytes = 0;
         let mut buffers = Vec::with_capacity(arrays.len());
         for (what, data) in arrays {
-            check_binding(ctx, what, data.len() as u64)?;
+            ctx.check_binding(what, data.len() as u64)?;
             bytes += data.len() as u64;
             buffers.push(
                 ctx.device
@@ -241,7 +230,7 @@ impl GpuAccum {
     /// Zeroed buffers for a `width × height` image.
     pub fn new(ctx: &GpuContext, width: u32, height: u32) -> Result<Self, GpuError> {
         let n = u64::from(width) * u64::from(height);
-        check_binding(ctx, "accumulation (16 bytes per pixel)", n * 16)?;
+        ctx.check_binding("accumulation (16 bytes per pixel)", n * 16)?;
         let make = |label, size| {
             ctx.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
