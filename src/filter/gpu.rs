@@ -192,6 +192,22 @@ impl FilterRun {
     }
 }
 
+/// Whether the kernels can filter a `size` image in one pass: every buffer they bind (the
+/// input sums and the output, 16 bytes a pixel, and for the fast filter each pyramid level and
+/// its intermediate, which reach past the image) fits one storage binding.
+#[must_use]
+pub fn fits_one_binding(ctx: &GpuContext, params: &FilterParams, [w, h]: [u32; 2]) -> bool {
+    let mut largest = 16 * u64::from(w) * u64::from(h);
+    if params.kind == FilterKind::Fast {
+        let plan = Plan::new(w, h, params.k_max);
+        for l in &plan.levels {
+            largest = largest.max(16 * u64::from(l.size[0]) * u64::from(l.size[1]));
+        }
+        largest = largest.max(16 * plan.temp_texels());
+    }
+    largest <= ctx.max_binding()
+}
+
 /// Rows above and below a band of a `width`-wide image that the filter reads for its pixels,
 /// and the row multiple a band must start on: `(halo, align)`, the halo a multiple of `align`.
 ///
@@ -275,18 +291,7 @@ impl FilterKernels {
         params.validate().map_err(FilterInputError::from)?;
         let (w, h) = (acc.width, acc.height);
         let max = ctx.max_binding();
-        let fits = |rows: u32| {
-            let px = u64::from(w) * u64::from(rows);
-            let mut largest = 16 * px;
-            if params.kind == FilterKind::Fast {
-                let plan = Plan::new(w, rows, params.k_max);
-                for l in &plan.levels {
-                    largest = largest.max(16 * u64::from(l.size[0]) * u64::from(l.size[1]));
-                }
-                largest = largest.max(16 * plan.temp_texels());
-            }
-            largest <= max
-        };
+        let fits = |rows: u32| fits_one_binding(ctx, params, [w, rows]);
         if fits(h) {
             return self.filter(ctx, params, acc, dgi);
         }

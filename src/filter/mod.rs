@@ -327,15 +327,6 @@ pub fn filter_cpu(
     })
 }
 
-/// Whether the filter kernels can hold `acc`'s image in one binding (the input sums and the
-/// output are 16 bytes a pixel): [`Filter::timed_image`] times the kernels of such a picture;
-/// a larger one (a frame the tracer splits into bands of rows, DESIGN.md §11) is filtered in
-/// bands ([`gpu::FilterKernels::filter_banded`]) and timed by the wall clock.
-fn fits_one_binding(ctx: &GpuContext, acc: &Accumulation) -> bool {
-    let max = ctx.max_binding();
-    16 * u64::from(acc.width) * u64::from(acc.height) <= max
-}
-
 /// The filter stage on one backend: the GPU kernels (compiled once, at [`Filter::new`]) or
 /// the CPU twin. Every caller that wants a filtered image goes through here; on the GPU, a
 /// picture larger than one storage binding is filtered in bands of rows.
@@ -405,8 +396,9 @@ impl<'a> Filter<'a> {
 
     /// [`Self::image`] with the filter's own time in ms: the kernels' (GPU timestamps where
     /// the adapter has them, else the wall clock around submit-and-wait; uploads and the
-    /// read-back excluded) or the CPU twin's wall clock. The flag says whether timestamps were
-    /// used.
+    /// read-back excluded) or the CPU twin's wall clock; a picture the kernels filter in bands
+    /// ([`gpu::fits_one_binding`]) is timed by the wall clock around them all. The flag says
+    /// whether timestamps were used.
     pub fn timed_image(
         &self,
         params: &FilterParams,
@@ -415,7 +407,8 @@ impl<'a> Filter<'a> {
     ) -> Result<(Vec<Vec3>, f64, bool), gpu::FilterGpuError> {
         match self {
             Self::Gpu { ctx, kernels }
-                if params.kind != FilterKind::Off && fits_one_binding(ctx, acc) =>
+                if params.kind != FilterKind::Off
+                    && gpu::fits_one_binding(ctx, params, [acc.width, acc.height]) =>
             {
                 check_inputs(params, acc, dgi)?;
                 let uploaded = gpu::UploadedInputs::new(ctx, acc, dgi)?;

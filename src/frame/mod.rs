@@ -828,8 +828,14 @@ impl<'a> Renderer<'a> {
                 dgi_kernel: Some(_),
                 ..
             } => {
-                let mut dgi = Vec::with_capacity(n);
-                for g in bands.iter().filter_map(|b| b.guide.as_ref()) {
+                // The first band's read-back is the vector (a one-band frame's whole DGI).
+                let mut parts = bands.iter().filter_map(|b| b.guide.as_ref());
+                let mut dgi = match parts.next() {
+                    Some(g) => ctx.read_buffer::<f32>(&g.dgi)?,
+                    None => Vec::new(),
+                };
+                dgi.reserve(n.saturating_sub(dgi.len()));
+                for g in parts {
                     dgi.extend(ctx.read_buffer::<f32>(&g.dgi)?);
                 }
                 dgi
@@ -950,8 +956,12 @@ fn frame_bands(ctx: &GpuContext, w: u32, h: u32) -> Result<Vec<Band>, FrameError
 /// Σ luminance².
 const ACCUM_BYTES_PER_PIXEL: u64 = 16;
 
-/// The bands' accumulations read back and joined into the whole frame's.
+/// The bands' accumulations read back and joined into the whole frame's (one band: its own,
+/// with no second copy).
 fn read_bands(ctx: &GpuContext, bands: &[GpuBand]) -> Result<Accumulation, GpuError> {
+    if let [one] = bands {
+        return one.accum.read(ctx);
+    }
     let (w, h) = (
         bands[0].accum.width,
         bands.iter().map(|b| b.band.rows).sum(),
@@ -973,8 +983,15 @@ fn read_bands(ctx: &GpuContext, bands: &[GpuBand]) -> Result<Accumulation, GpuEr
 /// The bits of `shown` (bit `p % 32` of word `p / 32` for image pixel `p`) for the `n` pixels
 /// from `base`, as a mask of their own.
 fn band_mask(shown: &[u32], base: u32, n: u32) -> Vec<u32> {
+    let words = n.div_ceil(32) as usize;
+    if base.is_multiple_of(32) {
+        // Word-aligned (a one-band frame's band, say): the words as they are. Bits past the
+        // band's last pixel may belong to the next band; the kernel never reads them.
+        let first = (base / 32) as usize;
+        return shown[first..first + words].to_vec();
+    }
     let bit = |p: u32| (shown[(p / 32) as usize] >> (p % 32)) & 1;
-    let mut out = vec![0u32; n.div_ceil(32) as usize];
+    let mut out = vec![0u32; words];
     for p in 0..n {
         out[(p / 32) as usize] |= bit(base + p) << (p % 32);
     }
