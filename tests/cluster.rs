@@ -230,6 +230,36 @@ mod mpi {
         same_files_as_one_process("head", head_wall, &[]);
     }
 
+    /// The guided render with its wall tiles, which every owner filters and writes itself.
+    fn guided_tiles(dir: &Path) -> Vec<String> {
+        with(guided(dir), &["--tiles", s(&dir.join("tiles"))])
+    }
+
+    fn guided_tiles_exact(dir: &Path) -> Vec<String> {
+        with(guided_tiles(dir), &["--filter", "exact", "--k-max", "10"])
+    }
+
+    fn full_wall_tiles(dir: &Path) -> Vec<String> {
+        with(full_wall(dir), &["--tiles", s(&dir.join("tiles"))])
+    }
+
+    #[test]
+    fn owners_write_their_own_tiles_the_one_process_tiles_byte_for_byte() {
+        same_files_as_one_process("tiles", guided_tiles, &[]);
+        same_files_as_one_process("tiles-exact", guided_tiles_exact, &[]);
+        same_files_as_one_process("tiles-wall", full_wall_tiles, &[]);
+        // Whole columns dealt over 3 ranks: 3, 2 and 2 of HORNET's 7, 5 tiles each.
+        let dir = tmp_dir("tiles-who");
+        let o = mpirun(&[(3, &exe(), with(guided_tiles(&dir), &["--cluster"]))]);
+        ok(&o);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            err.contains("the owners wrote 35 tile images")
+                && err.contains("(rank 0: 15, rank 1: 10, rank 2: 10)"),
+            "{err}"
+        );
+    }
+
     #[test]
     fn a_tile_owners_file_changes_who_accumulates_not_the_image() {
         let one = tmp_dir("owners-one");

@@ -101,29 +101,32 @@ pub fn start(args: &ClusterArgs) -> anyhow::Result<Cluster> {
 }
 
 /// The block owners of a `size` image: from `--tile-owners` or whole columns of `model`, or
-/// vertical strips without a display. Also the tile map as the start-up check compares it.
+/// vertical strips without a display; the tile owners they were made from (with a display);
+/// the tile map as the start-up check compares it.
 pub fn block_owners(
     args: &ClusterArgs,
     model: Option<&DisplayModel>,
     size: [u32; 2],
     ranks: usize,
-) -> anyhow::Result<(BlockOwners, String)> {
+) -> anyhow::Result<(BlockOwners, Option<TileOwners>, String)> {
     match (model, &args.tile_owners) {
         (Some(m), file) => {
             let owners = match file {
                 Some(f) => TileOwners::load(f, m, ranks).context("--tile-owners")?,
                 None => TileOwners::columns(m, ranks),
             };
-            Ok((
-                BlockOwners::of_display(m, &owners, size),
-                owners.describe(m),
-            ))
+            let map = owners.describe(m);
+            Ok((BlockOwners::of_display(m, &owners, size), Some(owners), map))
         }
         (None, Some(f)) => bail!(
             "--tile-owners {}: the tiles are a display's: this render has no --display",
             f.display()
         ),
-        (None, None) => Ok((BlockOwners::strips(size, ranks), format!("{ranks} strips"))),
+        (None, None) => Ok((
+            BlockOwners::strips(size, ranks),
+            None,
+            format!("{ranks} strips"),
+        )),
     }
 }
 
@@ -210,10 +213,12 @@ mod tests {
             cluster: true,
             ..ClusterArgs::default()
         };
-        let (b, map) = block_owners(&args, None, [64, 32], 2).unwrap();
+        let (b, tiles, map) = block_owners(&args, None, [64, 32], 2).unwrap();
         assert_eq!((b.owner, map.as_str()), (vec![0, 1], "2 strips"));
+        assert!(tiles.is_none());
         let hornet = DisplayModel::open("hornet").unwrap().0;
-        let (_, map) = block_owners(&args, Some(&hornet), [64, 32], 2).unwrap();
+        let (_, tiles, map) = block_owners(&args, Some(&hornet), [64, 32], 2).unwrap();
+        assert_eq!(tiles, Some(TileOwners::columns(&hornet, 2)));
         assert!(
             map.starts_with("c0r0=0") && map.ends_with("c6r4=1"),
             "{map}"

@@ -8,6 +8,7 @@
 //!     ──► trace the blocks dealt to this rank ──all-to-all──► each block's samples to the
 //!     owner of its tile, which accumulates them
 //! rank 0, when asked (save, report): gathers the owners' sums ──► filter ──► picture
+//! every owner, for its display tiles: the margins' sums from their owners ──► filter ──► tiles
 //! ```
 //!
 //! [`ClusterRenderer::run_frame`] is that function. Samples are exact: a sample depends only
@@ -27,7 +28,8 @@
 //! error naming it. The transport is [`exchange::Exchange`]: threads in one process for the
 //! tests ([`exchange::InProcess`]), MPI with the `cluster` feature (`mpi`). Modules: [`mod@deal`]
 //! (blocks and the deal), [`owners`] (the tile map and the `--tile-owners` file), [`handshake`]
-//! (the start-up check), [`exchange`].
+//! (the start-up check), [`exchange`], [`picture`] (each owner's tiles, filtered where they are
+//! owned).
 
 pub mod deal;
 pub mod exchange;
@@ -35,6 +37,7 @@ pub mod handshake;
 #[cfg(feature = "cluster")]
 pub mod mpi;
 pub mod owners;
+pub mod picture;
 
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -66,6 +69,8 @@ pub enum ClusterError {
     Frame(#[from] FrameError),
     #[error(transparent)]
     Schedule(#[from] ScheduleError),
+    #[error(transparent)]
+    Filter(#[from] crate::filter::FilterGpuError),
     #[error("the start-up check rejected the job: {0}")]
     Rejected(String),
     #[error("the block map is for a {map:?} image, the render's is {image:?}")]

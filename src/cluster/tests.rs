@@ -7,6 +7,7 @@ use glam::DVec3;
 use super::exchange::InProcess;
 use super::owners::TileOwners;
 use super::*;
+use crate::filter::FilterParams;
 use crate::frame::Renderer;
 use crate::gpu::Backend;
 use crate::schedule::Order;
@@ -89,20 +90,21 @@ fn single(guided: Option<Order>, with_wall: bool) -> (Accumulation, Vec<f32>) {
     r.finish().unwrap()
 }
 
-/// `ranks` in-process ranks, rank 0 broadcasting the ROI each frame; rank 0's gathered
-/// accumulation.
-fn ranks(
+/// `n` in-process ranks, rank 0 broadcasting the ROI each frame; then `after` on every rank
+/// (rank order).
+fn ranks_then<T: Send>(
     n: usize,
     guided: Option<Order>,
     with_wall: bool,
     mode: DgiMode,
     owners: impl Fn(usize) -> BlockOwners + Sync,
-) -> (Accumulation, Vec<f32>) {
-    let results: Vec<Option<(Accumulation, Vec<f32>)>> = std::thread::scope(|sc| {
+    after: impl Fn(&mut Cluster, &ClusterRenderer) -> T + Sync,
+) -> Vec<T> {
+    std::thread::scope(|sc| {
         let handles: Vec<_> = InProcess::job(n)
             .into_iter()
             .map(|end| {
-                let owners = &owners;
+                let (owners, after) = (&owners, &after);
                 sc.spawn(move || {
                     let rank = end.rank();
                     let mut c = Cluster::new(Box::new(end), Duration::from_secs(30));
@@ -130,22 +132,36 @@ fn ranks(
                         let st = r.run_frame(&mut c).unwrap();
                         assert_eq!(st.iteration, k);
                     }
-                    let progress = if guided.is_some() {
-                        r.roi_progress(&mut c).unwrap()
-                    } else {
-                        None
-                    };
-                    let g = r.gather(&mut c).unwrap();
-                    if let (Some(g), Some(p)) = (&g, progress) {
-                        // Measured from the owners' ROI sums as from the whole accumulation.
-                        assert_eq!(p, RoiProgress::measure(&g.0, &g.1));
-                        assert!(p.is_some());
-                    }
-                    g
+                    after(&mut c, &r)
                 })
             })
             .collect();
         handles.into_iter().map(|h| h.join().unwrap()).collect()
+    })
+}
+
+/// `ranks` in-process ranks, rank 0 broadcasting the ROI each frame; rank 0's gathered
+/// accumulation.
+fn ranks(
+    n: usize,
+    guided: Option<Order>,
+    with_wall: bool,
+    mode: DgiMode,
+    owners: impl Fn(usize) -> BlockOwners + Sync,
+) -> (Accumulation, Vec<f32>) {
+    let results = ranks_then(n, guided, with_wall, mode, owners, |c, r| {
+        let progress = if guided.is_some() {
+            r.roi_progress(c).unwrap()
+        } else {
+            None
+        };
+        let g = r.gather(c).unwrap();
+        if let (Some(g), Some(p)) = (&g, progress) {
+            // Measured from the owners' ROI sums as from the whole accumulation.
+            assert_eq!(p, RoiProgress::measure(&g.0, &g.1));
+            assert!(p.is_some());
+        }
+        g
     });
     let mut it = results.into_iter();
     let root = it.next().unwrap().expect("rank 0 gathers");
@@ -356,4 +372,155 @@ fn the_broadcast_tree_reaches_every_rank_once_and_sends_at_most_log2_copies() {
     }
     assert_eq!(binomial_tree(0, 8), (None, vec![4, 2, 1]));
     assert_eq!(binomial_tree(6, 8), (Some(4), vec![7]));
+}
+
+/// Tile `i` to rank `i mod n`: every owner's tiles scattered over the wall.
+fn round_robin(n: usize) -> TileOwners {
+    TileOwners {
+        ranks: (0..hornet().tiles().len()).map(|t| t % n).collect(),
+    }
+}
+
+/// Every rank's tile pictures against the one-process picture cut into tiles: every tile made
+/// once, by its owner, bit for bit. `halo`: the margin used (`None`: the filter's own).
+fn owners_pictures_match(
+    n: usize,
+    guided: bool,
+    with_wall: bool,
+    params: &FilterParams,
+    map: &(dyn Fn(usize) -> TileOwners + Sync),
+    halo: Option<(u32, u32)>,
+) -> Result<(), String> {
+    let m = hornet();
+    let order = guided.then_some(Order::Coherent);
+    let one = single(order, with_wall);
+    let mut image = crate::filter::Filter::new(&Backend::Cpu)
+        .image(params, &one.0, &one.1)
+        .unwrap();
+    if guided && with_wall {
+        wall(&scene()).blank_unshown(&mut image);
+    }
+    let tiles = map(n);
+    let pictures = ranks_then(
+        n,
+        order,
+        with_wall,
+        DgiMode::Compute,
+        |n| BlockOwners::of_display(&m, &map(n), SIZE),
+        |c, r| match halo {
+            Some(h) => r.tile_pictures_with(c, &m, &map(n), params, h).unwrap(),
+            None => r.tile_pictures(c, &m, &map(n), params).unwrap(),
+        },
+    );
+    let mut made = vec![0; m.tiles().len()];
+    for (rank, mine) in pictures.iter().enumerate() {
+        for p in mine {
+            assert_eq!(
+                tiles.ranks[p.tile], rank,
+                "tile {} made by a non-owner",
+                p.tile
+            );
+            made[p.tile] += 1;
+            let want = crate::output::tiles::cut_tile(&m, p.tile, &image, SIZE);
+            let bits = |v: &[Vec3]| -> Vec<u32> {
+                v.iter()
+                    .flat_map(|p| p.to_array())
+                    .map(f32::to_bits)
+                    .collect()
+            };
+            if bits(&p.pixels) != bits(&want) {
+                return Err(format!(
+                    "{n} ranks, {:?}: tile {} differs",
+                    params.kind,
+                    m.tiles()[p.tile].id()
+                ));
+            }
+        }
+    }
+    assert!(made.iter().all(|&k| k == 1), "{made:?}");
+    assert!(image.iter().any(|p| p.max_element() > 0.0));
+    Ok(())
+}
+
+fn filter_params(kind: crate::filter::FilterKind) -> FilterParams {
+    FilterParams {
+        kind,
+        k_max: 12.0,
+        c: 16.0,
+        ..FilterParams::default()
+    }
+}
+
+#[test]
+fn owners_filter_their_own_tiles_as_one_process_filters_the_image() {
+    use crate::filter::FilterKind::{Exact, Fast, Off};
+    let columns = |n| TileOwners::columns(&hornet(), n);
+    for kind in [Fast, Exact] {
+        for n in 1..=3 {
+            owners_pictures_match(n, true, false, &filter_params(kind), &columns, None).unwrap();
+        }
+        owners_pictures_match(3, true, false, &filter_params(kind), &round_robin, None).unwrap();
+    }
+    // Through the wall camera (pixels no tile shows stay black) and a full frame's mean image.
+    owners_pictures_match(2, true, true, &filter_params(Fast), &round_robin, None).unwrap();
+    owners_pictures_match(3, false, true, &filter_params(Off), &columns, None).unwrap();
+}
+
+/// The margin is what makes them equal: cut to a third, or off the pyramid's grid, the tiles
+/// beside another owner's differ.
+#[test]
+fn a_margin_cut_short_changes_the_owners_tiles() {
+    use crate::filter::FilterKind::{Exact, Fast};
+    for kind in [Fast, Exact] {
+        let params = filter_params(kind);
+        let (halo, align) = crate::filter::halo(&params);
+        let cut = Some((halo / 3, align));
+        let e = owners_pictures_match(3, true, false, &params, &round_robin, cut).unwrap_err();
+        assert!(e.contains("differs"), "{e}");
+    }
+    // The fast filter's regions must also start on its coarsest level's grid.
+    let params = filter_params(crate::filter::FilterKind::Fast);
+    let (halo, align) = crate::filter::halo(&params);
+    assert!(align > 1);
+    let e = owners_pictures_match(3, true, false, &params, &round_robin, Some((halo, 1)));
+    assert!(e.unwrap_err().contains("differs"));
+}
+
+#[test]
+fn a_regions_margin_is_aligned_and_the_union_of_pixels_is_counted_once() {
+    use picture::{Rect, pixels_owned_by};
+    let r = Rect {
+        x0: 37,
+        y0: 5,
+        x1: 60,
+        y1: 20,
+    };
+    assert_eq!(
+        r.grown(10, 8, [64, 24]),
+        Rect {
+            x0: 24,
+            y0: 0,
+            x1: 64,
+            y1: 24
+        }
+    );
+    let owners = BlockOwners::strips([64, 40], 2);
+    let a = Rect {
+        x0: 0,
+        y0: 0,
+        x1: 40,
+        y1: 2,
+    };
+    let b = Rect {
+        x0: 30,
+        y0: 1,
+        x1: 64,
+        y1: 3,
+    };
+    let left = pixels_owned_by(&[a, b], &owners, 0);
+    let right = pixels_owned_by(&[a, b], &owners, 1);
+    // Row 0: x 0..40; rows 1: 0..64; row 2: 30..64, split at the strips' edge x = 32.
+    assert_eq!(left.len() + right.len(), 40 + 64 + 34);
+    assert!(left.windows(2).all(|w| w[0] < w[1]) && right.windows(2).all(|w| w[0] < w[1]));
+    assert!(left.iter().all(|p| p % 64 < 32) && right.iter().all(|p| p % 64 >= 32));
 }

@@ -208,48 +208,6 @@ pub fn fits_one_binding(ctx: &GpuContext, params: &FilterParams, [w, h]: [u32; 2
     largest <= ctx.max_binding()
 }
 
-/// Rows above and below a band of a `width`-wide image that the filter reads for its pixels,
-/// and the row multiple a band must start on: `(halo, align)`, the halo a multiple of `align`.
-///
-/// The exact filter's window reaches ⌊k⌋ ≤ ⌊k_max⌋ rows. The fast filter's pixel reads two
-/// texels of a level (± its step); a level-ℓ texel sums its predecessor's texels within its
-/// y pass's reach, down to the accumulation: the halo is the largest of those sums plus the
-/// step, and bands start on a multiple of the coarsest step so that every level's texel grid
-/// in a band is the whole image's.
-#[must_use]
-pub fn halo_rows(params: &FilterParams, width: u32) -> (u32, u32) {
-    let round_up = |v: u32, a: u32| v.div_ceil(a) * a;
-    if params.kind != FilterKind::Fast {
-        return (params.k_max.floor() as u32 + 1, 1);
-    }
-    // The plan's levels do not depend on the height (their origins and steps do not).
-    let plan = Plan::new(width, 1, params.k_max);
-    let mut reach = super::pyramid::K_DIRECT.ceil();
-    let mut depth = 0.0f64;
-    let mut align = 1;
-    for (l, level) in plan.levels.iter().enumerate() {
-        let (src_origin, src_step) = match l {
-            0 => (0.0, 1.0),
-            _ => (
-                plan.levels[l - 1].origin,
-                f64::from(plan.levels[l - 1].step),
-            ),
-        };
-        let pass = plan
-            .passes
-            .iter()
-            .find(|p| p.axis == 1 && p.target == Target::Level(l))
-            .expect("every level has its y pass");
-        let offset = |t: usize| {
-            (src_origin - level.origin + (f64::from(pass.first) + t as f64) * src_step).abs()
-        };
-        depth += offset(0).max(offset(pass.weights.len().saturating_sub(1)));
-        reach = reach.max(depth + f64::from(level.step));
-        align = align.max(level.step);
-    }
-    (round_up(reach.ceil() as u32 + 2, align), align)
-}
-
 fn groups(size: [u32; 2]) -> [u32; 2] {
     [size[0].div_ceil(16), size[1].div_ceil(16)]
 }
@@ -276,7 +234,7 @@ impl FilterKernels {
     /// [`Self::filter`] for an image of any height: one that does not fit the adapter's
     /// bindings (the input sums, the output and the finest pyramid level are 16 bytes a pixel)
     /// is filtered in bands of rows, each with the rows above and below that its pixels' values
-    /// depend on ([`halo_rows`]), starting on a row of every pyramid level's grid. The exact
+    /// depend on ([`super::halo`]), starting on a row of every pyramid level's grid. The exact
     /// filter's bands are the whole image's values bit for bit; the fast filter's final read
     /// forms its level coordinates from band rows in f32, so its values agree to f32 rounding
     /// of those coordinates.
@@ -295,7 +253,7 @@ impl FilterKernels {
         if fits(h) {
             return self.filter(ctx, params, acc, dgi);
         }
-        let (halo, align) = halo_rows(params, w);
+        let (halo, align) = super::halo(params);
         // The most rows a band can have with its halo on both sides, a multiple of `align`.
         let mut rows = (max / (16 * u64::from(w))).min(u64::from(h)) as u32 / align * align;
         while rows > 0 && !fits(rows + 2 * halo) {

@@ -461,6 +461,54 @@ impl<'a> Filter<'a> {
     }
 }
 
+/// The pixels on each side of a region that the filter reads for the region's pixels, and the
+/// multiple a region's origin must sit on: `(halo, align)`, the halo a multiple of `align`.
+/// The filter is the same along both axes, so one pair serves rows (bands) and columns (an
+/// owner's tiles, DESIGN.md §12); a region of the image filtered on its own with that margin
+/// around it, its origin on multiples of `align`, has the whole image's values inside.
+///
+/// No filter reads the pixel alone. The exact filter's window reaches ⌊k⌋ ≤ ⌊k_max⌋ pixels. The fast filter's pixel reads two
+/// texels of a level (± its step); a level-ℓ texel sums its predecessor's texels within its
+/// pass's reach, down to the accumulation: the halo is the largest of those sums plus the
+/// step, and regions start on a multiple of the coarsest step so that every level's texel grid
+/// in a region is the whole image's (the levels' origins and steps do not depend on the image's
+/// size).
+#[must_use]
+pub fn halo(params: &FilterParams) -> (u32, u32) {
+    use pyramid::{Plan, Target};
+    let round_up = |v: u32, a: u32| v.div_ceil(a) * a;
+    match params.kind {
+        FilterKind::Off => return (0, 1),
+        FilterKind::Exact => return (params.k_max.floor() as u32 + 1, 1),
+        FilterKind::Fast => {}
+    }
+    let plan = Plan::new(1, 1, params.k_max);
+    let mut reach = pyramid::K_DIRECT.ceil();
+    let mut depth = 0.0f64;
+    let mut align = 1;
+    for (l, level) in plan.levels.iter().enumerate() {
+        let (src_origin, src_step) = match l {
+            0 => (0.0, 1.0),
+            _ => (
+                plan.levels[l - 1].origin,
+                f64::from(plan.levels[l - 1].step),
+            ),
+        };
+        let pass = plan
+            .passes
+            .iter()
+            .find(|p| p.axis == 1 && p.target == Target::Level(l))
+            .expect("every level has its y pass");
+        let offset = |t: usize| {
+            (src_origin - level.origin + (f64::from(pass.first) + t as f64) * src_step).abs()
+        };
+        depth += offset(0).max(offset(pass.weights.len().saturating_sub(1)));
+        reach = reach.max(depth + f64::from(level.step));
+        align = align.max(level.step);
+    }
+    (round_up(reach.ceil() as u32 + 2, align), align)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -151,6 +151,35 @@ pub fn write_tiles(
             height: image_size[1],
         });
     }
+    // One tile cut at a time: the whole picture is not copied again.
+    (0..model.tiles().len())
+        .map(|i| {
+            let pixels = cut_tile(model, i, image, image_size);
+            write_tile(dir, model, i, &pixels, format, exposure)
+        })
+        .collect()
+}
+
+/// Writes tile `tile`'s picture (`pixels`, its resolution row by row) into `dir` (created if
+/// missing) as [`write_tiles`] names it; returns the path. What a wall's PC writes for the
+/// tiles it owns (DESIGN.md §12).
+pub fn write_tile(
+    dir: &Path,
+    model: &DisplayModel,
+    tile: usize,
+    pixels: &[Vec3],
+    format: Format,
+    exposure: f32,
+) -> Result<PathBuf, TilesError> {
+    let t = &model.tiles()[tile];
+    let [w, h] = t.resolution();
+    if pixels.len() != w as usize * h as usize {
+        return Err(TilesError::Size {
+            len: pixels.len(),
+            width: w,
+            height: h,
+        });
+    }
     std::fs::create_dir_all(dir).map_err(|source| TilesError::Dir {
         dir: dir.to_owned(),
         source,
@@ -159,20 +188,9 @@ pub fn write_tiles(
         Format::Exr => "exr",
         Format::Png => "png",
     };
-    let mut paths = Vec::with_capacity(model.tiles().len());
-    for (i, t) in model.tiles().iter().enumerate() {
-        let [w, h] = t.resolution();
-        let path = dir.join(format!("{}.{ext}", t.id()));
-        super::write_rgb(
-            &path,
-            w,
-            h,
-            &cut_tile(model, i, image, image_size),
-            exposure,
-        )?;
-        paths.push(path);
-    }
-    Ok(paths)
+    let path = dir.join(format!("{}.{ext}", t.id()));
+    super::write_rgb(&path, w, h, pixels, exposure)?;
+    Ok(path)
 }
 
 /// Why the tile images could not be written.

@@ -11,7 +11,7 @@ use crate::cli::cluster::{block_owners, check, identity, model_field, or_abort};
 use crate::cli::progress::Progress;
 use crate::cli::scene::load_scene;
 use crate::cluster::handshake::scene_hash;
-use crate::cluster::owners::BlockOwners;
+use crate::cluster::owners::{BlockOwners, TileOwners};
 use crate::cluster::{Cluster, ClusterRenderer};
 use crate::display::DisplayModel;
 use crate::filter::Filter;
@@ -32,6 +32,8 @@ struct Prepared {
     /// The display of `--tiles` for a full frame.
     tiles_model: Option<DisplayModel>,
     owners: BlockOwners,
+    /// The tile map the block owners were made from (with a display).
+    tile_owners: Option<TileOwners>,
     fields: Vec<(&'static str, String)>,
 }
 
@@ -54,6 +56,9 @@ fn prepare(args: &RenderArgs, c: &Cluster) -> anyhow::Result<Prepared> {
     check_args(args)?;
     if c.is_root() {
         check_outputs(args)?;
+    } else if let Some(dir) = &args.tiles {
+        // Every owner writes its own tiles there (on its own machine's disk, or a shared one).
+        crate::output::check_folder(dir).context("--tiles")?;
     }
     if args.backend == BackendChoice::Gpu {
         bail!(
@@ -97,7 +102,7 @@ fn prepare(args: &RenderArgs, c: &Cluster) -> anyhow::Result<Prepared> {
         .map(|p| &p.model)
         .or(wall.as_ref().map(|w| &w.model))
         .or(tiles_model.as_ref());
-    let (owners, tile_map) = block_owners(&args.cluster, model, args.size, c.ranks())?;
+    let (owners, tile_owners, tile_map) = block_owners(&args.cluster, model, args.size, c.ranks())?;
     let mut fields = vec![
         (
             "command",
@@ -137,6 +142,7 @@ fn prepare(args: &RenderArgs, c: &Cluster) -> anyhow::Result<Prepared> {
         wall: wc,
         tiles_model,
         owners,
+        tile_owners,
         fields,
     })
 }
@@ -149,7 +155,7 @@ fn work(c: &mut Cluster, args: &RenderArgs, p: Prepared) -> anyhow::Result<()> {
         p.settings,
         guide,
         p.wall.clone(),
-        p.owners,
+        p.owners.clone(),
         args.cluster.cluster_dgi,
         rank,
         ranks,
@@ -197,6 +203,7 @@ fn work(c: &mut Cluster, args: &RenderArgs, p: Prepared) -> anyhow::Result<()> {
         },
     )?;
     bar.finish();
+    let tiles_written = write_owned_tiles(c, args, &p, &r)?;
     let Some((acc, dgi)) = run.gathered.as_ref() else {
         return Ok(());
     };
@@ -222,7 +229,7 @@ fn work(c: &mut Cluster, args: &RenderArgs, p: Prepared) -> anyhow::Result<()> {
                 eye_restarts: run.eye_restarts.clone(),
                 eyes_refused: run.eyes_refused,
             };
-            super::guided::write_outputs(args, plan, &res, &device, &summary)
+            super::guided::write_outputs(args, plan, &res, tiles_written, &device, &summary)
         }
         None => {
             let image = acc.mean_image();
@@ -230,7 +237,7 @@ fn work(c: &mut Cluster, args: &RenderArgs, p: Prepared) -> anyhow::Result<()> {
                 crate::output::write_rgb(out, w, h, &image, args.exposure)
                     .with_context(|| out.display().to_string())?;
             }
-            if let Some(model) = &p.tiles_model {
+            if !tiles_written && let Some(model) = &p.tiles_model {
                 super::write_wall_tiles(args, model, &image)?;
             }
             let samples: u64 = acc.count.iter().map(|&n| u64::from(n)).sum();
@@ -244,6 +251,62 @@ fn work(c: &mut Cluster, args: &RenderArgs, p: Prepared) -> anyhow::Result<()> {
             );
             Ok(())
         }
+    }
+}
+
+/// `--tiles DIR`: every rank filters and writes the display tiles it owns
+/// ([`ClusterRenderer::tile_pictures`]), the files one process writes; rank 0 says how many
+/// each rank wrote. `false` (nothing written) without `--tiles` or a tile map.
+fn write_owned_tiles(
+    c: &mut Cluster,
+    args: &RenderArgs,
+    p: &Prepared,
+    r: &ClusterRenderer,
+) -> anyhow::Result<bool> {
+    let (Some(dir), Some(tiles)) = (&args.tiles, &p.tile_owners) else {
+        return Ok(false);
+    };
+    // A full frame's `--tiles` display (the wall camera's, or --display).
+    let (model, params) = match (&p.plan, &p.tiles_model) {
+        (Some(plan), _) => (&plan.model, plan.filter),
+        (None, Some(m)) => (m, off()),
+        (None, None) => return Ok(false),
+    };
+    let format = super::tiles_format(args)?;
+    let pictures = r.tile_pictures(c, model, tiles, &params)?;
+    for t in &pictures {
+        crate::output::tiles::write_tile(dir, model, t.tile, &t.pixels, format, args.exposure)
+            .with_context(|| format!("--tiles {}", dir.display()))?;
+    }
+    let written = (pictures.len() as u32).to_le_bytes().to_vec();
+    if let Some(all) = c.gather("the tiles written", written)? {
+        let per_rank: Vec<u32> = all
+            .iter()
+            .map(|b| {
+                b.get(..4)
+                    .map_or(0, |b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+            })
+            .collect();
+        let list: Vec<String> = per_rank
+            .iter()
+            .enumerate()
+            .map(|(rank, n)| format!("rank {rank}: {n}"))
+            .collect();
+        eprintln!(
+            "raygun: the owners wrote {} tile images to {} ({})",
+            per_rank.iter().sum::<u32>(),
+            dir.display(),
+            list.join(", ")
+        );
+    }
+    Ok(true)
+}
+
+/// A full frame's tiles: the mean image.
+fn off() -> crate::filter::FilterParams {
+    crate::filter::FilterParams {
+        kind: crate::filter::FilterKind::Off,
+        ..Default::default()
     }
 }
 

@@ -254,15 +254,16 @@ pub fn run(
         },
     )?;
     bar.finish();
-    write_outputs(args, plan, &res, &backend.describe(), "")
+    write_outputs(args, plan, &res, false, &backend.describe(), "")
 }
 
-/// Writes a guided render's image, tiles, DGI and counts, and says what was done (`device`
-/// ran it; `extra` closes the message).
+/// Writes a guided render's image, tiles (unless their owners wrote them: `tiles_written`),
+/// DGI and counts, and says what was done (`device` ran it; `extra` closes the message).
 pub fn write_outputs(
     args: &RenderArgs,
     plan: &GuidedPlan,
     res: &crate::session::render::GuidedResult,
+    tiles_written: bool,
     device: &str,
     extra: &str,
 ) -> anyhow::Result<()> {
@@ -277,7 +278,9 @@ pub fn write_outputs(
     for out in &args.out {
         crate::output::write_rgb(out, w, h, &res.image, args.exposure)?;
     }
-    crate::cli::render::write_wall_tiles(args, &plan.model, &res.image)?;
+    if !tiles_written {
+        crate::cli::render::write_wall_tiles(args, &plan.model, &res.image)?;
+    }
     res.write_guides(&plan.dgi_out, &plan.counts_out)?;
     if !res.eye_restarts.is_empty() || res.eyes_refused > 0 {
         eprintln!(

@@ -182,10 +182,7 @@ pub fn write_wall_tiles(
     let Some(dir) = &args.tiles else {
         return Ok(());
     };
-    let format = match args.tiles_format {
-        Some(f) => f,
-        None => Format::from_path(&args.out[0])?,
-    };
+    let format = tiles_format(args)?;
     let paths =
         crate::output::tiles::write_tiles(dir, model, image, args.size, format, args.exposure)
             .with_context(|| format!("--tiles {}", dir.display()))?;
@@ -195,6 +192,14 @@ pub fn write_wall_tiles(
         dir.display()
     );
     Ok(())
+}
+
+/// The format of `--tiles`' images: `--tiles-format`, or the first `--out` file's.
+pub fn tiles_format(args: &RenderArgs) -> anyhow::Result<Format> {
+    Ok(match args.tiles_format {
+        Some(f) => f,
+        None => Format::from_path(&args.out[0])?,
+    })
 }
 
 /// Says when `--tiles` will resample the image (it is not at the canvas size).

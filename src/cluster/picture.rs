@@ -1,0 +1,268 @@
+//! The owners' pictures (DESIGN.md §12): every rank filters and cuts the display tiles it owns,
+//! as a wall's PC shows the screens it drives, without rank 0 assembling the whole picture.
+//!
+//! A tile shows a rectangle of image pixels ([`tile_rect`]); the filter's value there depends on
+//! the accumulation within [`crate::filter::halo`] pixels around it. The owner has its own
+//! blocks' sums; the blocks in that margin that other ranks own (a neighbour column's edge, a
+//! block whose centre lies on another tile) come from their owners in one all-to-all, 16 bytes
+//! a pixel (RGB sum and Σ luminance²: the counts and the DGI every rank has). The owner then
+//! filters each tile's rectangle with its margin on its own — an image whose origin is on every
+//! pyramid level's grid ([`crate::filter::halo`]'s alignment) — and keeps the inside: the values
+//! of the whole image's filter, bit for bit (the CPU twin computes each pixel from the same
+//! taps in the same order; the tests compare them).
+
+use std::collections::HashMap;
+
+use glam::Vec3;
+
+use super::exchange::ExchangeError;
+use super::owners::{BlockOwners, TileOwners, block_of};
+use super::{ClusterError, ClusterRenderer, f32_bytes, f32s};
+use crate::display::DisplayModel;
+use crate::filter::{Filter, FilterParams};
+use crate::gpu::Backend;
+use crate::schedule::{BLOCK_PIXELS, TILE_EDGE};
+use crate::trace::accum::Accumulation;
+
+/// Image pixels `[x0, x1) × [y0, y1)`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Rect {
+    pub x0: u32,
+    pub y0: u32,
+    pub x1: u32,
+    pub y1: u32,
+}
+
+impl Rect {
+    #[must_use]
+    pub fn width(&self) -> u32 {
+        self.x1 - self.x0
+    }
+
+    #[must_use]
+    pub fn height(&self) -> u32 {
+        self.y1 - self.y0
+    }
+
+    #[must_use]
+    pub fn pixels(&self) -> usize {
+        self.width() as usize * self.height() as usize
+    }
+
+    /// The rectangle with `halo` pixels more on every side, its origin moved down to a multiple
+    /// of `align`, clipped to a `size` image.
+    #[must_use]
+    pub fn grown(&self, halo: u32, align: u32, size: [u32; 2]) -> Self {
+        let down = |v: u32| v.saturating_sub(halo) / align * align;
+        Self {
+            x0: down(self.x0),
+            y0: down(self.y0),
+            x1: (self.x1 + halo).min(size[0]),
+            y1: (self.y1 + halo).min(size[1]),
+        }
+    }
+}
+
+/// The image pixels tile `tile` of `model` shows in a `size` image: the bounding rectangle of
+/// its cut ([`crate::output::tiles::tile_axes`]).
+#[must_use]
+pub fn tile_rect(model: &DisplayModel, tile: usize, size: [u32; 2]) -> Rect {
+    let (xs, ys) = crate::output::tiles::tile_axes(model, tile, size);
+    let span = |v: &[usize]| {
+        let lo = v.iter().copied().min().unwrap_or(0) as u32;
+        let hi = v.iter().copied().max().map_or(lo, |m| m as u32 + 1);
+        (lo, hi)
+    };
+    let ((x0, x1), (y0, y1)) = (span(&xs), span(&ys));
+    Rect { x0, y0, x1, y1 }
+}
+
+/// One tile an owner makes the picture of: the pixels it shows and those its filter reads.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TileRegion {
+    pub tile: usize,
+    pub shows: Rect,
+    pub reads: Rect,
+}
+
+/// The tiles `rank` owns, in the model's order, each with the rectangle its filter reads
+/// (`halo` = [`crate::filter::halo`]'s pair).
+#[must_use]
+pub fn regions(
+    model: &DisplayModel,
+    tiles: &TileOwners,
+    rank: usize,
+    size: [u32; 2],
+    halo: (u32, u32),
+) -> Vec<TileRegion> {
+    (0..model.tiles().len())
+        .filter(|&t| tiles.ranks[t] == rank)
+        .map(|tile| {
+            let shows = tile_rect(model, tile, size);
+            TileRegion {
+                tile,
+                shows,
+                reads: shows.grown(halo.0, halo.1, size),
+            }
+        })
+        .collect()
+}
+
+/// The pixels in the union of `rects`, ascending, whose block `src` owns.
+#[must_use]
+pub fn pixels_owned_by(rects: &[Rect], owners: &BlockOwners, src: usize) -> Vec<u32> {
+    let (w, tiles_x) = (owners.width, owners.tiles[0]);
+    let (Some(y0), Some(y1)) = (
+        rects.iter().map(|r| r.y0).min(),
+        rects.iter().map(|r| r.y1).max(),
+    ) else {
+        return Vec::new();
+    };
+    let mut out = Vec::new();
+    let mut spans: Vec<(u32, u32)> = Vec::new();
+    for y in y0..y1 {
+        spans.clear();
+        spans.extend(
+            rects
+                .iter()
+                .filter(|r| (r.y0..r.y1).contains(&y) && r.x0 < r.x1)
+                .map(|r| (r.x0, r.x1)),
+        );
+        spans.sort_unstable();
+        let mut next = 0;
+        for &(a, b) in &spans {
+            for x in a.max(next)..b {
+                let p = y * w + x;
+                if owners.owner[block_of(p, w, tiles_x) as usize] as usize == src {
+                    out.push(p);
+                }
+            }
+            next = next.max(b);
+        }
+    }
+    out
+}
+
+/// A tile's picture as its owner made it: the tile's pixels, row by row at its resolution.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TilePicture {
+    pub tile: usize,
+    pub pixels: Vec<Vec3>,
+}
+
+impl ClusterRenderer {
+    /// This rank's sums of pixel `p`, if its block is this rank's.
+    fn own_sum(&self, p: u32) -> Option<[f32; 4]> {
+        let (w, tiles_x) = (self.settings.width, self.owners.tiles[0]);
+        let slot = self.slot[block_of(p, w, tiles_x) as usize];
+        (slot != u32::MAX).then(|| {
+            let (x, y) = (p % w, p / w);
+            let local = (y % TILE_EDGE) * TILE_EDGE + x % TILE_EDGE;
+            self.sums[(slot * BLOCK_PIXELS + local) as usize]
+        })
+    }
+
+    /// The pictures of the tiles of `model` that `tiles` gives this rank, filtered by `params`
+    /// (a full frame: [`crate::filter::FilterKind::Off`], the mean image), on every rank at
+    /// once: each sends the others the sums their tiles' margins need, then filters its own
+    /// tiles on the CPU twin. `tiles` must be the map this renderer's block owners were made
+    /// from. The pictures are the whole image's, filtered by one process, cut as
+    /// [`crate::output::tiles::cut_tile`] cuts it.
+    pub fn tile_pictures(
+        &self,
+        c: &mut super::Cluster,
+        model: &DisplayModel,
+        tiles: &TileOwners,
+        params: &FilterParams,
+    ) -> Result<Vec<TilePicture>, ClusterError> {
+        self.tile_pictures_with(c, model, tiles, params, crate::filter::halo(params))
+    }
+
+    /// [`Self::tile_pictures`] with the margin given (the tests cut it to show it matters).
+    pub(super) fn tile_pictures_with(
+        &self,
+        c: &mut super::Cluster,
+        model: &DisplayModel,
+        tiles: &TileOwners,
+        params: &FilterParams,
+        halo: (u32, u32),
+    ) -> Result<Vec<TilePicture>, ClusterError> {
+        let size = [self.settings.width, self.settings.height];
+        let (me, n) = (self.rank, self.ranks);
+        let reads = |rank: usize| -> Vec<Rect> {
+            regions(model, tiles, rank, size, halo)
+                .iter()
+                .map(|r| r.reads)
+                .collect()
+        };
+        let what = "the sums around the owners' tiles";
+        let mut parts = vec![Vec::new(); n];
+        for (r, part) in parts.iter_mut().enumerate() {
+            if r != me {
+                for p in pixels_owned_by(&reads(r), &self.owners, me) {
+                    part.extend(f32_bytes(&self.own_sum(p).expect("a pixel of this rank")));
+                }
+            }
+        }
+        let got = c.all_to_all(what, parts)?;
+        let mine = reads(me);
+        let mut theirs: HashMap<u32, [f32; 4]> = HashMap::new();
+        for (src, bytes) in got.iter().enumerate().filter(|(s, _)| *s != me) {
+            let pixels = pixels_owned_by(&mine, &self.owners, src);
+            if bytes.len() != 16 * pixels.len() {
+                return Err(ExchangeError::Length {
+                    rank: src,
+                    what: what.into(),
+                    got: bytes.len(),
+                    expected: 16 * pixels.len(),
+                }
+                .into());
+            }
+            let v = f32s(bytes, 4);
+            for (k, p) in pixels.into_iter().enumerate() {
+                theirs.insert(p, [v[4 * k], v[4 * k + 1], v[4 * k + 2], v[4 * k + 3]]);
+            }
+        }
+        let guided = self.guidance.is_some();
+        let filter = Filter::new(&Backend::Cpu);
+        let mut out = Vec::new();
+        for region in regions(model, tiles, me, size, halo) {
+            let r = region.reads;
+            let mut acc = Accumulation::new(r.width(), r.height());
+            let mut dgi = vec![0.0; r.pixels()];
+            let mut k = 0;
+            for y in r.y0..r.y1 {
+                for x in r.x0..r.x1 {
+                    let p = y * size[0] + x;
+                    acc.sum[k] = match self.own_sum(p) {
+                        Some(s) => s,
+                        None => *theirs.get(&p).expect("every margin pixel was received"),
+                    };
+                    acc.count[k] = self.counts[p as usize];
+                    if guided {
+                        dgi[k] = self.dgi[p as usize];
+                    }
+                    k += 1;
+                }
+            }
+            let image = filter.image(params, &acc, &dgi)?;
+            let pixels = crate::output::tiles::tile_source_indices(model, region.tile, size)
+                .into_iter()
+                .map(|i| {
+                    let (x, y) = (i as u32 % size[0], i as u32 / size[0]);
+                    let shown = !guided || self.wall.as_ref().is_none_or(|w| w.is_shown(i as u32));
+                    if shown {
+                        image[((y - r.y0) * r.width() + x - r.x0) as usize]
+                    } else {
+                        Vec3::ZERO
+                    }
+                })
+                .collect();
+            out.push(TilePicture {
+                tile: region.tile,
+                pixels,
+            });
+        }
+        Ok(out)
+    }
+}
