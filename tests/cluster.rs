@@ -466,12 +466,22 @@ mod mpi {
                 per_rank[0]["bytes_sent_per_iteration"],
                 per_rank[1]["bytes_received_per_iteration"]
             );
+            // The same for the owners' pictures; only rank 0 assembles the whole one.
+            assert_eq!(
+                per_rank[0]["tile_pictures_bytes_sent"],
+                per_rank[1]["tile_pictures_bytes_received"]
+            );
+            assert!(per_rank[0]["tile_pictures_bytes_received"].as_u64().unwrap() > 0);
+            assert!(per_rank[0]["ms_gather_and_filter"].as_f64().unwrap() > 0.0);
+            assert_eq!(per_rank[1]["ms_gather_and_filter"], 0.0);
         }
         let exchange = r["exchange"].as_array().unwrap();
         assert_eq!(exchange.len(), 2 * 2 * 3, "maps × FOVs × rank counts");
         for e in exchange {
             let one = e["ranks"] == 1;
             assert_eq!(e["bytes_sent_max"] == 0, one, "{e}");
+            assert_eq!(e["margin_received_max"] == 0, one, "{e}");
+            assert_eq!(e["gather_received"] == 0, one, "{e}");
         }
     }
 

@@ -4,11 +4,14 @@
 //!   the centre, 10° and 60°) on the ranks of the job it runs in — under `mpirun -np N` with
 //!   the `cluster` feature, else one in-process rank. Per rank: ms per iteration, of it
 //!   tracing and exchanging, bytes sent and received per iteration; and the DGI's two ways
-//!   to reach the ranks, each rank computing it against rank 0 broadcasting it.
+//!   to reach the ranks, each rank computing it against rank 0 broadcasting it; and a picture
+//!   of the wall made both ways, every owner filtering its own tiles against rank 0 gathering
+//!   and filtering the whole image.
 //! * **Exchange**, counted exactly: for larger images (default 3840×2160 and HORNET's native
 //!   13519×5457) the real schedule, deal and default tile map of one iteration, without
 //!   tracing — the bytes each rank sends and receives for 1 to 35 ranks (the deal's weights
-//!   taken equal: a real run weights by measured rays, which moves blocks, not bytes' total).
+//!   taken equal: a real run weights by measured rays, which moves blocks, not bytes' total),
+//!   and per picture the owners' margins against the gather to rank 0.
 //! * **Model**: from those bytes and a stated link speed, the per-GPU trace rate at which the
 //!   exchange takes as long as the tracing, for 1–35 ranks, and the iterations per second at a
 //!   measured rate (the CPU twin's here; a GPU's when one is measured).
@@ -82,6 +85,15 @@ pub struct RankRun {
     pub ms_dgi_compute: f64,
     /// The DGI broadcast from rank 0, received (or sent) here (ms).
     pub ms_dgi_broadcast: f64,
+    /// After the iterations, the picture of the tiles this rank owns: the margins' exchange
+    /// and the filter of its own tiles (ms; every owner at once).
+    pub ms_tile_pictures: f64,
+    /// The bytes that exchange sent and received here.
+    pub tile_pictures_bytes_sent: u64,
+    pub tile_pictures_bytes_received: u64,
+    /// Rank 0 only: the whole picture the other way, the owners' sums gathered to rank 0 and
+    /// the whole image filtered there (ms).
+    pub ms_gather_and_filter: f64,
 }
 
 /// One FOV's measured run on all ranks.
@@ -120,6 +132,12 @@ pub struct ExchangeRow {
     /// The bytes the DGI's broadcast moves per ROI change over all links (every rank but 0
     /// receives 4 bytes a pixel; down the binomial tree rank 0 sends ⌈log₂ N⌉ of those copies).
     pub dgi_broadcast_bytes: u64,
+    /// Per picture of the whole wall (not per iteration): the most any rank sends and receives
+    /// for its tiles' margins (the default fast filter, k_max 16; 16 bytes a pixel), against the
+    /// whole accumulation rank 0 receives when it assembles the picture instead.
+    pub margin_sent_max: u64,
+    pub margin_received_max: u64,
+    pub gather_received: u64,
 }
 
 impl ExchangeRow {
@@ -231,6 +249,33 @@ pub fn scaling(
                 / n,
             ms_dgi_compute: first.ms_dgi,
             ms_dgi_broadcast,
+            ..RankRun::default()
+        };
+        // The picture, both ways: every owner its own tiles, and rank 0 the whole image.
+        let params = crate::filter::FilterParams::default();
+        let tile_map = TileOwners::columns(display, ranks);
+        let before = c.traffic();
+        let t = Instant::now();
+        r.tile_pictures(c, display, &tile_map, &params)?;
+        let ms_tile_pictures = t.elapsed().as_secs_f64() * 1e3;
+        let moved = c.traffic();
+        let t = Instant::now();
+        if let Some((acc, dgi)) = r.gather(c)? {
+            crate::filter::Filter::new(&crate::gpu::Backend::Cpu)
+                .image(&params, &acc, &dgi)
+                .map_err(ClusterError::from)?;
+        }
+        let ms_gather_and_filter = if c.is_root() {
+            t.elapsed().as_secs_f64() * 1e3
+        } else {
+            0.0
+        };
+        let mine = RankRun {
+            ms_tile_pictures,
+            tile_pictures_bytes_sent: moved.bytes_sent - before.bytes_sent,
+            tile_pictures_bytes_received: moved.bytes_received - before.bytes_received,
+            ms_gather_and_filter,
+            ..mine
         };
         let samples = frames.iter().map(|(_, s)| s.pixels as f64).sum::<f64>() / n;
         let gathered = c
@@ -267,8 +312,11 @@ pub fn exchange(
     mut progress: impl FnMut(&str),
 ) -> Result<Vec<ExchangeRow>, ClusterBenchError> {
     let surface = Surface::from_model(display);
+    let halo = crate::filter::halo(&crate::filter::FilterParams::default());
     let mut rows = Vec::new();
     for &size in sizes {
+        // The margins do not depend on the FOV.
+        let mut margins = std::collections::HashMap::new();
         for &fov in fovs {
             progress(&format!("exchange: {}×{}, {fov}°", size[0], size[1]));
             let roi = paper::roi(fov)?;
@@ -296,6 +344,16 @@ pub fn exchange(
                     }
                 };
                 let owners = BlockOwners::of_display(display, &map, size);
+                let (margin_sent_max, margin_received_max) =
+                    *margins.entry((tile_map, ranks)).or_insert_with(|| {
+                        let m = crate::cluster::picture::margin_traffic(
+                            display, &map, &owners, halo, ranks,
+                        );
+                        (
+                            m.iter().map(|t| t.0).max().unwrap_or(0),
+                            m.iter().map(|t| t.1).max().unwrap_or(0),
+                        )
+                    });
                 let tracer = deal(&list, &costs, ranks);
                 let (mut sent, mut got) = (vec![0u64; ranks], vec![0u64; ranks]);
                 let n = ranks as u64;
@@ -330,6 +388,18 @@ pub fn exchange(
                     bytes_sent_mean: sent.iter().sum::<u64>() as f64 / ranks as f64,
                     bytes_received_max: got.iter().copied().max().unwrap_or(0),
                     dgi_broadcast_bytes: 4 * u64::from(size[0]) * u64::from(size[1]) * (n - 1),
+                    margin_sent_max,
+                    margin_received_max,
+                    // Every rank but 0 sends its owned sums (16 bytes a pixel).
+                    gather_received: 16
+                        * (0..owners.owner.len() as u32)
+                            .filter(|&b| owners.owner[b as usize] != 0)
+                            .map(|b| {
+                                let [tx, _] = owners.tiles;
+                                let side = |i: u32, n: u32| u64::from((n - i * 32).min(32));
+                                side(b % tx, size[0]) * side(b / tx, size[1])
+                            })
+                            .sum::<u64>(),
                 });
             }
         }
@@ -346,7 +416,7 @@ fn mb(bytes: f64) -> String {
 pub fn markdown(r: &ClusterBenchReport) -> String {
     let c = &r.config;
     let mut s = format!(
-        "Device: {}\n\n## Strong scaling (measured)\n\n{} at {}×{}, max depth {}, HORNET, viewer 1 m in front of the centre, {} timed iterations per FOV after the DGI's.\n\n| FOV | ranks | share sampled | ms/iteration (rank 0) | rank | ms trace | ms schedule | ms exchange | samples traced/it | bytes sent/it | bytes received/it | DGI computed ms | DGI broadcast ms |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "Device: {}\n\n## Strong scaling (measured)\n\n{} at {}×{}, max depth {}, HORNET, viewer 1 m in front of the centre, {} timed iterations per FOV after the DGI's.\n\n| FOV | ranks | share sampled | ms/iteration (rank 0) | rank | ms trace | ms schedule | ms exchange | samples traced/it | bytes sent/it | bytes received/it | DGI computed ms | DGI broadcast ms | own tiles' picture ms (bytes sent / received) | rank 0: gather + whole filter ms |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
         r.device, c.scene, c.size[0], c.size[1], c.max_depth, c.iterations
     );
     for row in &r.scaling {
@@ -362,8 +432,13 @@ pub fn markdown(r: &ClusterBenchReport) -> String {
             } else {
                 "| | | | ".to_owned()
             };
+            let gather = if k == 0 {
+                format!("{:.1}", p.ms_gather_and_filter)
+            } else {
+                String::new()
+            };
             s += &format!(
-                "{head}| {} | {:.1} | {:.1} | {:.1} | {:.0} | {:.0} | {:.0} | {:.1} | {:.1} |\n",
+                "{head}| {} | {:.1} | {:.1} | {:.1} | {:.0} | {:.0} | {:.0} | {:.1} | {:.1} | {:.1} ({} / {}) | {gather} |\n",
                 p.rank,
                 p.ms_trace,
                 p.ms_schedule,
@@ -372,7 +447,10 @@ pub fn markdown(r: &ClusterBenchReport) -> String {
                 p.bytes_sent_per_iteration,
                 p.bytes_received_per_iteration,
                 p.ms_dgi_compute,
-                p.ms_dgi_broadcast
+                p.ms_dgi_broadcast,
+                p.ms_tile_pictures,
+                p.tile_pictures_bytes_sent,
+                p.tile_pictures_bytes_received,
             );
         }
     }
@@ -385,7 +463,7 @@ pub fn markdown(r: &ClusterBenchReport) -> String {
         .map(|p| p.samples_traced_per_iteration / (p.ms_trace / 1e3))
         .fold(f64::NAN, f64::max);
     s += &format!(
-        "\n## Exchange per iteration (counted from the real schedule and deal)\n\nBytes per iteration: 12 per sample traced for another rank's tile, 4 per block traced to every other rank, the control message ({CONTROL_BYTES} bytes with an ROI change). The DGI's broadcast ({}) is per ROI change, not per iteration.\n\n| tile map | size | FOV | ranks | samples/it | max sent MB/it | mean sent MB/it | max received MB/it | DGI broadcast MB | link ms/it at {} Gb/s | break-even rate per rank (Msamples/s) | iterations/s at the measured rate |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "\n## Exchange per iteration (counted from the real schedule and deal)\n\nBytes per iteration: 12 per sample traced for another rank's tile, 4 per block traced to every other rank, the control message ({CONTROL_BYTES} bytes with an ROI change). The DGI's broadcast ({}) is per ROI change, not per iteration.\n\n| tile map | size | FOV | ranks | samples/it | max sent MB/it | mean sent MB/it | max received MB/it | DGI broadcast MB | link ms/it at {} Gb/s | break-even rate per rank (Msamples/s) | iterations/s at the measured rate | picture: margins max sent / received MB | picture: gathered to rank 0 MB |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
         "4 bytes a pixel to every other rank, down a binomial tree; the column sums all links",
         c.link_gbps
     );
@@ -396,7 +474,7 @@ pub fn markdown(r: &ClusterBenchReport) -> String {
         let link = e.link_seconds(c.link_gbps);
         let trace = e.samples_per_iteration as f64 / e.ranks as f64 / rate;
         s += &format!(
-            "| {} | {}×{} | {}° | {} | {} | {} | {} | {} | {} | {:.3} | {:.0} | {:.2} |\n",
+            "| {} | {}×{} | {}° | {} | {} | {} | {} | {} | {} | {:.3} | {:.0} | {:.2} | {} / {} | {} |\n",
             e.tile_map,
             e.size[0],
             e.size[1],
@@ -410,10 +488,13 @@ pub fn markdown(r: &ClusterBenchReport) -> String {
             link * 1e3,
             e.break_even_rate(c.link_gbps) / 1e6,
             1.0 / (trace + link),
+            mb(e.margin_sent_max as f64),
+            mb(e.margin_received_max as f64),
+            mb(e.gather_received as f64),
         );
     }
     s += &format!(
-        "\nThe measured rate: {:.3} Msamples/s per rank (the CPU twin, best of the rows above). Iterations/s = 1 / (samples/(ranks × rate) + link time): tracing and exchange do not overlap, the schedule and the DGI are left out. A rank whose trace rate exceeds the break-even rate spends longer on the link than on tracing.\n",
+        "\nThe measured rate: {:.3} Msamples/s per rank (the CPU twin, best of the rows above). Iterations/s = 1 / (samples/(ranks × rate) + link time): tracing and exchange do not overlap, the schedule and the DGI are left out. A rank whose trace rate exceeds the break-even rate spends longer on the link than on tracing. The picture's columns are per picture shown or saved, not per iteration: each owner's tiles' margins (the default fast filter) against the whole accumulation gathered to rank 0.\n",
         rate / 1e6
     );
     s

@@ -266,3 +266,60 @@ impl ClusterRenderer {
         Ok(out)
     }
 }
+
+/// Bytes each rank sends and receives in [`ClusterRenderer::tile_pictures`] (16 a pixel, per
+/// rank: `(sent, received)`), counted from the geometry alone: what a picture of the whole wall
+/// costs the links, whatever was sampled.
+#[must_use]
+pub fn margin_traffic(
+    model: &DisplayModel,
+    tiles: &TileOwners,
+    owners: &BlockOwners,
+    halo: (u32, u32),
+    ranks: usize,
+) -> Vec<(u64, u64)> {
+    let size = [owners.width, owners.height];
+    let mut out = vec![(0u64, 0u64); ranks];
+    let mut spans: Vec<(u32, u32)> = Vec::new();
+    for dst in 0..ranks {
+        let reads: Vec<Rect> = regions(model, tiles, dst, size, halo)
+            .iter()
+            .map(|r| r.reads)
+            .collect();
+        let (Some(y0), Some(y1)) = (
+            reads.iter().map(|r| r.y0).min(),
+            reads.iter().map(|r| r.y1).max(),
+        ) else {
+            continue;
+        };
+        for y in y0..y1 {
+            spans.clear();
+            spans.extend(
+                reads
+                    .iter()
+                    .filter(|r| (r.y0..r.y1).contains(&y))
+                    .map(|r| (r.x0, r.x1)),
+            );
+            spans.sort_unstable();
+            let row = (y / TILE_EDGE) * owners.tiles[0];
+            let mut next = 0;
+            for &(a, b) in &spans {
+                let a = a.max(next);
+                next = next.max(b);
+                if a >= b {
+                    continue;
+                }
+                // Whole runs of a block's pixels at a time.
+                for bx in a / TILE_EDGE..=(b - 1) / TILE_EDGE {
+                    let src = owners.owner[(row + bx) as usize] as usize;
+                    if src != dst {
+                        let n = b.min((bx + 1) * TILE_EDGE) - a.max(bx * TILE_EDGE);
+                        out[src].0 += 16 * u64::from(n);
+                        out[dst].1 += 16 * u64::from(n);
+                    }
+                }
+            }
+        }
+    }
+    out
+}

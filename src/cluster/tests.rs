@@ -407,11 +407,28 @@ fn owners_pictures_match(
         with_wall,
         DgiMode::Compute,
         |n| BlockOwners::of_display(&m, &map(n), SIZE),
-        |c, r| match halo {
-            Some(h) => r.tile_pictures_with(c, &m, &map(n), params, h).unwrap(),
-            None => r.tile_pictures(c, &m, &map(n), params).unwrap(),
+        |c, r| {
+            let before = c.traffic();
+            let pictures = match halo {
+                Some(h) => r.tile_pictures_with(c, &m, &map(n), params, h).unwrap(),
+                None => r.tile_pictures(c, &m, &map(n), params).unwrap(),
+            };
+            let after = c.traffic();
+            let traffic = (
+                after.bytes_sent - before.bytes_sent,
+                after.bytes_received - before.bytes_received,
+            );
+            (pictures, traffic)
         },
     );
+    // The bytes counted from the geometry are the bytes that went.
+    let h = halo.unwrap_or_else(|| crate::filter::halo(params));
+    let counted =
+        picture::margin_traffic(&m, &tiles, &BlockOwners::of_display(&m, &tiles, SIZE), h, n);
+    let moved: Vec<(u64, u64)> = pictures.iter().map(|p| p.1).collect();
+    assert_eq!(moved, counted);
+    assert_eq!(n > 1, moved.iter().any(|t| t.0 > 0));
+    let pictures: Vec<Vec<picture::TilePicture>> = pictures.into_iter().map(|p| p.0).collect();
     let mut made = vec![0; m.tiles().len()];
     for (rank, mine) in pictures.iter().enumerate() {
         for p in mine {
