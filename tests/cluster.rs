@@ -471,7 +471,12 @@ mod mpi {
                 per_rank[0]["tile_pictures_bytes_sent"],
                 per_rank[1]["tile_pictures_bytes_received"]
             );
-            assert!(per_rank[0]["tile_pictures_bytes_received"].as_u64().unwrap() > 0);
+            assert!(
+                per_rank[0]["tile_pictures_bytes_received"]
+                    .as_u64()
+                    .unwrap()
+                    > 0
+            );
             assert!(per_rank[0]["ms_gather_and_filter"].as_f64().unwrap() > 0.0);
             assert_eq!(per_rank[1]["ms_gather_and_filter"], 0.0);
         }

@@ -462,6 +462,12 @@ impl ClusterRenderer {
         })
     }
 
+    /// Samples taken so far, over the whole image (every rank knows every pixel's count).
+    #[must_use]
+    pub fn samples(&self) -> u64 {
+        self.counts.iter().map(|&n| u64::from(n)).sum()
+    }
+
     /// Iterations run so far.
     #[must_use]
     pub fn iteration(&self) -> u32 {

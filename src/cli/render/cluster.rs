@@ -266,6 +266,11 @@ fn write_owned_tiles(
     let (Some(dir), Some(tiles)) = (&args.tiles, &p.tile_owners) else {
         return Ok(false);
     };
+    // A guided render that sampled nothing writes nothing: rank 0 says why (every rank has the
+    // counts, so every rank decides alike).
+    if p.plan.is_some() && r.samples() == 0 {
+        return Ok(false);
+    }
     // A full frame's `--tiles` display (the wall camera's, or --display).
     let (model, params) = match (&p.plan, &p.tiles_model) {
         (Some(plan), _) => (&plan.model, plan.filter),
