@@ -260,6 +260,60 @@ mod mpi {
         );
     }
 
+    /// `args` without its `--out FILE`.
+    fn without_out(args: Vec<String>) -> Vec<String> {
+        let i = args.iter().position(|a| a == "--out").unwrap();
+        args.into_iter()
+            .enumerate()
+            .filter(|(k, _)| *k != i && *k != i + 1)
+            .map(|(_, a)| a)
+            .collect()
+    }
+
+    /// With --tiles and no --out nothing needs the whole picture: rank 0 never assembles it,
+    /// and the owners' tiles are still the one-process tiles (which one process writes without
+    /// --out too, as EXR).
+    #[test]
+    fn tiles_alone_are_written_without_assembling_the_picture() {
+        let one = tmp_dir("tiles-alone-one");
+        let args = guided_tiles(&one);
+        let refs: Vec<&str> = args.iter().map(String::as_str).collect();
+        ok(&raygun(&refs));
+        let want = files(&one.join("tiles"));
+        assert_eq!(want.len(), 35);
+        let alone = tmp_dir("tiles-alone-process");
+        let args = without_out(guided_tiles(&alone));
+        let refs: Vec<&str> = args.iter().map(String::as_str).collect();
+        ok(&raygun(&refs));
+        assert!(
+            files(&alone)
+                == files(&one.join("tiles"))
+                    .into_iter()
+                    .map(|(n, b)| (format!("tiles/{n}"), b))
+                    .collect::<Vec<_>>()
+        );
+        let dir = tmp_dir("tiles-alone-3");
+        let o = mpirun(&[(
+            3,
+            &exe(),
+            with(without_out(guided_tiles(&dir)), &["--cluster"]),
+        )]);
+        ok(&o);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains("the whole picture was not assembled"), "{err}");
+        assert!(err.contains("the owners wrote 35 tile images"), "{err}");
+        // Only the tiles: no image, DGI or counts beside them.
+        assert!(
+            files(&dir) == files(&alone),
+            "3 ranks: other files than one process's"
+        );
+        // Neither --out nor --tiles: nothing would be written.
+        let o = raygun(&["render", "--scene", "builtin:cornell", "--spp", "1"]);
+        assert!(!o.status.success());
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains("--out"), "{err}");
+    }
+
     #[test]
     fn a_tile_owners_file_changes_who_accumulates_not_the_image() {
         let one = tmp_dir("owners-one");

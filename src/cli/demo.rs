@@ -213,7 +213,7 @@ pub fn run_headless(args: &DemoArgs) -> anyhow::Result<DemoOutput> {
         ));
     }
     let (dgi, counts) = (args.out.join("dgi.png"), args.out.join("counts.exr"));
-    result.write_guides(&dgi, &counts)?;
+    result.write_guides(Some(&dgi), Some(&counts))?;
     files.push(FileNote::new(
         dgi,
         "the distance-guide image of the session's last ROI (black: in the ROI, white: d = 1)",

@@ -50,7 +50,8 @@ pub struct ClusterRun {
     pub stop: StopReason,
     /// This rank's frames.
     pub frames: Vec<ClusterFrameStats>,
-    /// Rank 0: the whole accumulation and the DGI of the last frame (`None` elsewhere).
+    /// Rank 0: the whole accumulation and the DGI of the last frame (`None` elsewhere, and
+    /// when not asked for).
     pub gathered: Option<(Accumulation, Vec<f32>)>,
     /// Rank 0: the ROI's last measured progress (with stop conditions on it only).
     pub progress: Option<RoiProgress>,
@@ -66,7 +67,8 @@ pub struct ClusterRun {
 /// interval): a gather of the ROI pixels' sums.
 const PROGRESS_INTERVAL_S: f64 = 0.5;
 
-/// Runs frames on every rank until rank 0's stop rule says so. `source` steers a guided render
+/// Runs frames on every rank until rank 0's stop rule says so; then, with `gather`, rank 0
+/// assembles the whole accumulation (every rank must pass the same `gather`). `source` steers a guided render
 /// (read on rank 0 only; `None`: a full frame). `--until time:S` is rank 0's clock; a condition
 /// on the ROI's progress is measured every half second from the owners' ROI sums
 /// ([`ClusterRenderer::roi_progress`]). `fault` is a test's. `on_iteration` hears each finished
@@ -77,6 +79,7 @@ pub fn run_cluster(
     source: Option<&GuideSource>,
     stopping: &Stopping,
     fault: Option<Fault>,
+    gather: bool,
     mut on_iteration: impl FnMut(&ClusterFrameStats, Option<&RoiProgress>),
 ) -> Result<ClusterRun, ClusterError> {
     let t0 = Instant::now();
@@ -186,7 +189,7 @@ pub fn run_cluster(
     };
     let seconds = t0.elapsed().as_secs_f64();
     let accumulated = r.iteration();
-    let gathered = r.gather(c)?;
+    let gathered = if gather { r.gather(c)? } else { None };
     Ok(ClusterRun {
         iterations: k,
         seconds,

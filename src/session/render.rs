@@ -68,12 +68,20 @@ impl GuidedResult {
             / (f64::from(self.size[0]) * f64::from(self.size[1]) * f64::from(self.accumulated))
     }
 
-    /// Writes the DGI and the sample counts (EXR or PNG by extension).
-    pub fn write_guides(&self, dgi_out: &Path, counts_out: &Path) -> Result<(), OutputError> {
+    /// Writes the DGI and the sample counts where given (EXR or PNG by extension).
+    pub fn write_guides(
+        &self,
+        dgi_out: Option<&Path>,
+        counts_out: Option<&Path>,
+    ) -> Result<(), OutputError> {
         let [w, h] = self.size;
-        crate::output::write_gray(dgi_out, w, h, &self.dgi, crate::output::DGI_CHANNEL)?;
-        let counts: Vec<f32> = self.counts.iter().map(|&c| c as f32).collect();
-        crate::output::write_gray(counts_out, w, h, &counts, "samples")?;
+        if let Some(p) = dgi_out {
+            crate::output::write_gray(p, w, h, &self.dgi, crate::output::DGI_CHANNEL)?;
+        }
+        if let Some(p) = counts_out {
+            let counts: Vec<f32> = self.counts.iter().map(|&c| c as f32).collect();
+            crate::output::write_gray(p, w, h, &counts, "samples")?;
+        }
         Ok(())
     }
 }

@@ -124,6 +124,7 @@ fn prepare(args: &RenderArgs, c: &Cluster) -> anyhow::Result<Prepared> {
             format!("{:?}", wc.as_ref().map(|w| w.eye_room)),
         ),
         ("DGI mode", format!("{:?}", args.cluster.cluster_dgi)),
+        ("whole picture on rank 0", format!("{}", assembles(args))),
     ];
     match &plan {
         Some(p) => {
@@ -192,6 +193,7 @@ fn work(c: &mut Cluster, args: &RenderArgs, p: Prepared) -> anyhow::Result<()> {
         p.plan.as_ref().map(|plan| &plan.source),
         &stopping,
         args.cluster.cluster_fault,
+        assembles(args),
         |s, progress| {
             if let Some(p) = progress {
                 bar.note(&format!(
@@ -204,11 +206,14 @@ fn work(c: &mut Cluster, args: &RenderArgs, p: Prepared) -> anyhow::Result<()> {
     )?;
     bar.finish();
     let tiles_written = write_owned_tiles(c, args, &p, &r)?;
-    let Some((acc, dgi)) = run.gathered.as_ref() else {
-        return Ok(());
-    };
     let device = format!("{ranks} rank(s), CPU twins");
     let summary = summary(&run, ranks);
+    let Some((acc, dgi)) = run.gathered.as_ref() else {
+        if c.is_root() {
+            tiles_only_note(&p, &r, &run, &device, &summary)?;
+        }
+        return Ok(());
+    };
     let [w, h] = args.size;
     match &p.plan {
         Some(plan) => {
@@ -252,6 +257,43 @@ fn work(c: &mut Cluster, args: &RenderArgs, p: Prepared) -> anyhow::Result<()> {
             Ok(())
         }
     }
+}
+
+/// Whether rank 0 assembles the whole picture: only for an output that needs it (`--out`, the
+/// DGI, the counts); with `--tiles` alone the owners' tiles are the picture.
+fn assembles(args: &RenderArgs) -> bool {
+    !args.out.is_empty() || args.dgi_out.is_some() || args.counts_out.is_some()
+}
+
+/// Rank 0's closing message for a render that only wrote its tiles: what ran, from the counts
+/// every rank keeps.
+fn tiles_only_note(
+    p: &Prepared,
+    r: &ClusterRenderer,
+    run: &ClusterRun,
+    device: &str,
+    summary: &str,
+) -> anyhow::Result<()> {
+    let samples = r.samples();
+    if p.plan.is_some() && samples == 0 {
+        bail!(
+            "no pixel was sampled in {} iterations: the ROI never reached the image and --p-min is 0",
+            run.iterations
+        );
+    }
+    eprintln!(
+        "raygun: {} stopped ({}): {} iterations in {:.2} s on {device}: {samples} samples, {:.2} ms per megasample; the whole picture was not assembled (no --out); {summary}",
+        if p.plan.is_some() {
+            "guided render"
+        } else {
+            "render"
+        },
+        run.stop,
+        run.iterations,
+        run.seconds,
+        run.seconds * 1e3 / (samples.max(1) as f64 / 1e6),
+    );
+    Ok(())
 }
 
 /// `--tiles DIR`: every rank filters and writes the display tiles it owns

@@ -133,8 +133,10 @@ pub struct GuidedPlan {
     pub config: GuideConfig,
     pub filter: FilterParams,
     pub stopping: Stopping,
-    pub dgi_out: PathBuf,
-    pub counts_out: PathBuf,
+    /// Where the DGI and the counts go: `--dgi-out`/`--counts-out`, else beside the first
+    /// `--out` (none without one).
+    pub dgi_out: Option<PathBuf>,
+    pub counts_out: Option<PathBuf>,
 }
 
 impl GuidedPlan {
@@ -188,12 +190,15 @@ impl GuidedPlan {
         if args.tiles.is_some() {
             crate::cli::render::warn_if_resampled(args.size, &model, &display_note);
         }
-        let first = &args.out[0];
-        let dgi_out = args.dgi_out.clone().unwrap_or_else(|| beside(first, "dgi"));
+        let first = args.out.first();
+        let dgi_out = args
+            .dgi_out
+            .clone()
+            .or_else(|| first.map(|f| beside(f, "dgi")));
         let counts_out = args
             .counts_out
             .clone()
-            .unwrap_or_else(|| beside(first, "counts"));
+            .or_else(|| first.map(|f| beside(f, "counts")));
         Ok(Self {
             model,
             display_note,
@@ -257,6 +262,20 @@ pub fn run(
     write_outputs(args, plan, &res, false, &backend.describe(), "")
 }
 
+/// `; wrote DGI, COUNTS` for the guide images a render writes (nothing without them).
+fn wrote_guides(plan: &GuidedPlan) -> String {
+    let files: Vec<String> = [&plan.dgi_out, &plan.counts_out]
+        .into_iter()
+        .flatten()
+        .map(|p| p.display().to_string())
+        .collect();
+    if files.is_empty() {
+        String::new()
+    } else {
+        format!("; wrote {}", files.join(", "))
+    }
+}
+
 /// Writes a guided render's image, tiles (unless their owners wrote them: `tiles_written`),
 /// DGI and counts, and says what was done (`device` ran it; `extra` closes the message).
 pub fn write_outputs(
@@ -281,7 +300,7 @@ pub fn write_outputs(
     if !tiles_written {
         crate::cli::render::write_wall_tiles(args, &plan.model, &res.image)?;
     }
-    res.write_guides(&plan.dgi_out, &plan.counts_out)?;
+    res.write_guides(plan.dgi_out.as_deref(), plan.counts_out.as_deref())?;
     if !res.eye_restarts.is_empty() || res.eyes_refused > 0 {
         eprintln!(
             "raygun: the tracked head moved the eye {} times (the accumulation restarted each time, the ROI kept; the picture holds the last {} iterations){}",
@@ -304,15 +323,14 @@ pub fn write_outputs(
         )
     });
     eprintln!(
-        "raygun: guided render stopped ({}): {} iterations in {:.2} s on {}: {samples} samples ({:.2} % of full frame), {:.2} ms per megasample{roi}; wrote {}, {}",
+        "raygun: guided render stopped ({}): {} iterations in {:.2} s on {}: {samples} samples ({:.2} % of full frame), {:.2} ms per megasample{roi}{}",
         res.stop,
         res.iterations,
         res.seconds,
         device,
         100.0 * res.sample_share(),
         res.seconds * 1e3 / (samples as f64 / 1e6),
-        plan.dgi_out.display(),
-        plan.counts_out.display(),
+        wrote_guides(plan),
     );
     if !extra.is_empty() {
         eprintln!("raygun: {extra}");

@@ -86,8 +86,10 @@ pub struct RenderArgs {
     /// Seed of the per-pixel random sequences.
     #[arg(long, default_value_t = 1)]
     pub seed: u32,
-    /// Output files (repeatable): .exr (linear RGB, f32) or .png (sRGB, 8-bit).
-    #[arg(long, value_name = "FILE", required = true)]
+    /// Output files (repeatable): .exr (linear RGB, f32) or .png (sRGB, 8-bit). Needed unless
+    /// --tiles writes the wall's tiles instead (with --cluster the whole picture is then never
+    /// assembled on one rank).
+    #[arg(long, value_name = "FILE", required_unless_present = "tiles")]
     pub out: Vec<PathBuf>,
     /// PNG exposure in stops (the EXR keeps the linear values).
     #[arg(
@@ -146,11 +148,12 @@ pub struct RenderArgs {
     pub order: crate::schedule::Order,
     #[command(flatten)]
     pub filter: crate::cli::filter::FilterArgs,
-    /// Where to write the DGI (EXR or PNG; default `<out stem>.dgi.exr`).
+    /// Where to write the DGI (EXR or PNG; default `<out stem>.dgi.exr` beside the first
+    /// --out, none without one).
     #[arg(long, value_name = "FILE")]
     pub dgi_out: Option<PathBuf>,
     /// Where to write the per-pixel sample counts (EXR or PNG; default
-    /// `<out stem>.counts.exr`).
+    /// `<out stem>.counts.exr` beside the first --out, none without one).
     #[arg(long, value_name = "FILE")]
     pub counts_out: Option<PathBuf>,
     /// Wall output: one image per tile of --display, `DIR/<tile id>.<exr|png>`, cut from the
@@ -158,7 +161,7 @@ pub struct RenderArgs {
     /// canvas size for an exact cut; other sizes are resampled by nearest neighbour.
     #[arg(long, value_name = "DIR")]
     pub tiles: Option<PathBuf>,
-    /// Format of the tile images (default: the first --out file's).
+    /// Format of the tile images (default: the first --out file's, else EXR).
     #[arg(long, value_name = "exr|png", requires = "tiles", value_parser = parse_format)]
     pub tiles_format: Option<Format>,
     #[command(flatten)]
@@ -194,11 +197,13 @@ pub fn write_wall_tiles(
     Ok(())
 }
 
-/// The format of `--tiles`' images: `--tiles-format`, or the first `--out` file's.
+/// The format of `--tiles`' images: `--tiles-format`, or the first `--out` file's, or EXR
+/// (the linear values) without one.
 pub fn tiles_format(args: &RenderArgs) -> anyhow::Result<Format> {
-    Ok(match args.tiles_format {
-        Some(f) => f,
-        None => Format::from_path(&args.out[0])?,
+    Ok(match (args.tiles_format, args.out.first()) {
+        (Some(f), _) => f,
+        (None, Some(out)) => Format::from_path(out)?,
+        (None, None) => Format::Exr,
     })
 }
 
