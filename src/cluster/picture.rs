@@ -165,9 +165,10 @@ impl ClusterRenderer {
     /// The pictures of the tiles of `model` that `tiles` gives this rank, filtered by `params`
     /// (a full frame: [`crate::filter::FilterKind::Off`], the mean image), on every rank at
     /// once: each sends the others the sums their tiles' margins need, then filters its own
-    /// tiles on the CPU twin. `tiles` must be the map this renderer's block owners were made
-    /// from. The pictures are the whole image's, filtered by one process, cut as
-    /// [`crate::output::tiles::cut_tile`] cuts it.
+    /// tiles on the CPU twin. Every rank must pass the same `tiles` (usually the map the block
+    /// owners were made from, so that a tile's own pixels are mostly its owner's; the sums come
+    /// from whichever rank owns each block). The pictures are the whole image's, filtered by
+    /// one process, cut as [`crate::output::tiles::cut_tile`] cuts it.
     pub fn tile_pictures(
         &self,
         c: &mut super::Cluster,
