@@ -144,6 +144,12 @@ mod mpi {
         out
     }
 
+    /// One process, which must succeed.
+    fn run_ok(args: &[String]) {
+        let refs: Vec<&str> = args.iter().map(String::as_str).collect();
+        ok(&raygun(&refs));
+    }
+
     fn with(mut args: Vec<String>, more: &[&str]) -> Vec<String> {
         args.extend(strings(more));
         args
@@ -151,9 +157,7 @@ mod mpi {
 
     fn same_files_as_one_process(name: &str, make: fn(&Path) -> Vec<String>, extra: &[&str]) {
         let one = tmp_dir(&format!("{name}-one"));
-        let args = make(&one);
-        let refs: Vec<&str> = args.iter().map(String::as_str).collect();
-        ok(&raygun(&refs));
+        run_ok(&make(&one));
         let want = files(&one);
         assert!(!want.is_empty(), "{want:?}");
         for np in 1..=3 {
@@ -276,22 +280,15 @@ mod mpi {
     #[test]
     fn tiles_alone_are_written_without_assembling_the_picture() {
         let one = tmp_dir("tiles-alone-one");
-        let args = guided_tiles(&one);
-        let refs: Vec<&str> = args.iter().map(String::as_str).collect();
-        ok(&raygun(&refs));
-        let want = files(&one.join("tiles"));
+        run_ok(&guided_tiles(&one));
+        let want: Vec<(String, Vec<u8>)> = files(&one.join("tiles"))
+            .into_iter()
+            .map(|(n, b)| (format!("tiles/{n}"), b))
+            .collect();
         assert_eq!(want.len(), 35);
         let alone = tmp_dir("tiles-alone-process");
-        let args = without_out(guided_tiles(&alone));
-        let refs: Vec<&str> = args.iter().map(String::as_str).collect();
-        ok(&raygun(&refs));
-        assert!(
-            files(&alone)
-                == files(&one.join("tiles"))
-                    .into_iter()
-                    .map(|(n, b)| (format!("tiles/{n}"), b))
-                    .collect::<Vec<_>>()
-        );
+        run_ok(&without_out(guided_tiles(&alone)));
+        assert!(files(&alone) == want);
         let dir = tmp_dir("tiles-alone-3");
         let o = mpirun(&[(
             3,
@@ -317,9 +314,7 @@ mod mpi {
     #[test]
     fn a_tile_owners_file_changes_who_accumulates_not_the_image() {
         let one = tmp_dir("owners-one");
-        let args = guided(&one);
-        let refs: Vec<&str> = args.iter().map(String::as_str).collect();
-        ok(&raygun(&refs));
+        run_ok(&guided(&one));
         // Rows to ranks, against the default columns.
         let text: String = (0..7)
             .flat_map(|c| (0..5).map(move |r| format!("c{c}r{r} {}\n", r % 3)))

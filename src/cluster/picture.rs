@@ -108,38 +108,47 @@ pub fn regions(
         .collect()
 }
 
-/// The pixels in the union of `rects`, ascending, whose block `src` owns.
-#[must_use]
-pub fn pixels_owned_by(rects: &[Rect], owners: &BlockOwners, src: usize) -> Vec<u32> {
-    let (w, tiles_x) = (owners.width, owners.tiles[0]);
+/// The union of `rects` as disjoint row spans `(y, x0, x1)`, rows ascending and each row's
+/// spans left to right: the union's pixels in ascending index order, each once.
+fn union_spans(rects: &[Rect], mut f: impl FnMut(u32, u32, u32)) {
     let (Some(y0), Some(y1)) = (
         rects.iter().map(|r| r.y0).min(),
         rects.iter().map(|r| r.y1).max(),
     ) else {
-        return Vec::new();
+        return;
     };
-    let mut out = Vec::new();
     let mut spans: Vec<(u32, u32)> = Vec::new();
     for y in y0..y1 {
         spans.clear();
         spans.extend(
             rects
                 .iter()
-                .filter(|r| (r.y0..r.y1).contains(&y) && r.x0 < r.x1)
+                .filter(|r| (r.y0..r.y1).contains(&y))
                 .map(|r| (r.x0, r.x1)),
         );
         spans.sort_unstable();
         let mut next = 0;
         for &(a, b) in &spans {
-            for x in a.max(next)..b {
-                let p = y * w + x;
-                if owners.owner[block_of(p, w, tiles_x) as usize] as usize == src {
-                    out.push(p);
-                }
-            }
+            let a = a.max(next);
             next = next.max(b);
+            if a < b {
+                f(y, a, b);
+            }
         }
     }
+}
+
+/// The pixels in the union of `rects`, ascending, whose block `src` owns.
+#[must_use]
+pub fn pixels_owned_by(rects: &[Rect], owners: &BlockOwners, src: usize) -> Vec<u32> {
+    let (w, tiles_x) = (owners.width, owners.tiles[0]);
+    let mut out = Vec::new();
+    union_spans(rects, |y, a, b| {
+        out.extend(
+            (y * w + a..y * w + b)
+                .filter(|&p| owners.owner[block_of(p, w, tiles_x) as usize] as usize == src),
+        );
+    });
     out
 }
 
@@ -206,7 +215,8 @@ impl ClusterRenderer {
             }
         }
         let got = c.all_to_all(what, parts)?;
-        let mine = reads(me);
+        let own_regions = regions(model, tiles, me, size, halo);
+        let mine: Vec<Rect> = own_regions.iter().map(|r| r.reads).collect();
         let mut theirs: HashMap<u32, [f32; 4]> = HashMap::new();
         for (src, bytes) in got.iter().enumerate().filter(|(s, _)| *s != me) {
             let pixels = pixels_owned_by(&mine, &self.owners, src);
@@ -227,7 +237,7 @@ impl ClusterRenderer {
         let guided = self.guidance.is_some();
         let filter = Filter::new(&Backend::Cpu);
         let mut out = Vec::new();
-        for region in regions(model, tiles, me, size, halo) {
+        for region in own_regions {
             let r = region.reads;
             let mut acc = Accumulation::new(r.width(), r.height());
             let mut dgi = vec![0.0; r.pixels()];
@@ -281,46 +291,23 @@ pub fn margin_traffic(
 ) -> Vec<(u64, u64)> {
     let size = [owners.width, owners.height];
     let mut out = vec![(0u64, 0u64); ranks];
-    let mut spans: Vec<(u32, u32)> = Vec::new();
     for dst in 0..ranks {
         let reads: Vec<Rect> = regions(model, tiles, dst, size, halo)
             .iter()
             .map(|r| r.reads)
             .collect();
-        let (Some(y0), Some(y1)) = (
-            reads.iter().map(|r| r.y0).min(),
-            reads.iter().map(|r| r.y1).max(),
-        ) else {
-            continue;
-        };
-        for y in y0..y1 {
-            spans.clear();
-            spans.extend(
-                reads
-                    .iter()
-                    .filter(|r| (r.y0..r.y1).contains(&y))
-                    .map(|r| (r.x0, r.x1)),
-            );
-            spans.sort_unstable();
+        union_spans(&reads, |y, a, b| {
             let row = (y / TILE_EDGE) * owners.tiles[0];
-            let mut next = 0;
-            for &(a, b) in &spans {
-                let a = a.max(next);
-                next = next.max(b);
-                if a >= b {
-                    continue;
-                }
-                // Whole runs of a block's pixels at a time.
-                for bx in a / TILE_EDGE..=(b - 1) / TILE_EDGE {
-                    let src = owners.owner[(row + bx) as usize] as usize;
-                    if src != dst {
-                        let n = b.min((bx + 1) * TILE_EDGE) - a.max(bx * TILE_EDGE);
-                        out[src].0 += 16 * u64::from(n);
-                        out[dst].1 += 16 * u64::from(n);
-                    }
+            // Whole runs of a block's pixels at a time.
+            for bx in a / TILE_EDGE..=(b - 1) / TILE_EDGE {
+                let src = owners.owner[(row + bx) as usize] as usize;
+                if src != dst {
+                    let n = b.min((bx + 1) * TILE_EDGE) - a.max(bx * TILE_EDGE);
+                    out[src].0 += 16 * u64::from(n);
+                    out[dst].1 += 16 * u64::from(n);
                 }
             }
-        }
+        });
     }
     out
 }

@@ -467,9 +467,9 @@ impl<'a> Filter<'a> {
 /// owner's tiles, DESIGN.md §12); a region of the image filtered on its own with that margin
 /// around it, its origin on multiples of `align`, has the whole image's values inside.
 ///
-/// No filter reads the pixel alone. The exact filter's window reaches ⌊k⌋ ≤ ⌊k_max⌋ pixels. The fast filter's pixel reads two
-/// texels of a level (± its step); a level-ℓ texel sums its predecessor's texels within its
-/// pass's reach, down to the accumulation: the halo is the largest of those sums plus the
+/// [`FilterKind::Off`] reads the pixel alone. The exact filter's window reaches ⌊k⌋ ≤ ⌊k_max⌋
+/// pixels. The fast filter's pixel reads two texels of a level (± its step); a level-ℓ texel
+/// sums its predecessor's texels within its pass's reach, down to the accumulation: the halo is the largest of those sums plus the
 /// step, and regions start on a multiple of the coarsest step so that every level's texel grid
 /// in a region is the whole image's (the levels' origins and steps do not depend on the image's
 /// size).

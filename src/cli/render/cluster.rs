@@ -276,10 +276,7 @@ fn tiles_only_note(
 ) -> anyhow::Result<()> {
     let samples = r.samples();
     if p.plan.is_some() && samples == 0 {
-        bail!(
-            "no pixel was sampled in {} iterations: the ROI never reached the image and --p-min is 0",
-            run.iterations
-        );
+        return Err(super::guided::nothing_sampled(run.iterations));
     }
     eprintln!(
         "raygun: {} stopped ({}): {} iterations in {:.2} s on {device}: {samples} samples, {:.2} ms per megasample; the whole picture was not assembled (no --out); {summary}",

@@ -262,6 +262,13 @@ pub fn run(
     write_outputs(args, plan, &res, false, &backend.describe(), "")
 }
 
+/// Why a guided render that took no sample writes nothing.
+pub fn nothing_sampled(iterations: u32) -> anyhow::Error {
+    anyhow::anyhow!(
+        "no pixel was sampled in {iterations} iterations: the ROI never reached the image and --p-min is 0"
+    )
+}
+
 /// `; wrote DGI, COUNTS` for the guide images a render writes (nothing without them).
 fn wrote_guides(plan: &GuidedPlan) -> String {
     let files: Vec<String> = [&plan.dgi_out, &plan.counts_out]
@@ -288,10 +295,7 @@ pub fn write_outputs(
 ) -> anyhow::Result<()> {
     let samples = res.samples();
     if samples == 0 {
-        bail!(
-            "no pixel was sampled in {} iterations: the ROI never reached the image and --p-min is 0",
-            res.iterations
-        );
+        return Err(nothing_sampled(res.iterations));
     }
     let [w, h] = res.size;
     for out in &args.out {
