@@ -1031,6 +1031,7 @@ fn stop_conditions_end_a_guided_render_and_say_why() {
 #[test]
 fn messages_speak_to_users() {
     // Mesa's XDG_RUNTIME_DIR complaint is not the user's business.
+    let xdg = tmp_dir("xdg");
     let o = command(
         Path::new(ROOT),
         &[
@@ -1044,7 +1045,7 @@ fn messages_speak_to_users() {
             "--size",
             "16,9",
             "--out",
-            s(&tmp_dir("xdg").join("d.png")),
+            s(&xdg.join("d.png")),
         ],
     )
     .env_remove("XDG_RUNTIME_DIR")
@@ -1078,6 +1079,7 @@ fn messages_speak_to_users() {
         fails_with(&o, &["raygun render", "demo --headless"]);
     }
     // A display that is named but cannot be reached: the message names it, not winit's source.
+    let no_x = tmp_dir("no-x");
     let o = command(
         Path::new(ROOT),
         &[
@@ -1087,7 +1089,7 @@ fn messages_speak_to_users() {
             "--backend",
             "cpu",
             "--save-dir",
-            s(&tmp_dir("no-x")),
+            s(&no_x),
         ],
     )
     .env("DISPLAY", ":99")

@@ -27,12 +27,45 @@ pub fn command(dir: &Path, args: &[&str]) -> Command {
     c
 }
 
-/// A new, empty folder for one test (`name` must be unique among the tests of a binary).
-pub fn tmp_dir(name: &str) -> PathBuf {
+/// A new, empty folder for one test (`name` must be unique among the tests of a binary),
+/// removed when the test passes; a failing test's folder stays for a look at its files.
+pub fn tmp_dir(name: &str) -> TmpDir {
     let d = std::env::temp_dir().join(format!("raygun-test-{}-{name}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
-    d
+    TmpDir(d)
+}
+
+/// A test's folder (see [`tmp_dir`]); it is a `Path` wherever one is wanted.
+pub struct TmpDir(PathBuf);
+
+impl std::ops::Deref for TmpDir {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl AsRef<Path> for TmpDir {
+    fn as_ref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl AsRef<std::ffi::OsStr> for TmpDir {
+    fn as_ref(&self) -> &std::ffi::OsStr {
+        self.0.as_os_str()
+    }
+}
+
+impl Drop for TmpDir {
+    fn drop(&mut self) {
+        // Wall tiles at a display's native size are hundreds of megabytes: a passing test's
+        // files must not pile up in the temporary folder from run to run.
+        if !std::thread::panicking() {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
 }
 
 /// A path for a file named `name` in this test binary's folder (created; names must be unique
