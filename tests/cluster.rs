@@ -201,6 +201,55 @@ mod mpi {
         same_files_as_one_process("wall", full_wall, &[]);
     }
 
+    /// `args` with `--backend cpu` made `--backend gpu` (lavapipe here).
+    fn on_gpu(args: Vec<String>) -> Vec<String> {
+        let b = args.iter().position(|a| a == "--backend").unwrap();
+        let mut args = args;
+        args[b + 1] = "gpu".to_owned();
+        args
+    }
+
+    /// Ranks that trace on their GPUs (the kernel's compact mode: samples back to the rank,
+    /// then to their owners) write one GPU process's full frame byte for byte: the same kernel
+    /// computes each sample, and its owner adds it as the GPU would.
+    #[test]
+    fn gpu_ranks_write_the_one_process_gpu_frame_byte_for_byte() {
+        same_files_as_one_process("wall-gpu", |d| on_gpu(full_wall(d)), &[]);
+    }
+
+    /// A guided render on GPU ranks is the same on 1, 2 and 3 ranks byte for byte, and samples
+    /// the pixels one GPU process samples (its counts file). Its DGI is the CPU twin's on every
+    /// rank (one GPU process computes it in f32 on the GPU), so its image is not that process's.
+    #[test]
+    fn gpu_ranks_guided_renders_are_the_same_on_1_2_and_3_ranks() {
+        let one = tmp_dir("guided-gpu-one");
+        run_ok(&on_gpu(guided(&one)));
+        let mut first: Option<Vec<(String, Vec<u8>)>> = None;
+        for np in 1..=3 {
+            let dir = tmp_dir(&format!("guided-gpu-{np}"));
+            let o = mpirun(&[(np, &exe(), with(on_gpu(guided(&dir)), &["--cluster"]))]);
+            ok(&o);
+            let err = String::from_utf8_lossy(&o.stderr);
+            assert!(err.contains("rank(s), GPU "), "{err}");
+            let got = files(&dir);
+            let counts = |f: &[(String, Vec<u8>)]| {
+                f.iter()
+                    .find(|(n, _)| n == "img.counts.exr")
+                    .unwrap()
+                    .1
+                    .clone()
+            };
+            assert!(
+                counts(&got) == counts(&files(&one)),
+                "{np} ranks: the counts"
+            );
+            match &first {
+                None => first = Some(got),
+                Some(want) => assert!(&got == want, "{np} ranks: other files than 1 rank's"),
+            }
+        }
+    }
+
     /// A guided render through the wall camera whose eye follows the replay's tracked head:
     /// rank 0 applies the restart rule and sends the eyes it restarted at, so every rank
     /// restarts in the same frames as one process does.
@@ -442,6 +491,11 @@ mod mpi {
             &o,
             &["rank 2's tile map differs from rank 0's: c6r4=1 on rank 2, c6r4=0 on rank 0"],
         );
+        // Rank 1 on the CPU twins, rank 0 on its GPU: each would be right, together they
+        // would equal no one process.
+        let o = mpirun(&[(1, &exe(), on_gpu(base.clone())), (1, &exe(), base.clone())]);
+        let e = fails_with(&o, &["rank 1's trace backend differs from rank 0's"]);
+        assert!(e.contains("the CPU twins") && e.contains("GPU "), "{e}");
         // Another binary on rank 1 (the same program with a byte appended).
         let copy = tmp_file("raygun-copy");
         let mut bytes = std::fs::read(exe()).unwrap();

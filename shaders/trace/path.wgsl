@@ -1,11 +1,13 @@
 // The path-tracing integrator (CPU twin: src/trace/path.rs). One thread traces one path for one
 // pixel — every pixel in tile order (full frame) or the pixels of the scheduler's list — and
-// adds it to the pixel's accumulation.
+// adds it to the pixel's accumulation. A cluster rank's samples (mode 2, DESIGN.md §12) are
+// returned instead: entry i of a compact list traces pixel list[i] with sample index counts[i]
+// and writes its RGB and its ray count into accum[i] (CPU twin: `samples_cpu`).
 
 struct Params {
     size: vec2<u32>,
     count: u32,       // full frame: threads to run (tile-padded pixel count)
-    mode: u32,        // 0 full frame, 1 the scheduler's list
+    mode: u32,        // 0 full frame, 1 the scheduler's list, 2 a compact list (samples out)
     seed: u32,
     max_depth: u32,
     light_count: u32,
@@ -604,11 +606,18 @@ fn trace(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) 
     // No early return: the ray count is reduced per workgroup behind a barrier.
     // `slot` indexes this band's buffers; `pixel` is the image pixel it holds.
     var slot = 0u;
+    var pixel = 0u;
     var live = false;
-    if params.mode == 1u {
+    if params.mode != 0u {
         let linear = (wg.y * args[0] + wg.x) * WORKGROUP + li;
         if linear < args[3] {
-            slot = list[linear];
+            if params.mode == 2u {
+                slot = linear;
+                pixel = list[linear];
+            } else {
+                slot = list[linear];
+                pixel = params.row0 * params.size.x + slot;
+            }
             live = true;
         }
     } else {
@@ -621,10 +630,10 @@ fn trace(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) 
         let y = (tile / tiles_x) * 8u + l / 8u;
         if linear < params.count && x < params.size.x && y < params.rows {
             slot = y * params.size.x + x;
+            pixel = params.row0 * params.size.x + slot;
             live = true;
         }
     }
-    let pixel = params.row0 * params.size.x + slot;
     // The wall camera traces only pixels a tile shows (the schedule lists no others).
     var tile = 0u;
     if live && params.wall_tiles > 0u {
@@ -635,9 +644,14 @@ fn trace(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) 
     if live {
         let sample = counts[slot];
         let rgb = trace_sample(pixel, sample, tile);
-        let l = lum(rgb);
-        accum[slot] += vec4<f32>(rgb, l * l);
-        counts[slot] = sample + 1u;
+        if params.mode == 2u {
+            // The rank's CPU keeps the counts, the owner of the pixel the sums.
+            accum[slot] = vec4<f32>(rgb, bitcast<f32>(rays_traced));
+        } else {
+            let l = lum(rgb);
+            accum[slot] += vec4<f32>(rgb, l * l);
+            counts[slot] = sample + 1u;
+        }
     }
     atomicAdd(&workgroup_rays, rays_traced);
     workgroupBarrier();

@@ -176,6 +176,7 @@ pub fn scaling(
     scene: &Scene,
     display: &DisplayModel,
     cfg: &ClusterBenchConfig,
+    gpu: Option<std::sync::Arc<crate::gpu::GpuContext>>,
 ) -> Result<Option<Vec<ScalingRow>>, ClusterBenchError> {
     let (rank, ranks) = (c.rank(), c.ranks());
     let owners = BlockOwners::of_display(display, &TileOwners::columns(display, ranks), cfg.size);
@@ -194,6 +195,9 @@ pub fn scaling(
             rank,
             ranks,
         )?;
+        if let Some(ctx) = &gpu {
+            r.trace_on_gpu(ctx.clone())?;
+        }
         r.set_roi(Some(roi))?;
         // The broadcast alternative: rank 0's DGI, computed before the first frame so that the
         // timed broadcast right after it (the frame's exchange leaves the ranks in step) is the
@@ -454,7 +458,7 @@ pub fn markdown(r: &ClusterBenchReport) -> String {
             );
         }
     }
-    // The CPU twin's trace rate per rank, measured above: the model's one measured rate.
+    // A rank's trace rate (its backend's), measured above: the model's one measured rate.
     let rate = r
         .scaling
         .iter()
@@ -494,8 +498,9 @@ pub fn markdown(r: &ClusterBenchReport) -> String {
         );
     }
     s += &format!(
-        "\nThe measured rate: {:.3} Msamples/s per rank (the CPU twin, best of the rows above). Iterations/s = 1 / (samples/(ranks × rate) + link time): tracing and exchange do not overlap, the schedule and the DGI are left out. A rank whose trace rate exceeds the break-even rate spends longer on the link than on tracing. The picture's columns are per picture shown or saved, not per iteration: each owner's tiles' margins (the default fast filter) against the whole accumulation gathered to rank 0.\n",
-        rate / 1e6
+        "\nThe measured rate: {:.3} Msamples/s per rank ({}, best of the rows above: the trace step alone, its upload and read-back on a GPU included). Iterations/s = 1 / (samples/(ranks × rate) + link time): tracing and exchange do not overlap, the schedule and the DGI are left out. A rank whose trace rate exceeds the break-even rate spends longer on the link than on tracing. The picture's columns are per picture shown or saved, not per iteration: each owner's tiles' margins (the default fast filter) against the whole accumulation gathered to rank 0.\n",
+        rate / 1e6,
+        r.device
     );
     s
 }

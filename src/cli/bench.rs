@@ -226,20 +226,19 @@ fn run_cluster_bench(args: &GuidedBenchArgs) -> anyhow::Result<()> {
     if args.model_ranks == 0 {
         anyhow::bail!("--model-ranks must be at least 1");
     }
-    if args.camera.is_some() || args.backend == BackendChoice::Gpu {
-        anyhow::bail!(
-            "bench guided --cluster measures the pinhole on the CPU twins (no --camera, no --backend gpu)"
-        );
+    if args.camera.is_some() {
+        anyhow::bail!("bench guided --cluster measures the pinhole (no --camera)");
     }
     let mut c = crate::cli::cluster::start(&args.cluster)?;
     let scene_name = args.scene[0].clone();
     let prepared = (|| -> anyhow::Result<_> {
         let display = DisplayModel::open(&args.display).context("--display")?.0;
         let scene = crate::cli::scene::load_scene(&scene_name, args.env.as_deref())?;
-        Ok((display, scene))
+        let backend = Backend::select(args.backend)?;
+        Ok((display, scene, backend))
     })();
     let mine = match &prepared {
-        Ok((d, s)) => identity(
+        Ok((d, s, b)) => identity(
             c.ranks(),
             &[
                 ("command", "bench guided --cluster".to_owned()),
@@ -255,12 +254,25 @@ fn run_cluster_bench(args: &GuidedBenchArgs) -> anyhow::Result<()> {
                     "settings",
                     format!("{:?} {:?} {}", args.size, args.fov, args.iterations),
                 ),
+                ("trace backend", crate::cli::cluster::trace_backend(b)),
             ],
         ),
         Err(e) => Err(crate::cli::error_chain(e)),
     };
     check(&mut c, mine)?;
-    let (display, scene) = prepared?;
+    let (display, scene, backend) = prepared?;
+    let device = format!(
+        "{} rank(s), each on {}",
+        c.ranks(),
+        match &backend {
+            Backend::Gpu(ctx) => ctx.describe(),
+            Backend::Cpu => format!("the CPU twins, {}", crate::bench::cpu_description()),
+        }
+    );
+    let gpu = match backend {
+        Backend::Gpu(ctx) => Some(std::sync::Arc::from(ctx)),
+        Backend::Cpu => None,
+    };
     let model_sizes = if args.model_size.is_empty() {
         vec![[3840, 2160], [13519, 5457]]
     } else {
@@ -276,8 +288,7 @@ fn run_cluster_bench(args: &GuidedBenchArgs) -> anyhow::Result<()> {
         model_ranks: args.model_ranks,
         link_gbps: args.link_gbps,
     };
-    let ranks = c.ranks();
-    let rows = crate::bench::cluster::scaling(&mut c, &scene, &display, &cfg);
+    let rows = crate::bench::cluster::scaling(&mut c, &scene, &display, &cfg, gpu);
     let Some(scaling) = or_abort(&c, rows.map_err(anyhow::Error::from)) else {
         return Ok(());
     };
@@ -289,10 +300,7 @@ fn run_cluster_bench(args: &GuidedBenchArgs) -> anyhow::Result<()> {
         |what| eprintln!("raygun: {what}"),
     )?;
     let report = crate::bench::cluster::ClusterBenchReport {
-        device: format!(
-            "{ranks} rank(s) of CPU twins, each {}",
-            crate::bench::cpu_description()
-        ),
+        device,
         config: cfg,
         scaling,
         exchange,

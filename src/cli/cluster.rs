@@ -11,6 +11,19 @@ use crate::cluster::{Cluster, ClusterError, DgiMode};
 use crate::display::DisplayModel;
 use crate::session::cluster::Fault;
 
+/// The start-up check's words for where a rank traces: the kind of adapter (name and driver)
+/// or the CPU twins, whatever their thread count. Ranks on different kinds would each be
+/// right, but their samples differ in rounding, and the job would equal no one process.
+pub fn trace_backend(backend: &crate::gpu::Backend) -> String {
+    match backend {
+        crate::gpu::Backend::Gpu(ctx) => format!(
+            "GPU {} (driver {} {})",
+            ctx.info.name, ctx.info.driver, ctx.info.driver_info
+        ),
+        crate::gpu::Backend::Cpu => "the CPU twins".into(),
+    }
+}
+
 /// How to get `--cluster` where the binary was built without it.
 pub const HOW_TO_GET_IT: &str = "this raygun was built without the `cluster` feature: install MPI \
      (Debian: apt-get install openmpi-bin libopenmpi-dev libclang-dev), build with \
@@ -22,7 +35,7 @@ pub struct ClusterArgs {
     /// Render across the ranks of an MPI job: `mpirun -np N raygun … --cluster`. Rank 0 follows
     /// the guide and writes the outputs; every rank traces an interleaved share of each
     /// iteration's blocks; the image is bit for bit the one-process render's. Needs the
-    /// `cluster` feature; runs the CPU twins.
+    /// `cluster` feature; each rank traces on its GPU or CPU twins as `--backend` says.
     #[arg(long)]
     pub cluster: bool,
     /// Which rank owns (accumulates) each display tile: lines `TILE_ID RANK`, `#` comments;

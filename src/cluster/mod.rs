@@ -5,8 +5,8 @@
 //! rank 0: ROI, iteration ──broadcast (binomial tree)──► every rank
 //! every rank: install the DGI (computed, or broadcast by rank 0) ──► schedule (the whole
 //!     list: the same on every rank) ──► deal its 32×32 blocks, weighted by measured cost
-//!     ──► trace the blocks dealt to this rank ──all-to-all──► each block's samples to the
-//!     owner of its tile, which accumulates them
+//!     ──► trace the blocks dealt to this rank (its GPU, or the CPU twin) ──all-to-all──►
+//!     each block's samples to the owner of its tile, which accumulates them
 //! rank 0, when asked (save, report): gathers the owners' sums ──► filter ──► picture
 //! every owner, for its display tiles: the margins' sums from their owners ──► filter ──► tiles
 //! ```
@@ -43,18 +43,19 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use glam::{DVec2, DVec3, Vec3};
-use rayon::prelude::*;
 
 use crate::display::DisplayModel;
 use crate::frame::stop::RoiProgress;
 use crate::frame::{EyeFollow, FrameError, GuideConfig, dgi_cpu};
+use crate::gpu::GpuContext;
 use crate::roi::cone::Cone;
 use crate::roi::dgi::{Roi, Surface};
 use crate::scene::Scene;
 use crate::schedule::{BLOCK_PIXELS, ScheduleError, TILE_EDGE, schedule_cpu_shown};
 use crate::trace::accum::{Accumulation, accumulate};
+use crate::trace::gpu::{GpuScene, SampleRun, TraceKernel};
 use crate::trace::pack::PackedScene;
-use crate::trace::path::{TraceSettings, trace_counted_with};
+use crate::trace::path::{TraceSettings, samples_cpu};
 use crate::trace::wall::WallCamera;
 use deal::{BlockList, CostTable, deal};
 use exchange::{Exchange, ExchangeError, Traffic};
@@ -71,6 +72,8 @@ pub enum ClusterError {
     Schedule(#[from] ScheduleError),
     #[error(transparent)]
     Filter(#[from] crate::filter::FilterGpuError),
+    #[error("this rank's GPU: {0}")]
+    Gpu(#[from] crate::gpu::GpuError),
     #[error("the start-up check rejected the job: {0}")]
     Rejected(String),
     #[error("the block map is for a {map:?} image, the render's is {image:?}")]
@@ -383,6 +386,15 @@ pub struct ClusterRenderer {
     costs: CostTable,
     /// A full frame's list (every shown pixel), made once.
     full_list: Option<Arc<BlockList>>,
+    /// Where this rank traces its samples: the CPU twin (`None`) or its GPU.
+    gpu: Option<Box<GpuRank>>,
+}
+
+/// A rank's GPU, with the scene on it and the kernel's compact mode ([`SampleRun`]).
+struct GpuRank {
+    ctx: Arc<GpuContext>,
+    scene: GpuScene,
+    run: SampleRun,
 }
 
 impl ClusterRenderer {
@@ -459,7 +471,33 @@ impl ClusterRenderer {
             owners,
             slot,
             full_list: None,
+            gpu: None,
         })
+    }
+
+    /// Traces this rank's samples on `ctx`'s GPU from now on, the scene uploaded to it (the
+    /// kernel's compact mode: the samples come back to this rank, which sends them to their
+    /// owners as the CPU twin's). Every rank should trace on the same kind of adapter: the
+    /// GPU's samples equal the CPU twin's only to rounding, so a job that mixes them is
+    /// bit-identical to neither (the start-up check compares the backends).
+    pub fn trace_on_gpu(&mut self, ctx: Arc<GpuContext>) -> Result<(), ClusterError> {
+        let kernel = TraceKernel::new(&ctx);
+        let scene = GpuScene::upload(&ctx, &kernel, &self.packed)?;
+        let run = SampleRun::new(
+            &ctx,
+            &kernel,
+            &self.packed,
+            &self.settings,
+            self.wall.as_ref(),
+        );
+        self.gpu = Some(Box::new(GpuRank { ctx, scene, run }));
+        Ok(())
+    }
+
+    /// The GPU this rank traces on (`None`: the CPU twin).
+    #[must_use]
+    pub fn gpu(&self) -> Option<&GpuContext> {
+        self.gpu.as_deref().map(|g| &*g.ctx)
     }
 
     /// Samples taken so far, over the whole image (every rank knows every pixel's count).
@@ -517,6 +555,10 @@ impl ClusterRenderer {
     /// The wall camera `wall` from now on, and every pixel's count and this rank's owned sums
     /// back to zero (the one-process renderer's restart).
     fn restart_with(&mut self, wall: WallCamera) {
+        if let Some(g) = &mut self.gpu {
+            let moved = g.run.set_wall(&g.ctx, &self.packed, &self.settings, &wall);
+            debug_assert!(moved, "the same display's wall camera");
+        }
         self.wall = Some(wall);
         self.counts.fill(0);
         self.sums.fill([0.0; 4]);
@@ -545,7 +587,7 @@ impl ClusterRenderer {
         self.install_dgi(c, &mut stats)?;
         let list = self.schedule(&mut stats)?;
         let tracer = deal(&list, &self.costs, self.ranks);
-        let samples = self.trace(&list, &tracer, &mut stats);
+        let samples = self.trace(&list, &tracer, &mut stats)?;
         self.exchange(c, &list, &tracer, &samples, &mut stats)?;
         for &p in &list.pixels {
             self.counts[p as usize] += 1;
@@ -625,8 +667,13 @@ impl ClusterRenderer {
     }
 
     /// Step 3: one sample for each pixel of the blocks dealt to this rank, in block order, and
-    /// the rays each block took.
-    fn trace(&self, list: &BlockList, tracer: &[u32], stats: &mut ClusterFrameStats) -> Traced {
+    /// the rays each block took, on this rank's GPU or CPU twin.
+    fn trace(
+        &mut self,
+        list: &BlockList,
+        tracer: &[u32],
+        stats: &mut ClusterFrameStats,
+    ) -> Result<Traced, ClusterError> {
         let t0 = Instant::now();
         let mine: Vec<usize> = (0..list.blocks.len())
             .filter(|&i| tracer[i] as usize == self.rank)
@@ -635,14 +682,12 @@ impl ClusterRenderer {
             .iter()
             .flat_map(|&i| list.pixels_of(i).iter().copied())
             .collect();
+        let counts: Vec<u32> = pixels.iter().map(|&p| self.counts[p as usize]).collect();
         let (sc, s, wall) = (&self.packed, &self.settings, self.wall.as_ref());
-        let samples: Vec<(Vec3, u32)> = pixels
-            .par_iter()
-            .map(|&p| {
-                trace_counted_with(sc, s, wall, p, self.counts[p as usize])
-                    .expect("the schedule lists shown pixels only")
-            })
-            .collect();
+        let samples = match &mut self.gpu {
+            Some(g) => g.run.samples(&g.ctx, &g.scene, &pixels, &counts)?,
+            None => samples_cpu(sc, s, wall, &pixels, &counts),
+        };
         let mut rays = Vec::with_capacity(mine.len());
         let mut at = 0;
         for &i in &mine {
@@ -653,11 +698,11 @@ impl ClusterRenderer {
         stats.pixels_traced = pixels.len() as u64;
         stats.rays = rays.iter().map(|&r| u64::from(r)).sum();
         stats.ms_trace = t0.elapsed().as_secs_f64() * 1e3;
-        Traced {
+        Ok(Traced {
             blocks: mine,
             rgb: samples.into_iter().map(|s| s.0).collect(),
             rays,
-        }
+        })
     }
 
     /// Step 4: every rank's samples to the owners of their blocks, and every block's rays to

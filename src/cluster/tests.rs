@@ -541,3 +541,61 @@ fn a_regions_margin_is_aligned_and_the_union_of_pixels_is_counted_once() {
     assert!(left.windows(2).all(|w| w[0] < w[1]) && right.windows(2).all(|w| w[0] < w[1]));
     assert!(left.iter().all(|p| p % 64 < 32) && right.iter().all(|p| p % 64 >= 32));
 }
+
+/// GPU ranks (the trace kernel's compact mode) give one GPU process's accumulation bit for
+/// bit through the wall camera, a moved eye included: every rank's GPU traces from the new
+/// eye after the restart (2 in-process ranks sharing the test's adapter).
+#[test]
+fn gpu_ranks_give_the_one_gpu_process_accumulation_and_follow_a_moved_eye() {
+    let s = scene();
+    let moved = DVec3::new(0.4, -0.1, 1.2);
+    let ctx = Arc::new(GpuContext::for_tests());
+    let b = Backend::Gpu(Box::new(GpuContext::for_tests()));
+    let mut one = Renderer::full_wall(&b, &s, settings(&s), wall(&s)).unwrap();
+    for k in 0..5 {
+        if k == 2 {
+            assert!(matches!(
+                one.follow_eye(moved, 0.0).unwrap(),
+                EyeFollow::Restarted
+            ));
+        }
+        one.run_frame(false).unwrap();
+    }
+    let one = one.finish().unwrap();
+    let got: Vec<_> = std::thread::scope(|sc| {
+        let handles: Vec<_> = InProcess::job(2)
+            .into_iter()
+            .map(|end| {
+                let (s, ctx) = (&s, &ctx);
+                sc.spawn(move || {
+                    let rank = end.rank();
+                    let mut c = Cluster::new(Box::new(end), Duration::from_secs(30));
+                    let mut r = ClusterRenderer::new(
+                        s,
+                        settings(s),
+                        None,
+                        Some(wall(s)),
+                        columns(2),
+                        DgiMode::Compute,
+                        rank,
+                        2,
+                    )
+                    .unwrap();
+                    r.trace_on_gpu(ctx.clone()).unwrap();
+                    assert!(r.gpu().is_some());
+                    for k in 0..5 {
+                        if k == 2 {
+                            r.move_eye(moved).unwrap();
+                        }
+                        r.run_frame(&mut c).unwrap();
+                    }
+                    r.gather(&mut c).unwrap()
+                })
+            })
+            .collect();
+        handles.into_iter().map(|h| h.join().unwrap()).collect()
+    });
+    let root = got.into_iter().next().unwrap().expect("rank 0 gathers");
+    assert_eq!(root.0.count.iter().max(), Some(&3), "restarted at frame 2");
+    assert_bits_equal(&root, &one, "2 GPU ranks, the eye moved");
+}

@@ -462,7 +462,18 @@ impl GpuContext {
 
     /// Copies `src` (which needs `COPY_SRC`) into a fresh mappable buffer and reads it back.
     pub fn read_buffer<T: bytemuck::Pod>(&self, src: &wgpu::Buffer) -> Result<Vec<T>, GpuError> {
-        let size = src.size();
+        self.read_prefix(src, src.size())
+    }
+
+    /// [`Self::read_buffer`] of the first `size` bytes of `src` alone (a multiple of 4).
+    pub fn read_prefix<T: bytemuck::Pod>(
+        &self,
+        src: &wgpu::Buffer,
+        size: u64,
+    ) -> Result<Vec<T>, GpuError> {
+        if size == 0 {
+            return Ok(Vec::new());
+        }
         let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("raygun read-back"),
             size,

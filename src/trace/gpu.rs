@@ -469,6 +469,204 @@ impl TraceRun {
     }
 }
 
+/// Samples returned rather than accumulated: a cluster rank's trace (DESIGN.md §12), whose
+/// samples go to the owners of their tiles. The kernel's compact mode: entry i of the list
+/// traces pixel `pixels[i]` with sample index `counts[i]` (the rank keeps every pixel's count
+/// on its CPU) and writes the sample's RGB and its ray count into entry i, which is read back.
+/// CPU twin: [`super::path::samples_cpu`].
+///
+/// Per sample the link to the GPU carries 8 bytes up (pixel, sample index) and 16 down; the
+/// buffers grow with the longest list so far.
+pub struct SampleRun {
+    pipeline: wgpu::ComputePipeline,
+    params: wgpu::Buffer,
+    wall_table: wgpu::Buffer,
+    wall: Option<WallCamera>,
+    buffers: Option<SampleBuffers>,
+}
+
+/// A [`SampleRun`]'s list-sized buffers and the frame bind group over them.
+struct SampleBuffers {
+    capacity: u32,
+    list: wgpu::Buffer,
+    counts: wgpu::Buffer,
+    out: wgpu::Buffer,
+    args: wgpu::Buffer,
+    bind: wgpu::BindGroup,
+}
+
+impl SampleRun {
+    /// For `scene` with `settings`, through `wall`'s primary rays when given.
+    #[must_use]
+    pub fn new(
+        ctx: &GpuContext,
+        kernel: &TraceKernel,
+        scene: &PackedScene,
+        settings: &TraceSettings,
+        wall: Option<&WallCamera>,
+    ) -> Self {
+        let params = ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("samples params"),
+                contents: bytemuck::bytes_of(&Self::params_of(scene, settings, wall)),
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            });
+        let table = wall.map_or_else(|| vec![[0.0f32; 4]; TILE_VEC4S_MIN], WallCamera::gpu_table);
+        let wall_table = ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("samples wall tiles"),
+                contents: bytemuck::cast_slice(&table),
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            });
+        Self {
+            pipeline: kernel.pipeline.clone(),
+            params,
+            wall_table,
+            wall: wall.cloned(),
+            buffers: None,
+        }
+    }
+
+    fn params_of(
+        scene: &PackedScene,
+        settings: &TraceSettings,
+        wall: Option<&WallCamera>,
+    ) -> GpuTraceParams {
+        GpuTraceParams {
+            mode: 2,
+            ..GpuTraceParams::with_wall(scene, settings, wall, true)
+        }
+    }
+
+    /// The wall camera `wall` from now on (a moved eye: the same display and tile count).
+    /// Returns `false`, changing nothing, where this run has no wall camera or `wall` has
+    /// another tile count.
+    pub fn set_wall(
+        &mut self,
+        ctx: &GpuContext,
+        scene: &PackedScene,
+        settings: &TraceSettings,
+        wall: &WallCamera,
+    ) -> bool {
+        match &self.wall {
+            Some(w) if w.tiles.len() == wall.tiles.len() => {}
+            _ => return false,
+        }
+        ctx.queue
+            .write_buffer(&self.wall_table, 0, bytemuck::cast_slice(&wall.gpu_table()));
+        ctx.queue.write_buffer(
+            &self.params,
+            0,
+            bytemuck::bytes_of(&Self::params_of(scene, settings, Some(wall))),
+        );
+        self.wall = Some(wall.clone());
+        true
+    }
+
+    /// Buffers for at least `len` entries (grown by doubling).
+    fn buffers(&mut self, ctx: &GpuContext, len: u32) -> Result<&SampleBuffers, GpuError> {
+        if self.buffers.as_ref().is_none_or(|b| b.capacity < len) {
+            let capacity = len.max(1).next_power_of_two().max(1024);
+            ctx.check_binding("a rank's samples (16 bytes each)", u64::from(capacity) * 16)?;
+            let make = |label, bytes: u64, usage| {
+                ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some(label),
+                    size: bytes,
+                    usage,
+                    mapped_at_creation: false,
+                })
+            };
+            use wgpu::BufferUsages as U;
+            let n = u64::from(capacity);
+            let list = make("samples pixels", 4 * n, U::STORAGE | U::COPY_DST);
+            let counts = make("samples indices", 4 * n, U::STORAGE | U::COPY_DST);
+            let out = make(
+                "samples out",
+                16 * n,
+                U::STORAGE | U::COPY_SRC | U::COPY_DST,
+            );
+            let args = make("samples args", 16, U::STORAGE | U::COPY_DST);
+            let stats = make("samples stats", 16, U::STORAGE);
+            let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("samples frame"),
+                layout: &self.pipeline.get_bind_group_layout(1),
+                entries: &[
+                    entry(0, &self.params),
+                    entry(1, &out),
+                    entry(2, &counts),
+                    entry(3, &list),
+                    entry(4, &args),
+                    entry(5, &stats),
+                    entry(6, &self.wall_table),
+                ],
+            });
+            self.buffers = Some(SampleBuffers {
+                capacity,
+                list,
+                counts,
+                out,
+                args,
+                bind,
+            });
+        }
+        Ok(self.buffers.as_ref().expect("made above"))
+    }
+
+    /// One sample for each of `pixels` (sample index `counts[i]` for `pixels[i]`): its RGB and
+    /// the rays it took, in list order; a pixel the wall camera does not show gives black and
+    /// no rays.
+    pub fn samples(
+        &mut self,
+        ctx: &GpuContext,
+        scene: &GpuScene,
+        pixels: &[u32],
+        counts: &[u32],
+    ) -> Result<Vec<(glam::Vec3, u32)>, GpuError> {
+        assert_eq!(pixels.len(), counts.len(), "a sample index for each pixel");
+        if pixels.is_empty() {
+            return Ok(Vec::new());
+        }
+        let len = u32::try_from(pixels.len()).expect("a list of u32 pixel indices");
+        let max_per_dim = ctx.limits.max_compute_workgroups_per_dimension.max(1);
+        let groups = len.div_ceil(WORKGROUP);
+        let gy = groups.div_ceil(max_per_dim);
+        let gx = groups.div_ceil(gy);
+        let pipeline = self.pipeline.clone();
+        let b = self.buffers(ctx, len)?;
+        ctx.queue
+            .write_buffer(&b.list, 0, bytemuck::cast_slice(pixels));
+        ctx.queue
+            .write_buffer(&b.counts, 0, bytemuck::cast_slice(counts));
+        ctx.queue
+            .write_buffer(&b.args, 0, bytemuck::cast_slice(&[gx, gy, 1, len]));
+        let mut enc = ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("trace/samples"),
+            });
+        let bytes = 16 * u64::from(len);
+        enc.clear_buffer(&b.out, 0, Some(bytes));
+        {
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("trace/samples"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(&pipeline);
+            pass.set_bind_group(0, &scene.bind, &[]);
+            pass.set_bind_group(1, &b.bind, &[]);
+            pass.dispatch_workgroups(gx, gy, 1);
+        }
+        ctx.queue.submit([enc.finish()]);
+        let out: Vec<[f32; 4]> = ctx.read_prefix(&b.out, bytes)?;
+        Ok(out
+            .iter()
+            .map(|v| (glam::Vec3::new(v[0], v[1], v[2]), v[3].to_bits()))
+            .collect())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -385,6 +385,27 @@ pub fn trace_counted_with(
     Some(trace(sc, s, pixel, sample, o, d))
 }
 
+/// One sample for each of `pixels`, pixel `pixels[i]` with sample index `counts[i]`: its RGB
+/// and the rays it took, in list order, on all cores — a cluster rank's samples (DESIGN.md
+/// §12), which go to the owners of their tiles instead of into an accumulation here. A pixel
+/// `wall` does not show gives black and no rays. The CPU twin of the trace kernel's compact
+/// mode ([`crate::trace::gpu::SampleRun`]).
+#[must_use]
+pub fn samples_cpu(
+    sc: &PackedScene,
+    s: &TraceSettings,
+    wall: Option<&WallCamera>,
+    pixels: &[u32],
+    counts: &[u32],
+) -> Vec<(Vec3, u32)> {
+    assert_eq!(pixels.len(), counts.len(), "a sample index for each pixel");
+    pixels
+        .par_iter()
+        .zip(counts)
+        .map(|(&p, &n)| trace_counted_with(sc, s, wall, p, n).unwrap_or((Vec3::ZERO, 0)))
+        .collect()
+}
+
 /// [`trace_path`] in the instantiation the scene needs: the plain one where
 /// [`PackedScene::plain`] holds (the same function, its other branches compiled out).
 #[inline]

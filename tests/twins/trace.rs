@@ -145,3 +145,58 @@ fn gpu_and_cpu_twin_agree_on_a_scene_with_every_feature() {
         100.0 * share
     );
 }
+
+/// A cluster rank's samples (the kernel's compact mode, `SampleRun`, DESIGN.md §12): the very
+/// bits the accumulating kernel adds, in any list order, and the CPU twin's samples
+/// (`samples_cpu`) to rounding, rays included — for the sample index asked, not another.
+#[test]
+fn a_ranks_samples_are_the_bits_the_accumulating_kernel_adds() {
+    use raygun::trace::gpu::{GpuScene, SampleRun, TraceKernel};
+    use raygun::trace::path::samples_cpu;
+    let ctx = GpuContext::for_tests();
+    let scene = twin_scene();
+    let s = settings(&scene, 32, 24, 5, 8);
+    let packed = PackedScene::new(&scene);
+    let kernel = TraceKernel::new(&ctx);
+    let gs = GpuScene::upload(&ctx, &kernel, &packed).unwrap();
+    let mut run = SampleRun::new(&ctx, &kernel, &packed, &s, None);
+    let n = s.width * s.height;
+    // Every third pixel first, then the rest backwards: no order the image has.
+    let mut pixels: Vec<u32> = (0..n).step_by(3).collect();
+    pixels.extend((0..n).rev().filter(|p| p % 3 != 0));
+    let first = render_gpu(&ctx, &scene, &s, 1);
+    let got = run
+        .samples(&ctx, &gs, &pixels, &vec![0; pixels.len()])
+        .unwrap();
+    assert_eq!(got.len(), pixels.len());
+    for (&p, (rgb, _)) in pixels.iter().zip(&got) {
+        let want = first.sum[p as usize];
+        assert!(
+            rgb.to_array() == [want[0], want[1], want[2]],
+            "pixel {p}: {rgb} against the accumulated {want:?}"
+        );
+    }
+    // Against the CPU twin, at sample index 7 (a list half as long: the buffers are reused).
+    let half = &pixels[..pixels.len() / 2];
+    let sevens = vec![7; half.len()];
+    let gpu = run.samples(&ctx, &gs, half, &sevens).unwrap();
+    let cpu = samples_cpu(&packed, &s, None, half, &sevens);
+    let close = |a: &(Vec3, u32), b: &(Vec3, u32)| {
+        (a.0 - b.0).abs().max_element()
+            <= crate::render::SAME_SEED_REL * a.0.abs().max_element().max(1.0)
+            && a.1 == b.1
+    };
+    let share = |a: &[(Vec3, u32)], b: &[(Vec3, u32)]| {
+        a.iter().zip(b).filter(|(x, y)| close(x, y)).count() as f64 / a.len() as f64
+    };
+    let agree = share(&gpu, &cpu);
+    assert!(agree >= SAME_SEED_SHARE, "{:.1} % agree", 100.0 * agree);
+    assert!(
+        gpu.iter().all(|g| g.1 >= 1),
+        "every path casts its camera ray"
+    );
+    // The index is the one asked for: sample 0's paths are other paths.
+    let zeros = samples_cpu(&packed, &s, None, half, &vec![0; half.len()]);
+    let other = share(&gpu, &zeros);
+    assert!(other < 0.5, "{:.1} % agree with sample 0", 100.0 * other);
+}

@@ -3,11 +3,11 @@
 //! compares what the ranks are about to do; rank 0 follows the guide, shows the progress and
 //! writes every output, bit for bit what one process writes.
 
-use anyhow::{Context, bail};
+use anyhow::Context;
 
 use super::guided::GuidedPlan;
 use super::{RenderArgs, check_args, check_outputs, resolve_wall, settings, wall_camera};
-use crate::cli::cluster::{block_owners, check, identity, model_field, or_abort};
+use crate::cli::cluster::{block_owners, check, identity, model_field, or_abort, trace_backend};
 use crate::cli::progress::Progress;
 use crate::cli::scene::load_scene;
 use crate::cluster::handshake::scene_hash;
@@ -15,7 +15,7 @@ use crate::cluster::owners::{BlockOwners, TileOwners};
 use crate::cluster::{Cluster, ClusterRenderer};
 use crate::display::DisplayModel;
 use crate::filter::Filter;
-use crate::gpu::{Backend, BackendChoice};
+use crate::gpu::Backend;
 use crate::memory::Work;
 use crate::scene::Scene;
 use crate::session::cluster::{ClusterRun, run_cluster};
@@ -26,6 +26,8 @@ use crate::trace::wall::WallCamera;
 /// What every rank has checked and loaded before the start-up check.
 struct Prepared {
     plan: Option<GuidedPlan>,
+    /// Where this rank traces.
+    backend: Backend,
     scene: Scene,
     settings: TraceSettings,
     wall: Option<WallCamera>,
@@ -60,11 +62,6 @@ fn prepare(args: &RenderArgs, c: &Cluster) -> anyhow::Result<Prepared> {
         // Every owner writes its own tiles there (on its own machine's disk, or a shared one).
         crate::output::check_folder(dir).context("--tiles")?;
     }
-    if args.backend == BackendChoice::Gpu {
-        bail!(
-            "--cluster traces on the CPU twins; --backend gpu is not taken with it (use --backend cpu or auto)"
-        );
-    }
     let plan = match &args.guide {
         Some(guide) => Some(GuidedPlan::new(args, guide)?),
         None => None,
@@ -94,6 +91,9 @@ fn prepare(args: &RenderArgs, c: &Cluster) -> anyhow::Result<Prepared> {
         }
         _ => None,
     };
+    // Each rank traces on its own GPU where it has one (the schedule, the DGI and the filter
+    // stay on its CPU, the same everywhere).
+    let backend = Backend::select(args.backend)?;
     let scene = load_scene(&args.scene, args.env.as_deref())?;
     let settings = settings(args, &scene)?;
     let wc = wall_camera(wall.as_ref(), &settings)?;
@@ -124,6 +124,7 @@ fn prepare(args: &RenderArgs, c: &Cluster) -> anyhow::Result<Prepared> {
             format!("{:?}", wc.as_ref().map(|w| w.eye_room)),
         ),
         ("DGI mode", format!("{:?}", args.cluster.cluster_dgi)),
+        ("trace backend", trace_backend(&backend)),
         ("whole picture on rank 0", format!("{}", assembles(args))),
     ];
     match &plan {
@@ -138,6 +139,7 @@ fn prepare(args: &RenderArgs, c: &Cluster) -> anyhow::Result<Prepared> {
     }
     Ok(Prepared {
         plan,
+        backend,
         scene,
         settings,
         wall: wc,
@@ -148,7 +150,7 @@ fn prepare(args: &RenderArgs, c: &Cluster) -> anyhow::Result<Prepared> {
     })
 }
 
-fn work(c: &mut Cluster, args: &RenderArgs, p: Prepared) -> anyhow::Result<()> {
+fn work(c: &mut Cluster, args: &RenderArgs, mut p: Prepared) -> anyhow::Result<()> {
     let (rank, ranks) = (c.rank(), c.ranks());
     let guide = p.plan.as_ref().map(|plan| (&plan.model, plan.config));
     let mut r = ClusterRenderer::new(
@@ -161,6 +163,10 @@ fn work(c: &mut Cluster, args: &RenderArgs, p: Prepared) -> anyhow::Result<()> {
         rank,
         ranks,
     )?;
+    let device = format!("{ranks} rank(s), {}", trace_backend(&p.backend));
+    if let Backend::Gpu(ctx) = std::mem::replace(&mut p.backend, Backend::Cpu) {
+        r.trace_on_gpu(ctx.into())?;
+    }
     let stopping = match &p.plan {
         Some(plan) => plan.stopping.clone(),
         None => Stopping {
@@ -206,7 +212,6 @@ fn work(c: &mut Cluster, args: &RenderArgs, p: Prepared) -> anyhow::Result<()> {
     )?;
     bar.finish();
     let tiles_written = write_owned_tiles(c, args, &p, &r)?;
-    let device = format!("{ranks} rank(s), CPU twins");
     let summary = summary(&run, ranks);
     let Some((acc, dgi)) = run.gathered.as_ref() else {
         if c.is_root() {
