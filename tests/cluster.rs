@@ -34,6 +34,68 @@ fn without_the_feature_cluster_says_how_to_get_it() {
     );
 }
 
+/// `bench guided --cluster --cluster-threads N`: the ranks as threads of one process (no MPI,
+/// with or without the feature), here on GPU ranks (lavapipe): every scheduled sample traced by
+/// one rank, what one sent the other received.
+#[test]
+fn the_cluster_benchmark_runs_its_ranks_as_threads_without_mpi() {
+    let out = support::tmp_file("bench-threads.json");
+    let o = support::raygun(&[
+        "bench",
+        "guided",
+        "--cluster",
+        "--cluster-threads",
+        "2",
+        "--backend",
+        "gpu",
+        "--scene",
+        "builtin:cornell",
+        "--size",
+        "96,40",
+        "--fov",
+        "10,60",
+        "--iterations",
+        "2",
+        "--model-size",
+        "96,40",
+        "--model-ranks",
+        "2",
+        "--json",
+        "--out",
+        support::s(&out),
+    ]);
+    support::ok(&o);
+    let r: serde_json::Value = serde_json::from_slice(&std::fs::read(&out).unwrap()).unwrap();
+    let device = r["device"].as_str().unwrap();
+    assert!(
+        device.contains("2 rank(s) as threads of one process") && device.contains("llvmpipe"),
+        "{device}"
+    );
+    let scaling = r["scaling"].as_array().unwrap();
+    assert_eq!(scaling.len(), 2);
+    for row in scaling {
+        let per_rank = row["per_rank"].as_array().unwrap();
+        assert_eq!(per_rank.len(), 2);
+        let traced: f64 = per_rank
+            .iter()
+            .map(|p| p["samples_traced_per_iteration"].as_f64().unwrap())
+            .sum();
+        assert_eq!(traced, row["samples_per_iteration"].as_f64().unwrap());
+        assert!(
+            per_rank
+                .iter()
+                .all(|p| p["ms_trace"].as_f64().unwrap() > 0.0)
+        );
+        assert_eq!(
+            per_rank[0]["bytes_sent_per_iteration"],
+            per_rank[1]["bytes_received_per_iteration"]
+        );
+    }
+    // No threads, no ranks.
+    let o = support::raygun(&["bench", "guided", "--cluster", "--cluster-threads", "0"]);
+    support::fails_with(&o, &["--cluster-threads must be at least 1"]);
+}
+
 #[cfg(feature = "cluster")]
 mod mpi {
     use std::path::{Path, PathBuf};

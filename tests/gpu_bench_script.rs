@@ -6,7 +6,7 @@
 use std::path::Path;
 use std::process::Command;
 
-const GROUPS: [&str; 10] = [
+const GROUPS: [&str; 11] = [
     "adapter",
     "dgi",
     "schedule",
@@ -17,6 +17,7 @@ const GROUPS: [&str; 10] = [
     "all-quick",
     "all",
     "wall",
+    "cluster",
 ];
 
 fn smoke(out: &Path, limit_s: Option<u32>) -> std::process::Output {
@@ -90,6 +91,7 @@ fn the_smoke_run_leaves_a_summary_and_a_tarball_that_names_every_group() {
         "all/report.md",
         "all-quick/report.md",
         "adapter/adapter.json",
+        "cluster/cluster.md",
     ] {
         let p = unpacked.join(table);
         assert!(

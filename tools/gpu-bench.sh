@@ -57,11 +57,11 @@ setup_device() {
 }
 
 # The groups, most important first: NAME BUDGET_SECONDS (the H200's; smoke mode has its own).
-BENCH_GROUPS=(adapter dgi schedule trace guided native filter all-quick all wall)
+BENCH_GROUPS=(adapter dgi schedule trace guided native filter all-quick all wall cluster)
 declare -A BUDGET=([adapter]=20 [dgi]=60 [schedule]=30 [trace]=90 [guided]=120 [native]=60
-  [filter]=45 [all-quick]=60 [all]=150 [wall]=60)
+  [filter]=45 [all-quick]=60 [all]=150 [wall]=60 [cluster]=60)
 declare -A SMOKE_BUDGET=([adapter]=10 [dgi]=20 [schedule]=20 [trace]=20 [guided]=40
-  [native]=20 [filter]=30 [all-quick]=60 [all]=60 [wall]=20)
+  [native]=20 [filter]=30 [all-quick]=60 [all]=60 [wall]=20 [cluster]=20)
 
 # One group's command line (printed, then run by `run_group`), for size S.
 group_command() {
@@ -84,6 +84,13 @@ group_command() {
       # HORNET's native canvas through the wall camera, once the build has one.
       if "$BIN" bench guided --help 2>/dev/null | grep -q -- '--eye'; then
         echo "$BIN bench guided --backend gpu --camera wall --eye 0,0,1 --size $WALL_SIZE --scene builtin:cornell --fov 10,60 --iterations $ITERATIONS --reference-spp 1 --out $d/wall.md"
+      fi
+      ;;
+    cluster)
+      # One GPU rank of the cluster frame (a thread: the machine has no MPI), its trace rate
+      # with the compact mode's upload and read-back, for the model at 3840×2160 and 73.8 MP.
+      if "$BIN" bench guided --help 2>/dev/null | grep -q -- '--cluster-threads'; then
+        echo "$BIN bench guided --cluster --cluster-threads 1 --backend gpu --size $s --fov 10,60 --iterations $CLUSTER_ITERATIONS $CLUSTER_MODEL --out $d/cluster.md"
       fi
       ;;
   esac
@@ -168,6 +175,7 @@ main() {
       LIMIT="${GPU_BENCH_LIMIT_S:-420}"
       SIZE=3840,2160 REPS=20 SPP=4 ITERATIONS=100 REFERENCE_SPP=256 CITY=builtin:city
       ALL_QUICK_SIZE="" ALL_SIZE="" WALL_SIZE=native NATIVE_ITERATIONS=20 NATIVE_DISPLAY=""
+      CLUSTER_ITERATIONS=20 CLUSTER_MODEL=""
       declare -gA BUDGETS
       for g in "${BENCH_GROUPS[@]}"; do BUDGETS[$g]=${BUDGET[$g]}; done
       ;;
@@ -179,6 +187,7 @@ main() {
       SIZE=32,18 REPS=1 SPP=1 ITERATIONS=2 REFERENCE_SPP=2 CITY=builtin:city-small
       ALL_QUICK_SIZE="--size 16,9 --scene builtin:cornell" ALL_SIZE="--size 24,12 --scene builtin:cornell"
       WALL_SIZE=64,26 NATIVE_ITERATIONS=2 NATIVE_DISPLAY=tiny
+      CLUSTER_ITERATIONS=2 CLUSTER_MODEL="--model-size 64,26 --model-ranks 3"
       declare -gA BUDGETS
       for g in "${BENCH_GROUPS[@]}"; do BUDGETS[$g]=${SMOKE_BUDGET[$g]}; done
       export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-/tmp}"

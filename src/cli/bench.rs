@@ -7,6 +7,7 @@ use anyhow::Context;
 use crate::cli::progress::{bench_progress, print_and_save};
 
 use crate::bench::dgi::{self, DgiBenchConfig};
+use crate::cluster::Cluster;
 use crate::display::DisplayModel;
 use crate::gpu::{Backend, BackendChoice};
 use crate::roi::dgi::{Falloff, Surface};
@@ -200,6 +201,12 @@ pub struct GuidedBenchArgs {
     /// --model-ranks ranks, and the link model. Takes the first --scene.
     #[command(flatten)]
     pub cluster: crate::cli::cluster::ClusterArgs,
+    /// With --cluster: the ranks as N threads of this one process, exchanging through memory
+    /// (the tests' in-process seam) instead of MPI — no `cluster` feature or mpirun needed, so
+    /// a GPU machine without MPI measures a GPU rank's rate for the model this way. The
+    /// exchange's times are then memory copies, not a link's.
+    #[arg(long, value_name = "N", requires = "cluster")]
+    pub cluster_threads: Option<usize>,
     /// Image sizes of the exchange count and the model (repeatable; default 3840,2160 and
     /// HORNET's native 13519,5457).
     #[arg(long, value_name = "W,H", value_parser = crate::cli::args::parse_size, requires = "cluster")]
@@ -219,7 +226,6 @@ pub struct GuidedBenchArgs {
 
 /// `bench guided --cluster`: the cluster benchmark (`bench::cluster`).
 fn run_cluster_bench(args: &GuidedBenchArgs) -> anyhow::Result<()> {
-    use crate::cli::cluster::{check, identity, or_abort};
     if !(args.link_gbps.is_finite() && args.link_gbps > 0.0) {
         anyhow::bail!("--link-gbps must be a positive number of Gbit/s");
     }
@@ -229,7 +235,45 @@ fn run_cluster_bench(args: &GuidedBenchArgs) -> anyhow::Result<()> {
     if args.camera.is_some() {
         anyhow::bail!("bench guided --cluster measures the pinhole (no --camera)");
     }
-    let mut c = crate::cli::cluster::start(&args.cluster)?;
+    let text = match args.cluster_threads {
+        Some(0) => anyhow::bail!("--cluster-threads must be at least 1"),
+        Some(n) => {
+            args.cluster.validate()?;
+            let timeout = std::time::Duration::from_secs_f64(args.cluster.cluster_timeout);
+            let mut done = std::thread::scope(|s| {
+                let ranks: Vec<_> = crate::cluster::exchange::InProcess::job(n)
+                    .into_iter()
+                    .map(|end| {
+                        s.spawn(move || {
+                            let rank = crate::cluster::exchange::Exchange::rank(&end);
+                            let mut c = Cluster::new(Box::new(end), timeout);
+                            cluster_bench(&mut c, args)
+                                .with_context(|| format!("rank {rank} (a thread)"))
+                        })
+                    })
+                    .collect();
+                ranks
+                    .into_iter()
+                    .map(|h| h.join().expect("a rank's thread returns"))
+                    .collect::<anyhow::Result<Vec<_>>>()
+            })?;
+            done.swap_remove(0)
+        }
+        None => {
+            let mut c = crate::cli::cluster::start(&args.cluster)?;
+            let text = cluster_bench(&mut c, args);
+            crate::cli::cluster::or_abort(&c, text)
+        }
+    };
+    match text {
+        Some(text) => print_and_save(&text, args.out.as_deref()),
+        None => Ok(()),
+    }
+}
+
+/// The cluster benchmark on this rank of the job `c`: the report's text on rank 0.
+fn cluster_bench(c: &mut Cluster, args: &GuidedBenchArgs) -> anyhow::Result<Option<String>> {
+    use crate::cli::cluster::{check, identity};
     let scene_name = args.scene[0].clone();
     let prepared = (|| -> anyhow::Result<_> {
         let display = DisplayModel::open(&args.display).context("--display")?.0;
@@ -259,11 +303,16 @@ fn run_cluster_bench(args: &GuidedBenchArgs) -> anyhow::Result<()> {
         ),
         Err(e) => Err(crate::cli::error_chain(e)),
     };
-    check(&mut c, mine)?;
+    check(c, mine)?;
     let (display, scene, backend) = prepared?;
     let device = format!(
-        "{} rank(s), each on {}",
+        "{} rank(s){}, each on {}",
         c.ranks(),
+        if args.cluster_threads.is_some() {
+            " as threads of one process (the in-memory exchange)"
+        } else {
+            ""
+        },
         match &backend {
             Backend::Gpu(ctx) => ctx.describe(),
             Backend::Cpu => format!("the CPU twins, {}", crate::bench::cpu_description()),
@@ -288,9 +337,8 @@ fn run_cluster_bench(args: &GuidedBenchArgs) -> anyhow::Result<()> {
         model_ranks: args.model_ranks,
         link_gbps: args.link_gbps,
     };
-    let rows = crate::bench::cluster::scaling(&mut c, &scene, &display, &cfg, gpu);
-    let Some(scaling) = or_abort(&c, rows.map_err(anyhow::Error::from)) else {
-        return Ok(());
+    let Some(scaling) = crate::bench::cluster::scaling(c, &scene, &display, &cfg, gpu)? else {
+        return Ok(None);
     };
     let exchange = crate::bench::cluster::exchange(
         &display,
@@ -305,12 +353,11 @@ fn run_cluster_bench(args: &GuidedBenchArgs) -> anyhow::Result<()> {
         scaling,
         exchange,
     };
-    let text = if args.json {
+    Ok(Some(if args.json {
         serde_json::to_string_pretty(&report)?
     } else {
         crate::bench::cluster::markdown(&report)
-    };
-    print_and_save(&text, args.out.as_deref())
+    }))
 }
 
 #[derive(Clone, Debug, clap::Args)]
