@@ -107,7 +107,19 @@ mod mpi {
     /// `mpirun -np N` with what a CI container needs: root allowed, more ranks than cores,
     /// shared memory between the ranks on one machine.
     fn mpirun(apps: &[(usize, &Path, Vec<String>)]) -> Output {
-        let mut c = Command::new("mpirun");
+        mpirun_in(&[], apps)
+    }
+
+    /// [`mpirun`] started by `prefix` (a program and its arguments, e.g. `xvfb-run …`).
+    fn mpirun_in(prefix: &[&str], apps: &[(usize, &Path, Vec<String>)]) -> Output {
+        let mut c = match prefix.split_first() {
+            Some((program, args)) => {
+                let mut c = Command::new(program);
+                c.args(args).arg("mpirun");
+                c
+            }
+            None => Command::new("mpirun"),
+        };
         c.args([
             "--allow-run-as-root",
             "--oversubscribe",
@@ -261,6 +273,75 @@ mod mpi {
     #[test]
     fn full_wall_frames_match_too() {
         same_files_as_one_process("wall", full_wall, &[]);
+    }
+
+    /// `view --cluster`: rank 0 opens the one window (Xvfb here) and follows the mouse ROI,
+    /// every rank traces — GPU ranks (lavapipe) through the wall camera — and the whole job ends
+    /// when the window closes (`--screenshot-after`), every ROI pixel of the saved picture
+    /// sampled in every frame. (That the picture is the one-process viewer's bit for bit is
+    /// tests/viewer.rs's, over in-process ranks.)
+    #[test]
+    fn the_viewer_across_ranks_opens_one_window_and_every_rank_ends_with_it() {
+        let dir = tmp_dir("view");
+        let n = 6;
+        let o = mpirun_in(
+            &["xvfb-run", "-a", "-s", "-screen 0 1280x700x24"],
+            &[(
+                3,
+                &exe(),
+                strings(&[
+                    "view",
+                    "--cluster",
+                    "--backend",
+                    "gpu",
+                    "--camera",
+                    "wall",
+                    "--eye",
+                    "0,0,1.2",
+                    "--size",
+                    "64,26",
+                    "--roi-at",
+                    "32,13",
+                    "--roi-radius",
+                    "200",
+                    "--p-min",
+                    "0.1",
+                    "--screenshot-after",
+                    &n.to_string(),
+                    "--save-dir",
+                    s(&dir),
+                ]),
+            )],
+        );
+        ok(&o);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            err.contains("3 rank(s), rank 0 tracing on llvmpipe"),
+            "{err}"
+        );
+        assert_eq!(err.matches("rendering on").count(), 1, "one window: {err}");
+        assert!(dir.join("screenshot.window.png").exists(), "{err}");
+        let counts: Vec<f32> =
+            exr::prelude::read_first_flat_layer_from_file(dir.join("screenshot.counts.exr"))
+                .unwrap()
+                .layer_data
+                .channel_data
+                .list[0]
+                .sample_data
+                .values_as_f32()
+                .collect();
+        let dgi = image::open(dir.join("screenshot.dgi.png"))
+            .unwrap()
+            .to_luma8();
+        let roi: Vec<f32> = dgi
+            .pixels()
+            .zip(&counts)
+            .filter(|(d, _)| d.0[0] == 0)
+            .map(|(_, &c)| c)
+            .collect();
+        assert!(!roi.is_empty());
+        assert!(roi.iter().all(|&c| c >= n as f32), "{roi:?}");
+        assert!(counts.iter().any(|&c| c < n as f32), "the periphery less");
     }
 
     /// `args` with `--backend cpu` made `--backend gpu` (lavapipe here).

@@ -113,7 +113,7 @@ fn panel_settings_reach_the_renderer() {
     core.step(ONE).unwrap();
     let r = core.renderer();
     assert_eq!(r.guide_config().unwrap().p_min, 1.0);
-    assert_eq!(r.settings.max_depth, 2);
+    assert_eq!(r.settings().max_depth, 2);
     assert_eq!(
         (
             r.guide_config().unwrap().falloff.base_m,
@@ -690,19 +690,19 @@ fn the_pinhole_camera_orbits_under_the_restart_rule() {
     let mut core = ViewerCore::new(&backend, &scene, &model, base(&scene), state).unwrap();
     core.step(ONE).unwrap();
     core.step(ONE).unwrap();
-    let cam0 = core.renderer().settings.camera;
+    let cam0 = core.renderer().settings().camera;
     assert_eq!(cam0.position, base(&scene).camera.position);
     // A tiny drag: far below the threshold's angle.
     core.state.eye_threshold_m = 0.05;
     core.state.gesture(Gesture::Orbit(DVec2::new(1.0, 0.0)));
     core.step(ONE).unwrap();
     assert_eq!(core.renderer().iteration(), 3);
-    assert_eq!(core.renderer().settings.camera.position, cam0.position);
+    assert_eq!(core.renderer().settings().camera.position, cam0.position);
     core.state.gesture(Gesture::Orbit(DVec2::new(40.0, 0.0)));
     core.step(ONE).unwrap();
     assert_eq!(core.restarts, 1);
     assert_eq!(core.renderer().iteration(), 1);
-    let cam = core.renderer().settings.camera;
+    let cam = core.renderer().settings().camera;
     assert!(cam.position.distance(cam0.position) > 0.05);
     assert!(core.renderer().roi().is_some(), "the ROI stays");
     assert!(core.eye().is_none());
@@ -771,4 +771,112 @@ fn live_dtrack_moves_the_eye_of_a_tracked_head_through_the_calibration() {
     let eye = state.head.unwrap();
     let want = glam::DVec3::new(0.2, -0.05, 1.0);
     assert!(eye.abs_diff_eq(want, 1e-9), "{eye} vs {want}");
+}
+
+/// `view --cluster`: the viewer as rank 0 of 2 in-process ranks shows the one-process viewer's
+/// pictures bit for bit through the same click, slider changes (a rebuild), gestures (the
+/// pinhole moved; through the wall camera the eye) and a second click; the other rank follows
+/// every step and ends when the viewer is dropped.
+#[test]
+fn the_viewer_across_ranks_shows_the_one_process_pictures_bit_for_bit() {
+    use raygun::cluster::exchange::InProcess;
+    use raygun::cluster::owners::{BlockOwners, TileOwners};
+    use raygun::cluster::{Cluster, DgiMode};
+    use raygun::session::cluster::ClusterView;
+    use raygun::viewer::core::Picture;
+    use raygun::viewer::orbit::Gesture;
+    /// The user's actions, a picture after each.
+    fn script(core: &mut ViewerCore, model: &raygun::display::DisplayModel) -> Vec<Picture> {
+        let mut pictures = Vec::new();
+        core.state.click(model, DVec2::new(20.0, 12.0), [W, H]);
+        for _ in 0..3 {
+            core.step(ONE).unwrap();
+        }
+        pictures.push(core.picture().unwrap());
+        core.state.p_min = 0.2;
+        core.state.max_depth = 3;
+        core.step(ONE).unwrap();
+        core.step(ONE).unwrap();
+        pictures.push(core.picture().unwrap());
+        core.state.gesture(Gesture::Orbit(DVec2::new(40.0, 0.0)));
+        core.step(ONE).unwrap();
+        core.step(ONE).unwrap();
+        pictures.push(core.picture().unwrap());
+        core.state.click(model, DVec2::new(50.0, 8.0), [W, H]);
+        core.step(ONE).unwrap();
+        pictures.push(core.picture().unwrap());
+        assert_eq!(
+            core.restarts, 1,
+            "the gesture moved the viewpoint past the threshold"
+        );
+        pictures
+    }
+    let bits = |p: &Picture| -> Vec<u32> {
+        p.image
+            .iter()
+            .flat_map(|v| v.to_array().map(f32::to_bits))
+            .collect()
+    };
+    let (model, scene, backend) = (hornet(), scene(), Backend::Cpu);
+    for with_wall in [false, true] {
+        let state = || ViewerState::new(RoiSource::Mouse, 4);
+        let wall = || with_wall.then(|| wall_camera(&model, &scene));
+        let mut one =
+            ViewerCore::with_wall(&backend, &scene, &model, base(&scene), state(), wall()).unwrap();
+        let want = script(&mut one, &model);
+        let owners = BlockOwners::of_display(&model, &TileOwners::columns(&model, 2), [W, H]);
+        let config = state().guide_config().unwrap();
+        let (got, followed) = std::thread::scope(|s| {
+            let mut ends = InProcess::job(2).into_iter();
+            let (root, other) = (ends.next().unwrap(), ends.next().unwrap());
+            let (scene, model, owners) = (&scene, &model, &owners);
+            let follower = s.spawn(move || {
+                let c = Cluster::new(Box::new(other), Duration::from_secs(30));
+                let mut v = ClusterView::new(
+                    c,
+                    scene,
+                    model,
+                    base(scene),
+                    config,
+                    wall(),
+                    owners.clone(),
+                    DgiMode::Compute,
+                    None,
+                )
+                .unwrap();
+                v.follow().unwrap()
+            });
+            let c = Cluster::new(Box::new(root), Duration::from_secs(30));
+            let v = ClusterView::new(
+                c,
+                scene,
+                model,
+                base(scene),
+                config,
+                wall(),
+                owners.clone(),
+                DgiMode::Compute,
+                None,
+            )
+            .unwrap();
+            let mut core =
+                ViewerCore::over_cluster(&backend, scene, model, base(scene), state(), v).unwrap();
+            assert!(
+                core.backend_name().starts_with("2 rank(s)"),
+                "{}",
+                core.backend_name()
+            );
+            let got = script(&mut core, model);
+            drop(core);
+            (got, follower.join().unwrap())
+        });
+        assert_eq!(followed, 8, "rank 1 ran every frame, then stopped");
+        for (k, (g, w)) in got.iter().zip(&want).enumerate() {
+            let what = format!("wall camera: {with_wall}, picture {k}");
+            assert_eq!(g.counts, w.counts, "{what}: counts");
+            assert!(g.dgi == w.dgi, "{what}: DGI");
+            assert!(bits(g) == bits(w), "{what}: image");
+            assert!(g.rgba == w.rgba, "{what}: the window's picture");
+        }
+    }
 }

@@ -404,5 +404,6 @@ pub fn view_args(args: &DemoArgs, display: &Path, replay: &Path) -> ViewArgs {
         },
         save_dir: args.out.clone(),
         screenshot_after: None,
+        cluster: crate::cli::cluster::ClusterArgs::default(),
     }
 }

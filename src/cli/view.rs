@@ -124,6 +124,22 @@ pub struct ViewArgs {
     /// Save `screenshot.*` to --save-dir after N iterations and close (smoke tests).
     #[arg(long, value_name = "N")]
     pub screenshot_after: Option<u32>,
+    /// With --cluster (under `mpirun -np N`): rank 0 opens the window and follows the mouse or
+    /// the tracking; every rank traces a share of each frame (DESIGN.md §12).
+    #[command(flatten)]
+    pub cluster: crate::cli::cluster::ClusterArgs,
+}
+
+/// What `view` has loaded and worked out before the renderer exists.
+struct Setup {
+    backend: Backend,
+    scene: crate::scene::Scene,
+    model: DisplayModel,
+    base: TraceSettings,
+    wall: Option<crate::trace::wall::WallCamera>,
+    state: ViewerState,
+    timeline: Option<Timeline>,
+    live: Option<LiveTracking>,
 }
 
 /// Whether a window can be opened: an X11 or Wayland display is named in the environment.
@@ -142,9 +158,116 @@ pub fn run(args: &ViewArgs) -> anyhow::Result<()> {
     let mut args = args.clone();
     args.size = crate::cli::args::resolve_size(args.size, &args.display)?;
     let args = &args;
+    if args.cluster.cluster {
+        return run_cluster(args);
+    }
     if !has_display() {
         anyhow::bail!(NO_DISPLAY);
     }
+    let s = setup(args, true)?;
+    let core = ViewerCore::with_wall(&s.backend, &s.scene, &s.model, s.base, s.state, s.wall)?;
+    open_window(core, s.timeline, s.live, args)
+}
+
+/// `view --cluster`: every rank loads what the viewer needs; the start-up check compares them;
+/// rank 0 opens the window over a [`ClusterView`] and the other ranks follow its steps until it
+/// closes.
+fn run_cluster(args: &ViewArgs) -> anyhow::Result<()> {
+    use crate::cli::cluster::{block_owners, check, identity, model_field};
+    let mut c = crate::cli::cluster::start(&args.cluster)?;
+    let (root, rank) = (c.is_root(), c.rank());
+    let prepared = (|| {
+        if root && !has_display() {
+            anyhow::bail!(NO_DISPLAY);
+        }
+        let s = setup(args, root)?;
+        let (owners, _, tile_map) =
+            block_owners(&args.cluster, Some(&s.model), args.size, c.ranks())?;
+        let config = s.state.guide_config()?;
+        let fields = vec![
+            ("command", "view".to_owned()),
+            ("display model", model_field(&s.model)),
+            ("tile map", tile_map),
+            (
+                "scene",
+                format!(
+                    "{} ({:016x})",
+                    args.scene,
+                    crate::cluster::handshake::scene_hash(&s.scene)
+                ),
+            ),
+            ("settings", format!("{:?}", s.base)),
+            (
+                "wall camera",
+                format!("{:?}", s.wall.as_ref().map(|w| w.eye_room)),
+            ),
+            ("guide settings", format!("{config:?}")),
+            ("DGI mode", format!("{:?}", args.cluster.cluster_dgi)),
+            (
+                "trace backend",
+                crate::cli::cluster::trace_backend(&s.backend),
+            ),
+        ];
+        Ok((s, owners, config, fields))
+    })();
+    let mine = match &prepared {
+        Ok((.., fields)) => identity(c.ranks(), fields),
+        Err(e) => Err(crate::cli::error_chain(e)),
+    };
+    check(&mut c, mine)?;
+    let (s, owners, config, _) = prepared?;
+    // The ranks trace on their GPUs where --backend says so; rank 0 filters the picture on its
+    // CPU twin, as `render --cluster` does.
+    let (gpu, filter_backend) = match s.backend {
+        Backend::Gpu(ctx) => (Some(std::sync::Arc::from(ctx)), Backend::Cpu),
+        Backend::Cpu => (None, Backend::Cpu),
+    };
+    let done = (|| -> anyhow::Result<()> {
+        let view = crate::session::cluster::ClusterView::new(
+            c,
+            &s.scene,
+            &s.model,
+            s.base,
+            config,
+            s.wall,
+            owners,
+            args.cluster.cluster_dgi,
+            gpu,
+        )?;
+        if root {
+            eprintln!("raygun view: {}", view.describe());
+            let core = ViewerCore::over_cluster(
+                &filter_backend,
+                &s.scene,
+                &s.model,
+                s.base,
+                s.state,
+                view,
+            )?;
+            open_window(core, s.timeline, s.live, args)
+        } else {
+            let mut view = view;
+            view.follow()?;
+            Ok(())
+        }
+    })();
+    match done {
+        Err(e) if !root => {
+            // Rank 0 waits on this rank: end the job now (mpirun ends every rank) rather than
+            // at rank 0's deadline.
+            eprintln!(
+                "raygun: error: rank {rank}: {}",
+                crate::cli::error_chain(&e)
+            );
+            std::process::exit(1);
+        }
+        done => done,
+    }
+}
+
+/// Everything `view` loads, checks and starts before the renderer exists; `root`: this process
+/// shows the window (it alone listens for tracking).
+fn setup(args: &ViewArgs, root: bool) -> anyhow::Result<Setup> {
     if !(args.roi_radius.is_finite() && args.roi_radius > 0.0) {
         anyhow::bail!("--roi-radius must be a positive number of canvas pixels");
     }
@@ -200,7 +323,9 @@ pub fn run(args: &ViewArgs) -> anyhow::Result<()> {
         .filter(|c| *c != crate::cli::wall::WALL_CAMERA);
     let camera = RenderCamera::choose_or_look_at(&scene, name, look.as_ref(), w, h)
         .with_context(|| format!("scene {}", args.scene))?;
-    eprintln!("raygun view: rendering on {}", backend.describe());
+    if root {
+        eprintln!("raygun view: rendering on {}", backend.describe());
+    }
     let base = TraceSettings {
         width: w,
         height: h,
@@ -235,7 +360,9 @@ pub fn run(args: &ViewArgs) -> anyhow::Result<()> {
         (_, Some(p)) => Some((p, Protocol::Osc)),
         _ => None,
     };
+    // Only the window's process listens: the other ranks follow its steps.
     let live = match (protocol, &args.vrpn) {
+        _ if !root => None,
         (_, Some(address)) => {
             let l = LiveTracking::start_vrpn(
                 address.clone(),
@@ -288,8 +415,16 @@ pub fn run(args: &ViewArgs) -> anyhow::Result<()> {
     if let Some(c) = args.roi_at {
         state.click(&model, c, args.size);
     }
-    let core = ViewerCore::with_wall(&backend, &scene, &model, base, state, wall)?;
-    open_window(core, timeline, live, args)
+    Ok(Setup {
+        backend,
+        scene,
+        model,
+        base,
+        wall,
+        state,
+        timeline,
+        live,
+    })
 }
 
 /// What `raygun view` says where no window can be opened.

@@ -155,6 +155,16 @@ impl Cluster {
         what: &str,
     ) -> Result<Vec<Vec<u8>>, ExchangeError> {
         let wait = self.wait();
+        self.round_within(sends, from, what, wait)
+    }
+
+    fn round_within(
+        &mut self,
+        sends: Vec<(usize, Vec<u8>)>,
+        from: &[usize],
+        what: &str,
+        wait: Duration,
+    ) -> Result<Vec<Vec<u8>>, ExchangeError> {
         let got = self.x.round(sends, from, what, wait);
         self.last = Instant::now();
         got
@@ -165,10 +175,32 @@ impl Cluster {
     /// data on to r + 2^k for each 2^k below that bit, so no rank sends more than ⌈log₂ N⌉
     /// copies (a DGI of 295 MB to 34 ranks: 6 copies from rank 0 instead of 34).
     pub fn broadcast(&mut self, what: &str, data: Vec<u8>) -> Result<Vec<u8>, ExchangeError> {
+        let wait = self.wait();
+        self.broadcast_within(what, data, wait)
+    }
+
+    /// [`Self::broadcast`] where the other ranks wait for rank 0 as long as it takes (a day):
+    /// the viewer's next step, which comes when its user acts or its window draws again, and
+    /// not at all while the window is minimised. A rank 0 that dies still ends the job (mpirun
+    /// ends every rank), and rank 0's own waits keep their deadlines.
+    pub fn broadcast_patiently(
+        &mut self,
+        what: &str,
+        data: Vec<u8>,
+    ) -> Result<Vec<u8>, ExchangeError> {
+        self.broadcast_within(what, data, Duration::from_secs(24 * 3600))
+    }
+
+    fn broadcast_within(
+        &mut self,
+        what: &str,
+        data: Vec<u8>,
+        wait: Duration,
+    ) -> Result<Vec<u8>, ExchangeError> {
         let (me, n) = (self.rank(), self.ranks());
         let (parent, children) = binomial_tree(me, n);
         let data = match parent {
-            Some(p) => self.round(vec![], &[p], what)?.remove(0),
+            Some(p) => self.round_within(vec![], &[p], what, wait)?.remove(0),
             None => data,
         };
         if !children.is_empty() {
@@ -494,6 +526,12 @@ impl ClusterRenderer {
         Ok(())
     }
 
+    /// How the ROI steers sampling (`None`: a full frame).
+    #[must_use]
+    pub fn guide_config(&self) -> Option<&GuideConfig> {
+        self.guidance.as_ref().map(|g| &g.config)
+    }
+
     /// The GPU this rank traces on (`None`: the CPU twin).
     #[must_use]
     pub fn gpu(&self) -> Option<&GpuContext> {
@@ -560,6 +598,21 @@ impl ClusterRenderer {
             debug_assert!(moved, "the same display's wall camera");
         }
         self.wall = Some(wall);
+        self.restart();
+    }
+
+    /// The pinhole camera `camera` from now on, and the accumulation restarted (the
+    /// one-process renderer's [`crate::frame::Renderer::set_camera`]).
+    pub fn set_camera(&mut self, camera: crate::trace::camera::RenderCamera) {
+        self.settings.camera = camera;
+        if let Some(g) = &self.gpu {
+            g.run.set_settings(&g.ctx, &self.packed, &self.settings);
+        }
+        self.restart();
+    }
+
+    /// Every pixel's count and this rank's owned sums back to zero.
+    fn restart(&mut self) {
         self.counts.fill(0);
         self.sums.fill([0.0; 4]);
         self.iteration = 0;

@@ -51,7 +51,7 @@ use crate::trace::wall::{WallCamera, WallCameraError};
 use stop::RoiProgress;
 
 /// How the ROI steers sampling.
-#[derive(Clone, Copy, Debug, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct GuideConfig {
     pub metric: Metric,
     pub falloff: Falloff,

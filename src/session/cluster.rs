@@ -2,16 +2,28 @@
 //! rule and broadcasts each frame's control (iteration, stop, ROI change); every rank runs the
 //! cluster frame; at the end rank 0 gathers the owners' sums.
 
+use std::sync::Arc;
 use std::time::Instant;
 
 use super::guide::GuideSource;
 use super::render::Stopping;
 use crate::cluster::exchange::ExchangeError;
-use crate::cluster::{Cluster, ClusterError, ClusterFrameStats, ClusterRenderer, FrameControl};
-use crate::frame::EyeFollow;
+use crate::cluster::owners::BlockOwners;
+use crate::cluster::{
+    Cluster, ClusterError, ClusterFrameStats, ClusterRenderer, DgiMode, FrameControl,
+};
+use crate::display::DisplayModel;
 use crate::frame::stop::{RoiProgress, StopCondition, StopReason, reached};
+use crate::frame::{EyeFollow, GuideConfig};
+use crate::gpu::GpuContext;
 use crate::roi::dgi::Roi;
+use crate::roi::dgi::{Falloff, Metric};
+use crate::scene::Scene;
+use crate::schedule::Order;
 use crate::trace::accum::Accumulation;
+use crate::trace::camera::RenderCamera;
+use crate::trace::path::TraceSettings;
+use crate::trace::wall::WallCamera;
 
 /// A fault a test injects (`--cluster-fault`): that rank ends, or stops answering, at the
 /// start of that iteration — what the other ranks' deadlines are for.
@@ -201,4 +213,413 @@ pub fn run_cluster(
         eye_restarts,
         eyes_refused,
     })
+}
+
+/// What rank 0's viewer asks of every rank in `view --cluster` (DESIGN.md §12), one message at a
+/// time: every rank applies each to its [`ClusterRenderer`] in the same order, so the ranks stay
+/// in step whatever the user does between frames.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ViewStep {
+    /// One frame.
+    Frame,
+    /// The owners' sums to rank 0: the picture the window shows or saves.
+    Gather,
+    /// A new ROI (`None`: sample every pixel); the accumulation goes on.
+    Roi(Option<Roi>),
+    /// The wall camera's eye moved past the restart threshold: move it there and restart.
+    Eye(glam::DVec3),
+    /// The pinhole moved: this camera from now on, the accumulation restarted.
+    Camera(RenderCamera),
+    /// The guide's settings or the path depth changed: a new renderer (the accumulation
+    /// restarts, with no ROI), as the one-process viewer builds one.
+    Rebuild { config: GuideConfig, max_depth: u32 },
+    /// The window closed: the render ends on every rank.
+    Stop,
+}
+
+impl ViewStep {
+    /// Little-endian bytes: a tag, then the step's numbers.
+    #[must_use]
+    pub fn encode(&self) -> Vec<u8> {
+        let mut b = Vec::new();
+        let f64s = |b: &mut Vec<u8>, v: &[f64]| v.iter().for_each(|x| b.extend(x.to_le_bytes()));
+        let f32s = |b: &mut Vec<u8>, v: &[f32]| v.iter().for_each(|x| b.extend(x.to_le_bytes()));
+        match *self {
+            Self::Frame => b.push(0),
+            Self::Gather => b.push(1),
+            Self::Roi(None) => b.push(2),
+            Self::Roi(Some(Roi::Cone(c))) => {
+                b.push(3);
+                for v in [c.apex, c.axis, c.right, c.up] {
+                    f64s(&mut b, &v.to_array());
+                }
+                f64s(&mut b, &[c.tan_h, c.tan_v]);
+            }
+            Self::Roi(Some(Roi::CanvasEllipse { center, semi_axes })) => {
+                b.push(4);
+                f64s(&mut b, &[center.x, center.y, semi_axes.x, semi_axes.y]);
+            }
+            Self::Eye(e) => {
+                b.push(5);
+                f64s(&mut b, &e.to_array());
+            }
+            Self::Camera(c) => {
+                b.push(6);
+                for v in [c.position, c.forward, c.right, c.up] {
+                    f32s(&mut b, &v.to_array());
+                }
+                f32s(&mut b, &[c.tan_half_y, c.aspect, c.ortho_half_y]);
+            }
+            Self::Rebuild { config, max_depth } => {
+                b.push(7);
+                b.push(match config.metric {
+                    Metric::Exact => 0,
+                    Metric::Ellipse => 1,
+                    Metric::Angular => 2,
+                });
+                b.push(match config.order {
+                    Order::Coherent => 0,
+                    Order::Scattered => 1,
+                });
+                f64s(&mut b, &[config.falloff.base_m, config.falloff.scale]);
+                f32s(&mut b, &[config.p_min]);
+                b.extend(max_depth.to_le_bytes());
+            }
+            Self::Stop => b.push(8),
+        }
+        b
+    }
+
+    /// The inverse of [`Self::encode`]; `None` for bytes it does not produce.
+    #[must_use]
+    pub fn decode(b: &[u8]) -> Option<Self> {
+        let (&tag, rest) = b.split_first()?;
+        let f64s = |r: &[u8], n: usize| -> Option<Vec<f64>> {
+            (r.len() == 8 * n).then(|| {
+                r.chunks_exact(8)
+                    .map(|c| f64::from_le_bytes(c.try_into().expect("8 bytes")))
+                    .collect()
+            })
+        };
+        let f32s = |r: &[u8], n: usize| -> Option<Vec<f32>> {
+            (r.len() == 4 * n).then(|| {
+                r.chunks_exact(4)
+                    .map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes")))
+                    .collect()
+            })
+        };
+        let none = |s: Self| rest.is_empty().then_some(s);
+        Some(match tag {
+            0 => none(Self::Frame)?,
+            1 => none(Self::Gather)?,
+            2 => none(Self::Roi(None))?,
+            3 => {
+                let f = f64s(rest, 14)?;
+                let v = |i: usize| glam::DVec3::new(f[i], f[i + 1], f[i + 2]);
+                Self::Roi(Some(Roi::Cone(crate::roi::cone::Cone {
+                    apex: v(0),
+                    axis: v(3),
+                    right: v(6),
+                    up: v(9),
+                    tan_h: f[12],
+                    tan_v: f[13],
+                })))
+            }
+            4 => {
+                let f = f64s(rest, 4)?;
+                Self::Roi(Some(Roi::CanvasEllipse {
+                    center: glam::DVec2::new(f[0], f[1]),
+                    semi_axes: glam::DVec2::new(f[2], f[3]),
+                }))
+            }
+            5 => {
+                let f = f64s(rest, 3)?;
+                Self::Eye(glam::DVec3::new(f[0], f[1], f[2]))
+            }
+            6 => {
+                let f = f32s(rest, 15)?;
+                let v = |i: usize| glam::Vec3::new(f[i], f[i + 1], f[i + 2]);
+                Self::Camera(RenderCamera {
+                    position: v(0),
+                    forward: v(3),
+                    right: v(6),
+                    up: v(9),
+                    tan_half_y: f[12],
+                    aspect: f[13],
+                    ortho_half_y: f[14],
+                })
+            }
+            7 => {
+                if rest.len() != 2 + 16 + 4 + 4 {
+                    return None;
+                }
+                let metric = match rest[0] {
+                    0 => Metric::Exact,
+                    1 => Metric::Ellipse,
+                    2 => Metric::Angular,
+                    _ => return None,
+                };
+                let order = match rest[1] {
+                    0 => Order::Coherent,
+                    1 => Order::Scattered,
+                    _ => return None,
+                };
+                let fall = f64s(&rest[2..18], 2)?;
+                let p_min = f32s(&rest[18..22], 1)?[0];
+                let max_depth = u32::from_le_bytes(rest[22..26].try_into().ok()?);
+                Self::Rebuild {
+                    config: GuideConfig {
+                        metric,
+                        falloff: Falloff {
+                            base_m: fall[0],
+                            scale: fall[1],
+                        },
+                        p_min,
+                        order,
+                    },
+                    max_depth,
+                }
+            }
+            8 => none(Self::Stop)?,
+            _ => return None,
+        })
+    }
+}
+
+/// What a [`ViewStep`] gave on this rank.
+pub enum Applied {
+    Frame(ClusterFrameStats),
+    /// Rank 0: the whole accumulation and the DGI (`None` elsewhere).
+    Gathered(Option<(Accumulation, Vec<f32>)>),
+    Done,
+}
+
+/// One rank's part of `view --cluster`: the job, this rank's renderer, and what a rebuild
+/// needs. Rank 0 [`sends`](Self::send) the viewer's steps (each applied on every rank, this one
+/// included); the others [`follow`](Self::follow) them until the window closes. Dropped on
+/// rank 0 before the window's last step, it tells the others to stop.
+pub struct ClusterView<'a> {
+    c: Cluster,
+    r: ClusterRenderer,
+    scene: &'a Scene,
+    model: &'a DisplayModel,
+    owners: BlockOwners,
+    dgi_mode: DgiMode,
+    gpu: Option<Arc<GpuContext>>,
+    stopped: bool,
+}
+
+impl<'a> ClusterView<'a> {
+    /// This rank's view: a guided render of `scene` on `model`, through `wall` when given,
+    /// traced on `gpu` when given (else the CPU twin).
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        c: Cluster,
+        scene: &'a Scene,
+        model: &'a DisplayModel,
+        settings: TraceSettings,
+        config: GuideConfig,
+        wall: Option<WallCamera>,
+        owners: BlockOwners,
+        dgi_mode: DgiMode,
+        gpu: Option<Arc<GpuContext>>,
+    ) -> Result<Self, ClusterError> {
+        let r = Self::make(
+            &c, scene, model, settings, config, wall, &owners, dgi_mode, &gpu,
+        )?;
+        Ok(Self {
+            c,
+            r,
+            scene,
+            model,
+            owners,
+            dgi_mode,
+            gpu,
+            stopped: false,
+        })
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn make(
+        c: &Cluster,
+        scene: &Scene,
+        model: &DisplayModel,
+        settings: TraceSettings,
+        config: GuideConfig,
+        wall: Option<WallCamera>,
+        owners: &BlockOwners,
+        dgi_mode: DgiMode,
+        gpu: &Option<Arc<GpuContext>>,
+    ) -> Result<ClusterRenderer, ClusterError> {
+        let mut r = ClusterRenderer::new(
+            scene,
+            settings,
+            Some((model, config)),
+            wall,
+            owners.clone(),
+            dgi_mode,
+            c.rank(),
+            c.ranks(),
+        )?;
+        if let Some(ctx) = gpu {
+            r.trace_on_gpu(Arc::clone(ctx))?;
+        }
+        Ok(r)
+    }
+
+    /// This rank's renderer as it stands.
+    #[must_use]
+    pub fn renderer(&self) -> &ClusterRenderer {
+        &self.r
+    }
+
+    /// The job's ranks.
+    #[must_use]
+    pub fn ranks(&self) -> usize {
+        self.c.ranks()
+    }
+
+    /// The ranks and where this one traces, in words.
+    #[must_use]
+    pub fn describe(&self) -> String {
+        format!(
+            "{} rank(s), rank 0 tracing on {}",
+            self.c.ranks(),
+            self.gpu
+                .as_ref()
+                .map_or_else(|| "the CPU twins".to_owned(), |g| g.describe())
+        )
+    }
+
+    /// Rank 0: `step` on every rank, this one included; what it gave here.
+    pub fn send(&mut self, step: ViewStep) -> Result<Applied, ClusterError> {
+        assert!(self.c.is_root(), "rank 0 sends the viewer's steps");
+        self.c.broadcast("the viewer's next step", step.encode())?;
+        self.apply(step)
+    }
+
+    fn apply(&mut self, step: ViewStep) -> Result<Applied, ClusterError> {
+        match step {
+            ViewStep::Frame => return Ok(Applied::Frame(self.r.run_frame(&mut self.c)?)),
+            ViewStep::Gather => return Ok(Applied::Gathered(self.r.gather(&mut self.c)?)),
+            ViewStep::Roi(roi) => self.r.set_roi(roi)?,
+            ViewStep::Eye(e) => self.r.move_eye(e)?,
+            ViewStep::Camera(camera) => self.r.set_camera(camera),
+            ViewStep::Rebuild { config, max_depth } => {
+                let settings = TraceSettings {
+                    max_depth,
+                    ..self.r.settings
+                };
+                let wall = self.r.wall().cloned();
+                self.r = Self::make(
+                    &self.c,
+                    self.scene,
+                    self.model,
+                    settings,
+                    config,
+                    wall,
+                    &self.owners,
+                    self.dgi_mode,
+                    &self.gpu,
+                )?;
+            }
+            ViewStep::Stop => self.stopped = true,
+        }
+        Ok(Applied::Done)
+    }
+
+    /// Every rank but 0: rank 0's steps until its window closes; the frames this rank ran.
+    pub fn follow(&mut self) -> Result<u32, ClusterError> {
+        let mut frames = 0;
+        while !self.stopped {
+            let what = "the viewer's next step";
+            let bytes = self.c.broadcast_patiently(what, Vec::new())?;
+            let step = ViewStep::decode(&bytes).ok_or_else(|| ExchangeError::Malformed {
+                rank: 0,
+                what: what.into(),
+                reason: format!("{} bytes that are no viewer step", bytes.len()),
+            })?;
+            frames += u32::from(step == ViewStep::Frame);
+            self.apply(step)?;
+        }
+        Ok(frames)
+    }
+}
+
+impl Drop for ClusterView<'_> {
+    /// Rank 0's window closed (or its viewer ended on an error): the others stop too.
+    fn drop(&mut self) {
+        if self.c.is_root() && !self.stopped {
+            let _ = self.send(ViewStep::Stop);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn view_steps_survive_their_bytes_and_other_bytes_are_refused() {
+        let cone = crate::roi::cone::Cone::from_pose(
+            glam::DVec3::new(0.1, 0.2, 1.0),
+            glam::DVec3::NEG_Z,
+            glam::DVec3::Y,
+            17.0,
+            23.0,
+        )
+        .unwrap();
+        let camera = RenderCamera {
+            position: glam::Vec3::new(0.1, -2.0, 3.5),
+            forward: glam::Vec3::NEG_Z,
+            right: glam::Vec3::X,
+            up: glam::Vec3::Y,
+            tan_half_y: 0.4,
+            aspect: 2.5,
+            ortho_half_y: 0.0,
+        };
+        let config = GuideConfig {
+            metric: Metric::Angular,
+            falloff: Falloff {
+                base_m: 0.125,
+                scale: 1.0 / 3.0,
+            },
+            p_min: 0.1,
+            order: Order::Scattered,
+        };
+        let steps = [
+            ViewStep::Frame,
+            ViewStep::Gather,
+            ViewStep::Roi(None),
+            ViewStep::Roi(Some(Roi::Cone(cone))),
+            ViewStep::Roi(Some(Roi::CanvasEllipse {
+                center: glam::DVec2::new(12.5, -3.0),
+                semi_axes: glam::DVec2::new(1e-9, 7.0),
+            })),
+            ViewStep::Eye(glam::DVec3::new(0.3, -0.1, 1.7)),
+            ViewStep::Camera(camera),
+            ViewStep::Rebuild {
+                config,
+                max_depth: 7,
+            },
+            ViewStep::Stop,
+        ];
+        for s in steps {
+            let b = s.encode();
+            assert_eq!(ViewStep::decode(&b), Some(s), "{s:?}");
+            // A byte more or less is no step.
+            let mut longer = b.clone();
+            longer.push(0);
+            assert_eq!(ViewStep::decode(&longer), None, "{s:?} + 1 byte");
+            assert_eq!(ViewStep::decode(&b[..b.len() - 1]), None, "{s:?} − 1 byte");
+        }
+        assert_eq!(ViewStep::decode(&[9]), None);
+        let mut bad_metric = ViewStep::Rebuild {
+            config,
+            max_depth: 7,
+        }
+        .encode();
+        bad_metric[1] = 3;
+        assert_eq!(ViewStep::decode(&bad_metric), None);
+    }
 }

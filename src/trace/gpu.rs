@@ -565,6 +565,13 @@ impl SampleRun {
         true
     }
 
+    /// Rewrites the parameters (a new camera or depth) before the next list.
+    pub fn set_settings(&self, ctx: &GpuContext, scene: &PackedScene, settings: &TraceSettings) {
+        let p = Self::params_of(scene, settings, self.wall.as_ref());
+        ctx.queue
+            .write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
+    }
+
     /// Buffers for at least `len` entries (grown by doubling).
     fn buffers(&mut self, ctx: &GpuContext, len: u32) -> Result<&SampleBuffers, GpuError> {
         if self.buffers.as_ref().is_none_or(|b| b.capacity < len) {

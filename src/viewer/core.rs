@@ -11,13 +11,18 @@ use std::time::{Duration, Instant};
 
 use glam::{DVec3, Vec3};
 
+use crate::cluster::ClusterRenderer;
 use crate::display::DisplayModel;
+use crate::filter::{Filter, FilterParams};
 use crate::frame::{EyeFollow, FrameStats, GuideConfig, Renderer};
 use crate::gpu::Backend;
 use crate::output::tiles::wall_view;
-use crate::roi::dgi::{Falloff, Metric};
+use crate::roi::dgi::{Falloff, Metric, Roi};
 use crate::scene::Scene;
 use crate::schedule::Order;
+use crate::session::cluster::{Applied, ClusterView, ViewStep};
+use crate::trace::accum::Accumulation;
+use crate::trace::camera::RenderCamera;
 use crate::trace::path::TraceSettings;
 use crate::trace::wall::WallCamera;
 
@@ -104,6 +109,164 @@ pub struct Picture {
     pub noise: Vec<f32>,
 }
 
+/// The renderer as the viewer shows it, whichever engine renders: one process's [`Renderer`]
+/// or rank 0's part of a render across ranks ([`ClusterRenderer`], `view --cluster`).
+pub trait RenderView {
+    /// Frames in the accumulation (since the last restart).
+    fn iteration(&self) -> u32;
+    fn roi(&self) -> Option<&Roi>;
+    fn settings(&self) -> &TraceSettings;
+    fn guide_config(&self) -> Option<&GuideConfig>;
+    fn wall(&self) -> Option<&WallCamera>;
+}
+
+impl RenderView for Renderer<'_> {
+    fn iteration(&self) -> u32 {
+        Renderer::iteration(self)
+    }
+    fn roi(&self) -> Option<&Roi> {
+        Renderer::roi(self)
+    }
+    fn settings(&self) -> &TraceSettings {
+        &self.settings
+    }
+    fn guide_config(&self) -> Option<&GuideConfig> {
+        Renderer::guide_config(self)
+    }
+    fn wall(&self) -> Option<&WallCamera> {
+        Renderer::wall(self)
+    }
+}
+
+impl RenderView for ClusterRenderer {
+    fn iteration(&self) -> u32 {
+        ClusterRenderer::iteration(self)
+    }
+    fn roi(&self) -> Option<&Roi> {
+        ClusterRenderer::roi(self)
+    }
+    fn settings(&self) -> &TraceSettings {
+        &self.settings
+    }
+    fn guide_config(&self) -> Option<&GuideConfig> {
+        ClusterRenderer::guide_config(self)
+    }
+    fn wall(&self) -> Option<&WallCamera> {
+        ClusterRenderer::wall(self)
+    }
+}
+
+/// What the viewer renders with. Across ranks every change goes to every rank as a
+/// [`ViewStep`] the moment the viewer makes it, so rank 0's renderer is always the one the
+/// others have.
+enum Engine<'a> {
+    Local(Box<Renderer<'a>>),
+    Cluster(Box<ClusterView<'a>>),
+}
+
+impl Engine<'_> {
+    fn view(&self) -> &dyn RenderView {
+        match self {
+            Self::Local(r) => &**r,
+            Self::Cluster(v) => v.renderer(),
+        }
+    }
+
+    fn set_roi(&mut self, roi: Option<Roi>) -> Result<(), ViewerError> {
+        match self {
+            Self::Local(r) => r.set_roi(roi)?,
+            Self::Cluster(v) => {
+                v.send(ViewStep::Roi(roi))?;
+            }
+        }
+        Ok(())
+    }
+
+    /// The restart rule of a moving eye (rank 0 decides; every rank moves).
+    fn follow_eye(&mut self, eye: DVec3, threshold_m: f64) -> Result<EyeFollow, ViewerError> {
+        match self {
+            Self::Local(r) => Ok(r.follow_eye(eye, threshold_m)?),
+            Self::Cluster(v) => {
+                let wall = v
+                    .renderer()
+                    .wall()
+                    .ok_or(crate::frame::FrameError::NoWall)?;
+                if !wall.eye_moved(eye, threshold_m) {
+                    return Ok(EyeFollow::Kept);
+                }
+                if let Err(e) = wall.with_eye(eye) {
+                    return Ok(EyeFollow::Refused(e));
+                }
+                v.send(ViewStep::Eye(eye))?;
+                Ok(EyeFollow::Restarted)
+            }
+        }
+    }
+
+    fn set_camera(&mut self, camera: RenderCamera) -> Result<(), ViewerError> {
+        match self {
+            Self::Local(r) => r.set_camera(camera),
+            Self::Cluster(v) => {
+                v.send(ViewStep::Camera(camera))?;
+            }
+        }
+        Ok(())
+    }
+
+    fn run_frame(&mut self, timed: bool) -> Result<FrameStats, ViewerError> {
+        match self {
+            Self::Local(r) => Ok(r.run_frame(timed)?),
+            Self::Cluster(v) => match v.send(ViewStep::Frame)? {
+                Applied::Frame(s) => Ok(FrameStats {
+                    iteration: s.iteration,
+                    dgi_recomputed: s.dgi_recomputed,
+                    pixels: u32::try_from(s.pixels).ok(),
+                    ms_dgi: s.dgi_recomputed.then_some(s.ms_dgi),
+                    ms_schedule: Some(s.ms_schedule),
+                    // Rank 0's trace and the exchange that waits for the slowest rank.
+                    ms_trace: Some(s.ms_trace + s.ms_exchange),
+                    gpu_timestamps: false,
+                    rays: Some(s.rays),
+                }),
+                _ => unreachable!("a frame step gives a frame"),
+            },
+        }
+    }
+
+    /// The whole accumulation and the DGI (across ranks: gathered from the owners).
+    fn accumulation(&mut self) -> Result<(Accumulation, Vec<f32>), ViewerError> {
+        match self {
+            Self::Local(r) => Ok((r.accumulation()?, r.dgi()?)),
+            Self::Cluster(v) => match v.send(ViewStep::Gather)? {
+                Applied::Gathered(Some(g)) => Ok(g),
+                _ => unreachable!("rank 0 gathers"),
+            },
+        }
+    }
+
+    /// The filtered image of `acc` (across ranks: on rank 0's CPU twin, as `render --cluster`
+    /// filters), the wall camera's unshown pixels black.
+    fn picture_of(
+        &self,
+        params: &FilterParams,
+        acc: &Accumulation,
+        dgi: &[f32],
+    ) -> Result<Vec<Vec3>, ViewerError> {
+        match self {
+            Self::Local(r) => Ok(r.picture_of(params, acc, dgi)?),
+            Self::Cluster(v) => {
+                let mut image = Filter::new(&Backend::Cpu)
+                    .image(params, acc, dgi)
+                    .map_err(crate::frame::FrameError::from)?;
+                if let Some(w) = v.renderer().wall() {
+                    w.blank_unshown(&mut image);
+                }
+                Ok(image)
+            }
+        }
+    }
+}
+
 /// The renderer kept in step with a [`ViewerState`].
 pub struct ViewerCore<'a> {
     backend: &'a Backend,
@@ -111,7 +274,7 @@ pub struct ViewerCore<'a> {
     pub model: &'a DisplayModel,
     base: TraceSettings,
     pub state: ViewerState,
-    renderer: Renderer<'a>,
+    engine: Engine<'a>,
     built: Built,
     /// Frames since the renderer was built, and when (for iterations per second).
     window: (u32, Instant),
@@ -160,29 +323,77 @@ impl<'a> ViewerCore<'a> {
             };
         }
         let renderer = Renderer::guided_wall(backend, scene, settings, model, config, wall)?;
-        Ok(Self {
+        Ok(Self::with_engine(
             backend,
             scene,
             model,
             base,
-            built: Built {
-                config: config.into(),
-                max_depth: state.max_depth,
-            },
             state,
-            renderer,
+            Engine::Local(Box::new(renderer)),
+        ))
+    }
+
+    /// [`Self::new`] as rank 0 of a render across ranks (`view --cluster`, DESIGN.md §12):
+    /// `view` renders (the other ranks follow it), and every change of the state goes to every
+    /// rank. `backend` filters the picture (the CPU twin, as `render --cluster` filters).
+    pub fn over_cluster(
+        backend: &'a Backend,
+        scene: &'a Scene,
+        model: &'a DisplayModel,
+        base: TraceSettings,
+        mut state: ViewerState,
+        view: ClusterView<'a>,
+    ) -> Result<Self, ViewerError> {
+        state.guide_config()?;
+        if state.view.is_none() {
+            state.view = match view.renderer().wall() {
+                Some(w) => eye_orbit(model, w.eye_room),
+                None => camera_orbit(&base.camera, focus_distance(scene, &base)),
+            };
+        }
+        Ok(Self::with_engine(
+            backend,
+            scene,
+            model,
+            base,
+            state,
+            Engine::Cluster(Box::new(view)),
+        ))
+    }
+
+    fn with_engine(
+        backend: &'a Backend,
+        scene: &'a Scene,
+        model: &'a DisplayModel,
+        base: TraceSettings,
+        state: ViewerState,
+        engine: Engine<'a>,
+    ) -> Self {
+        let r = engine.view();
+        let built = Built {
+            config: (*r.guide_config().expect("the viewer's render is guided")).into(),
+            max_depth: r.settings().max_depth,
+        };
+        Self {
+            backend,
+            scene,
+            model,
+            base,
+            built,
+            state,
+            engine,
             window: (0, Instant::now()),
             roi_since: Instant::now(),
             stats: Stats::default(),
             eye_refused: None,
             restarts: 0,
-        })
+        }
     }
 
     /// The wall camera's eye (room frame), the one the accumulation started with.
     #[must_use]
     pub fn eye(&self) -> Option<DVec3> {
-        self.renderer.wall().map(|w| w.eye_room)
+        self.renderer().wall().map(|w| w.eye_room)
     }
 
     #[must_use]
@@ -193,13 +404,16 @@ impl<'a> ViewerCore<'a> {
     /// The backend in words.
     #[must_use]
     pub fn backend_name(&self) -> String {
-        self.backend.describe()
+        match &self.engine {
+            Engine::Local(_) => self.backend.describe(),
+            Engine::Cluster(v) => v.describe(),
+        }
     }
 
     /// The renderer as it stands (settings it received, iterations, ROI).
     #[must_use]
-    pub fn renderer(&self) -> &Renderer<'a> {
-        &self.renderer
+    pub fn renderer(&self) -> &dyn RenderView {
+        self.engine.view()
     }
 
     /// Brings the renderer in line with the state: rebuilds it when the guide settings or the
@@ -215,34 +429,42 @@ impl<'a> ViewerCore<'a> {
             max_depth: self.state.max_depth,
         };
         if want != self.built || self.state.reset {
-            let settings = TraceSettings {
-                max_depth: self.state.max_depth,
-                camera: self.renderer.settings.camera,
-                ..self.base
-            };
-            let wall = self.renderer.wall().cloned();
-            self.renderer = Renderer::guided_wall(
-                self.backend,
-                self.scene,
-                settings,
-                self.model,
-                config,
-                wall,
-            )?;
+            let max_depth = self.state.max_depth;
+            match &mut self.engine {
+                Engine::Local(r) => {
+                    let settings = TraceSettings {
+                        max_depth,
+                        camera: r.settings.camera,
+                        ..self.base
+                    };
+                    let wall = r.wall().cloned();
+                    **r = Renderer::guided_wall(
+                        self.backend,
+                        self.scene,
+                        settings,
+                        self.model,
+                        config,
+                        wall,
+                    )?;
+                }
+                Engine::Cluster(v) => {
+                    v.send(ViewStep::Rebuild { config, max_depth })?;
+                }
+            }
             self.built = want;
             self.state.reset = false;
             self.restarted();
         }
         self.follow_viewpoint()?;
         let roi = self.state.roi();
-        let changed = self.renderer.roi() != roi.as_ref();
+        let changed = self.renderer().roi() != roi.as_ref();
         if changed {
             let t0 = Instant::now();
             self.roi_since = t0;
-            self.renderer.set_roi(roi)?;
+            self.engine.set_roi(roi)?;
             // The CPU twin computes the DGI right here; the GPU records it into the next frame
-            // (timed by its timestamps).
-            if matches!(self.backend, Backend::Cpu) {
+            // (timed by its timestamps), and so do ranks.
+            if matches!(self.backend, Backend::Cpu) && matches!(self.engine, Engine::Local(_)) {
                 self.stats.ms_dgi = Some(t0.elapsed().as_secs_f64() * 1e3);
             }
         }
@@ -262,7 +484,7 @@ impl<'a> ViewerCore<'a> {
     /// refused eye leaves the camera as it was and puts the desktop viewpoint back there.
     fn follow_viewpoint(&mut self) -> Result<(), ViewerError> {
         let threshold = self.state.eye_threshold_m;
-        if self.renderer.wall().is_some() {
+        if self.renderer().wall().is_some() {
             // While the head leads, the desktop viewpoint follows it, so a drag starts there.
             if self.state.follow_head
                 && let (Some(h), Some(v)) = (self.state.head, &mut self.state.view)
@@ -272,7 +494,7 @@ impl<'a> ViewerCore<'a> {
             let Some(eye) = self.state.wanted_eye() else {
                 return Ok(());
             };
-            match self.renderer.follow_eye(eye, threshold)? {
+            match self.engine.follow_eye(eye, threshold)? {
                 EyeFollow::Kept => {}
                 EyeFollow::Restarted => {
                     self.eye_refused = None;
@@ -288,9 +510,10 @@ impl<'a> ViewerCore<'a> {
                 }
             }
         } else if let Some(v) = &self.state.view {
-            let camera = v.camera(&self.renderer.settings.camera);
-            if camera_moved(&self.renderer.settings.camera, &camera, threshold) {
-                self.renderer.set_camera(camera);
+            let now = self.renderer().settings().camera;
+            let camera = v.camera(&now);
+            if camera_moved(&now, &camera, threshold) {
+                self.engine.set_camera(camera)?;
                 self.restarts += 1;
                 self.restarted();
             }
@@ -303,9 +526,9 @@ impl<'a> ViewerCore<'a> {
         let mut roi_changed = self.sync()?;
         let t0 = Instant::now();
         loop {
-            let timed = roi_changed || self.renderer.iteration().is_multiple_of(TIMED_EVERY);
+            let timed = roi_changed || self.renderer().iteration().is_multiple_of(TIMED_EVERY);
             roi_changed = false;
-            let s = self.renderer.run_frame(timed)?;
+            let s = self.engine.run_frame(timed)?;
             if timed {
                 self.stats.last_timed = Some(s);
                 if s.ms_dgi.is_some() {
@@ -319,7 +542,7 @@ impl<'a> ViewerCore<'a> {
                 break;
             }
         }
-        self.stats.iterations = self.renderer.iteration();
+        self.stats.iterations = self.renderer().iteration();
         let secs = self.window.1.elapsed().as_secs_f64();
         if secs > 0.0 {
             self.stats.iterations_per_s = f64::from(self.window.0) / secs;
@@ -330,31 +553,26 @@ impl<'a> ViewerCore<'a> {
     /// Reads the accumulation and the DGI back, filters, and composes the picture for the
     /// state's overlay (with the ROI outline and the wall view as asked).
     pub fn picture(&mut self) -> Result<Picture, ViewerError> {
-        let acc = self.renderer.accumulation()?;
-        let dgi = self.renderer.dgi()?;
+        let (acc, dgi) = self.engine.accumulation()?;
         let image = self
-            .renderer
+            .engine
             .picture_of(&self.state.filter_params(), &acc, &dgi)?;
-        let (roi_samples, roi_pixels) = roi_samples(
-            &acc,
-            &dgi,
-            self.renderer.roi().is_some(),
-            self.renderer.wall(),
-        );
+        let r = self.engine.view();
+        let (roi_samples, roi_pixels) = roi_samples(&acc, &dgi, r.roi().is_some(), r.wall());
         self.stats.roi_samples = roi_samples;
         self.stats.roi_pixels = roi_pixels;
         let noise = noise_image(&acc);
-        let contrast = self.renderer.roi().and_then(|_| {
+        let contrast = r.roi().and_then(|_| {
             let regions = NoiseRegions {
                 dgi: &dgi,
-                p_min: self.renderer.guide_config().map_or(0.0, |c| c.p_min),
+                p_min: r.guide_config().map_or(0.0, |c| c.p_min),
             };
             NoiseContrast::measure(&noise, &regions)
         });
         self.stats.roi_noise = contrast.map(|c| c.roi);
         self.stats.periphery_noise = contrast.map(|c| c.periphery);
-        let wall = self.renderer.wall();
-        self.stats.roi_progress = self.renderer.roi().and_then(|_| {
+        let wall = r.wall();
+        self.stats.roi_progress = r.roi().and_then(|_| {
             crate::frame::stop::RoiProgress::measure_where(&acc, &dgi, |i| {
                 wall.is_none_or(|w| w.is_shown(i as u32))
             })
@@ -384,7 +602,7 @@ impl<'a> ViewerCore<'a> {
             Overlay::Counts => heat_map(&acc.count),
             Overlay::Noise => noise_map(&noise),
         };
-        if self.state.roi_outline && self.renderer.roi().is_some() {
+        if self.state.roi_outline && self.renderer().roi().is_some() {
             for i in roi_outline(&dgi, size) {
                 rgba[4 * i..4 * i + 4].copy_from_slice(&OUTLINE);
             }

@@ -26,6 +26,8 @@ pub enum ViewerError {
     Falloff(#[from] crate::roi::dgi::FalloffError),
     #[error(transparent)]
     Frame(#[from] crate::frame::FrameError),
+    #[error(transparent)]
+    Cluster(#[from] crate::cluster::ClusterError),
     #[error("max path depth must be at least 1")]
     MaxDepth,
     #[error(transparent)]
