@@ -10,6 +10,7 @@
 //! computes the same deal from the same list and the same cost table.
 
 use super::owners::{block_grid, block_of, block_pixels};
+use crate::schedule::{Layout, Order, SlotMask};
 
 /// One iteration's scheduled pixels grouped by block: the blocks that have any, ascending,
 /// each with its pixels in list order.
@@ -49,6 +50,42 @@ impl BlockList {
             if count[b + 1] > count[b] {
                 blocks.push(b as u32);
                 starts.push(count[b + 1]);
+            }
+        }
+        Self {
+            blocks,
+            starts,
+            pixels,
+        }
+    }
+
+    /// A coherent schedule's list from every block's selected slots (`masks[b]` for block
+    /// `b`, [`crate::schedule::schedule_cpu_block_masks`]): the blocks with any, ascending,
+    /// each with its pixels in slot order — what [`Self::group`] makes of the whole
+    /// coherent list.
+    #[must_use]
+    pub fn from_masks(size: [u32; 2], masks: &[SlotMask]) -> Self {
+        let layout = Layout::new(size[0], size[1]).expect("the schedule's own size");
+        let mut blocks = Vec::new();
+        let mut starts = vec![0u32];
+        let mut pixels = Vec::new();
+        for (b, mask) in masks.iter().enumerate() {
+            let before = pixels.len();
+            for (w, &word) in mask.iter().enumerate() {
+                let mut bits = word;
+                while bits != 0 {
+                    let slot = w as u32 * 32 + bits.trailing_zeros();
+                    pixels.push(
+                        layout
+                            .pixel(Order::Coherent, b as u32, slot)
+                            .expect("a selected slot lies in the image"),
+                    );
+                    bits &= bits - 1;
+                }
+            }
+            if pixels.len() > before {
+                blocks.push(b as u32);
+                starts.push(pixels.len() as u32);
             }
         }
         Self {
@@ -179,6 +216,39 @@ mod tests {
             if order == Order::Coherent {
                 // The coherent list is already grouped by block, in block order.
                 assert_eq!(g.pixels, list);
+            }
+        }
+    }
+
+    /// The split schedule: blocks drawn apart (in any grouping, here every third block on its
+    /// own) and put back from their masks give the whole coherent list's grouping exactly,
+    /// edge tiles and a shown mask included.
+    #[test]
+    fn masks_drawn_apart_give_the_whole_schedules_list() {
+        use crate::schedule::{schedule_cpu_block_masks, schedule_cpu_shown};
+        let size = [150, 90];
+        let mut shown = vec![0u32; (150 * 90usize).div_ceil(32)];
+        for p in (0..150 * 90u32).filter(|p| p % 7 != 0) {
+            shown[(p / 32) as usize] |= 1 << (p % 32);
+        }
+        let d = dgi(size);
+        for mask in [None, Some(&shown[..])] {
+            for k in 0..4 {
+                let list =
+                    schedule_cpu_shown(&d, mask, 150, 90, 0.05, k, 7, Order::Coherent).unwrap();
+                let want = BlockList::group(&list, size);
+                let n = 5 * 3;
+                let mut all = vec![[0u32; 32]; n];
+                for part in 0..3u32 {
+                    let blocks: Vec<u32> = (part..n as u32).step_by(3).collect();
+                    let masks =
+                        schedule_cpu_block_masks(&d, mask, 150, 90, 0.05, k, 7, &blocks).unwrap();
+                    for (b, m) in blocks.into_iter().zip(masks) {
+                        all[b as usize] = m;
+                    }
+                }
+                assert_eq!(BlockList::from_masks(size, &all), want, "iteration {k}");
+                assert!(!want.pixels.is_empty());
             }
         }
     }

@@ -51,7 +51,9 @@ use crate::gpu::GpuContext;
 use crate::roi::cone::Cone;
 use crate::roi::dgi::{Roi, Surface};
 use crate::scene::Scene;
-use crate::schedule::{BLOCK_PIXELS, ScheduleError, TILE_EDGE, schedule_cpu_shown};
+use crate::schedule::{
+    BLOCK_PIXELS, Order, ScheduleError, TILE_EDGE, schedule_cpu_block_masks, schedule_cpu_shown,
+};
 use crate::trace::accum::{Accumulation, accumulate};
 use crate::trace::gpu::{GpuScene, SampleRun, TraceKernel};
 use crate::trace::pack::PackedScene;
@@ -638,7 +640,7 @@ impl ClusterRenderer {
             ..Default::default()
         };
         self.install_dgi(c, &mut stats)?;
-        let list = self.schedule(&mut stats)?;
+        let list = self.schedule(c, &mut stats)?;
         let tracer = deal(&list, &self.costs, self.ranks);
         let samples = self.trace(&list, &tracer, &mut stats)?;
         self.exchange(c, &list, &tracer, &samples, &mut stats)?;
@@ -690,12 +692,53 @@ impl ClusterRenderer {
         Ok(())
     }
 
-    /// Step 2: the whole iteration's list, grouped by block (the same on every rank).
-    fn schedule(&mut self, stats: &mut ClusterFrameStats) -> Result<Arc<BlockList>, ClusterError> {
+    /// Step 2: the whole iteration's list, grouped by block (the same on every rank). In
+    /// coherent order each rank draws every N-th block and sends the others its blocks'
+    /// selected slots (a flag byte a block, 128 bytes a non-empty one): the draw is split N
+    /// ways instead of repeated on every rank.
+    fn schedule(
+        &mut self,
+        c: &mut Cluster,
+        stats: &mut ClusterFrameStats,
+    ) -> Result<Arc<BlockList>, ClusterError> {
         let t0 = Instant::now();
         let size = [self.settings.width, self.settings.height];
         let shown = self.wall.as_ref().map(WallCamera::shown_mask);
         let list = match &self.guidance {
+            Some(g) if g.config.order == Order::Coherent && self.ranks > 1 => {
+                let cfg = &g.config;
+                let [tx, ty] = owners::block_grid(size);
+                let n = tx * ty;
+                let mine: Vec<u32> = (self.rank as u32..n).step_by(self.ranks).collect();
+                let masks = schedule_cpu_block_masks(
+                    &self.dgi,
+                    shown,
+                    size[0],
+                    size[1],
+                    cfg.p_min,
+                    self.iteration,
+                    self.settings.seed,
+                    &mine,
+                )?;
+                let part = encode_masks(&masks);
+                let what = format!("the schedule of iteration {}", self.iteration);
+                let got = c.all_to_all(&what, vec![part; self.ranks])?;
+                let mut all = vec![[0u32; 32]; n as usize];
+                for (src, bytes) in got.iter().enumerate() {
+                    let theirs: Vec<u32> = (src as u32..n).step_by(self.ranks).collect();
+                    let masks = decode_masks(bytes, theirs.len()).map_err(|reason| {
+                        ExchangeError::Malformed {
+                            rank: src,
+                            what: what.clone(),
+                            reason,
+                        }
+                    })?;
+                    for (b, m) in theirs.into_iter().zip(masks) {
+                        all[b as usize] = m;
+                    }
+                }
+                Arc::new(BlockList::from_masks(size, &all))
+            }
             Some(g) => {
                 let c = &g.config;
                 let list = schedule_cpu_shown(
@@ -1006,6 +1049,58 @@ struct Traced {
 
 /// f32s as little-endian bytes.
 #[must_use]
+/// Blocks' selected slots as bytes: per block a flag byte (0: none), then its mask's 128
+/// bytes when the flag is 1.
+fn encode_masks(masks: &[crate::schedule::SlotMask]) -> Vec<u8> {
+    let mut b = Vec::new();
+    for m in masks {
+        if m.iter().all(|&w| w == 0) {
+            b.push(0);
+        } else {
+            b.push(1);
+            for w in m {
+                b.extend(w.to_le_bytes());
+            }
+        }
+    }
+    b
+}
+
+/// The inverse of [`encode_masks`] for `blocks` blocks, or what is wrong with the bytes.
+fn decode_masks(b: &[u8], blocks: usize) -> Result<Vec<crate::schedule::SlotMask>, String> {
+    let mut out = Vec::with_capacity(blocks);
+    let mut at = 0;
+    for k in 0..blocks {
+        match b.get(at) {
+            Some(0) => {
+                out.push([0; 32]);
+                at += 1;
+            }
+            Some(1) => {
+                let words = b
+                    .get(at + 1..at + 129)
+                    .ok_or_else(|| format!("block {k} of {blocks}: its mask is cut short"))?;
+                let mut m = [0u32; 32];
+                for (w, c) in m.iter_mut().zip(words.chunks_exact(4)) {
+                    *w = u32::from_le_bytes(c.try_into().expect("4 bytes"));
+                }
+                out.push(m);
+                at += 129;
+            }
+            Some(f) => return Err(format!("block {k} of {blocks}: flag {f}, not 0 or 1")),
+            None => return Err(format!("{} bytes for {blocks} blocks", b.len())),
+        }
+    }
+    if at != b.len() {
+        return Err(format!(
+            "{} bytes for {blocks} blocks, {} past them",
+            b.len(),
+            b.len() - at
+        ));
+    }
+    Ok(out)
+}
+
 pub fn f32_bytes(v: &[f32]) -> Vec<u8> {
     v.iter().flat_map(|x| x.to_le_bytes()).collect()
 }

@@ -599,3 +599,25 @@ fn gpu_ranks_give_the_one_gpu_process_accumulation_and_follow_a_moved_eye() {
     assert_eq!(root.0.count.iter().max(), Some(&3), "restarted at frame 2");
     assert_bits_equal(&root, &one, "2 GPU ranks, the eye moved");
 }
+
+/// The split schedule's bytes: a flag byte a block and 128 bytes a non-empty one, read back
+/// exactly; anything else is refused with what is wrong.
+#[test]
+fn schedule_masks_survive_their_bytes_and_bad_bytes_are_refused() {
+    let mut a = [0u32; 32];
+    a[3] = 0x8000_0001;
+    let masks = vec![[0u32; 32], a, [u32::MAX; 32]];
+    let b = encode_masks(&masks);
+    assert_eq!(b.len(), 1 + 2 * 129);
+    assert_eq!(decode_masks(&b, 3).unwrap(), masks);
+    assert!(decode_masks(&b, 4).unwrap_err().contains("for 4 blocks"));
+    assert!(decode_masks(&b, 2).unwrap_err().contains("past them"));
+    assert!(
+        decode_masks(&b[..100], 3)
+            .unwrap_err()
+            .contains("cut short")
+    );
+    let mut bad = b.clone();
+    bad[0] = 2;
+    assert!(decode_masks(&bad, 3).unwrap_err().contains("flag 2"));
+}

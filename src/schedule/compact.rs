@@ -192,6 +192,56 @@ impl<'a> Draw<'a> {
     }
 }
 
+/// A block's selected slots: bit `s % 32` of word `s / 32` for slot `s` ([`Layout::pixel`]).
+pub type SlotMask = [u32; (BLOCK_PIXELS / 32) as usize];
+
+/// The draw of [`schedule_cpu_shown`] in coherent order for `blocks` alone, each block's
+/// selected slots as a [`SlotMask`]: its pixels in list order are its set bits ascending,
+/// through [`Layout::pixel`]. Ranks split an iteration's schedule so (DESIGN.md §12): each
+/// draws a share of the blocks and sends the others 128 bytes a non-empty block.
+#[allow(clippy::too_many_arguments)]
+pub fn schedule_cpu_block_masks(
+    dgi: &[f32],
+    shown: Option<&[u32]>,
+    width: u32,
+    height: u32,
+    p_min: f32,
+    iteration: u32,
+    seed: u32,
+    blocks: &[u32],
+) -> Result<Vec<SlotMask>, ScheduleError> {
+    let draw = Draw::new(
+        dgi,
+        shown,
+        (width, height),
+        p_min,
+        iteration,
+        seed,
+        Order::Coherent,
+    )?;
+    Ok(blocks
+        .par_iter()
+        .map(|&block| {
+            let mut mask = [0u32; (BLOCK_PIXELS / 32) as usize];
+            let (tx, ty) = (block % draw.layout.tiles[0], block / draw.layout.tiles[0]);
+            let (x0, y0) = (tx * TILE_EDGE, ty * TILE_EDGE);
+            let inside = x0 + TILE_EDGE <= width && y0 + TILE_EDGE <= height;
+            let base = y0 * width + x0;
+            for slot in 0..BLOCK_PIXELS {
+                let px = if inside {
+                    Some(base + draw.offsets[slot as usize])
+                } else {
+                    draw.layout.pixel(Order::Coherent, block, slot)
+                };
+                if px.is_some_and(|px| draw.take(px)) {
+                    mask[(slot / 32) as usize] |= 1 << (slot % 32);
+                }
+            }
+            mask
+        })
+        .collect())
+}
+
 /// The selected pixels of each block, in slot order (blocks in index order; empty blocks
 /// included). The GPU list is these runs, non-empty ones only, in some order.
 pub fn schedule_cpu_blocks(
