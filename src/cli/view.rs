@@ -282,7 +282,10 @@ fn setup(args: &ViewArgs, root: bool) -> anyhow::Result<Setup> {
     {
         anyhow::bail!("--target-se must be a positive number, not {t}");
     }
-    crate::output::check_folder(&args.save_dir).context("--save-dir")?;
+    if root {
+        // Only the window saves.
+        crate::output::check_folder(&args.save_dir).context("--save-dir")?;
+    }
     let filter = args.filter.params()?;
     let head = args.head.head()?;
     let (model, _) = DisplayModel::open(&args.display)?;

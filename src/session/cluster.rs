@@ -1,6 +1,8 @@
 //! The render loop across ranks (DESIGN.md §12): rank 0 follows the guide source and the stop
 //! rule and broadcasts each frame's control (iteration, stop, ROI change); every rank runs the
-//! cluster frame; at the end rank 0 gathers the owners' sums.
+//! cluster frame; at the end rank 0 gathers the owners' sums. For `view --cluster`, rank 0's
+//! viewer sends each of its steps instead ([`ViewStep`], [`ClusterView`]) and the other ranks
+//! follow them until the window closes.
 
 use std::sync::Arc;
 use std::time::Instant;

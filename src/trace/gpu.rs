@@ -575,7 +575,9 @@ impl SampleRun {
     /// Buffers for at least `len` entries (grown by doubling).
     fn buffers(&mut self, ctx: &GpuContext, len: u32) -> Result<&SampleBuffers, GpuError> {
         if self.buffers.as_ref().is_none_or(|b| b.capacity < len) {
-            let capacity = len.max(1).next_power_of_two().max(1024);
+            // Doubling, within what one binding holds (`samples` keeps `len` below it).
+            let most = u32::try_from(ctx.max_binding() / 16).unwrap_or(u32::MAX);
+            let capacity = len.max(1).next_power_of_two().max(1024).min(most).max(len);
             ctx.check_binding("a rank's samples (16 bytes each)", u64::from(capacity) * 16)?;
             let make = |label, bytes: u64, usage| {
                 ctx.device.create_buffer(&wgpu::BufferDescriptor {
@@ -623,7 +625,7 @@ impl SampleRun {
 
     /// One sample for each of `pixels` (sample index `counts[i]` for `pixels[i]`): its RGB and
     /// the rays it took, in list order; a pixel the wall camera does not show gives black and
-    /// no rays.
+    /// no rays. A list longer than one binding holds (16 bytes an entry) goes in pieces.
     pub fn samples(
         &mut self,
         ctx: &GpuContext,
@@ -632,6 +634,22 @@ impl SampleRun {
         counts: &[u32],
     ) -> Result<Vec<(glam::Vec3, u32)>, GpuError> {
         assert_eq!(pixels.len(), counts.len(), "a sample index for each pixel");
+        let piece = (ctx.max_binding() / 16).clamp(1, 1 << 30) as usize;
+        let mut out = Vec::with_capacity(pixels.len());
+        for (p, c) in pixels.chunks(piece).zip(counts.chunks(piece)) {
+            out.extend(self.samples_in_one(ctx, scene, p, c)?);
+        }
+        Ok(out)
+    }
+
+    /// [`Self::samples`] of a list one binding holds.
+    fn samples_in_one(
+        &mut self,
+        ctx: &GpuContext,
+        scene: &GpuScene,
+        pixels: &[u32],
+        counts: &[u32],
+    ) -> Result<Vec<(glam::Vec3, u32)>, GpuError> {
         if pixels.is_empty() {
             return Ok(Vec::new());
         }

@@ -199,4 +199,27 @@ fn a_ranks_samples_are_the_bits_the_accumulating_kernel_adds() {
     let zeros = samples_cpu(&packed, &s, None, half, &vec![0; half.len()]);
     let other = share(&gpu, &zeros);
     assert!(other < 0.5, "{:.1} % agree with sample 0", 100.0 * other);
+    // On a device whose bindings hold 400 samples the list goes in pieces: the same bits.
+    let cornell = Scene::builtin("cornell").unwrap();
+    let packed = PackedScene::new(&cornell);
+    let s = settings(&cornell, 32, 24, 5, 8);
+    let whole = {
+        let gs = GpuScene::upload(&ctx, &kernel, &packed).unwrap();
+        SampleRun::new(&ctx, &kernel, &packed, &s, None)
+            .samples(&ctx, &gs, &pixels, &vec![2; pixels.len()])
+            .unwrap()
+    };
+    let small = GpuContext::with_max_binding(16 * 400).unwrap();
+    let k = TraceKernel::new(&small);
+    let gs = GpuScene::upload(&small, &k, &packed).unwrap();
+    let pieces = SampleRun::new(&small, &k, &packed, &s, None)
+        .samples(&small, &gs, &pixels, &vec![2; pixels.len()])
+        .unwrap();
+    assert!(pixels.len() > 400);
+    let bits = |v: &[(Vec3, u32)]| -> Vec<[u32; 4]> {
+        v.iter()
+            .map(|(c, r)| [c.x.to_bits(), c.y.to_bits(), c.z.to_bits(), *r])
+            .collect()
+    };
+    assert!(bits(&pieces) == bits(&whole), "in pieces as whole");
 }
