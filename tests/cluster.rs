@@ -344,6 +344,74 @@ mod mpi {
         assert!(counts.iter().any(|&c| c < n as f32), "the periphery less");
     }
 
+    /// `view --cluster --show-tiles`: every rank but 0 opens a window of the tiles it owns
+    /// (whole columns: rank 1 columns 3–4, the Cornell box, rank 2 columns 5–6, the white
+    /// environment beside it) and, asked for a screenshot, saves the tiles it showed last at
+    /// their own resolution. (That they are the
+    /// one-process picture's cut bit for bit is tests/viewer.rs's.)
+    #[test]
+    fn with_show_tiles_every_owner_shows_its_own_tiles() {
+        let dir = tmp_dir("view-tiles");
+        let o = mpirun_in(
+            &["xvfb-run", "-a", "-s", "-screen 0 1600x900x24"],
+            &[(
+                3,
+                &exe(),
+                strings(&[
+                    "view",
+                    "--cluster",
+                    "--show-tiles",
+                    "--display",
+                    SMALL_HORNET,
+                    "--size",
+                    "native",
+                    "--backend",
+                    "cpu",
+                    "--roi-at",
+                    "170,45",
+                    "--roi-radius",
+                    "60",
+                    "--p-min",
+                    "0.1",
+                    "--screenshot-after",
+                    "4",
+                    "--save-dir",
+                    s(&dir),
+                ]),
+            )],
+        );
+        ok(&o);
+        let err = String::from_utf8_lossy(&o.stderr);
+        for (rank, columns) in [(1, [3, 4]), (2, [5, 6])] {
+            let got: Vec<String> = files(&dir.join(format!("rank{rank}-tiles")))
+                .into_iter()
+                .map(|f| f.0)
+                .collect();
+            let want: Vec<String> = columns
+                .iter()
+                .flat_map(|c| (0..5).map(move |r| format!("c{c}r{r}.png")))
+                .collect();
+            assert_eq!(got, want, "rank {rank}: {err}");
+            let mut colours = Vec::new();
+            for name in &want {
+                let tile = image::open(dir.join(format!("rank{rank}-tiles/{name}")))
+                    .unwrap()
+                    .to_rgb8();
+                assert_eq!(tile.dimensions(), (48, 27), "the tile's own resolution");
+                colours.extend(tile.pixels().map(|p| p.0));
+            }
+            colours.sort_unstable();
+            colours.dedup();
+            if rank == 1 {
+                assert!(colours.len() > 20, "rank 1 shows the box: {colours:?}");
+            } else {
+                // Beside the box: the white environment alone.
+                assert_eq!(colours, [[255; 3]], "rank 2");
+            }
+        }
+        assert!(!dir.join("rank0-tiles").exists(), "rank 0 is the console");
+    }
+
     /// `args` with `--backend cpu` made `--backend gpu` (lavapipe here).
     fn on_gpu(args: Vec<String>) -> Vec<String> {
         let b = args.iter().position(|a| a == "--backend").unwrap();

@@ -782,7 +782,7 @@ fn the_viewer_across_ranks_shows_the_one_process_pictures_bit_for_bit() {
     use raygun::cluster::exchange::InProcess;
     use raygun::cluster::owners::{BlockOwners, TileOwners};
     use raygun::cluster::{Cluster, DgiMode};
-    use raygun::session::cluster::ClusterView;
+    use raygun::session::cluster::{Applied, ClusterView, ViewStep};
     use raygun::viewer::core::Picture;
     use raygun::viewer::orbit::Gesture;
     /// The user's actions, a picture after each.
@@ -843,8 +843,17 @@ fn the_viewer_across_ranks_shows_the_one_process_pictures_bit_for_bit() {
                     DgiMode::Compute,
                     None,
                 )
-                .unwrap();
-                v.follow().unwrap()
+                .unwrap()
+                .with_tiles(TileOwners::columns(model, 2));
+                // The frames it ran, and the pictures of its own tiles it was last asked for.
+                let (mut frames, mut last) = (0, None);
+                while let Some((step, applied)) = v.next_step().unwrap() {
+                    frames += u32::from(step == ViewStep::Frame);
+                    if let Applied::Tiles(pictures, _) = applied {
+                        last = Some(pictures);
+                    }
+                }
+                (frames, last.expect("rank 0 asked for the owners' pictures"))
             });
             let c = Cluster::new(Box::new(root), Duration::from_secs(30));
             let v = ClusterView::new(
@@ -858,7 +867,8 @@ fn the_viewer_across_ranks_shows_the_one_process_pictures_bit_for_bit() {
                 DgiMode::Compute,
                 None,
             )
-            .unwrap();
+            .unwrap()
+            .with_tiles(TileOwners::columns(model, 2));
             let mut core =
                 ViewerCore::over_cluster(&backend, scene, model, base(scene), state(), v).unwrap();
             assert!(
@@ -870,7 +880,19 @@ fn the_viewer_across_ranks_shows_the_one_process_pictures_bit_for_bit() {
             drop(core);
             (got, follower.join().unwrap())
         });
+        let (followed, tiles) = followed;
         assert_eq!(followed, 8, "rank 1 ran every frame, then stopped");
+        // What rank 1 shows of its own tiles is the one-process picture cut at them.
+        let last = want.last().unwrap();
+        assert!(!tiles.is_empty());
+        for p in &tiles {
+            let cut = raygun::output::tiles::cut_tile(&model, p.tile, &last.image, [W, H]);
+            assert!(
+                p.pixels == cut,
+                "wall camera: {with_wall}, tile {}",
+                model.tiles()[p.tile].id()
+            );
+        }
         for (k, (g, w)) in got.iter().zip(&want).enumerate() {
             let what = format!("wall camera: {with_wall}, picture {k}");
             assert_eq!(g.counts, w.counts, "{what}: counts");

@@ -404,6 +404,7 @@ pub fn view_args(args: &DemoArgs, display: &Path, replay: &Path) -> ViewArgs {
         },
         save_dir: args.out.clone(),
         screenshot_after: None,
+        show_tiles: false,
         cluster: crate::cli::cluster::ClusterArgs::default(),
     }
 }

@@ -128,6 +128,12 @@ pub struct ViewArgs {
     /// the tracking; every rank traces a share of each frame (DESIGN.md §12).
     #[command(flatten)]
     pub cluster: crate::cli::cluster::ClusterArgs,
+    /// With --cluster: every rank but 0 opens a window showing the display tiles it owns, laid
+    /// out as they hang and filtered where they are owned (on a wall: each PC's screens; give
+    /// the console, rank 0, no tiles with --tile-owners). With --screenshot-after each saves
+    /// `screenshot.rankN.window.png` into its --save-dir when rank 0 closes.
+    #[arg(long, requires = "cluster")]
+    pub show_tiles: bool,
 }
 
 /// What `view` has loaded and worked out before the renderer exists.
@@ -164,6 +170,9 @@ pub fn run(args: &ViewArgs) -> anyhow::Result<()> {
     if !has_display() {
         anyhow::bail!(NO_DISPLAY);
     }
+    if args.show_tiles {
+        anyhow::bail!("--show-tiles needs --cluster: the owners' windows are ranks' windows");
+    }
     let s = setup(args, true)?;
     let core = ViewerCore::with_wall(&s.backend, &s.scene, &s.model, s.base, s.state, s.wall)?;
     open_window(core, s.timeline, s.live, args)
@@ -177,11 +186,11 @@ fn run_cluster(args: &ViewArgs) -> anyhow::Result<()> {
     let mut c = crate::cli::cluster::start(&args.cluster)?;
     let (root, rank) = (c.is_root(), c.rank());
     let prepared = (|| {
-        if root && !has_display() {
+        if (root || args.show_tiles) && !has_display() {
             anyhow::bail!(NO_DISPLAY);
         }
         let s = setup(args, root)?;
-        let (owners, _, tile_map) =
+        let (owners, tile_owners, tile_map) =
             block_owners(&args.cluster, Some(&s.model), args.size, c.ranks())?;
         let config = s.state.guide_config()?;
         let fields = vec![
@@ -207,15 +216,16 @@ fn run_cluster(args: &ViewArgs) -> anyhow::Result<()> {
                 "trace backend",
                 crate::cli::cluster::trace_backend(&s.backend),
             ),
+            ("owners show their tiles", format!("{}", args.show_tiles)),
         ];
-        Ok((s, owners, config, fields))
+        Ok((s, owners, tile_owners, config, fields))
     })();
     let mine = match &prepared {
         Ok((.., fields)) => identity(c.ranks(), fields),
         Err(e) => Err(crate::cli::error_chain(e)),
     };
     check(&mut c, mine)?;
-    let (s, owners, config, _) = prepared?;
+    let (s, owners, tile_owners, config, _) = prepared?;
     // The ranks trace on their GPUs where --backend says so; rank 0 filters the picture on its
     // CPU twin, as `render --cluster` does.
     let (gpu, filter_backend) = match s.backend {
@@ -234,6 +244,10 @@ fn run_cluster(args: &ViewArgs) -> anyhow::Result<()> {
             args.cluster.cluster_dgi,
             gpu,
         )?;
+        let view = match tile_owners {
+            Some(t) if args.show_tiles => view.with_tiles(t),
+            _ => view,
+        };
         if root {
             eprintln!("raygun view: {}", view.describe());
             let core = ViewerCore::over_cluster(
@@ -245,6 +259,8 @@ fn run_cluster(args: &ViewArgs) -> anyhow::Result<()> {
                 view,
             )?;
             open_window(core, s.timeline, s.live, args)
+        } else if args.show_tiles {
+            open_tiles_window(view, args)
         } else {
             let mut view = view;
             view.follow()?;
@@ -282,8 +298,8 @@ fn setup(args: &ViewArgs, root: bool) -> anyhow::Result<Setup> {
     {
         anyhow::bail!("--target-se must be a positive number, not {t}");
     }
-    if root {
-        // Only the window saves.
+    if root || (args.show_tiles && args.screenshot_after.is_some()) {
+        // Only the windows save.
         crate::output::check_folder(&args.save_dir).context("--save-dir")?;
     }
     let filter = args.filter.params()?;
@@ -476,6 +492,49 @@ fn open_window(
         Some(message) => anyhow::bail!(message),
         None => Ok(()),
     }
+}
+
+/// An owner's window of its own tiles (`--show-tiles`) until rank 0's window closes.
+#[cfg(feature = "viewer")]
+fn open_tiles_window(
+    view: crate::session::cluster::ClusterView<'_>,
+    args: &ViewArgs,
+) -> anyhow::Result<()> {
+    let rank = view.rank();
+    let app = crate::viewer::tiles::TilesApp::new(
+        view,
+        args.screenshot_after.map(|_| args.save_dir.clone()),
+    );
+    let failure = std::sync::Arc::clone(&app.failure);
+    let options = eframe::NativeOptions {
+        viewport: eframe::egui::ViewportBuilder::default()
+            .with_title(format!("raygun view: rank {rank}'s tiles"))
+            .with_inner_size([960.0, 540.0]),
+        ..Default::default()
+    };
+    eframe::run_native(
+        "raygun view tiles",
+        options,
+        Box::new(move |_cc| Ok(Box::new(app))),
+    )
+    .map_err(|e| {
+        anyhow::anyhow!(
+            "rank {rank}'s tiles window could not open: {}",
+            crate::messages::without_source_paths(&e.to_string())
+        )
+    })?;
+    match failure.lock().ok().and_then(|mut f| f.take()) {
+        Some(message) => anyhow::bail!(message),
+        None => Ok(()),
+    }
+}
+
+#[cfg(not(feature = "viewer"))]
+fn open_tiles_window(
+    _: crate::session::cluster::ClusterView<'_>,
+    _: &ViewArgs,
+) -> anyhow::Result<()> {
+    anyhow::bail!(NO_WINDOW)
 }
 
 #[cfg(not(feature = "viewer"))]

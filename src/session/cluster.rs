@@ -10,11 +10,13 @@ use std::time::Instant;
 use super::guide::GuideSource;
 use super::render::Stopping;
 use crate::cluster::exchange::ExchangeError;
-use crate::cluster::owners::BlockOwners;
+use crate::cluster::owners::{BlockOwners, TileOwners};
+use crate::cluster::picture::TilePicture;
 use crate::cluster::{
     Cluster, ClusterError, ClusterFrameStats, ClusterRenderer, DgiMode, FrameControl,
 };
 use crate::display::DisplayModel;
+use crate::filter::{Blend, FilterKind, FilterParams};
 use crate::frame::stop::{RoiProgress, StopCondition, StopReason, reached};
 use crate::frame::{EyeFollow, GuideConfig};
 use crate::gpu::GpuContext;
@@ -237,6 +239,9 @@ pub enum ViewStep {
     Rebuild { config: GuideConfig, max_depth: u32 },
     /// The window closed: the render ends on every rank.
     Stop,
+    /// Every owner makes the pictures of the display tiles it owns, filtered where they are
+    /// owned (`view --show-tiles`: each shows its own), at this exposure (stops).
+    Tiles { filter: FilterParams, exposure: f32 },
 }
 
 impl ViewStep {
@@ -288,6 +293,22 @@ impl ViewStep {
                 b.extend(max_depth.to_le_bytes());
             }
             Self::Stop => b.push(8),
+            Self::Tiles { filter, exposure } => {
+                b.push(9);
+                b.push(match filter.kind {
+                    FilterKind::Off => 0,
+                    FilterKind::Exact => 1,
+                    FilterKind::Fast => 2,
+                });
+                b.push(match filter.blend {
+                    Blend::Count => 0,
+                    Blend::Variance => 1,
+                });
+                f32s(
+                    &mut b,
+                    &[filter.k_max, filter.c, filter.variance_threshold, exposure],
+                );
+            }
         }
         b
     }
@@ -383,6 +404,30 @@ impl ViewStep {
                 }
             }
             8 => none(Self::Stop)?,
+            9 => {
+                let (&kind, rest) = rest.split_first()?;
+                let (&blend, rest) = rest.split_first()?;
+                let f = f32s(rest, 4)?;
+                Self::Tiles {
+                    filter: FilterParams {
+                        kind: match kind {
+                            0 => FilterKind::Off,
+                            1 => FilterKind::Exact,
+                            2 => FilterKind::Fast,
+                            _ => return None,
+                        },
+                        blend: match blend {
+                            0 => Blend::Count,
+                            1 => Blend::Variance,
+                            _ => return None,
+                        },
+                        k_max: f[0],
+                        c: f[1],
+                        variance_threshold: f[2],
+                    },
+                    exposure: f[3],
+                }
+            }
             _ => return None,
         })
     }
@@ -393,6 +438,8 @@ pub enum Applied {
     Frame(ClusterFrameStats),
     /// Rank 0: the whole accumulation and the DGI (`None` elsewhere).
     Gathered(Option<(Accumulation, Vec<f32>)>),
+    /// The pictures of this rank's tiles, and the exposure to show them at.
+    Tiles(Vec<TilePicture>, f32),
     Done,
 }
 
@@ -408,6 +455,8 @@ pub struct ClusterView<'a> {
     owners: BlockOwners,
     dgi_mode: DgiMode,
     gpu: Option<Arc<GpuContext>>,
+    /// The tile map, for the owners' pictures ([`ViewStep::Tiles`]).
+    tiles: Option<TileOwners>,
     stopped: bool,
 }
 
@@ -437,8 +486,35 @@ impl<'a> ClusterView<'a> {
             owners,
             dgi_mode,
             gpu,
+            tiles: None,
             stopped: false,
         })
+    }
+
+    /// The tile map the owners make their tiles' pictures by (`view --show-tiles`; the same
+    /// on every rank).
+    #[must_use]
+    pub fn with_tiles(mut self, tiles: TileOwners) -> Self {
+        self.tiles = Some(tiles);
+        self
+    }
+
+    /// The display model.
+    #[must_use]
+    pub fn model(&self) -> &DisplayModel {
+        self.model
+    }
+
+    /// Whether the owners make their tiles' pictures (a tile map was given).
+    #[must_use]
+    pub fn shows_tiles(&self) -> bool {
+        self.tiles.is_some()
+    }
+
+    /// This rank.
+    #[must_use]
+    pub fn rank(&self) -> usize {
+        self.c.rank()
     }
 
     #[allow(clippy::too_many_arguments)]
@@ -526,23 +602,40 @@ impl<'a> ClusterView<'a> {
                 )?;
             }
             ViewStep::Stop => self.stopped = true,
+            ViewStep::Tiles { filter, exposure } => {
+                let tiles = self.tiles.as_ref().ok_or_else(|| {
+                    ClusterError::Rejected("the owners' pictures need the tile map".into())
+                })?;
+                let pictures = self
+                    .r
+                    .tile_pictures(&mut self.c, self.model, tiles, &filter)?;
+                return Ok(Applied::Tiles(pictures, exposure));
+            }
         }
         Ok(Applied::Done)
+    }
+
+    /// Every rank but 0: rank 0's next step, applied here (`None` once the window closed).
+    pub fn next_step(&mut self) -> Result<Option<(ViewStep, Applied)>, ClusterError> {
+        if self.stopped {
+            return Ok(None);
+        }
+        let what = "the viewer's next step";
+        let bytes = self.c.broadcast_patiently(what, Vec::new())?;
+        let step = ViewStep::decode(&bytes).ok_or_else(|| ExchangeError::Malformed {
+            rank: 0,
+            what: what.into(),
+            reason: format!("{} bytes that are no viewer step", bytes.len()),
+        })?;
+        let applied = self.apply(step)?;
+        Ok((!self.stopped).then_some((step, applied)))
     }
 
     /// Every rank but 0: rank 0's steps until its window closes; the frames this rank ran.
     pub fn follow(&mut self) -> Result<u32, ClusterError> {
         let mut frames = 0;
-        while !self.stopped {
-            let what = "the viewer's next step";
-            let bytes = self.c.broadcast_patiently(what, Vec::new())?;
-            let step = ViewStep::decode(&bytes).ok_or_else(|| ExchangeError::Malformed {
-                rank: 0,
-                what: what.into(),
-                reason: format!("{} bytes that are no viewer step", bytes.len()),
-            })?;
+        while let Some((step, _)) = self.next_step()? {
             frames += u32::from(step == ViewStep::Frame);
-            self.apply(step)?;
         }
         Ok(frames)
     }
@@ -605,6 +698,16 @@ mod tests {
                 max_depth: 7,
             },
             ViewStep::Stop,
+            ViewStep::Tiles {
+                filter: FilterParams {
+                    kind: FilterKind::Exact,
+                    blend: Blend::Variance,
+                    k_max: 12.5,
+                    c: 3.0,
+                    variance_threshold: 1e-5,
+                },
+                exposure: -1.5,
+            },
         ];
         for s in steps {
             let b = s.encode();

@@ -554,6 +554,16 @@ impl<'a> ViewerCore<'a> {
     /// state's overlay (with the ROI outline and the wall view as asked).
     pub fn picture(&mut self) -> Result<Picture, ViewerError> {
         let (acc, dgi) = self.engine.accumulation()?;
+        if let Engine::Cluster(v) = &mut self.engine
+            && v.shows_tiles()
+        {
+            // Every owner shows its own tiles' pictures (`view --show-tiles`); rank 0's
+            // window shows the whole picture, so its own tiles' go unused here.
+            v.send(ViewStep::Tiles {
+                filter: self.state.filter_params(),
+                exposure: self.state.exposure,
+            })?;
+        }
         let image = self
             .engine
             .picture_of(&self.state.filter_params(), &acc, &dgi)?;

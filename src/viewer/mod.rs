@@ -6,7 +6,8 @@
 //!   screen;
 //! * [`diagnostics`]: the images that explain a render (ROI outline, heat map, noise);
 //! * [`orbit`]: the desktop user's orbit, pan and dolly of the eye or the pinhole camera;
-//! * `app`: the eframe front end (with the `viewer` feature, on by default).
+//! * `app`: the eframe front end (with the `viewer` feature, on by default);
+//! * `tiles`: the window of an owner's own tiles (`view --cluster --show-tiles`).
 
 #[cfg(feature = "viewer")]
 pub mod app;
@@ -14,6 +15,8 @@ pub mod core;
 pub mod diagnostics;
 pub mod orbit;
 pub mod state;
+#[cfg(feature = "viewer")]
+pub mod tiles;
 
 use std::path::PathBuf;
 
