@@ -43,9 +43,13 @@ impl<'a> TilesApp<'a> {
     }
 
     /// Rank 0's steps up to its next picture (or its stop).
-    fn follow(&mut self, _ctx: &egui::Context) -> Result<(), String> {
+    fn follow(&mut self) -> Result<(), String> {
         loop {
-            match self.view.next_step().map_err(|e| crate::messages::chain(&e))? {
+            match self
+                .view
+                .next_step()
+                .map_err(|e| crate::messages::chain(&e))?
+            {
                 Some((_, Applied::Tiles(pictures, exposure))) => {
                     // Drawn by the next `ui` (a hidden window keeps only the latest).
                     self.last = Some((pictures, exposure));
@@ -163,8 +167,16 @@ impl eframe::App for TilesApp<'_> {
     /// Following rank 0 is logic, not drawing: eframe runs it while the window is covered or
     /// hidden too (a wall's window the console covers must not stall the job).
     fn logic(&mut self, ctx: &egui::Context, _frame: &mut eframe::Frame) {
+        // The job needs this rank until rank 0 stops: a wall's window is not closed by hand.
+        if !self.stopped && ctx.input(|i| i.viewport().close_requested()) {
+            eprintln!(
+                "raygun view: rank {}: this window closes with rank 0's",
+                self.view.rank()
+            );
+            ctx.send_viewport_cmd(egui::ViewportCommand::CancelClose);
+        }
         if !self.stopped
-            && let Err(e) = self.follow(ctx)
+            && let Err(e) = self.follow()
         {
             self.fail(e);
             ctx.send_viewport_cmd(egui::ViewportCommand::Close);
