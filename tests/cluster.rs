@@ -412,6 +412,71 @@ mod mpi {
         assert!(!dir.join("rank0-tiles").exists(), "rank 0 is the console");
     }
 
+    /// `view --cluster` on 3 ranks under Xvfb, the mouse ROI fixed, closing after `n`
+    /// iterations, with `more` flags.
+    fn view_job(dir: &Path, n: u32, more: &[&str]) -> (Output, Duration) {
+        let t0 = Instant::now();
+        let o = mpirun_in(
+            &["xvfb-run", "-a", "-s", "-screen 0 1280x700x24"],
+            &[(
+                3,
+                &exe(),
+                with(
+                    strings(&[
+                        "view",
+                        "--cluster",
+                        "--backend",
+                        "cpu",
+                        "--size",
+                        "64,26",
+                        "--roi-at",
+                        "32,13",
+                        "--roi-radius",
+                        "200",
+                        "--screenshot-after",
+                        &n.to_string(),
+                        "--save-dir",
+                        s(dir),
+                    ]),
+                    more,
+                ),
+            )],
+        );
+        (o, t0.elapsed())
+    }
+
+    /// The viewer's faults are loud too: a rank that stops answering is named on rank 0 within
+    /// seconds, and one that ends ends the job, the window with it.
+    #[test]
+    fn a_viewer_rank_that_hangs_or_ends_ends_the_job_within_seconds() {
+        let dir = tmp_dir("view-hang");
+        let (o, took) = view_job(
+            &dir,
+            10_000,
+            &["--cluster-timeout", "2", "--cluster-fault", "2:3:hang"],
+        );
+        let e = stderr(&o);
+        assert!(!o.status.success(), "{e}");
+        assert!(
+            e.contains("raygun: error: rank 0: cluster: rank 2 did not answer"),
+            "{e}"
+        );
+        assert!(took < Duration::from_secs(40), "took {took:?}: {e}");
+        let dir = tmp_dir("view-exit");
+        let (o, took) = view_job(
+            &dir,
+            10_000,
+            &["--cluster-timeout", "2", "--cluster-fault", "1:3:exit"],
+        );
+        let e = stderr(&o);
+        assert!(!o.status.success(), "{e}");
+        assert!(
+            e.contains("rank 1: --cluster-fault: ending at iteration 3"),
+            "{e}"
+        );
+        assert!(took < Duration::from_secs(40), "took {took:?}: {e}");
+    }
+
     /// `args` with `--backend cpu` made `--backend gpu` (lavapipe here).
     fn on_gpu(args: Vec<String>) -> Vec<String> {
         let b = args.iter().position(|a| a == "--backend").unwrap();

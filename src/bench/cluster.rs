@@ -2,7 +2,8 @@
 //!
 //! * **Strong scaling**, measured: the same guided iterations (HORNET, viewer 1 m in front of
 //!   the centre, 10° and 60°) on the ranks of the job it runs in — under `mpirun -np N` with
-//!   the `cluster` feature, else one in-process rank. Per rank: ms per iteration, of it
+//!   the `cluster` feature, or as threads of one process (`--cluster-threads N`, the in-memory
+//!   exchange), each rank on its GPU or CPU twin (`--backend`). Per rank: ms per iteration, of it
 //!   tracing and exchanging, bytes sent and received per iteration; and the DGI's two ways
 //!   to reach the ranks, each rank computing it against rank 0 broadcasting it; and a picture
 //!   of the wall made both ways, every owner filtering its own tiles against rank 0 gathering
@@ -14,7 +15,7 @@
 //!   and per picture the owners' margins against the gather to rank 0.
 //! * **Model**: from those bytes and a stated link speed, the per-GPU trace rate at which the
 //!   exchange takes as long as the tracing, for 1–35 ranks, and the iterations per second at a
-//!   measured rate (the CPU twin's here; a GPU's when one is measured).
+//!   measured rate (the ranks' backend's: the CPU twin's here, a GPU rank's on a GPU machine).
 
 use std::time::Instant;
 

@@ -247,7 +247,8 @@ fn run_cluster(args: &ViewArgs) -> anyhow::Result<()> {
         let view = match tile_owners {
             Some(t) if args.show_tiles => view.with_tiles(t),
             _ => view,
-        };
+        }
+        .with_fault(args.cluster.cluster_fault);
         if root {
             eprintln!("raygun view: {}", view.describe());
             let core = ViewerCore::over_cluster(

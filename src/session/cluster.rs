@@ -457,6 +457,10 @@ pub struct ClusterView<'a> {
     gpu: Option<Arc<GpuContext>>,
     /// The tile map, for the owners' pictures ([`ViewStep::Tiles`]).
     tiles: Option<TileOwners>,
+    /// A test's fault, struck at the start of a frame.
+    fault: Option<Fault>,
+    /// Frames run since the start.
+    frames: u32,
     stopped: bool,
 }
 
@@ -487,8 +491,18 @@ impl<'a> ClusterView<'a> {
             dgi_mode,
             gpu,
             tiles: None,
+            fault: None,
+            frames: 0,
             stopped: false,
         })
+    }
+
+    /// A test's fault (`--cluster-fault`): this rank ends or stops answering at the start of
+    /// that frame (counted from the render's start, restarts included).
+    #[must_use]
+    pub fn with_fault(mut self, fault: Option<Fault>) -> Self {
+        self.fault = fault;
+        self
     }
 
     /// The tile map the owners make their tiles' pictures by (`view --show-tiles`; the same
@@ -578,7 +592,13 @@ impl<'a> ClusterView<'a> {
 
     fn apply(&mut self, step: ViewStep) -> Result<Applied, ClusterError> {
         match step {
-            ViewStep::Frame => return Ok(Applied::Frame(self.r.run_frame(&mut self.c)?)),
+            ViewStep::Frame => {
+                if let Some(f) = &self.fault {
+                    f.strike(self.c.rank(), self.frames);
+                }
+                self.frames += 1;
+                return Ok(Applied::Frame(self.r.run_frame(&mut self.c)?));
+            }
             ViewStep::Gather => return Ok(Applied::Gathered(self.r.gather(&mut self.c)?)),
             ViewStep::Roi(roi) => self.r.set_roi(roi)?,
             ViewStep::Eye(e) => self.r.move_eye(e)?,
