@@ -271,6 +271,11 @@ mod mpi {
     }
 
     #[test]
+    fn split_dgi_renders_match_too() {
+        same_files_as_one_process("split", guided, &["--cluster-dgi", "split"]);
+    }
+
+    #[test]
     fn full_wall_frames_match_too() {
         same_files_as_one_process("wall", full_wall, &[]);
     }

@@ -89,6 +89,8 @@ pub struct RankRun {
     pub ms_dgi_compute: f64,
     /// The DGI broadcast from rank 0, received (or sent) here (ms).
     pub ms_dgi_broadcast: f64,
+    /// The DGI split: this rank's bands computed, then every rank's bands exchanged (ms).
+    pub ms_dgi_split: f64,
     /// After the iterations, the picture of the tiles this rank owns: the margins' exchange
     /// and the filter of its own tiles (ms; every owner at once).
     pub ms_tile_pictures: f64,
@@ -224,6 +226,16 @@ pub fn scaling(
         c.broadcast("the DGI (timed)", dgi)
             .map_err(ClusterError::from)?;
         let ms_dgi_broadcast = t0.elapsed().as_secs_f64() * 1e3;
+        let t0 = Instant::now();
+        crate::cluster::split_dgi(
+            c,
+            &surface,
+            display.pitch_m(),
+            &config,
+            Some(&roi),
+            cfg.size,
+        )?;
+        let ms_dgi_split = t0.elapsed().as_secs_f64() * 1e3;
         let mut frames: Vec<(f64, ClusterFrameStats)> = Vec::new();
         for _ in 0..cfg.iterations.max(1) {
             let t = Instant::now();
@@ -257,6 +269,7 @@ pub fn scaling(
                 / n,
             ms_dgi_compute: first.ms_dgi,
             ms_dgi_broadcast,
+            ms_dgi_split,
             ..RankRun::default()
         };
         // The picture, both ways: every owner its own tiles, and rank 0 the whole image.
@@ -464,7 +477,7 @@ fn mb(bytes: f64) -> String {
 pub fn markdown(r: &ClusterBenchReport) -> String {
     let c = &r.config;
     let mut s = format!(
-        "Device: {}\n\n## Strong scaling (measured)\n\n{} at {}×{}, max depth {}, HORNET, viewer 1 m in front of the centre, {} timed iterations per FOV after the DGI's.\n\n| FOV | ranks | share sampled | ms/iteration (rank 0) | rank | ms trace | ms schedule | ms exchange | samples traced/it | bytes sent/it | bytes received/it | DGI computed ms | DGI broadcast ms | own tiles' picture ms (bytes sent / received) | rank 0: gather + whole filter ms |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "Device: {}\n\n## Strong scaling (measured)\n\n{} at {}×{}, max depth {}, HORNET, viewer 1 m in front of the centre, {} timed iterations per FOV after the DGI's.\n\n| FOV | ranks | share sampled | ms/iteration (rank 0) | rank | ms trace | ms schedule | ms exchange | samples traced/it | bytes sent/it | bytes received/it | DGI computed ms | DGI broadcast ms | DGI split ms | own tiles' picture ms (bytes sent / received) | rank 0: gather + whole filter ms |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
         r.device, c.scene, c.size[0], c.size[1], c.max_depth, c.iterations
     );
     for row in &r.scaling {
@@ -486,7 +499,7 @@ pub fn markdown(r: &ClusterBenchReport) -> String {
                 String::new()
             };
             s += &format!(
-                "{head}| {} | {:.1} | {:.1} | {:.1} | {:.0} | {:.0} | {:.0} | {:.1} | {:.1} | {:.1} ({} / {}) | {gather} |\n",
+                "{head}| {} | {:.1} | {:.1} | {:.1} | {:.0} | {:.0} | {:.0} | {:.1} | {:.1} | {:.1} | {:.1} ({} / {}) | {gather} |\n",
                 p.rank,
                 p.ms_trace,
                 p.ms_schedule,
@@ -496,6 +509,7 @@ pub fn markdown(r: &ClusterBenchReport) -> String {
                 p.bytes_received_per_iteration,
                 p.ms_dgi_compute,
                 p.ms_dgi_broadcast,
+                p.ms_dgi_split,
                 p.ms_tile_pictures,
                 p.tile_pictures_bytes_sent,
                 p.tile_pictures_bytes_received,

@@ -91,6 +91,9 @@ pub enum DgiMode {
     Compute,
     /// Rank 0 computes it and broadcasts it (4 bytes a pixel to every rank).
     Broadcast,
+    /// Every rank computes every N-th band of 16 rows and sends it to the others (each rank
+    /// receives 4 bytes a pixel of the others' bands): a 1/N share of the work each.
+    Split,
 }
 
 /// A rank's handle on the job: the transport, and the deadline rule for every wait.
@@ -667,6 +670,7 @@ impl ClusterRenderer {
         let compute = || dgi_cpu(&g.surface, g.pitch_m, &g.config, roi.as_ref(), size);
         self.dgi = match self.dgi_mode {
             DgiMode::Compute => compute()?,
+            DgiMode::Split => split_dgi(c, &g.surface, g.pitch_m, &g.config, roi.as_ref(), size)?,
             DgiMode::Broadcast => {
                 let mine = if c.is_root() {
                     f32_bytes(&compute()?)
@@ -1047,8 +1051,53 @@ struct Traced {
     rays: Vec<u32>,
 }
 
-/// f32s as little-endian bytes.
-#[must_use]
+/// The DGI computed by the ranks together ([`DgiMode::Split`]): rank k of N computes the bands
+/// of 16 rows k, k + N, … ([`crate::frame::dgi_cpu_bands`], each bit for bit the whole
+/// image's), and every rank sends its bands to every other; every rank ends with the whole DGI.
+pub fn split_dgi(
+    c: &mut Cluster,
+    surface: &Surface,
+    pitch_m: f64,
+    config: &GuideConfig,
+    roi: Option<&Roi>,
+    size: [u32; 2],
+) -> Result<Vec<f32>, ClusterError> {
+    let (me, n) = (c.rank(), c.ranks());
+    let mut dgi = crate::frame::dgi_cpu_bands(surface, pitch_m, config, roi, size, (me, n))?;
+    let (w, h, band) = (size[0] as usize, size[1] as usize, crate::roi::dgi::BLOCK);
+    let rows = |b: usize| b * band * w..((b + 1) * band).min(h) * w;
+    let bands_of = |r: usize| (r..h.div_ceil(band)).step_by(n);
+    let mine: Vec<u8> = bands_of(me)
+        .flat_map(|b| dgi[rows(b)].iter().flat_map(|v| v.to_le_bytes()))
+        .collect();
+    let what = "the DGI's bands";
+    let got = c.all_to_all(what, vec![mine; n])?;
+    for (src, bytes) in got.iter().enumerate() {
+        if src == me {
+            continue;
+        }
+        let expected: usize = bands_of(src).map(|b| 4 * rows(b).len()).sum();
+        if bytes.len() != expected {
+            return Err(ExchangeError::Length {
+                rank: src,
+                what: what.into(),
+                got: bytes.len(),
+                expected,
+            }
+            .into());
+        }
+        let values = f32s(bytes, 1);
+        let mut at = 0;
+        for b in bands_of(src) {
+            let r = rows(b);
+            let len = r.len();
+            dgi[r].copy_from_slice(&values[at..at + len]);
+            at += len;
+        }
+    }
+    Ok(dgi)
+}
+
 /// Blocks' selected slots as bytes: per block a flag byte (0: none), then its mask's 128
 /// bytes when the flag is 1.
 fn encode_masks(masks: &[crate::schedule::SlotMask]) -> Vec<u8> {
@@ -1101,6 +1150,8 @@ fn decode_masks(b: &[u8], blocks: usize) -> Result<Vec<crate::schedule::SlotMask
     Ok(out)
 }
 
+/// f32s as little-endian bytes.
+#[must_use]
 pub fn f32_bytes(v: &[f32]) -> Vec<u8> {
     v.iter().flat_map(|x| x.to_le_bytes()).collect()
 }

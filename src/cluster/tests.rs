@@ -204,6 +204,15 @@ fn the_dgi_broadcast_and_any_tile_map_change_nothing() {
     let one = single(Some(Order::Coherent), false);
     let got = ranks(3, Some(Order::Coherent), false, DgiMode::Broadcast, columns);
     assert_bits_equal(&got, &one, "broadcast DGI");
+    // The DGI split in bands of 16 rows (SIZE's 40 rows: 3 bands, one each on 3 ranks, two
+    // on one of 2, the last band short), through the wall camera too.
+    for n in [2, 3] {
+        let got = ranks(n, Some(Order::Coherent), false, DgiMode::Split, columns);
+        assert_bits_equal(&got, &one, &format!("split DGI, {n} ranks"));
+    }
+    let wall_one = single(Some(Order::Coherent), true);
+    let got = ranks(3, Some(Order::Coherent), true, DgiMode::Split, columns);
+    assert_bits_equal(&got, &wall_one, "split DGI, wall camera");
     // Every tile owned by the last rank; then strips that ignore the display.
     let m = hornet();
     let last = |n: usize| {

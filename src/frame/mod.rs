@@ -937,6 +937,26 @@ pub fn dgi_cpu(
     })
 }
 
+/// [`dgi_cpu`] of the bands of [`crate::roi::dgi::BLOCK`] rows `k`, `k + n`, … alone (0
+/// elsewhere), each bit for bit the whole image's: the share of rank `k` of `n` when the ranks
+/// split the DGI.
+pub fn dgi_cpu_bands(
+    surface: &Surface,
+    pitch_m: f64,
+    config: &GuideConfig,
+    roi: Option<&Roi>,
+    size: [u32; 2],
+    (k, n): (usize, usize),
+) -> Result<Vec<f32>, FrameError> {
+    Ok(match roi {
+        Some(r) => {
+            let (guide, params) = prepare_dgi(surface, pitch_m, config, r, size)?;
+            crate::roi::dgi::compute_cpu_bands(surface, &guide, &params, k, n)
+        }
+        None => vec![0.0; size[0] as usize * size[1] as usize],
+    })
+}
+
 /// The bands of a `w × h` frame on this adapter: one where every buffer fits a storage
 /// binding, else as few bands of rows as fit (the accumulation's 16 bytes a pixel is the
 /// largest buffer).

@@ -396,8 +396,24 @@ fn paper_ellipse(surface: &Surface, cone: &Cone) -> Result<Option<Piece>, GuideE
 /// above that rounding); `tests/dgi_blocks.rs` checks it on many poses.
 #[must_use]
 pub fn compute_cpu(surface: &Surface, guide: &Guide, params: &DgiParams) -> Vec<f32> {
+    compute_cpu_bands(surface, guide, params, 0, 1)
+}
+
+/// [`compute_cpu`] of the bands of [`BLOCK`] rows `k`, `k + n`, `k + 2n`, … alone (0
+/// elsewhere): each band is computed on its own, so its values are the whole image's, bit for
+/// bit — how N ranks split the DGI (DESIGN.md §12).
+#[must_use]
+pub fn compute_cpu_bands(
+    surface: &Surface,
+    guide: &Guide,
+    params: &DgiParams,
+    k: usize,
+    n: usize,
+) -> Vec<f32> {
     let mut out = vec![0f32; params.width as usize * params.height as usize];
-    compute_into(surface, guide, params, &mut out, |d| d as f32);
+    compute_into(surface, guide, params, &mut out, (k, n.max(1)), |d| {
+        d as f32
+    });
     out
 }
 
@@ -405,7 +421,7 @@ pub fn compute_cpu(surface: &Surface, guide: &Guide, params: &DgiParams) -> Vec<
 #[must_use]
 pub fn compute_cpu_f64(surface: &Surface, guide: &Guide, params: &DgiParams) -> Vec<f64> {
     let mut out = vec![0f64; params.width as usize * params.height as usize];
-    compute_into(surface, guide, params, &mut out, |d| d);
+    compute_into(surface, guide, params, &mut out, (0, 1), |d| d);
     out
 }
 
@@ -436,6 +452,7 @@ fn compute_into<T: Send>(
     guide: &Guide,
     params: &DgiParams,
     out: &mut [T],
+    (k, n): (usize, usize),
     store: impl Fn(f64) -> T + Sync,
 ) {
     let (w, h) = (params.width as usize, params.height as usize);
@@ -454,6 +471,7 @@ fn compute_into<T: Send>(
     };
     out.par_chunks_mut(w * BLOCK)
         .enumerate()
+        .filter(|(band, _)| band % n == k)
         .for_each(|(band, rows)| {
             let j0 = band * BLOCK;
             let ys = &ys[j0..(j0 + BLOCK).min(h)];
