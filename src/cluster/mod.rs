@@ -1067,9 +1067,10 @@ pub fn split_dgi(
     let (w, h, band) = (size[0] as usize, size[1] as usize, crate::roi::dgi::BLOCK);
     let rows = |b: usize| b * band * w..((b + 1) * band).min(h) * w;
     let bands_of = |r: usize| (r..h.div_ceil(band)).step_by(n);
-    let mine: Vec<u8> = bands_of(me)
-        .flat_map(|b| dgi[rows(b)].iter().flat_map(|v| v.to_le_bytes()))
-        .collect();
+    let mut mine = Vec::new();
+    for b in bands_of(me) {
+        mine.extend_from_slice(&f32_bytes(&dgi[rows(b)]));
+    }
     let what = "the DGI's bands";
     let got = c.all_to_all(what, vec![mine; n])?;
     for (src, bytes) in got.iter().enumerate() {
@@ -1086,12 +1087,13 @@ pub fn split_dgi(
             }
             .into());
         }
-        let values = f32s(bytes, 1);
         let mut at = 0;
         for b in bands_of(src) {
             let r = rows(b);
-            let len = r.len();
-            dgi[r].copy_from_slice(&values[at..at + len]);
+            let len = 4 * r.len();
+            for (v, c) in dgi[r].iter_mut().zip(bytes[at..at + len].chunks_exact(4)) {
+                *v = f32::from_le_bytes(c.try_into().expect("4 bytes"));
+            }
             at += len;
         }
     }
@@ -1153,7 +1155,16 @@ fn decode_masks(b: &[u8], blocks: usize) -> Result<Vec<crate::schedule::SlotMask
 /// f32s as little-endian bytes.
 #[must_use]
 pub fn f32_bytes(v: &[f32]) -> Vec<u8> {
-    v.iter().flat_map(|x| x.to_le_bytes()).collect()
+    if cfg!(target_endian = "little") {
+        // The bytes as they lie: a copy, not a value at a time (a DGI is tens of MB).
+        bytemuck::cast_slice(v).to_vec()
+    } else {
+        let mut b = Vec::with_capacity(4 * v.len());
+        for x in v {
+            b.extend_from_slice(&x.to_le_bytes());
+        }
+        b
+    }
 }
 
 /// Little-endian bytes as f32s (a multiple of `group` values; a shorter tail is dropped, and
