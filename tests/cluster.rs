@@ -289,34 +289,19 @@ mod mpi {
     fn the_viewer_across_ranks_opens_one_window_and_every_rank_ends_with_it() {
         let dir = tmp_dir("view");
         let n = 6;
-        let o = mpirun_in(
-            &["xvfb-run", "-a", "-s", "-screen 0 1280x700x24"],
-            &[(
-                3,
-                &exe(),
-                strings(&[
-                    "view",
-                    "--cluster",
-                    "--backend",
-                    "gpu",
-                    "--camera",
-                    "wall",
-                    "--eye",
-                    "0,0,1.2",
-                    "--size",
-                    "64,26",
-                    "--roi-at",
-                    "32,13",
-                    "--roi-radius",
-                    "200",
-                    "--p-min",
-                    "0.1",
-                    "--screenshot-after",
-                    &n.to_string(),
-                    "--save-dir",
-                    s(&dir),
-                ]),
-            )],
+        let (o, _) = view_job(
+            &dir,
+            n,
+            &[
+                "--backend",
+                "gpu",
+                "--camera",
+                "wall",
+                "--eye",
+                "0,0,1.2",
+                "--p-min",
+                "0.1",
+            ],
         );
         ok(&o);
         let err = String::from_utf8_lossy(&o.stderr);
@@ -417,8 +402,8 @@ mod mpi {
         assert!(!dir.join("rank0-tiles").exists(), "rank 0 is the console");
     }
 
-    /// `view --cluster` on 3 ranks under Xvfb, the mouse ROI fixed, closing after `n`
-    /// iterations, with `more` flags.
+    /// `view --cluster` on 3 ranks under Xvfb at 64×26, the mouse ROI fixed, closing after `n`
+    /// iterations, with `more` flags (the backend among them).
     fn view_job(dir: &Path, n: u32, more: &[&str]) -> (Output, Duration) {
         let t0 = Instant::now();
         let o = mpirun_in(
@@ -430,8 +415,6 @@ mod mpi {
                     strings(&[
                         "view",
                         "--cluster",
-                        "--backend",
-                        "cpu",
                         "--size",
                         "64,26",
                         "--roi-at",
@@ -458,7 +441,14 @@ mod mpi {
         let (o, took) = view_job(
             &dir,
             10_000,
-            &["--cluster-timeout", "2", "--cluster-fault", "2:3:hang"],
+            &[
+                "--backend",
+                "cpu",
+                "--cluster-timeout",
+                "2",
+                "--cluster-fault",
+                "2:3:hang",
+            ],
         );
         let e = stderr(&o);
         assert!(!o.status.success(), "{e}");
@@ -471,7 +461,14 @@ mod mpi {
         let (o, took) = view_job(
             &dir,
             10_000,
-            &["--cluster-timeout", "2", "--cluster-fault", "1:3:exit"],
+            &[
+                "--backend",
+                "cpu",
+                "--cluster-timeout",
+                "2",
+                "--cluster-fault",
+                "1:3:exit",
+            ],
         );
         let e = stderr(&o);
         assert!(!o.status.success(), "{e}");

@@ -830,9 +830,10 @@ fn the_viewer_across_ranks_shows_the_one_process_pictures_bit_for_bit() {
             let mut ends = InProcess::job(2).into_iter();
             let (root, other) = (ends.next().unwrap(), ends.next().unwrap());
             let (scene, model, owners) = (&scene, &model, &owners);
-            let follower = s.spawn(move || {
-                let c = Cluster::new(Box::new(other), Duration::from_secs(30));
-                let mut v = ClusterView::new(
+            // One rank's view over its end of the job, the owners' pictures asked for.
+            let view = move |end: InProcess| {
+                let c = Cluster::new(Box::new(end), Duration::from_secs(30));
+                ClusterView::new(
                     c,
                     scene,
                     model,
@@ -844,7 +845,10 @@ fn the_viewer_across_ranks_shows_the_one_process_pictures_bit_for_bit() {
                     None,
                 )
                 .unwrap()
-                .with_tiles(TileOwners::columns(model, 2));
+                .with_tiles(TileOwners::columns(model, 2))
+            };
+            let follower = s.spawn(move || {
+                let mut v = view(other);
                 // The frames it ran, and the pictures of its own tiles it was last asked for.
                 let (mut frames, mut last) = (0, None);
                 while let Some((step, applied)) = v.next_step().unwrap() {
@@ -855,20 +859,7 @@ fn the_viewer_across_ranks_shows_the_one_process_pictures_bit_for_bit() {
                 }
                 (frames, last.expect("rank 0 asked for the owners' pictures"))
             });
-            let c = Cluster::new(Box::new(root), Duration::from_secs(30));
-            let v = ClusterView::new(
-                c,
-                scene,
-                model,
-                base(scene),
-                config,
-                wall(),
-                owners.clone(),
-                DgiMode::Compute,
-                None,
-            )
-            .unwrap()
-            .with_tiles(TileOwners::columns(model, 2));
+            let v = view(root);
             let mut core =
                 ViewerCore::over_cluster(&backend, scene, model, base(scene), state(), v).unwrap();
             assert!(

@@ -159,6 +159,36 @@ fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
     }
 }
 
+/// `wall`'s tile table as a storage buffer ([`TILE_VEC4S`](super::wall::TILE_VEC4S) vec4s a
+/// tile), or a stand-in without one (a binding is never empty).
+fn wall_table_buffer(ctx: &GpuContext, label: &str, wall: Option<&WallCamera>) -> wgpu::Buffer {
+    let table = wall.map_or_else(|| vec![[0.0f32; 4]; TILE_VEC4S_MIN], WallCamera::gpu_table);
+    ctx.device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(label),
+            contents: bytemuck::cast_slice(&table),
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        })
+}
+
+/// Writes `wall`'s tile table into `table` and makes it `current`, where `current` is a wall
+/// camera with as many tiles (a moved eye); `false`, changing nothing, otherwise.
+fn replace_wall(
+    ctx: &GpuContext,
+    table: &wgpu::Buffer,
+    current: &mut Option<WallCamera>,
+    wall: &WallCamera,
+) -> bool {
+    match current {
+        Some(w) if w.tiles.len() == wall.tiles.len() => {}
+        _ => return false,
+    }
+    ctx.queue
+        .write_buffer(table, 0, bytemuck::cast_slice(&wall.gpu_table()));
+    *current = Some(wall.clone());
+    true
+}
+
 /// The scene on the GPU.
 pub struct GpuScene {
     bind: wgpu::BindGroup,
@@ -351,14 +381,7 @@ impl TraceRun {
                 )),
                 usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             });
-        let table = wall.map_or_else(|| vec![[0.0f32; 4]; TILE_VEC4S_MIN], WallCamera::gpu_table);
-        let wall_buf = ctx
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("trace wall tiles"),
-                contents: bytemuck::cast_slice(&table),
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-            });
+        let wall_buf = wall_table_buffer(ctx, "trace wall tiles", wall);
         let dummy = || {
             ctx.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("trace: no list"),
@@ -413,13 +436,9 @@ impl TraceRun {
         settings: &TraceSettings,
         wall: &WallCamera,
     ) -> bool {
-        match &self.wall {
-            Some(w) if w.tiles.len() == wall.tiles.len() => {}
-            _ => return false,
+        if !replace_wall(ctx, &self.wall_table, &mut self.wall, wall) {
+            return false;
         }
-        ctx.queue
-            .write_buffer(&self.wall_table, 0, bytemuck::cast_slice(&wall.gpu_table()));
-        self.wall = Some(wall.clone());
         self.set_settings(ctx, scene, settings);
         true
     }
@@ -512,14 +531,7 @@ impl SampleRun {
                 contents: bytemuck::bytes_of(&Self::params_of(scene, settings, wall)),
                 usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             });
-        let table = wall.map_or_else(|| vec![[0.0f32; 4]; TILE_VEC4S_MIN], WallCamera::gpu_table);
-        let wall_table = ctx
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("samples wall tiles"),
-                contents: bytemuck::cast_slice(&table),
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-            });
+        let wall_table = wall_table_buffer(ctx, "samples wall tiles", wall);
         Self {
             pipeline: kernel.pipeline.clone(),
             params,
@@ -550,18 +562,10 @@ impl SampleRun {
         settings: &TraceSettings,
         wall: &WallCamera,
     ) -> bool {
-        match &self.wall {
-            Some(w) if w.tiles.len() == wall.tiles.len() => {}
-            _ => return false,
+        if !replace_wall(ctx, &self.wall_table, &mut self.wall, wall) {
+            return false;
         }
-        ctx.queue
-            .write_buffer(&self.wall_table, 0, bytemuck::cast_slice(&wall.gpu_table()));
-        ctx.queue.write_buffer(
-            &self.params,
-            0,
-            bytemuck::bytes_of(&Self::params_of(scene, settings, Some(wall))),
-        );
-        self.wall = Some(wall.clone());
+        self.set_settings(ctx, scene, settings);
         true
     }
 

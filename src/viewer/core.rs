@@ -17,9 +17,8 @@ use crate::filter::{Filter, FilterParams};
 use crate::frame::{EyeFollow, FrameStats, GuideConfig, Renderer};
 use crate::gpu::Backend;
 use crate::output::tiles::wall_view;
-use crate::roi::dgi::{Falloff, Metric, Roi};
+use crate::roi::dgi::Roi;
 use crate::scene::Scene;
-use crate::schedule::Order;
 use crate::session::cluster::{Applied, ClusterView, ViewStep};
 use crate::trace::accum::Accumulation;
 use crate::trace::camera::RenderCamera;
@@ -71,28 +70,8 @@ impl Stats {
 /// What the renderer was built with: a change rebuilds it (and restarts the accumulation).
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Built {
-    config: GuideConfigKey,
+    config: GuideConfig,
     max_depth: u32,
-}
-
-/// [`GuideConfig`] compared field by field.
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct GuideConfigKey {
-    metric: Metric,
-    falloff: Falloff,
-    p_min: f32,
-    order: Order,
-}
-
-impl From<GuideConfig> for GuideConfigKey {
-    fn from(c: GuideConfig) -> Self {
-        Self {
-            metric: c.metric,
-            falloff: c.falloff,
-            p_min: c.p_min,
-            order: c.order,
-        }
-    }
 }
 
 /// The picture the window shows: RGBA8, row-major, `size`.
@@ -371,7 +350,7 @@ impl<'a> ViewerCore<'a> {
     ) -> Self {
         let r = engine.view();
         let built = Built {
-            config: (*r.guide_config().expect("the viewer's render is guided")).into(),
+            config: *r.guide_config().expect("the viewer's render is guided"),
             max_depth: r.settings().max_depth,
         };
         Self {
@@ -425,7 +404,7 @@ impl<'a> ViewerCore<'a> {
         }
         let config = self.state.guide_config()?;
         let want = Built {
-            config: config.into(),
+            config,
             max_depth: self.state.max_depth,
         };
         if want != self.built || self.state.reset {
