@@ -15,7 +15,10 @@
 //! bytes for the same eight boxes, and twice the depth), the quantised boxes are conservative
 //! so no hit is lost, and the child order is sorted by ray octant with two integer operations
 //! (`oct_inv4`), so traversal visits near children first without sorting. This is the layout
-//! and traversal of the Tray Racing benchmark that `obvhs` was built for.
+//! and traversal of the Tray Racing benchmark that `obvhs` was built for. The CPU twin reads
+//! the same nodes with the same box arithmetic but visits a node's inner children by entry
+//! distance and skips those entered beyond the closest hit so far ([`SceneBvh::closest_hit`]):
+//! the same hits, fewer nodes, and on a CPU the culling pays for the sort (BENCHMARKS.md).
 //!
 //! Primitives are stored in BVH order (`prims`, three `vec4<f32>` each: `v0` and the original
 //! triangle index, `e1 = v1 − v0` and the light-selection density, `e2 = v2 − v0` and the
@@ -26,7 +29,7 @@
 
 use std::time::Duration;
 
-use glam::{UVec2, Vec3, Vec3A, vec3a};
+use glam::{Vec3, Vec3A};
 use obvhs::{
     BvhBuildParams,
     cwbvh::{CwBvh, node::CwBvhNode},
@@ -48,6 +51,9 @@ pub struct SceneBvh {
     pub prims: Vec<[f32; 4]>,
     /// The same triangles as structure of arrays for the CPU's 8-wide leaf test.
     pub lanes: PrimLanes,
+    /// The most entries a traversal's stack can hold: 7 per level below the root (the
+    /// siblings of the child taken), plus one node's 8.
+    stack_size: usize,
 }
 
 /// The BVH primitives' triangles as ten arrays (v0, e1, e2 by component, then 1.0 for a
@@ -148,26 +154,31 @@ pub fn intersect_triangle_sided(
     }
 }
 
-/// The hit mask of `node`'s eight children for `ray` (inner children in the high byte, leaf
-/// triangles in the low 24 bits, in the ray octant's order): obvhs' `intersect_ray` and
-/// `node_hits` in bvh.wgsl, the same products, sums, maxima and minima in the same order, so the
-/// same children are hit. All eight children in one pass of 8-wide AVX2 lanes (obvhs tests
-/// four at a time, two passes, building the lanes with scalar conversions); DESIGN.md §7.
+/// The slab test of `node`'s eight child boxes against `ray`: bit c of the mask is set when
+/// child slot c's box is entered at or before `ray.tmax` (and its far side is not nearer than
+/// [`NODE_EPSILON`]), and entry c is that box's entry distance. The arithmetic of obvhs'
+/// `intersect_ray` and of `node_hits` in bvh.wgsl — the same products, sums, maxima and minima
+/// in the same order, so the same children are hit — here for all eight children in one pass
+/// of 8-wide AVX2 lanes (obvhs tests four at a time, two passes, building the lanes with scalar
+/// conversions); DESIGN.md §7. Empty slots may report a hit: their metadata says they hold
+/// nothing.
 #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
 #[inline(always)]
-fn node_hits(node: &CwBvhNode, ray: &Ray, oct_inv4: u32) -> u32 {
+fn child_entries(node: &CwBvhNode, ray: &Ray) -> (u32, [f32; 8]) {
     use std::arch::x86_64::{
         _CMP_LE_OQ, _mm_loadl_epi64, _mm256_add_ps, _mm256_cmp_ps, _mm256_cvtepi32_ps,
         _mm256_cvtepu8_epi32, _mm256_max_ps, _mm256_min_ps, _mm256_movemask_ps, _mm256_mul_ps,
-        _mm256_set1_ps,
+        _mm256_set1_ps, _mm256_storeu_ps,
     };
     let adj_dir_inv = node.compute_extent() * ray.inv_direction;
     let adj_orig = (Vec3A::from(node.p) - ray.origin) * ray.inv_direction;
+    let mut entry = [0f32; 8];
     // SAFETY: this is compiled only where AVX and AVX2 are enabled for the whole build
-    // (.cargo/config.toml; the `cfg` above), so every intrinsic here is available; the one
-    // memory access, `_mm_loadl_epi64`, reads the 8 bytes of a `[u8; 8]` (unaligned loads are
-    // allowed). Why it pays: see the doc comment and BENCHMARKS.md.
-    let mut hit = unsafe {
+    // (.cargo/config.toml; the `cfg` above), so every intrinsic here is available; the memory
+    // accesses are `_mm_loadl_epi64` of the 8 bytes of a `[u8; 8]` (unaligned loads are
+    // allowed) and one store of 8 lanes into the local `[f32; 8]`. Why it pays: see the doc
+    // comment and BENCHMARKS.md.
+    let hit = unsafe {
         // The eight children's quantised planes on one axis as f32 lanes.
         let planes = |q: &[u8; 8]| {
             let bytes = _mm_loadl_epi64(q.as_ptr().cast());
@@ -211,18 +222,134 @@ fn node_hits(node: &CwBvhNode, ray: &Ray, oct_inv4: u32) -> u32 {
             _mm256_min_ps(x1, _mm256_min_ps(y1, z1)),
             _mm256_set1_ps(ray.tmax),
         );
+        _mm256_storeu_ps(entry.as_mut_ptr(), t_near);
         _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(t_near, t_far)) as u32
     };
-    let (child_bits8, bit_index8) = node.get_child_and_index_bits(oct_inv4);
-    let mut mask = 0u32;
-    while hit != 0 {
-        let c = hit.trailing_zeros();
-        hit &= hit - 1;
-        let child_bits = (child_bits8 >> (8 * c)) as u32 & 0xff;
-        let bit_index = (bit_index8 >> (8 * c)) as u32 & 0xff;
-        mask |= child_bits << bit_index;
+    (hit, entry)
+}
+
+/// Without AVX2: [`child_entries_scalar`].
+#[cfg(not(all(target_arch = "x86_64", target_feature = "avx2")))]
+#[inline(always)]
+fn child_entries(node: &CwBvhNode, ray: &Ray) -> (u32, [f32; 8]) {
+    child_entries_scalar(node, ray)
+}
+
+/// [`child_entries`] a child at a time (`maxps`/`minps` semantics: the second operand unless
+/// the first is greater / smaller): the build without AVX2, and the lanes' oracle.
+#[cfg_attr(all(target_arch = "x86_64", target_feature = "avx2"), allow(dead_code))]
+#[inline(always)]
+fn child_entries_scalar(node: &CwBvhNode, ray: &Ray) -> (u32, [f32; 8]) {
+    let max = |a: f32, b: f32| if a > b { a } else { b };
+    let min = |a: f32, b: f32| if a < b { a } else { b };
+    let adj_dir_inv = node.compute_extent() * ray.inv_direction;
+    let adj_orig = (Vec3A::from(node.p) - ray.origin) * ray.inv_direction;
+    let d = ray.direction;
+    let slab = |lo: u8, hi: u8, negative: bool, scale: f32, offset: f32| {
+        let (near, far) = if negative { (hi, lo) } else { (lo, hi) };
+        (
+            f32::from(near) * scale + offset,
+            f32::from(far) * scale + offset,
+        )
+    };
+    let mut entry = [0f32; 8];
+    let mut hit = 0;
+    for (c, entry) in entry.iter_mut().enumerate() {
+        let (x0, x1) = slab(
+            node.child_min_x[c],
+            node.child_max_x[c],
+            d.x < 0.0,
+            adj_dir_inv.x,
+            adj_orig.x,
+        );
+        let (y0, y1) = slab(
+            node.child_min_y[c],
+            node.child_max_y[c],
+            d.y < 0.0,
+            adj_dir_inv.y,
+            adj_orig.y,
+        );
+        let (z0, z1) = slab(
+            node.child_min_z[c],
+            node.child_max_z[c],
+            d.z < 0.0,
+            adj_dir_inv.z,
+            adj_orig.z,
+        );
+        let t_near = max(max(x0, max(y0, z0)), NODE_EPSILON);
+        let t_far = min(min(x1, min(y1, z1)), ray.tmax);
+        *entry = t_near;
+        if t_near <= t_far {
+            hit |= 1 << c;
+        }
     }
-    mask
+    (hit, entry)
+}
+
+/// The primitives of `node`'s leaf children in `leaves` (a mask of child slots), as bits of
+/// offsets from `node.primitive_base_idx`: each leaf's unary primitive count (metadata bits
+/// 5–7) shifted to its first primitive's offset (bits 0–4). An empty slot adds nothing.
+#[inline(always)]
+fn leaf_primitive_bits(node: &CwBvhNode, mut leaves: u32) -> u32 {
+    let mut bits = 0;
+    while leaves != 0 {
+        let c = leaves.trailing_zeros() as usize;
+        leaves &= leaves - 1;
+        let meta = u32::from(node.child_meta[c]);
+        bits |= (meta >> 5) << (meta & 0b11111);
+    }
+    bits
+}
+
+/// A traversal stack entry: a node's entry distance (a positive f32, so its bits order as the
+/// distances do) above its index.
+#[inline(always)]
+fn stack_entry(t_near: f32, node: u32) -> u64 {
+    (u64::from(t_near.to_bits()) << 32) | u64::from(node)
+}
+
+thread_local! {
+    /// Each thread's traversal stack, kept between rays (taken while a ray uses it), so that
+    /// no ray zeroes or allocates one.
+    static STACK: std::cell::Cell<Vec<u64>> = const { std::cell::Cell::new(Vec::new()) };
+}
+
+/// `f` with this thread's traversal stack, at least `size` entries (their values are left
+/// from earlier rays: the traversal writes an entry before it reads it).
+#[inline(always)]
+fn with_stack<R>(size: usize, f: impl FnOnce(&mut [u64]) -> R) -> R {
+    let mut stack = STACK.take();
+    if stack.len() < size {
+        stack.resize(size, 0);
+    }
+    let r = f(&mut stack);
+    STACK.set(stack);
+    r
+}
+
+/// Sorts `entries` by distance, the farthest first (so the nearest is popped first): an
+/// insertion sort, for the one to eight children a node adds.
+#[inline(always)]
+fn sort_farthest_first(entries: &mut [u64]) {
+    for i in 1..entries.len() {
+        let e = entries[i];
+        let mut j = i;
+        while j > 0 && entries[j - 1] < e {
+            entries[j] = entries[j - 1];
+            j -= 1;
+        }
+        entries[j] = e;
+    }
+}
+
+/// The depth of the BVH below `root` (0 for a node whose children are all leaves).
+fn depth(nodes: &[CwBvhNode], root: usize) -> usize {
+    let node = &nodes[root];
+    (0..8)
+        .filter(|&c| node.imask & (1 << c) != 0)
+        .map(|c| 1 + depth(nodes, node.child_node_index(c) as usize))
+        .max()
+        .unwrap_or(0)
 }
 
 #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
@@ -366,15 +493,7 @@ impl PrimLanes {
     }
 }
 
-/// Without AVX2: obvhs' own node test (four children at a time).
-#[cfg(not(all(target_arch = "x86_64", target_feature = "avx2")))]
-#[inline(always)]
-fn node_hits(node: &CwBvhNode, ray: &Ray, oct_inv4: u32) -> u32 {
-    node.intersect_ray(ray, oct_inv4)
-}
-
 /// obvhs' near-plane bound of the node test (`NODE_EPSILON` in bvh.wgsl).
-#[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
 const NODE_EPSILON: f32 = 0.0001;
 
 impl SceneBvh {
@@ -412,6 +531,7 @@ impl SceneBvh {
                 cwbvh: CwBvh::default(),
                 prims: Vec::new(),
                 lanes: PrimLanes::default(),
+                stack_size: 0,
             };
         }
         let tris: Vec<ObvhsTriangle> = triangles
@@ -437,10 +557,12 @@ impl SceneBvh {
             prims.push([e2.x, e2.y, e2.z, f as f32]);
         }
         let lanes = PrimLanes::new(&prims);
+        let stack_size = 7 * depth(&cwbvh.nodes, 0) + 8;
         Self {
             cwbvh,
             prims,
             lanes,
+            stack_size,
         }
     }
 
@@ -485,6 +607,13 @@ impl SceneBvh {
 
     /// [`Self::closest_hit`] where a hit on an alpha-tested primitive ([`PRIM_ALPHA`]) counts
     /// only if `covered(triangle, u, v)` (the CPU twin of `alpha_covered` in path.wgsl).
+    ///
+    /// The traversal visits a node's children nearest entry first and skips a node whose box
+    /// is entered beyond the closest hit found so far (the GPU's kernel keeps obvhs' order by
+    /// ray octant, which suits a GPU's lock-step lanes; on a CPU the culling pays, BENCHMARKS.md).
+    /// The hit is the same — the nearest one, with the same box and triangle arithmetic — except
+    /// where two triangles are hit at exactly the same distance (a shared edge), which either
+    /// may win.
     #[must_use]
     pub fn closest_hit_filtered(
         &self,
@@ -493,53 +622,62 @@ impl SceneBvh {
         tmax: f32,
         covered: impl Fn(u32, f32, f32) -> bool,
     ) -> Option<TraceHit> {
-        if self.cwbvh.nodes.is_empty() {
+        let nodes = &self.cwbvh.nodes;
+        if nodes.is_empty() {
             return None;
         }
         let mut ray = Self::ray(origin, dir, tmax);
         let mut best: Option<TraceHit> = None;
-        let mut state = self.cwbvh.new_traversal(vec3a(dir.x, dir.y, dir.z));
-        let mut node;
-        let bvh = &self.cwbvh;
-        obvhs::traverse!(bvh, node, state, node_hits(node, &ray, state.oct_inv4), {
-            #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
-            if !self.lanes.alpha {
-                // The whole group of this node's leaf triangles at once.
-                let local = state.primitive_id - state.primitive_group.x;
-                let bits = state.primitive_group.y | (1 << local);
-                state.primitive_group.y = 0;
-                if let Some((t, u, v, i)) =
-                    self.lanes
-                        .closest(state.primitive_group.x, bits, origin, dir, ray.tmax)
+        with_stack(self.stack_size, |stack| {
+            let (mut index, mut len) = (0, 0);
+            loop {
+                let node: &CwBvhNode = &nodes[index];
+                let (hit, entry) = child_entries(node, &ray);
+                let imask = u32::from(node.imask);
+                // A node's leaf triangles at once, then its inner children by distance.
+                let bits = leaf_primitive_bits(node, hit & !imask);
+                if bits != 0
+                    && let Some((t, u, v, i)) = self.leaf_closest(
+                        node.primitive_base_idx,
+                        bits,
+                        origin,
+                        dir,
+                        ray.tmax,
+                        &covered,
+                    )
                 {
                     ray.tmax = t;
                     best = Some(TraceHit {
                         t,
                         u,
                         v,
-                        triangle: self.prims[3 * i as usize][3].to_bits(),
+                        triangle: self.prim_triangle(i),
                         prim: i,
                     });
                 }
-                continue;
-            }
-            let i = state.primitive_id as usize;
-            let (v0, e1, e2) = self.prim(i);
-            let flags = self.flags(i);
-            if let Some((t, u, v)) =
-                intersect_triangle_sided(origin, dir, v0, e1, e2, ray.tmax, flags & PRIM_CULL != 0)
-                    .filter(|&(_, u, v)| {
-                        flags & PRIM_ALPHA == 0 || covered(self.prims[3 * i][3].to_bits(), u, v)
-                    })
-            {
-                ray.tmax = t;
-                best = Some(TraceHit {
-                    t,
-                    u,
-                    v,
-                    triangle: self.prims[3 * i][3].to_bits(),
-                    prim: i as u32,
-                });
+                let first = len;
+                let mut inner = hit & imask;
+                while inner != 0 {
+                    let c = inner.trailing_zeros() as usize;
+                    inner &= inner - 1;
+                    if entry[c] <= ray.tmax {
+                        stack[len] = stack_entry(entry[c], node.child_node_index(c));
+                        len += 1;
+                    }
+                }
+                // The nearest on top.
+                sort_farthest_first(&mut stack[first..len]);
+                loop {
+                    if len == 0 {
+                        return;
+                    }
+                    len -= 1;
+                    let e = stack[len];
+                    if f32::from_bits((e >> 32) as u32) <= ray.tmax {
+                        index = e as u32 as usize;
+                        break;
+                    }
+                }
             }
         });
         best
@@ -551,7 +689,8 @@ impl SceneBvh {
         self.occluded_filtered(origin, dir, tmax, |_, _, _| true)
     }
 
-    /// [`Self::occluded`] with the coverage test of [`Self::closest_hit_filtered`].
+    /// [`Self::occluded`] with the coverage test of [`Self::closest_hit_filtered`]. Any hit
+    /// ends the search, so the children are not ordered.
     #[must_use]
     pub fn occluded_filtered(
         &self,
@@ -560,44 +699,114 @@ impl SceneBvh {
         tmax: f32,
         covered: impl Fn(u32, f32, f32) -> bool,
     ) -> bool {
-        if self.cwbvh.nodes.is_empty() {
+        let nodes = &self.cwbvh.nodes;
+        if nodes.is_empty() {
             return false;
         }
         let ray = Self::ray(origin, dir, tmax);
-        let mut state = self.cwbvh.new_traversal(vec3a(dir.x, dir.y, dir.z));
-        let mut node;
-        let bvh = &self.cwbvh;
-        let mut blocked = false;
-        'search: {
-            obvhs::traverse!(bvh, node, state, node_hits(node, &ray, state.oct_inv4), {
-                #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
-                if !self.lanes.alpha {
-                    let local = state.primitive_id - state.primitive_group.x;
-                    let bits = state.primitive_group.y | (1 << local);
-                    state.primitive_group.y = 0;
-                    if self
-                        .lanes
-                        .any(state.primitive_group.x, bits, origin, dir, tmax)
-                    {
-                        blocked = true;
-                        break 'search;
-                    }
-                    continue;
-                }
-                let i = state.primitive_id as usize;
-                let (v0, e1, e2) = self.prim(i);
-                let flags = self.flags(i);
-                if intersect_triangle_sided(origin, dir, v0, e1, e2, tmax, flags & PRIM_CULL != 0)
-                    .is_some_and(|(_, u, v)| {
-                        flags & PRIM_ALPHA == 0 || covered(self.prims[3 * i][3].to_bits(), u, v)
-                    })
+        with_stack(self.stack_size, |stack| {
+            let (mut index, mut len) = (0, 0);
+            loop {
+                let node: &CwBvhNode = &nodes[index];
+                let (hit, _) = child_entries(node, &ray);
+                let imask = u32::from(node.imask);
+                let bits = leaf_primitive_bits(node, hit & !imask);
+                if bits != 0
+                    && self.leaf_any(node.primitive_base_idx, bits, origin, dir, tmax, &covered)
                 {
-                    blocked = true;
-                    break 'search;
+                    return true;
                 }
-            });
+                let mut inner = hit & imask;
+                while inner != 0 {
+                    let c = inner.trailing_zeros() as usize;
+                    inner &= inner - 1;
+                    stack[len] = u64::from(node.child_node_index(c));
+                    len += 1;
+                }
+                if len == 0 {
+                    return false;
+                }
+                len -= 1;
+                index = stack[len] as usize;
+            }
+        })
+    }
+
+    /// The closest hit among the primitives `first + k` for the set bits k of `bits` (a node's
+    /// leaf triangles) with `0 < t < tmax`: (t, u, v, primitive). Of equal t the highest bit
+    /// wins (obvhs' order: highest first, a later hit only if strictly nearer).
+    #[inline(always)]
+    fn leaf_closest(
+        &self,
+        first: u32,
+        bits: u32,
+        origin: Vec3,
+        dir: Vec3,
+        tmax: f32,
+        covered: &impl Fn(u32, f32, f32) -> bool,
+    ) -> Option<(f32, f32, f32, u32)> {
+        #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+        if !self.lanes.alpha {
+            return self.lanes.closest(first, bits, origin, dir, tmax);
         }
-        blocked
+        let (mut best, mut bound, mut m) = (None, tmax, bits);
+        while m != 0 {
+            let k = 31 - m.leading_zeros();
+            m &= !(1 << k);
+            let i = (first + k) as usize;
+            if let Some((t, u, v)) = self.test_prim(i, origin, dir, bound, covered) {
+                bound = t;
+                best = Some((t, u, v, i as u32));
+            }
+        }
+        best
+    }
+
+    /// Whether any of the primitives `first + k` (set bits k of `bits`) is hit with
+    /// `0 < t < tmax`.
+    #[inline(always)]
+    fn leaf_any(
+        &self,
+        first: u32,
+        bits: u32,
+        origin: Vec3,
+        dir: Vec3,
+        tmax: f32,
+        covered: &impl Fn(u32, f32, f32) -> bool,
+    ) -> bool {
+        #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+        if !self.lanes.alpha {
+            return self.lanes.any(first, bits, origin, dir, tmax);
+        }
+        let mut m = bits;
+        while m != 0 {
+            let k = m.trailing_zeros();
+            m &= m - 1;
+            if self
+                .test_prim((first + k) as usize, origin, dir, tmax, covered)
+                .is_some()
+            {
+                return true;
+            }
+        }
+        false
+    }
+
+    /// BVH primitive `i` against the ray, its flags obeyed (a culled back face, coverage).
+    #[inline(always)]
+    fn test_prim(
+        &self,
+        i: usize,
+        origin: Vec3,
+        dir: Vec3,
+        tmax: f32,
+        covered: &impl Fn(u32, f32, f32) -> bool,
+    ) -> Option<(f32, f32, f32)> {
+        let (v0, e1, e2) = self.prim(i);
+        let flags = self.flags(i);
+        intersect_triangle_sided(origin, dir, v0, e1, e2, tmax, flags & PRIM_CULL != 0).filter(
+            |&(_, u, v)| flags & PRIM_ALPHA == 0 || covered(self.prims[3 * i][3].to_bits(), u, v),
+        )
     }
 }
 
@@ -663,6 +872,70 @@ mod tests {
             }
         }
         assert!(hits > 300, "the test must exercise hits ({hits})");
+    }
+
+    /// The slab test in lanes gives the scalar test's mask and entry distances to the bit,
+    /// on every node of a real BVH and rays from everywhere (inside boxes, grazing, axis
+    /// parallel, short).
+    #[test]
+    fn child_entries_lanes_equal_the_scalar_test() {
+        let tris = random_triangles(2000, 7);
+        let bvh = SceneBvh::build(&tris, &vec![0.0; tris.len()]);
+        let mut k = 0u32;
+        let mut r = move || {
+            k += 1;
+            crate::random::unit_f32(crate::random::pcg4d([k, 5, 0, 0])[0])
+        };
+        let mut hits = 0;
+        for i in 0..3000 {
+            let o = Vec3::new(r(), r(), r()) * 14.0 - 7.0;
+            let mut d = (Vec3::new(r(), r(), r()) - 0.5).normalize();
+            if i % 5 == 0 {
+                d.y = 0.0; // parallel to a slab: the guarded inverse
+            }
+            let tmax = if i % 3 == 0 { r() * 4.0 } else { f32::INFINITY };
+            let ray = SceneBvh::ray(o, d, tmax);
+            for node in &bvh.cwbvh.nodes {
+                let (lanes, scalar) = (child_entries(node, &ray), child_entries_scalar(node, &ray));
+                assert_eq!(lanes.0, scalar.0, "hit masks, ray {o} {d}");
+                assert_eq!(lanes.1.map(f32::to_bits), scalar.1.map(f32::to_bits));
+                hits += lanes.0.count_ones();
+            }
+        }
+        assert!(hits > 10_000, "the rays must enter boxes ({hits})");
+    }
+
+    /// A deep BVH (triangles whose sizes and places grow geometrically, so the tree cannot
+    /// be balanced): the stack bound holds and every hit is the brute-force one.
+    #[test]
+    fn deep_trees_find_every_hit() {
+        let tris: Vec<[Vec3; 3]> = (0..400)
+            .map(|i| {
+                let s = 1.05f32.powi(i);
+                let c = Vec3::new(s, 0.3 * (i % 7) as f32, -0.001 * i as f32);
+                [
+                    c,
+                    c + Vec3::new(0.5 * s, 0.0, 0.0),
+                    c + Vec3::new(0.0, 0.5 * s, 0.0),
+                ]
+            })
+            .collect();
+        let bvh = SceneBvh::build(&tris, &vec![0.0; tris.len()]);
+        let depth = depth(&bvh.cwbvh.nodes, 0);
+        assert!(depth >= 3, "the test needs a deep tree ({depth})");
+        assert_eq!(bvh.stack_size, 7 * depth + 8);
+        let mut hits = 0;
+        for i in 0..4000 {
+            let x = 1.05f32.powf(i as f32 / 10.0);
+            let o = Vec3::new(x, 0.2 * (i % 13) as f32, 5.0);
+            let d = Vec3::new(0.01 * ((i % 9) as f32 - 4.0), 0.0, -1.0).normalize();
+            let got = bvh.closest_hit(o, d, f32::INFINITY);
+            let want = brute(&tris, o, d);
+            assert_eq!(got.map(|h| (h.t, h.triangle)), want, "ray {o} {d}");
+            assert_eq!(bvh.occluded(o, d, f32::INFINITY), want.is_some());
+            hits += usize::from(want.is_some());
+        }
+        assert!(hits > 1000, "the test must exercise hits ({hits})");
     }
 
     #[test]
