@@ -66,15 +66,30 @@ enum DisplayCommand {
 }
 
 fn main() {
-    // .cargo/config.toml builds for AVX2 on x86-64; say so instead of dying on an illegal
-    // instruction.
+    // .cargo/config.toml builds for AVX2 (and the bit instructions that come with it) on
+    // x86-64; say so instead of dying on an illegal instruction.
     #[cfg(target_arch = "x86_64")]
-    if !std::arch::is_x86_feature_detected!("avx2") {
-        eprintln!(
-            "raygun: this build needs a CPU with AVX2 (see .cargo/config.toml); \
-             rebuild without that file's target-feature flags for this CPU"
-        );
-        std::process::exit(1);
+    {
+        use std::arch::is_x86_feature_detected as has;
+        let missing: Vec<&str> = [
+            ("avx2", has!("avx2")),
+            ("bmi1", has!("bmi1")),
+            ("bmi2", has!("bmi2")),
+            ("lzcnt", has!("lzcnt")),
+            ("popcnt", has!("popcnt")),
+        ]
+        .into_iter()
+        .filter_map(|(name, present)| (!present).then_some(name))
+        .collect();
+        if !missing.is_empty() {
+            eprintln!(
+                "raygun: this build needs a CPU with AVX2, BMI1, BMI2, LZCNT and POPCNT \
+                 (see .cargo/config.toml); this one lacks {}: rebuild without that file's \
+                 target-feature flags for this CPU",
+                missing.join(", ")
+            );
+            std::process::exit(1);
+        }
     }
     quiet_xdg_runtime_dir();
     let cli = Cli::parse();
