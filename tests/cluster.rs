@@ -437,46 +437,36 @@ mod mpi {
     /// seconds, and one that ends ends the job, the window with it.
     #[test]
     fn a_viewer_rank_that_hangs_or_ends_ends_the_job_within_seconds() {
-        let dir = tmp_dir("view-hang");
-        let (o, took) = view_job(
-            &dir,
-            10_000,
-            &[
-                "--backend",
-                "cpu",
-                "--cluster-timeout",
-                "2",
-                "--cluster-fault",
+        for (name, fault, said) in [
+            (
+                "view-hang",
                 "2:3:hang",
-            ],
-        );
-        let e = stderr(&o);
-        assert!(!o.status.success(), "{e}");
-        assert!(
-            e.contains("raygun: error: rank 0: cluster: rank 2 did not answer"),
-            "{e}"
-        );
-        assert!(took < Duration::from_secs(40), "took {took:?}: {e}");
-        let dir = tmp_dir("view-exit");
-        let (o, took) = view_job(
-            &dir,
-            10_000,
-            &[
-                "--backend",
-                "cpu",
-                "--cluster-timeout",
-                "2",
-                "--cluster-fault",
+                "raygun: error: rank 0: cluster: rank 2 did not answer",
+            ),
+            (
+                "view-exit",
                 "1:3:exit",
-            ],
-        );
-        let e = stderr(&o);
-        assert!(!o.status.success(), "{e}");
-        assert!(
-            e.contains("rank 1: --cluster-fault: ending at iteration 3"),
-            "{e}"
-        );
-        assert!(took < Duration::from_secs(40), "took {took:?}: {e}");
+                "rank 1: --cluster-fault: ending at iteration 3",
+            ),
+        ] {
+            let dir = tmp_dir(name);
+            let (o, took) = view_job(
+                &dir,
+                10_000,
+                &[
+                    "--backend",
+                    "cpu",
+                    "--cluster-timeout",
+                    "2",
+                    "--cluster-fault",
+                    fault,
+                ],
+            );
+            let e = stderr(&o);
+            assert!(!o.status.success(), "{e}");
+            assert!(e.contains(said), "{e}");
+            assert!(took < Duration::from_secs(40), "took {took:?}: {e}");
+        }
     }
 
     /// `args` with `--backend cpu` made `--backend gpu` (lavapipe here).

@@ -827,12 +827,17 @@ mod tests {
         best
     }
 
-    fn random_triangles(n: usize, seed: u32) -> Vec<[Vec3; 3]> {
+    /// Uniform numbers in [0, 1) from stream `seed`.
+    fn uniforms(seed: u32) -> impl FnMut() -> f32 {
         let mut k = 0u32;
-        let mut r = move || {
+        move || {
             k += 1;
             crate::random::unit_f32(crate::random::pcg4d([k, seed, 0, 0])[0])
-        };
+        }
+    }
+
+    fn random_triangles(n: usize, seed: u32) -> Vec<[Vec3; 3]> {
+        let mut r = uniforms(seed);
         (0..n)
             .map(|_| {
                 let c = Vec3::new(r(), r(), r()) * 10.0 - 5.0;
@@ -847,11 +852,7 @@ mod tests {
     fn closest_hits_equal_brute_force() {
         let tris = random_triangles(3000, 1);
         let bvh = SceneBvh::build(&tris, &vec![0.0; tris.len()]);
-        let mut k = 0u32;
-        let mut r = move || {
-            k += 1;
-            crate::random::unit_f32(crate::random::pcg4d([k, 99, 0, 0])[0])
-        };
+        let mut r = uniforms(99);
         let mut hits = 0;
         for _ in 0..2000 {
             let o = Vec3::new(r(), r(), r()) * 14.0 - 7.0;
@@ -881,11 +882,7 @@ mod tests {
     fn child_entries_lanes_equal_the_scalar_test() {
         let tris = random_triangles(2000, 7);
         let bvh = SceneBvh::build(&tris, &vec![0.0; tris.len()]);
-        let mut k = 0u32;
-        let mut r = move || {
-            k += 1;
-            crate::random::unit_f32(crate::random::pcg4d([k, 5, 0, 0])[0])
-        };
+        let mut r = uniforms(5);
         let mut hits = 0;
         for i in 0..3000 {
             let o = Vec3::new(r(), r(), r()) * 14.0 - 7.0;
