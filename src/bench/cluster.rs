@@ -35,8 +35,10 @@ use crate::scene::Scene;
 use crate::schedule::{Order, ScheduleError, schedule_cpu};
 use crate::trace::camera::CameraError;
 
-/// Bytes of one sample on the link (linear RGB, f32) and of one block's rays.
+/// Bytes of one sample on the link (linear RGB, f32), of its count on the way to its tracer
+/// (u32), and of one block's rays.
 pub const SAMPLE_BYTES: u64 = 12;
+pub const COUNT_BYTES: u64 = 4;
 pub const BLOCK_RAYS_BYTES: u64 = 4;
 /// The split schedule's bytes per block drawn (its flag) and per non-empty block (its mask).
 pub const MASK_FLAG_BYTES: u64 = 1;
@@ -81,6 +83,9 @@ pub struct RankRun {
     pub ms_per_iteration: f64,
     pub ms_trace: f64,
     pub ms_schedule: f64,
+    /// The counts of the pixels this rank traces for other owners (received before the trace).
+    #[serde(default)]
+    pub ms_counts: f64,
     pub ms_exchange: f64,
     pub samples_traced_per_iteration: f64,
     pub bytes_sent_per_iteration: f64,
@@ -139,7 +144,7 @@ pub struct ExchangeRow {
     /// receives 4 bytes a pixel; down the binomial tree rank 0 sends ⌈log₂ N⌉ of those copies).
     pub dgi_broadcast_bytes: u64,
     /// Per picture of the whole wall (not per iteration): the most any rank sends and receives
-    /// for its tiles' margins (the default fast filter, k_max 16; 16 bytes a pixel), against the
+    /// for its tiles' margins (the default fast filter, k_max 16; 20 bytes a pixel), against the
     /// whole accumulation rank 0 receives when it assembles the picture instead.
     pub margin_sent_max: u64,
     pub margin_received_max: u64,
@@ -251,6 +256,7 @@ pub fn scaling(
             ms_per_iteration: median(frames.iter().map(|(ms, _)| *ms).collect()),
             ms_trace: med(&|s| s.ms_trace),
             ms_schedule: med(&|s| s.ms_schedule),
+            ms_counts: med(&|s| s.ms_counts),
             ms_exchange: med(&|s| s.ms_exchange),
             samples_traced_per_iteration: frames
                 .iter()
@@ -324,8 +330,8 @@ pub fn scaling(
 
 /// What each rank sends and receives in one frame of `list` dealt as `tracer` says, owned as
 /// `owners` says, on `ranks` ranks (the control message left out): the split schedule's
-/// masks (coherent order), every block's rays to every other rank, and the samples of blocks
-/// traced away from their owner. `(sent, received)` per rank; the cluster's frame moves these
+/// masks (coherent order), every block's rays to every other rank, and for blocks traced away
+/// from their owner the owner's counts to the tracer and the samples back. `(sent, received)` per rank; the cluster's frame moves these
 /// bytes exactly (tested).
 #[must_use]
 pub fn frame_traffic(
@@ -367,9 +373,12 @@ pub fn frame_traffic(
             }
         }
         if t != o {
-            let b = SAMPLE_BYTES * u64::from(list.len_of(i));
-            sent[t] += b;
-            got[o] += b;
+            // The owner's counts to the tracer, the tracer's samples back.
+            let len = u64::from(list.len_of(i));
+            sent[o] += COUNT_BYTES * len;
+            got[t] += COUNT_BYTES * len;
+            sent[t] += SAMPLE_BYTES * len;
+            got[o] += SAMPLE_BYTES * len;
         }
     }
     sent.into_iter().zip(got).collect()
@@ -444,15 +453,15 @@ pub fn exchange(
                     size,
                     fov_deg: fov,
                     ranks,
-                    samples_per_iteration: list.pixels.len() as u64,
+                    samples_per_iteration: list.len(),
                     bytes_sent_max: sent.iter().copied().max().unwrap_or(0),
                     bytes_sent_mean: sent.iter().sum::<u64>() as f64 / ranks as f64,
                     bytes_received_max: got.iter().copied().max().unwrap_or(0),
                     dgi_broadcast_bytes: 4 * u64::from(size[0]) * u64::from(size[1]) * (n - 1),
                     margin_sent_max,
                     margin_received_max,
-                    // Every rank but 0 sends its owned sums (16 bytes a pixel).
-                    gather_received: 16
+                    // Every rank but 0 sends its owned sums and counts.
+                    gather_received: crate::cluster::PIXEL_BYTES as u64
                         * (0..owners.owner.len() as u32)
                             .filter(|&b| owners.owner[b as usize] != 0)
                             .map(|b| {
@@ -477,7 +486,7 @@ fn mb(bytes: f64) -> String {
 pub fn markdown(r: &ClusterBenchReport) -> String {
     let c = &r.config;
     let mut s = format!(
-        "Device: {}\n\n## Strong scaling (measured)\n\n{} at {}×{}, max depth {}, HORNET, viewer 1 m in front of the centre, {} timed iterations per FOV after the DGI's.\n\n| FOV | ranks | share sampled | ms/iteration (rank 0) | rank | ms trace | ms schedule | ms exchange | samples traced/it | bytes sent/it | bytes received/it | DGI computed ms | DGI broadcast ms | DGI split ms | own tiles' picture ms (bytes sent / received) | rank 0: gather + whole filter ms |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "Device: {}\n\n## Strong scaling (measured)\n\n{} at {}×{}, max depth {}, HORNET, viewer 1 m in front of the centre, {} timed iterations per FOV after the DGI's.\n\n| FOV | ranks | share sampled | ms/iteration (rank 0) | rank | ms trace | ms schedule | ms counts | ms exchange | samples traced/it | bytes sent/it | bytes received/it | DGI computed ms | DGI broadcast ms | DGI split ms | own tiles' picture ms (bytes sent / received) | rank 0: gather + whole filter ms |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
         r.device, c.scene, c.size[0], c.size[1], c.max_depth, c.iterations
     );
     for row in &r.scaling {
@@ -499,10 +508,11 @@ pub fn markdown(r: &ClusterBenchReport) -> String {
                 String::new()
             };
             s += &format!(
-                "{head}| {} | {:.1} | {:.1} | {:.1} | {:.0} | {:.0} | {:.0} | {:.1} | {:.1} | {:.1} | {:.1} ({} / {}) | {gather} |\n",
+                "{head}| {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.0} | {:.0} | {:.0} | {:.1} | {:.1} | {:.1} | {:.1} ({} / {}) | {gather} |\n",
                 p.rank,
                 p.ms_trace,
                 p.ms_schedule,
+                p.ms_counts,
                 p.ms_exchange,
                 p.samples_traced_per_iteration,
                 p.bytes_sent_per_iteration,
@@ -525,7 +535,7 @@ pub fn markdown(r: &ClusterBenchReport) -> String {
         .map(|p| p.samples_traced_per_iteration / (p.ms_trace / 1e3))
         .fold(f64::NAN, f64::max);
     s += &format!(
-        "\n## Exchange per iteration (counted from the real schedule and deal)\n\nBytes per iteration: 12 per sample traced for another rank's tile, 4 per block traced to every other rank, the split schedule (1 per block and 128 per non-empty block, from the rank that drew it to every other), the control message ({CONTROL_BYTES} bytes with an ROI change). The DGI's broadcast ({}) is per ROI change, not per iteration.\n\n| tile map | size | FOV | ranks | samples/it | max sent MB/it | mean sent MB/it | max received MB/it | DGI broadcast MB | link ms/it at {} Gb/s | break-even rate per rank (Msamples/s) | iterations/s at the measured rate | picture: margins max sent / received MB | picture: gathered to rank 0 MB |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "\n## Exchange per iteration (counted from the real schedule and deal)\n\nBytes per iteration: 12 per sample traced for another rank's tile and 4 (its count) from that tile's owner to the rank that traces it, 4 per block traced to every other rank, the split schedule (1 per block and 128 per non-empty block, from the rank that drew it to every other), the control message ({CONTROL_BYTES} bytes with an ROI change). The DGI's broadcast ({}) is per ROI change, not per iteration.\n\n| tile map | size | FOV | ranks | samples/it | max sent MB/it | mean sent MB/it | max received MB/it | DGI broadcast MB | link ms/it at {} Gb/s | break-even rate per rank (Msamples/s) | iterations/s at the measured rate | picture: margins max sent / received MB | picture: gathered to rank 0 MB |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
         "4 bytes a pixel to every other rank, down a binomial tree; the column sums all links",
         c.link_gbps
     );

@@ -14,16 +14,43 @@ use crate::schedule::{Layout, Order, SlotMask};
 
 /// One iteration's scheduled pixels grouped by block: the blocks that have any, ascending,
 /// each with its pixels in list order.
+///
+/// A list put back from every block's selected slots ([`Self::from_masks`]) knows each block's
+/// length (all the deal needs) but holds the pixels only of the blocks [`Self::hold`] asks for:
+/// a rank expands the blocks it traces or owns, a 1/N share of the iteration, instead of the
+/// whole list on every rank.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct BlockList {
     /// Block ids (row-major, as the schedule numbers them), ascending.
     pub blocks: Vec<u32>,
-    /// `pixels[starts[i]..starts[i + 1]]` are block `blocks[i]`'s pixels.
+    /// Block `blocks[i]` has pixels `starts[i]..starts[i + 1]` of the whole list.
     pub starts: Vec<u32>,
-    pub pixels: Vec<u32>,
+    /// The held blocks' pixels, block after block.
+    pixels: Vec<u32>,
+    /// Per listed block: where its pixels begin in `pixels`, or [`NOT_HELD`].
+    at: Vec<u32>,
+    /// Per listed block of a list from masks: its selected slots, to expand on demand.
+    masks: Vec<SlotMask>,
+    size: [u32; 2],
 }
 
+/// [`BlockList`]'s mark of a block whose pixels were not expanded.
+const NOT_HELD: u32 = u32::MAX;
+
 impl BlockList {
+    /// A list holding every block's pixels, `pixels` grouped as `starts` says.
+    fn held(size: [u32; 2], blocks: Vec<u32>, starts: Vec<u32>, pixels: Vec<u32>) -> Self {
+        let at = starts[..blocks.len()].to_vec();
+        Self {
+            blocks,
+            starts,
+            pixels,
+            at,
+            masks: Vec::new(),
+            size,
+        }
+    }
+
     /// Groups a scheduled list (each pixel at most once) by block, keeping the list's order
     /// inside each block: a counting sort.
     #[must_use]
@@ -52,47 +79,71 @@ impl BlockList {
                 starts.push(count[b + 1]);
             }
         }
-        Self {
-            blocks,
-            starts,
-            pixels,
-        }
+        Self::held(size, blocks, starts, pixels)
     }
 
     /// A coherent schedule's list from every block's selected slots (`masks[b]` for block
     /// `b`, [`crate::schedule::schedule_cpu_block_masks`]): the blocks with any, ascending,
-    /// each with its pixels in slot order — what [`Self::group`] makes of the whole
-    /// coherent list.
+    /// their lengths from the masks alone and no pixels held yet; once [`Self::hold`] expands a
+    /// block, its pixels are in slot order — what [`Self::group`] makes of the whole coherent
+    /// list.
     #[must_use]
     pub fn from_masks(size: [u32; 2], masks: &[SlotMask]) -> Self {
-        let layout = Layout::new(size[0], size[1]).expect("the schedule's own size");
         let mut blocks = Vec::new();
         let mut starts = vec![0u32];
-        let mut pixels = Vec::new();
+        let mut kept = Vec::new();
+        let mut total = 0u32;
         for (b, mask) in masks.iter().enumerate() {
-            let before = pixels.len();
-            for (w, &word) in mask.iter().enumerate() {
+            let n: u32 = mask.iter().map(|w| w.count_ones()).sum();
+            if n > 0 {
+                total += n;
+                blocks.push(b as u32);
+                starts.push(total);
+                kept.push(*mask);
+            }
+        }
+        Self {
+            at: vec![NOT_HELD; blocks.len()],
+            blocks,
+            starts,
+            pixels: Vec::new(),
+            masks: kept,
+            size,
+        }
+    }
+
+    /// Expands the pixels of every listed block `i` (block id `b`) with `keep(i, b)` that this
+    /// list does not hold yet.
+    pub fn hold(&mut self, keep: impl Fn(usize, u32) -> bool) {
+        if self.masks.is_empty() {
+            return;
+        }
+        let layout = Layout::new(self.size[0], self.size[1]).expect("the schedule's own size");
+        for i in 0..self.blocks.len() {
+            let b = self.blocks[i];
+            if self.at[i] != NOT_HELD || !keep(i, b) {
+                continue;
+            }
+            self.at[i] = self.pixels.len() as u32;
+            for (w, &word) in self.masks[i].iter().enumerate() {
                 let mut bits = word;
                 while bits != 0 {
                     let slot = w as u32 * 32 + bits.trailing_zeros();
-                    pixels.push(
+                    self.pixels.push(
                         layout
-                            .pixel(Order::Coherent, b as u32, slot)
+                            .pixel(Order::Coherent, b, slot)
                             .expect("a selected slot lies in the image"),
                     );
                     bits &= bits - 1;
                 }
             }
-            if pixels.len() > before {
-                blocks.push(b as u32);
-                starts.push(pixels.len() as u32);
-            }
         }
-        Self {
-            blocks,
-            starts,
-            pixels,
-        }
+    }
+
+    /// Whether listed block `i`'s pixels are held.
+    #[must_use]
+    pub fn holds(&self, i: usize) -> bool {
+        self.at[i] != NOT_HELD
     }
 
     /// Every pixel of the image (those `shown` holds, when given: bit `p % 32` of word
@@ -114,23 +165,39 @@ impl BlockList {
                 starts.push(pixels.len() as u32);
             }
         }
-        Self {
-            blocks,
-            starts,
-            pixels,
-        }
+        Self::held(size, blocks, starts, pixels)
     }
 
-    /// Listed block `i`'s pixels.
+    /// Listed block `i`'s pixels; the block must be held ([`Self::holds`]).
     #[must_use]
     pub fn pixels_of(&self, i: usize) -> &[u32] {
-        &self.pixels[self.starts[i] as usize..self.starts[i + 1] as usize]
+        let at = self.at[i];
+        assert!(at != NOT_HELD, "block {} is not held", self.blocks[i]);
+        &self.pixels[at as usize..(at + self.len_of(i)) as usize]
     }
 
     /// How many pixels listed block `i` has.
     #[must_use]
     pub fn len_of(&self, i: usize) -> u32 {
         self.starts[i + 1] - self.starts[i]
+    }
+
+    /// Pixels listed, over every block (held or not).
+    #[must_use]
+    pub fn len(&self) -> u64 {
+        u64::from(*self.starts.last().expect("starts begins with 0"))
+    }
+
+    /// Whether no pixel is listed.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Pixels held (expanded), over every held block.
+    #[must_use]
+    pub fn held_len(&self) -> usize {
+        self.pixels.len()
     }
 }
 
@@ -201,11 +268,14 @@ mod tests {
         for order in [Order::Coherent, Order::Scattered] {
             let list = schedule_cpu(&dgi(size), size[0], size[1], 0.05, 3, 7, order).unwrap();
             let g = BlockList::group(&list, size);
-            let mut a = g.pixels.clone();
+            let mut a: Vec<u32> = (0..g.blocks.len())
+                .flat_map(|i| g.pixels_of(i).to_vec())
+                .collect();
             let mut b = list.clone();
             a.sort_unstable();
             b.sort_unstable();
             assert_eq!(a, b);
+            assert_eq!(g.len(), list.len() as u64);
             for i in 0..g.blocks.len() {
                 assert!(g.len_of(i) > 0);
                 for &p in g.pixels_of(i) {
@@ -216,6 +286,7 @@ mod tests {
             if order == Order::Coherent {
                 // The coherent list is already grouped by block, in block order.
                 assert_eq!(g.pixels, list);
+                assert_eq!(g.held_len(), list.len());
             }
         }
     }
@@ -247,8 +318,30 @@ mod tests {
                         all[b as usize] = m;
                     }
                 }
-                assert_eq!(BlockList::from_masks(size, &all), want, "iteration {k}");
-                assert!(!want.pixels.is_empty());
+                let mut got = BlockList::from_masks(size, &all);
+                // The lengths come from the masks alone, before any pixel is expanded.
+                assert_eq!((&got.blocks, &got.starts), (&want.blocks, &want.starts));
+                assert_eq!(got.held_len(), 0);
+                // A rank's share: every third listed block, then the rest.
+                got.hold(|i, _| i % 3 == 1);
+                for i in 0..got.blocks.len() {
+                    assert_eq!(got.holds(i), i % 3 == 1, "iteration {k}, block {i}");
+                }
+                let share: u32 = (0..got.blocks.len())
+                    .filter(|i| i % 3 == 1)
+                    .map(|i| got.len_of(i))
+                    .sum();
+                assert_eq!(got.held_len(), share as usize);
+                got.hold(|_, _| true);
+                for i in 0..want.blocks.len() {
+                    assert_eq!(
+                        got.pixels_of(i),
+                        want.pixels_of(i),
+                        "iteration {k}, block {i}"
+                    );
+                }
+                assert_eq!(got.len(), list.len() as u64);
+                assert!(!want.is_empty());
             }
         }
     }
@@ -257,14 +350,14 @@ mod tests {
     fn every_lists_each_shown_pixel_once() {
         let size = [70, 33];
         let g = BlockList::every(size, None);
-        assert_eq!(g.pixels.len(), 70 * 33);
+        assert_eq!(g.len(), 70 * 33);
         let mut mask = vec![0u32; (70 * 33usize).div_ceil(32)];
         for p in (0..70 * 33u32).filter(|p| p % 3 == 0) {
             mask[(p / 32) as usize] |= 1 << (p % 32);
         }
         let g = BlockList::every(size, Some(&mask));
-        assert_eq!(g.pixels.len(), (70 * 33usize).div_ceil(3));
-        assert!(g.pixels.iter().all(|p| p % 3 == 0));
+        assert_eq!(g.len(), (70 * 33u64).div_ceil(3));
+        assert!((0..g.blocks.len()).all(|i| g.pixels_of(i).iter().all(|p| p % 3 == 0)));
     }
 
     #[test]

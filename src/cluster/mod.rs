@@ -12,15 +12,23 @@
 //! ```
 //!
 //! [`ClusterRenderer::run_frame`] is that function. Samples are exact: a sample depends only
-//! on (pixel, sample index, seed), every rank keeps every pixel's sample count (the schedule is
-//! the same everywhere, so the counts are), and a pixel gets at most one sample an iteration,
-//! which its owner adds as the one-process renderer does. N ranks therefore give the
-//! accumulation of one process bit for bit, whatever the deal — the tests compare them.
+//! on (pixel, sample index, seed), a pixel's owner keeps its sample count and tells the rank
+//! that traces it, and a pixel gets at most one sample an iteration, which its owner adds as the
+//! one-process renderer does. N ranks therefore give the accumulation of one process bit for
+//! bit, whatever the deal — the tests compare them.
+//!
+//! A rank's own work and memory are its share of the image: it keeps the sums and counts of
+//! the blocks it owns, knows every listed block's length (the deal's input: a population
+//! count of the block's mask in coherent order) and expands only the pixels of the blocks it
+//! traces or owns. Nothing per pixel of the whole image is done on every rank each iteration
+//! but the schedule of scattered order and of a single rank (the whole draw), and the DGI of a
+//! new ROI (`--cluster-dgi`).
 //!
 //! What crosses the link each iteration, per rank: the control message from rank 0 (tens of
-//! bytes), 12 bytes (linear RGB, f32) per sample traced for another rank's tiles — the sum of
-//! squared luminance and the count follow from it exactly — and 4 bytes per block traced (its
-//! rays, the deal's weights) to every other rank. On an ROI change the DGI is computed by every
+//! bytes), 4 bytes (the count, u32) per sample an owner has traced elsewhere, to the rank that
+//! traces it, before the trace; 12 bytes (linear RGB, f32) per such sample back to its owner —
+//! the sum of squared luminance and the count follow from it exactly — and 4 bytes per block
+//! traced (its rays, the deal's weights) to every other rank. On an ROI change the DGI is computed by every
 //! rank ([`DgiMode::Compute`]: no traffic) or by rank 0 and broadcast ([`DgiMode::Broadcast`]:
 //! 4 bytes a pixel); `raygun bench guided --cluster` measures both.
 //!
@@ -376,11 +384,17 @@ pub struct ClusterFrameStats {
     pub pixels: u64,
     /// Of those, the ones this rank traced.
     pub pixels_traced: u64,
+    /// Of those, the ones this rank expanded from the schedule (those it traces or owns; every
+    /// one where the list is drawn whole on every rank: scattered order, a single rank).
+    pub pixels_held: u64,
     /// Rays this rank traced.
     pub rays: u64,
     /// Wall-clock ms of each step on this rank.
     pub ms_dgi: f64,
     pub ms_schedule: f64,
+    /// Sending, waiting for and taking in the counts of the pixels this rank traces for other
+    /// owners.
+    pub ms_counts: f64,
     pub ms_trace: f64,
     /// Sending, waiting for and adding the others' samples.
     pub ms_exchange: f64,
@@ -413,7 +427,11 @@ pub struct ClusterRenderer {
     /// A new ROI for the next frame to install.
     pending: Option<Option<Roi>>,
     roi: Option<Roi>,
-    /// Every pixel's sample count (every rank keeps all of them).
+    /// Pixels of the whole image.
+    pixels: usize,
+    /// Samples taken so far over the whole image (every rank knows every block's length).
+    total: u64,
+    /// `BLOCK_PIXELS` sample counts per owned block, laid out as `sums`.
     counts: Vec<u32>,
     owners: BlockOwners,
     /// Per block: its index among this rank's blocks, or `u32::MAX`.
@@ -502,7 +520,9 @@ impl ClusterRenderer {
             iteration: 0,
             pending: None,
             roi: None,
-            counts: vec![0; n],
+            pixels: n,
+            total: 0,
+            counts: vec![0; mine.len() * BLOCK_PIXELS as usize],
             costs: CostTable::new(owners.owner.len()),
             sums: vec![[0.0; 4]; mine.len() * BLOCK_PIXELS as usize],
             owners,
@@ -543,10 +563,10 @@ impl ClusterRenderer {
         self.gpu.as_deref().map(|g| &*g.ctx)
     }
 
-    /// Samples taken so far, over the whole image (every rank knows every pixel's count).
+    /// Samples taken so far, over the whole image (every rank knows every block's length).
     #[must_use]
     pub fn samples(&self) -> u64 {
-        self.counts.iter().map(|&n| u64::from(n)).sum()
+        self.total
     }
 
     /// Iterations run so far.
@@ -569,7 +589,7 @@ impl ClusterRenderer {
 
     /// The restart rule of a moving eye, as [`crate::frame::Renderer::follow_eye`] applies it:
     /// past `threshold_m` from the eye the accumulation started with, the wall camera moves
-    /// there and every pixel's count and this rank's owned sums restart (the ROI and its DGI
+    /// there and this rank's owned sums and counts restart (the ROI and its DGI
     /// kept); otherwise nothing changes. Every rank applies the same eyes in the same frames,
     /// so they stay in step.
     pub fn follow_eye(&mut self, eye: DVec3, threshold_m: f64) -> Result<EyeFollow, ClusterError> {
@@ -595,8 +615,8 @@ impl ClusterRenderer {
         Ok(())
     }
 
-    /// The wall camera `wall` from now on, and every pixel's count and this rank's owned sums
-    /// back to zero (the one-process renderer's restart).
+    /// The wall camera `wall` from now on, and this rank's owned sums and counts back to zero
+    /// (the one-process renderer's restart).
     fn restart_with(&mut self, wall: WallCamera) {
         if let Some(g) = &mut self.gpu {
             let moved = g.run.set_wall(&g.ctx, &self.packed, &self.settings, &wall);
@@ -616,8 +636,9 @@ impl ClusterRenderer {
         self.restart();
     }
 
-    /// Every pixel's count and this rank's owned sums back to zero.
+    /// This rank's owned sums and counts back to zero.
     fn restart(&mut self) {
+        self.total = 0;
         self.counts.fill(0);
         self.sums.fill([0.0; 4]);
         self.iteration = 0;
@@ -643,14 +664,19 @@ impl ClusterRenderer {
             ..Default::default()
         };
         self.install_dgi(c, &mut stats)?;
-        let list = self.schedule(c, &mut stats)?;
+        let mut list = self.schedule(c, &mut stats)?;
         let tracer = deal(&list, &self.costs, self.ranks);
-        let samples = self.trace(&list, &tracer, &mut stats)?;
-        self.exchange(c, &list, &tracer, &samples, &mut stats)?;
-        for &p in &list.pixels {
-            self.counts[p as usize] += 1;
+        if let Some(l) = Arc::get_mut(&mut list) {
+            // A list from masks: expand this rank's share, the blocks it traces or owns.
+            let (me, owner) = (self.rank, &self.owners.owner);
+            l.hold(|i, b| tracer[i] as usize == me || owner[b as usize] as usize == me);
         }
-        stats.pixels = list.pixels.len() as u64;
+        stats.pixels_held = list.held_len() as u64;
+        let counts = self.counts_to_trace(c, &list, &tracer, &mut stats)?;
+        let samples = self.trace(&list, &tracer, &counts, &mut stats)?;
+        self.exchange(c, &list, &tracer, &samples, &mut stats)?;
+        self.total += list.len();
+        stats.pixels = list.len();
         stats.traffic = c.traffic().since(&before);
         self.iteration += 1;
         Ok(stats)
@@ -679,12 +705,12 @@ impl ClusterRenderer {
                 };
                 let got = c.broadcast("the DGI", mine)?;
                 let dgi = f32s(&got, 1);
-                if dgi.len() != self.counts.len() {
+                if dgi.len() != self.pixels {
                     return Err(ExchangeError::Length {
                         rank: 0,
                         what: "the DGI".into(),
                         got: got.len(),
-                        expected: self.counts.len() * 4,
+                        expected: self.pixels * 4,
                     }
                     .into());
                 }
@@ -766,12 +792,77 @@ impl ClusterRenderer {
         Ok(list)
     }
 
-    /// Step 3: one sample for each pixel of the blocks dealt to this rank, in block order, and
-    /// the rays each block took, on this rank's GPU or CPU twin.
+    /// Step 3: the sample counts of the pixels this rank traces, in block order: its own
+    /// blocks' from its counts, the others' from their owners, who send each tracer the counts
+    /// of their blocks it was dealt (4 bytes a pixel, blocks ascending).
+    fn counts_to_trace(
+        &mut self,
+        c: &mut Cluster,
+        list: &BlockList,
+        tracer: &[u32],
+        stats: &mut ClusterFrameStats,
+    ) -> Result<Vec<u32>, ClusterError> {
+        let t0 = Instant::now();
+        let (me, n) = (self.rank, self.ranks);
+        let owner = |i: usize| self.owners.owner[list.blocks[i] as usize] as usize;
+        let mut got = vec![Vec::new(); n];
+        if n > 1 {
+            let mut parts = vec![Vec::new(); n];
+            for (i, &t) in tracer.iter().enumerate() {
+                let t = t as usize;
+                if t != me && owner(i) == me {
+                    for &p in list.pixels_of(i) {
+                        parts[t].extend(self.own_count(p).to_le_bytes());
+                    }
+                }
+            }
+            let what = format!("the counts of iteration {}", self.iteration);
+            got = c.all_to_all(&what, parts)?;
+            for (src, bytes) in got.iter().enumerate().filter(|(s, _)| *s != me) {
+                let expected: usize = (0..list.blocks.len())
+                    .filter(|&i| tracer[i] as usize == me && owner(i) == src)
+                    .map(|i| 4 * list.len_of(i) as usize)
+                    .sum();
+                if bytes.len() != expected {
+                    return Err(ExchangeError::Length {
+                        rank: src,
+                        what,
+                        got: bytes.len(),
+                        expected,
+                    }
+                    .into());
+                }
+            }
+        }
+        let mut at = vec![0usize; n];
+        let mut counts = Vec::new();
+        for i in (0..list.blocks.len()).filter(|&i| tracer[i] as usize == me) {
+            let o = owner(i);
+            if o == me {
+                counts.extend(list.pixels_of(i).iter().map(|&p| self.own_count(p)));
+            } else {
+                let len = list.len_of(i) as usize;
+                let bytes = &got[o][4 * at[o]..4 * (at[o] + len)];
+                counts.extend(
+                    bytes
+                        .chunks_exact(4)
+                        .map(|b| u32::from_le_bytes(b.try_into().expect("4"))),
+                );
+                at[o] += len;
+            }
+        }
+        stats.ms_counts = t0.elapsed().as_secs_f64() * 1e3;
+        Ok(counts)
+    }
+
+    /// Step 4: one sample for each pixel of the blocks dealt to this rank, in block order (the
+    /// pixels' counts, `counts`, in the same order), and the rays each block took, on this
+    /// rank's GPU or CPU twin.
     fn trace(
         &mut self,
         list: &BlockList,
         tracer: &[u32],
+        counts: &[u32],
         stats: &mut ClusterFrameStats,
     ) -> Result<Traced, ClusterError> {
         let t0 = Instant::now();
@@ -782,11 +873,11 @@ impl ClusterRenderer {
             .iter()
             .flat_map(|&i| list.pixels_of(i).iter().copied())
             .collect();
-        let counts: Vec<u32> = pixels.iter().map(|&p| self.counts[p as usize]).collect();
+        debug_assert_eq!(counts.len(), pixels.len());
         let (sc, s, wall) = (&self.packed, &self.settings, self.wall.as_ref());
         let samples = match &mut self.gpu {
-            Some(g) => g.run.samples(&g.ctx, &g.scene, &pixels, &counts)?,
-            None => samples_cpu(sc, s, wall, &pixels, &counts),
+            Some(g) => g.run.samples(&g.ctx, &g.scene, &pixels, counts)?,
+            None => samples_cpu(sc, s, wall, &pixels, counts),
         };
         let mut rays = Vec::with_capacity(mine.len());
         let mut at = 0;
@@ -805,7 +896,7 @@ impl ClusterRenderer {
         })
     }
 
-    /// Step 4: every rank's samples to the owners of their blocks, and every block's rays to
+    /// Step 5: every rank's samples to the owners of their blocks, and every block's rays to
     /// every rank (the next deal's weights); owners add the samples of their blocks.
     fn exchange(
         &mut self,
@@ -902,42 +993,53 @@ impl ClusterRenderer {
         Ok(())
     }
 
-    /// Adds one sample to an owned pixel's sums, with the one-process renderer's arithmetic
-    /// (its count is kept in `counts`).
-    fn add(&mut self, p: u32, rgb: Vec3) {
+    /// Where pixel `p`'s sums and count are in `sums` and `counts`, if its block is this
+    /// rank's.
+    fn own_index(&self, p: u32) -> Option<usize> {
         let w = self.settings.width;
-        let b = block_of(p, w, self.owners.tiles[0]);
-        let slot = self.slot[b as usize] as usize;
-        let (x, y) = (p % w, p / w);
-        let local = (y % TILE_EDGE) * TILE_EDGE + x % TILE_EDGE;
-        let mut count = 0;
-        accumulate(
-            &mut self.sums[slot * BLOCK_PIXELS as usize + local as usize],
-            &mut count,
-            rgb,
-        );
+        let slot = self.slot[block_of(p, w, self.owners.tiles[0]) as usize];
+        (slot != u32::MAX).then(|| {
+            let (x, y) = (p % w, p / w);
+            let local = (y % TILE_EDGE) * TILE_EDGE + x % TILE_EDGE;
+            (slot * BLOCK_PIXELS + local) as usize
+        })
     }
 
-    /// This rank's owned sums as bytes: owned blocks ascending, each block's pixels row-major.
+    /// An owned pixel's sample count.
+    fn own_count(&self, p: u32) -> u32 {
+        self.counts[self.own_index(p).expect("a pixel of this rank")]
+    }
+
+    /// An owned pixel's sums and count as they travel: 16 bytes of sums (f32), 4 of count.
+    fn own_bytes(&self, p: u32, out: &mut Vec<u8>) {
+        let k = self.own_index(p).expect("a pixel of this rank");
+        out.extend(f32_bytes(&self.sums[k]));
+        out.extend(self.counts[k].to_le_bytes());
+    }
+
+    /// Adds one sample to an owned pixel's sums and count, with the one-process renderer's
+    /// arithmetic.
+    fn add(&mut self, p: u32, rgb: Vec3) {
+        let k = self.own_index(p).expect("a pixel of this rank");
+        accumulate(&mut self.sums[k], &mut self.counts[k], rgb);
+    }
+
+    /// This rank's owned sums and counts as bytes ([`PIXEL_BYTES`] a pixel): owned blocks
+    /// ascending, each block's pixels row-major.
     fn owned_bytes(&self) -> Vec<u8> {
         let size = [self.settings.width, self.settings.height];
         let mut out = Vec::new();
         for b in self.owners.owned_by(self.rank) {
-            let slot = self.slot[b as usize] as usize;
             for p in block_pixels(b, size, self.owners.tiles[0]) {
-                let (x, y) = (p % size[0], p / size[0]);
-                let local = ((y % TILE_EDGE) * TILE_EDGE + x % TILE_EDGE) as usize;
-                for v in self.sums[slot * BLOCK_PIXELS as usize + local] {
-                    out.extend(v.to_le_bytes());
-                }
+                self.own_bytes(p, &mut out);
             }
         }
         out
     }
 
     /// How far the ROI has come, on rank 0 (`Some(None)` without ROI pixels; `None` on the
-    /// other ranks): every owner sends rank 0 the sums of its pixels inside the ROI (d = 0),
-    /// 16 bytes each, and rank 0 measures them with every pixel's count, as one process does.
+    /// other ranks): every owner sends rank 0 the sums and counts of its pixels inside the ROI
+    /// (d = 0), [`PIXEL_BYTES`] each, and rank 0 measures them as one process does.
     pub fn roi_progress(
         &self,
         c: &mut Cluster,
@@ -947,11 +1049,8 @@ impl ClusterRenderer {
         let in_roi = |p: &u32| self.dgi.get(*p as usize) == Some(&0.0);
         let mut mine = Vec::new();
         for b in self.owners.owned_by(self.rank) {
-            let slot = self.slot[b as usize] as usize;
             for p in block_pixels(b, size, tiles_x).filter(in_roi) {
-                let (x, y) = (p % size[0], p / size[0]);
-                let local = ((y % TILE_EDGE) * TILE_EDGE + x % TILE_EDGE) as usize;
-                mine.extend(f32_bytes(&self.sums[slot * BLOCK_PIXELS as usize + local]));
+                self.own_bytes(p, &mut mine);
             }
         }
         let Some(all) = c.gather("the ROI's sums", mine)? else {
@@ -965,19 +1064,16 @@ impl ClusterRenderer {
                 .into_iter()
                 .flat_map(|b| block_pixels(b, size, tiles_x).filter(in_roi))
                 .collect();
-            if bytes.len() != 16 * pixels.len() {
-                return Err(ExchangeError::Length {
+            let pixels =
+                sums_and_counts(bytes, pixels.len()).ok_or_else(|| ExchangeError::Length {
                     rank: src,
                     what: "the ROI's sums".into(),
                     got: bytes.len(),
-                    expected: 16 * pixels.len(),
-                }
-                .into());
-            }
-            let v = f32s(bytes, 4);
-            for (k, &p) in pixels.iter().enumerate() {
-                sum.push([v[4 * k], v[4 * k + 1], v[4 * k + 2], v[4 * k + 3]]);
-                count.push(self.counts[p as usize]);
+                    expected: PIXEL_BYTES * pixels.len(),
+                })?;
+            for (s, n) in pixels {
+                sum.push(s);
+                count.push(n);
             }
         }
         let n = sum.len();
@@ -991,7 +1087,7 @@ impl ClusterRenderer {
     }
 
     /// The whole accumulation and the DGI the last frame used, on rank 0 (`None` on the
-    /// others): every owner sends rank 0 its sums.
+    /// others): every owner sends rank 0 its sums and counts.
     pub fn gather(
         &self,
         c: &mut Cluster,
@@ -1001,35 +1097,32 @@ impl ClusterRenderer {
             return Ok(None);
         };
         let mut acc = Accumulation::new(size[0], size[1]);
-        acc.count.clone_from(&self.counts);
         for (src, bytes) in all.iter().enumerate() {
             let blocks = self.owners.owned_by(src);
             let pixels: usize = blocks
                 .iter()
                 .map(|&b| block_pixels(b, size, self.owners.tiles[0]).count())
                 .sum();
-            if bytes.len() != 16 * pixels {
-                return Err(ExchangeError::Length {
+            let mut v = sums_and_counts(bytes, pixels)
+                .ok_or_else(|| ExchangeError::Length {
                     rank: src,
                     what: "the owners' sums".into(),
                     got: bytes.len(),
-                    expected: 16 * pixels,
-                }
-                .into());
-            }
-            let v = f32s(bytes, 4);
-            let mut at = 0;
+                    expected: PIXEL_BYTES * pixels,
+                })?
+                .into_iter();
             for &b in &blocks {
                 for p in block_pixels(b, size, self.owners.tiles[0]) {
-                    acc.sum[p as usize] = [v[at], v[at + 1], v[at + 2], v[at + 3]];
-                    at += 4;
+                    let (s, n) = v.next().expect("as many as counted");
+                    acc.sum[p as usize] = s;
+                    acc.count[p as usize] = n;
                 }
             }
         }
         let dgi = if self.guidance.is_some() {
             self.dgi.clone()
         } else {
-            vec![0.0; self.counts.len()]
+            vec![0.0; self.pixels]
         };
         Ok(Some((acc, dgi)))
     }
@@ -1169,6 +1262,23 @@ pub fn f32_bytes(v: &[f32]) -> Vec<u8> {
 
 /// Little-endian bytes as f32s (a multiple of `group` values; a shorter tail is dropped, and
 /// the callers check lengths first).
+/// Bytes a pixel's sums and count take on the link: 16 of sums (f32), 4 of count (u32).
+pub const PIXEL_BYTES: usize = 20;
+
+/// `pixels` pairs of sums and count from `b` ([`PIXEL_BYTES`] each), or `None` if `b` is not
+/// that long.
+fn sums_and_counts(b: &[u8], pixels: usize) -> Option<Vec<([f32; 4], u32)>> {
+    (b.len() == PIXEL_BYTES * pixels).then(|| {
+        b.chunks_exact(PIXEL_BYTES)
+            .map(|c| {
+                let f = |k: usize| f32::from_le_bytes(c[4 * k..4 * k + 4].try_into().expect("4"));
+                let n = u32::from_le_bytes(c[16..20].try_into().expect("4"));
+                ([f(0), f(1), f(2), f(3)], n)
+            })
+            .collect()
+    })
+}
+
 fn f32s(b: &[u8], group: usize) -> Vec<f32> {
     let whole = b.len() / (4 * group) * 4 * group;
     b[..whole]

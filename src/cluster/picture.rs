@@ -4,8 +4,8 @@
 //! A tile shows a rectangle of image pixels ([`tile_rect`]); the filter's value there depends on
 //! the accumulation within [`crate::filter::halo`] pixels around it. The owner has its own
 //! blocks' sums; the blocks in that margin that other ranks own (a neighbour column's edge, a
-//! block whose centre lies on another tile) come from their owners in one all-to-all, 16 bytes
-//! a pixel (RGB sum and Σ luminance²: the counts and the DGI every rank has). The owner then
+//! block whose centre lies on another tile) come from their owners in one all-to-all, 20 bytes
+//! a pixel (RGB sum, Σ luminance² and the count: the DGI every rank has). The owner then
 //! filters each tile's rectangle with its margin on its own — an image whose origin is on every
 //! pyramid level's grid ([`crate::filter::halo`]'s alignment) — and keeps the inside: the values
 //! of the whole image's filter, bit for bit (the CPU twin computes each pixel from the same
@@ -17,11 +17,11 @@ use glam::Vec3;
 
 use super::exchange::ExchangeError;
 use super::owners::{BlockOwners, TileOwners, block_of};
-use super::{ClusterError, ClusterRenderer, f32_bytes, f32s};
+use super::{ClusterError, ClusterRenderer, PIXEL_BYTES, sums_and_counts};
 use crate::display::DisplayModel;
 use crate::filter::{Filter, FilterParams};
 use crate::gpu::Backend;
-use crate::schedule::{BLOCK_PIXELS, TILE_EDGE};
+use crate::schedule::TILE_EDGE;
 use crate::trace::accum::Accumulation;
 
 /// Image pixels `[x0, x1) × [y0, y1)`.
@@ -160,15 +160,9 @@ pub struct TilePicture {
 }
 
 impl ClusterRenderer {
-    /// This rank's sums of pixel `p`, if its block is this rank's.
-    fn own_sum(&self, p: u32) -> Option<[f32; 4]> {
-        let (w, tiles_x) = (self.settings.width, self.owners.tiles[0]);
-        let slot = self.slot[block_of(p, w, tiles_x) as usize];
-        (slot != u32::MAX).then(|| {
-            let (x, y) = (p % w, p / w);
-            let local = (y % TILE_EDGE) * TILE_EDGE + x % TILE_EDGE;
-            self.sums[(slot * BLOCK_PIXELS + local) as usize]
-        })
+    /// This rank's sums and count of pixel `p`, if its block is this rank's.
+    fn own_sum(&self, p: u32) -> Option<([f32; 4], u32)> {
+        self.own_index(p).map(|k| (self.sums[k], self.counts[k]))
     }
 
     /// The pictures of the tiles of `model` that `tiles` gives this rank, filtered by `params`
@@ -210,29 +204,24 @@ impl ClusterRenderer {
         for (r, part) in parts.iter_mut().enumerate() {
             if r != me {
                 for p in pixels_owned_by(&reads(r), &self.owners, me) {
-                    part.extend(f32_bytes(&self.own_sum(p).expect("a pixel of this rank")));
+                    self.own_bytes(p, part);
                 }
             }
         }
         let got = c.all_to_all(what, parts)?;
         let own_regions = regions(model, tiles, me, size, halo);
         let mine: Vec<Rect> = own_regions.iter().map(|r| r.reads).collect();
-        let mut theirs: HashMap<u32, [f32; 4]> = HashMap::new();
+        let mut theirs: HashMap<u32, ([f32; 4], u32)> = HashMap::new();
         for (src, bytes) in got.iter().enumerate().filter(|(s, _)| *s != me) {
             let pixels = pixels_owned_by(&mine, &self.owners, src);
-            if bytes.len() != 16 * pixels.len() {
-                return Err(ExchangeError::Length {
+            let values =
+                sums_and_counts(bytes, pixels.len()).ok_or_else(|| ExchangeError::Length {
                     rank: src,
                     what: what.into(),
                     got: bytes.len(),
-                    expected: 16 * pixels.len(),
-                }
-                .into());
-            }
-            let v = f32s(bytes, 4);
-            for (k, p) in pixels.into_iter().enumerate() {
-                theirs.insert(p, [v[4 * k], v[4 * k + 1], v[4 * k + 2], v[4 * k + 3]]);
-            }
+                    expected: PIXEL_BYTES * pixels.len(),
+                })?;
+            theirs.extend(pixels.into_iter().zip(values));
         }
         let guided = self.guidance.is_some();
         let filter = Filter::new(&Backend::Cpu);
@@ -245,11 +234,10 @@ impl ClusterRenderer {
             for y in r.y0..r.y1 {
                 for x in r.x0..r.x1 {
                     let p = y * size[0] + x;
-                    acc.sum[k] = match self.own_sum(p) {
-                        Some(s) => s,
+                    (acc.sum[k], acc.count[k]) = match self.own_sum(p) {
+                        Some(v) => v,
                         None => *theirs.get(&p).expect("every margin pixel was received"),
                     };
-                    acc.count[k] = self.counts[p as usize];
                     if guided {
                         dgi[k] = self.dgi[p as usize];
                     }
@@ -278,7 +266,7 @@ impl ClusterRenderer {
     }
 }
 
-/// Bytes each rank sends and receives in [`ClusterRenderer::tile_pictures`] (16 a pixel, per
+/// Bytes each rank sends and receives in [`ClusterRenderer::tile_pictures`] ([`PIXEL_BYTES`] a pixel, per
 /// rank: `(sent, received)`), counted from the geometry alone: what a picture of the whole wall
 /// costs the links, whatever was sampled.
 #[must_use]
@@ -303,8 +291,9 @@ pub fn margin_traffic(
                 let src = owners.owner[(row + bx) as usize] as usize;
                 if src != dst {
                     let n = b.min((bx + 1) * TILE_EDGE) - a.max(bx * TILE_EDGE);
-                    out[src].0 += 16 * u64::from(n);
-                    out[dst].1 += 16 * u64::from(n);
+                    let bytes = PIXEL_BYTES as u64 * u64::from(n);
+                    out[src].0 += bytes;
+                    out[dst].1 += bytes;
                 }
             }
         });

@@ -98,7 +98,7 @@ fn ranks_then<T: Send>(
     with_wall: bool,
     mode: DgiMode,
     owners: impl Fn(usize) -> BlockOwners + Sync,
-    after: impl Fn(&mut Cluster, &ClusterRenderer) -> T + Sync,
+    after: impl Fn(&mut Cluster, &ClusterRenderer, &[ClusterFrameStats]) -> T + Sync,
 ) -> Vec<T> {
     std::thread::scope(|sc| {
         let handles: Vec<_> = InProcess::job(n)
@@ -115,6 +115,7 @@ fn ranks_then<T: Send>(
                     let mut r =
                         ClusterRenderer::new(&s, settings(&s), guide, w, owners(n), mode, rank, n)
                             .unwrap();
+                    let mut frames = Vec::new();
                     for k in 0..ITERATIONS {
                         let control = FrameControl {
                             iteration: k,
@@ -131,8 +132,9 @@ fn ranks_then<T: Send>(
                         }
                         let st = r.run_frame(&mut c).unwrap();
                         assert_eq!(st.iteration, k);
+                        frames.push(st);
                     }
-                    after(&mut c, &r)
+                    after(&mut c, &r, &frames)
                 })
             })
             .collect();
@@ -149,7 +151,7 @@ fn ranks(
     mode: DgiMode,
     owners: impl Fn(usize) -> BlockOwners + Sync,
 ) -> (Accumulation, Vec<f32>) {
-    let results = ranks_then(n, guided, with_wall, mode, owners, |c, r| {
+    let results = ranks_then(n, guided, with_wall, mode, owners, |c, r, _| {
         let progress = if guided.is_some() {
             r.roi_progress(c).unwrap()
         } else {
@@ -195,6 +197,45 @@ fn guided_ranks_give_the_one_process_accumulation_bit_for_bit() {
         for n in 1..=3 {
             let got = ranks(n, Some(order), false, DgiMode::Compute, columns);
             assert_bits_equal(&got, &one, &format!("{n} ranks, {order:?}"));
+        }
+    }
+}
+
+/// A rank's work per iteration is its share: it expands only the scheduled pixels of the
+/// blocks it traces or owns (coherent order on several ranks; the whole list otherwise) and
+/// keeps sums and counts only for its own blocks — and the images stay the one process's (the
+/// test above).
+#[test]
+fn a_rank_holds_only_the_blocks_it_traces_or_owns() {
+    for (order, n) in [
+        (Order::Coherent, 3),
+        (Order::Coherent, 1),
+        (Order::Scattered, 3),
+    ] {
+        let per_rank = ranks_then(
+            n,
+            Some(order),
+            false,
+            DgiMode::Compute,
+            columns,
+            |_, r, f| {
+                let owned = r.owners.owned_by(r.rank).len() * BLOCK_PIXELS as usize;
+                assert_eq!((r.counts.len(), r.sums.len()), (owned, owned));
+                f.to_vec()
+            },
+        );
+        for k in 0..ITERATIONS as usize {
+            let pixels = per_rank[0][k].pixels;
+            let held: Vec<u64> = per_rank.iter().map(|f| f[k].pixels_held).collect();
+            let traced: Vec<u64> = per_rank.iter().map(|f| f[k].pixels_traced).collect();
+            let what = format!("{order:?}, {n} ranks, iteration {k}: held {held:?} of {pixels}");
+            assert_eq!(traced.iter().sum::<u64>(), pixels, "{what}");
+            assert!(held.iter().zip(&traced).all(|(h, t)| h >= t), "{what}");
+            if order == Order::Coherent && n > 1 {
+                assert!(held.iter().all(|&h| h < pixels), "{what}");
+            } else {
+                assert!(held.iter().all(|&h| h == pixels), "{what}");
+            }
         }
     }
 }
@@ -416,7 +457,7 @@ fn owners_pictures_match(
         with_wall,
         DgiMode::Compute,
         |n| BlockOwners::of_display(&m, &map(n), SIZE),
-        |c, r| {
+        |c, r, _| {
             let before = c.traffic();
             let pictures = match halo {
                 Some(h) => r.tile_pictures_with(c, &m, &map(n), params, h).unwrap(),

@@ -490,8 +490,8 @@ impl TraceRun {
 
 /// Samples returned rather than accumulated: a cluster rank's trace (DESIGN.md §12), whose
 /// samples go to the owners of their tiles. The kernel's compact mode: entry i of the list
-/// traces pixel `pixels[i]` with sample index `counts[i]` (the rank keeps every pixel's count
-/// on its CPU) and writes the sample's RGB and its ray count into entry i, which is read back.
+/// traces pixel `pixels[i]` with sample index `counts[i]` (the rank has each pixel's count
+/// on its CPU, from the pixel's owner) and writes the sample's RGB and its ray count into entry i, which is read back.
 /// CPU twin: [`super::path::samples_cpu`].
 ///
 /// Per sample the link to the GPU carries 8 bytes up (pixel, sample index) and 16 down; the

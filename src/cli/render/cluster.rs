@@ -270,8 +270,8 @@ fn assembles(args: &RenderArgs) -> bool {
     !args.out.is_empty() || args.dgi_out.is_some() || args.counts_out.is_some()
 }
 
-/// Rank 0's closing message for a render that only wrote its tiles: what ran, from the counts
-/// every rank keeps.
+/// Rank 0's closing message for a render that only wrote its tiles: what ran, from the
+/// samples every rank counts.
 fn tiles_only_note(
     p: &Prepared,
     r: &ClusterRenderer,
