@@ -15,10 +15,12 @@
 //! bytes for the same eight boxes, and twice the depth), the quantised boxes are conservative
 //! so no hit is lost, and the child order is sorted by ray octant with two integer operations
 //! (`oct_inv4`), so traversal visits near children first without sorting. This is the layout
-//! and traversal of the Tray Racing benchmark that `obvhs` was built for. The CPU twin reads
-//! the same nodes with the same box arithmetic but visits a node's inner children by entry
-//! distance and skips those entered beyond the closest hit so far ([`SceneBvh::closest_hit`]):
-//! the same hits, fewer nodes, and on a CPU the culling pays for the sort (BENCHMARKS.md).
+//! and traversal of the Tray Racing benchmark that `obvhs` was built for. The CPU twin walks
+//! the same tree from its own copy of the nodes ([`CpuNode`]: each child box decoded to f32,
+//! rounded outwards, and each child's index or leaf primitives ready), visits a node's inner
+//! children by entry distance and skips those entered beyond the closest hit so far
+//! ([`SceneBvh::closest_hit`]): the same hits, fewer nodes, and on a CPU the culling pays for
+//! the sort (BENCHMARKS.md).
 //!
 //! Primitives are stored in BVH order (`prims`, three `vec4<f32>` each: `v0` and the original
 //! triangle index, `e1 = v1 − v0` and the light-selection density, `e2 = v2 − v0` and the
@@ -27,13 +29,13 @@
 //! blended, where the caller decides per hit whether the surface is there), so a leaf's
 //! triangles are contiguous in memory.
 
+use std::mem::MaybeUninit;
 use std::time::Duration;
 
-use glam::{Vec3, Vec3A};
+use glam::Vec3;
 use obvhs::{
     BvhBuildParams,
     cwbvh::{CwBvh, node::CwBvhNode},
-    ray::Ray,
     triangle::Triangle as ObvhsTriangle,
 };
 
@@ -51,6 +53,8 @@ pub struct SceneBvh {
     pub prims: Vec<[f32; 4]>,
     /// The same triangles as structure of arrays for the CPU's 8-wide leaf test.
     pub lanes: PrimLanes,
+    /// `cwbvh.nodes` as the CPU traverses them.
+    nodes: Vec<CpuNode>,
     /// The most entries a traversal's stack can hold: 7 per level below the root (the
     /// siblings of the child taken), plus one node's 8.
     stack_size: usize,
@@ -154,73 +158,144 @@ pub fn intersect_triangle_sided(
     }
 }
 
-/// The slab test of `node`'s eight child boxes against `ray`: bit c of the mask is set when
-/// child slot c's box is entered at or before `ray.tmax` (and its far side is not nearer than
-/// [`NODE_EPSILON`]), and entry c is that box's entry distance. The arithmetic of obvhs'
-/// `intersect_ray` and of `node_hits` in bvh.wgsl — the same products, sums, maxima and minima
-/// in the same order, so the same children are hit — here for all eight children in one pass
-/// of 8-wide AVX2 lanes (obvhs tests four at a time, two passes, building the lanes with scalar
-/// conversions); DESIGN.md §7. Empty slots may report a hit: their metadata says they hold
-/// nothing.
+/// A node as the CPU traverses it: one CWBVH node (the same tree, the same children) with its
+/// eight child boxes decoded to f32, so that the box test is a subtraction and a product per
+/// plane instead of a byte-to-float conversion, a product and a sum, and with each child's
+/// node index or leaf primitives ready (the CWBVH finds them from its metadata bytes). 256
+/// bytes, four cache lines, against the quantised node's 80: measured faster all the same
+/// (BENCHMARKS.md, the CPU twin's traversal). The decoded boxes are rounded outwards, so each
+/// contains the quantised box it comes from and with it everything below that child.
+#[repr(C, align(64))]
+#[derive(Clone, Copy, Debug)]
+pub struct CpuNode {
+    /// The child boxes, a lane per child slot: min x, max x, min y, max y, min z, max z. An
+    /// empty slot's box is empty (min +∞, max −∞): no ray enters it.
+    bounds: [[f32; 8]; 6],
+    /// Per child slot: an inner child's node index; a leaf's primitives as bits of offsets
+    /// from `prim_base` (its unary count shifted to its first primitive's offset); 0 for an
+    /// empty slot.
+    child: [u32; 8],
+    /// Bit c: slot c holds an inner node.
+    imask: u32,
+    /// The first primitive of the node's leaves.
+    prim_base: u32,
+}
+
+/// `x` rounded to an f32 no greater (`down`) or no smaller than it.
+fn f32_outward(x: f64, down: bool) -> f32 {
+    let f = x as f32;
+    match (down, f64::from(f).partial_cmp(&x)) {
+        (true, Some(std::cmp::Ordering::Greater)) => f.next_down(),
+        (false, Some(std::cmp::Ordering::Less)) => f.next_up(),
+        _ => f,
+    }
+}
+
+impl CpuNode {
+    /// `node` decoded: each child box `p + q · 2^e` per plane, computed exactly in f64 and
+    /// rounded outwards to f32.
+    fn decode(node: &CwBvhNode) -> Self {
+        let extent = node.compute_extent();
+        let mut out = Self {
+            bounds: [[0.0; 8]; 6],
+            child: [0; 8],
+            imask: u32::from(node.imask),
+            prim_base: node.primitive_base_idx,
+        };
+        for c in 0..8 {
+            let meta = u32::from(node.child_meta[c]);
+            let inner = node.imask & (1 << c) != 0;
+            if !inner && meta == 0 {
+                for axis in 0..3 {
+                    out.bounds[2 * axis][c] = f32::INFINITY;
+                    out.bounds[2 * axis + 1][c] = f32::NEG_INFINITY;
+                }
+                continue;
+            }
+            let planes = [
+                (node.child_min_x[c], node.child_max_x[c]),
+                (node.child_min_y[c], node.child_max_y[c]),
+                (node.child_min_z[c], node.child_max_z[c]),
+            ];
+            for (axis, (lo, hi)) in planes.into_iter().enumerate() {
+                let (p, e) = (f64::from(node.p[axis]), f64::from(extent[axis]));
+                out.bounds[2 * axis][c] = f32_outward(p + f64::from(lo) * e, true);
+                out.bounds[2 * axis + 1][c] = f32_outward(p + f64::from(hi) * e, false);
+            }
+            out.child[c] = if inner {
+                node.child_node_index(c)
+            } else {
+                (meta >> 5) << (meta & 0b11111)
+            };
+        }
+        out
+    }
+}
+
+/// What the box test needs of a ray, computed once per ray: obvhs' guarded reciprocal of the
+/// direction (the GPU's `safe_inverse`), the origin times it, and per axis which plane of a
+/// box the ray meets first (the near plane is the maximum for a negative direction).
+#[derive(Clone, Copy, Debug)]
+struct NodeRay {
+    inv: [f32; 3],
+    origin_inv: [f32; 3],
+    near: [usize; 3],
+    far: [usize; 3],
+}
+
+impl NodeRay {
+    #[inline(always)]
+    fn new(origin: Vec3, dir: Vec3) -> Self {
+        let inv = [
+            obvhs::ray::safe_inverse(dir.x),
+            obvhs::ray::safe_inverse(dir.y),
+            obvhs::ray::safe_inverse(dir.z),
+        ];
+        let negative = inv.map(|i| usize::from(i < 0.0));
+        Self {
+            inv,
+            origin_inv: [origin.x * inv[0], origin.y * inv[1], origin.z * inv[2]],
+            near: [negative[0], 2 + negative[1], 4 + negative[2]],
+            far: [1 - negative[0], 3 - negative[1], 5 - negative[2]],
+        }
+    }
+}
+
+/// The slab test of `node`'s eight child boxes: bit c of the mask is set when child slot c's
+/// box is entered (at `t = plane · inv − origin · inv` on each axis) at or before `tmax` and
+/// its far side is not nearer than [`NODE_EPSILON`] (the GPU's near-plane bound); entry c is
+/// that box's entry distance. All eight children in one pass of 8-wide AVX2 lanes; the same
+/// operations as [`node_hits_scalar`] lane by lane, so the same bits.
 #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
 #[inline(always)]
-fn child_entries(node: &CwBvhNode, ray: &Ray) -> (u32, [f32; 8]) {
+fn node_hits(node: &CpuNode, ray: &NodeRay, tmax: f32) -> (u32, [f32; 8]) {
     use std::arch::x86_64::{
-        _CMP_LE_OQ, _mm_loadl_epi64, _mm256_add_ps, _mm256_cmp_ps, _mm256_cvtepi32_ps,
-        _mm256_cvtepu8_epi32, _mm256_max_ps, _mm256_min_ps, _mm256_movemask_ps, _mm256_mul_ps,
-        _mm256_set1_ps, _mm256_storeu_ps,
+        _CMP_LE_OQ, _mm256_cmp_ps, _mm256_load_ps, _mm256_max_ps, _mm256_min_ps,
+        _mm256_movemask_ps, _mm256_mul_ps, _mm256_set1_ps, _mm256_storeu_ps, _mm256_sub_ps,
     };
-    let adj_dir_inv = node.compute_extent() * ray.inv_direction;
-    let adj_orig = (Vec3A::from(node.p) - ray.origin) * ray.inv_direction;
     let mut entry = [0f32; 8];
     // SAFETY: this is compiled only where AVX and AVX2 are enabled for the whole build
-    // (.cargo/config.toml; the `cfg` above), so every intrinsic here is available; the memory
-    // accesses are `_mm_loadl_epi64` of the 8 bytes of a `[u8; 8]` (unaligned loads are
-    // allowed) and one store of 8 lanes into the local `[f32; 8]`. Why it pays: see the doc
-    // comment and BENCHMARKS.md.
+    // (.cargo/config.toml; the `cfg` above), so every intrinsic here is available. The loads
+    // read one `[f32; 8]` row of `bounds` each (`CpuNode` is 64-byte aligned and its rows
+    // start at multiples of 32 bytes, as `_mm256_load_ps` needs; `near`/`far` index rows
+    // 0..6 by construction in `NodeRay::new`); the store writes the local `[f32; 8]`.
     let hit = unsafe {
-        // The eight children's quantised planes on one axis as f32 lanes.
-        let planes = |q: &[u8; 8]| {
-            let bytes = _mm_loadl_epi64(q.as_ptr().cast());
-            _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(bytes))
-        };
-        let slab = |lo: &[u8; 8], hi: &[u8; 8], negative: bool, scale: f32, offset: f32| {
-            let (near, far) = if negative { (hi, lo) } else { (lo, hi) };
-            let (s, o) = (_mm256_set1_ps(scale), _mm256_set1_ps(offset));
-            (
-                _mm256_add_ps(_mm256_mul_ps(planes(near), s), o),
-                _mm256_add_ps(_mm256_mul_ps(planes(far), s), o),
+        let t = |row: usize, axis: usize| {
+            _mm256_sub_ps(
+                _mm256_mul_ps(
+                    _mm256_load_ps(node.bounds[row].as_ptr()),
+                    _mm256_set1_ps(ray.inv[axis]),
+                ),
+                _mm256_set1_ps(ray.origin_inv[axis]),
             )
         };
-        let d = ray.direction;
-        let (x0, x1) = slab(
-            &node.child_min_x,
-            &node.child_max_x,
-            d.x < 0.0,
-            adj_dir_inv.x,
-            adj_orig.x,
-        );
-        let (y0, y1) = slab(
-            &node.child_min_y,
-            &node.child_max_y,
-            d.y < 0.0,
-            adj_dir_inv.y,
-            adj_orig.y,
-        );
-        let (z0, z1) = slab(
-            &node.child_min_z,
-            &node.child_max_z,
-            d.z < 0.0,
-            adj_dir_inv.z,
-            adj_orig.z,
-        );
         let t_near = _mm256_max_ps(
-            _mm256_max_ps(x0, _mm256_max_ps(y0, z0)),
-            _mm256_set1_ps(NODE_EPSILON),
+            _mm256_max_ps(t(ray.near[0], 0), t(ray.near[1], 1)),
+            _mm256_max_ps(t(ray.near[2], 2), _mm256_set1_ps(NODE_EPSILON)),
         );
         let t_far = _mm256_min_ps(
-            _mm256_min_ps(x1, _mm256_min_ps(y1, z1)),
-            _mm256_set1_ps(ray.tmax),
+            _mm256_min_ps(t(ray.far[0], 0), t(ray.far[1], 1)),
+            _mm256_min_ps(t(ray.far[2], 2), _mm256_set1_ps(tmax)),
         );
         _mm256_storeu_ps(entry.as_mut_ptr(), t_near);
         _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(t_near, t_far)) as u32
@@ -228,56 +303,33 @@ fn child_entries(node: &CwBvhNode, ray: &Ray) -> (u32, [f32; 8]) {
     (hit, entry)
 }
 
-/// Without AVX2: [`child_entries_scalar`].
+/// Without AVX2: [`node_hits_scalar`].
 #[cfg(not(all(target_arch = "x86_64", target_feature = "avx2")))]
 #[inline(always)]
-fn child_entries(node: &CwBvhNode, ray: &Ray) -> (u32, [f32; 8]) {
-    child_entries_scalar(node, ray)
+fn node_hits(node: &CpuNode, ray: &NodeRay, tmax: f32) -> (u32, [f32; 8]) {
+    node_hits_scalar(node, ray, tmax)
 }
 
-/// [`child_entries`] a child at a time (`maxps`/`minps` semantics: the second operand unless
-/// the first is greater / smaller): the build without AVX2, and the lanes' oracle.
+/// [`node_hits`] a child at a time (`maxps`/`minps` semantics: the second operand unless the
+/// first is greater / smaller): the build without AVX2, and the lanes' oracle.
 #[cfg_attr(all(target_arch = "x86_64", target_feature = "avx2"), allow(dead_code))]
 #[inline(always)]
-fn child_entries_scalar(node: &CwBvhNode, ray: &Ray) -> (u32, [f32; 8]) {
+fn node_hits_scalar(node: &CpuNode, ray: &NodeRay, tmax: f32) -> (u32, [f32; 8]) {
     let max = |a: f32, b: f32| if a > b { a } else { b };
     let min = |a: f32, b: f32| if a < b { a } else { b };
-    let adj_dir_inv = node.compute_extent() * ray.inv_direction;
-    let adj_orig = (Vec3A::from(node.p) - ray.origin) * ray.inv_direction;
-    let d = ray.direction;
-    let slab = |lo: u8, hi: u8, negative: bool, scale: f32, offset: f32| {
-        let (near, far) = if negative { (hi, lo) } else { (lo, hi) };
-        (
-            f32::from(near) * scale + offset,
-            f32::from(far) * scale + offset,
-        )
-    };
     let mut entry = [0f32; 8];
     let mut hit = 0;
     for (c, entry) in entry.iter_mut().enumerate() {
-        let (x0, x1) = slab(
-            node.child_min_x[c],
-            node.child_max_x[c],
-            d.x < 0.0,
-            adj_dir_inv.x,
-            adj_orig.x,
+        let t =
+            |row: usize, axis: usize| node.bounds[row][c] * ray.inv[axis] - ray.origin_inv[axis];
+        let t_near = max(
+            max(t(ray.near[0], 0), t(ray.near[1], 1)),
+            max(t(ray.near[2], 2), NODE_EPSILON),
         );
-        let (y0, y1) = slab(
-            node.child_min_y[c],
-            node.child_max_y[c],
-            d.y < 0.0,
-            adj_dir_inv.y,
-            adj_orig.y,
+        let t_far = min(
+            min(t(ray.far[0], 0), t(ray.far[1], 1)),
+            min(t(ray.far[2], 2), tmax),
         );
-        let (z0, z1) = slab(
-            node.child_min_z[c],
-            node.child_max_z[c],
-            d.z < 0.0,
-            adj_dir_inv.z,
-            adj_orig.z,
-        );
-        let t_near = max(max(x0, max(y0, z0)), NODE_EPSILON);
-        let t_far = min(min(x1, min(y1, z1)), ray.tmax);
         *entry = t_near;
         if t_near <= t_far {
             hit |= 1 << c;
@@ -287,18 +339,56 @@ fn child_entries_scalar(node: &CwBvhNode, ray: &Ray) -> (u32, [f32; 8]) {
 }
 
 /// The primitives of `node`'s leaf children in `leaves` (a mask of child slots), as bits of
-/// offsets from `node.primitive_base_idx`: each leaf's unary primitive count (metadata bits
-/// 5–7) shifted to its first primitive's offset (bits 0–4). An empty slot adds nothing.
+/// offsets from `node.prim_base`: the OR of those slots' `child` words.
+#[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
 #[inline(always)]
-fn leaf_primitive_bits(node: &CwBvhNode, mut leaves: u32) -> u32 {
-    let mut bits = 0;
-    while leaves != 0 {
-        let c = leaves.trailing_zeros() as usize;
-        leaves &= leaves - 1;
-        let meta = u32::from(node.child_meta[c]);
-        bits |= (meta >> 5) << (meta & 0b11111);
+fn leaf_bits(node: &CpuNode, leaves: u32) -> u32 {
+    use std::arch::x86_64::{
+        _mm_cvtsi128_si32, _mm_or_si128, _mm_shuffle_epi32, _mm256_and_si256,
+        _mm256_castsi256_si128, _mm256_cmpeq_epi32, _mm256_extracti128_si256, _mm256_loadu_si256,
+        _mm256_set1_epi32, _mm256_setr_epi32,
+    };
+    // SAFETY: AVX2 is enabled for the whole build (the `cfg`); the one load reads the eight
+    // `u32` of `node.child` (unaligned loads are allowed). Eight lanes at once: a loop over
+    // the set bits mispredicted its exit on most nodes (BENCHMARKS.md).
+    unsafe {
+        let slot = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+        let wanted = _mm256_cmpeq_epi32(
+            _mm256_and_si256(_mm256_set1_epi32(leaves as i32), slot),
+            slot,
+        );
+        let words = _mm256_and_si256(_mm256_loadu_si256(node.child.as_ptr().cast()), wanted);
+        let x = _mm_or_si128(
+            _mm256_castsi256_si128(words),
+            _mm256_extracti128_si256::<1>(words),
+        );
+        let x = _mm_or_si128(x, _mm_shuffle_epi32::<0b01_00_11_10>(x));
+        let x = _mm_or_si128(x, _mm_shuffle_epi32::<0b10_11_00_01>(x));
+        _mm_cvtsi128_si32(x) as u32
     }
-    bits
+}
+
+/// Without AVX2: the same OR a slot at a time.
+#[cfg(not(all(target_arch = "x86_64", target_feature = "avx2")))]
+#[inline(always)]
+fn leaf_bits(node: &CpuNode, leaves: u32) -> u32 {
+    (0..8)
+        .filter(|c| leaves & (1 << c) != 0)
+        .fold(0, |bits, c| bits | node.child[c])
+}
+
+/// The slots of `mask` whose entry distance is at most `tmax`.
+#[inline(always)]
+fn entered_by(mut mask: u32, entry: &[f32; 8], tmax: f32) -> u32 {
+    let mut out = mask;
+    while mask != 0 {
+        let c = mask.trailing_zeros();
+        mask &= mask - 1;
+        if !(entry[c as usize] <= tmax) {
+            out &= !(1 << c);
+        }
+    }
+    out
 }
 
 /// A traversal stack entry: a node's entry distance (a positive f32, so its bits order as the
@@ -308,27 +398,34 @@ fn stack_entry(t_near: f32, node: u32) -> u64 {
     (u64::from(t_near.to_bits()) << 32) | u64::from(node)
 }
 
-thread_local! {
-    /// Each thread's traversal stack, kept between rays (taken while a ray uses it), so that
-    /// no ray zeroes or allocates one.
-    static STACK: std::cell::Cell<Vec<u64>> = const { std::cell::Cell::new(Vec::new()) };
+/// The entries a traversal stack holds on a thread's own stack; deeper trees (more than 17
+/// levels) allocate theirs.
+const INLINE_STACK: usize = 128;
+
+/// `f` with a traversal stack of at least `size` entries, uninitialised: the traversals write
+/// an entry before they read it.
+#[inline(always)]
+fn with_stack<R>(size: usize, f: impl FnOnce(&mut [MaybeUninit<u64>]) -> R) -> R {
+    if size <= INLINE_STACK {
+        f(&mut [MaybeUninit::uninit(); INLINE_STACK])
+    } else {
+        f(&mut vec![MaybeUninit::uninit(); size])
+    }
 }
 
-/// `f` with this thread's traversal stack, at least `size` entries (their values are left
-/// from earlier rays: the traversal writes an entry before it reads it).
+/// `entries` as the values they hold.
+///
+/// # Safety
+/// Every entry must have been written.
 #[inline(always)]
-fn with_stack<R>(size: usize, f: impl FnOnce(&mut [u64]) -> R) -> R {
-    let mut stack = STACK.take();
-    if stack.len() < size {
-        stack.resize(size, 0);
-    }
-    let r = f(&mut stack);
-    STACK.set(stack);
-    r
+unsafe fn written(entries: &mut [MaybeUninit<u64>]) -> &mut [u64] {
+    // SAFETY: `MaybeUninit<u64>` has the layout of `u64`, and the caller promises that each
+    // entry is initialised.
+    unsafe { &mut *(std::ptr::from_mut(entries) as *mut [u64]) }
 }
 
 /// Sorts `entries` by distance, the farthest first (so the nearest is popped first): an
-/// insertion sort, for the one to eight children a node adds.
+/// insertion sort, for the three to eight children a node adds.
 #[inline(always)]
 fn sort_farthest_first(entries: &mut [u64]) {
     for i in 1..entries.len() {
@@ -341,7 +438,6 @@ fn sort_farthest_first(entries: &mut [u64]) {
         entries[j] = e;
     }
 }
-
 /// The depth of the BVH below `root` (0 for a node whose children are all leaves).
 fn depth(nodes: &[CwBvhNode], root: usize) -> usize {
     let node = &nodes[root];
@@ -531,6 +627,7 @@ impl SceneBvh {
                 cwbvh: CwBvh::default(),
                 prims: Vec::new(),
                 lanes: PrimLanes::default(),
+                nodes: Vec::new(),
                 stack_size: 0,
             };
         }
@@ -558,10 +655,12 @@ impl SceneBvh {
         }
         let lanes = PrimLanes::new(&prims);
         let stack_size = 7 * depth(&cwbvh.nodes, 0) + 8;
+        let nodes = cwbvh.nodes.iter().map(CpuNode::decode).collect();
         Self {
             cwbvh,
             prims,
             lanes,
+            nodes,
             stack_size,
         }
     }
@@ -593,12 +692,6 @@ impl SceneBvh {
         self.prims[3 * i as usize + 1][3]
     }
 
-    fn ray(origin: Vec3, dir: Vec3, tmax: f32) -> Ray {
-        // obvhs' node test uses a reciprocal with a guard for tiny components; our twin in
-        // WGSL computes the same `safe_inverse`.
-        Ray::new(Vec3A::from(origin), Vec3A::from(dir), 0.0, tmax)
-    }
-
     /// The closest hit along `origin + t·dir`, `0 < t < tmax`.
     #[must_use]
     pub fn closest_hit(&self, origin: Vec3, dir: Vec3, tmax: f32) -> Option<TraceHit> {
@@ -608,12 +701,14 @@ impl SceneBvh {
     /// [`Self::closest_hit`] where a hit on an alpha-tested primitive ([`PRIM_ALPHA`]) counts
     /// only if `covered(triangle, u, v)` (the CPU twin of `alpha_covered` in path.wgsl).
     ///
-    /// The traversal visits a node's children nearest entry first and skips a node whose box
-    /// is entered beyond the closest hit found so far (the GPU's kernel keeps obvhs' order by
-    /// ray octant, which suits a GPU's lock-step lanes; on a CPU the culling pays, BENCHMARKS.md).
-    /// The hit is the same — the nearest one, with the same box and triangle arithmetic — except
-    /// where two triangles are hit at exactly the same distance (a shared edge), which either
-    /// may win.
+    /// The tree is the GPU's; the traversal is the CPU's own ([`CpuNode`]): a node's leaf
+    /// triangles first, then its inner children nearest entry first — one child is entered
+    /// directly and of two the farther is pushed, without a sort — and a node entered beyond
+    /// the closest hit so far is skipped (the GPU's kernel keeps obvhs' order by ray octant,
+    /// which suits a GPU's lock-step lanes). The hit is the same — the nearest one, with the
+    /// same triangle arithmetic, in boxes that contain the GPU's — except where two triangles
+    /// are hit at exactly the same distance (a shared edge), which either may win, and where
+    /// the two box tests round differently for a ray that grazes a box's face.
     #[must_use]
     pub fn closest_hit_filtered(
         &self,
@@ -622,65 +717,78 @@ impl SceneBvh {
         tmax: f32,
         covered: impl Fn(u32, f32, f32) -> bool,
     ) -> Option<TraceHit> {
-        let nodes = &self.cwbvh.nodes;
-        if nodes.is_empty() {
+        if self.nodes.is_empty() {
             return None;
         }
-        let mut ray = Self::ray(origin, dir, tmax);
-        let mut best: Option<TraceHit> = None;
+        let ray = NodeRay::new(origin, dir);
+        let mut tmax = tmax;
+        let mut best: Option<(f32, f32, f32, u32)> = None;
         with_stack(self.stack_size, |stack| {
             let (mut index, mut len) = (0, 0);
             loop {
-                let node: &CwBvhNode = &nodes[index];
-                let (hit, entry) = child_entries(node, &ray);
-                let imask = u32::from(node.imask);
-                // A node's leaf triangles at once, then its inner children by distance.
-                let bits = leaf_primitive_bits(node, hit & !imask);
-                if bits != 0
-                    && let Some((t, u, v, i)) = self.leaf_closest(
-                        node.primitive_base_idx,
-                        bits,
-                        origin,
-                        dir,
-                        ray.tmax,
-                        &covered,
-                    )
-                {
-                    ray.tmax = t;
-                    best = Some(TraceHit {
-                        t,
-                        u,
-                        v,
-                        triangle: self.prim_triangle(i),
-                        prim: i,
-                    });
-                }
-                let first = len;
-                let mut inner = hit & imask;
-                while inner != 0 {
-                    let c = inner.trailing_zeros() as usize;
-                    inner &= inner - 1;
-                    if entry[c] <= ray.tmax {
-                        stack[len] = stack_entry(entry[c], node.child_node_index(c));
-                        len += 1;
+                let node = &self.nodes[index];
+                let (hit, entry) = node_hits(node, &ray, tmax);
+                let leaves = hit & !node.imask;
+                let mut inner = hit & node.imask;
+                if leaves != 0 {
+                    let bits = leaf_bits(node, leaves);
+                    if bits != 0
+                        && let Some(h) =
+                            self.leaf_closest(node.prim_base, bits, origin, dir, tmax, &covered)
+                    {
+                        tmax = h.0;
+                        best = Some(h);
+                        inner = entered_by(inner, &entry, tmax);
                     }
                 }
-                // The nearest on top.
-                sort_farthest_first(&mut stack[first..len]);
+                match inner.count_ones() {
+                    0 => {}
+                    1 => {
+                        index = node.child[inner.trailing_zeros() as usize] as usize;
+                        continue;
+                    }
+                    2 => {
+                        let a = inner.trailing_zeros() as usize;
+                        let b = (inner & (inner - 1)).trailing_zeros() as usize;
+                        let (near, far) = if entry[b] < entry[a] { (b, a) } else { (a, b) };
+                        stack[len].write(stack_entry(entry[far], node.child[far]));
+                        len += 1;
+                        index = node.child[near] as usize;
+                        continue;
+                    }
+                    _ => {
+                        let first = len;
+                        while inner != 0 {
+                            let c = inner.trailing_zeros() as usize;
+                            inner &= inner - 1;
+                            stack[len].write(stack_entry(entry[c], node.child[c]));
+                            len += 1;
+                        }
+                        // The nearest on top. SAFETY: entries first..len were written just above.
+                        sort_farthest_first(unsafe { written(&mut stack[first..len]) });
+                    }
+                }
                 loop {
                     if len == 0 {
                         return;
                     }
                     len -= 1;
-                    let e = stack[len];
-                    if f32::from_bits((e >> 32) as u32) <= ray.tmax {
+                    // SAFETY: every entry below `len` was written by a push.
+                    let e = unsafe { stack[len].assume_init() };
+                    if f32::from_bits((e >> 32) as u32) <= tmax {
                         index = e as u32 as usize;
                         break;
                     }
                 }
             }
         });
-        best
+        best.map(|(t, u, v, i)| TraceHit {
+            t,
+            u,
+            v,
+            triangle: self.prim_triangle(i),
+            prim: i,
+        })
     }
 
     /// Whether anything blocks `origin + t·dir` for `0 < t < tmax` (shadow rays).
@@ -690,7 +798,8 @@ impl SceneBvh {
     }
 
     /// [`Self::occluded`] with the coverage test of [`Self::closest_hit_filtered`]. Any hit
-    /// ends the search, so the children are not ordered.
+    /// ends the search, so the children are not ordered: the first is entered directly, the
+    /// others pushed.
     #[must_use]
     pub fn occluded_filtered(
         &self,
@@ -699,35 +808,41 @@ impl SceneBvh {
         tmax: f32,
         covered: impl Fn(u32, f32, f32) -> bool,
     ) -> bool {
-        let nodes = &self.cwbvh.nodes;
-        if nodes.is_empty() {
+        if self.nodes.is_empty() {
             return false;
         }
-        let ray = Self::ray(origin, dir, tmax);
+        let ray = NodeRay::new(origin, dir);
         with_stack(self.stack_size, |stack| {
             let (mut index, mut len) = (0, 0);
             loop {
-                let node: &CwBvhNode = &nodes[index];
-                let (hit, _) = child_entries(node, &ray);
-                let imask = u32::from(node.imask);
-                let bits = leaf_primitive_bits(node, hit & !imask);
-                if bits != 0
-                    && self.leaf_any(node.primitive_base_idx, bits, origin, dir, tmax, &covered)
-                {
-                    return true;
+                let node = &self.nodes[index];
+                let (hit, _) = node_hits(node, &ray, tmax);
+                let leaves = hit & !node.imask;
+                if leaves != 0 {
+                    let bits = leaf_bits(node, leaves);
+                    if bits != 0 && self.leaf_any(node.prim_base, bits, origin, dir, tmax, &covered)
+                    {
+                        return true;
+                    }
                 }
-                let mut inner = hit & imask;
-                while inner != 0 {
-                    let c = inner.trailing_zeros() as usize;
+                let mut inner = hit & node.imask;
+                if inner != 0 {
+                    index = node.child[inner.trailing_zeros() as usize] as usize;
                     inner &= inner - 1;
-                    stack[len] = u64::from(node.child_node_index(c));
-                    len += 1;
+                    while inner != 0 {
+                        let c = inner.trailing_zeros() as usize;
+                        inner &= inner - 1;
+                        stack[len].write(u64::from(node.child[c]));
+                        len += 1;
+                    }
+                    continue;
                 }
                 if len == 0 {
                     return false;
                 }
                 len -= 1;
-                index = stack[len] as usize;
+                // SAFETY: every entry below `len` was written by a push.
+                index = unsafe { stack[len].assume_init() } as usize;
             }
         })
     }
@@ -879,7 +994,7 @@ mod tests {
     /// on every node of a real BVH and rays from everywhere (inside boxes, grazing, axis
     /// parallel, short).
     #[test]
-    fn child_entries_lanes_equal_the_scalar_test() {
+    fn node_hits_lanes_equal_the_scalar_test() {
         let tris = random_triangles(2000, 7);
         let bvh = SceneBvh::build(&tris, &vec![0.0; tris.len()]);
         let mut r = uniforms(5);
@@ -891,15 +1006,66 @@ mod tests {
                 d.y = 0.0; // parallel to a slab: the guarded inverse
             }
             let tmax = if i % 3 == 0 { r() * 4.0 } else { f32::INFINITY };
-            let ray = SceneBvh::ray(o, d, tmax);
-            for node in &bvh.cwbvh.nodes {
-                let (lanes, scalar) = (child_entries(node, &ray), child_entries_scalar(node, &ray));
+            let ray = NodeRay::new(o, d);
+            for node in &bvh.nodes {
+                let (lanes, scalar) = (
+                    node_hits(node, &ray, tmax),
+                    node_hits_scalar(node, &ray, tmax),
+                );
                 assert_eq!(lanes.0, scalar.0, "hit masks, ray {o} {d}");
                 assert_eq!(lanes.1.map(f32::to_bits), scalar.1.map(f32::to_bits));
                 hits += lanes.0.count_ones();
             }
         }
         assert!(hits > 10_000, "the rays must enter boxes ({hits})");
+    }
+
+    /// Every decoded child box contains its quantised box exactly (compared in f64), which
+    /// contains what is below it (obvhs' quantisation rounds outwards; with spatial splits a
+    /// leaf's box bounds only its part of a triangle, so the triangles themselves are not the
+    /// test); an empty slot is entered by no ray; and each slot's word is the CWBVH's child
+    /// index or leaf primitives.
+    #[test]
+    fn decoded_nodes_contain_the_quantised_boxes() {
+        let tris = random_triangles(3000, 11);
+        let bvh = SceneBvh::build(&tris, &vec![0.0; tris.len()]);
+        let (mut slots, mut leaf_prims) = (0, 0);
+        for (index, (q, node)) in bvh.cwbvh.nodes.iter().zip(&bvh.nodes).enumerate() {
+            assert_eq!(node.imask, u32::from(q.imask));
+            assert_eq!(node.prim_base, q.primitive_base_idx);
+            let extent = q.compute_extent();
+            for c in 0..8 {
+                let inner = q.imask & (1 << c) != 0;
+                if !inner && q.child_meta[c] == 0 {
+                    let ray = NodeRay::new(Vec3::ZERO, Vec3::ONE.normalize());
+                    assert_eq!(node_hits(node, &ray, f32::INFINITY).0 & (1 << c), 0);
+                    assert_eq!(node.child[c], 0, "empty slot {c} of node {index}");
+                    continue;
+                }
+                let quantised = [
+                    (q.child_min_x[c], q.child_max_x[c]),
+                    (q.child_min_y[c], q.child_max_y[c]),
+                    (q.child_min_z[c], q.child_max_z[c]),
+                ];
+                for (axis, (lo, hi)) in quantised.into_iter().enumerate() {
+                    let (p, e) = (f64::from(q.p[axis]), f64::from(extent[axis]));
+                    assert!(f64::from(node.bounds[2 * axis][c]) <= p + f64::from(lo) * e);
+                    assert!(f64::from(node.bounds[2 * axis + 1][c]) >= p + f64::from(hi) * e);
+                }
+                if inner {
+                    assert_eq!(node.child[c], q.child_node_index(c));
+                } else {
+                    let meta = u32::from(q.child_meta[c]);
+                    assert_eq!(node.child[c], (meta >> 5) << (meta & 31));
+                    leaf_prims += node.child[c].count_ones();
+                }
+                slots += 1;
+            }
+        }
+        assert!(
+            slots > 100 && leaf_prims as usize >= tris.len(),
+            "{slots} slots, {leaf_prims} leaf primitives"
+        );
     }
 
     /// A deep BVH (triangles whose sizes and places grow geometrically, so the tree cannot
