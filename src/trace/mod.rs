@@ -4,6 +4,7 @@ pub mod accum;
 pub mod bvh;
 pub mod camera;
 pub mod gpu;
+pub mod lanes;
 pub mod pack;
 pub mod path;
 pub mod shading;

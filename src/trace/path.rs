@@ -14,6 +14,11 @@
 //! pixel's sample count before this sample (so a pixel's sequence does not depend on which
 //! other pixels were sampled), dimension 0 is the pixel jitter and dimensions 1 + 2·depth and
 //! 2 + 2·depth serve the path vertex at `depth`.
+//!
+//! [`render_cpu_with`] and [`samples_cpu`] trace their pixels in batches of paths (`batch.rs`):
+//! the paths of a batch advance a vertex at a time and are shaded eight at once in AVX2 lanes
+//! ([`crate::trace::lanes`]), the same function as `trace_path` path by path to the bit; scenes
+//! that are not [`PackedScene::plain`] take `trace_path` one path at a time.
 
 use std::f32::consts::PI;
 use std::sync::LazyLock;
@@ -34,6 +39,8 @@ use super::shading::{
 };
 use super::wall::WallCamera;
 use crate::random::{pcg4d, stream, unit_f32};
+
+mod batch;
 
 /// What one iteration of the integrator needs besides the scene.
 #[derive(Clone, Copy, Debug)]
@@ -399,11 +406,28 @@ pub fn samples_cpu(
     counts: &[u32],
 ) -> Vec<(Vec3, u32)> {
     assert_eq!(pixels.len(), counts.len(), "a sample index for each pixel");
-    pixels
-        .par_iter()
-        .zip(counts)
-        .map(|(&p, &n)| trace_counted_with(sc, s, wall, p, n).unwrap_or((Vec3::ZERO, 0)))
+    traced(sc, s, wall, pixels, counts)
+        .into_iter()
+        .map(|r| r.unwrap_or((Vec3::ZERO, 0)))
         .collect()
+}
+
+/// [`trace_counted_with`] for each of `pixels` with sample index `counts[i]`, on all cores in
+/// batches of paths (`batch.rs`), in list order.
+fn traced(
+    sc: &PackedScene,
+    s: &TraceSettings,
+    wall: Option<&WallCamera>,
+    pixels: &[u32],
+    counts: &[u32],
+) -> Vec<Option<(Vec3, u32)>> {
+    /// Pixels per task: several batches, so that a task's start costs little.
+    const TASK: usize = 4 * batch::BATCH;
+    let mut out = vec![None; pixels.len()];
+    out.par_chunks_mut(TASK)
+        .zip(pixels.par_chunks(TASK).zip(counts.par_chunks(TASK)))
+        .for_each(|(out, (pixels, counts))| batch::trace_batch(sc, s, wall, pixels, counts, out));
+    out
 }
 
 /// [`trace_path`] in the instantiation the scene needs: the plain one where
@@ -714,10 +738,12 @@ pub fn render_cpu_with(
                 .zip(accum.count.par_chunks_mut(w))
                 .enumerate()
                 .map(|(y, (sums, counts))| {
+                    let pixels: Vec<u32> = (0..w).map(|x| (y * w + x) as u32).collect();
+                    let mut out = vec![None; w];
+                    batch::trace_batch(sc, s, wall, &pixels, counts, &mut out);
                     let mut rays = 0u64;
-                    for x in 0..w {
-                        let pixel = (y * w + x) as u32;
-                        if let Some((rgb, r)) = trace_counted_with(sc, s, wall, pixel, counts[x]) {
+                    for (x, out) in out.into_iter().enumerate() {
+                        if let Some((rgb, r)) = out {
                             accumulate(&mut sums[x], &mut counts[x], rgb);
                             rays += u64::from(r);
                         }
@@ -727,10 +753,8 @@ pub fn render_cpu_with(
                 .sum()
         }
         Some(list) => {
-            let samples: Vec<Option<(Vec3, u32)>> = list
-                .par_iter()
-                .map(|&p| trace_counted_with(sc, s, wall, p, accum.count[p as usize]))
-                .collect();
+            let counts: Vec<u32> = list.iter().map(|&p| accum.count[p as usize]).collect();
+            let samples = traced(sc, s, wall, list, &counts);
             let mut rays = 0u64;
             for (&p, (rgb, r)) in list.iter().zip(samples).filter_map(|(p, s)| Some((p, s?))) {
                 let i = p as usize;

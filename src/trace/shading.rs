@@ -64,13 +64,40 @@ pub fn offset_ray(p: Vec3, n: Vec3) -> Vec3 {
 /// sRGB-encoded channel to linear: the scene's decoding (`shading.wgsl` has its WGSL twin).
 pub use crate::scene::srgb_to_linear;
 
+/// The coefficients of [`sin_cos_turns`]' polynomials on [−π/4, π/4] (Cephes' `sinf` and
+/// `cosf`: within about one unit in the last place there).
+pub(crate) const SIN_POLY: [f32; 3] = [-1.666_665_5e-1, 8.332_161e-3, -1.951_529_6e-4];
+pub(crate) const COS_POLY: [f32; 3] = [4.166_664_6e-2, -1.388_731_6e-3, 2.443_315_7e-5];
+
+/// (sin 2πv, cos 2πv) for a number of turns `v` in [0, 1) (a uniform random number): the
+/// nearest quarter turn is taken off exactly (v and the quarter are multiples of 2⁻²⁴ within
+/// 1/8 of each other), the rest is one rounding away from its angle in [−π/4, π/4], where two
+/// short polynomials give the sine and cosine, swapped and negated for the quarter. The CPU
+/// twin's samplers use it instead of libm's `sinf`/`cosf` so that their eight-path lanes
+/// ([`crate::trace::lanes::sin_cos_turns`]) compute the very same bits with the same
+/// operations; the WGSL keeps the GPU's `sin`/`cos` (its own rounding either way).
+#[inline]
+#[must_use]
+pub fn sin_cos_turns(v: f32) -> (f32, f32) {
+    let q = (v * 4.0 + 0.5).floor();
+    let x = (v - q * 0.25) * (2.0 * PI);
+    let z = x * x;
+    let s = x + x * z * (SIN_POLY[0] + z * (SIN_POLY[1] + z * SIN_POLY[2]));
+    let c = 1.0 - 0.5 * z + z * z * (COS_POLY[0] + z * (COS_POLY[1] + z * COS_POLY[2]));
+    let quarter = (q as i32) & 3;
+    let (s, c) = if quarter & 1 != 0 { (c, s) } else { (s, c) };
+    let sin = if quarter & 2 != 0 { -s } else { s };
+    let cos = if quarter == 1 || quarter == 2 { -c } else { c };
+    (sin, cos)
+}
+
 /// Cosine-weighted direction in the local frame (z up) from two uniform numbers.
 #[inline]
 #[must_use]
 pub fn cosine_hemisphere(u: f32, v: f32) -> Vec3 {
     let r = u.sqrt();
-    let phi = 2.0 * PI * v;
-    Vec3::new(r * phi.cos(), r * phi.sin(), (1.0 - u).max(0.0).sqrt())
+    let (sin, cos) = sin_cos_turns(v);
+    Vec3::new(r * cos, r * sin, (1.0 - u).max(0.0).sqrt())
 }
 
 /// Uniform direction on the sphere.
@@ -79,8 +106,8 @@ pub fn cosine_hemisphere(u: f32, v: f32) -> Vec3 {
 pub fn uniform_sphere(u: f32, v: f32) -> Vec3 {
     let z = 1.0 - 2.0 * u;
     let r = (1.0 - z * z).max(0.0).sqrt();
-    let phi = 2.0 * PI * v;
-    Vec3::new(r * phi.cos(), r * phi.sin(), z)
+    let (sin, cos) = sin_cos_turns(v);
+    Vec3::new(r * cos, r * sin, z)
 }
 
 /// Equirectangular direction → (u, v) in the unit square (see `scene::EnvironmentMap`).
@@ -227,8 +254,8 @@ impl Bsdf {
             let a2 = self.alpha * self.alpha;
             let cos_h = ((1.0 - u) / (1.0 + (a2 - 1.0) * u)).max(0.0).sqrt();
             let sin_h = (1.0 - cos_h * cos_h).max(0.0).sqrt();
-            let phi = 2.0 * PI * v;
-            let h = t * (sin_h * phi.cos()) + b * (sin_h * phi.sin()) + n * cos_h;
+            let (sin, cos) = sin_cos_turns(v);
+            let h = t * (sin_h * cos) + b * (sin_h * sin) + n * cos_h;
             2.0 * wo.dot(h) * h - wo
         } else {
             let l = cosine_hemisphere(u, v);
@@ -263,8 +290,8 @@ fn ggx_half(t: Vec3, b: Vec3, n: Vec3, alpha: f32, u: f32, v: f32) -> Vec3 {
     let a2 = alpha * alpha;
     let cos_h = ((1.0 - u) / (1.0 + (a2 - 1.0) * u)).max(0.0).sqrt();
     let sin_h = (1.0 - cos_h * cos_h).max(0.0).sqrt();
-    let phi = 2.0 * PI * v;
-    t * (sin_h * phi.cos()) + b * (sin_h * phi.sin()) + n * cos_h
+    let (sin, cos) = sin_cos_turns(v);
+    t * (sin_h * cos) + b * (sin_h * sin) + n * cos_h
 }
 
 #[inline]
@@ -436,6 +463,43 @@ mod tests {
         assert!(direction_to_equirect(Vec3::Y).1 < 1e-6);
         let (u, v) = direction_to_equirect(Vec3::NEG_Z);
         assert!((u - 0.5).abs() < 1e-6 && (v - 0.5).abs() < 1e-6);
+    }
+
+    /// The turns' sine and cosine against f64's, over every quarter and its edges: within
+    /// 2e-7 absolute (the rounding of a value of magnitude ≤ 1), and sin² + cos² = 1.
+    #[test]
+    fn sin_cos_turns_is_accurate() {
+        let mut worst = 0f64;
+        let edges = [
+            0.0,
+            0.125,
+            0.25,
+            0.375,
+            0.5,
+            0.625,
+            0.75,
+            0.875,
+            1.0 - 2f32.powi(-24),
+        ];
+        let samples = (0..200_000u32)
+            .map(|i| crate::random::unit_f32(crate::random::pcg4d([i, 1, 2, 3])[0]))
+            .chain(
+                edges
+                    .iter()
+                    .flat_map(|&e: &f32| [e, e.next_up(), e.next_down().max(0.0)]),
+            );
+        for v in samples {
+            let (s, c) = sin_cos_turns(v);
+            let a = 2.0 * std::f64::consts::PI * f64::from(v);
+            worst = worst
+                .max((f64::from(s) - a.sin()).abs())
+                .max((f64::from(c) - a.cos()).abs());
+            assert!(
+                (f64::from(s).hypot(f64::from(c)) - 1.0).abs() < 3e-7,
+                "v {v}"
+            );
+        }
+        assert!(worst < 2e-7, "worst error {worst}");
     }
 
     #[test]

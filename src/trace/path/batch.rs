@@ -1,0 +1,425 @@
+//! The integrator on batches of paths: a wavefront of up to [`BATCH`] paths advanced one vertex
+//! at a time, each vertex's shading done for eight paths at once in AVX2 lanes
+//! ([`crate::trace::lanes`]) — the same function as [`trace_path`]'s plain instantiation, path by
+//! path to the bit (tests below), only faster (BENCHMARKS.md, the CPU twin against Mitsuba).
+//!
+//! A vertex of the batch: every live path's ray is traced (one closest hit at a time, the BVH's
+//! traversal); the paths that leave the scene take the environment, one at a time as
+//! `trace_path` does; the others are shaded in groups of eight: geometry, emission with its MIS
+//! weight, the BSDF, next-event estimation (the shadow rays traced one at a time), the BSDF
+//! sample and Russian roulette. What reads per-triangle or per-texel data — emission and base
+//! colour with their textures, the environment map, the light's pick — is `trace_path`'s own
+//! code, called per lane. Scenes that are not [`PackedScene::plain`] take `trace_path` per path.
+
+use wide::{f32x8, u32x8};
+
+use super::*;
+use crate::trace::bvh::TraceHit;
+use crate::trace::lanes::{self, V3};
+
+/// The paths advanced together: enough that a vertex's survivors still fill groups of eight
+/// after Russian roulette has thinned them, few enough that their state stays in the cache.
+pub(super) const BATCH: usize = 64;
+
+/// One path's state between vertices.
+#[derive(Clone, Copy)]
+struct Path {
+    pixel: u32,
+    sample: u32,
+    o: Vec3,
+    d: Vec3,
+    throughput: Vec3,
+    radiance: Vec3,
+    prev_pdf: f32,
+    rays: u32,
+}
+
+/// Traces sample `samples[i]` of pixel `pixels[i]` for every `i`, through `wall`'s primary rays
+/// when given, and writes its (radiance, rays) into `out[i]`: `None` for a pixel the wall
+/// camera's display does not show. The same results as [`trace_counted_with`] per pixel.
+pub(super) fn trace_batch(
+    sc: &PackedScene,
+    s: &TraceSettings,
+    wall: Option<&WallCamera>,
+    pixels: &[u32],
+    samples: &[u32],
+    out: &mut [Option<(Vec3, u32)>],
+) {
+    assert!(pixels.len() == samples.len() && pixels.len() == out.len());
+    if !sc.plain {
+        for ((&p, &n), out) in pixels.iter().zip(samples).zip(out.iter_mut()) {
+            *out = trace_counted_with(sc, s, wall, p, n);
+        }
+        return;
+    }
+    for ((pixels, samples), out) in pixels
+        .chunks(BATCH)
+        .zip(samples.chunks(BATCH))
+        .zip(out.chunks_mut(BATCH))
+    {
+        let mut paths = [Path {
+            pixel: 0,
+            sample: 0,
+            o: Vec3::ZERO,
+            d: Vec3::ZERO,
+            throughput: Vec3::ONE,
+            radiance: Vec3::ZERO,
+            prev_pdf: 0.0,
+            rays: 0,
+        }; BATCH];
+        let mut live = [0u8; BATCH];
+        let mut n_live = 0;
+        for (k, (&pixel, &sample)) in pixels.iter().zip(samples).enumerate() {
+            out[k] = None;
+            let (x, y) = (pixel % s.width, pixel / s.width);
+            let r0 = rand4(pixel, sample, s.seed, 0);
+            let ray = match wall {
+                None => Some(
+                    s.camera
+                        .ray(x as f32 + r0[0], y as f32 + r0[1], s.width, s.height),
+                ),
+                Some(wall) => wall
+                    .tile_of(x, y)
+                    .map(|tile| wall.ray(tile, x, y, r0[0], r0[1])),
+            };
+            if let Some((o, d)) = ray {
+                paths[k] = Path {
+                    pixel,
+                    sample,
+                    o,
+                    d,
+                    ..paths[k]
+                };
+                out[k] = Some((Vec3::ZERO, 0));
+                live[n_live] = k as u8;
+                n_live += 1;
+            }
+        }
+        let mut hits = [None; BATCH];
+        for depth in 0..s.max_depth {
+            if n_live == 0 {
+                break;
+            }
+            // Trace, and let the paths that leave the scene take the environment.
+            let mut shade = [0u8; BATCH];
+            let mut n_shade = 0;
+            for &k in &live[..n_live] {
+                let path = &mut paths[k as usize];
+                path.rays += 1;
+                match sc.bvh.closest_hit(path.o, path.d, f32::INFINITY) {
+                    None => {
+                        let (le, pdf_env) = env_eval(sc, path.d);
+                        let w = if path.prev_pdf == 0.0 {
+                            1.0
+                        } else {
+                            mis(path.prev_pdf, sc.env_select * pdf_env)
+                        };
+                        path.radiance += path.throughput * le * w;
+                    }
+                    Some(hit) => {
+                        hits[k as usize] = Some(hit);
+                        shade[n_shade] = k;
+                        n_shade += 1;
+                    }
+                }
+            }
+            n_live = 0;
+            for group in shade[..n_shade].chunks(8) {
+                shade8(
+                    sc,
+                    s,
+                    depth,
+                    group,
+                    &hits,
+                    &mut paths,
+                    &mut live,
+                    &mut n_live,
+                );
+            }
+        }
+        for (k, out) in out.iter_mut().enumerate() {
+            if let Some(out) = out {
+                let p = &paths[k];
+                let radiance = if p.radiance.is_finite() {
+                    p.radiance
+                } else {
+                    Vec3::ZERO
+                };
+                *out = (radiance, p.rays);
+            }
+        }
+    }
+}
+
+/// A lane's value of `f`, for the eight lanes of `group` (the last repeated in lanes past its
+/// end: they compute along and are never written back).
+#[inline(always)]
+fn gather<T>(group: &[u8], mut f: impl FnMut(usize) -> T) -> [T; 8] {
+    std::array::from_fn(|i| f(group[i.min(group.len() - 1)] as usize))
+}
+
+/// `f32x8` of a lane's scalar.
+#[inline(always)]
+fn f8(v: [f32; 8]) -> f32x8 {
+    f32x8::from(v)
+}
+
+/// One vertex of the paths in `group` (one to eight, each with its hit in `hits`): the body of
+/// `trace_path`'s loop after the trace, in lanes. The survivors are appended to `live`.
+#[allow(clippy::too_many_arguments)]
+#[inline(never)]
+fn shade8(
+    sc: &PackedScene,
+    s: &TraceSettings,
+    depth: u32,
+    group: &[u8],
+    hits: &[Option<TraceHit>; BATCH],
+    paths: &mut [Path; BATCH],
+    live: &mut [u8; BATCH],
+    n_live: &mut usize,
+) {
+    let bvh = &sc.bvh;
+    let tri_select = 1.0 - sc.env_select - sc.punct_select;
+    let hit = gather(group, |k| hits[k].expect("a shaded path has a hit"));
+    let path = gather(group, |k| paths[k]);
+    let prim = |j: usize| V3::from_lanes(&hit.map(|h| v3(bvh.prims[3 * h.prim as usize + j])));
+    let (v0, e1, e2) = (prim(0), prim(1), prim(2));
+    let light_density = f8(hit.map(|h| bvh.prims[3 * h.prim as usize + 1][3]));
+    let (t, u, v) = (
+        f8(hit.map(|h| h.t)),
+        f8(hit.map(|h| h.u)),
+        f8(hit.map(|h| h.v)),
+    );
+    let mut ng = e1.cross(e2).normalize();
+    let p = v0 + e1 * u + e2 * v;
+    let shade = |j: usize| V3::from_lanes(&hit.map(|h| v3(sc.shade[4 * h.triangle as usize + j])));
+    let b0 = f32x8::ONE - u - v;
+    let mut ns = (shade(0) * b0 + shade(1) * u + shade(2) * v).normalize();
+    ns = V3::select(ns.is_finite(), ns, ng);
+    let mb = hit.map(|h| material_base(sc, h.triangle));
+    let flags: [u32; 8] = std::array::from_fn(|i| sc.materials[mb[i] + 1][3] as u32);
+    let sp: [SurfacePoint; 8] = std::array::from_fn(|i| SurfacePoint {
+        tri: hit[i].triangle,
+        u: hit[i].u,
+        v: hit[i].v,
+    });
+    let d = V3::from_lanes(&path.map(|p| p.d));
+    let wo = -d;
+    let cos_hit = ng.dot(d).abs();
+    let front = ng.dot(wo).simd_ge(f32x8::ZERO);
+    ng = V3::select(front, ng, -ng);
+    ns = V3::select(ns.dot(ng).simd_lt(f32x8::ZERO), -ns, ns);
+
+    let throughput = V3::from_lanes(&path.map(|p| p.throughput));
+    let mut radiance = V3::from_lanes(&path.map(|p| p.radiance));
+    let prev_pdf = f8(path.map(|p| p.prev_pdf));
+    let emission = V3::from_lanes(&std::array::from_fn(|i| {
+        emission_at(sc, mb[i], flags[i], sp[i])
+    }));
+    let emits = emission.nonzero();
+    if emits.any() {
+        let pdf_light = f32x8::splat(tri_select) * light_density * t * t / cos_hit;
+        let w = prev_pdf
+            .simd_eq(f32x8::ZERO)
+            .select(f32x8::ONE, lanes::mis(prev_pdf, pdf_light));
+        radiance = V3::select(emits, radiance + throughput * emission * w, radiance);
+    }
+    let base = V3::from_lanes(&std::array::from_fn(|i| {
+        base_color(sc, mb[i], flags[i], sp[i]).truncate()
+    }));
+    let m2 = |j: usize| f8(mb.map(|m| sc.materials[m + 2][j]));
+    let bsdf = lanes::Bsdf {
+        base,
+        metallic: m2(0),
+        alpha: m2(1),
+        specular: m2(2),
+    };
+    let ps = bsdf.specular_probability(ns.dot(wo));
+    let key = |dim: u32| {
+        lanes::pcg4d([
+            u32x8::from(path.map(|p| p.pixel)),
+            u32x8::from(path.map(|p| p.sample)),
+            u32x8::splat(s.seed),
+            u32x8::splat(stream::TRACE.wrapping_add(dim)),
+        ])
+        .map(lanes::unit_f32)
+    };
+    let r1 = key(1 + 2 * depth);
+    let r2 = key(2 + 2 * depth);
+    let po = lanes::offset_ray(p, ng);
+
+    // Next-event estimation: the environment or one emissive triangle (a plain scene has no
+    // punctual lights).
+    let mut radiance = radiance.lanes();
+    let mut rays = path.map(|p| p.rays);
+    if sc.env_select > 0.0 || sc.light_count > 0 {
+        let to_env = r1[0].simd_lt(f32x8::splat(sc.env_select));
+        let (r1a, r1b, r1c) = (r1[0].to_array(), r1[1].to_array(), r1[2].to_array());
+        let to_env_bits = to_env.to_bitmask();
+        // The environment's sample (direction, radiance, pdf).
+        let (env_wi, env_le, env_pdf) = if to_env_bits == 0 {
+            (V3::ZERO, V3::ZERO, f32x8::ZERO)
+        } else if sc.env_size[0] == 0 {
+            (
+                lanes::uniform_sphere(r1[1], r1[2]),
+                V3::splat(sc.env_constant),
+                f32x8::splat(1.0 / (4.0 * PI)),
+            )
+        } else {
+            let env: [(Vec3, Vec3, f32); 8] = std::array::from_fn(|i| {
+                if to_env_bits & (1 << i) != 0 {
+                    sample_env(sc, r1b[i], r1c[i])
+                } else {
+                    (Vec3::ZERO, Vec3::ZERO, 0.0)
+                }
+            });
+            (
+                V3::from_lanes(&env.map(|e| e.0)),
+                V3::from_lanes(&env.map(|e| e.1)),
+                f8(env.map(|e| e.2)),
+            )
+        };
+        let env_pdf = f32x8::splat(sc.env_select) * env_pdf;
+        // The emissive triangle's sample, for the lanes that pick one.
+        let (mut wi, mut le, mut pdf_l, mut tmax) = (env_wi, env_le, env_pdf, f32x8::INFINITY);
+        if to_env_bits != 0xff && sc.light_count > 0 {
+            let pick: [(usize, f32, f32); 8] = std::array::from_fn(|i| {
+                let u = ((r1a[i] - sc.env_select - sc.punct_select) / tri_select).min(0.99999994);
+                let k = sample_cdf(&sc.dist, 0, sc.light_count, u) as usize;
+                let (mut a, mut b) = (r1b[i], r1c[i]);
+                if a + b > 1.0 {
+                    a = 1.0 - a;
+                    b = 1.0 - b;
+                }
+                (k, a, b)
+            });
+            let light = |j: usize| V3::from_lanes(&pick.map(|(k, _, _)| v3(sc.lights[3 * k + j])));
+            let (lv0, le1, le2) = (light(0), light(1), light(2));
+            let (a, b) = (f8(pick.map(|p| p.1)), f8(pick.map(|p| p.2)));
+            let q = lv0 + le1 * a + le2 * b;
+            let to = q - po;
+            let dist2 = to.length_squared();
+            let dist = dist2.sqrt();
+            let tri_wi = to / dist;
+            let n_l = le1.cross(le2);
+            let area2 = n_l.length();
+            let facing = -n_l.dot(tri_wi) / area2;
+            let two_sided = f8(pick.map(|(k, _, _)| sc.lights[3 * k + 1][3])).simd_ne(f32x8::ZERO);
+            let cos_l = two_sided.select(facing.abs(), facing.max(f32x8::ZERO));
+            let tri_le = V3::from_lanes(&pick.map(|(k, a, b)| {
+                let tri = sc.lights[3 * k][3].to_bits();
+                let lmb = material_base(sc, tri);
+                let lflags = sc.materials[lmb + 1][3] as u32;
+                emission_at(sc, lmb, lflags, SurfacePoint { tri, u: a, v: b })
+            }));
+            let density = f8(pick.map(|(k, _, _)| sc.dist[k + 1] - sc.dist[k]));
+            let tri_pdf = cos_l.simd_gt(f32x8::ZERO).select(
+                f32x8::splat(tri_select) * density / (f32x8::splat(0.5) * area2) * dist2 / cos_l,
+                f32x8::ZERO,
+            );
+            wi = V3::select(to_env, wi, tri_wi);
+            le = V3::select(to_env, le, tri_le);
+            pdf_l = to_env.select(pdf_l, tri_pdf);
+            tmax = to_env.select(tmax, dist * f32x8::splat(1.0 - 1e-4));
+        }
+        let side = wi.dot(ng);
+        let usable = pdf_l.simd_gt(f32x8::ZERO) & pdf_l.is_finite() & side.simd_gt(f32x8::ZERO);
+        if usable.any() {
+            let (f, pdf_b) = bsdf.eval_with(ps, ns, wo, wi);
+            let w = if depth + 1 == s.max_depth {
+                f32x8::ONE
+            } else {
+                lanes::mis(pdf_l, pdf_b)
+            };
+            let contrib = throughput * f * le * (ns.dot(wi).abs() / pdf_l) * w;
+            let shadow = (usable & contrib.nonzero()).to_bitmask();
+            let (contrib, wi, po, tmax) =
+                (contrib.lanes(), wi.lanes(), po.lanes(), tmax.to_array());
+            for i in 0..group.len() {
+                if shadow & (1 << i) != 0 {
+                    rays[i] += 1;
+                    if !bvh.occluded(po[i], wi[i], tmax[i]) {
+                        radiance[i] += contrib[i];
+                    }
+                }
+            }
+        }
+    }
+
+    // Continue the path by sampling the BSDF.
+    let wi = bsdf.sample_with(ps, ns, wo, r1[3], r2[0], r2[1]);
+    let (f, pdf) = bsdf.eval_with(ps, ns, wo, wi);
+    let mut go = wi.dot(ng).simd_gt(f32x8::ZERO) & pdf.simd_gt(f32x8::ZERO);
+    let mut throughput = throughput * (f * (ns.dot(wi).abs() / pdf));
+    if depth >= 3 {
+        let q = throughput.max_element().min(f32x8::splat(0.95));
+        go &= !r2[2].simd_ge(q);
+        throughput = throughput / q;
+    }
+    let go = go.to_bitmask();
+    let (throughput, pdf, po, wi) = (throughput.lanes(), pdf.to_array(), po.lanes(), wi.lanes());
+    for (i, &k) in group.iter().enumerate() {
+        let path = &mut paths[k as usize];
+        path.radiance = radiance[i];
+        path.rays = rays[i];
+        if go & (1 << i) != 0 {
+            path.throughput = throughput[i];
+            path.prev_pdf = pdf[i];
+            path.o = po[i];
+            path.d = wi[i];
+            live[*n_live] = k;
+            *n_live += 1;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::Scene;
+
+    /// Every path of a batch is `trace_counted_with`'s to the bit — radiance and rays — on the
+    /// builtin plain scenes (area light, environment, textures), through the pinhole and the
+    /// wall camera, over several depths (the last vertex's MIS, Russian roulette) and sample
+    /// indices; and the batches see light, so the comparison means something.
+    #[test]
+    fn batches_equal_the_scalar_paths() {
+        for (name, max_depth) in [
+            ("cornell-light", 8),
+            ("cornell", 3),
+            ("city-small", 5),
+            ("cornell-light", 1),
+        ] {
+            let scene = Scene::builtin(name).unwrap();
+            let sc = PackedScene::new(&scene);
+            assert!(sc.plain, "builtin:{name}");
+            let (width, height) = (40, 24);
+            let camera = RenderCamera::choose(&scene, None, width, height).unwrap();
+            let s = TraceSettings {
+                width,
+                height,
+                seed: 11,
+                max_depth,
+                camera,
+            };
+            // Pixels in an order that is not the image's, some twice with other samples.
+            let n = width * height;
+            let pixels: Vec<u32> = (0..n + 100).map(|i| (i * 7919) % n).collect();
+            let samples: Vec<u32> = (0..n + 100).map(|i| i % 5).collect();
+            let mut out = vec![None; pixels.len()];
+            trace_batch(&sc, &s, None, &pixels, &samples, &mut out);
+            let mut lit = 0;
+            for (i, (&p, &k)) in pixels.iter().zip(&samples).enumerate() {
+                let want = trace_counted_with(&sc, &s, None, p, k).unwrap();
+                let got = out[i].unwrap();
+                assert_eq!(
+                    (got.0.to_array().map(f32::to_bits), got.1),
+                    (want.0.to_array().map(f32::to_bits), want.1),
+                    "builtin:{name} pixel {p} sample {k}: {got:?} against {want:?}"
+                );
+                lit += usize::from(got.0 != Vec3::ZERO);
+            }
+            assert!(lit > pixels.len() / 4, "builtin:{name}: {lit} lit samples");
+        }
+    }
+}
