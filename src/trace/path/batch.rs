@@ -151,21 +151,47 @@ pub(super) fn trace_batch(
     }
 }
 
-/// A lane's value of `f`, for the eight lanes of `group` (the last repeated in lanes past its
-/// end: they compute along and are never written back).
-#[inline(always)]
-fn gather<T>(group: &[u8], mut f: impl FnMut(usize) -> T) -> [T; 8] {
-    std::array::from_fn(|i| f(group[i.min(group.len() - 1)] as usize))
-}
-
 /// `f32x8` of a lane's scalar.
 #[inline(always)]
 fn f8(v: [f32; 8]) -> f32x8 {
     f32x8::from(v)
 }
 
+/// Eight `Vec3`s as lanes, from their components.
+#[inline(always)]
+fn v8(c: &[[f32; 8]; 3]) -> V3 {
+    V3 {
+        x: f8(c[0]),
+        y: f8(c[1]),
+        z: f8(c[2]),
+    }
+}
+
+/// What a group's shading reads per lane (per path and per hit), gathered in one pass.
+#[derive(Default)]
+struct Lanes {
+    v0: [[f32; 8]; 3],
+    e1: [[f32; 8]; 3],
+    e2: [[f32; 8]; 3],
+    n: [[[f32; 8]; 3]; 3],
+    light_density: [f32; 8],
+    t: [f32; 8],
+    u: [f32; 8],
+    v: [f32; 8],
+    d: [[f32; 8]; 3],
+    throughput: [[f32; 8]; 3],
+    radiance: [[f32; 8]; 3],
+    emission: [[f32; 8]; 3],
+    base: [[f32; 8]; 3],
+    m2: [[f32; 8]; 3],
+    prev_pdf: [f32; 8],
+    pixel: [u32; 8],
+    sample: [u32; 8],
+}
+
 /// One vertex of the paths in `group` (one to eight, each with its hit in `hits`): the body of
-/// `trace_path`'s loop after the trace, in lanes. The survivors are appended to `live`.
+/// `trace_path`'s loop after the trace, in lanes. Lanes past the group's end repeat its last
+/// path: they compute along and are never written back. The survivors are appended to `live`.
 #[allow(clippy::too_many_arguments)]
 #[inline(never)]
 fn shade8(
@@ -180,42 +206,60 @@ fn shade8(
 ) {
     let bvh = &sc.bvh;
     let tri_select = 1.0 - sc.env_select - sc.punct_select;
-    let hit = gather(group, |k| hits[k].expect("a shaded path has a hit"));
-    let path = gather(group, |k| paths[k]);
-    let prim = |j: usize| V3::from_lanes(&hit.map(|h| v3(bvh.prims[3 * h.prim as usize + j])));
-    let (v0, e1, e2) = (prim(0), prim(1), prim(2));
-    let light_density = f8(hit.map(|h| bvh.prims[3 * h.prim as usize + 1][3]));
-    let (t, u, v) = (
-        f8(hit.map(|h| h.t)),
-        f8(hit.map(|h| h.u)),
-        f8(hit.map(|h| h.v)),
-    );
+    let mut g = Lanes::default();
+    for i in 0..8 {
+        let k = group[i.min(group.len() - 1)] as usize;
+        let hit = hits[k].expect("a shaded path has a hit");
+        let path = &paths[k];
+        let prim = &bvh.prims[3 * hit.prim as usize..3 * hit.prim as usize + 3];
+        let sh = &sc.shade[4 * hit.triangle as usize..4 * hit.triangle as usize + 4];
+        let mb = MATERIAL_STRIDE * sh[3][3].to_bits() as usize;
+        let flags = sc.materials[mb + 1][3] as u32;
+        let sp = SurfacePoint {
+            tri: hit.triangle,
+            u: hit.u,
+            v: hit.v,
+        };
+        let emission = emission_at(sc, mb, flags, sp);
+        let base = base_color(sc, mb, flags, sp);
+        for c in 0..3 {
+            g.v0[c][i] = prim[0][c];
+            g.e1[c][i] = prim[1][c];
+            g.e2[c][i] = prim[2][c];
+            for (n, row) in g.n.iter_mut().zip(sh) {
+                n[c][i] = row[c];
+            }
+            g.d[c][i] = path.d[c];
+            g.throughput[c][i] = path.throughput[c];
+            g.radiance[c][i] = path.radiance[c];
+            g.emission[c][i] = emission[c];
+            g.base[c][i] = base[c];
+            g.m2[c][i] = sc.materials[mb + 2][c];
+        }
+        g.light_density[i] = prim[1][3];
+        (g.t[i], g.u[i], g.v[i]) = (hit.t, hit.u, hit.v);
+        g.prev_pdf[i] = path.prev_pdf;
+        (g.pixel[i], g.sample[i]) = (path.pixel, path.sample);
+    }
+    let (v0, e1, e2) = (v8(&g.v0), v8(&g.e1), v8(&g.e2));
+    let light_density = f8(g.light_density);
+    let (t, u, v) = (f8(g.t), f8(g.u), f8(g.v));
     let mut ng = e1.cross(e2).normalize();
     let p = v0 + e1 * u + e2 * v;
-    let shade = |j: usize| V3::from_lanes(&hit.map(|h| v3(sc.shade[4 * h.triangle as usize + j])));
     let b0 = f32x8::ONE - u - v;
-    let mut ns = (shade(0) * b0 + shade(1) * u + shade(2) * v).normalize();
+    let mut ns = (v8(&g.n[0]) * b0 + v8(&g.n[1]) * u + v8(&g.n[2]) * v).normalize();
     ns = V3::select(ns.is_finite(), ns, ng);
-    let mb = hit.map(|h| material_base(sc, h.triangle));
-    let flags: [u32; 8] = std::array::from_fn(|i| sc.materials[mb[i] + 1][3] as u32);
-    let sp: [SurfacePoint; 8] = std::array::from_fn(|i| SurfacePoint {
-        tri: hit[i].triangle,
-        u: hit[i].u,
-        v: hit[i].v,
-    });
-    let d = V3::from_lanes(&path.map(|p| p.d));
+    let d = v8(&g.d);
     let wo = -d;
     let cos_hit = ng.dot(d).abs();
     let front = ng.dot(wo).simd_ge(f32x8::ZERO);
     ng = V3::select(front, ng, -ng);
     ns = V3::select(ns.dot(ng).simd_lt(f32x8::ZERO), -ns, ns);
 
-    let throughput = V3::from_lanes(&path.map(|p| p.throughput));
-    let mut radiance = V3::from_lanes(&path.map(|p| p.radiance));
-    let prev_pdf = f8(path.map(|p| p.prev_pdf));
-    let emission = V3::from_lanes(&std::array::from_fn(|i| {
-        emission_at(sc, mb[i], flags[i], sp[i])
-    }));
+    let throughput = v8(&g.throughput);
+    let mut radiance = v8(&g.radiance);
+    let prev_pdf = f8(g.prev_pdf);
+    let emission = v8(&g.emission);
     let emits = emission.nonzero();
     if emits.any() {
         let pdf_light = f32x8::splat(tri_select) * light_density * t * t / cos_hit;
@@ -224,21 +268,17 @@ fn shade8(
             .select(f32x8::ONE, lanes::mis(prev_pdf, pdf_light));
         radiance = V3::select(emits, radiance + throughput * emission * w, radiance);
     }
-    let base = V3::from_lanes(&std::array::from_fn(|i| {
-        base_color(sc, mb[i], flags[i], sp[i]).truncate()
-    }));
-    let m2 = |j: usize| f8(mb.map(|m| sc.materials[m + 2][j]));
     let bsdf = lanes::Bsdf {
-        base,
-        metallic: m2(0),
-        alpha: m2(1),
-        specular: m2(2),
+        base: v8(&g.base),
+        metallic: f8(g.m2[0]),
+        alpha: f8(g.m2[1]),
+        specular: f8(g.m2[2]),
     };
     let ps = bsdf.specular_probability(ns.dot(wo));
     let key = |dim: u32| {
         lanes::pcg4d([
-            u32x8::from(path.map(|p| p.pixel)),
-            u32x8::from(path.map(|p| p.sample)),
+            u32x8::from(g.pixel),
+            u32x8::from(g.sample),
             u32x8::splat(s.seed),
             u32x8::splat(stream::TRACE.wrapping_add(dim)),
         ])
@@ -251,7 +291,8 @@ fn shade8(
     // Next-event estimation: the environment or one emissive triangle (a plain scene has no
     // punctual lights).
     let mut radiance = radiance.lanes();
-    let mut rays = path.map(|p| p.rays);
+    let mut rays: [u32; 8] =
+        std::array::from_fn(|i| paths[group[i.min(group.len() - 1)] as usize].rays);
     if sc.env_select > 0.0 || sc.light_count > 0 {
         let to_env = r1[0].simd_lt(f32x8::splat(sc.env_select));
         let (r1a, r1b, r1c) = (r1[0].to_array(), r1[1].to_array(), r1[2].to_array());
@@ -283,19 +324,46 @@ fn shade8(
         // The emissive triangle's sample, for the lanes that pick one.
         let (mut wi, mut le, mut pdf_l, mut tmax) = (env_wi, env_le, env_pdf, f32x8::INFINITY);
         if to_env_bits != 0xff && sc.light_count > 0 {
-            let pick: [(usize, f32, f32); 8] = std::array::from_fn(|i| {
+            // The light's pick, point and emission per lane; its geometry in lanes.
+            let mut l = [[[0f32; 8]; 3]; 3];
+            let (mut a, mut b, mut two_sided, mut density) =
+                ([0f32; 8], [0f32; 8], [0f32; 8], [0f32; 8]);
+            let mut tri_le = [[0f32; 8]; 3];
+            for i in 0..8 {
                 let u = ((r1a[i] - sc.env_select - sc.punct_select) / tri_select).min(0.99999994);
                 let k = sample_cdf(&sc.dist, 0, sc.light_count, u) as usize;
-                let (mut a, mut b) = (r1b[i], r1c[i]);
-                if a + b > 1.0 {
-                    a = 1.0 - a;
-                    b = 1.0 - b;
+                (a[i], b[i]) = (r1b[i], r1c[i]);
+                if a[i] + b[i] > 1.0 {
+                    a[i] = 1.0 - a[i];
+                    b[i] = 1.0 - b[i];
                 }
-                (k, a, b)
-            });
-            let light = |j: usize| V3::from_lanes(&pick.map(|(k, _, _)| v3(sc.lights[3 * k + j])));
-            let (lv0, le1, le2) = (light(0), light(1), light(2));
-            let (a, b) = (f8(pick.map(|p| p.1)), f8(pick.map(|p| p.2)));
+                let light = &sc.lights[3 * k..3 * k + 3];
+                for (j, row) in light.iter().enumerate() {
+                    for c in 0..3 {
+                        l[j][c][i] = row[c];
+                    }
+                }
+                two_sided[i] = light[1][3];
+                density[i] = sc.dist[k + 1] - sc.dist[k];
+                let tri = light[0][3].to_bits();
+                let lmb = material_base(sc, tri);
+                let lflags = sc.materials[lmb + 1][3] as u32;
+                let e = emission_at(
+                    sc,
+                    lmb,
+                    lflags,
+                    SurfacePoint {
+                        tri,
+                        u: a[i],
+                        v: b[i],
+                    },
+                );
+                for c in 0..3 {
+                    tri_le[c][i] = e[c];
+                }
+            }
+            let (lv0, le1, le2) = (v8(&l[0]), v8(&l[1]), v8(&l[2]));
+            let (a, b) = (f8(a), f8(b));
             let q = lv0 + le1 * a + le2 * b;
             let to = q - po;
             let dist2 = to.length_squared();
@@ -304,15 +372,9 @@ fn shade8(
             let n_l = le1.cross(le2);
             let area2 = n_l.length();
             let facing = -n_l.dot(tri_wi) / area2;
-            let two_sided = f8(pick.map(|(k, _, _)| sc.lights[3 * k + 1][3])).simd_ne(f32x8::ZERO);
+            let two_sided = f8(two_sided).simd_ne(f32x8::ZERO);
             let cos_l = two_sided.select(facing.abs(), facing.max(f32x8::ZERO));
-            let tri_le = V3::from_lanes(&pick.map(|(k, a, b)| {
-                let tri = sc.lights[3 * k][3].to_bits();
-                let lmb = material_base(sc, tri);
-                let lflags = sc.materials[lmb + 1][3] as u32;
-                emission_at(sc, lmb, lflags, SurfacePoint { tri, u: a, v: b })
-            }));
-            let density = f8(pick.map(|(k, _, _)| sc.dist[k + 1] - sc.dist[k]));
+            let (tri_le, density) = (v8(&tri_le), f8(density));
             let tri_pdf = cos_l.simd_gt(f32x8::ZERO).select(
                 f32x8::splat(tri_select) * density / (f32x8::splat(0.5) * area2) * dist2 / cos_l,
                 f32x8::ZERO,
