@@ -100,13 +100,32 @@ pub(super) fn trace_batch(
             if n_live == 0 {
                 break;
             }
-            // Trace, and let the paths that leave the scene take the environment.
+            // Trace (the camera's rays eight at a time: they travel together), and let the
+            // paths that leave the scene take the environment.
+            if depth == 0 {
+                for group in live[..n_live].chunks(8) {
+                    let lane = |i: usize| &paths[group[i.min(group.len() - 1)] as usize];
+                    let origins = std::array::from_fn(|i| lane(i).o);
+                    let dirs = std::array::from_fn(|i| lane(i).d);
+                    let found = sc
+                        .bvh
+                        .closest_hits8(&origins, &dirs, (1 << group.len()) - 1);
+                    for (&k, hit) in group.iter().zip(found) {
+                        hits[k as usize] = hit;
+                    }
+                }
+            } else {
+                for &k in &live[..n_live] {
+                    let path = &paths[k as usize];
+                    hits[k as usize] = sc.bvh.closest_hit(path.o, path.d, f32::INFINITY);
+                }
+            }
             let mut shade = [0u8; BATCH];
             let mut n_shade = 0;
             for &k in &live[..n_live] {
                 let path = &mut paths[k as usize];
                 path.rays += 1;
-                match sc.bvh.closest_hit(path.o, path.d, f32::INFINITY) {
+                match hits[k as usize] {
                     None => {
                         let (le, pdf_env) = env_eval(sc, path.d);
                         let w = if path.prev_pdf == 0.0 {
@@ -116,8 +135,7 @@ pub(super) fn trace_batch(
                         };
                         path.radiance += path.throughput * le * w;
                     }
-                    Some(hit) => {
-                        hits[k as usize] = Some(hit);
+                    Some(_) => {
                         shade[n_shade] = k;
                         n_shade += 1;
                     }
