@@ -103,6 +103,33 @@ fn wrap(i: i32, n: u32, mode: u32) -> u32 {
     }) as u32
 }
 
+/// `(wrap(i, n, mode), wrap(i + 1, n, mode))` (`i + 1` wrapping as a bilinear lookup's
+/// neighbour does) with one integer division instead of two: the neighbour of the wrapped
+/// `i` is the next value, back to the start past the end. Four divisions a bilinear lookup
+/// were a visible part of a textured scene's profile.
+#[inline]
+fn wrap_pair(i: i32, n: u32, mode: u32) -> (u32, u32) {
+    let j = i.wrapping_add(1);
+    if j == i32::MIN {
+        return (wrap(i, n, mode), wrap(j, n, mode));
+    }
+    let n = n as i32;
+    let (a, b) = match mode {
+        1 => (i.clamp(0, n - 1), j.clamp(0, n - 1)),
+        2 => {
+            let k = i.rem_euclid(2 * n);
+            let next = if k + 1 == 2 * n { 0 } else { k + 1 };
+            let mirror = |k: i32| if k >= n { 2 * n - 1 - k } else { k };
+            (mirror(k), mirror(next))
+        }
+        _ => {
+            let k = i.rem_euclid(n);
+            (k, if k + 1 == n { 0 } else { k + 1 })
+        }
+    };
+    (a as u32, b as u32)
+}
+
 /// `srgb_to_linear(i / 255)` for every 8-bit channel value `i`: the decoding of a colour
 /// texel, computed once (the same values; a `powf` per channel was 7 % of the small city's
 /// profile, BENCHMARKS.md).
@@ -112,6 +139,12 @@ static SRGB_TO_LINEAR: LazyLock<[f32; 256]> =
 fn texel(sc: &PackedScene, off: u32, w: u32, h: u32, sampler: u32, x: i32, y: i32) -> Vec4 {
     let xi = wrap(x, w, sampler & 3);
     let yi = wrap(y, h, (sampler >> 2) & 3);
+    texel_at(sc, off, w, sampler, xi, yi)
+}
+
+/// The texel at wrapped coordinates (`xi`, `yi`) of the texture at `off`, `w` wide.
+#[inline]
+fn texel_at(sc: &PackedScene, off: u32, w: u32, sampler: u32, xi: u32, yi: u32) -> Vec4 {
     let c = sc.texels[(off + yi * w + xi) as usize];
     let ch = |s: u32| ((c >> s) & 0xff) as f32 / 255.0;
     if sampler & 32 != 0 {
@@ -138,19 +171,12 @@ fn texture(sc: &PackedScene, tex: u32, uv: Vec2) -> Vec4 {
     let y = uv.y * h as f32 - 0.5;
     let (x0, y0) = (x.floor(), y.floor());
     let (fx, fy) = (x - x0, y - y0);
-    let (xi, yi) = (x0 as i32, y0 as i32);
-    let a = texel(sc, off, w, h, sampler, xi, yi);
-    let b = texel(sc, off, w, h, sampler, xi.wrapping_add(1), yi);
-    let c = texel(sc, off, w, h, sampler, xi, yi.wrapping_add(1));
-    let d = texel(
-        sc,
-        off,
-        w,
-        h,
-        sampler,
-        xi.wrapping_add(1),
-        yi.wrapping_add(1),
-    );
+    let (x0, x1) = wrap_pair(x0 as i32, w, sampler & 3);
+    let (y0, y1) = wrap_pair(y0 as i32, h, (sampler >> 2) & 3);
+    let a = texel_at(sc, off, w, sampler, x0, y0);
+    let b = texel_at(sc, off, w, sampler, x1, y0);
+    let c = texel_at(sc, off, w, sampler, x0, y1);
+    let d = texel_at(sc, off, w, sampler, x1, y1);
     (a * (1.0 - fx) + b * fx) * (1.0 - fy) + (c * (1.0 - fx) + d * fx) * fy
 }
 
@@ -796,6 +822,25 @@ mod tests {
             }),
             ..Default::default()
         })
+    }
+
+    /// The pair of wrapped neighbours is two wraps, for every mode, sizes 1 to 5 and
+    /// coordinates around zero, the sizes' multiples and the ends of i32.
+    #[test]
+    fn wrap_pair_is_two_wraps() {
+        for n in 1..=5u32 {
+            for mode in 0..4 {
+                let near = -40..40;
+                let ends = [i32::MIN, i32::MIN + 1, i32::MAX - 1, i32::MAX];
+                for i in near.chain(ends) {
+                    assert_eq!(
+                        wrap_pair(i, n, mode),
+                        (wrap(i, n, mode), wrap(i.wrapping_add(1), n, mode)),
+                        "i {i}, n {n}, mode {mode}"
+                    );
+                }
+            }
+        }
     }
 
     /// The environment sampler's density is the one `env_eval` reports for the sampled
