@@ -91,8 +91,8 @@ fn main() {
             std::process::exit(1);
         }
     }
-    quiet_xdg_runtime_dir();
     let cli = Cli::parse();
+    let runtime_dir = quiet_xdg_runtime_dir();
     let result = match &cli.command {
         Command::Demo(args) => cli::demo::run(args),
         Command::Render(args) => cli::render::run(args),
@@ -118,6 +118,7 @@ fn main() {
     };
     if let Err(e) = result {
         eprintln!("raygun: error: {}", cli::error_chain(&e));
+        drop(runtime_dir);
         std::process::exit(1);
     }
 }
@@ -125,11 +126,12 @@ fn main() {
 /// Mesa's Vulkan and GL drivers print "XDG_RUNTIME_DIR is invalid or not set" while raygun
 /// looks for a GPU, which is not the user's error and not raygun's business: where the variable
 /// is unset or names no folder, point it at a private temporary one (a desktop session always
-/// sets it; a service or an ssh session often does not).
-fn quiet_xdg_runtime_dir() {
+/// sets it; a service or an ssh session often does not). The folder is removed when the
+/// returned guard is dropped (before, every run left an empty one in the temporary folder).
+fn quiet_xdg_runtime_dir() -> Option<RuntimeDir> {
     let ok = std::env::var_os("XDG_RUNTIME_DIR").is_some_and(|d| std::path::Path::new(&d).is_dir());
     if ok {
-        return;
+        return None;
     }
     let dir = std::env::temp_dir().join(format!("raygun-runtime-{}", std::process::id()));
     if std::fs::create_dir_all(&dir).is_ok() {
@@ -138,9 +140,21 @@ fn quiet_xdg_runtime_dir() {
             use std::os::unix::fs::PermissionsExt;
             let _ = std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o700));
         }
-        // SAFETY: called first thing in `main`, before any thread exists that could read the
-        // environment concurrently.
+        // SAFETY: called in `main` before anything else runs (the command line is parsed, no
+        // thread exists) that could read the environment concurrently.
         unsafe { std::env::set_var("XDG_RUNTIME_DIR", &dir) };
+        return Some(RuntimeDir(dir));
+    }
+    None
+}
+
+/// The private runtime folder `quiet_xdg_runtime_dir` made; removed with what the drivers put
+/// in it when dropped.
+struct RuntimeDir(std::path::PathBuf);
+
+impl Drop for RuntimeDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
     }
 }
 

@@ -1049,10 +1049,41 @@ fn messages_speak_to_users() {
         ],
     )
     .env_remove("XDG_RUNTIME_DIR")
-    .output()
+    .stdout(Stdio::piped())
+    .stderr(Stdio::piped())
+    .spawn()
     .unwrap();
+    let runtime = std::env::temp_dir().join(format!("raygun-runtime-{}", o.id()));
+    let o = o.wait_with_output().unwrap();
     ok(&o);
     assert!(!stderr(&o).contains("XDG_RUNTIME_DIR"), "{}", stderr(&o));
+    // The private runtime folder raygun made for the drivers is gone when it ends, after an
+    // error too.
+    assert!(!runtime.exists(), "{} was left behind", runtime.display());
+    let failed = command(
+        Path::new(ROOT),
+        &[
+            "dgi",
+            "--display",
+            "/nonexistent/m.json",
+            "--origin",
+            "0,0,1",
+            "--dir",
+            "0,0,-1",
+            "--fov",
+            "30,30",
+            "--out",
+            s(&xdg.join("e.png")),
+        ],
+    )
+    .env_remove("XDG_RUNTIME_DIR")
+    .stdout(Stdio::piped())
+    .stderr(Stdio::piped())
+    .spawn()
+    .unwrap();
+    let runtime = std::env::temp_dir().join(format!("raygun-runtime-{}", failed.id()));
+    assert_eq!(failed.wait_with_output().unwrap().status.code(), Some(1));
+    assert!(!runtime.exists(), "{} was left behind", runtime.display());
     // A cause is said once.
     let o = raygun(&[
         "dgi",
