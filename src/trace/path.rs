@@ -519,13 +519,9 @@ fn trace_path<const FULL: bool>(
             radiance += throughput * le * w;
             break;
         };
-        let pi = 3 * hit.prim as usize;
-        let (v0, e1, e2) = (
-            v3(bvh.prims[pi]),
-            v3(bvh.prims[pi + 1]),
-            v3(bvh.prims[pi + 2]),
-        );
-        let light_density = bvh.prims[pi + 1][3];
+        let prim = bvh.hit_prim(hit.prim);
+        let (v0, e1, e2) = (v3(prim[0]), v3(prim[1]), v3(prim[2]));
+        let light_density = prim[1][3];
         let mut ng = e1.cross(e2).normalize();
         let p = v0 + e1 * hit.u + e2 * hit.v;
         let ti = 4 * hit.triangle as usize;

@@ -229,7 +229,7 @@ fn shade8(
         let k = group[i.min(group.len() - 1)] as usize;
         let hit = hits[k].expect("a shaded path has a hit");
         let path = &paths[k];
-        let prim = &bvh.prims[3 * hit.prim as usize..3 * hit.prim as usize + 3];
+        let prim = bvh.hit_prim(hit.prim);
         let sh = &sc.shade[4 * hit.triangle as usize..4 * hit.triangle as usize + 4];
         let mb = MATERIAL_STRIDE * sh[3][3].to_bits() as usize;
         let flags = sc.materials[mb + 1][3] as u32;
