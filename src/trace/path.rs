@@ -447,8 +447,9 @@ fn traced(
     pixels: &[u32],
     counts: &[u32],
 ) -> Vec<Option<(Vec3, u32)>> {
-    /// Pixels per task: several batches, so that a task's start costs little.
-    const TASK: usize = 4 * batch::BATCH;
+    /// Pixels per task: two batches, so that a task's start costs little and a short list
+    /// still spreads over the cores.
+    const TASK: usize = 2 * batch::BATCH;
     let mut out = vec![None; pixels.len()];
     out.par_chunks_mut(TASK)
         .zip(pixels.par_chunks(TASK).zip(counts.par_chunks(TASK)))
