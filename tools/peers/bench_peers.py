@@ -207,12 +207,29 @@ def main() -> None:
         ratios = [f"{meds[p] / meds[l]:.2f}" for p, l in pairs]
         print(f"| {name} | " + " | ".join(cells) + " | " + " | ".join(ratios) + " |")
         summary[name] = meds
+    # Each round's ratio is taken between measurements minutes apart, so a slow drift of the
+    # machine's load cancels in it; the ratio of medians above can pair a quiet raygun round
+    # with a busy Mitsuba one.
+    print("\nper-round ratios (each round's raygun / Mitsuba): median (min-max)")
+    head = "| scene | " + " | ".join(f"{p.split()[1]} / {l.split()[1]}" for p, l in pairs) + " |"
+    print(head)
+    print("|" + "---|" * (head.count("|") - 1))
+    round_ratios = {}
+    for name, _, _ in chosen:
+        cells = []
+        for p, l in pairs:
+            rs = [x["ms_per_megasample"] / y["ms_per_megasample"]
+                  for x, y in zip(results[name][p], results[name][l])]
+            round_ratios.setdefault(name, {})[f"{p} / {l}"] = rs
+            cells.append(f"{statistics.median(rs):.2f} ({min(rs):.2f}-{max(rs):.2f})")
+        print(f"| {name} | " + " | ".join(cells) + " |")
     print("\nratio < 1: raygun takes less time per sample than that Mitsuba variant.")
     if a.json:
         with open(a.json, "w") as f:
             json.dump({"cpu": cpu_model(), "threads": a.threads, "size": a.size, "spp": a.spp,
                        "max_depth_raygun": a.max_depth, "rounds": a.rounds,
-                       "results": results, "median": summary}, f, indent=1)
+                       "results": results, "median": summary,
+                       "round_ratios": round_ratios}, f, indent=1)
 
 
 if __name__ == "__main__":
