@@ -17,8 +17,8 @@
 //!
 //! [`render_cpu_with`] and [`samples_cpu`] trace their pixels in batches of paths (`batch.rs`):
 //! the paths of a batch advance a vertex at a time and are shaded eight at once in AVX2 lanes
-//! ([`crate::trace::lanes`]), the same function as `trace_path` path by path to the bit; scenes
-//! that are not [`PackedScene::plain`] take `trace_path` one path at a time.
+//! ([`crate::trace::lanes`]), the same function as `trace_path` path by path to the bit, every
+//! material feature included.
 
 use std::f32::consts::PI;
 use std::sync::LazyLock;

@@ -1,15 +1,20 @@
 //! The integrator on batches of paths: a wavefront of up to [`BATCH`] paths advanced one vertex
 //! at a time, each vertex's shading done for eight paths at once in AVX2 lanes
-//! ([`crate::trace::lanes`]) — the same function as [`trace_path`]'s plain instantiation, path by
-//! path to the bit (tests below), only faster (BENCHMARKS.md, the CPU twin against Mitsuba).
+//! ([`crate::trace::lanes`]) — the same function as [`trace_path`], path by path to the bit
+//! (tests below and in `tests/twins/trace.rs`), only faster (BENCHMARKS.md, the CPU twin
+//! against Mitsuba).
 //!
-//! A vertex of the batch: every live path's ray is traced (one closest hit at a time, the BVH's
-//! traversal); the paths that leave the scene take the environment, one at a time as
-//! `trace_path` does; the others are shaded in groups of eight: geometry, emission with its MIS
-//! weight, the BSDF, next-event estimation (the shadow rays traced one at a time), the BSDF
-//! sample and Russian roulette. What reads per-triangle or per-texel data — emission and base
-//! colour with their textures, the environment map, the light's pick — is `trace_path`'s own
-//! code, called per lane. Scenes that are not [`PackedScene::plain`] take `trace_path` per path.
+//! A vertex of the batch: every live path's ray is traced (a pinhole's camera rays eight at a
+//! time, the others one at a time); the paths that leave the scene take the environment, one
+//! at a time as `trace_path` does; the others are shaded in groups of eight: geometry,
+//! emission with its MIS weight, the BSDF, next-event estimation (the shadow rays traced one
+//! at a time), the BSDF sample and Russian roulette. What reads per-triangle or per-texel data
+//! — emission and base colour with their textures, the environment map, the light's pick —
+//! and what only some materials and scenes have — normal and metallic-roughness maps, the
+//! extensions' BSDF (glass, clear coat), punctual lights, alpha-tested triangles — is
+//! `trace_path`'s own code, called for the lanes that need it. Like `trace_path`, the batches
+//! come in two instantiations: the plain one for a [`PackedScene::plain`] scene, with those
+//! branches compiled out, and the full one.
 
 use wide::{f32x8, u32x8};
 
@@ -48,12 +53,23 @@ pub(super) fn trace_batch(
     out: &mut [Option<(Vec3, u32)>],
 ) {
     assert!(pixels.len() == samples.len() && pixels.len() == out.len());
-    if !sc.plain {
-        for ((&p, &n), out) in pixels.iter().zip(samples).zip(out.iter_mut()) {
-            *out = trace_counted_with(sc, s, wall, p, n);
-        }
-        return;
+    if sc.plain {
+        batches::<false>(sc, s, wall, pixels, samples, out);
+    } else {
+        batches::<true>(sc, s, wall, pixels, samples, out);
     }
+}
+
+/// [`trace_batch`] in `trace_path`'s instantiation `FULL`.
+fn batches<const FULL: bool>(
+    sc: &PackedScene,
+    s: &TraceSettings,
+    wall: Option<&WallCamera>,
+    pixels: &[u32],
+    samples: &[u32],
+    out: &mut [Option<(Vec3, u32)>],
+) {
+    let alpha_scene = FULL && sc.features & FEAT_ALPHA != 0;
     for ((pixels, samples), out) in pixels
         .chunks(BATCH)
         .zip(samples.chunks(BATCH))
@@ -131,7 +147,19 @@ pub(super) fn trace_batch(
             }
             // Trace (the camera's rays eight at a time: they travel together), and let the
             // paths that leave the scene take the environment.
-            if depth == 0 {
+            if alpha_scene {
+                // Alpha-tested triangles are asked per hit whether they are there, each ray
+                // with its own coverage seed.
+                for &k in &live[..n_live] {
+                    let path = &paths[k as usize];
+                    let seed = ray_seed(path.pixel, path.sample, s.seed, depth, 0);
+                    hits[k as usize] =
+                        sc.bvh
+                            .closest_hit_filtered(path.o, path.d, f32::INFINITY, |tri, u, v| {
+                                alpha_covered(sc, tri, u, v, seed)
+                            });
+                }
+            } else if depth == 0 {
                 for group in live[..n_live].chunks(8) {
                     let lane = |i: usize| &paths[group[i.min(group.len() - 1)] as usize];
                     let origins = std::array::from_fn(|i| lane(i).o);
@@ -172,7 +200,7 @@ pub(super) fn trace_batch(
             }
             n_live = 0;
             for group in shade[..n_shade].chunks(8) {
-                shade8(
+                shade8::<FULL>(
                     sc,
                     s,
                     depth,
@@ -253,18 +281,33 @@ struct Lanes {
     radiance: [[f32; 8]; 3],
     emission: [[f32; 8]; 3],
     base: [[f32; 8]; 3],
+    /// Metallic, alpha (the metallic-roughness map applied) and KHR_materials_specular.
     m2: [[f32; 8]; 3],
     prev_pdf: [f32; 8],
     pixel: [u32; 8],
     sample: [u32; 8],
+    /// The material's base (vec4 index) and flags, and the hit as a surface point.
+    mb: [usize; 8],
+    flags: [u32; 8],
+    sp: [Option<SurfacePoint>; 8],
+}
+
+/// The mask of lanes whose bit is set in `bits`.
+#[inline(always)]
+fn lanes_of(bits: u32) -> f32x8 {
+    let slot = u32x8::from([1, 2, 4, 8, 16, 32, 64, 128]);
+    bytemuck::cast((u32x8::splat(bits) & slot).simd_eq(slot))
 }
 
 /// One vertex of the paths in `group` (one to eight, each with its hit in `hits`): the body of
-/// `trace_path`'s loop after the trace, in lanes. Lanes past the group's end repeat its last
-/// path: they compute along and are never written back. The survivors are appended to `live`.
+/// `trace_path::<FULL>`'s loop after the trace, in lanes. What only some materials or scenes
+/// have — normal maps, metallic-roughness maps, the extensions' BSDF (glass, coat), punctual
+/// lights, cut-out emitters, alpha-tested shadow rays — is `trace_path`'s own code, run for
+/// the lanes that need it. Lanes past the group's end repeat its last path: they compute along
+/// and are never written back. The survivors are appended to `live`.
 #[allow(clippy::too_many_arguments)]
 #[inline(never)]
-fn shade8(
+fn shade8<const FULL: bool>(
     sc: &PackedScene,
     s: &TraceSettings,
     depth: u32,
@@ -276,6 +319,7 @@ fn shade8(
 ) {
     let bvh = &sc.bvh;
     let tri_select = 1.0 - sc.env_select - sc.punct_select;
+    let alpha_scene = FULL && sc.features & FEAT_ALPHA != 0;
     let mut g = Lanes::default();
     for i in 0..8 {
         let k = group[i.min(group.len() - 1)] as usize;
@@ -292,6 +336,13 @@ fn shade8(
         };
         let emission = emission_at(sc, mb, flags, sp);
         let base = base_color(sc, mb, flags, sp);
+        let m2 = sc.materials[mb + 2];
+        let (mut metallic, mut alpha) = (m2[0], m2[1]);
+        if FULL && flags & MAT_MR_TEX != 0 {
+            let mr = slot(sc, mb, 1, sp);
+            alpha = (alpha * mr.y * mr.y).max(MIN_ALPHA);
+            metallic *= mr.z;
+        }
         for c in 0..3 {
             g.v0[c][i] = prim[0][c];
             g.e1[c][i] = prim[1][c];
@@ -304,13 +355,15 @@ fn shade8(
             g.radiance[c][i] = path.radiance[c];
             g.emission[c][i] = emission[c];
             g.base[c][i] = base[c];
-            g.m2[c][i] = sc.materials[mb + 2][c];
         }
+        (g.m2[0][i], g.m2[1][i], g.m2[2][i]) = (metallic, alpha, m2[2]);
         g.light_density[i] = prim[1][3];
         (g.t[i], g.u[i], g.v[i]) = (hit.t, hit.u, hit.v);
         g.prev_pdf[i] = path.prev_pdf;
         (g.pixel[i], g.sample[i]) = (path.pixel, path.sample);
+        (g.mb[i], g.flags[i], g.sp[i]) = (mb, flags, Some(sp));
     }
+    let sp = g.sp.map(|sp| sp.expect("every lane is gathered"));
     let (v0, e1, e2) = (v8(&g.v0), v8(&g.e1), v8(&g.e2));
     let light_density = f8(g.light_density);
     let (t, u, v) = (f8(g.t), f8(g.u), f8(g.v));
@@ -324,6 +377,19 @@ fn shade8(
     let cos_hit = ng.dot(d).abs();
     let front = ng.dot(wo).simd_ge(f32x8::ZERO);
     ng = V3::select(front, ng, -ng);
+    let has = |flag: u32| {
+        (0..8)
+            .filter(|&i| g.flags[i] & flag != 0)
+            .fold(0u32, |m, i| m | 1 << i)
+    };
+    let normal_mapped_lanes = if FULL { has(MAT_NORMAL_TEX) } else { 0 };
+    if normal_mapped_lanes != 0 {
+        let mut n = ns.lanes();
+        for i in (0..8).filter(|&i| normal_mapped_lanes & (1 << i) != 0) {
+            n[i] = normal_mapped(sc, g.mb[i], sp[i], n[i]);
+        }
+        ns = V3::from_lanes(&n);
+    }
     ns = V3::select(ns.dot(ng).simd_lt(f32x8::ZERO), -ns, ns);
 
     let throughput = v8(&g.throughput);
@@ -344,7 +410,56 @@ fn shade8(
         alpha: f8(g.m2[1]),
         specular: f8(g.m2[2]),
     };
-    let ps = bsdf.specular_probability(ns.dot(wo));
+    // The extensions' BSDF, for the lanes whose material has one (`trace_path`'s `BsdfExt`).
+    let ext_lanes = if FULL { has(MAT_EXT_BSDF) } else { 0 };
+    let front_bits = front.to_bitmask();
+    let ext: [Option<BsdfExt>; 8] = std::array::from_fn(|i| {
+        (ext_lanes & (1 << i) != 0).then(|| {
+            let mb = g.mb[i];
+            let (m3, m4) = (sc.materials[mb + 3], sc.materials[mb + 4]);
+            let ior = m4[0];
+            let f0 = (ior - 1.0) / (ior + 1.0);
+            BsdfExt {
+                core: Bsdf {
+                    base: Vec3::new(g.base[0][i], g.base[1][i], g.base[2][i]),
+                    metallic: g.m2[0][i],
+                    alpha: g.m2[1][i],
+                    specular: g.m2[2][i],
+                },
+                specular_color: v3(m3),
+                f0: f0 * f0,
+                eta: if front_bits & (1 << i) != 0 {
+                    ior
+                } else {
+                    1.0 / ior
+                },
+                transmission: m3[3],
+                clearcoat: m4[1],
+                clearcoat_alpha: m4[2],
+            }
+        })
+    });
+    let transmits_bits = (0..8)
+        .filter(|&i| ext[i].is_some_and(|e| e.transmits()))
+        .fold(0u32, |m, i| m | 1 << i);
+    let transmits = lanes_of(transmits_bits);
+    // The core BSDF's lobe probability, shared by its two evaluations and its sample (0 where
+    // the extensions' BSDF decides).
+    let ps = lanes_of(ext_lanes).select(f32x8::ZERO, bsdf.specular_probability(ns.dot(wo)));
+    let (ns_l, wo_l) = (ns.lanes(), wo.lanes());
+    let eval = |wi: V3| {
+        let (f, pdf) = bsdf.eval_with(ps, ns, wo, wi);
+        if ext_lanes == 0 {
+            return (f, pdf);
+        }
+        let (mut f, mut pdf, wi) = (f.lanes(), pdf.to_array(), wi.lanes());
+        for i in 0..8 {
+            if let Some(e) = &ext[i] {
+                (f[i], pdf[i]) = e.eval(ns_l[i], wo_l[i], wi[i]);
+            }
+        }
+        (V3::from_lanes(&f), f8(pdf))
+    };
     let key = |dim: u32| {
         lanes::pcg4d([
             u32x8::from(g.pixel),
@@ -357,16 +472,30 @@ fn shade8(
     let r1 = key(1 + 2 * depth);
     let r2 = key(2 + 2 * depth);
     let po = lanes::offset_ray(p, ng);
+    // Below the surface (through glass): the origin offset the other way.
+    let below = if transmits_bits != 0 {
+        lanes::offset_ray(p, -ng)
+    } else {
+        po
+    };
 
-    // Next-event estimation: the environment or one emissive triangle (a plain scene has no
-    // punctual lights).
+    // Next-event estimation: the environment, a punctual light or one emissive triangle.
     let mut radiance = radiance.lanes();
     let mut rays: [u32; 8] =
         std::array::from_fn(|i| paths[group[i.min(group.len() - 1)] as usize].rays);
-    if sc.env_select > 0.0 || sc.light_count > 0 {
+    if sc.env_select > 0.0 || sc.light_count > 0 || (FULL && sc.punctual_count > 0) {
         let to_env = r1[0].simd_lt(f32x8::splat(sc.env_select));
         let (r1a, r1b, r1c) = (r1[0].to_array(), r1[1].to_array(), r1[2].to_array());
         let to_env_bits = to_env.to_bitmask();
+        let punctual_bits = if FULL && sc.punctual_count > 0 {
+            (0..8)
+                .filter(|&i| {
+                    to_env_bits & (1 << i) == 0 && r1a[i] < sc.env_select + sc.punct_select
+                })
+                .fold(0u32, |m, i| m | 1 << i)
+        } else {
+            0
+        };
         // The environment's sample (direction, radiance, pdf).
         let (env_wi, env_le, env_pdf) = if to_env_bits == 0 {
             (V3::ZERO, V3::ZERO, f32x8::ZERO)
@@ -393,7 +522,7 @@ fn shade8(
         let env_pdf = f32x8::splat(sc.env_select) * env_pdf;
         // The emissive triangle's sample, for the lanes that pick one.
         let (mut wi, mut le, mut pdf_l, mut tmax) = (env_wi, env_le, env_pdf, f32x8::INFINITY);
-        if to_env_bits != 0xff && sc.light_count > 0 {
+        if to_env_bits | punctual_bits != 0xff && sc.light_count > 0 {
             // The light's pick, point and emission per lane; its geometry in lanes.
             let mut l = [[[0f32; 8]; 3]; 3];
             let (mut a, mut b, mut two_sided, mut density) =
@@ -418,16 +547,20 @@ fn shade8(
                 let tri = light[0][3].to_bits();
                 let lmb = material_base(sc, tri);
                 let lflags = sc.materials[lmb + 1][3] as u32;
-                let e = emission_at(
-                    sc,
-                    lmb,
-                    lflags,
-                    SurfacePoint {
-                        tri,
-                        u: a[i],
-                        v: b[i],
-                    },
-                );
+                let lsp = SurfacePoint {
+                    tri,
+                    u: a[i],
+                    v: b[i],
+                };
+                let mut e = emission_at(sc, lmb, lflags, lsp);
+                // A cut-out emitter emits only where it is there (BSDF rays see the same).
+                if FULL && lflags & MAT_MASK != 0 {
+                    if base_color(sc, lmb, lflags, lsp).w < sc.materials[lmb + 2][3] {
+                        e = Vec3::ZERO;
+                    }
+                } else if FULL && lflags & MAT_BLEND != 0 {
+                    e *= base_color(sc, lmb, lflags, lsp).w;
+                }
                 for c in 0..3 {
                     tri_le[c][i] = e[c];
                 }
@@ -454,23 +587,50 @@ fn shade8(
             pdf_l = to_env.select(pdf_l, tri_pdf);
             tmax = to_env.select(tmax, dist * f32x8::splat(1.0 - 1e-4));
         }
+        // A punctual light's sample (a delta light), for the lanes that pick one.
+        if punctual_bits != 0 {
+            let (mut w, mut l, mut pdf, mut t) =
+                (wi.lanes(), le.lanes(), pdf_l.to_array(), tmax.to_array());
+            let po = po.lanes();
+            for i in (0..8).filter(|&i| punctual_bits & (1 << i) != 0) {
+                (w[i], l[i], pdf[i], t[i], _) = sample_punctual(sc, po[i], r1a[i]);
+            }
+            (wi, le, pdf_l, tmax) = (V3::from_lanes(&w), V3::from_lanes(&l), f8(pdf), f8(t));
+        }
         let side = wi.dot(ng);
-        let usable = pdf_l.simd_gt(f32x8::ZERO) & pdf_l.is_finite() & side.simd_gt(f32x8::ZERO);
+        let usable = pdf_l.simd_gt(f32x8::ZERO)
+            & pdf_l.is_finite()
+            & (side.simd_gt(f32x8::ZERO) | (transmits & side.simd_lt(f32x8::ZERO)));
         if usable.any() {
-            let (f, pdf_b) = bsdf.eval_with(ps, ns, wo, wi);
+            let (f, pdf_b) = eval(wi);
+            // At the last vertex no BSDF ray follows to find this light, so its sample carries
+            // the whole estimate; a delta light cannot be hit at all.
             let w = if depth + 1 == s.max_depth {
                 f32x8::ONE
             } else {
-                lanes::mis(pdf_l, pdf_b)
+                lanes_of(punctual_bits).select(f32x8::ONE, lanes::mis(pdf_l, pdf_b))
             };
             let contrib = throughput * f * le * (ns.dot(wi).abs() / pdf_l) * w;
             let shadow = (usable & contrib.nonzero()).to_bitmask();
-            let (contrib, wi, po, tmax) =
-                (contrib.lanes(), wi.lanes(), po.lanes(), tmax.to_array());
+            let from = V3::select(side.simd_gt(f32x8::ZERO), po, below);
+            let (contrib, wi, from, tmax) =
+                (contrib.lanes(), wi.lanes(), from.lanes(), tmax.to_array());
             for i in 0..group.len() {
                 if shadow & (1 << i) != 0 {
                     rays[i] += 1;
-                    if !bvh.occluded(po[i], wi[i], tmax[i]) {
+                    let blocked = if FULL {
+                        let shadow_seed = if alpha_scene {
+                            ray_seed(g.pixel[i], g.sample[i], s.seed, depth, 1)
+                        } else {
+                            0
+                        };
+                        bvh.occluded_filtered(from[i], wi[i], tmax[i], |tri, u, v| {
+                            alpha_covered(sc, tri, u, v, shadow_seed)
+                        })
+                    } else {
+                        bvh.occluded(from[i], wi[i], tmax[i])
+                    };
+                    if !blocked {
                         radiance[i] += contrib[i];
                     }
                 }
@@ -479,9 +639,28 @@ fn shade8(
     }
 
     // Continue the path by sampling the BSDF.
-    let wi = bsdf.sample_with(ps, ns, wo, r1[3], r2[0], r2[1]);
-    let (f, pdf) = bsdf.eval_with(ps, ns, wo, wi);
-    let mut go = wi.dot(ng).simd_gt(f32x8::ZERO) & pdf.simd_gt(f32x8::ZERO);
+    let mut wi = bsdf.sample_with(ps, ns, wo, r1[3], r2[0], r2[1]);
+    if ext_lanes != 0 {
+        let (mut w, u1, u2, u3) = (
+            wi.lanes(),
+            r1[3].to_array(),
+            r2[0].to_array(),
+            r2[1].to_array(),
+        );
+        for i in 0..8 {
+            if let Some(e) = &ext[i] {
+                w[i] = e.sample(ns_l[i], wo_l[i], u1[i], u2[i], u3[i]);
+            }
+        }
+        wi = V3::from_lanes(&w);
+    }
+    let side = wi.dot(ng);
+    // Below the surface only through a transmitting one, and on the same side of the shading
+    // normal as of the geometric one (no light leaks).
+    let above = side.simd_gt(f32x8::ZERO);
+    let mut go = above | (transmits & side.simd_lt(f32x8::ZERO) & ns.dot(wi).simd_lt(f32x8::ZERO));
+    let (f, pdf) = eval(wi);
+    go &= pdf.simd_gt(f32x8::ZERO);
     let mut throughput = throughput * (f * (ns.dot(wi).abs() / pdf));
     if depth >= 3 {
         let q = throughput.max_element().min(f32x8::splat(0.95));
@@ -489,7 +668,13 @@ fn shade8(
         throughput = throughput / q;
     }
     let go = go.to_bitmask();
-    let (throughput, pdf, po, wi) = (throughput.lanes(), pdf.to_array(), po.lanes(), wi.lanes());
+    let origin = V3::select(above, po, below);
+    let (throughput, pdf, origin, wi) = (
+        throughput.lanes(),
+        pdf.to_array(),
+        origin.lanes(),
+        wi.lanes(),
+    );
     for (i, &k) in group.iter().enumerate() {
         let path = &mut paths[k as usize];
         path.radiance = radiance[i];
@@ -497,7 +682,7 @@ fn shade8(
         if go & (1 << i) != 0 {
             path.throughput = throughput[i];
             path.prev_pdf = pdf[i];
-            path.o = po[i];
+            path.o = origin[i];
             path.d = wi[i];
             live[*n_live] = k;
             *n_live += 1;
