@@ -860,6 +860,11 @@ mod mpi {
             );
             assert!(per_rank[0]["ms_gather_and_filter"].as_f64().unwrap() > 0.0);
             assert_eq!(per_rank[1]["ms_gather_and_filter"], 0.0);
+            // A picture this small is the console's whole: every pixel rank 1 owns, 20 bytes.
+            assert_eq!(per_rank[0]["console_every"], 1);
+            assert!(per_rank[0]["ms_console_picture"].as_f64().unwrap() > 0.0);
+            assert!(per_rank[0]["console_bytes_received"].as_u64().unwrap() > 0);
+            assert_eq!(per_rank[1]["console_bytes_received"], 0);
         }
         let exchange = r["exchange"].as_array().unwrap();
         assert_eq!(exchange.len(), 2 * 2 * 3, "maps × FOVs × rank counts");
@@ -868,6 +873,8 @@ mod mpi {
             assert_eq!(e["bytes_sent_max"] == 0, one, "{e}");
             assert_eq!(e["margin_received_max"] == 0, one, "{e}");
             assert_eq!(e["gather_received"] == 0, one, "{e}");
+            assert_eq!(e["console_every"], 1, "{e}");
+            assert_eq!(e["console_received"], e["gather_received"], "{e}");
         }
     }
 

@@ -867,10 +867,38 @@ fn the_viewer_across_ranks_shows_the_one_process_pictures_bit_for_bit() {
                 "{}",
                 core.backend_name()
             );
-            let got = script(&mut core, model);
+            let mut got = script(&mut core, model);
+            // A console smaller than the picture: every 3rd pixel of every 3rd row (22 × 9 ≤
+            // 200 pixels; every 2nd would be 32 × 13), then the whole picture as files take it.
+            core.console_pixels = 200;
+            assert_eq!(core.console_every(), 3);
+            let console = core.picture().unwrap();
+            assert_eq!(core.stats.console_every, 3);
+            let whole = core.whole_picture().unwrap();
+            assert_eq!(core.stats.console_every, 1);
+            let reduced = |v: &[u32]| raygun::trace::accum::every(v, [W, H], 3);
+            assert_eq!(console.size, [22, 9]);
+            assert_eq!(console.rgba.len(), 4 * 22 * 9);
+            assert_eq!(console.counts, reduced(&whole.counts));
+            let dgi_bits = |d: &[f32]| d.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            assert_eq!(dgi_bits(&console.dgi), reduced(&dgi_bits(&whole.dgi)));
+            assert!(console.counts.iter().any(|&c| c > 0));
+            assert!(console.image.iter().all(|v| v.is_finite()));
+            assert!(
+                console
+                    .image
+                    .iter()
+                    .zip(&console.counts)
+                    .any(|(v, &c)| c > 0 && *v != glam::Vec3::ZERO),
+                "the console's picture is lit"
+            );
+            got.push(whole);
             drop(core);
             (got, follower.join().unwrap())
         });
+        // No frame ran between the script's last picture and the whole one.
+        let mut want = want;
+        want.push(want.last().unwrap().clone());
         let (followed, tiles) = followed;
         assert_eq!(followed, 8, "rank 1 ran every frame, then stopped");
         // What rank 1 shows of its own tiles is the one-process picture cut at them.
@@ -892,4 +920,17 @@ fn the_viewer_across_ranks_shows_the_one_process_pictures_bit_for_bit() {
             assert!(g.rgba == w.rgba, "{what}: the window's picture");
         }
     }
+}
+
+/// The console's reduction: a 4K picture whole, one pixel wider every 2nd, HORNET's native 73.8
+/// megapixels every 3rd (4507 × 1819 = 8.2 MP; every 2nd would be 18.4 MP).
+#[test]
+fn the_console_reduces_what_exceeds_a_4k_monitor() {
+    use raygun::cluster::{CONSOLE_PIXELS, reduction_for};
+    use raygun::trace::accum::every_size;
+    assert_eq!(reduction_for([3840, 2160], CONSOLE_PIXELS), 1);
+    assert_eq!(reduction_for([3841, 2160], CONSOLE_PIXELS), 2);
+    assert_eq!(reduction_for([13519, 5457], CONSOLE_PIXELS), 3);
+    assert_eq!(every_size([13519, 5457], 3), [4507, 1819]);
+    assert_eq!(reduction_for([7, 5], 0), 7, "at least one pixel");
 }

@@ -105,6 +105,13 @@ pub struct RankRun {
     /// Rank 0 only: the whole picture the other way, the owners' sums gathered to rank 0 and
     /// the whole image filtered there (ms).
     pub ms_gather_and_filter: f64,
+    /// Rank 0 only: the picture `view --cluster` shows on its console, every k-th pixel of
+    /// every k-th row ([`crate::cluster::reduction_for`] at
+    /// [`crate::cluster::CONSOLE_PIXELS`]; k = 1: the whole one above), gathered and
+    /// filtered (ms), and the bytes rank 0 received for it.
+    pub console_every: u32,
+    pub ms_console_picture: f64,
+    pub console_bytes_received: u64,
 }
 
 /// One FOV's measured run on all ranks.
@@ -149,6 +156,11 @@ pub struct ExchangeRow {
     pub margin_sent_max: u64,
     pub margin_received_max: u64,
     pub gather_received: u64,
+    /// Per picture of `view --cluster`'s console: what rank 0 receives for every k-th pixel
+    /// of every k-th row ([`crate::cluster::reduction_for`] at
+    /// [`crate::cluster::CONSOLE_PIXELS`]), and that k.
+    pub console_every: u32,
+    pub console_received: u64,
 }
 
 impl ExchangeRow {
@@ -297,11 +309,30 @@ pub fn scaling(
         } else {
             0.0
         };
+        let console_every = crate::cluster::reduction_for(cfg.size, crate::cluster::CONSOLE_PIXELS);
+        let console_before = c.traffic();
+        let t = Instant::now();
+        if let Some((acc, dgi)) = r.gather_every(c, console_every)? {
+            crate::filter::Filter::new(&crate::gpu::Backend::Cpu)
+                .image(&params, &acc, &dgi)
+                .map_err(ClusterError::from)?;
+        }
+        let (ms_console_picture, console_bytes_received) = if c.is_root() {
+            (
+                t.elapsed().as_secs_f64() * 1e3,
+                c.traffic().since(&console_before).bytes_received,
+            )
+        } else {
+            (0.0, 0)
+        };
         let mine = RankRun {
             ms_tile_pictures,
             tile_pictures_bytes_sent: moved.bytes_sent - before.bytes_sent,
             tile_pictures_bytes_received: moved.bytes_received - before.bytes_received,
             ms_gather_and_filter,
+            console_every,
+            ms_console_picture,
+            console_bytes_received,
             ..mine
         };
         let samples = frames.iter().map(|(_, s)| s.pixels as f64).sum::<f64>() / n;
@@ -384,6 +415,28 @@ pub fn frame_traffic(
     sent.into_iter().zip(got).collect()
 }
 
+/// The bytes rank 0 receives for the console's picture of a `size` image owned as `owners`
+/// says ([`ClusterRenderer::gather_every`] at `every`): [`crate::cluster::PIXEL_BYTES`] for
+/// each pixel on the grid of every `every`-th column and row in a block another rank owns.
+#[must_use]
+pub fn console_received(owners: &BlockOwners, size: [u32; 2], every: u32) -> u64 {
+    let [tx, _] = owners.tiles;
+    // The grid's columns (or rows) in [lo, lo + 32) of a side n long.
+    let on_grid = |lo: u32, n: u32| {
+        let hi = (lo + crate::schedule::TILE_EDGE).min(n);
+        u64::from(hi.div_ceil(every) - lo.div_ceil(every))
+    };
+    (0..owners.owner.len() as u32)
+        .filter(|&b| owners.owner[b as usize] != 0)
+        .map(|b| {
+            let (x, y) = (b % tx, b / tx);
+            on_grid(x * crate::schedule::TILE_EDGE, size[0])
+                * on_grid(y * crate::schedule::TILE_EDGE, size[1])
+        })
+        .sum::<u64>()
+        * crate::cluster::PIXEL_BYTES as u64
+}
+
 /// The exact exchange of one iteration (the first: iteration 0, seed 1) of the paper's setup
 /// for each size, FOV and rank count 1..=`max_ranks`, from the real schedule and the deal with
 /// equal weights, for the default tile map (whole columns) and for tiles dealt round-robin.
@@ -398,6 +451,7 @@ pub fn exchange(
     let halo = crate::filter::halo(&crate::filter::FilterParams::default());
     let mut rows = Vec::new();
     for &size in sizes {
+        let console_every = crate::cluster::reduction_for(size, crate::cluster::CONSOLE_PIXELS);
         // The margins do not depend on the FOV.
         let mut margins = std::collections::HashMap::new();
         for &fov in fovs {
@@ -470,6 +524,8 @@ pub fn exchange(
                                 side(b % tx, size[0]) * side(b / tx, size[1])
                             })
                             .sum::<u64>(),
+                    console_every,
+                    console_received: console_received(&owners, size, console_every),
                 });
             }
         }
@@ -486,7 +542,7 @@ fn mb(bytes: f64) -> String {
 pub fn markdown(r: &ClusterBenchReport) -> String {
     let c = &r.config;
     let mut s = format!(
-        "Device: {}\n\n## Strong scaling (measured)\n\n{} at {}×{}, max depth {}, HORNET, viewer 1 m in front of the centre, {} timed iterations per FOV after the DGI's.\n\n| FOV | ranks | share sampled | ms/iteration (rank 0) | rank | ms trace | ms schedule | ms counts | ms exchange | samples traced/it | bytes sent/it | bytes received/it | DGI computed ms | DGI broadcast ms | DGI split ms | own tiles' picture ms (bytes sent / received) | rank 0: gather + whole filter ms |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "Device: {}\n\n## Strong scaling (measured)\n\n{} at {}×{}, max depth {}, HORNET, viewer 1 m in front of the centre, {} timed iterations per FOV after the DGI's.\n\n| FOV | ranks | share sampled | ms/iteration (rank 0) | rank | ms trace | ms schedule | ms counts | ms exchange | samples traced/it | bytes sent/it | bytes received/it | DGI computed ms | DGI broadcast ms | DGI split ms | own tiles' picture ms (bytes sent / received) | rank 0: gather + whole filter ms | rank 0: console picture (every k-th pixel) ms, bytes received |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
         r.device, c.scene, c.size[0], c.size[1], c.max_depth, c.iterations
     );
     for row in &r.scaling {
@@ -502,13 +558,19 @@ pub fn markdown(r: &ClusterBenchReport) -> String {
             } else {
                 "| | | | ".to_owned()
             };
-            let gather = if k == 0 {
-                format!("{:.1}", p.ms_gather_and_filter)
+            let (gather, console) = if k == 0 {
+                (
+                    format!("{:.1}", p.ms_gather_and_filter),
+                    format!(
+                        "{:.1} (k = {}), {}",
+                        p.ms_console_picture, p.console_every, p.console_bytes_received
+                    ),
+                )
             } else {
-                String::new()
+                (String::new(), String::new())
             };
             s += &format!(
-                "{head}| {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.0} | {:.0} | {:.0} | {:.1} | {:.1} | {:.1} | {:.1} ({} / {}) | {gather} |\n",
+                "{head}| {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.0} | {:.0} | {:.0} | {:.1} | {:.1} | {:.1} | {:.1} ({} / {}) | {gather} | {console} |\n",
                 p.rank,
                 p.ms_trace,
                 p.ms_schedule,
@@ -535,7 +597,7 @@ pub fn markdown(r: &ClusterBenchReport) -> String {
         .map(|p| p.samples_traced_per_iteration / (p.ms_trace / 1e3))
         .fold(f64::NAN, f64::max);
     s += &format!(
-        "\n## Exchange per iteration (counted from the real schedule and deal)\n\nBytes per iteration: 12 per sample traced for another rank's tile and 4 (its count) from that tile's owner to the rank that traces it, 4 per block traced to every other rank, the split schedule (1 per block and 128 per non-empty block, from the rank that drew it to every other), the control message ({CONTROL_BYTES} bytes with an ROI change). The DGI's broadcast ({}) is per ROI change, not per iteration.\n\n| tile map | size | FOV | ranks | samples/it | max sent MB/it | mean sent MB/it | max received MB/it | DGI broadcast MB | link ms/it at {} Gb/s | break-even rate per rank (Msamples/s) | iterations/s at the measured rate | picture: margins max sent / received MB | picture: gathered to rank 0 MB |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "\n## Exchange per iteration (counted from the real schedule and deal)\n\nBytes per iteration: 12 per sample traced for another rank's tile and 4 (its count) from that tile's owner to the rank that traces it, 4 per block traced to every other rank, the split schedule (1 per block and 128 per non-empty block, from the rank that drew it to every other), the control message ({CONTROL_BYTES} bytes with an ROI change). The DGI's broadcast ({}) is per ROI change, not per iteration.\n\n| tile map | size | FOV | ranks | samples/it | max sent MB/it | mean sent MB/it | max received MB/it | DGI broadcast MB | link ms/it at {} Gb/s | break-even rate per rank (Msamples/s) | iterations/s at the measured rate | picture: margins max sent / received MB | picture: gathered to rank 0 MB | console picture: every k-th pixel, MB to rank 0 |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
         "4 bytes a pixel to every other rank, down a binomial tree; the column sums all links",
         c.link_gbps
     );
@@ -546,7 +608,7 @@ pub fn markdown(r: &ClusterBenchReport) -> String {
         let link = e.link_seconds(c.link_gbps);
         let trace = e.samples_per_iteration as f64 / e.ranks as f64 / rate;
         s += &format!(
-            "| {} | {}×{} | {}° | {} | {} | {} | {} | {} | {} | {:.3} | {:.0} | {:.2} | {} / {} | {} |\n",
+            "| {} | {}×{} | {}° | {} | {} | {} | {} | {} | {} | {:.3} | {:.0} | {:.2} | {} / {} | {} | k = {}: {} |\n",
             e.tile_map,
             e.size[0],
             e.size[1],
@@ -563,10 +625,12 @@ pub fn markdown(r: &ClusterBenchReport) -> String {
             mb(e.margin_sent_max as f64),
             mb(e.margin_received_max as f64),
             mb(e.gather_received as f64),
+            e.console_every,
+            mb(e.console_received as f64),
         );
     }
     s += &format!(
-        "\nThe measured rate: {:.3} Msamples/s per rank ({}, best of the rows above: the trace step alone, its upload and read-back on a GPU included). Iterations/s = 1 / (samples/(ranks × rate) + link time): tracing and exchange do not overlap, the schedule and the DGI are left out. A rank whose trace rate exceeds the break-even rate spends longer on the link than on tracing. The picture's columns are per picture shown or saved, not per iteration: each owner's tiles' margins (the default fast filter) against the whole accumulation gathered to rank 0.\n",
+        "\nThe measured rate: {:.3} Msamples/s per rank ({}, best of the rows above: the trace step alone, its upload and read-back on a GPU included). Iterations/s = 1 / (samples/(ranks × rate) + link time): tracing and exchange do not overlap, the schedule and the DGI are left out. A rank whose trace rate exceeds the break-even rate spends longer on the link than on tracing. The picture's columns are per picture shown or saved, not per iteration: each owner's tiles' margins (the default fast filter) against the whole accumulation gathered to rank 0, and against `view --cluster`'s console picture: every k-th pixel of every k-th row, the least k that fits a 4K monitor.\n",
         rate / 1e6,
         r.device
     );
@@ -581,7 +645,8 @@ mod tests {
     use crate::cluster::exchange::InProcess;
 
     /// The model's bytes are the bytes a frame moves: 3 in-process ranks, a guided first frame
-    /// (equal costs: the deal the model makes), each rank's traffic against [`frame_traffic`].
+    /// (equal costs: the deal the model makes), each rank's traffic against [`frame_traffic`];
+    /// and the console's pictures after it against [`console_received`].
     #[test]
     fn the_models_frame_bytes_are_the_bytes_a_frame_moves() {
         let display = DisplayModel::open("hornet").unwrap().0;
@@ -616,6 +681,22 @@ mod tests {
                         .unwrap();
                         r.set_roi(Some(roi)).unwrap();
                         let t = r.run_frame(&mut c).unwrap().traffic;
+                        // The console's picture, at several reductions: rank 0's bytes.
+                        let console = [1, 3, 7].map(|every| {
+                            let before = c.traffic();
+                            r.gather_every(&mut c, every).unwrap();
+                            (every, c.traffic().since(&before).bytes_received)
+                        });
+                        if rank == 0 {
+                            for (every, got) in console {
+                                assert_eq!(
+                                    got,
+                                    console_received(owners, size, every),
+                                    "every {every}"
+                                );
+                                assert!(got > 0);
+                            }
+                        }
                         (t.bytes_sent, t.bytes_received)
                     })
                 })

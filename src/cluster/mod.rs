@@ -62,7 +62,7 @@ use crate::scene::Scene;
 use crate::schedule::{
     BLOCK_PIXELS, Order, ScheduleError, TILE_EDGE, schedule_cpu_block_masks, schedule_cpu_shown,
 };
-use crate::trace::accum::{Accumulation, accumulate};
+use crate::trace::accum::{Accumulation, accumulate, every, every_size};
 use crate::trace::gpu::{GpuScene, SampleRun, TraceKernel};
 use crate::trace::pack::PackedScene;
 use crate::trace::path::{TraceSettings, samples_cpu};
@@ -1024,19 +1024,6 @@ impl ClusterRenderer {
         accumulate(&mut self.sums[k], &mut self.counts[k], rgb);
     }
 
-    /// This rank's owned sums and counts as bytes ([`PIXEL_BYTES`] a pixel): owned blocks
-    /// ascending, each block's pixels row-major.
-    fn owned_bytes(&self) -> Vec<u8> {
-        let size = [self.settings.width, self.settings.height];
-        let mut out = Vec::new();
-        for b in self.owners.owned_by(self.rank) {
-            for p in block_pixels(b, size, self.owners.tiles[0]) {
-                self.own_bytes(p, &mut out);
-            }
-        }
-        out
-    }
-
     /// How far the ROI has come, on rank 0 (`Some(None)` without ROI pixels; `None` on the
     /// other ranks): every owner sends rank 0 the sums and counts of its pixels inside the ROI
     /// (d = 0), [`PIXEL_BYTES`] each, and rank 0 measures them as one process does.
@@ -1092,37 +1079,57 @@ impl ClusterRenderer {
         &self,
         c: &mut Cluster,
     ) -> Result<Option<(Accumulation, Vec<f32>)>, ClusterError> {
+        self.gather_every(c, 1)
+    }
+
+    /// [`Self::gather`] of the pixels at every `step`-th column of every `step`-th row only,
+    /// as an image of ⌈W / step⌉ × ⌈H / step⌉: [`Accumulation::every`] of the whole
+    /// accumulation (and the DGI's pixels there), for a picture smaller than the wall — rank
+    /// 0's console. Each owner sends those of its pixels ([`PIXEL_BYTES`] each): 1/step² of
+    /// the whole gather's bytes.
+    pub fn gather_every(
+        &self,
+        c: &mut Cluster,
+        step: u32,
+    ) -> Result<Option<(Accumulation, Vec<f32>)>, ClusterError> {
         let size = [self.settings.width, self.settings.height];
-        let Some(all) = c.gather("the owners' sums", self.owned_bytes())? else {
+        let kept =
+            |p: &u32| (p % size[0]).is_multiple_of(step) && (p / size[0]).is_multiple_of(step);
+        let pixels_of = |rank: usize| {
+            let tiles_x = self.owners.tiles[0];
+            self.owners
+                .owned_by(rank)
+                .into_iter()
+                .flat_map(move |b| block_pixels(b, size, tiles_x).filter(kept))
+        };
+        let mut mine = Vec::new();
+        for p in pixels_of(self.rank) {
+            self.own_bytes(p, &mut mine);
+        }
+        let Some(all) = c.gather("the owners' sums", mine)? else {
             return Ok(None);
         };
-        let mut acc = Accumulation::new(size[0], size[1]);
+        let [w, h] = every_size(size, step);
+        let mut acc = Accumulation::new(w, h);
         for (src, bytes) in all.iter().enumerate() {
-            let blocks = self.owners.owned_by(src);
-            let pixels: usize = blocks
-                .iter()
-                .map(|&b| block_pixels(b, size, self.owners.tiles[0]).count())
-                .sum();
-            let mut v = sums_and_counts(bytes, pixels)
-                .ok_or_else(|| ExchangeError::Length {
+            let pixels: Vec<u32> = pixels_of(src).collect();
+            let values =
+                sums_and_counts(bytes, pixels.len()).ok_or_else(|| ExchangeError::Length {
                     rank: src,
                     what: "the owners' sums".into(),
                     got: bytes.len(),
-                    expected: PIXEL_BYTES * pixels,
-                })?
-                .into_iter();
-            for &b in &blocks {
-                for p in block_pixels(b, size, self.owners.tiles[0]) {
-                    let (s, n) = v.next().expect("as many as counted");
-                    acc.sum[p as usize] = s;
-                    acc.count[p as usize] = n;
-                }
+                    expected: PIXEL_BYTES * pixels.len(),
+                })?;
+            for (p, (s, n)) in pixels.into_iter().zip(values) {
+                let o = ((p / size[0]) / step * w + (p % size[0]) / step) as usize;
+                acc.sum[o] = s;
+                acc.count[o] = n;
             }
         }
         let dgi = if self.guidance.is_some() {
-            self.dgi.clone()
+            every(&self.dgi, size, step)
         } else {
-            vec![0.0; self.pixels]
+            vec![0.0; w as usize * h as usize]
         };
         Ok(Some((acc, dgi)))
     }
@@ -1258,6 +1265,25 @@ pub fn f32_bytes(v: &[f32]) -> Vec<u8> {
         }
         b
     }
+}
+
+/// The most pixels of the picture rank 0's console window shows across ranks (`view
+/// --cluster`): a 4K monitor's. A larger wall's picture is reduced to every k-th pixel of every
+/// k-th row (`viewer::core::ViewerCore::console_every`), so that the owners send rank 0 those pixels only —
+/// 20 bytes each, where HORNET's 73.8 megapixels whole are 1.5 GB a picture — and rank 0
+/// filters and draws only what its window can show. Saving takes the whole picture.
+pub const CONSOLE_PIXELS: u64 = 3840 * 2160;
+
+/// The least k for which every k-th pixel of every k-th row of a `size` image is at most
+/// `max` pixels (at least one).
+#[must_use]
+pub fn reduction_for(size: [u32; 2], max: u64) -> u32 {
+    (1..=size[0].max(size[1]).max(1))
+        .find(|&k| {
+            let [w, h] = every_size(size, k);
+            u64::from(w) * u64::from(h) <= max.max(1)
+        })
+        .unwrap_or(1)
 }
 
 /// Little-endian bytes as f32s (a multiple of `group` values; a shorter tail is dropped, and

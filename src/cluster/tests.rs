@@ -201,6 +201,58 @@ fn guided_ranks_give_the_one_process_accumulation_bit_for_bit() {
     }
 }
 
+/// Rank 0's console gathers every k-th pixel of every k-th row: the one process's
+/// accumulation and DGI reduced by [`Accumulation::every`], bit for bit, on 1–3 ranks and
+/// with the wall camera; and rank 0 receives 1/k² of the whole gather's bytes (those pixels,
+/// [`PIXEL_BYTES`] each).
+#[test]
+fn the_console_gathers_every_kth_pixel_and_its_bytes_only() {
+    let steps = [1, 3, 4, 40];
+    for with_wall in [false, true] {
+        let one = single(Some(Order::Scattered), with_wall);
+        for n in 1..=3 {
+            let per_rank = ranks_then(
+                n,
+                Some(Order::Scattered),
+                with_wall,
+                DgiMode::Compute,
+                columns,
+                |c, r, _| {
+                    steps.map(|step| {
+                        let before = c.traffic();
+                        let g = r.gather_every(c, step).unwrap();
+                        (g, c.traffic().since(&before).bytes_received)
+                    })
+                },
+            );
+            for (k, &step) in steps.iter().enumerate() {
+                let what = format!("{n} ranks, every {step}, wall {with_wall}");
+                let (got, received) = per_rank[0][k].clone();
+                let want = (one.0.every(step), every(&one.1, SIZE, step));
+                let got = got.expect("rank 0 gathers");
+                assert_eq!(
+                    [got.0.width, got.0.height],
+                    every_size(SIZE, step),
+                    "{what}"
+                );
+                assert_bits_equal(&got, &want, &what);
+                assert!(per_rank[1..].iter().all(|r| r[k].0.is_none()), "{what}");
+                // Rank 0's own pixels do not cross the link.
+                let own: u64 = columns(n)
+                    .owned_by(0)
+                    .into_iter()
+                    .flat_map(|b| block_pixels(b, SIZE, columns(n).tiles[0]))
+                    .filter(|p| {
+                        (p % SIZE[0]).is_multiple_of(step) && (p / SIZE[0]).is_multiple_of(step)
+                    })
+                    .count() as u64;
+                let kept = u64::from(every_size(SIZE, step)[0] * every_size(SIZE, step)[1]);
+                assert_eq!(received, PIXEL_BYTES as u64 * (kept - own), "{what}");
+            }
+        }
+    }
+}
+
 /// A rank's work per iteration is its share: it expands only the scheduled pixels of the
 /// blocks it traces or owns (coherent order on several ranks; the whole list otherwise) and
 /// keeps sums and counts only for its own blocks — and the images stay the one process's (the

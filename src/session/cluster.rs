@@ -226,8 +226,10 @@ pub fn run_cluster(
 pub enum ViewStep {
     /// One frame.
     Frame,
-    /// The owners' sums to rank 0: the picture the window shows or saves.
-    Gather,
+    /// The owners' sums to rank 0 at every `every`-th pixel of every `every`-th row
+    /// ([`ClusterRenderer::gather_every`]; 1: the whole picture): the picture the window shows
+    /// (rank 0's console, reduced to its size) or saves (whole).
+    Gather { every: u32 },
     /// A new ROI (`None`: sample every pixel); the accumulation goes on.
     Roi(Option<Roi>),
     /// The wall camera's eye moved past the restart threshold: move it there and restart.
@@ -253,7 +255,10 @@ impl ViewStep {
         let f32s = |b: &mut Vec<u8>, v: &[f32]| v.iter().for_each(|x| b.extend(x.to_le_bytes()));
         match *self {
             Self::Frame => b.push(0),
-            Self::Gather => b.push(1),
+            Self::Gather { every } => {
+                b.push(1);
+                b.extend(every.to_le_bytes());
+            }
             Self::Roi(None) => b.push(2),
             Self::Roi(Some(Roi::Cone(c))) => {
                 b.push(3);
@@ -334,7 +339,10 @@ impl ViewStep {
         let none = |s: Self| rest.is_empty().then_some(s);
         Some(match tag {
             0 => none(Self::Frame)?,
-            1 => none(Self::Gather)?,
+            1 => {
+                let every = u32::from_le_bytes(rest.try_into().ok()?);
+                (every > 0).then_some(Self::Gather { every })?
+            }
             2 => none(Self::Roi(None))?,
             3 => {
                 let f = f64s(rest, 14)?;
@@ -599,7 +607,9 @@ impl<'a> ClusterView<'a> {
                 self.frames += 1;
                 return Ok(Applied::Frame(self.r.run_frame(&mut self.c)?));
             }
-            ViewStep::Gather => return Ok(Applied::Gathered(self.r.gather(&mut self.c)?)),
+            ViewStep::Gather { every } => {
+                return Ok(Applied::Gathered(self.r.gather_every(&mut self.c, every)?));
+            }
             ViewStep::Roi(roi) => self.r.set_roi(roi)?,
             ViewStep::Eye(e) => self.r.move_eye(e)?,
             ViewStep::Camera(camera) => self.r.set_camera(camera),
@@ -704,7 +714,8 @@ mod tests {
         };
         let steps = [
             ViewStep::Frame,
-            ViewStep::Gather,
+            ViewStep::Gather { every: 1 },
+            ViewStep::Gather { every: 7 },
             ViewStep::Roi(None),
             ViewStep::Roi(Some(Roi::Cone(cone))),
             ViewStep::Roi(Some(Roi::CanvasEllipse {
@@ -739,6 +750,7 @@ mod tests {
             assert_eq!(ViewStep::decode(&b[..b.len() - 1]), None, "{s:?} − 1 byte");
         }
         assert_eq!(ViewStep::decode(&[9]), None);
+        assert_eq!(ViewStep::decode(&[1, 0, 0, 0, 0]), None, "every 0th pixel");
         let mut bad_metric = ViewStep::Rebuild {
             config,
             max_depth: 7,

@@ -109,6 +109,44 @@ impl Accumulation {
         }
         out
     }
+
+    /// The pixels at every `step`-th column of every `step`-th row (x and y multiples of
+    /// `step`), as an image of [`every_size`]: a picture's nearest-neighbour reduction, whose
+    /// pixels keep their own sums and counts (their means, noise and sample counts unchanged).
+    #[must_use]
+    pub fn every(&self, step: u32) -> Self {
+        let [width, height] = every_size([self.width, self.height], step);
+        Self {
+            width,
+            height,
+            sum: every(&self.sum, [self.width, self.height], step),
+            count: every(&self.count, [self.width, self.height], step),
+        }
+    }
+}
+
+/// The size of the reduction of a `size` image to every `step`-th pixel of every `step`-th row:
+/// ⌈width / step⌉ × ⌈height / step⌉.
+#[must_use]
+pub fn every_size(size: [u32; 2], step: u32) -> [u32; 2] {
+    assert!(step > 0, "a reduction keeps every step ≥ 1 pixels");
+    size.map(|n| n.div_ceil(step))
+}
+
+/// The values of a `size` image (row-major) at x and y multiples of `step`, row-major.
+#[must_use]
+pub fn every<T: Copy>(values: &[T], size: [u32; 2], step: u32) -> Vec<T> {
+    assert_eq!(
+        values.len(),
+        size[0] as usize * size[1] as usize,
+        "one value a pixel"
+    );
+    let [w, h] = size.map(|n| n as usize);
+    let step = step as usize;
+    (0..h)
+        .step_by(step)
+        .flat_map(|y| (0..w).step_by(step).map(move |x| values[y * w + x]))
+        .collect()
 }
 
 #[cfg(test)]
@@ -126,6 +164,25 @@ mod tests {
         assert!((got - 5.0 / 12.0).abs() < 1e-6, "{got}");
         assert_eq!(a.mean(0), Vec3::splat(2.5));
         assert_eq!(Accumulation::new(1, 1).luminance_variance_of_mean(0), None);
+    }
+
+    #[test]
+    fn every_keeps_the_pixels_on_the_grid_with_their_sums() {
+        let mut a = Accumulation::new(5, 3);
+        for i in 0..15 {
+            for _ in 0..=i % 4 {
+                a.add(i, Vec3::new(i as f32, 1.0, 2.0));
+            }
+        }
+        let e = a.every(2);
+        // Columns 0, 2, 4 of rows 0 and 2: the partial squares at the edges keep their pixel.
+        assert_eq!((e.width, e.height), (3, 2));
+        for (o, i) in [0, 2, 4, 10, 12, 14].into_iter().enumerate() {
+            assert_eq!((e.sum[o], e.count[o]), (a.sum[i], a.count[i]), "pixel {i}");
+        }
+        assert_eq!(a.every(1), a);
+        assert_eq!(every_size([5, 3], 5), [1, 1]);
+        assert_eq!(a.every(7).count, vec![a.count[0]]);
     }
 
     #[test]

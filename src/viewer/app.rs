@@ -121,6 +121,12 @@ impl<'a> ViewerApp<'a> {
                 ms(t.ms_trace)
             ));
         }
+        if st.console_every > 1 {
+            let k = st.console_every;
+            ui.label(format!(
+                "picture: every {k}th pixel of every {k}th row (saves are whole)"
+            ));
+        }
         if st.roi_pixels > 0 {
             ui.label(format!(
                 "ROI: {} samples, {:.1} per pixel",
@@ -489,6 +495,24 @@ impl eframe::App for ViewerApp<'_> {
                 ));
             }
         }
+        // Files take the whole picture: across ranks the window's may be reduced (the console's
+        // size), and then the owners send every pixel for these frames only.
+        let shot_due = self
+            .screenshot_after
+            .is_some_and(|n| self.core.stats.iterations >= n);
+        let whole = if (save || self.recording || shot_due) && self.core.console_every() > 1 {
+            match self.core.whole_picture() {
+                Ok(p) => Some(p),
+                Err(e) => {
+                    self.error = Some(crate::messages::chain(&e));
+                    ui.ctx().request_repaint_after(Duration::from_millis(200));
+                    return;
+                }
+            }
+        } else {
+            None
+        };
+        let picture = whole.as_ref().unwrap_or(&picture);
         if self.recording {
             let dir = self.save_dir.join("recording");
             let path = dir.join(format!("frame-{:05}.png", self.recorded));
@@ -497,7 +521,7 @@ impl eframe::App for ViewerApp<'_> {
                     dir: dir.clone(),
                     error,
                 })
-                .and_then(|()| super::core::save_view_png(&path, &picture));
+                .and_then(|()| super::core::save_view_png(&path, picture));
             match saved {
                 Ok(()) => {
                     self.recorded += 1;
@@ -513,13 +537,13 @@ impl eframe::App for ViewerApp<'_> {
         if save {
             self.saves += 1;
             let stem = format!("view-{:03}", self.saves);
-            let _ = self.save(&stem, &picture);
+            let _ = self.save(&stem, picture);
         }
         if let Some(n) = self.screenshot_after
             && self.core.stats.iterations >= n
         {
             // The picture files now; the whole window once the integration has read it back.
-            if let Err(e) = self.save("screenshot", &picture) {
+            if let Err(e) = self.save("screenshot", picture) {
                 self.fail(ui.ctx(), e);
                 return;
             }
@@ -566,7 +590,8 @@ impl eframe::App for ViewerApp<'_> {
             }
         }
         let model = self.core.model;
-        let size = picture.size;
+        // The window shows the window's picture (a reduced one across ranks: clicks map by it).
+        let size = [w, h];
         // The cursor at the display's frame time on the events' clock.
         let cursor = match self.core.state.source {
             RoiSource::Mouse => None,

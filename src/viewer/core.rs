@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 
 use glam::{DVec3, Vec3};
 
-use crate::cluster::ClusterRenderer;
+use crate::cluster::{CONSOLE_PIXELS, ClusterRenderer, reduction_for};
 use crate::display::DisplayModel;
 use crate::filter::{Filter, FilterParams};
 use crate::frame::{EyeFollow, FrameStats, GuideConfig, Renderer};
@@ -44,6 +44,10 @@ pub struct Stats {
     /// The DGI stage's time when it last ran in a timed frame (the frame after an ROI change
     /// is always timed).
     pub ms_dgi: Option<f64>,
+    /// The picture's reduction: every `console_every`-th pixel of every such row of the
+    /// image (1: every pixel; more only across ranks, for an image larger than rank 0's
+    /// console, [`CONSOLE_PIXELS`]). The statistics below are over the picture's pixels.
+    pub console_every: u32,
     /// Samples in the ROI (pixels with d = 0) and the mean per ROI pixel.
     pub roi_samples: u64,
     pub roi_pixels: u64,
@@ -212,11 +216,15 @@ impl Engine<'_> {
         }
     }
 
-    /// The whole accumulation and the DGI (across ranks: gathered from the owners).
-    fn accumulation(&mut self) -> Result<(Accumulation, Vec<f32>), ViewerError> {
+    /// The accumulation and the DGI at every `every`-th pixel of every `every`-th row (across
+    /// ranks: gathered from the owners; one process's is whole: `every` is 1 there).
+    fn accumulation(&mut self, every: u32) -> Result<(Accumulation, Vec<f32>), ViewerError> {
         match self {
-            Self::Local(r) => Ok((r.accumulation()?, r.dgi()?)),
-            Self::Cluster(v) => match v.send(ViewStep::Gather)? {
+            Self::Local(r) => {
+                assert_eq!(every, 1, "one process's picture is whole");
+                Ok((r.accumulation()?, r.dgi()?))
+            }
+            Self::Cluster(v) => match v.send(ViewStep::Gather { every })? {
                 Applied::Gathered(Some(g)) => Ok(g),
                 _ => unreachable!("rank 0 gathers"),
             },
@@ -224,21 +232,25 @@ impl Engine<'_> {
     }
 
     /// The filtered image of `acc` (across ranks: on rank 0's CPU twin, as `render --cluster`
-    /// filters), the wall camera's unshown pixels black.
+    /// filters; a reduced picture is filtered at its own size), the wall camera's unshown
+    /// pixels black; `shown` tells them for a reduced picture.
     fn picture_of(
         &self,
         params: &FilterParams,
         acc: &Accumulation,
         dgi: &[f32],
+        shown: impl Fn(usize) -> bool,
     ) -> Result<Vec<Vec3>, ViewerError> {
         match self {
             Self::Local(r) => Ok(r.picture_of(params, acc, dgi)?),
-            Self::Cluster(v) => {
+            Self::Cluster(_) => {
                 let mut image = Filter::new(&Backend::Cpu)
                     .image(params, acc, dgi)
                     .map_err(crate::frame::FrameError::from)?;
-                if let Some(w) = v.renderer().wall() {
-                    w.blank_unshown(&mut image);
+                for (i, v) in image.iter_mut().enumerate() {
+                    if !shown(i) {
+                        *v = Vec3::ZERO;
+                    }
                 }
                 Ok(image)
             }
@@ -264,6 +276,8 @@ pub struct ViewerCore<'a> {
     pub eye_refused: Option<String>,
     /// Accumulation restarts since the start because the eye or the camera moved.
     pub restarts: u32,
+    /// The most pixels of the window's picture across ranks ([`CONSOLE_PIXELS`] unless set).
+    pub console_pixels: u64,
 }
 
 /// Every this many frames one is timed (stage times, pixel count), which makes the GPU wait.
@@ -366,6 +380,7 @@ impl<'a> ViewerCore<'a> {
             stats: Stats::default(),
             eye_refused: None,
             restarts: 0,
+            console_pixels: CONSOLE_PIXELS,
         }
     }
 
@@ -529,10 +544,37 @@ impl<'a> ViewerCore<'a> {
         Ok(())
     }
 
-    /// Reads the accumulation and the DGI back, filters, and composes the picture for the
-    /// state's overlay (with the ROI outline and the wall view as asked).
+    /// The reduction of the window's picture: 1 in one process (its picture is whole); across
+    /// ranks, the least k for which every k-th pixel of every k-th row fits
+    /// [`Self::console_pixels`] ([`reduction_for`]).
+    #[must_use]
+    pub fn console_every(&self) -> u32 {
+        match self.engine {
+            Engine::Local(_) => 1,
+            Engine::Cluster(_) => reduction_for(self.size(), self.console_pixels),
+        }
+    }
+
+    /// The window's picture: [`Self::picture_every`] at [`Self::console_every`].
     pub fn picture(&mut self) -> Result<Picture, ViewerError> {
-        let (acc, dgi) = self.engine.accumulation()?;
+        self.picture_every(self.console_every())
+    }
+
+    /// The whole picture, every pixel (saves).
+    pub fn whole_picture(&mut self) -> Result<Picture, ViewerError> {
+        self.picture_every(1)
+    }
+
+    /// Reads the accumulation and the DGI back at every `every`-th pixel of every `every`-th
+    /// row (1: whole), filters, and composes the picture for the state's overlay (with the ROI
+    /// outline and the wall view as asked); the statistics are measured over its pixels.
+    pub fn picture_every(&mut self, every: u32) -> Result<Picture, ViewerError> {
+        let (acc, dgi) = self.engine.accumulation(every)?;
+        let full_width = self.size()[0] as usize;
+        let width = acc.width as usize;
+        let step = every as usize;
+        // The image pixel a picture pixel is.
+        let pixel = |i: usize| ((i / width * step) * full_width + (i % width) * step) as u32;
         if let Engine::Cluster(v) = &mut self.engine
             && v.shows_tiles()
         {
@@ -543,11 +585,14 @@ impl<'a> ViewerCore<'a> {
                 exposure: self.state.exposure,
             })?;
         }
+        let wall = self.engine.view().wall();
+        let shown = |i: usize| wall.is_none_or(|w| w.is_shown(pixel(i)));
         let image = self
             .engine
-            .picture_of(&self.state.filter_params(), &acc, &dgi)?;
+            .picture_of(&self.state.filter_params(), &acc, &dgi, shown)?;
         let r = self.engine.view();
-        let (roi_samples, roi_pixels) = roi_samples(&acc, &dgi, r.roi().is_some(), r.wall());
+        let (roi_samples, roi_pixels) = roi_samples(&acc, &dgi, r.roi().is_some(), shown);
+        self.stats.console_every = every;
         self.stats.roi_samples = roi_samples;
         self.stats.roi_pixels = roi_pixels;
         let noise = noise_image(&acc);
@@ -560,14 +605,11 @@ impl<'a> ViewerCore<'a> {
         });
         self.stats.roi_noise = contrast.map(|c| c.roi);
         self.stats.periphery_noise = contrast.map(|c| c.periphery);
-        let wall = r.wall();
-        self.stats.roi_progress = r.roi().and_then(|_| {
-            crate::frame::stop::RoiProgress::measure_where(&acc, &dgi, |i| {
-                wall.is_none_or(|w| w.is_shown(i as u32))
-            })
-        });
+        self.stats.roi_progress = r
+            .roi()
+            .and_then(|_| crate::frame::stop::RoiProgress::measure_where(&acc, &dgi, shown));
         self.stats.seconds_on_roi = self.roi_since.elapsed().as_secs_f64();
-        let size = self.size();
+        let size = [acc.width, acc.height];
         let mut rgba = match self.state.overlay {
             Overlay::Image => {
                 let scale = self.state.exposure.exp2();

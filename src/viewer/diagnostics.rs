@@ -2,7 +2,6 @@
 //! the noise contrast between ROI and periphery.
 
 use crate::trace::accum::Accumulation;
-use crate::trace::wall::WallCamera;
 
 /// The ROI outline colour (opaque yellow).
 pub const OUTLINE: [u8; 4] = [255, 220, 0, 255];
@@ -193,13 +192,14 @@ pub fn noise_map(noise: &[f32]) -> Vec<u8> {
 }
 
 /// Samples taken in the ROI (pixels with d = 0) and how many pixels it covers — with a wall
-/// camera only the pixels a tile shows (bezels are never sampled); (0, 0) without an ROI.
+/// camera only the pixels a tile shows (`shown`: bezels are never sampled); (0, 0) without an
+/// ROI.
 #[must_use]
 pub fn roi_samples(
     acc: &Accumulation,
     dgi: &[f32],
     has_roi: bool,
-    wall: Option<&WallCamera>,
+    shown: impl Fn(usize) -> bool,
 ) -> (u64, u64) {
     if !has_roi {
         return (0, 0);
@@ -207,6 +207,6 @@ pub fn roi_samples(
     dgi.iter()
         .zip(&acc.count)
         .enumerate()
-        .filter(|&(p, (d, _))| *d == 0.0 && wall.is_none_or(|w| w.is_shown(p as u32)))
+        .filter(|&(p, (d, _))| *d == 0.0 && shown(p))
         .fold((0, 0), |(s, n), (_, (_, &c))| (s + u64::from(c), n + 1))
 }
