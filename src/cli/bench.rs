@@ -277,12 +277,13 @@ fn cluster_bench(c: &mut Cluster, args: &GuidedBenchArgs) -> anyhow::Result<Opti
     let scene_name = args.scene[0].clone();
     let prepared = (|| -> anyhow::Result<_> {
         let display = DisplayModel::open(&args.display).context("--display")?.0;
+        let size = crate::cli::args::resolve_size(args.size, &args.display)?;
         let scene = crate::cli::scene::load_scene(&scene_name, args.env.as_deref())?;
         let backend = Backend::select(args.backend)?;
-        Ok((display, scene, backend))
+        Ok((display, size, scene, backend))
     })();
     let mine = match &prepared {
-        Ok((d, s, b)) => identity(
+        Ok((d, size, s, b)) => identity(
             c.ranks(),
             &[
                 ("command", "bench guided --cluster".to_owned()),
@@ -296,7 +297,7 @@ fn cluster_bench(c: &mut Cluster, args: &GuidedBenchArgs) -> anyhow::Result<Opti
                 ),
                 (
                     "settings",
-                    format!("{:?} {:?} {}", args.size, args.fov, args.iterations),
+                    format!("{size:?} {:?} {}", args.fov, args.iterations),
                 ),
                 ("trace backend", crate::cli::cluster::trace_backend(b)),
             ],
@@ -304,7 +305,7 @@ fn cluster_bench(c: &mut Cluster, args: &GuidedBenchArgs) -> anyhow::Result<Opti
         Err(e) => Err(crate::cli::error_chain(e)),
     };
     check(c, mine)?;
-    let (display, scene, backend) = prepared?;
+    let (display, size, scene, backend) = prepared?;
     let device = format!(
         "{} rank(s){}, each on {}",
         c.ranks(),
@@ -329,7 +330,7 @@ fn cluster_bench(c: &mut Cluster, args: &GuidedBenchArgs) -> anyhow::Result<Opti
     };
     let cfg = crate::bench::cluster::ClusterBenchConfig {
         scene: scene_name,
-        size: args.size,
+        size,
         fovs_deg: args.fov.clone(),
         iterations: args.iterations,
         max_depth: crate::trace::path::DEFAULT_MAX_DEPTH,
