@@ -1268,7 +1268,7 @@ pub fn f32_bytes(v: &[f32]) -> Vec<u8> {
 }
 
 /// The most pixels of the picture rank 0's console window shows across ranks (`view
-/// --cluster`): a 4K monitor's. A larger wall's picture is reduced to every k-th pixel of every
+/// --cluster`): a 4K monitor's (the window asks for no more than it shows). A larger wall's picture is reduced to every k-th pixel of every
 /// k-th row (`viewer::core::ViewerCore::console_every`), so that the owners send rank 0 those pixels only —
 /// 20 bytes each, where HORNET's 73.8 megapixels whole are 1.5 GB a picture — and rank 0
 /// filters and draws only what its window can show. Saving takes the whole picture.

@@ -28,6 +28,10 @@ pub const CURSOR_STALE: egui::Color32 = egui::Color32::from_rgb(128, 128, 128);
 /// Where the screenshot callback leaves the window's pixels.
 type ShotSlot = Arc<Mutex<Option<Arc<egui::ColorImage>>>>;
 
+/// The fewest pixels the console's picture is reduced to, however small the window (a
+/// minimised one shows none): 640 × 360.
+const MIN_CONSOLE_PIXELS: u64 = 640 * 360;
+
 pub struct ViewerApp<'a> {
     pub core: ViewerCore<'a>,
     pub timeline: Option<Timeline>,
@@ -36,6 +40,9 @@ pub struct ViewerApp<'a> {
     /// Save the picture after this many iterations and close.
     pub screenshot_after: Option<u32>,
     texture: Option<egui::TextureHandle>,
+    /// The screen pixels the picture filled in the last UI frame: across ranks, the console's
+    /// picture need not have more ([`ViewerCore::console_pixels`]).
+    shown_pixels: u64,
     /// The window screenshot asked for after `screenshot_after` iterations, when it arrives,
     /// and the frames waited for it.
     window_shot: Option<(ShotSlot, u32)>,
@@ -67,6 +74,7 @@ impl<'a> ViewerApp<'a> {
             save_dir,
             screenshot_after,
             texture: None,
+            shown_pixels: crate::cluster::CONSOLE_PIXELS,
             window_shot: None,
             last: Instant::now(),
             saves: 0,
@@ -469,6 +477,11 @@ impl eframe::App for ViewerApp<'_> {
             })
             .inner;
         let stepped = self.core.step(FRAME_BUDGET);
+        // Across ranks, no more of the picture than the window shows (at least a small
+        // window's, at most a 4K monitor's): the owners send those pixels only.
+        self.core.console_pixels = self
+            .shown_pixels
+            .clamp(MIN_CONSOLE_PIXELS, crate::cluster::CONSOLE_PIXELS);
         let picture = stepped.and_then(|()| self.core.picture());
         let picture = match picture {
             Ok(p) => {
@@ -611,6 +624,8 @@ impl eframe::App for ViewerApp<'_> {
             } else {
                 egui::vec2(avail.y * aspect, avail.y)
             };
+            let ppp = ui.ctx().pixels_per_point();
+            self.shown_pixels = (fit.x * ppp).max(0.0) as u64 * (fit.y * ppp).max(0.0) as u64;
             let r = ui.add(
                 egui::Image::new(tex)
                     .fit_to_exact_size(fit)
