@@ -46,7 +46,8 @@ pub struct Stats {
     pub ms_dgi: Option<f64>,
     /// The picture's reduction: every `console_every`-th pixel of every such row of the
     /// image (1: every pixel; more only across ranks, for an image larger than rank 0's
-    /// console, [`CONSOLE_PIXELS`]). The statistics below are over the picture's pixels.
+    /// console shows: [`ViewerCore::console_pixels`]). The statistics below are over the
+    /// picture's pixels.
     pub console_every: u32,
     /// Samples in the ROI (pixels with d = 0) and the mean per ROI pixel.
     pub roi_samples: u64,
@@ -276,7 +277,8 @@ pub struct ViewerCore<'a> {
     pub eye_refused: Option<String>,
     /// Accumulation restarts since the start because the eye or the camera moved.
     pub restarts: u32,
-    /// The most pixels of the window's picture across ranks ([`CONSOLE_PIXELS`] unless set).
+    /// The most pixels of the window's picture across ranks ([`CONSOLE_PIXELS`] unless set;
+    /// the window sets the pixels it shows the picture on).
     pub console_pixels: u64,
 }
 
