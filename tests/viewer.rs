@@ -934,3 +934,91 @@ fn the_console_reduces_what_exceeds_a_4k_monitor() {
     assert_eq!(every_size([13519, 5457], 3), [4507, 1819]);
     assert_eq!(reduction_for([7, 5], 0), 7, "at least one pixel");
 }
+
+/// `view --cluster` on GPU ranks (lavapipe in CI): rank 0 filters its pictures on its own GPU,
+/// so the window shows the one-process GPU viewer's pictures bit for bit — the accumulation is
+/// the one GPU process's (samples depend only on pixel, sample index and seed) and the filter
+/// runs on the same adapter.
+#[test]
+fn gpu_ranks_show_the_one_process_gpu_pictures_bit_for_bit() {
+    use raygun::cluster::exchange::InProcess;
+    use raygun::cluster::owners::{BlockOwners, TileOwners};
+    use raygun::cluster::{Cluster, DgiMode};
+    use raygun::gpu::GpuContext;
+    use raygun::session::cluster::ClusterView;
+    use raygun::viewer::core::Picture;
+    use raygun::viewer::orbit::Gesture;
+    fn script(core: &mut ViewerCore, model: &raygun::display::DisplayModel) -> Vec<Picture> {
+        core.state.click(model, DVec2::new(20.0, 12.0), [W, H]);
+        let mut pictures = Vec::new();
+        for _ in 0..3 {
+            core.step(ONE).unwrap();
+        }
+        pictures.push(core.picture().unwrap());
+        core.state.gesture(Gesture::Orbit(DVec2::new(40.0, 0.0)));
+        core.step(ONE).unwrap();
+        core.step(ONE).unwrap();
+        pictures.push(core.picture().unwrap());
+        pictures
+    }
+    let (model, scene) = (hornet(), scene());
+    let state = || ViewerState::new(RoiSource::Mouse, 4);
+    let one_backend = Backend::Gpu(Box::new(GpuContext::for_tests()));
+    let mut one = ViewerCore::new(&one_backend, &scene, &model, base(&scene), state()).unwrap();
+    let want = script(&mut one, &model);
+    let owners = BlockOwners::of_display(&model, &TileOwners::columns(&model, 2), [W, H]);
+    let config = state().guide_config().unwrap();
+    let got = std::thread::scope(|s| {
+        let mut ends = InProcess::job(2).into_iter();
+        let (root, other) = (ends.next().unwrap(), ends.next().unwrap());
+        let (scene, model, owners) = (&scene, &model, &owners);
+        let view = move |end: InProcess, gpu: std::sync::Arc<GpuContext>| {
+            let c = Cluster::new(Box::new(end), Duration::from_secs(60));
+            let (s, cfg) = (base(scene), config);
+            ClusterView::new(
+                c,
+                scene,
+                model,
+                s,
+                cfg,
+                None,
+                owners.clone(),
+                DgiMode::Compute,
+                Some(gpu),
+            )
+            .unwrap()
+        };
+        let follower = s.spawn(move || {
+            let mut v = view(other, std::sync::Arc::new(GpuContext::for_tests()));
+            while v.next_step().unwrap().is_some() {}
+        });
+        let ctx = std::sync::Arc::new(GpuContext::for_tests());
+        // Rank 0's filter on its rank's GPU, as `view --cluster --backend gpu` sets it up.
+        let filter_backend = Backend::Gpu(Box::new((*ctx).clone()));
+        let v = view(root, ctx);
+        let mut core =
+            ViewerCore::over_cluster(&filter_backend, scene, model, base(scene), state(), v)
+                .unwrap();
+        let got = script(&mut core, model);
+        drop(core);
+        follower.join().unwrap();
+        got
+    });
+    let bits = |p: &Picture| -> Vec<u32> {
+        p.image
+            .iter()
+            .flat_map(|v| v.to_array().map(f32::to_bits))
+            .collect()
+    };
+    for (k, (g, w)) in got.iter().zip(&want).enumerate() {
+        assert_eq!(g.counts, w.counts, "picture {k}: counts");
+        assert!(g.counts.iter().any(|&c| c > 0), "picture {k}: sampled");
+        let dgi = |p: &Picture| p.dgi.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+        assert!(
+            dgi(g) == dgi(w),
+            "picture {k}: DGI (the GPU's, not the CPU twin's)"
+        );
+        assert!(bits(g) == bits(w), "picture {k}: image");
+        assert!(g.rgba == w.rgba, "picture {k}: the window's picture");
+    }
+}

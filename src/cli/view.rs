@@ -226,10 +226,13 @@ fn run_cluster(args: &ViewArgs) -> anyhow::Result<()> {
     };
     check(&mut c, mine)?;
     let (s, owners, tile_owners, config, _) = prepared?;
-    // The ranks trace on their GPUs where --backend says so; rank 0 filters the picture on its
-    // CPU twin, as `render --cluster` does.
+    // The ranks trace on their GPUs where --backend says so; rank 0 filters its window's
+    // picture where it traces (its GPU: the one-process GPU viewer's filter).
     let (gpu, filter_backend) = match s.backend {
-        Backend::Gpu(ctx) => (Some(std::sync::Arc::from(ctx)), Backend::Cpu),
+        Backend::Gpu(ctx) => {
+            let shared = Backend::Gpu(Box::new((*ctx).clone()));
+            (Some(std::sync::Arc::from(ctx)), shared)
+        }
         Backend::Cpu => (None, Backend::Cpu),
     };
     let done = (|| -> anyhow::Result<()> {

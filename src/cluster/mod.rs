@@ -54,10 +54,11 @@ use glam::{DVec2, DVec3, Vec3};
 
 use crate::display::DisplayModel;
 use crate::frame::stop::RoiProgress;
-use crate::frame::{EyeFollow, FrameError, GuideConfig, dgi_cpu};
+use crate::frame::{EyeFollow, FrameError, GuideConfig, dgi_cpu, prepare_dgi};
 use crate::gpu::GpuContext;
 use crate::roi::cone::Cone;
 use crate::roi::dgi::{Roi, Surface};
+use crate::roi::gpu::DgiKernel;
 use crate::scene::Scene;
 use crate::schedule::{
     BLOCK_PIXELS, Order, ScheduleError, TILE_EDGE, schedule_cpu_block_masks, schedule_cpu_shown,
@@ -450,6 +451,28 @@ struct GpuRank {
     ctx: Arc<GpuContext>,
     scene: GpuScene,
     run: SampleRun,
+    /// The DGI's kernel: a GPU rank computes the DGI as one GPU process does (the CPU twin's
+    /// f64 solves agree with it only to rounding).
+    dgi: DgiKernel,
+}
+
+impl GpuRank {
+    /// The DGI of `roi` (`None`: 0 everywhere) on this rank's GPU: what a one-process GPU
+    /// renderer installs, value for value.
+    fn dgi(
+        &self,
+        g: &Guidance,
+        roi: Option<&Roi>,
+        size: [u32; 2],
+    ) -> Result<Vec<f32>, ClusterError> {
+        Ok(match roi {
+            Some(r) => {
+                let (guide, params) = prepare_dgi(&g.surface, g.pitch_m, &g.config, r, size)?;
+                self.dgi.compute(&self.ctx, &g.surface, &guide, &params)?
+            }
+            None => vec![0.0; size[0] as usize * size[1] as usize],
+        })
+    }
 }
 
 impl ClusterRenderer {
@@ -547,7 +570,13 @@ impl ClusterRenderer {
             &self.settings,
             self.wall.as_ref(),
         );
-        self.gpu = Some(Box::new(GpuRank { ctx, scene, run }));
+        let dgi = DgiKernel::new(&ctx);
+        self.gpu = Some(Box::new(GpuRank {
+            ctx,
+            scene,
+            run,
+            dgi,
+        }));
         Ok(())
     }
 
@@ -693,9 +722,24 @@ impl ClusterRenderer {
         };
         let t0 = Instant::now();
         let size = [self.settings.width, self.settings.height];
-        let compute = || dgi_cpu(&g.surface, g.pitch_m, &g.config, roi.as_ref(), size);
+        // On this rank's GPU when it traces on one (as one GPU process computes it), else on
+        // the CPU twin.
+        let gpu = self.gpu.as_deref();
+        let compute = || match gpu {
+            Some(gr) => gr.dgi(g, roi.as_ref(), size),
+            None => Ok(dgi_cpu(
+                &g.surface,
+                g.pitch_m,
+                &g.config,
+                roi.as_ref(),
+                size,
+            )?),
+        };
         self.dgi = match self.dgi_mode {
             DgiMode::Compute => compute()?,
+            // A GPU rank computes the whole DGI in a fraction of the exchange's time; it still
+            // sends its bands, so that the traffic is the split's.
+            DgiMode::Split if gpu.is_some() => split_dgi_from(c, compute()?, size)?,
             DgiMode::Split => split_dgi(c, &g.surface, g.pitch_m, &g.config, roi.as_ref(), size)?,
             DgiMode::Broadcast => {
                 let mine = if c.is_root() {
@@ -1163,7 +1207,18 @@ pub fn split_dgi(
     size: [u32; 2],
 ) -> Result<Vec<f32>, ClusterError> {
     let (me, n) = (c.rank(), c.ranks());
-    let mut dgi = crate::frame::dgi_cpu_bands(surface, pitch_m, config, roi, size, (me, n))?;
+    let dgi = crate::frame::dgi_cpu_bands(surface, pitch_m, config, roi, size, (me, n))?;
+    split_dgi_from(c, dgi, size)
+}
+
+/// [`split_dgi`]'s exchange from `dgi`, whose bands of this rank are computed: each rank sends
+/// its bands to every other and takes theirs.
+fn split_dgi_from(
+    c: &mut Cluster,
+    mut dgi: Vec<f32>,
+    size: [u32; 2],
+) -> Result<Vec<f32>, ClusterError> {
+    let (me, n) = (c.rank(), c.ranks());
     let (w, h, band) = (size[0] as usize, size[1] as usize, crate::roi::dgi::BLOCK);
     let rows = |b: usize| b * band * w..((b + 1) * band).min(h) * w;
     let bands_of = |r: usize| (r..h.div_ceil(band)).step_by(n);

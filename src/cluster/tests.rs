@@ -702,6 +702,68 @@ fn gpu_ranks_give_the_one_gpu_process_accumulation_and_follow_a_moved_eye() {
     assert_bits_equal(&root, &one, "2 GPU ranks, the eye moved");
 }
 
+/// Guided GPU ranks give one GPU process's accumulation and DGI bit for bit, the ROI moving
+/// between frames: the ranks compute the DGI on their GPUs as the one process does (the CPU
+/// twin's f64 solves agree with it only to rounding), whichever way it reaches them — each
+/// rank computing it, rank 0 broadcasting it, or the ranks splitting its bands.
+#[test]
+fn guided_gpu_ranks_give_the_one_gpu_process_accumulation_and_dgi() {
+    let s = scene();
+    let ctx = Arc::new(GpuContext::for_tests());
+    let b = Backend::Gpu(Box::new(GpuContext::for_tests()));
+    let order = Order::Scattered;
+    let mut one =
+        Renderer::guided_wall(&b, &s, settings(&s), &hornet(), config(order), None).unwrap();
+    for k in 0..ITERATIONS {
+        if let Some(roi) = roi_at(k) {
+            one.set_roi(roi).unwrap();
+        }
+        one.run_frame(false).unwrap();
+    }
+    let one = one.finish().unwrap();
+    for (n, mode) in [
+        (2, DgiMode::Compute),
+        (3, DgiMode::Broadcast),
+        (2, DgiMode::Split),
+    ] {
+        let got: Vec<_> = std::thread::scope(|sc| {
+            let handles: Vec<_> = InProcess::job(n)
+                .into_iter()
+                .map(|end| {
+                    let (s, ctx) = (&s, &ctx);
+                    sc.spawn(move || {
+                        let rank = end.rank();
+                        let mut c = Cluster::new(Box::new(end), Duration::from_secs(30));
+                        let model = hornet();
+                        let mut r = ClusterRenderer::new(
+                            s,
+                            settings(s),
+                            Some((&model, config(order))),
+                            None,
+                            columns(n),
+                            mode,
+                            rank,
+                            n,
+                        )
+                        .unwrap();
+                        r.trace_on_gpu(ctx.clone()).unwrap();
+                        for k in 0..ITERATIONS {
+                            if let Some(roi) = roi_at(k) {
+                                r.set_roi(roi).unwrap();
+                            }
+                            r.run_frame(&mut c).unwrap();
+                        }
+                        r.gather(&mut c).unwrap()
+                    })
+                })
+                .collect();
+            handles.into_iter().map(|h| h.join().unwrap()).collect()
+        });
+        let root = got.into_iter().next().unwrap().expect("rank 0 gathers");
+        assert_bits_equal(&root, &one, &format!("{n} GPU ranks, DGI {mode:?}"));
+    }
+}
+
 /// The split schedule's bytes: a flag byte a block and 128 bytes a non-empty one, read back
 /// exactly; anything else is refused with what is wrong.
 #[test]

@@ -184,7 +184,9 @@ impl Band {
     }
 }
 
-/// A device and queue on the chosen adapter, with what the stages need to know about it.
+/// A device and queue on the chosen adapter, with what the stages need to know about it. A
+/// clone shares the device and queue (wgpu's handles): a second user of the same GPU.
+#[derive(Clone)]
 pub struct GpuContext {
     pub device: wgpu::Device,
     pub queue: wgpu::Queue,

@@ -13,7 +13,7 @@ use glam::{DVec3, Vec3};
 
 use crate::cluster::{CONSOLE_PIXELS, ClusterRenderer, reduction_for};
 use crate::display::DisplayModel;
-use crate::filter::{Filter, FilterParams};
+use crate::filter::Filter;
 use crate::frame::{EyeFollow, FrameStats, GuideConfig, Renderer};
 use crate::gpu::Backend;
 use crate::output::tiles::wall_view;
@@ -231,32 +231,6 @@ impl Engine<'_> {
             },
         }
     }
-
-    /// The filtered image of `acc` (across ranks: on rank 0's CPU twin, as `render --cluster`
-    /// filters; a reduced picture is filtered at its own size), the wall camera's unshown
-    /// pixels black; `shown` tells them for a reduced picture.
-    fn picture_of(
-        &self,
-        params: &FilterParams,
-        acc: &Accumulation,
-        dgi: &[f32],
-        shown: impl Fn(usize) -> bool,
-    ) -> Result<Vec<Vec3>, ViewerError> {
-        match self {
-            Self::Local(r) => Ok(r.picture_of(params, acc, dgi)?),
-            Self::Cluster(_) => {
-                let mut image = Filter::new(&Backend::Cpu)
-                    .image(params, acc, dgi)
-                    .map_err(crate::frame::FrameError::from)?;
-                for (i, v) in image.iter_mut().enumerate() {
-                    if !shown(i) {
-                        *v = Vec3::ZERO;
-                    }
-                }
-                Ok(image)
-            }
-        }
-    }
 }
 
 /// The renderer kept in step with a [`ViewerState`].
@@ -277,6 +251,8 @@ pub struct ViewerCore<'a> {
     pub eye_refused: Option<String>,
     /// Accumulation restarts since the start because the eye or the camera moved.
     pub restarts: u32,
+    /// Across ranks, the filter of rank 0's pictures (on `backend`), made once.
+    filter: std::cell::OnceCell<Filter<'a>>,
     /// The most pixels of the window's picture across ranks ([`CONSOLE_PIXELS`] unless set;
     /// the window sets the pixels it shows the picture on).
     pub console_pixels: u64,
@@ -330,7 +306,8 @@ impl<'a> ViewerCore<'a> {
 
     /// [`Self::new`] as rank 0 of a render across ranks (`view --cluster`, DESIGN.md §12):
     /// `view` renders (the other ranks follow it), and every change of the state goes to every
-    /// rank. `backend` filters the picture (the CPU twin, as `render --cluster` filters).
+    /// rank. `backend` filters the picture: rank 0's own (its GPU when its rank traces on
+    /// one, sharing the device: the one-process GPU viewer's filter), else the CPU twin.
     pub fn over_cluster(
         backend: &'a Backend,
         scene: &'a Scene,
@@ -382,6 +359,7 @@ impl<'a> ViewerCore<'a> {
             stats: Stats::default(),
             eye_refused: None,
             restarts: 0,
+            filter: std::cell::OnceCell::new(),
             console_pixels: CONSOLE_PIXELS,
         }
     }
@@ -589,9 +567,24 @@ impl<'a> ViewerCore<'a> {
         }
         let wall = self.engine.view().wall();
         let shown = |i: usize| wall.is_none_or(|w| w.is_shown(pixel(i)));
-        let image = self
-            .engine
-            .picture_of(&self.state.filter_params(), &acc, &dgi, shown)?;
+        let params = self.state.filter_params();
+        let image = match &self.engine {
+            Engine::Local(r) => r.picture_of(&params, &acc, &dgi)?,
+            Engine::Cluster(_) => {
+                // Across ranks on rank 0's backend (a reduced picture at its own size), the
+                // wall camera's unshown pixels black.
+                let filter = self.filter.get_or_init(|| Filter::new(self.backend));
+                let mut image = filter
+                    .image(&params, &acc, &dgi)
+                    .map_err(crate::frame::FrameError::from)?;
+                for (i, v) in image.iter_mut().enumerate() {
+                    if !shown(i) {
+                        *v = Vec3::ZERO;
+                    }
+                }
+                image
+            }
+        };
         let r = self.engine.view();
         let (roi_samples, roi_pixels) = roi_samples(&acc, &dgi, r.roi().is_some(), shown);
         self.stats.console_every = every;
