@@ -90,11 +90,13 @@ pub struct RankRun {
     pub samples_traced_per_iteration: f64,
     pub bytes_sent_per_iteration: f64,
     pub bytes_received_per_iteration: f64,
-    /// The DGI computed on this rank (ms).
+    /// The DGI computed on this rank (ms): on its GPU for a GPU rank, as the renderer does.
     pub ms_dgi_compute: f64,
     /// The DGI broadcast from rank 0, received (or sent) here (ms).
     pub ms_dgi_broadcast: f64,
-    /// The DGI split: this rank's bands computed, then every rank's bands exchanged (ms).
+    /// The DGI split on the CPU twins: this rank's bands computed, then every rank's bands
+    /// exchanged (ms). A GPU rank splits no work (it computes the whole DGI on its GPU, the
+    /// compute column, and only exchanges the bands).
     pub ms_dgi_split: f64,
     /// After the iterations, the picture of the tiles this rank owns: the margins' exchange
     /// and the filter of its own tiles (ms; every owner at once).
