@@ -91,8 +91,9 @@ fn prepare(args: &RenderArgs, c: &Cluster) -> anyhow::Result<Prepared> {
         }
         _ => None,
     };
-    // Each rank traces on its own GPU where it has one (the schedule, the DGI and the filter
-    // stay on its CPU, the same everywhere).
+    // Each rank traces on its own GPU where it has one and computes the DGI there (as one GPU
+    // process does); the schedule and the owners' tiles stay on the CPUs, and rank 0 filters
+    // the whole picture where it traced.
     let backend = Backend::select(args.backend)?;
     let scene = load_scene(&args.scene, args.env.as_deref())?;
     let settings = settings(args, &scene)?;
@@ -222,7 +223,12 @@ fn work(c: &mut Cluster, args: &RenderArgs, mut p: Prepared) -> anyhow::Result<(
     let [w, h] = args.size;
     match &p.plan {
         Some(plan) => {
-            let mut image = Filter::new(&Backend::Cpu).image(&plan.filter, acc, dgi)?;
+            // On rank 0's GPU when it traced on one (one GPU process's image), else the CPU twin.
+            let filter_backend = match r.gpu() {
+                Some(ctx) => Backend::Gpu(Box::new(ctx.clone())),
+                None => Backend::Cpu,
+            };
+            let mut image = Filter::new(&filter_backend).image(&plan.filter, acc, dgi)?;
             if let Some(wc) = &p.wall {
                 wc.blank_unshown(&mut image);
             }
