@@ -105,7 +105,7 @@ pub struct RankRun {
     pub tile_pictures_bytes_sent: u64,
     pub tile_pictures_bytes_received: u64,
     /// Rank 0 only: the whole picture the other way, the owners' sums gathered to rank 0 and
-    /// the whole image filtered there (ms).
+    /// the whole image filtered there (ms; on its GPU when it traces on one).
     pub ms_gather_and_filter: f64,
     /// Rank 0 only: the picture `view --cluster` shows on its console, every k-th pixel of
     /// every k-th row ([`crate::cluster::reduction_for`] at
@@ -300,9 +300,15 @@ pub fn scaling(
         r.tile_pictures(c, display, &tile_map, &params)?;
         let ms_tile_pictures = t.elapsed().as_secs_f64() * 1e3;
         let moved = c.traffic();
+        // Rank 0 filters where it traces, as `render --cluster` and `view --cluster` do.
+        let filter_backend = match r.gpu() {
+            Some(ctx) => crate::gpu::Backend::Gpu(Box::new(ctx.clone())),
+            None => crate::gpu::Backend::Cpu,
+        };
+        let filter = crate::filter::Filter::new(&filter_backend);
         let t = Instant::now();
         if let Some((acc, dgi)) = r.gather(c)? {
-            crate::filter::Filter::new(&crate::gpu::Backend::Cpu)
+            filter
                 .image(&params, &acc, &dgi)
                 .map_err(ClusterError::from)?;
         }
@@ -315,7 +321,7 @@ pub fn scaling(
         let console_before = c.traffic();
         let t = Instant::now();
         if let Some((acc, dgi)) = r.gather_every(c, console_every)? {
-            crate::filter::Filter::new(&crate::gpu::Backend::Cpu)
+            filter
                 .image(&params, &acc, &dgi)
                 .map_err(ClusterError::from)?;
         }
