@@ -101,7 +101,9 @@ pub enum DgiMode {
     /// Rank 0 computes it and broadcasts it (4 bytes a pixel to every rank).
     Broadcast,
     /// Every rank computes every N-th band of 16 rows and sends it to the others (each rank
-    /// receives 4 bytes a pixel of the others' bands): a 1/N share of the work each.
+    /// receives 4 bytes a pixel of the others' bands): a 1/N share of the work each. On GPU
+    /// ranks, [`Self::Compute`]: a GPU computes the whole DGI in one dispatch, and the bands'
+    /// exchange would bring nothing it has not computed.
     Split,
 }
 
@@ -736,10 +738,12 @@ impl ClusterRenderer {
             )?),
         };
         self.dgi = match self.dgi_mode {
+            // GPU ranks compute the whole DGI in either mode: a band computed on a GPU costs
+            // what the whole does there (one dispatch), and the others' bands would only be
+            // the values this rank computed already — so no exchange (every rank of a job is
+            // on the same backend: the start-up check).
             DgiMode::Compute => compute()?,
-            // A GPU rank computes the whole DGI in a fraction of the exchange's time; it still
-            // sends its bands, so that the traffic is the split's.
-            DgiMode::Split if gpu.is_some() => split_dgi_from(c, compute()?, size)?,
+            DgiMode::Split if gpu.is_some() => compute()?,
             DgiMode::Split => split_dgi(c, &g.surface, g.pitch_m, &g.config, roi.as_ref(), size)?,
             DgiMode::Broadcast => {
                 let mine = if c.is_root() {
@@ -1207,18 +1211,7 @@ pub fn split_dgi(
     size: [u32; 2],
 ) -> Result<Vec<f32>, ClusterError> {
     let (me, n) = (c.rank(), c.ranks());
-    let dgi = crate::frame::dgi_cpu_bands(surface, pitch_m, config, roi, size, (me, n))?;
-    split_dgi_from(c, dgi, size)
-}
-
-/// [`split_dgi`]'s exchange from `dgi`, whose bands of this rank are computed: each rank sends
-/// its bands to every other and takes theirs.
-fn split_dgi_from(
-    c: &mut Cluster,
-    mut dgi: Vec<f32>,
-    size: [u32; 2],
-) -> Result<Vec<f32>, ClusterError> {
-    let (me, n) = (c.rank(), c.ranks());
+    let mut dgi = crate::frame::dgi_cpu_bands(surface, pitch_m, config, roi, size, (me, n))?;
     let (w, h, band) = (size[0] as usize, size[1] as usize, crate::roi::dgi::BLOCK);
     let rows = |b: usize| b * band * w..((b + 1) * band).min(h) * w;
     let bands_of = |r: usize| (r..h.div_ceil(band)).step_by(n);

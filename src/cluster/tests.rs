@@ -705,7 +705,8 @@ fn gpu_ranks_give_the_one_gpu_process_accumulation_and_follow_a_moved_eye() {
 /// Guided GPU ranks give one GPU process's accumulation and DGI bit for bit, the ROI moving
 /// between frames: the ranks compute the DGI on their GPUs as the one process does (the CPU
 /// twin's f64 solves agree with it only to rounding), whichever way it reaches them — each
-/// rank computing it, rank 0 broadcasting it, or the ranks splitting its bands.
+/// rank computing it, rank 0 broadcasting it, or the split, which on GPUs is the compute (the
+/// same bytes received as there: no band crosses the link).
 #[test]
 fn guided_gpu_ranks_give_the_one_gpu_process_accumulation_and_dgi() {
     let s = scene();
@@ -721,6 +722,7 @@ fn guided_gpu_ranks_give_the_one_gpu_process_accumulation_and_dgi() {
         one.run_frame(false).unwrap();
     }
     let one = one.finish().unwrap();
+    let mut traffic = Vec::new();
     for (n, mode) in [
         (2, DgiMode::Compute),
         (3, DgiMode::Broadcast),
@@ -747,21 +749,27 @@ fn guided_gpu_ranks_give_the_one_gpu_process_accumulation_and_dgi() {
                         )
                         .unwrap();
                         r.trace_on_gpu(ctx.clone()).unwrap();
+                        // The bytes each rank received over the frames.
+                        let mut received = 0;
                         for k in 0..ITERATIONS {
                             if let Some(roi) = roi_at(k) {
                                 r.set_roi(roi).unwrap();
                             }
-                            r.run_frame(&mut c).unwrap();
+                            received += r.run_frame(&mut c).unwrap().traffic.bytes_received;
                         }
-                        r.gather(&mut c).unwrap()
+                        (r.gather(&mut c).unwrap(), received)
                     })
                 })
                 .collect();
             handles.into_iter().map(|h| h.join().unwrap()).collect()
         });
-        let root = got.into_iter().next().unwrap().expect("rank 0 gathers");
+        let received: Vec<u64> = got.iter().map(|g| g.1).collect();
+        let root = got.into_iter().next().unwrap().0.expect("rank 0 gathers");
         assert_bits_equal(&root, &one, &format!("{n} GPU ranks, DGI {mode:?}"));
+        traffic.push((mode, received));
     }
+    // On GPU ranks the split is the compute: no band crosses the link.
+    assert_eq!(traffic[2], (DgiMode::Split, traffic[0].1.clone()));
 }
 
 /// The split schedule's bytes: a flag byte a block and 128 bytes a non-empty one, read back
