@@ -1032,57 +1032,51 @@ fn stop_conditions_end_a_guided_render_and_say_why() {
 fn messages_speak_to_users() {
     // Mesa's XDG_RUNTIME_DIR complaint is not the user's business.
     let xdg = tmp_dir("xdg");
-    let o = command(
-        Path::new(ROOT),
-        &[
-            "dgi",
-            "--origin",
-            "0,0,1",
-            "--dir",
-            "0,0,-1",
-            "--fov",
-            "30,30",
-            "--size",
-            "16,9",
-            "--out",
-            s(&xdg.join("d.png")),
-        ],
-    )
-    .env_remove("XDG_RUNTIME_DIR")
-    .stdout(Stdio::piped())
-    .stderr(Stdio::piped())
-    .spawn()
-    .unwrap();
-    let runtime = std::env::temp_dir().join(format!("raygun-runtime-{}", o.id()));
-    let o = o.wait_with_output().unwrap();
+    // raygun without XDG_RUNTIME_DIR: its output, and the private runtime folder it would make.
+    let without_runtime = |args: &[&str]| {
+        let child = command(Path::new(ROOT), args)
+            .env_remove("XDG_RUNTIME_DIR")
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let runtime = std::env::temp_dir().join(format!("raygun-runtime-{}", child.id()));
+        (child.wait_with_output().unwrap(), runtime)
+    };
+    let out = xdg.join("d.png");
+    let (o, runtime) = without_runtime(&[
+        "dgi",
+        "--origin",
+        "0,0,1",
+        "--dir",
+        "0,0,-1",
+        "--fov",
+        "30,30",
+        "--size",
+        "16,9",
+        "--out",
+        s(&out),
+    ]);
     ok(&o);
     assert!(!stderr(&o).contains("XDG_RUNTIME_DIR"), "{}", stderr(&o));
     // The private runtime folder raygun made for the drivers is gone when it ends, after an
     // error too.
     assert!(!runtime.exists(), "{} was left behind", runtime.display());
-    let failed = command(
-        Path::new(ROOT),
-        &[
-            "dgi",
-            "--display",
-            "/nonexistent/m.json",
-            "--origin",
-            "0,0,1",
-            "--dir",
-            "0,0,-1",
-            "--fov",
-            "30,30",
-            "--out",
-            s(&xdg.join("e.png")),
-        ],
-    )
-    .env_remove("XDG_RUNTIME_DIR")
-    .stdout(Stdio::piped())
-    .stderr(Stdio::piped())
-    .spawn()
-    .unwrap();
-    let runtime = std::env::temp_dir().join(format!("raygun-runtime-{}", failed.id()));
-    assert_eq!(failed.wait_with_output().unwrap().status.code(), Some(1));
+    let out = xdg.join("e.png");
+    let (failed, runtime) = without_runtime(&[
+        "dgi",
+        "--display",
+        "/nonexistent/m.json",
+        "--origin",
+        "0,0,1",
+        "--dir",
+        "0,0,-1",
+        "--fov",
+        "30,30",
+        "--out",
+        s(&out),
+    ]);
+    assert_eq!(failed.status.code(), Some(1));
     assert!(!runtime.exists(), "{} was left behind", runtime.display());
     // A cause is said once.
     let o = raygun(&[

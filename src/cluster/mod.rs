@@ -70,7 +70,7 @@ use crate::trace::path::{TraceSettings, samples_cpu};
 use crate::trace::wall::WallCamera;
 use deal::{BlockList, CostTable, deal};
 use exchange::{Exchange, ExchangeError, Traffic};
-use owners::{BlockOwners, block_grid, block_of, block_pixels};
+use owners::{BlockOwners, block_grid, block_of, block_pixels, block_pixels_every};
 
 /// Why a cluster frame (or the job's start) failed.
 #[derive(Debug, thiserror::Error)]
@@ -1141,14 +1141,12 @@ impl ClusterRenderer {
         step: u32,
     ) -> Result<Option<(Accumulation, Vec<f32>)>, ClusterError> {
         let size = [self.settings.width, self.settings.height];
-        let kept =
-            |p: &u32| (p % size[0]).is_multiple_of(step) && (p / size[0]).is_multiple_of(step);
         let pixels_of = |rank: usize| {
             let tiles_x = self.owners.tiles[0];
             self.owners
                 .owned_by(rank)
                 .into_iter()
-                .flat_map(move |b| block_pixels(b, size, tiles_x).filter(kept))
+                .flat_map(move |b| block_pixels_every(b, size, tiles_x, step))
         };
         let mut mine = Vec::new();
         for p in pixels_of(self.rank) {

@@ -290,6 +290,24 @@ pub fn block_pixels(b: u32, size: [u32; 2], tiles_x: u32) -> impl Iterator<Item 
     (y0..y1).flat_map(move |y| (x0..x1).map(move |x| y * size[0] + x))
 }
 
+/// The pixels of block `b` at x and y multiples of `step` (row-major): [`block_pixels`]
+/// filtered to that grid, visiting only the grid's pixels.
+pub fn block_pixels_every(
+    b: u32,
+    size: [u32; 2],
+    tiles_x: u32,
+    step: u32,
+) -> impl Iterator<Item = u32> {
+    let (x0, y0) = ((b % tiles_x) * TILE_EDGE, (b / tiles_x) * TILE_EDGE);
+    let (x1, y1) = ((x0 + TILE_EDGE).min(size[0]), (y0 + TILE_EDGE).min(size[1]));
+    // The first multiple of `step` at or after each block edge.
+    let (gx, gy) = (x0.div_ceil(step) * step, y0.div_ceil(step) * step);
+    let step = step as usize;
+    (gy..y1)
+        .step_by(step)
+        .flat_map(move |y| (gx..x1).step_by(step).map(move |x| y * size[0] + x))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -300,6 +318,24 @@ mod tests {
 
     fn file() -> &'static Path {
         Path::new("owners.txt")
+    }
+
+    /// The grid's pixels of a block are its pixels filtered to the grid, edge blocks too.
+    #[test]
+    fn a_blocks_grid_pixels_are_its_pixels_on_the_grid() {
+        let size = [100, 70];
+        for step in [1, 3, 7, 32, 40] {
+            for b in 0..4 * 3 {
+                let want: Vec<u32> = block_pixels(b, size, 4)
+                    .filter(|p| (p % 100).is_multiple_of(step) && (p / 100).is_multiple_of(step))
+                    .collect();
+                assert_eq!(
+                    block_pixels_every(b, size, 4, step).collect::<Vec<_>>(),
+                    want,
+                    "block {b}, every {step}"
+                );
+            }
+        }
     }
 
     #[test]

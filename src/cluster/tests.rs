@@ -69,14 +69,18 @@ fn wall(scene: &Scene) -> WallCamera {
 
 /// One process: the renderer every command uses.
 fn single(guided: Option<Order>, with_wall: bool) -> (Accumulation, Vec<f32>) {
+    single_on(&Backend::Cpu, guided, with_wall)
+}
+
+/// [`single`] on backend `b`.
+fn single_on(b: &Backend, guided: Option<Order>, with_wall: bool) -> (Accumulation, Vec<f32>) {
     let s = scene();
     let w = with_wall.then(|| wall(&s));
-    let b = Backend::Cpu;
     let mut r = match guided {
-        Some(o) => Renderer::guided_wall(&b, &s, settings(&s), &hornet(), config(o), w).unwrap(),
+        Some(o) => Renderer::guided_wall(b, &s, settings(&s), &hornet(), config(o), w).unwrap(),
         None => match w {
-            Some(w) => Renderer::full_wall(&b, &s, settings(&s), w).unwrap(),
-            None => Renderer::full(&b, &s, settings(&s)).unwrap(),
+            Some(w) => Renderer::full_wall(b, &s, settings(&s), w).unwrap(),
+            None => Renderer::full(b, &s, settings(&s)).unwrap(),
         },
     };
     for k in 0..ITERATIONS {
@@ -100,6 +104,19 @@ fn ranks_then<T: Send>(
     owners: impl Fn(usize) -> BlockOwners + Sync,
     after: impl Fn(&mut Cluster, &ClusterRenderer, &[ClusterFrameStats]) -> T + Sync,
 ) -> Vec<T> {
+    ranks_on_then(n, guided, with_wall, mode, owners, None, after)
+}
+
+/// [`ranks_then`] with every rank tracing on `gpu` when given.
+fn ranks_on_then<T: Send>(
+    n: usize,
+    guided: Option<Order>,
+    with_wall: bool,
+    mode: DgiMode,
+    owners: impl Fn(usize) -> BlockOwners + Sync,
+    gpu: Option<&Arc<GpuContext>>,
+    after: impl Fn(&mut Cluster, &ClusterRenderer, &[ClusterFrameStats]) -> T + Sync,
+) -> Vec<T> {
     std::thread::scope(|sc| {
         let handles: Vec<_> = InProcess::job(n)
             .into_iter()
@@ -115,6 +132,9 @@ fn ranks_then<T: Send>(
                     let mut r =
                         ClusterRenderer::new(&s, settings(&s), guide, w, owners(n), mode, rank, n)
                             .unwrap();
+                    if let Some(ctx) = gpu {
+                        r.trace_on_gpu(Arc::clone(ctx)).unwrap();
+                    }
                     let mut frames = Vec::new();
                     for k in 0..ITERATIONS {
                         let control = FrameControl {
@@ -709,60 +729,33 @@ fn gpu_ranks_give_the_one_gpu_process_accumulation_and_follow_a_moved_eye() {
 /// same bytes received as there: no band crosses the link).
 #[test]
 fn guided_gpu_ranks_give_the_one_gpu_process_accumulation_and_dgi() {
-    let s = scene();
     let ctx = Arc::new(GpuContext::for_tests());
-    let b = Backend::Gpu(Box::new(GpuContext::for_tests()));
     let order = Order::Scattered;
-    let mut one =
-        Renderer::guided_wall(&b, &s, settings(&s), &hornet(), config(order), None).unwrap();
-    for k in 0..ITERATIONS {
-        if let Some(roi) = roi_at(k) {
-            one.set_roi(roi).unwrap();
-        }
-        one.run_frame(false).unwrap();
-    }
-    let one = one.finish().unwrap();
+    let one = single_on(
+        &Backend::Gpu(Box::new(GpuContext::for_tests())),
+        Some(order),
+        false,
+    );
     let mut traffic = Vec::new();
     for (n, mode) in [
         (2, DgiMode::Compute),
         (3, DgiMode::Broadcast),
         (2, DgiMode::Split),
     ] {
-        let got: Vec<_> = std::thread::scope(|sc| {
-            let handles: Vec<_> = InProcess::job(n)
-                .into_iter()
-                .map(|end| {
-                    let (s, ctx) = (&s, &ctx);
-                    sc.spawn(move || {
-                        let rank = end.rank();
-                        let mut c = Cluster::new(Box::new(end), Duration::from_secs(30));
-                        let model = hornet();
-                        let mut r = ClusterRenderer::new(
-                            s,
-                            settings(s),
-                            Some((&model, config(order))),
-                            None,
-                            columns(n),
-                            mode,
-                            rank,
-                            n,
-                        )
-                        .unwrap();
-                        r.trace_on_gpu(ctx.clone()).unwrap();
-                        // The bytes each rank received over the frames.
-                        let mut received = 0;
-                        for k in 0..ITERATIONS {
-                            if let Some(roi) = roi_at(k) {
-                                r.set_roi(roi).unwrap();
-                            }
-                            received += r.run_frame(&mut c).unwrap().traffic.bytes_received;
-                        }
-                        (r.gather(&mut c).unwrap(), received)
-                    })
-                })
-                .collect();
-            handles.into_iter().map(|h| h.join().unwrap()).collect()
-        });
+        // Each rank's gathered accumulation (rank 0's) and the bytes it received over the
+        // frames.
+        let got = ranks_on_then(
+            n,
+            Some(order),
+            false,
+            mode,
+            columns,
+            Some(&ctx),
+            |c, r, f| {
+                let received: u64 = f.iter().map(|s| s.traffic.bytes_received).sum();
+                (r.gather(c).unwrap(), received)
+            },
+        );
         let received: Vec<u64> = got.iter().map(|g| g.1).collect();
         let root = got.into_iter().next().unwrap().0.expect("rank 0 gathers");
         assert_bits_equal(&root, &one, &format!("{n} GPU ranks, DGI {mode:?}"));
