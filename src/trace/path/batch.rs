@@ -199,7 +199,11 @@ fn batches<const FULL: bool>(
                 }
             }
             n_live = 0;
-            for group in shade[..n_shade].chunks(8) {
+            let groups = shade[..n_shade].chunks(8);
+            for (group, next) in groups.clone().zip(groups.skip(1).map(Some).chain([None])) {
+                if let Some(next) = next {
+                    prefetch_rows(sc, &hits, next);
+                }
                 shade8::<FULL>(
                     sc,
                     s,
@@ -221,6 +225,33 @@ fn batches<const FULL: bool>(
                     Vec3::ZERO
                 };
                 *out = (radiance, p.rays);
+            }
+        }
+    }
+}
+
+/// Asks the processor to bring the rows that shading `group` reads first — each hit's
+/// triangle (`hit_prim`) and shading row — into the cache while the group before it is shaded:
+/// they are scattered over the scene's arrays, and their first touch was the shading's largest
+/// stall (BENCHMARKS.md). A hint only: nothing is read, so results cannot change.
+#[inline(always)]
+fn prefetch_rows(sc: &PackedScene, hits: &[Option<TraceHit>; BATCH], group: &[u8]) {
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (sc, hits, group);
+    #[cfg(target_arch = "x86_64")]
+    for &k in group {
+        if let Some(hit) = &hits[k as usize] {
+            let prim = sc.bvh.hit_prim(hit.prim);
+            let shade = &sc.shade[4 * hit.triangle as usize..4 * hit.triangle as usize + 4];
+            for row in [prim, shade] {
+                let first = row.as_ptr().cast::<i8>();
+                let last = first.wrapping_add(std::mem::size_of_val(row) - 1);
+                // SAFETY: `_mm_prefetch` is a hint: it reads nothing and cannot fault.
+                unsafe {
+                    use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+                    _mm_prefetch::<_MM_HINT_T0>(first);
+                    _mm_prefetch::<_MM_HINT_T0>(last);
+                }
             }
         }
     }
@@ -413,32 +444,38 @@ fn shade8<const FULL: bool>(
     // The extensions' BSDF, for the lanes whose material has one (`trace_path`'s `BsdfExt`).
     let ext_lanes = if FULL { has(MAT_EXT_BSDF) } else { 0 };
     let front_bits = front.to_bitmask();
-    let ext: [Option<BsdfExt>; 8] = std::array::from_fn(|i| {
-        (ext_lanes & (1 << i) != 0).then(|| {
-            let mb = g.mb[i];
-            let (m3, m4) = (sc.materials[mb + 3], sc.materials[mb + 4]);
-            let ior = m4[0];
-            let f0 = (ior - 1.0) / (ior + 1.0);
-            BsdfExt {
-                core: Bsdf {
-                    base: Vec3::new(g.base[0][i], g.base[1][i], g.base[2][i]),
-                    metallic: g.m2[0][i],
-                    alpha: g.m2[1][i],
-                    specular: g.m2[2][i],
-                },
-                specular_color: v3(m3),
-                f0: f0 * f0,
-                eta: if front_bits & (1 << i) != 0 {
-                    ior
-                } else {
-                    1.0 / ior
-                },
-                transmission: m3[3],
-                clearcoat: m4[1],
-                clearcoat_alpha: m4[2],
-            }
+    // (Built only where some lane has one: eight calls returning a large `Option` cost the
+    // plain scenes' shading 2 % of their time for nothing.)
+    let ext: [Option<BsdfExt>; 8] = if ext_lanes == 0 {
+        [None; 8]
+    } else {
+        std::array::from_fn(|i| {
+            (ext_lanes & (1 << i) != 0).then(|| {
+                let mb = g.mb[i];
+                let (m3, m4) = (sc.materials[mb + 3], sc.materials[mb + 4]);
+                let ior = m4[0];
+                let f0 = (ior - 1.0) / (ior + 1.0);
+                BsdfExt {
+                    core: Bsdf {
+                        base: Vec3::new(g.base[0][i], g.base[1][i], g.base[2][i]),
+                        metallic: g.m2[0][i],
+                        alpha: g.m2[1][i],
+                        specular: g.m2[2][i],
+                    },
+                    specular_color: v3(m3),
+                    f0: f0 * f0,
+                    eta: if front_bits & (1 << i) != 0 {
+                        ior
+                    } else {
+                        1.0 / ior
+                    },
+                    transmission: m3[3],
+                    clearcoat: m4[1],
+                    clearcoat_alpha: m4[2],
+                }
+            })
         })
-    });
+    };
     let transmits_bits = (0..8)
         .filter(|&i| ext[i].is_some_and(|e| e.transmits()))
         .fold(0u32, |m, i| m | 1 << i);
