@@ -80,7 +80,11 @@ pub struct ClusterBenchConfig {
 #[derive(Clone, Debug, Default, Serialize, serde::Deserialize)]
 pub struct RankRun {
     pub rank: usize,
+    /// With each frame's samples travelling while the next frame is traced (the default).
     pub ms_per_iteration: f64,
+    /// The same iterations with each frame's samples collected within it, run after them.
+    #[serde(default)]
+    pub ms_per_iteration_sync: f64,
     pub ms_trace: f64,
     pub ms_schedule: f64,
     /// The counts of the pixels this rank traces for other owners (received before the trace).
@@ -133,6 +137,12 @@ impl ScalingRow {
     #[must_use]
     pub fn ms_per_iteration(&self) -> f64 {
         self.per_rank[0].ms_per_iteration
+    }
+
+    /// Rank 0's ms per iteration with the exchange not overlapped.
+    #[must_use]
+    pub fn ms_per_iteration_sync(&self) -> f64 {
+        self.per_rank[0].ms_per_iteration_sync
     }
 }
 
@@ -241,6 +251,8 @@ pub fn scaling(
         };
         // The first frame computes the DGI on every rank.
         let first = r.run_frame(c)?;
+        // Its samples delivered, so that the timed iterations' bytes are theirs alone.
+        r.finish(c)?;
         let t0 = Instant::now();
         c.broadcast("the DGI (timed)", dgi)
             .map_err(ClusterError::from)?;
@@ -256,11 +268,27 @@ pub fn scaling(
         )?;
         let ms_dgi_split = t0.elapsed().as_secs_f64() * 1e3;
         let mut frames: Vec<(f64, ClusterFrameStats)> = Vec::new();
+        let before = c.traffic();
         for _ in 0..cfg.iterations.max(1) {
             let t = Instant::now();
             let s = r.run_frame(c)?;
             frames.push((t.elapsed().as_secs_f64() * 1e3, s));
         }
+        // The last frame's samples, still in flight, reach their owners before the pictures.
+        r.finish(c)?;
+        // The iterations' bytes, each frame's samples counted with it (a frame's own stats
+        // count the samples it collected, the frame's before).
+        let moved = c.traffic().since(&before);
+        // The same iterations with each frame's samples collected within the frame (the
+        // exchange not overlapped with the next trace), for the side-by-side column.
+        r.set_overlap(false);
+        let mut sync = Vec::new();
+        for _ in 0..cfg.iterations.max(1) {
+            let t = Instant::now();
+            r.run_frame(c)?;
+            sync.push(t.elapsed().as_secs_f64() * 1e3);
+        }
+        r.set_overlap(true);
         let n = frames.len() as f64;
         let med = |f: &dyn Fn(&ClusterFrameStats) -> f64| {
             median(frames.iter().map(|(_, s)| f(s)).collect())
@@ -268,6 +296,7 @@ pub fn scaling(
         let mine = RankRun {
             rank,
             ms_per_iteration: median(frames.iter().map(|(ms, _)| *ms).collect()),
+            ms_per_iteration_sync: median(sync),
             ms_trace: med(&|s| s.ms_trace),
             ms_schedule: med(&|s| s.ms_schedule),
             ms_counts: med(&|s| s.ms_counts),
@@ -277,16 +306,8 @@ pub fn scaling(
                 .map(|(_, s)| s.pixels_traced as f64)
                 .sum::<f64>()
                 / n,
-            bytes_sent_per_iteration: frames
-                .iter()
-                .map(|(_, s)| s.traffic.bytes_sent as f64)
-                .sum::<f64>()
-                / n,
-            bytes_received_per_iteration: frames
-                .iter()
-                .map(|(_, s)| s.traffic.bytes_received as f64)
-                .sum::<f64>()
-                / n,
+            bytes_sent_per_iteration: moved.bytes_sent as f64 / n,
+            bytes_received_per_iteration: moved.bytes_received as f64 / n,
             ms_dgi_compute: first.ms_dgi,
             ms_dgi_broadcast,
             ms_dgi_split,
@@ -550,18 +571,19 @@ fn mb(bytes: f64) -> String {
 pub fn markdown(r: &ClusterBenchReport) -> String {
     let c = &r.config;
     let mut s = format!(
-        "Device: {}\n\n## Strong scaling (measured)\n\n{} at {}×{}, max depth {}, HORNET, viewer 1 m in front of the centre, {} timed iterations per FOV after the DGI's.\n\n| FOV | ranks | share sampled | ms/iteration (rank 0) | rank | ms trace | ms schedule | ms counts | ms exchange | samples traced/it | bytes sent/it | bytes received/it | DGI computed ms | DGI broadcast ms | DGI split ms | own tiles' picture ms (bytes sent / received) | rank 0: gather + whole filter ms | rank 0: console picture (every k-th pixel) ms, bytes received |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "Device: {}\n\n## Strong scaling (measured)\n\n{} at {}×{}, max depth {}, HORNET, viewer 1 m in front of the centre, {} timed iterations per FOV after the DGI's.\n\n| FOV | ranks | share sampled | ms/iteration (rank 0), exchange overlapped / not | rank | ms trace | ms schedule | ms counts | ms exchange | samples traced/it | bytes sent/it | bytes received/it | DGI computed ms | DGI broadcast ms | DGI split ms | own tiles' picture ms (bytes sent / received) | rank 0: gather + whole filter ms | rank 0: console picture (every k-th pixel) ms, bytes received |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
         r.device, c.scene, c.size[0], c.size[1], c.max_depth, c.iterations
     );
     for row in &r.scaling {
         for (k, p) in row.per_rank.iter().enumerate() {
             let head = if k == 0 {
                 format!(
-                    "| {}° | {} | {:.3} | {:.1} ",
+                    "| {}° | {} | {:.3} | {:.1} / {:.1} ",
                     row.fov_deg,
                     row.ranks,
                     row.share_sampled,
-                    row.ms_per_iteration()
+                    row.ms_per_iteration(),
+                    row.ms_per_iteration_sync()
                 )
             } else {
                 "| | | | ".to_owned()
@@ -638,7 +660,7 @@ pub fn markdown(r: &ClusterBenchReport) -> String {
         );
     }
     s += &format!(
-        "\nThe measured rate: {:.3} Msamples/s per rank ({}, best of the rows above: the trace step alone, its upload and read-back on a GPU included). Iterations/s = 1 / (samples/(ranks × rate) + link time): tracing and exchange do not overlap, the schedule and the DGI are left out. A rank whose trace rate exceeds the break-even rate spends longer on the link than on tracing. The picture's columns are per picture shown or saved, not per iteration: each owner's tiles' margins (the default fast filter) against the whole accumulation gathered to rank 0, and against `view --cluster`'s console picture: every k-th pixel of every k-th row, the least k that fits a 4K monitor.\n",
+        "\nThe measured rate: {:.3} Msamples/s per rank ({}, best of the rows above: the trace step alone, its upload and read-back on a GPU included). Iterations/s = 1 / (samples/(ranks × rate) + link time), the schedule and the DGI left out: the exchange not overlapped with tracing. By default a frame's samples travel while the next frame is traced (the strong-scaling table's first ms/iteration), so where the link time is mostly samples the pace approaches 1 / max(trace, link) and these figures are the lower bound; the counts (sent before a trace) and the split schedule's masks do not overlap. A rank whose trace rate exceeds the break-even rate spends longer on the link than on tracing. The picture's columns are per picture shown or saved, not per iteration: each owner's tiles' margins (the default fast filter) against the whole accumulation gathered to rank 0, and against `view --cluster`'s console picture: every k-th pixel of every k-th row, the least k that fits a 4K monitor.\n",
         rate / 1e6,
         r.device
     );
@@ -688,6 +710,9 @@ mod tests {
                         )
                         .unwrap();
                         r.set_roi(Some(roi)).unwrap();
+                        // The frame's own bytes: its samples collected within it (overlapped,
+                        // they would be received during the next frame).
+                        r.set_overlap(false);
                         let t = r.run_frame(&mut c).unwrap().traffic;
                         // The console's picture, at several reductions: rank 0's bytes.
                         let console = [1, 3, 7].map(|every| {

@@ -1,15 +1,20 @@
 //! The seam between the cluster frame and its transport: a rank sends byte messages to other
 //! ranks and receives one message from each rank it expects, with a bound on every wait.
 //!
-//! [`Exchange`] is that one operation ([`Exchange::round`]); the collectives the frame needs
+//! [`Exchange`] is that one operation ([`Exchange::round`]), also in two halves: sends posted
+//! now ([`Exchange::post`]) and their messages collected later ([`Exchange::collect`]), so that
+//! a frame's samples travel while the next frame is traced. The collectives the frame needs
 //! (broadcast from rank 0, all-to-all, gather to rank 0) are built on it in [`super::Cluster`].
 //! Two backends: [`InProcess`] (N ranks as threads of one process, joined by channels — the unit
 //! tests' ranks) and, with the `cluster` feature, MPI (`super::mpi`). Messages between a pair of
-//! ranks arrive in the order they were sent (MPI's non-overtaking rule; a channel's order), and
-//! every rank runs the same sequence of rounds, so no tags or sequence numbers are needed.
+//! ranks on one [`Lane`] arrive in the order they were sent (MPI's non-overtaking rule for one
+//! tag; a channel's order), and every rank runs the same sequence of rounds, so no sequence
+//! numbers are needed; the two lanes keep a message posted for later from being taken by a
+//! round in between.
 
+use std::collections::VecDeque;
 use std::sync::mpsc::{Receiver, RecvTimeoutError, Sender, channel};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 /// Why a round failed. Every variant names the rank at fault.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -60,12 +65,26 @@ impl Traffic {
         }
     }
 
-    pub(crate) fn count_round(&mut self, sends: &[(usize, Vec<u8>)], received: &[Vec<u8>]) {
+    pub(crate) fn count_sent(&mut self, sends: &[(usize, Vec<u8>)]) {
         self.bytes_sent += sends.iter().map(|(_, b)| b.len() as u64).sum::<u64>();
         self.messages_sent += sends.len() as u64;
+    }
+
+    pub(crate) fn count_received(&mut self, received: &[Vec<u8>]) {
         self.bytes_received += received.iter().map(|b| b.len() as u64).sum::<u64>();
         self.messages_received += received.len() as u64;
     }
+}
+
+/// The two sequences of messages between a pair of ranks: a receive takes the next message of
+/// its own lane, so a message posted on one is never taken by a receive on the other.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Lane {
+    /// Rounds sent and received in one step.
+    Now = 0,
+    /// Messages posted in one frame and collected in the next: a frame's samples, in flight
+    /// while the next frame is traced.
+    Later = 1,
 }
 
 /// A rank's link to the others.
@@ -74,16 +93,35 @@ pub trait Exchange {
     fn rank(&self) -> usize;
     /// How many ranks the job has.
     fn ranks(&self) -> usize;
-    /// One round: sends each `(rank, bytes)` of `sends` (never to itself), then receives one
-    /// message from each rank of `from`, in that order, waiting at most `wait` for each.
-    /// `what` names the round in an error.
+    /// Starts sending each `(rank, bytes)` of `sends` (never to itself) on `lane`, without
+    /// waiting for the receivers. `what` names the messages in an error.
+    fn post(
+        &mut self,
+        sends: Vec<(usize, Vec<u8>)>,
+        lane: Lane,
+        what: &str,
+    ) -> Result<(), ExchangeError>;
+    /// Receives the next message on `lane` from each rank of `from`, in that order, waiting at
+    /// most `wait` for each; then waits (as long) for this rank's sends posted on `lane` to
+    /// be taken. `what` names the messages in an error.
+    fn collect(
+        &mut self,
+        from: &[usize],
+        lane: Lane,
+        what: &str,
+        wait: Duration,
+    ) -> Result<Vec<Vec<u8>>, ExchangeError>;
+    /// One round: [`Self::post`] then [`Self::collect`] on [`Lane::Now`].
     fn round(
         &mut self,
         sends: Vec<(usize, Vec<u8>)>,
         from: &[usize],
         what: &str,
         wait: Duration,
-    ) -> Result<Vec<Vec<u8>>, ExchangeError>;
+    ) -> Result<Vec<Vec<u8>>, ExchangeError> {
+        self.post(sends, Lane::Now, what)?;
+        self.collect(from, Lane::Now, what, wait)
+    }
     /// What this rank has exchanged so far.
     fn traffic(&self) -> Traffic;
     /// Ends the whole job at once (MPI_Abort) after an error this rank has printed: the other
@@ -91,13 +129,20 @@ pub trait Exchange {
     fn abort(&self, code: i32) -> !;
 }
 
-/// One rank of an in-process job: N ranks as threads, one channel per ordered pair of ranks.
+/// A message between in-process ranks: its lane and its bytes.
+type Message = (Lane, Vec<u8>);
+
+/// One rank of an in-process job: N ranks as threads, one channel per ordered pair of ranks
+/// carrying both lanes, each message with its lane.
 pub struct InProcess {
     rank: usize,
     /// `to[r]`: the channel to rank `r` (`None` for this rank itself).
-    to: Vec<Option<Sender<Vec<u8>>>>,
+    to: Vec<Option<Sender<Message>>>,
     /// `from[r]`: the channel from rank `r`.
-    from: Vec<Option<Receiver<Vec<u8>>>>,
+    from: Vec<Option<Receiver<Message>>>,
+    /// `held[r][lane]`: messages from rank `r` that arrived while a receive waited for the
+    /// other lane, oldest first.
+    held: Vec<[VecDeque<Vec<u8>>; 2]>,
     traffic: Traffic,
 }
 
@@ -110,6 +155,7 @@ impl InProcess {
                 rank,
                 to: (0..ranks).map(|_| None).collect(),
                 from: (0..ranks).map(|_| None).collect(),
+                held: (0..ranks).map(|_| Default::default()).collect(),
                 traffic: Traffic::default(),
             })
             .collect();
@@ -135,38 +181,68 @@ impl Exchange for InProcess {
         self.to.len()
     }
 
-    fn round(
+    fn post(
         &mut self,
         sends: Vec<(usize, Vec<u8>)>,
+        lane: Lane,
+        _what: &str,
+    ) -> Result<(), ExchangeError> {
+        self.traffic.count_sent(&sends);
+        for (dest, bytes) in sends {
+            let tx = self.to[dest]
+                .as_ref()
+                .expect("a round sends to other ranks only");
+            // A message to a rank that is gone is lost, as MPI's non-blocking send does not
+            // fail either: this rank learns of it when it next waits for that rank, as every
+            // rank that waits for it does (so that rank 0, not the first rank to post, names
+            // it).
+            let _ = tx.send((lane, bytes));
+        }
+        Ok(())
+    }
+
+    fn collect(
+        &mut self,
         from: &[usize],
+        lane: Lane,
         what: &str,
         wait: Duration,
     ) -> Result<Vec<Vec<u8>>, ExchangeError> {
-        let gone = |rank| ExchangeError::Gone {
-            rank,
-            what: what.to_owned(),
-        };
-        for (dest, bytes) in &sends {
-            let tx = self.to[*dest]
-                .as_ref()
-                .expect("a round sends to other ranks only");
-            tx.send(bytes.clone()).map_err(|_| gone(*dest))?;
-        }
         let mut got = Vec::with_capacity(from.len());
         for &src in from {
+            if let Some(bytes) = self.held[src][lane as usize].pop_front() {
+                got.push(bytes);
+                continue;
+            }
             let rx = self.from[src]
                 .as_ref()
                 .expect("a round receives from other ranks only");
-            got.push(rx.recv_timeout(wait).map_err(|e| match e {
-                RecvTimeoutError::Timeout => ExchangeError::Timeout {
-                    rank: src,
-                    seconds: wait.as_secs_f64(),
-                    what: what.to_owned(),
-                },
-                RecvTimeoutError::Disconnected => gone(src),
-            })?);
+            let deadline = Instant::now() + wait;
+            loop {
+                let left = deadline.saturating_duration_since(Instant::now());
+                match rx.recv_timeout(left) {
+                    Ok((l, bytes)) if l == lane => {
+                        got.push(bytes);
+                        break;
+                    }
+                    Ok((other, bytes)) => self.held[src][other as usize].push_back(bytes),
+                    Err(RecvTimeoutError::Timeout) => {
+                        return Err(ExchangeError::Timeout {
+                            rank: src,
+                            seconds: wait.as_secs_f64(),
+                            what: what.to_owned(),
+                        });
+                    }
+                    Err(RecvTimeoutError::Disconnected) => {
+                        return Err(ExchangeError::Gone {
+                            rank: src,
+                            what: what.to_owned(),
+                        });
+                    }
+                }
+            }
         }
-        self.traffic.count_round(&sends, &got);
+        self.traffic.count_received(&got);
         Ok(got)
     }
 
@@ -196,6 +272,39 @@ mod tests {
         assert_eq!(a.traffic().bytes_sent, 3);
         assert_eq!(b.traffic().bytes_received, 3);
         assert_eq!(b.traffic().messages_received, 2);
+    }
+
+    /// A message posted for later waits on its lane while rounds in between take theirs, in
+    /// both orders of arrival, and each lane keeps its own order.
+    #[test]
+    fn the_later_lane_is_not_taken_by_rounds_in_between() {
+        let mut ends = InProcess::job(2);
+        let mut b = ends.pop().unwrap();
+        let mut a = ends.pop().unwrap();
+        let w = Duration::from_secs(5);
+        a.post(vec![(1, vec![10])], Lane::Later, "samples 0")
+            .unwrap();
+        a.post(vec![(1, vec![11])], Lane::Later, "samples 1")
+            .unwrap();
+        a.round(vec![(1, vec![1])], &[], "counts", w).unwrap();
+        a.round(vec![(1, vec![2])], &[], "counts", w).unwrap();
+        assert_eq!(b.round(vec![], &[0], "counts", w).unwrap(), vec![vec![1]]);
+        assert_eq!(
+            b.collect(&[0], Lane::Later, "samples 0", w).unwrap(),
+            vec![vec![10]]
+        );
+        assert_eq!(b.round(vec![], &[0], "counts", w).unwrap(), vec![vec![2]]);
+        assert_eq!(
+            b.collect(&[0], Lane::Later, "samples 1", w).unwrap(),
+            vec![vec![11]]
+        );
+        assert_eq!(a.traffic().messages_sent, 4);
+        assert_eq!(b.traffic().messages_received, 4);
+        // Nothing left on either lane.
+        let e = b
+            .collect(&[0], Lane::Later, "samples 2", Duration::from_millis(20))
+            .unwrap_err();
+        assert!(matches!(e, ExchangeError::Timeout { rank: 0, .. }), "{e:?}");
     }
 
     #[test]

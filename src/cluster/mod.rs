@@ -11,6 +11,13 @@
 //! every owner, for its display tiles: the margins' sums from their owners ──► filter ──► tiles
 //! ```
 //!
+//! A frame's samples travel while the next frame is traced ([`ClusterRenderer::set_overlap`],
+//! on by default): an owner counts its pixels' samples when they are dealt (a pixel's count is
+//! its next sample's index, which the next frame needs) and adds their sums when they arrive,
+//! during the next frame or before anything reads the accumulation
+//! ([`ClusterRenderer::finish`]); the messages wait on their own lane
+//! ([`exchange::Lane::Later`]) while that frame's rounds pass.
+//!
 //! [`ClusterRenderer::run_frame`] is that function. Samples are exact: a sample depends only
 //! on (pixel, sample index, seed), a pixel's owner keeps its sample count and tells the rank
 //! that traces it, and a pixel gets at most one sample an iteration, which its owner adds as the
@@ -63,13 +70,13 @@ use crate::scene::Scene;
 use crate::schedule::{
     BLOCK_PIXELS, Order, ScheduleError, TILE_EDGE, schedule_cpu_block_masks, schedule_cpu_shown,
 };
-use crate::trace::accum::{Accumulation, accumulate, every, every_size};
+use crate::trace::accum::{Accumulation, accumulate_sums, every, every_size};
 use crate::trace::gpu::{GpuScene, SampleRun, TraceKernel};
 use crate::trace::pack::PackedScene;
 use crate::trace::path::{TraceSettings, samples_cpu};
 use crate::trace::wall::WallCamera;
 use deal::{BlockList, CostTable, deal};
-use exchange::{Exchange, ExchangeError, Traffic};
+use exchange::{Exchange, ExchangeError, Lane, Traffic};
 use owners::{BlockOwners, block_grid, block_of, block_pixels, block_pixels_every};
 
 /// Why a cluster frame (or the job's start) failed.
@@ -266,6 +273,46 @@ impl Cluster {
     }
 }
 
+impl Cluster {
+    /// The first half of an all-to-all whose messages travel while this rank works on:
+    /// `parts[r]` posted to rank `r` on [`Lane::Later`]; returns this rank's own part, for
+    /// [`Self::all_to_all_collect`].
+    pub fn all_to_all_post(
+        &mut self,
+        what: &str,
+        mut parts: Vec<Vec<u8>>,
+    ) -> Result<Vec<u8>, ExchangeError> {
+        let me = self.rank();
+        assert_eq!(parts.len(), self.ranks(), "one part per rank");
+        let own = std::mem::take(&mut parts[me]);
+        let sends = parts
+            .into_iter()
+            .enumerate()
+            .filter(|(r, _)| *r != me)
+            .collect();
+        self.x.post(sends, Lane::Later, what)?;
+        Ok(own)
+    }
+
+    /// The second half: what each rank posted this one (`own` at this rank's index), and this
+    /// rank's posted sends taken.
+    pub fn all_to_all_collect(
+        &mut self,
+        what: &str,
+        own: Vec<u8>,
+    ) -> Result<Vec<Vec<u8>>, ExchangeError> {
+        let (me, n) = (self.rank(), self.ranks());
+        let from: Vec<usize> = (0..n).filter(|&r| r != me).collect();
+        let wait = self.wait();
+        let mut got = self.x.collect(&from, Lane::Later, what, wait);
+        self.last = Instant::now();
+        if let Ok(got) = &mut got {
+            got.insert(me, own);
+        }
+        got
+    }
+}
+
 /// Rank `me`'s parent (`None` for rank 0) and children, in sending order, in the binomial tree
 /// of `n` ranks rooted at 0.
 #[must_use]
@@ -399,9 +446,11 @@ pub struct ClusterFrameStats {
     /// owners.
     pub ms_counts: f64,
     pub ms_trace: f64,
-    /// Sending, waiting for and adding the others' samples.
+    /// Taking in and adding the samples in flight (the previous frame's, overlapped; this
+    /// frame's, not overlapped) and posting this frame's.
     pub ms_exchange: f64,
-    /// What this rank sent and received in this frame (the DGI's broadcast included).
+    /// What this rank sent and received in this frame (the DGI's broadcast included; with the
+    /// exchange overlapped, the samples received are the previous frame's).
     pub traffic: Traffic,
 }
 
@@ -446,6 +495,24 @@ pub struct ClusterRenderer {
     full_list: Option<Arc<BlockList>>,
     /// Where this rank traces its samples: the CPU twin (`None`) or its GPU.
     gpu: Option<Box<GpuRank>>,
+    /// Whether a frame's samples travel while the next frame is traced (the default), or
+    /// reach their owners before `run_frame` returns.
+    overlap: bool,
+    /// The last frame's samples, posted to their owners and not yet collected.
+    in_flight: Option<InFlight>,
+}
+
+/// A frame's exchange between its post and its collect.
+struct InFlight {
+    iteration: u32,
+    list: Arc<BlockList>,
+    tracer: Vec<u32>,
+    mine: Traced,
+    /// This rank's own part of the all-to-all (empty).
+    own: Vec<u8>,
+    /// The accumulation restarted since (a moved eye or camera): the samples are collected
+    /// (they are on their way) and not added.
+    stale: bool,
 }
 
 /// A rank's GPU, with the scene on it and the kernel's compact mode ([`SampleRun`]).
@@ -554,6 +621,8 @@ impl ClusterRenderer {
             slot,
             full_list: None,
             gpu: None,
+            overlap: true,
+            in_flight: None,
         })
     }
 
@@ -669,6 +738,9 @@ impl ClusterRenderer {
 
     /// This rank's owned sums and counts back to zero.
     fn restart(&mut self) {
+        if let Some(f) = &mut self.in_flight {
+            f.stale = true;
+        }
         self.total = 0;
         self.counts.fill(0);
         self.sums.fill([0.0; 4]);
@@ -705,9 +777,16 @@ impl ClusterRenderer {
         stats.pixels_held = list.held_len() as u64;
         let counts = self.counts_to_trace(c, &list, &tracer, &mut stats)?;
         let samples = self.trace(&list, &tracer, &counts, &mut stats)?;
-        self.exchange(c, &list, &tracer, &samples, &mut stats)?;
-        self.total += list.len();
+        let t0 = Instant::now();
+        // The last frame's samples, which travelled while this one was traced; then this
+        // frame's, posted (and, without overlap, collected at once).
+        self.collect(c)?;
         stats.pixels = list.len();
+        self.post(c, list, tracer, samples)?;
+        if !self.overlap {
+            self.collect(c)?;
+        }
+        stats.ms_exchange = t0.elapsed().as_secs_f64() * 1e3;
         stats.traffic = c.traffic().since(&before);
         self.iteration += 1;
         Ok(stats)
@@ -944,17 +1023,19 @@ impl ClusterRenderer {
         })
     }
 
-    /// Step 5: every rank's samples to the owners of their blocks, and every block's rays to
-    /// every rank (the next deal's weights); owners add the samples of their blocks.
-    fn exchange(
+    /// Step 5, first half: every rank's samples posted to the owners of their blocks, and every
+    /// block's rays to every rank (the deal's weights). An owner counts the samples of its
+    /// pixels now — a pixel's count is its sample index, which the next frame's counts need,
+    /// and a sample counts whatever its value — and adds their sums when they arrive
+    /// ([`Self::collect`]).
+    fn post(
         &mut self,
         c: &mut Cluster,
-        list: &BlockList,
-        tracer: &[u32],
-        mine: &Traced,
-        stats: &mut ClusterFrameStats,
+        list: Arc<BlockList>,
+        tracer: Vec<u32>,
+        mine: Traced,
     ) -> Result<(), ClusterError> {
-        let t0 = Instant::now();
+        debug_assert!(self.in_flight.is_none(), "one frame's samples in flight");
         let n = self.ranks;
         let rays: Vec<u8> = mine.rays.iter().flat_map(|r| r.to_le_bytes()).collect();
         let mut parts: Vec<Vec<u8>> = (0..n)
@@ -979,16 +1060,46 @@ impl ClusterRenderer {
             }
             at += len;
         }
+        for i in 0..list.blocks.len() {
+            if self.owners.owner[list.blocks[i] as usize] as usize == self.rank {
+                for &p in list.pixels_of(i) {
+                    let k = self.own_index(p).expect("a pixel of this rank");
+                    self.counts[k] += 1;
+                }
+            }
+        }
+        self.total += list.len();
         let what = format!("the samples of iteration {}", self.iteration);
-        let got = c.all_to_all(&what, parts)?;
+        let own = c.all_to_all_post(&what, parts)?;
+        self.in_flight = Some(InFlight {
+            iteration: self.iteration,
+            list,
+            tracer,
+            mine,
+            own,
+            stale: false,
+        });
+        Ok(())
+    }
+
+    /// Step 5, second half: the posted frame's samples (if one is in flight) received, and
+    /// their sums added by the owners of their blocks — unless the accumulation restarted
+    /// since — and every block's rays recorded for the next deals.
+    fn collect(&mut self, c: &mut Cluster) -> Result<(), ClusterError> {
+        let Some(f) = self.in_flight.take() else {
+            return Ok(());
+        };
+        let (list, tracer, mine) = (&f.list, &f.tracer, &f.mine);
+        let what = format!("the samples of iteration {}", f.iteration);
+        let got = c.all_to_all_collect(&what, f.own)?;
         // Own blocks first (no bytes), then each other rank's, by the same layout.
         let mut at = 0;
         for (k, &i) in mine.blocks.iter().enumerate() {
             let len = list.len_of(i) as usize;
             let b = list.blocks[i];
-            if self.owners.owner[b as usize] as usize == self.rank {
+            if !f.stale && self.owners.owner[b as usize] as usize == self.rank {
                 for (j, &p) in list.pixels_of(i).iter().enumerate() {
-                    self.add(p, mine.rgb[at + j]);
+                    self.add_sums(p, mine.rgb[at + j]);
                 }
             }
             self.costs.record(b, mine.rays[k], len as u32);
@@ -1030,15 +1141,30 @@ impl ClusterRenderer {
                 self.costs.record(b, r, list.len_of(i));
                 if owned[k] {
                     for &p in list.pixels_of(i) {
-                        let v = Vec3::new(rgb[at], rgb[at + 1], rgb[at + 2]);
-                        self.add(p, v);
+                        if !f.stale {
+                            let v = Vec3::new(rgb[at], rgb[at + 1], rgb[at + 2]);
+                            self.add_sums(p, v);
+                        }
                         at += 3;
                     }
                 }
             }
         }
-        stats.ms_exchange = t0.elapsed().as_secs_f64() * 1e3;
         Ok(())
+    }
+
+    /// Brings every owner the samples still in flight: before the accumulation is read
+    /// (gathers, pictures, the ROI's progress) and at the end of a render. Every rank calls it
+    /// at the same point (it is a collective when samples are in flight).
+    pub fn finish(&mut self, c: &mut Cluster) -> Result<(), ClusterError> {
+        self.collect(c)
+    }
+
+    /// Whether a frame's samples travel while the next frame is traced (`true`, the default)
+    /// or reach their owners within the frame. The results are the same bit for bit; only
+    /// when the exchange's time is spent differs (and the deal's weights lag a frame behind).
+    pub fn set_overlap(&mut self, overlap: bool) {
+        self.overlap = overlap;
     }
 
     /// Where pixel `p`'s sums and count are in `sums` and `counts`, if its block is this
@@ -1065,20 +1191,21 @@ impl ClusterRenderer {
         out.extend(self.counts[k].to_le_bytes());
     }
 
-    /// Adds one sample to an owned pixel's sums and count, with the one-process renderer's
-    /// arithmetic.
-    fn add(&mut self, p: u32, rgb: Vec3) {
+    /// Adds one sample to an owned pixel's sums, with the one-process renderer's arithmetic
+    /// (its count was added when the sample was posted).
+    fn add_sums(&mut self, p: u32, rgb: Vec3) {
         let k = self.own_index(p).expect("a pixel of this rank");
-        accumulate(&mut self.sums[k], &mut self.counts[k], rgb);
+        accumulate_sums(&mut self.sums[k], rgb);
     }
 
     /// How far the ROI has come, on rank 0 (`Some(None)` without ROI pixels; `None` on the
     /// other ranks): every owner sends rank 0 the sums and counts of its pixels inside the ROI
     /// (d = 0), [`PIXEL_BYTES`] each, and rank 0 measures them as one process does.
     pub fn roi_progress(
-        &self,
+        &mut self,
         c: &mut Cluster,
     ) -> Result<Option<Option<RoiProgress>>, ClusterError> {
+        self.collect(c)?;
         let size = [self.settings.width, self.settings.height];
         let tiles_x = self.owners.tiles[0];
         let in_roi = |p: &u32| self.dgi.get(*p as usize) == Some(&0.0);
@@ -1124,7 +1251,7 @@ impl ClusterRenderer {
     /// The whole accumulation and the DGI the last frame used, on rank 0 (`None` on the
     /// others): every owner sends rank 0 its sums and counts.
     pub fn gather(
-        &self,
+        &mut self,
         c: &mut Cluster,
     ) -> Result<Option<(Accumulation, Vec<f32>)>, ClusterError> {
         self.gather_every(c, 1)
@@ -1136,10 +1263,11 @@ impl ClusterRenderer {
     /// 0's console. Each owner sends those of its pixels ([`PIXEL_BYTES`] each): 1/step² of
     /// the whole gather's bytes.
     pub fn gather_every(
-        &self,
+        &mut self,
         c: &mut Cluster,
         step: u32,
     ) -> Result<Option<(Accumulation, Vec<f32>)>, ClusterError> {
+        self.collect(c)?;
         let size = [self.settings.width, self.settings.height];
         let pixels_of = |rank: usize| {
             let tiles_x = self.owners.tiles[0];

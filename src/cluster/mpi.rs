@@ -3,7 +3,9 @@
 //!
 //! A round posts its sends as non-blocking requests, then receives from each expected rank
 //! in turn (a blocking matched probe and receive: the message's length needs no second
-//! message) and waits for its sends. MPI has no deadline on a blocking call, so a watchdog
+//! message) and waits for its sends. Sends posted for later ([`Lane::Later`]) keep their
+//! buffers and requests here until the collect on that lane waits for them; each lane is its
+//! own tag, so MPI matches a receive with its lane's next message only. MPI has no deadline on a blocking call, so a watchdog
 //! thread holds the deadline of the wait in progress: past it, the thread prints which rank did
 //! not answer and ends this process without MPI's finalisation, and `mpirun`, seeing a rank end
 //! so, ends every other (the MPI standard leaves a hung peer's fate to the implementation;
@@ -16,12 +18,37 @@ use std::time::{Duration, Instant};
 
 use mpi::environment::Universe;
 use mpi::point_to_point::{Destination, Source};
+use mpi::request::{Request, StaticScope};
 use mpi::topology::{Communicator, SimpleCommunicator};
 
-use super::exchange::{Exchange, ExchangeError, Traffic};
+use super::exchange::{Exchange, ExchangeError, Lane, Traffic};
 
-/// The tag of every message (rounds are told apart by their order).
-const TAG: i32 = 0x7a9;
+/// The tag of a lane's messages (rounds on a lane are told apart by their order).
+fn tag(lane: Lane) -> i32 {
+    0x7a9 + lane as i32
+}
+
+/// How long a rank that ends waits for its last sends to be taken before giving up.
+const LAST_SENDS: Duration = Duration::from_secs(60);
+
+/// A send in progress: its request, the rank it goes to, and its buffer, owned here until the
+/// request completes.
+struct Sending {
+    lane: Lane,
+    dest: usize,
+    request: Request<'static, [u8], StaticScope>,
+    buffer: *mut [u8],
+}
+
+impl Sending {
+    /// Waits for the send to be taken, then frees its buffer.
+    fn finish(self) {
+        self.request.wait();
+        // SAFETY: `buffer` came from `Box::leak` in `post`; the request that borrowed it has
+        // completed (and is gone), so this is the only reference.
+        drop(unsafe { Box::from_raw(self.buffer) });
+    }
+}
 
 /// How often the watchdog looks at the clock.
 const WATCHDOG_TICK: Duration = Duration::from_millis(50);
@@ -48,8 +75,25 @@ pub struct Mpi {
     ranks: usize,
     traffic: Traffic,
     watchdog: Arc<Watchdog>,
+    /// Sends posted and not yet waited for, oldest first.
+    sending: Vec<Sending>,
     /// Finalises MPI when dropped: last.
     _universe: Universe,
+}
+
+impl Drop for Mpi {
+    /// A request must complete before MPI is finalised: the last sends are waited for (under
+    /// the watchdog, so a peer that is gone cannot hang the end).
+    fn drop(&mut self) {
+        for s in std::mem::take(&mut self.sending) {
+            self.watchdog.arm(
+                Instant::now() + LAST_SENDS,
+                format!("rank {} did not take this rank's last message", s.dest),
+            );
+            s.finish();
+        }
+        self.watchdog.disarm();
+    }
 }
 
 impl Mpi {
@@ -87,6 +131,7 @@ impl Mpi {
             ranks,
             traffic: Traffic::default(),
             watchdog,
+            sending: Vec::new(),
             _universe: universe,
         })
     }
@@ -120,21 +165,48 @@ impl Exchange for Mpi {
         self.ranks
     }
 
-    fn round(
+    fn post(
         &mut self,
         sends: Vec<(usize, Vec<u8>)>,
-        from: &[usize],
+        lane: Lane,
         what: &str,
-        wait: Duration,
-    ) -> Result<Vec<Vec<u8>>, ExchangeError> {
+    ) -> Result<(), ExchangeError> {
         if let Some((dest, b)) = sends.iter().find(|(_, b)| i32::try_from(b.len()).is_err()) {
             return Err(ExchangeError::Mpi(format!(
                 "{what}: a message of {} bytes to rank {dest} is over MPI's 2³¹ − 1",
                 b.len()
             )));
         }
+        self.traffic.count_sent(&sends);
+        for (dest, bytes) in sends {
+            let buffer: &'static mut [u8] = Box::leak(bytes.into_boxed_slice());
+            let raw: *mut [u8] = buffer;
+            // SAFETY: `raw` points at the leaked buffer, which stays allocated until
+            // `Sending::finish` frees it after the request has completed; nothing writes it
+            // meanwhile.
+            let shared: &'static [u8] = unsafe { &*raw };
+            let request = self
+                .world
+                .process_at_rank(dest as i32)
+                .immediate_send_with_tag(StaticScope, shared, tag(lane));
+            self.sending.push(Sending {
+                lane,
+                dest,
+                request,
+                buffer: raw,
+            });
+        }
+        Ok(())
+    }
+
+    fn collect(
+        &mut self,
+        from: &[usize],
+        lane: Lane,
+        what: &str,
+        wait: Duration,
+    ) -> Result<Vec<Vec<u8>>, ExchangeError> {
         let deadline = Instant::now() + wait;
-        let (world, dog) = (&self.world, &self.watchdog);
         let timeout = |rank: usize| {
             ExchangeError::Timeout {
                 rank,
@@ -144,31 +216,24 @@ impl Exchange for Mpi {
             .to_string()
         };
         let mut got = Vec::with_capacity(from.len());
-        mpi::request::scope(|scope| {
-            let requests: Vec<_> = sends
-                .iter()
-                .map(|(dest, bytes)| {
-                    world.process_at_rank(*dest as i32).immediate_send_with_tag(
-                        scope,
-                        &bytes[..],
-                        TAG,
-                    )
-                })
-                .collect();
-            for &src in from {
-                dog.arm(deadline, timeout(src));
-                let (bytes, _) = world
-                    .process_at_rank(src as i32)
-                    .receive_vec_with_tag::<u8>(TAG);
-                got.push(bytes);
-            }
-            for (request, (dest, _)) in requests.into_iter().zip(&sends) {
-                dog.arm(deadline, timeout(*dest));
-                request.wait();
-            }
-            dog.disarm();
-        });
-        self.traffic.count_round(&sends, &got);
+        for &src in from {
+            self.watchdog.arm(deadline, timeout(src));
+            let (bytes, _) = self
+                .world
+                .process_at_rank(src as i32)
+                .receive_vec_with_tag::<u8>(tag(lane));
+            got.push(bytes);
+        }
+        let (mine, others): (Vec<_>, Vec<_>) = std::mem::take(&mut self.sending)
+            .into_iter()
+            .partition(|s| s.lane == lane);
+        self.sending = others;
+        for s in mine {
+            self.watchdog.arm(deadline, timeout(s.dest));
+            s.finish();
+        }
+        self.watchdog.disarm();
+        self.traffic.count_received(&got);
         Ok(got)
     }
 

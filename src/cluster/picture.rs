@@ -173,7 +173,7 @@ impl ClusterRenderer {
     /// from whichever rank owns each block). The pictures are the whole image's, filtered by
     /// one process, cut as [`crate::output::tiles::cut_tile`] cuts it.
     pub fn tile_pictures(
-        &self,
+        &mut self,
         c: &mut super::Cluster,
         model: &DisplayModel,
         tiles: &TileOwners,
@@ -184,13 +184,14 @@ impl ClusterRenderer {
 
     /// [`Self::tile_pictures`] with the margin given (the tests cut it to show it matters).
     pub(super) fn tile_pictures_with(
-        &self,
+        &mut self,
         c: &mut super::Cluster,
         model: &DisplayModel,
         tiles: &TileOwners,
         params: &FilterParams,
         halo: (u32, u32),
     ) -> Result<Vec<TilePicture>, ClusterError> {
+        self.collect(c)?;
         let size = [self.settings.width, self.settings.height];
         let (me, n) = (self.rank, self.ranks);
         let reads = |rank: usize| -> Vec<Rect> {

@@ -102,7 +102,7 @@ fn ranks_then<T: Send>(
     with_wall: bool,
     mode: DgiMode,
     owners: impl Fn(usize) -> BlockOwners + Sync,
-    after: impl Fn(&mut Cluster, &ClusterRenderer, &[ClusterFrameStats]) -> T + Sync,
+    after: impl Fn(&mut Cluster, &mut ClusterRenderer, &[ClusterFrameStats]) -> T + Sync,
 ) -> Vec<T> {
     ranks_on_then(n, guided, with_wall, mode, owners, None, after)
 }
@@ -115,7 +115,7 @@ fn ranks_on_then<T: Send>(
     mode: DgiMode,
     owners: impl Fn(usize) -> BlockOwners + Sync,
     gpu: Option<&Arc<GpuContext>>,
-    after: impl Fn(&mut Cluster, &ClusterRenderer, &[ClusterFrameStats]) -> T + Sync,
+    after: impl Fn(&mut Cluster, &mut ClusterRenderer, &[ClusterFrameStats]) -> T + Sync,
 ) -> Vec<T> {
     std::thread::scope(|sc| {
         let handles: Vec<_> = InProcess::job(n)
@@ -154,7 +154,9 @@ fn ranks_on_then<T: Send>(
                         assert_eq!(st.iteration, k);
                         frames.push(st);
                     }
-                    after(&mut c, &r, &frames)
+                    // The render's end: the last frame's samples reach their owners.
+                    r.finish(&mut c).unwrap();
+                    after(&mut c, &mut r, &frames)
                 })
             })
             .collect();
@@ -785,4 +787,85 @@ fn schedule_masks_survive_their_bytes_and_bad_bytes_are_refused() {
     let mut bad = b.clone();
     bad[0] = 2;
     assert!(decode_masks(&bad, 3).unwrap_err().contains("flag 2"));
+}
+
+/// A frame's samples travel while the next frame is traced: after each frame an owner holds
+/// them in flight (the frame within which they are collected without the overlap), and the next
+/// frame — or a gather — brings them. Overlapped or not, on 2 and 3 ranks, the gathered
+/// accumulation is one process's bit for bit, also when the camera moves with samples in flight
+/// (a restart: they arrive and are dropped, as the one process drops what it had).
+#[test]
+fn samples_in_flight_arrive_with_the_next_frame_and_a_restart_drops_them() {
+    const MOVE_AT: u32 = 4;
+    let s = scene();
+    let mut moved = settings(&s).camera;
+    moved.position += glam::Vec3::new(0.05, 0.02, 0.0);
+    let order = Order::Scattered;
+    let mut one = Renderer::guided_wall(
+        &Backend::Cpu,
+        &s,
+        settings(&s),
+        &hornet(),
+        config(order),
+        None,
+    )
+    .unwrap();
+    for k in 0..ITERATIONS {
+        if let Some(roi) = roi_at(k) {
+            one.set_roi(roi).unwrap();
+        }
+        if k == MOVE_AT {
+            one.set_camera(moved);
+        }
+        one.run_frame(false).unwrap();
+    }
+    let one = one.finish().unwrap();
+    for n in 2..=3 {
+        for overlap in [true, false] {
+            let got = std::thread::scope(|sc| {
+                let handles: Vec<_> = InProcess::job(n)
+                    .into_iter()
+                    .map(|end| {
+                        sc.spawn(move || {
+                            let rank = end.rank();
+                            let mut c = Cluster::new(Box::new(end), Duration::from_secs(30));
+                            let s = scene();
+                            let model = hornet();
+                            let guide = Some((&model, config(order)));
+                            let mut r = ClusterRenderer::new(
+                                &s,
+                                settings(&s),
+                                guide,
+                                None,
+                                columns(n),
+                                DgiMode::Compute,
+                                rank,
+                                n,
+                            )
+                            .unwrap();
+                            r.set_overlap(overlap);
+                            for k in 0..ITERATIONS {
+                                if let Some(roi) = roi_at(k) {
+                                    r.set_roi(roi).unwrap();
+                                }
+                                if k == MOVE_AT {
+                                    r.set_camera(moved);
+                                }
+                                r.run_frame(&mut c).unwrap();
+                                assert_eq!(r.in_flight.is_some(), overlap, "after frame {k}");
+                            }
+                            r.gather(&mut c).unwrap()
+                        })
+                    })
+                    .collect();
+                handles
+                    .into_iter()
+                    .map(|h| h.join().unwrap())
+                    .next()
+                    .unwrap()
+            });
+            let got = got.expect("rank 0 gathers");
+            assert_bits_equal(&got, &one, &format!("{n} ranks, overlap {overlap}"));
+        }
+    }
 }

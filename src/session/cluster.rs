@@ -203,6 +203,9 @@ pub fn run_cluster(
         frames.push(stats);
         k += 1;
     };
+    // The last frame's samples reach their owners (counted in the run's time: they are part
+    // of it).
+    r.finish(c)?;
     let seconds = t0.elapsed().as_secs_f64();
     let accumulated = r.iteration();
     let gathered = if gather { r.gather(c)? } else { None };
@@ -614,6 +617,8 @@ impl<'a> ClusterView<'a> {
             ViewStep::Eye(e) => self.r.move_eye(e)?,
             ViewStep::Camera(camera) => self.r.set_camera(camera),
             ViewStep::Rebuild { config, max_depth } => {
+                // The old renderer's samples in flight are collected before it goes.
+                self.r.finish(&mut self.c)?;
                 let settings = TraceSettings {
                     max_depth,
                     ..self.r.settings
@@ -631,7 +636,10 @@ impl<'a> ClusterView<'a> {
                     &self.gpu,
                 )?;
             }
-            ViewStep::Stop => self.stopped = true,
+            ViewStep::Stop => {
+                self.r.finish(&mut self.c)?;
+                self.stopped = true;
+            }
             ViewStep::Tiles { filter, exposure } => {
                 let tiles = self.tiles.as_ref().ok_or_else(|| {
                     ClusterError::Rejected("the owners' pictures need the tile map".into())

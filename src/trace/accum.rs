@@ -17,12 +17,19 @@ pub fn luminance(rgb: Vec3) -> f32 {
 /// Adds one sample of radiance `rgb` to a pixel's sums and count (the kernel's arithmetic).
 #[inline]
 pub fn accumulate(sum: &mut [f32; 4], count: &mut u32, rgb: Vec3) {
+    accumulate_sums(sum, rgb);
+    *count += 1;
+}
+
+/// [`accumulate`]'s sums without the count: the cluster's owners count a sample when it is
+/// dealt and add its sums when it arrives.
+#[inline]
+pub fn accumulate_sums(sum: &mut [f32; 4], rgb: Vec3) {
     let l = luminance(rgb);
     sum[0] += rgb.x;
     sum[1] += rgb.y;
     sum[2] += rgb.z;
     sum[3] += l * l;
-    *count += 1;
 }
 
 /// Per-pixel sums and sample counts of a progressive render.

@@ -212,7 +212,7 @@ fn work(c: &mut Cluster, args: &RenderArgs, mut p: Prepared) -> anyhow::Result<(
         },
     )?;
     bar.finish();
-    let tiles_written = write_owned_tiles(c, args, &p, &r)?;
+    let tiles_written = write_owned_tiles(c, args, &p, &mut r)?;
     let summary = summary(&run, ranks);
     let Some((acc, dgi)) = run.gathered.as_ref() else {
         if c.is_root() {
@@ -311,7 +311,7 @@ fn write_owned_tiles(
     c: &mut Cluster,
     args: &RenderArgs,
     p: &Prepared,
-    r: &ClusterRenderer,
+    r: &mut ClusterRenderer,
 ) -> anyhow::Result<bool> {
     let (Some(dir), Some(tiles)) = (&args.tiles, &p.tile_owners) else {
         return Ok(false);
