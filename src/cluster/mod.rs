@@ -29,7 +29,9 @@
 //! count of the block's mask in coherent order) and expands only the pixels of the blocks it
 //! traces or owns. Nothing per pixel of the whole image is done on every rank each iteration
 //! but the schedule of scattered order and of a single rank (the whole draw), and the DGI of a
-//! new ROI (`--cluster-dgi`).
+//! new ROI (`--cluster-dgi`). A GPU rank draws the whole coherent schedule on its GPU, as every
+//! block's slot mask (128 bytes a block read back: 9 MB at 73.8 MP), so no masks cross the link
+//! between GPU ranks.
 //!
 //! What crosses the link each iteration, per rank: the control message from rank 0 (tens of
 //! bytes), 4 bytes (the count, u32) per sample an owner has traced elsewhere, to the rank that
@@ -67,6 +69,7 @@ use crate::roi::cone::Cone;
 use crate::roi::dgi::{Roi, Surface};
 use crate::roi::gpu::DgiKernel;
 use crate::scene::Scene;
+use crate::schedule::gpu::BlockMasksRun;
 use crate::schedule::{
     BLOCK_PIXELS, Order, ScheduleError, TILE_EDGE, schedule_cpu_block_masks, schedule_cpu_shown,
 };
@@ -523,6 +526,11 @@ struct GpuRank {
     /// The DGI's kernel: a GPU rank computes the DGI as one GPU process does (the CPU twin's
     /// f64 solves agree with it only to rounding).
     dgi: DgiKernel,
+    /// A guided render in coherent order: each iteration's whole schedule drawn on this GPU as
+    /// every block's slot mask, instead of a 1/N share on the CPU and the rest from the link
+    /// (`None`: a full frame, scattered order, or an image whose DGI is over one binding of
+    /// this adapter: the CPU's split draw).
+    masks: Option<BlockMasksRun>,
 }
 
 impl GpuRank {
@@ -642,11 +650,29 @@ impl ClusterRenderer {
             self.wall.as_ref(),
         );
         let dgi = DgiKernel::new(&ctx);
+        let masks = match &self.guidance {
+            Some(g) if g.config.order == Order::Coherent => {
+                let shown = self.wall.as_ref().map(WallCamera::shown_mask);
+                let (w, h) = (self.settings.width, self.settings.height);
+                match BlockMasksRun::new(&ctx, w, h, g.config.p_min, shown) {
+                    Ok(m) => {
+                        m.set_dgi(&ctx, &self.dgi);
+                        Some(m)
+                    }
+                    // Over the adapter's binding: the CPU draws (every rank of a job has the
+                    // same adapter, the start-up check, so every rank decides alike).
+                    Err(ScheduleError::Gpu(crate::gpu::GpuError::TooLarge { .. })) => None,
+                    Err(e) => return Err(e.into()),
+                }
+            }
+            _ => None,
+        };
         self.gpu = Some(Box::new(GpuRank {
             ctx,
             scene,
             run,
             dgi,
+            masks,
         }));
         Ok(())
     }
@@ -844,6 +870,11 @@ impl ClusterRenderer {
                 dgi
             }
         };
+        if let Some(gr) = self.gpu.as_deref()
+            && let Some(m) = &gr.masks
+        {
+            m.set_dgi(&gr.ctx, &self.dgi);
+        }
         stats.dgi_recomputed = true;
         stats.ms_dgi = t0.elapsed().as_secs_f64() * 1e3;
         Ok(())
@@ -861,8 +892,17 @@ impl ClusterRenderer {
         let t0 = Instant::now();
         let size = [self.settings.width, self.settings.height];
         let shown = self.wall.as_ref().map(WallCamera::shown_mask);
-        let list = match &self.guidance {
-            Some(g) if g.config.order == Order::Coherent && self.ranks > 1 => {
+        let gpu_masks = self
+            .gpu
+            .as_deref()
+            .and_then(|gr| gr.masks.as_ref().map(|m| (&gr.ctx, m)));
+        let list = match (&self.guidance, gpu_masks) {
+            // A GPU rank draws the whole iteration on its GPU: no masks cross the link.
+            (Some(_), Some((ctx, m))) => {
+                let all = m.masks(ctx, self.iteration, self.settings.seed)?;
+                Arc::new(BlockList::from_masks(size, &all))
+            }
+            (Some(g), None) if g.config.order == Order::Coherent && self.ranks > 1 => {
                 let cfg = &g.config;
                 let [tx, ty] = owners::block_grid(size);
                 let n = tx * ty;
@@ -896,7 +936,7 @@ impl ClusterRenderer {
                 }
                 Arc::new(BlockList::from_masks(size, &all))
             }
-            Some(g) => {
+            (Some(g), None) => {
                 let c = &g.config;
                 let list = schedule_cpu_shown(
                     &self.dgi,
@@ -910,7 +950,7 @@ impl ClusterRenderer {
                 )?;
                 Arc::new(BlockList::group(&list, size))
             }
-            None => Arc::clone(
+            (None, _) => Arc::clone(
                 self.full_list
                     .get_or_insert_with(|| Arc::new(BlockList::every(size, shown))),
             ),

@@ -767,6 +767,39 @@ fn guided_gpu_ranks_give_the_one_gpu_process_accumulation_and_dgi() {
     assert_eq!(traffic[2], (DgiMode::Split, traffic[0].1.clone()));
 }
 
+/// Guided GPU ranks in coherent order draw each iteration's whole schedule on their GPUs (the
+/// block masks' kernel; no masks cross the link) and give one GPU process's accumulation and
+/// DGI bit for bit, through the wall camera's shown mask too.
+#[test]
+fn gpu_ranks_draw_the_coherent_schedule_on_their_gpus() {
+    let ctx = Arc::new(GpuContext::for_tests());
+    let order = Order::Coherent;
+    for with_wall in [false, true] {
+        let gpu = Backend::Gpu(Box::new(GpuContext::for_tests()));
+        let one = single_on(&gpu, Some(order), with_wall);
+        for n in [2, 3] {
+            let got = ranks_on_then(
+                n,
+                Some(order),
+                with_wall,
+                DgiMode::Compute,
+                columns,
+                Some(&ctx),
+                |c, r, _| {
+                    assert!(
+                        r.gpu.as_ref().is_some_and(|g| g.masks.is_some()),
+                        "the schedule is drawn on the GPU"
+                    );
+                    r.gather(c).unwrap()
+                },
+            );
+            let root = got.into_iter().next().unwrap().expect("rank 0 gathers");
+            let what = format!("{n} GPU ranks, coherent, wall {with_wall}");
+            assert_bits_equal(&root, &one, &what);
+        }
+    }
+}
+
 /// The split schedule's bytes: a flag byte a block and 128 bytes a non-empty one, read back
 /// exactly; anything else is refused with what is wrong.
 #[test]

@@ -106,7 +106,7 @@ pub(crate) fn check_shown(shown: Option<&[u32]>, layout: &Layout) -> Result<(), 
 }
 
 /// One iteration's draw over a validated DGI: what a compaction workgroup knows.
-struct Draw<'a> {
+pub(super) struct Draw<'a> {
     dgi: &'a [f32],
     /// Bit `p % 32` of word `p / 32`: pixel `p` may be selected (`None`: every pixel).
     shown: Option<&'a [u32]>,
@@ -120,7 +120,7 @@ struct Draw<'a> {
 }
 
 impl<'a> Draw<'a> {
-    fn new(
+    pub(super) fn new(
         dgi: &'a [f32],
         shown: Option<&'a [u32]>,
         (width, height): (u32, u32),
@@ -171,7 +171,7 @@ impl<'a> Draw<'a> {
 
     /// Calls `f(slot, pixel)` for each of block `block`'s selected slots, ascending.
     #[inline]
-    fn selected(&self, block: u32, mut f: impl FnMut(u32, u32)) {
+    pub(super) fn selected(&self, block: u32, mut f: impl FnMut(u32, u32)) {
         let (tx, ty) = (block % self.layout.tiles[0], block / self.layout.tiles[0]);
         let (x0, y0) = (tx * TILE_EDGE, ty * TILE_EDGE);
         if self.order == Order::Coherent
@@ -197,45 +197,6 @@ impl<'a> Draw<'a> {
             }
         }
     }
-}
-
-/// A block's selected slots: bit `s % 32` of word `s / 32` for slot `s` ([`Layout::pixel`]).
-pub type SlotMask = [u32; (BLOCK_PIXELS / 32) as usize];
-
-/// The draw of [`schedule_cpu_shown`] in coherent order for `blocks` alone, each block's
-/// selected slots as a [`SlotMask`]: its pixels in list order are its set bits ascending,
-/// through [`Layout::pixel`]. Ranks split an iteration's schedule so (DESIGN.md §12): each
-/// draws a share of the blocks and sends the others 128 bytes a non-empty block.
-#[allow(clippy::too_many_arguments)]
-pub fn schedule_cpu_block_masks(
-    dgi: &[f32],
-    shown: Option<&[u32]>,
-    width: u32,
-    height: u32,
-    p_min: f32,
-    iteration: u32,
-    seed: u32,
-    blocks: &[u32],
-) -> Result<Vec<SlotMask>, ScheduleError> {
-    let draw = Draw::new(
-        dgi,
-        shown,
-        (width, height),
-        p_min,
-        iteration,
-        seed,
-        Order::Coherent,
-    )?;
-    Ok(blocks
-        .par_iter()
-        .map(|&block| {
-            let mut mask = [0u32; (BLOCK_PIXELS / 32) as usize];
-            draw.selected(block, |slot, _| {
-                mask[(slot / 32) as usize] |= 1 << (slot % 32)
-            });
-            mask
-        })
-        .collect())
 }
 
 /// The selected pixels of each block, in slot order (blocks in index order; empty blocks

@@ -71,6 +71,15 @@ pub const COMPACT_WGSL: &str = concat!(
 /// The indirect-arguments kernel.
 pub const ARGS_WGSL: &str = include_str!("../../shaders/schedule/args.wgsl");
 
+/// The block-masks kernel: the coherent schedule as each block's selected slots.
+pub const MASKS_WGSL: &str = concat!(
+    include_str!("../../shaders/random.wgsl"),
+    "\n",
+    include_str!("../../shaders/schedule/select.wgsl"),
+    "\n",
+    include_str!("../../shaders/schedule/masks.wgsl")
+);
+
 /// Mirrors `Params` in shaders/schedule/compact.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
@@ -465,6 +474,144 @@ impl ScheduleRun {
     }
 }
 
+/// The coherent schedule of a whole image drawn on the GPU as every block's selected slots
+/// ([`super::SlotMask`], 128 bytes a block) and read back: the GPU twin of
+/// [`super::schedule_cpu_block_masks`] over every block. A cluster's GPU rank draws its
+/// iterations so (DESIGN.md §12) instead of a share on its CPU and the others' shares from the
+/// link. The DGI lives on the GPU ([`Self::set_dgi`], once per ROI).
+pub struct BlockMasksRun {
+    pipeline: wgpu::ComputePipeline,
+    bind: wgpu::BindGroup,
+    params: wgpu::Buffer,
+    dgi: wgpu::Buffer,
+    masks: wgpu::Buffer,
+    layout: Layout,
+    p_min: f32,
+    masked: bool,
+}
+
+impl BlockMasksRun {
+    /// A `width × height` image's draw with `p_min` (and the shown mask, as
+    /// [`ScheduleKernel::prepare_shown`]). Fails where the DGI does not fit one of the
+    /// adapter's bindings (the caller draws on the CPU then).
+    pub fn new(
+        ctx: &GpuContext,
+        width: u32,
+        height: u32,
+        p_min: f32,
+        shown: Option<&[u32]>,
+    ) -> Result<Self, ScheduleError> {
+        let p_min = validate_p_min(p_min)?;
+        let layout = Layout::new(width, height)?;
+        super::compact::check_shown(shown, &layout)?;
+        let dgi_bytes = u64::from(layout.pixels()) * 4;
+        let mask_bytes = u64::from(layout.blocks()) * u64::from(super::BLOCK_PIXELS / 8);
+        ctx.check_binding("schedule masks' DGI", dgi_bytes)?;
+        ctx.check_binding("schedule masks", mask_bytes)?;
+        let pipeline = ctx.compute_pipeline("schedule/masks", MASKS_WGSL, "main");
+        let shown_buffer = ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("schedule masks' shown mask"),
+                contents: bytemuck::cast_slice(shown.unwrap_or(&[0u32; 4])),
+                usage: wgpu::BufferUsages::STORAGE,
+            });
+        let dgi = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("schedule masks' DGI"),
+            size: dgi_bytes,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let masks = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("schedule masks"),
+            size: mask_bytes,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let params = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("schedule masks' params"),
+            size: size_of::<GpuParams>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("schedule/masks"),
+            layout: &pipeline.get_bind_group_layout(0),
+            entries: &[
+                entry(0, &params),
+                entry(1, &dgi),
+                entry(2, &masks),
+                entry(3, &shown_buffer),
+            ],
+        });
+        Ok(Self {
+            pipeline,
+            bind,
+            params,
+            dgi,
+            masks,
+            layout,
+            p_min,
+            masked: shown.is_some(),
+        })
+    }
+
+    /// The DGI the next draws use (`width × height` values).
+    pub fn set_dgi(&self, ctx: &GpuContext, dgi: &[f32]) {
+        assert_eq!(
+            dgi.len(),
+            self.layout.pixels() as usize,
+            "one DGI value a pixel"
+        );
+        ctx.queue
+            .write_buffer(&self.dgi, 0, bytemuck::cast_slice(dgi));
+    }
+
+    /// Iteration `iteration`'s draw with `seed`: every block's selected slots, blocks in index
+    /// order.
+    pub fn masks(
+        &self,
+        ctx: &GpuContext,
+        iteration: u32,
+        seed: u32,
+    ) -> Result<Vec<super::SlotMask>, GpuError> {
+        let params = GpuParams {
+            size: [self.layout.width, self.layout.height],
+            tiles_x: self.layout.tiles[0],
+            order: Order::Coherent.code(),
+            iteration,
+            seed,
+            p_min: self.p_min,
+            scatter_half_bits: self.layout.scatter_half_bits,
+            masked: u32::from(self.masked),
+            pixel_base: 0,
+            _pad: [0; 2],
+        };
+        ctx.queue
+            .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+        let mut enc = ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("schedule masks"),
+            });
+        {
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("schedule/masks"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &self.bind, &[]);
+            pass.dispatch_workgroups(self.layout.tiles[0], self.layout.tiles[1], 1);
+        }
+        ctx.queue.submit([enc.finish()]);
+        let words: Vec<u32> = ctx.read_buffer(&self.masks)?;
+        Ok(words
+            .chunks_exact((super::BLOCK_PIXELS / 32) as usize)
+            .map(|w| w.try_into().expect("a block's words"))
+            .collect())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -479,6 +626,13 @@ mod tests {
         let compact = validated("compact.wgsl", COMPACT_WGSL);
         assert_same_layout(
             &compact,
+            "Params",
+            &crate::rust_layout!(GpuParams; size, tiles_x, order, iteration, seed, p_min,
+                scatter_half_bits, masked, pixel_base, _pad),
+        );
+        let masks = validated("masks.wgsl", MASKS_WGSL);
+        assert_same_layout(
+            &masks,
             "Params",
             &crate::rust_layout!(GpuParams; size, tiles_x, order, iteration, seed, p_min,
                 scatter_half_bits, masked, pixel_base, _pad),

@@ -26,13 +26,12 @@
 pub mod args;
 pub mod compact;
 pub mod gpu;
+pub mod masks;
 pub mod select;
 
 pub use args::indirect_grid;
-pub use compact::{
-    Layout, SlotMask, schedule_cpu, schedule_cpu_block_masks, schedule_cpu_blocks,
-    schedule_cpu_shown,
-};
+pub use compact::{Layout, schedule_cpu, schedule_cpu_blocks, schedule_cpu_shown};
+pub use masks::{SlotMask, schedule_cpu_block_masks};
 pub use select::{morton_decode, probability, scatter, scatter_half_bits, selected};
 
 /// Edge of a block's tile in pixels (a block holds `TILE_EDGE²` slots).

@@ -536,3 +536,52 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {{
         assert_eq!(pick == 1, cpu, "pixel {} p {}", i / 5, ps[(i % 5) as usize]);
     }
 }
+
+/// The block masks drawn on the GPU are the CPU twin's, bit for bit, for every block: ragged
+/// edges, a one-pixel image, DGIs of every kind, p_min 0 and 0.25, several iterations and seeds,
+/// with and without a shown mask; and a new DGI is drawn from once it is set.
+#[test]
+fn gpu_block_masks_equal_the_cpu_twin() {
+    use raygun::schedule::gpu::BlockMasksRun;
+    use raygun::schedule::schedule_cpu_block_masks;
+    let ctx = GpuContext::for_tests();
+    let mut checked = 0;
+    for (w, h) in [(130u32, 70u32), (64, 32), (97, 1), (1, 45), (1, 1)] {
+        let n = (w * h) as usize;
+        let blocks: Vec<u32> = (0..w.div_ceil(32) * h.div_ceil(32)).collect();
+        // Every third pixel hidden.
+        let shown: Vec<u32> = (0..n.div_ceil(32))
+            .map(|k| {
+                (0..32)
+                    .filter(|b| (32 * k + b) % 3 != 0)
+                    .fold(0u32, |m, b| m | 1 << b)
+            })
+            .collect();
+        for shown in [None, Some(&shown[..])] {
+            for p_min in [0.0, 0.25] {
+                let run = BlockMasksRun::new(&ctx, w, h, p_min, shown).unwrap();
+                for (name, dgi) in [
+                    ("mixed", mixed_dgi(w, h, w ^ h)),
+                    ("all-zero", vec![0.0; n]),
+                    ("all-one", vec![1.0; n]),
+                ] {
+                    run.set_dgi(&ctx, &dgi);
+                    for (iteration, seed) in [(0, 0), (7, 12345), (u32::MAX, 99)] {
+                        let what = format!(
+                            "{w}×{h} {name} p_min {p_min} shown {} iteration {iteration}",
+                            shown.is_some()
+                        );
+                        let gpu = run.masks(&ctx, iteration, seed).unwrap();
+                        let cpu = schedule_cpu_block_masks(
+                            &dgi, shown, w, h, p_min, iteration, seed, &blocks,
+                        )
+                        .unwrap();
+                        assert_eq!(gpu, cpu, "{what}");
+                        checked += 1;
+                    }
+                }
+            }
+        }
+    }
+    assert_eq!(checked, 5 * 2 * 2 * 3 * 3);
+}
