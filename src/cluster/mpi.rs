@@ -5,12 +5,13 @@
 //! in turn (a blocking matched probe and receive: the message's length needs no second
 //! message) and waits for its sends. Sends posted for later ([`Lane::Later`]) keep their
 //! buffers and requests here until the collect on that lane waits for them; each lane is its
-//! own tag, so MPI matches a receive with its lane's next message only. MPI has no deadline on a blocking call, so a watchdog
-//! thread holds the deadline of the wait in progress: past it, the thread prints which rank did
-//! not answer and ends this process without MPI's finalisation, and `mpirun`, seeing a rank end
-//! so, ends every other (the MPI standard leaves a hung peer's fate to the implementation;
-//! OpenMPI's mpirun kills the job when a rank exits unfinalised or non-zero). The watchdog
-//! never calls MPI, so the main thread is the only one that does (`Threading::Funneled`).
+//! own tag, so MPI matches a receive with its lane's next message only. MPI has no deadline
+//! on a blocking call, so a watchdog thread holds the deadline of the wait in progress: past
+//! it, the thread prints which rank did not answer and ends this process without MPI's
+//! finalisation, and `mpirun`, seeing a rank end so, ends every other (the MPI standard leaves
+//! a hung peer's fate to the implementation; OpenMPI's mpirun kills the job when a rank exits
+//! unfinalised or non-zero). The watchdog never calls MPI, so the main thread is the only one
+//! that does (`Threading::Funneled`).
 
 use std::sync::{Arc, Mutex};
 use std::thread;
