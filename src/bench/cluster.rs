@@ -159,6 +159,11 @@ pub struct ExchangeRow {
     pub bytes_sent_max: u64,
     pub bytes_sent_mean: f64,
     pub bytes_received_max: u64,
+    /// Per rank, the larger of its sent and received bytes before the trace (the split
+    /// schedule's masks, the counts, the control) and after it (the samples and the blocks'
+    /// rays, which travel during the next trace when the exchange is overlapped).
+    pub link_bytes_now: Vec<u64>,
+    pub link_bytes_later: Vec<u64>,
     /// The bytes the DGI's broadcast moves per ROI change over all links (every rank but 0
     /// receives 4 bytes a pixel; down the binomial tree rank 0 sends ⌈log₂ N⌉ of those copies).
     pub dgi_broadcast_bytes: u64,
@@ -181,6 +186,20 @@ impl ExchangeRow {
     #[must_use]
     pub fn link_seconds(&self, gbps: f64) -> f64 {
         self.bytes_sent_max.max(self.bytes_received_max) as f64 * 8.0 / (gbps * 1e9)
+    }
+
+    /// Seconds per iteration with the exchange overlapped, each rank tracing at `rate`
+    /// samples/s over a `gbps` link: the slowest rank's before-the-trace bytes plus the longer
+    /// of its trace and its after-the-trace bytes (which travel during the next trace).
+    #[must_use]
+    pub fn overlapped_seconds(&self, gbps: f64, rate: f64) -> f64 {
+        let trace = self.samples_per_iteration as f64 / self.ranks as f64 / rate;
+        let secs = |b: u64| b as f64 * 8.0 / (gbps * 1e9);
+        self.link_bytes_now
+            .iter()
+            .zip(&self.link_bytes_later)
+            .map(|(&now, &later)| secs(now) + trace.max(secs(later)))
+            .fold(trace, f64::max)
     }
 
     /// The per-rank trace rate (samples/s) at which tracing a rank's share takes as long as its
@@ -391,8 +410,8 @@ pub fn scaling(
 /// What each rank sends and receives in one frame of `list` dealt as `tracer` says, owned as
 /// `owners` says, on `ranks` ranks (the control message left out): the split schedule's
 /// masks (coherent order), every block's rays to every other rank, and for blocks traced away
-/// from their owner the owner's counts to the tracer and the samples back. `(sent, received)` per rank; the cluster's frame moves these
-/// bytes exactly (tested).
+/// from their owner the owner's counts to the tracer and the samples back. `(sent, received)`
+/// per rank; the cluster's frame moves these bytes exactly (tested).
 #[must_use]
 pub fn frame_traffic(
     list: &BlockList,
@@ -400,10 +419,35 @@ pub fn frame_traffic(
     owners: &BlockOwners,
     ranks: usize,
 ) -> Vec<(u64, u64)> {
-    let (mut sent, mut got) = (vec![0u64; ranks], vec![0u64; ranks]);
+    frame_traffic_lanes(list, tracer, owners, ranks, true)
+        .into_iter()
+        .map(|l| (l.now.0 + l.later.0, l.now.1 + l.later.1))
+        .collect()
+}
+
+/// One rank's bytes of a frame by the exchange's lane: `(sent, received)` before the trace
+/// (the split schedule's masks, the counts) and after it (the samples and the blocks' rays,
+/// which travel during the next frame's trace when the exchange is overlapped).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LaneBytes {
+    pub now: (u64, u64),
+    pub later: (u64, u64),
+}
+
+/// [`frame_traffic`] by lane; `masks`: the split schedule's masks cross the link (CPU ranks;
+/// GPU ranks draw the whole schedule and send none).
+#[must_use]
+pub fn frame_traffic_lanes(
+    list: &BlockList,
+    tracer: &[u32],
+    owners: &BlockOwners,
+    ranks: usize,
+    masks: bool,
+) -> Vec<LaneBytes> {
+    let mut out = vec![LaneBytes::default(); ranks];
     let n = ranks as u64;
     let nblocks = owners.owner.len();
-    if ranks > 1 {
+    if ranks > 1 && masks {
         let mut listed = vec![false; nblocks];
         for &b in &list.blocks {
             listed[b as usize] = true;
@@ -417,31 +461,31 @@ pub fn frame_traffic(
             })
             .collect();
         let total: u64 = part.iter().sum();
-        for r in 0..ranks {
-            sent[r] += part[r] * (n - 1);
-            got[r] += total - part[r];
+        for (r, o) in out.iter_mut().enumerate() {
+            o.now.0 += part[r] * (n - 1);
+            o.now.1 += total - part[r];
         }
     }
     for (i, &t) in tracer.iter().enumerate() {
         let t = t as usize;
         let o = owners.owner[list.blocks[i] as usize] as usize;
         // Its rays to every other rank.
-        sent[t] += BLOCK_RAYS_BYTES * (n - 1);
-        for (r, g) in got.iter_mut().enumerate() {
+        out[t].later.0 += BLOCK_RAYS_BYTES * (n - 1);
+        for (r, l) in out.iter_mut().enumerate() {
             if r != t {
-                *g += BLOCK_RAYS_BYTES;
+                l.later.1 += BLOCK_RAYS_BYTES;
             }
         }
         if t != o {
             // The owner's counts to the tracer, the tracer's samples back.
             let len = u64::from(list.len_of(i));
-            sent[o] += COUNT_BYTES * len;
-            got[t] += COUNT_BYTES * len;
-            sent[t] += SAMPLE_BYTES * len;
-            got[o] += SAMPLE_BYTES * len;
+            out[o].now.0 += COUNT_BYTES * len;
+            out[t].now.1 += COUNT_BYTES * len;
+            out[t].later.0 += SAMPLE_BYTES * len;
+            out[o].later.1 += SAMPLE_BYTES * len;
         }
     }
-    sent.into_iter().zip(got).collect()
+    out
 }
 
 /// The bytes rank 0 receives for the console's picture of a `size` image owned as `owners`
@@ -474,6 +518,7 @@ pub fn exchange(
     sizes: &[[u32; 2]],
     fovs: &[f64],
     max_ranks: usize,
+    gpu_ranks: bool,
     mut progress: impl FnMut(&str),
 ) -> Result<Vec<ExchangeRow>, ClusterBenchError> {
     let surface = Surface::from_model(display);
@@ -522,15 +567,16 @@ pub fn exchange(
                     });
                 let tracer = deal(&list, &costs, ranks);
                 let n = ranks as u64;
-                let (mut sent, mut got): (Vec<u64>, Vec<u64>) =
-                    frame_traffic(&list, &tracer, &owners, ranks)
-                        .into_iter()
-                        .unzip();
-                // The control (with an ROI change: the largest) from rank 0.
-                sent[0] += CONTROL_BYTES * (n - 1);
-                for g in got.iter_mut().skip(1) {
-                    *g += CONTROL_BYTES;
+                let mut lanes = frame_traffic_lanes(&list, &tracer, &owners, ranks, !gpu_ranks);
+                // The control (with an ROI change: the largest) from rank 0, before the trace.
+                lanes[0].now.0 += CONTROL_BYTES * (n - 1);
+                for l in lanes.iter_mut().skip(1) {
+                    l.now.1 += CONTROL_BYTES;
                 }
+                let (sent, got): (Vec<u64>, Vec<u64>) = lanes
+                    .iter()
+                    .map(|l| (l.now.0 + l.later.0, l.now.1 + l.later.1))
+                    .unzip();
                 rows.push(ExchangeRow {
                     tile_map,
                     size,
@@ -540,6 +586,8 @@ pub fn exchange(
                     bytes_sent_max: sent.iter().copied().max().unwrap_or(0),
                     bytes_sent_mean: sent.iter().sum::<u64>() as f64 / ranks as f64,
                     bytes_received_max: got.iter().copied().max().unwrap_or(0),
+                    link_bytes_now: lanes.iter().map(|l| l.now.0.max(l.now.1)).collect(),
+                    link_bytes_later: lanes.iter().map(|l| l.later.0.max(l.later.1)).collect(),
                     dgi_broadcast_bytes: 4 * u64::from(size[0]) * u64::from(size[1]) * (n - 1),
                     margin_sent_max,
                     margin_received_max,
@@ -627,7 +675,7 @@ pub fn markdown(r: &ClusterBenchReport) -> String {
         .map(|p| p.samples_traced_per_iteration / (p.ms_trace / 1e3))
         .fold(f64::NAN, f64::max);
     s += &format!(
-        "\n## Exchange per iteration (counted from the real schedule and deal)\n\nBytes per iteration: 12 per sample traced for another rank's tile and 4 (its count) from that tile's owner to the rank that traces it, 4 per block traced to every other rank, the split schedule (1 per block and 128 per non-empty block, from the rank that drew it to every other), the control message ({CONTROL_BYTES} bytes with an ROI change). The DGI's broadcast ({}) is per ROI change, not per iteration.\n\n| tile map | size | FOV | ranks | samples/it | max sent MB/it | mean sent MB/it | max received MB/it | DGI broadcast MB | link ms/it at {} Gb/s | break-even rate per rank (Msamples/s) | iterations/s at the measured rate | picture: margins max sent / received MB | picture: gathered to rank 0 MB | console picture: every k-th pixel, MB to rank 0 |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "\n## Exchange per iteration (counted from the real schedule and deal)\n\nBytes per iteration: 12 per sample traced for another rank's tile and 4 (its count) from that tile's owner to the rank that traces it, 4 per block traced to every other rank, the split schedule (1 per block and 128 per non-empty block, from the rank that drew it to every other), the control message ({CONTROL_BYTES} bytes with an ROI change). The DGI's broadcast ({}) is per ROI change, not per iteration.\n\n| tile map | size | FOV | ranks | samples/it | max sent MB/it | mean sent MB/it | max received MB/it | DGI broadcast MB | link ms/it at {} Gb/s | break-even rate per rank (Msamples/s) | iterations/s at the measured rate, exchange not overlapped / overlapped | picture: margins max sent / received MB | picture: gathered to rank 0 MB | console picture: every k-th pixel, MB to rank 0 |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
         "4 bytes a pixel to every other rank, down a binomial tree; the column sums all links",
         c.link_gbps
     );
@@ -638,7 +686,7 @@ pub fn markdown(r: &ClusterBenchReport) -> String {
         let link = e.link_seconds(c.link_gbps);
         let trace = e.samples_per_iteration as f64 / e.ranks as f64 / rate;
         s += &format!(
-            "| {} | {}×{} | {}° | {} | {} | {} | {} | {} | {} | {:.3} | {:.0} | {:.2} | {} / {} | {} | k = {}: {} |\n",
+            "| {} | {}×{} | {}° | {} | {} | {} | {} | {} | {} | {:.3} | {:.0} | {:.2} / {:.2} | {} / {} | {} | k = {}: {} |\n",
             e.tile_map,
             e.size[0],
             e.size[1],
@@ -652,6 +700,7 @@ pub fn markdown(r: &ClusterBenchReport) -> String {
             link * 1e3,
             e.break_even_rate(c.link_gbps) / 1e6,
             1.0 / (trace + link),
+            1.0 / e.overlapped_seconds(c.link_gbps, rate),
             mb(e.margin_sent_max as f64),
             mb(e.margin_received_max as f64),
             mb(e.gather_received as f64),
@@ -660,7 +709,7 @@ pub fn markdown(r: &ClusterBenchReport) -> String {
         );
     }
     s += &format!(
-        "\nThe measured rate: {:.3} Msamples/s per rank ({}, best of the rows above: the trace step alone, its upload and read-back on a GPU included). Iterations/s = 1 / (samples/(ranks × rate) + link time), the schedule and the DGI left out: the exchange not overlapped with tracing. By default a frame's samples travel while the next frame is traced (the strong-scaling table's first ms/iteration), so where the link time is mostly samples the pace approaches 1 / max(trace, link) and these figures are the lower bound; the counts (sent before a trace) and the split schedule's masks do not overlap. A rank whose trace rate exceeds the break-even rate spends longer on the link than on tracing. The picture's columns are per picture shown or saved, not per iteration: each owner's tiles' margins (the default fast filter) against the whole accumulation gathered to rank 0, and against `view --cluster`'s console picture: every k-th pixel of every k-th row, the least k that fits a 4K monitor.\n",
+        "\nThe measured rate: {:.3} Msamples/s per rank ({}, best of the rows above: the trace step alone, its upload and read-back on a GPU included). Iterations/s, the schedule and the DGI left out: not overlapped, 1 / (samples/(ranks × rate) + link time); overlapped (the default: a frame's samples and rays travel while the next frame is traced), 1 / (the slowest rank's bytes before the trace + the longer of its trace and its bytes after it) — the counts, the control and the split schedule's masks come before a trace and do not overlap. A rank whose trace rate exceeds the break-even rate spends longer on the link than on tracing. The picture's columns are per picture shown or saved, not per iteration: each owner's tiles' margins (the default fast filter) against the whole accumulation gathered to rank 0, and against `view --cluster`'s console picture: every k-th pixel of every k-th row, the least k that fits a 4K monitor.\n",
         rate / 1e6,
         r.device
     );
@@ -678,6 +727,36 @@ mod tests {
     /// (equal costs: the deal the model makes), each rank's traffic against [`frame_traffic`];
     /// and the console's pictures after it against [`console_received`].
     #[test]
+    fn overlapped_iterations_hide_the_shorter_of_trace_and_samples() {
+        let row = |now: Vec<u64>, later: Vec<u64>| ExchangeRow {
+            tile_map: "columns",
+            size: [8, 8],
+            fov_deg: 10.0,
+            ranks: 2,
+            samples_per_iteration: 2_000,
+            bytes_sent_max: 0,
+            bytes_sent_mean: 0.0,
+            bytes_received_max: 0,
+            link_bytes_now: now,
+            link_bytes_later: later,
+            dgi_broadcast_bytes: 0,
+            margin_sent_max: 0,
+            margin_received_max: 0,
+            gather_received: 0,
+            console_every: 1,
+            console_received: 0,
+        };
+        // 1 Gb/s: 125 000 bytes a millisecond; 1 000 samples a rank at 1 M/s: 1 ms of trace.
+        let (gbps, rate) = (1.0, 1e6);
+        let ms = |r: &ExchangeRow| r.overlapped_seconds(gbps, rate) * 1e3;
+        assert!((ms(&row(vec![0, 0], vec![0, 0])) - 1.0).abs() < 1e-12);
+        // Samples shorter than the trace: hidden; the counts before it are not.
+        assert!((ms(&row(vec![125_000, 0], vec![62_500, 0])) - 2.0).abs() < 1e-12);
+        // Samples longer than the trace on the slowest rank: they set the pace.
+        assert!((ms(&row(vec![0, 125_000], vec![0, 375_000])) - 4.0).abs() < 1e-12);
+    }
+
+    #[test]
     fn the_models_frame_bytes_are_the_bytes_a_frame_moves() {
         let display = DisplayModel::open("hornet").unwrap().0;
         let scene = Scene::builtin("cornell").unwrap();
@@ -690,7 +769,7 @@ mod tests {
         };
         let owners = BlockOwners::of_display(&display, &TileOwners::columns(&display, ranks), size);
         let settings = paper::settings(&scene, size, 1, 2).unwrap();
-        let measured: Vec<(u64, u64)> = std::thread::scope(|s| {
+        let measured: Vec<((u64, u64), LaneBytes)> = std::thread::scope(|s| {
             let handles: Vec<_> = InProcess::job(ranks)
                 .into_iter()
                 .map(|end| {
@@ -730,7 +809,29 @@ mod tests {
                                 assert!(got > 0);
                             }
                         }
-                        (t.bytes_sent, t.bytes_received)
+                        // The same frame overlapped: it sends everything and receives what
+                        // comes before the trace; the rest arrives when it is collected.
+                        let mut r = ClusterRenderer::new(
+                            scene,
+                            settings,
+                            Some((display, config)),
+                            None,
+                            owners.clone(),
+                            DgiMode::Compute,
+                            rank,
+                            ranks,
+                        )
+                        .unwrap();
+                        r.set_roi(Some(roi)).unwrap();
+                        let o = r.run_frame(&mut c).unwrap().traffic;
+                        let before = c.traffic();
+                        r.finish(&mut c).unwrap();
+                        let later = c.traffic().since(&before);
+                        let lanes = LaneBytes {
+                            now: (o.bytes_sent, o.bytes_received),
+                            later: (later.bytes_sent, later.bytes_received),
+                        };
+                        ((t.bytes_sent, t.bytes_received), lanes)
                     })
                 })
                 .collect();
@@ -751,6 +852,20 @@ mod tests {
             tracer.iter().any(|&t| t != 0),
             "the deal spreads the blocks"
         );
-        assert_eq!(measured, frame_traffic(&list, &tracer, &owners, ranks));
+        let whole: Vec<(u64, u64)> = measured.iter().map(|m| m.0).collect();
+        assert_eq!(whole, frame_traffic(&list, &tracer, &owners, ranks));
+        // Overlapped: the frame sent both lanes (posted) and received the first; collecting
+        // brought the second.
+        let lanes = frame_traffic_lanes(&list, &tracer, &owners, ranks, true);
+        for (rank, (m, l)) in measured.iter().zip(&lanes).enumerate() {
+            let (got, want) = (m.1, l);
+            assert_eq!(got.now.0, want.now.0 + want.later.0, "rank {rank}: sent");
+            assert_eq!(got.now.1, want.now.1, "rank {rank}: received in the frame");
+            assert_eq!(got.later, (0, want.later.1), "rank {rank}: collected after");
+            assert!(
+                want.later.1 > 0 && want.now.1 > 0,
+                "rank {rank}: both lanes move bytes"
+            );
+        }
     }
 }

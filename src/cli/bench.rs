@@ -338,6 +338,8 @@ fn cluster_bench(c: &mut Cluster, args: &GuidedBenchArgs) -> anyhow::Result<Opti
         model_ranks: args.model_ranks,
         link_gbps: args.link_gbps,
     };
+    // GPU ranks draw the whole schedule on their GPUs: no masks in the model's link.
+    let gpu_ranks = gpu.is_some();
     let Some(scaling) = crate::bench::cluster::scaling(c, &scene, &display, &cfg, gpu)? else {
         return Ok(None);
     };
@@ -346,6 +348,7 @@ fn cluster_bench(c: &mut Cluster, args: &GuidedBenchArgs) -> anyhow::Result<Opti
         &cfg.model_sizes,
         &cfg.fovs_deg,
         cfg.model_ranks,
+        gpu_ranks,
         |what| eprintln!("raygun: {what}"),
     )?;
     let report = crate::bench::cluster::ClusterBenchReport {
