@@ -14,25 +14,7 @@
 // it behind a Features::SUBGROUP check, but whether that pays on a real GPU is unmeasured (no
 // GPU was available when this was written), so the portable version is the only one.
 
-// Mirrors `GpuParams` in src/schedule/gpu.rs (48 bytes).
-struct Params {
-    size: vec2<u32>,
-    // Tiles per row; the dispatch is (tiles_x, tiles_y).
-    tiles_x: u32,
-    // 0 coherent (Morton order in 32 × 32 tiles), 1 scattered (a fixed pixel permutation).
-    order: u32,
-    iteration: u32,
-    seed: u32,
-    p_min: f32,
-    scatter_half_bits: u32,
-    // 1: a pixel whose bit in `shown` is clear has probability 0 (the wall camera's bezels).
-    masked: u32,
-    // The image's index of this schedule's pixel 0 (a frame split into bands of rows): the coin
-    // of list pixel p is the image pixel pixel_base + p's.
-    pixel_base: u32,
-    _pad1: u32,
-    _pad2: u32,
-}
+// `Params` (the kernels' shared uniform): shaders/schedule/select.wgsl.
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> dgi: array<f32>;

@@ -9,22 +9,8 @@
 // and lists, from them, the blocks it traces or owns; one workgroup of 32 threads per block,
 // one word per thread.
 
-// Mirrors `GpuParams` in src/schedule/gpu.rs (48 bytes; `order` and `scatter_half_bits` are
-// not read: the masks are the coherent order's).
-struct Params {
-    size: vec2<u32>,
-    tiles_x: u32,
-    order: u32,
-    iteration: u32,
-    seed: u32,
-    p_min: f32,
-    scatter_half_bits: u32,
-    // 1: a pixel whose bit in `shown` is clear has probability 0 (the wall camera's bezels).
-    masked: u32,
-    pixel_base: u32,
-    _pad1: u32,
-    _pad2: u32,
-}
+// `Params`: shaders/schedule/select.wgsl (`order`, `scatter_half_bits` are not read: the
+// masks are the coherent order's).
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> dgi: array<f32>;

@@ -1,6 +1,27 @@
-// Per-pixel scheduling decisions (DESIGN.md §6), shared by the compaction kernel and tests.
+// Per-pixel scheduling decisions (DESIGN.md §6) and the schedule kernels' uniform, shared by the
+// compaction and block-masks kernels and tests.
 // CPU twin: src/schedule/mod.rs (`probability`, `selected`, `morton_decode`, `scatter`).
 // Concatenated after shaders/random.wgsl (pcg4d, unit_f32).
+
+// The schedule kernels' uniform; mirrors `GpuParams` in src/schedule/gpu.rs (48 bytes).
+struct Params {
+    size: vec2<u32>,
+    // Tiles per row; the dispatch is (tiles_x, tiles_y).
+    tiles_x: u32,
+    // 0 coherent (Morton order in 32 × 32 tiles), 1 scattered (a fixed pixel permutation).
+    order: u32,
+    iteration: u32,
+    seed: u32,
+    p_min: f32,
+    scatter_half_bits: u32,
+    // 1: a pixel whose bit in `shown` is clear has probability 0 (the wall camera's bezels).
+    masked: u32,
+    // The image's index of this schedule's pixel 0 (a frame split into bands of rows): the coin
+    // of list pixel p is the image pixel pixel_base + p's.
+    pixel_base: u32,
+    _pad1: u32,
+    _pad2: u32,
+}
 
 // random::stream::SCHEDULE in src/random.rs (a test checks they agree).
 const STREAM_SCHEDULE: u32 = 0x5c4ed01eu;

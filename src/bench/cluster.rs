@@ -777,18 +777,22 @@ mod tests {
                     s.spawn(move || {
                         let rank = crate::cluster::exchange::Exchange::rank(&end);
                         let mut c = Cluster::new(Box::new(end), Duration::from_secs(30));
-                        let mut r = ClusterRenderer::new(
-                            scene,
-                            settings,
-                            Some((display, config)),
-                            None,
-                            owners.clone(),
-                            DgiMode::Compute,
-                            rank,
-                            ranks,
-                        )
-                        .unwrap();
-                        r.set_roi(Some(roi)).unwrap();
+                        let renderer = || {
+                            let mut r = ClusterRenderer::new(
+                                scene,
+                                settings,
+                                Some((display, config)),
+                                None,
+                                owners.clone(),
+                                DgiMode::Compute,
+                                rank,
+                                ranks,
+                            )
+                            .unwrap();
+                            r.set_roi(Some(roi)).unwrap();
+                            r
+                        };
+                        let mut r = renderer();
                         // The frame's own bytes: its samples collected within it (overlapped,
                         // they would be received during the next frame).
                         r.set_overlap(false);
@@ -811,18 +815,7 @@ mod tests {
                         }
                         // The same frame overlapped: it sends everything and receives what
                         // comes before the trace; the rest arrives when it is collected.
-                        let mut r = ClusterRenderer::new(
-                            scene,
-                            settings,
-                            Some((display, config)),
-                            None,
-                            owners.clone(),
-                            DgiMode::Compute,
-                            rank,
-                            ranks,
-                        )
-                        .unwrap();
-                        r.set_roi(Some(roi)).unwrap();
+                        let mut r = renderer();
                         let o = r.run_frame(&mut c).unwrap().traffic;
                         let before = c.traffic();
                         r.finish(&mut c).unwrap();

@@ -259,20 +259,30 @@ impl Cluster {
     pub fn all_to_all(
         &mut self,
         what: &str,
-        mut parts: Vec<Vec<u8>>,
+        parts: Vec<Vec<u8>>,
     ) -> Result<Vec<Vec<u8>>, ExchangeError> {
-        let (me, n) = (self.rank(), self.ranks());
-        assert_eq!(parts.len(), n, "one part per rank");
+        let (own, sends) = self.split_parts(parts);
+        let mut got = self.round(sends, &self.others(), what)?;
+        got.insert(self.rank(), own);
+        Ok(got)
+    }
+
+    /// `parts` (one per rank) as this rank's own and the sends to the others.
+    fn split_parts(&self, mut parts: Vec<Vec<u8>>) -> (Vec<u8>, Vec<(usize, Vec<u8>)>) {
+        let me = self.rank();
+        assert_eq!(parts.len(), self.ranks(), "one part per rank");
         let own = std::mem::take(&mut parts[me]);
         let sends = parts
             .into_iter()
             .enumerate()
             .filter(|(r, _)| *r != me)
             .collect();
-        let from: Vec<usize> = (0..n).filter(|&r| r != me).collect();
-        let mut got = self.round(sends, &from, what)?;
-        got.insert(me, own);
-        Ok(got)
+        (own, sends)
+    }
+
+    /// Every rank but this one, ascending.
+    fn others(&self) -> Vec<usize> {
+        (0..self.ranks()).filter(|&r| r != self.rank()).collect()
     }
 }
 
@@ -283,16 +293,9 @@ impl Cluster {
     pub fn all_to_all_post(
         &mut self,
         what: &str,
-        mut parts: Vec<Vec<u8>>,
+        parts: Vec<Vec<u8>>,
     ) -> Result<Vec<u8>, ExchangeError> {
-        let me = self.rank();
-        assert_eq!(parts.len(), self.ranks(), "one part per rank");
-        let own = std::mem::take(&mut parts[me]);
-        let sends = parts
-            .into_iter()
-            .enumerate()
-            .filter(|(r, _)| *r != me)
-            .collect();
+        let (own, sends) = self.split_parts(parts);
         self.x.post(sends, Lane::Later, what)?;
         Ok(own)
     }
@@ -304,13 +307,11 @@ impl Cluster {
         what: &str,
         own: Vec<u8>,
     ) -> Result<Vec<Vec<u8>>, ExchangeError> {
-        let (me, n) = (self.rank(), self.ranks());
-        let from: Vec<usize> = (0..n).filter(|&r| r != me).collect();
         let wait = self.wait();
-        let mut got = self.x.collect(&from, Lane::Later, what, wait);
+        let mut got = self.x.collect(&self.others(), Lane::Later, what, wait);
         self.last = Instant::now();
         if let Ok(got) = &mut got {
-            got.insert(me, own);
+            got.insert(self.rank(), own);
         }
         got
     }
