@@ -44,6 +44,17 @@ pub enum ExchangeError {
     Mpi(String),
 }
 
+impl ExchangeError {
+    /// Rank `rank` did not answer within `wait` (`what`: the messages waited for).
+    pub(crate) fn timeout(rank: usize, wait: Duration, what: &str) -> Self {
+        Self::Timeout {
+            rank,
+            seconds: wait.as_secs_f64(),
+            what: what.to_owned(),
+        }
+    }
+}
+
 /// Bytes and messages a rank has sent and received so far.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
 pub struct Traffic {
@@ -227,11 +238,7 @@ impl Exchange for InProcess {
                     }
                     Ok((other, bytes)) => self.held[src][other as usize].push_back(bytes),
                     Err(RecvTimeoutError::Timeout) => {
-                        return Err(ExchangeError::Timeout {
-                            rank: src,
-                            seconds: wait.as_secs_f64(),
-                            what: what.to_owned(),
-                        });
+                        return Err(ExchangeError::timeout(src, wait, what));
                     }
                     Err(RecvTimeoutError::Disconnected) => {
                         return Err(ExchangeError::Gone {

@@ -208,14 +208,7 @@ impl Exchange for Mpi {
         wait: Duration,
     ) -> Result<Vec<Vec<u8>>, ExchangeError> {
         let deadline = Instant::now() + wait;
-        let timeout = |rank: usize| {
-            ExchangeError::Timeout {
-                rank,
-                seconds: wait.as_secs_f64(),
-                what: what.to_owned(),
-            }
-            .to_string()
-        };
+        let timeout = |rank: usize| ExchangeError::timeout(rank, wait, what).to_string();
         let mut got = Vec::with_capacity(from.len());
         for &src in from {
             self.watchdog.arm(deadline, timeout(src));

@@ -135,6 +135,42 @@ fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
     }
 }
 
+/// The kernels' shown mask (a stand-in of 16 bytes where there is none: a binding may not be
+/// empty, and `Params.masked` = 0 leaves it unread).
+fn shown_buffer(ctx: &GpuContext, shown: Option<&[u32]>) -> wgpu::Buffer {
+    ctx.device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("schedule shown mask"),
+            contents: bytemuck::cast_slice(shown.unwrap_or(&[0u32; 4])),
+            usage: wgpu::BufferUsages::STORAGE,
+        })
+}
+
+/// The kernels' parameters of one iteration over `layout`.
+#[allow(clippy::too_many_arguments)]
+fn gpu_params(
+    layout: &Layout,
+    order: Order,
+    p_min: f32,
+    masked: bool,
+    pixel_base: u32,
+    iteration: u32,
+    seed: u32,
+) -> GpuParams {
+    GpuParams {
+        size: [layout.width, layout.height],
+        tiles_x: layout.tiles[0],
+        order: order.code(),
+        iteration,
+        seed,
+        p_min,
+        scatter_half_bits: layout.scatter_half_bits,
+        masked: u32::from(masked),
+        pixel_base,
+        _pad: [0; 2],
+    }
+}
+
 impl ScheduleKernel {
     #[must_use]
     pub fn new(ctx: &GpuContext) -> Self {
@@ -181,13 +217,7 @@ impl ScheduleKernel {
         let p_min = validate_p_min(config.p_min)?;
         let layout = Layout::new(config.width, config.height)?;
         super::compact::check_shown(shown, &layout)?;
-        let mask = ctx
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("schedule shown mask"),
-                contents: bytemuck::cast_slice(shown.unwrap_or(&[0u32; 4])),
-                usage: wgpu::BufferUsages::STORAGE,
-            });
+        let mask = shown_buffer(ctx, shown);
         let list_bytes = u64::from(layout.pixels()) * 4;
         if dgi.size() < list_bytes || !dgi.usage().contains(wgpu::BufferUsages::STORAGE) {
             return Err(ScheduleError::DgiBuffer {
@@ -407,18 +437,15 @@ impl ScheduleRun {
     /// The kernel's parameters for one iteration.
     #[must_use]
     pub fn gpu_params(&self, iteration: u32, seed: u32) -> GpuParams {
-        GpuParams {
-            size: [self.layout.width, self.layout.height],
-            tiles_x: self.layout.tiles[0],
-            order: self.order.code(),
+        gpu_params(
+            &self.layout,
+            self.order,
+            self.p_min,
+            self.masked,
+            self.pixel_base,
             iteration,
             seed,
-            p_min: self.p_min,
-            scatter_half_bits: self.layout.scatter_half_bits,
-            masked: u32::from(self.masked),
-            pixel_base: self.pixel_base,
-            _pad: [0; 2],
-        }
+        )
     }
 
     /// Changes p_min for the iterations recorded from now on.
@@ -509,13 +536,7 @@ impl BlockMasksRun {
         ctx.check_binding("schedule masks' DGI", dgi_bytes)?;
         ctx.check_binding("schedule masks", mask_bytes)?;
         let pipeline = ctx.compute_pipeline("schedule/masks", MASKS_WGSL, "main");
-        let shown_buffer = ctx
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("schedule masks' shown mask"),
-                contents: bytemuck::cast_slice(shown.unwrap_or(&[0u32; 4])),
-                usage: wgpu::BufferUsages::STORAGE,
-            });
+        let shown_buffer = shown_buffer(ctx, shown);
         let dgi = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("schedule masks' DGI"),
             size: dgi_bytes,
@@ -575,18 +596,15 @@ impl BlockMasksRun {
         iteration: u32,
         seed: u32,
     ) -> Result<Vec<super::SlotMask>, GpuError> {
-        let params = GpuParams {
-            size: [self.layout.width, self.layout.height],
-            tiles_x: self.layout.tiles[0],
-            order: Order::Coherent.code(),
+        let params = gpu_params(
+            &self.layout,
+            Order::Coherent,
+            self.p_min,
+            self.masked,
+            0,
             iteration,
             seed,
-            p_min: self.p_min,
-            scatter_half_bits: self.layout.scatter_half_bits,
-            masked: u32::from(self.masked),
-            pixel_base: 0,
-            _pad: [0; 2],
-        };
+        );
         ctx.queue
             .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
         let mut enc = ctx
