@@ -66,13 +66,14 @@ enum DisplayCommand {
 }
 
 fn main() {
-    // .cargo/config.toml builds for AVX2 (and the bit instructions that come with it) on
-    // x86-64; say so instead of dying on an illegal instruction.
+    // .cargo/config.toml builds for AVX2 and FMA (and the bit instructions that come with
+    // them) on x86-64; say so instead of dying on an illegal instruction.
     #[cfg(target_arch = "x86_64")]
     {
         use std::arch::is_x86_feature_detected as has;
         let missing: Vec<&str> = [
             ("avx2", has!("avx2")),
+            ("fma", has!("fma")),
             ("bmi1", has!("bmi1")),
             ("bmi2", has!("bmi2")),
             ("lzcnt", has!("lzcnt")),
@@ -83,7 +84,7 @@ fn main() {
         .collect();
         if !missing.is_empty() {
             eprintln!(
-                "raygun: this build needs a CPU with AVX2, BMI1, BMI2, LZCNT and POPCNT \
+                "raygun: this build needs a CPU with AVX2, FMA, BMI1, BMI2, LZCNT and POPCNT \
                  (see .cargo/config.toml); this one lacks {}: rebuild without that file's \
                  target-feature flags for this CPU",
                 missing.join(", ")

@@ -59,8 +59,9 @@ pub(super) struct CpuNode {
 const LEAF_PRIMS: u32 = 8;
 
 /// How far the boxes are widened, relative to the magnitude of the coordinates: a box test
-/// computes `plane · (1/d) − origin · (1/d)`, off by a few units in the last place of the
-/// larger of the plane and the origin (2⁻²⁴ relative each); this is 8× that.
+/// computes `plane · (1/d) − origin · (1/d)` (the product and the difference fused into one
+/// rounding where the processor has FMA, two roundings without), off by a few units in the
+/// last place of the larger of the plane and the origin (2⁻²⁴ relative each); this is 8× that.
 const WIDEN: f64 = 1.0 / (1u64 << 21) as f64;
 
 impl CpuTree {
@@ -312,14 +313,21 @@ impl NodeRay {
 /// The slab test of `node`'s eight child boxes: bit c of the mask is set when child slot c's
 /// box is entered (at `t = plane · inv − origin · inv` on each axis) at or before `tmax` and
 /// its far side is not nearer than [`NODE_EPSILON`] (the GPU's near-plane bound); entry c is
-/// that box's entry distance. All eight children in one pass of 8-wide AVX2 lanes; the same
-/// operations as [`node_hits_scalar`] lane by lane, so the same bits.
-#[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+/// that box's entry distance. All eight children in one pass of 8-wide AVX2 lanes, each
+/// plane's distance one fused multiply-subtract (a shorter chain of dependent operations from
+/// a node's load to its children: measured, ms per sample ×0.90–0.95 on the small city,
+/// BENCHMARKS.md; only which nodes are visited, and in which order, depends on it, never the
+/// hit); the same operations as [`node_hits_scalar`] lane by lane, so the same bits.
+#[cfg(all(
+    target_arch = "x86_64",
+    target_feature = "avx2",
+    target_feature = "fma"
+))]
 #[inline(always)]
 fn node_hits(node: &CpuNode, ray: &NodeRay, tmax: f32) -> (u32, [f32; 8]) {
     use std::arch::x86_64::{
-        _CMP_LE_OQ, _mm256_cmp_ps, _mm256_load_ps, _mm256_max_ps, _mm256_min_ps,
-        _mm256_movemask_ps, _mm256_mul_ps, _mm256_set1_ps, _mm256_storeu_ps, _mm256_sub_ps,
+        _CMP_LE_OQ, _mm256_cmp_ps, _mm256_fmsub_ps, _mm256_load_ps, _mm256_max_ps, _mm256_min_ps,
+        _mm256_movemask_ps, _mm256_set1_ps, _mm256_storeu_ps,
     };
     let mut entry = [0f32; 8];
     // SAFETY: this is compiled only where AVX and AVX2 are enabled for the whole build
@@ -329,11 +337,9 @@ fn node_hits(node: &CpuNode, ray: &NodeRay, tmax: f32) -> (u32, [f32; 8]) {
     // 0..6 by construction in `NodeRay::new`); the store writes the local `[f32; 8]`.
     let hit = unsafe {
         let t = |row: usize, axis: usize| {
-            _mm256_sub_ps(
-                _mm256_mul_ps(
-                    _mm256_load_ps(node.bounds[row].as_ptr()),
-                    _mm256_set1_ps(ray.inv[axis]),
-                ),
+            _mm256_fmsub_ps(
+                _mm256_load_ps(node.bounds[row].as_ptr()),
+                _mm256_set1_ps(ray.inv[axis]),
                 _mm256_set1_ps(ray.origin_inv[axis]),
             )
         };
@@ -351,16 +357,28 @@ fn node_hits(node: &CpuNode, ray: &NodeRay, tmax: f32) -> (u32, [f32; 8]) {
     (hit, entry)
 }
 
-/// Without AVX2: [`node_hits_scalar`].
-#[cfg(not(all(target_arch = "x86_64", target_feature = "avx2")))]
+/// Without AVX2 and FMA: [`node_hits_scalar`].
+#[cfg(not(all(
+    target_arch = "x86_64",
+    target_feature = "avx2",
+    target_feature = "fma"
+)))]
 #[inline(always)]
 fn node_hits(node: &CpuNode, ray: &NodeRay, tmax: f32) -> (u32, [f32; 8]) {
     node_hits_scalar(node, ray, tmax)
 }
 
 /// [`node_hits`] a child at a time (`maxps`/`minps` semantics: the second operand unless the
-/// first is greater / smaller): the build without AVX2, and the lanes' oracle.
-#[cfg_attr(all(target_arch = "x86_64", target_feature = "avx2"), allow(dead_code))]
+/// first is greater / smaller; `mul_add`: one rounding, as `vfmsub`): the build without AVX2
+/// and FMA, and the lanes' oracle.
+#[cfg_attr(
+    all(
+        target_arch = "x86_64",
+        target_feature = "avx2",
+        target_feature = "fma"
+    ),
+    allow(dead_code)
+)]
 #[inline(always)]
 fn node_hits_scalar(node: &CpuNode, ray: &NodeRay, tmax: f32) -> (u32, [f32; 8]) {
     let max = |a: f32, b: f32| if a > b { a } else { b };
@@ -368,8 +386,9 @@ fn node_hits_scalar(node: &CpuNode, ray: &NodeRay, tmax: f32) -> (u32, [f32; 8])
     let mut entry = [0f32; 8];
     let mut hit = 0;
     for (c, entry) in entry.iter_mut().enumerate() {
-        let t =
-            |row: usize, axis: usize| node.bounds[row][c] * ray.inv[axis] - ray.origin_inv[axis];
+        let t = |row: usize, axis: usize| {
+            node.bounds[row][c].mul_add(ray.inv[axis], -ray.origin_inv[axis])
+        };
         let t_near = max(
             max(t(ray.near[0], 0), t(ray.near[1], 1)),
             max(t(ray.near[2], 2), NODE_EPSILON),
@@ -764,7 +783,7 @@ impl CpuTree {
                         continue;
                     }
                     let t = |row: usize, axis: usize, inv: f32x8, oi: f32x8| {
-                        f32x8::splat(node.bounds[2 * axis + row][c]) * inv - oi
+                        f32x8::splat(node.bounds[2 * axis + row][c]).mul_sub(inv, oi)
                     };
                     let (x0, x1) = (t(0, 0, inv.x, oi.x), t(1, 0, inv.x, oi.x));
                     let (y0, y1) = (t(0, 1, inv.y, oi.y), t(1, 1, inv.y, oi.y));
