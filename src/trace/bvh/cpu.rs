@@ -4,9 +4,11 @@
 //! The GPU walks obvhs' compressed CWBVH (`super`'s doc): 80-byte nodes of quantised boxes and
 //! at most three triangles a leaf, the layout that suits a GPU's memory traffic. The CPU walks a
 //! tree built for it from the same triangles ([`CpuTree`]): obvhs' BVH2 (the same `slow_build`
-//! preset: spatial pre-splits, PLOC, reinsertion) with leaves of up to eight triangles (its
-//! collapse at traversal cost 3), opened into eight-wide nodes by taking apart the largest
-//! child until eight, each node's boxes as f32 in lanes. A leaf's triangles are contiguous in
+//! preset: spatial pre-splits, PLOC, reinsertion) of one triangle a leaf, collapsed into
+//! eight-wide nodes and leaves of up to eight triangles by the collapse of least surface-area
+//! cost ([`Collapse`]; it replaced taking apart the largest child until eight over obvhs' own
+//! leaves: the small city's ms per sample ×0.935–0.95, BENCHMARKS.md), each node's boxes as
+//! f32 in lanes. A leaf's triangles are contiguous in
 //! the tree's own arrays (`prims`, and [`PrimLanes`] for the 8-wide test), so a leaf of up to
 //! eight is one test. Measured against walking the GPU's tree with the same code: 15–20 %
 //! fewer nanoseconds a ray in the cities (BENCHMARKS.md).
@@ -55,8 +57,25 @@ pub(super) struct CpuNode {
     imask: u32,
 }
 
-/// The leaf size the BVH2 is collapsed to: one 8-wide triangle test.
+/// obvhs' `slow_build` with leaves of one triangle: the collapse ([`Collapse`]) chooses the
+/// leaves. (Over obvhs' own collapse into leaves of up to eight, the walks visited 4.93 nodes a
+/// closest-hit ray in the small city against 4.48.) The BVH2 of one triangle a leaf takes longer
+/// to build: the 343 740-triangle city's start, tree included, 1.4–1.6 s → 1.9–2.1 s here.
+const BVH2_PARAMS: BvhBuildParams = BvhBuildParams {
+    max_prims_per_leaf: 1,
+    ..BvhBuildParams::slow_build()
+};
+
+/// The most triangles a leaf holds: one 8-wide triangle test.
 const LEAF_PRIMS: u32 = 8;
+
+/// The collapse's cost of testing a node's eight boxes, per unit of its box's area ([`Collapse`]).
+const NODE_COST: f32 = 1.0;
+
+/// The collapse's cost of a leaf's 8-wide triangle test, per unit of its box's area: twice a
+/// node's (measured against 0.5, 1 and 3: the small city's ms per sample ×0.935–0.95 against
+/// the greedy opening's, the others ×0.95–1.0; BENCHMARKS.md).
+const LEAF_COST: f32 = 2.0;
 
 /// How far the boxes are widened, relative to the magnitude of the coordinates: a box test
 /// computes `plane · (1/d) − origin · (1/d)` (the product and the difference fused into one
@@ -109,23 +128,22 @@ impl CpuTree {
                 }
             })
             .collect();
-        let params = BvhBuildParams {
-            max_prims_per_leaf: LEAF_PRIMS,
-            collapse_traversal_cost: 3.0,
-            ..BvhBuildParams::slow_build()
-        };
-        let bvh2 =
-            obvhs::bvh2::builder::build_bvh2_from_tris(&tris, params, &mut Duration::default());
-        let prims: Vec<[f32; 4]> = bvh2
-            .primitive_indices
+        let bvh2 = obvhs::bvh2::builder::build_bvh2_from_tris(
+            &tris,
+            BVH2_PARAMS,
+            &mut Duration::default(),
+        );
+        let collapse = Collapse::new(&bvh2);
+        let mut nodes = Vec::new();
+        let mut order = Vec::new();
+        collapse.open(0, f64::from(magnitude), &mut nodes, &mut order);
+        let prims: Vec<[f32; 4]> = order
             .iter()
             .flat_map(|&t| {
                 let r = refs[t as usize];
                 gpu_prims[3 * r..3 * r + 3].iter().copied()
             })
             .collect();
-        let mut nodes = Vec::new();
-        open(&bvh2, 0, f64::from(magnitude), &mut nodes);
         let stack_size = 7 * depth(&nodes, 0) + 8;
         Self {
             lanes: PrimLanes::new(&prims),
@@ -157,69 +175,180 @@ impl CpuTree {
     }
 }
 
-/// Appends the eight-wide node made of BVH2 node `root` to `nodes` (its subtree after it, depth
-/// first) and returns its index: `root`'s children, the largest inner one taken apart into its
-/// two while there is room, each box widened by [`WIDEN`] × (its coordinate + `magnitude`).
-fn open(bvh2: &Bvh2, root: usize, magnitude: f64, nodes: &mut Vec<CpuNode>) -> u32 {
-    let index = nodes.len();
-    nodes.push(CpuNode {
-        bounds: [
-            [f32::INFINITY; 8],
-            [f32::NEG_INFINITY; 8],
-            [f32::INFINITY; 8],
-            [f32::NEG_INFINITY; 8],
-            [f32::INFINITY; 8],
-            [f32::NEG_INFINITY; 8],
-        ],
-        child: [0; 8],
-        count: [0; 8],
-        imask: 0,
-    });
-    let node = &bvh2.nodes[root];
-    let mut kids: Vec<usize> = if node.prim_count > 0 {
-        vec![root]
-    } else {
-        vec![node.first_index as usize, node.first_index as usize + 1]
-    };
-    while kids.len() < 8 {
-        let largest = kids
-            .iter()
-            .enumerate()
-            .filter(|&(_, &k)| bvh2.nodes[k].prim_count == 0)
-            .max_by(|a, b| {
-                let area = |k: usize| bvh2.nodes[k].aabb.half_area();
-                area(*a.1).total_cmp(&area(*b.1))
-            })
-            .map(|(pos, &k)| (pos, k));
-        let Some((pos, k)) = largest else { break };
-        let first = bvh2.nodes[k].first_index as usize;
-        kids.swap_remove(pos);
-        kids.extend([first, first + 1]);
-    }
-    let mut inner = Vec::new();
-    for (c, &k) in kids.iter().enumerate() {
-        let kid = &bvh2.nodes[k];
-        for axis in 0..3 {
-            let (lo, hi) = (f64::from(kid.aabb.min[axis]), f64::from(kid.aabb.max[axis]));
-            nodes[index].bounds[2 * axis][c] =
-                f32_outward(lo - WIDEN * (lo.abs() + magnitude), true);
-            nodes[index].bounds[2 * axis + 1][c] =
-                f32_outward(hi + WIDEN * (hi.abs() + magnitude), false);
+/// The collapse of obvhs' BVH2 into eight-wide nodes that minimises the surface-area cost of a
+/// walk (Ylitie, Karras and Laine 2017, "Efficient incoherent ray traversal on GPUs through
+/// compressed wide BVHs", §3.1): a node or a leaf costs the area of its box times its test's
+/// cost; for each BVH2 node and each number of slots j ≤ 8, the cheapest forest of at most j
+/// subtrees and leaves that covers it.
+struct Collapse<'a> {
+    bvh2: &'a Bvh2,
+    /// The primitives below each BVH2 node.
+    count: Vec<u32>,
+    /// `best[n][j − 1]`: the cost of the cheapest forest of at most j for node n.
+    best: Vec<[f32; 8]>,
+    /// `split[n][j − 1]`: 0 when that forest is the one of at most j − 1 (for j = 1: n itself,
+    /// as a leaf or a node, see `leaf`), else the slots its left child gets (the right j − k).
+    split: Vec<[u8; 8]>,
+    /// Whether n by itself is cheapest as a leaf.
+    leaf: Vec<bool>,
+    /// The slots n's left child gets in n's own node.
+    node_split: Vec<u8>,
+}
+
+impl<'a> Collapse<'a> {
+    /// The costs of every node of `bvh2`, solved from the leaves up.
+    fn new(bvh2: &'a Bvh2) -> Self {
+        let n = bvh2.nodes.len();
+        let mut c = Self {
+            bvh2,
+            count: vec![0; n],
+            best: vec![[0.0; 8]; n],
+            split: vec![[0; 8]; n],
+            leaf: vec![false; n],
+            node_split: vec![0; n],
+        };
+        if n > 0 {
+            c.solve(0);
         }
-        if kid.prim_count > 0 {
-            let count = u8::try_from(kid.prim_count).expect("obvhs' leaves hold at most 255");
-            nodes[index].child[c] = kid.first_index;
-            nodes[index].count[c] = count;
+        c
+    }
+
+    /// Fills n's entries (its subtree's first).
+    fn solve(&mut self, n: usize) {
+        let node = &self.bvh2.nodes[n];
+        let area = node.aabb.half_area();
+        if node.prim_count > 0 {
+            self.count[n] = node.prim_count;
+            let tests = node.prim_count.div_ceil(LEAF_PRIMS) as f32;
+            self.best[n] = [area * LEAF_COST * tests; 8];
+            self.leaf[n] = true;
+            return;
+        }
+        let (l, r) = (node.first_index as usize, node.first_index as usize + 1);
+        self.solve(l);
+        self.solve(r);
+        self.count[n] = self.count[l] + self.count[r];
+        let dist = |j: usize| {
+            (1..j)
+                .map(|k| (self.best[l][k - 1] + self.best[r][j - k - 1], k as u8))
+                .min_by(|a, b| a.0.total_cmp(&b.0))
+                .expect("j ≥ 2")
+        };
+        let (d8, k8) = dist(8);
+        let as_node = area * NODE_COST + d8;
+        let as_leaf = if self.count[n] <= LEAF_PRIMS {
+            area * LEAF_COST
         } else {
-            nodes[index].imask |= 1 << c;
-            inner.push((c, k));
+            f32::INFINITY
+        };
+        let mut best = [0f32; 8];
+        let mut split = [0u8; 8];
+        best[0] = as_leaf.min(as_node);
+        for j in 2..=8 {
+            let (d, k) = dist(j);
+            if d < best[j - 2] {
+                best[j - 1] = d;
+                split[j - 1] = k;
+            } else {
+                best[j - 1] = best[j - 2];
+            }
+        }
+        self.best[n] = best;
+        self.split[n] = split;
+        self.leaf[n] = as_leaf <= as_node;
+        self.node_split[n] = k8;
+    }
+
+    /// The slots (a BVH2 node each, and whether it is a leaf) of n's cheapest forest of at
+    /// most j.
+    fn slots(&self, n: usize, mut j: usize, out: &mut Vec<(usize, bool)>) {
+        while j > 1 && self.split[n][j - 1] == 0 {
+            j -= 1;
+        }
+        if j == 1 {
+            out.push((n, self.leaf[n]));
+            return;
+        }
+        let k = usize::from(self.split[n][j - 1]);
+        let l = self.bvh2.nodes[n].first_index as usize;
+        self.slots(l, k, out);
+        self.slots(l + 1, j - k, out);
+    }
+
+    /// The primitives below n, in the BVH2's order, appended to `order`.
+    fn gather(&self, n: usize, order: &mut Vec<u32>) {
+        let node = &self.bvh2.nodes[n];
+        if node.prim_count > 0 {
+            let first = node.first_index as usize;
+            order.extend_from_slice(
+                &self.bvh2.primitive_indices[first..first + node.prim_count as usize],
+            );
+        } else {
+            self.gather(node.first_index as usize, order);
+            self.gather(node.first_index as usize + 1, order);
         }
     }
-    for (c, k) in inner {
-        let child = open(bvh2, k, magnitude, nodes);
-        nodes[index].child[c] = child;
+
+    /// Appends the eight-wide node of BVH2 node `root` (its subtree after it, depth first) and
+    /// returns its index; each leaf's primitives are appended to `order` (obvhs' primitive
+    /// indices) where the leaf starts.
+    fn open(
+        &self,
+        root: usize,
+        magnitude: f64,
+        nodes: &mut Vec<CpuNode>,
+        order: &mut Vec<u32>,
+    ) -> u32 {
+        let index = nodes.len();
+        nodes.push(CpuNode {
+            bounds: [
+                [f32::INFINITY; 8],
+                [f32::NEG_INFINITY; 8],
+                [f32::INFINITY; 8],
+                [f32::NEG_INFINITY; 8],
+                [f32::INFINITY; 8],
+                [f32::NEG_INFINITY; 8],
+            ],
+            child: [0; 8],
+            count: [0; 8],
+            imask: 0,
+        });
+        let node = &self.bvh2.nodes[root];
+        let mut kids = Vec::new();
+        if node.prim_count > 0 {
+            kids.push((root, true));
+        } else {
+            let k = usize::from(self.node_split[root]);
+            self.slots(node.first_index as usize, k, &mut kids);
+            self.slots(node.first_index as usize + 1, 8 - k, &mut kids);
+        }
+        let mut inner = Vec::new();
+        for (c, &(k, leaf)) in kids.iter().enumerate() {
+            let kid = &self.bvh2.nodes[k];
+            for axis in 0..3 {
+                let (lo, hi) = (f64::from(kid.aabb.min[axis]), f64::from(kid.aabb.max[axis]));
+                nodes[index].bounds[2 * axis][c] =
+                    f32_outward(lo - WIDEN * (lo.abs() + magnitude), true);
+                nodes[index].bounds[2 * axis + 1][c] =
+                    f32_outward(hi + WIDEN * (hi.abs() + magnitude), false);
+            }
+            if leaf {
+                let first = order.len();
+                self.gather(k, order);
+                let count = u8::try_from(order.len() - first).expect("leaves hold at most 255");
+                nodes[index].child[c] = first as u32;
+                nodes[index].count[c] = count;
+            } else {
+                nodes[index].imask |= 1 << c;
+                inner.push((c, k));
+            }
+        }
+        for (c, k) in inner {
+            let child = self.open(k, magnitude, nodes, order);
+            nodes[index].child[c] = child;
+        }
+        index as u32
     }
-    index as u32
 }
 
 /// `x` rounded to an f32 no greater (`down`) or no smaller than it.
@@ -1086,6 +1215,76 @@ mod tests {
                 .find(|p| p[0][3].to_bits() as usize == t)
                 .unwrap();
             assert_eq!(&tree.prims[3 * i..3 * i + 3], gpu, "primitive {i}");
+        }
+    }
+
+    /// The collapse makes the tree its costs describe: the surface-area cost of the nodes and
+    /// leaves it builds, from their boxes, is the minimum it computed for the root (to the
+    /// boxes' widening); each node has two to eight slots, each leaf one to eight triangles,
+    /// and every primitive of the BVH2 is in exactly one leaf.
+    #[test]
+    fn the_collapse_builds_the_tree_it_costs() {
+        for (n, seed) in [(1, 1), (2, 2), (9, 3), (3000, 4)] {
+            let tris: Vec<ObvhsTriangle> = random_triangles(n, seed)
+                .iter()
+                .map(|t| ObvhsTriangle {
+                    v0: t[0].into(),
+                    v1: t[1].into(),
+                    v2: t[2].into(),
+                })
+                .collect();
+            let bvh2 = obvhs::bvh2::builder::build_bvh2_from_tris(
+                &tris,
+                BVH2_PARAMS,
+                &mut Duration::default(),
+            );
+            let collapse = Collapse::new(&bvh2);
+            let (mut nodes, mut order) = (Vec::new(), Vec::new());
+            collapse.open(0, 8.0, &mut nodes, &mut order);
+            let half_area = |node: &CpuNode, c: usize| {
+                let e = |axis: usize| {
+                    f64::from(node.bounds[2 * axis + 1][c]) - f64::from(node.bounds[2 * axis][c])
+                };
+                e(0) * e(1) + e(1) * e(2) + e(2) * e(0)
+            };
+            let root = &bvh2.nodes[0];
+            let mut built = if root.prim_count > 0 {
+                0.0
+            } else {
+                f64::from(root.aabb.half_area()) * f64::from(NODE_COST)
+            };
+            let mut seen = vec![0u32; tris.len()];
+            for node in &nodes {
+                let slots = (0..8)
+                    .filter(|&c| node.imask & (1 << c) != 0 || node.count[c] > 0)
+                    .count();
+                assert!(
+                    (2..=8).contains(&slots) || (root.prim_count > 0 && slots == 1),
+                    "{slots} slots (n = {n})"
+                );
+                for c in 0..8 {
+                    if node.imask & (1 << c) != 0 {
+                        built += half_area(node, c) * f64::from(NODE_COST);
+                    } else if node.count[c] > 0 {
+                        assert!(u32::from(node.count[c]) <= LEAF_PRIMS);
+                        built += half_area(node, c) * f64::from(LEAF_COST);
+                        let first = node.child[c] as usize;
+                        for &p in &order[first..first + usize::from(node.count[c])] {
+                            seen[p as usize] += 1;
+                        }
+                    }
+                }
+            }
+            let mut expected = vec![0u32; tris.len()];
+            for &p in &bvh2.primitive_indices {
+                expected[p as usize] += 1;
+            }
+            assert_eq!(seen, expected, "n = {n}: each primitive in one leaf");
+            let computed = f64::from(collapse.best[0][0]);
+            assert!(
+                (built - computed).abs() <= 1e-3 * computed,
+                "n = {n}: the tree costs {built}, the collapse computed {computed}"
+            );
         }
     }
 
