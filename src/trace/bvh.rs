@@ -152,14 +152,7 @@ impl SceneBvh {
                 cpu: OnceLock::new(),
             };
         }
-        let tris: Vec<ObvhsTriangle> = triangles
-            .iter()
-            .map(|t| ObvhsTriangle {
-                v0: t[0].into(),
-                v1: t[1].into(),
-                v2: t[2].into(),
-            })
-            .collect();
+        let tris = obvhs_triangles(triangles);
         let cwbvh = obvhs::cwbvh::builder::build_cwbvh_from_tris(
             &tris,
             BvhBuildParams::slow_build(),
@@ -258,6 +251,18 @@ impl SceneBvh {
     ) -> bool {
         self.cpu().occluded_filtered(origin, dir, tmax, covered)
     }
+}
+
+/// `triangles` as obvhs' triangles.
+fn obvhs_triangles(triangles: &[[Vec3; 3]]) -> Vec<ObvhsTriangle> {
+    triangles
+        .iter()
+        .map(|t| ObvhsTriangle {
+            v0: t[0].into(),
+            v1: t[1].into(),
+            v2: t[2].into(),
+        })
+        .collect()
 }
 
 #[cfg(test)]

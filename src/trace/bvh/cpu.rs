@@ -128,15 +128,7 @@ impl CpuTree {
                 }
             })
             .collect();
-        let bvh2 = obvhs::bvh2::builder::build_bvh2_from_tris(
-            &tris,
-            BVH2_PARAMS,
-            &mut Duration::default(),
-        );
-        let collapse = Collapse::new(&bvh2);
-        let mut nodes = Vec::new();
-        let mut order = Vec::new();
-        collapse.open(0, f64::from(magnitude), &mut nodes, &mut order);
+        let (nodes, order, _) = collapsed(&tris, f64::from(magnitude));
         let prims: Vec<[f32; 4]> = order
             .iter()
             .flat_map(|&t| {
@@ -349,6 +341,19 @@ impl<'a> Collapse<'a> {
         }
         index as u32
     }
+}
+
+/// The eight-wide nodes over `tris` ([`Collapse`] of obvhs' BVH2 of them, boxes widened for
+/// coordinates up to `magnitude`), the leaves' triangles (indices into `tris`, spatial splits
+/// repeating some) in the order the nodes' leaves refer to, and the collapse's cost of the tree.
+fn collapsed(tris: &[ObvhsTriangle], magnitude: f64) -> (Vec<CpuNode>, Vec<u32>, f32) {
+    let bvh2 =
+        obvhs::bvh2::builder::build_bvh2_from_tris(tris, BVH2_PARAMS, &mut Duration::default());
+    let collapse = Collapse::new(&bvh2);
+    let (mut nodes, mut order) = (Vec::new(), Vec::new());
+    collapse.open(0, magnitude, &mut nodes, &mut order);
+    let cost = collapse.best.first().map_or(0.0, |b| b[0]);
+    (nodes, order, cost)
 }
 
 /// `x` rounded to an f32 no greater (`down`) or no smaller than it.
@@ -1140,6 +1145,7 @@ impl CpuTree {
 #[cfg(test)]
 mod tests {
     use super::super::SceneBvh;
+    use super::super::obvhs_triangles;
     use super::super::tests::{brute, random_triangles, uniforms};
     use super::*;
 
@@ -1225,22 +1231,13 @@ mod tests {
     #[test]
     fn the_collapse_builds_the_tree_it_costs() {
         for (n, seed) in [(1, 1), (2, 2), (9, 3), (3000, 4)] {
-            let tris: Vec<ObvhsTriangle> = random_triangles(n, seed)
-                .iter()
-                .map(|t| ObvhsTriangle {
-                    v0: t[0].into(),
-                    v1: t[1].into(),
-                    v2: t[2].into(),
-                })
-                .collect();
+            let tris = obvhs_triangles(&random_triangles(n, seed));
+            let (nodes, order, computed) = collapsed(&tris, 8.0);
             let bvh2 = obvhs::bvh2::builder::build_bvh2_from_tris(
                 &tris,
                 BVH2_PARAMS,
                 &mut Duration::default(),
             );
-            let collapse = Collapse::new(&bvh2);
-            let (mut nodes, mut order) = (Vec::new(), Vec::new());
-            collapse.open(0, 8.0, &mut nodes, &mut order);
             let half_area = |node: &CpuNode, c: usize| {
                 let e = |axis: usize| {
                     f64::from(node.bounds[2 * axis + 1][c]) - f64::from(node.bounds[2 * axis][c])
@@ -1280,7 +1277,7 @@ mod tests {
                 expected[p as usize] += 1;
             }
             assert_eq!(seen, expected, "n = {n}: each primitive in one leaf");
-            let computed = f64::from(collapse.best[0][0]);
+            let computed = f64::from(computed);
             assert!(
                 (built - computed).abs() <= 1e-3 * computed,
                 "n = {n}: the tree costs {built}, the collapse computed {computed}"
