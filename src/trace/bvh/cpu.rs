@@ -220,13 +220,15 @@ impl<'a> Collapse<'a> {
         self.solve(l);
         self.solve(r);
         self.count[n] = self.count[l] + self.count[r];
-        let dist = |j: usize| {
+        // For j = 2..=8 slots: the cheapest split of j between the two children, and its k.
+        let dist: [(f32, u8); 7] = std::array::from_fn(|i| {
+            let j = i + 2;
             (1..j)
                 .map(|k| (self.best[l][k - 1] + self.best[r][j - k - 1], k as u8))
                 .min_by(|a, b| a.0.total_cmp(&b.0))
                 .expect("j ≥ 2")
-        };
-        let (d8, k8) = dist(8);
+        });
+        let (d8, k8) = dist[6];
         let as_node = area * NODE_COST + d8;
         let as_leaf = if self.count[n] <= LEAF_PRIMS {
             area * LEAF_COST
@@ -237,7 +239,7 @@ impl<'a> Collapse<'a> {
         let mut split = [0u8; 8];
         best[0] = as_leaf.min(as_node);
         for j in 2..=8 {
-            let (d, k) = dist(j);
+            let (d, k) = dist[j - 2];
             if d < best[j - 2] {
                 best[j - 1] = d;
                 split[j - 1] = k;
@@ -464,7 +466,7 @@ fn node_hits(node: &CpuNode, ray: &NodeRay, tmax: f32) -> (u32, [f32; 8]) {
         _mm256_movemask_ps, _mm256_set1_ps, _mm256_storeu_ps,
     };
     let mut entry = [0f32; 8];
-    // SAFETY: this is compiled only where AVX and AVX2 are enabled for the whole build
+    // SAFETY: this is compiled only where AVX, AVX2 and FMA are enabled for the whole build
     // (.cargo/config.toml; the `cfg` above), so every intrinsic here is available. The loads
     // read one `[f32; 8]` row of `bounds` each (`CpuNode` is 64-byte aligned and its rows
     // start at multiples of 32 bytes, as `_mm256_load_ps` needs; `near`/`far` index rows
