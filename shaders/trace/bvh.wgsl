@@ -84,25 +84,38 @@ fn node_hits(node: Node, o: vec3<f32>, d: vec3<f32>, inv_d: vec3<f32>, tmax: f32
     return hit_mask;
 }
 
-// Möller–Trumbore with precomputed edges (CPU twin: bvh::intersect_triangle_sided). Returns
-// (t, u, v) or t < 0 for a miss. With cull_back (a single-sided glTF material) the back face is
-// no hit: det = e1·(d × e2) is positive exactly on the front face.
+// The ray-triangle test (CPU twin: bvh::intersect_triangle_sided, the same arithmetic):
+// Möller-Trumbore rearranged around the normal n = e1 × e2, as Embree's. With c = v0 - o,
+// r = c × d and den = d·n: u = (e2·r)/den, v = -(e1·r)/den, t = (c·n)/den. Whether the ray's
+// line meets the triangle in front of the origin is decided on the numerators times den's
+// sign, against |den|, without a division; only then is t divided out and bounded,
+// 0 < t < tmax (the closest hit so far). Returns (t, u, v) or t < 0 for a miss. With
+// cull_back (a single-sided glTF material) the back face is no hit: the front face is met when
+// d·n < 0.
 fn intersect_triangle(o: vec3<f32>, d: vec3<f32>, v0: vec3<f32>, e1: vec3<f32>, e2: vec3<f32>, tmax: f32, cull_back: bool) -> vec3<f32> {
-    let pv = cross(d, e2);
-    let det = dot(e1, pv);
-    if det == 0.0 || (cull_back && det < 0.0) {
-        return vec3<f32>(-1.0, 0.0, 0.0);
+    let miss = vec3<f32>(-1.0, 0.0, 0.0);
+    let n = cross(e1, e2);
+    let c = v0 - o;
+    let r = cross(c, d);
+    let den = dot(n, d);
+    let a = dot(e2, r);
+    let b = dot(e1, r);
+    let tn = dot(c, n);
+    if den == 0.0 || (cull_back && den > 0.0) {
+        return miss;
     }
-    let inv_det = 1.0 / det;
-    let tv = o - v0;
-    let u = dot(tv, pv) * inv_det;
-    let qv = cross(tv, e1);
-    let v = dot(d, qv) * inv_det;
-    let t = dot(e2, qv) * inv_det;
-    if u >= 0.0 && v >= 0.0 && u + v <= 1.0 && t > 0.0 && t < tmax {
-        return vec3<f32>(t, u, v);
+    let s = select(1.0, -1.0, den < 0.0);
+    let us = a * s;
+    let vs = -b * s;
+    if !(us >= 0.0 && vs >= 0.0 && us + vs <= abs(den) && tn * s > 0.0) {
+        return miss;
     }
-    return vec3<f32>(-1.0, 0.0, 0.0);
+    let inv = 1.0 / den;
+    let t = tn * inv;
+    if t > 0.0 && t < tmax {
+        return vec3<f32>(t, a * inv, -(b * inv));
+    }
+    return miss;
 }
 
 // Closest hit (any_hit = false) or the first hit found (any_hit = true, shadow rays).

@@ -32,8 +32,8 @@ use super::{
 
 /// The largest coordinate magnitude (metres) a triangle vertex or camera may have.
 ///
-/// Ray–triangle tests multiply three coordinate differences (Möller–Trumbore's `t = e2·(s×e1)`
-/// / det); with |coordinates| ≤ 1e9 such a product stays below (2e9)³·3 ≈ 2.4e28, ten orders
+/// Ray–triangle tests multiply three coordinate differences (the test's `t = c·(e1×e2) /
+/// d·(e1×e2)`, `c` the origin to a vertex); with |coordinates| ≤ 1e9 such a product stays below (2e9)³·3 ≈ 2.4e28, ten orders
 /// of magnitude under f32::MAX ≈ 3.4e38, so the tracer never sees inf or NaN from geometry.
 /// (At 1e9 m an f32 resolves about 64 m, so nothing sensible lives out there anyway.)
 /// Triangles beyond it are dropped and reported in [`Scene::warnings`].

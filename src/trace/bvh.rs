@@ -63,8 +63,7 @@ pub struct TraceHit {
     pub prim: u32,
 }
 
-/// Möller–Trumbore with precomputed edges; the same arithmetic as `intersect_triangle` in
-/// `shaders/trace/bvh.wgsl`. Returns (t, u, v) for `tmin < t < tmax`.
+/// The ray–triangle test: [`intersect_triangle_sided`] with both faces hit.
 #[inline]
 #[must_use]
 pub fn intersect_triangle(
@@ -78,9 +77,21 @@ pub fn intersect_triangle(
     intersect_triangle_sided(origin, dir, v0, e1, e2, tmax, false)
 }
 
-/// [`intersect_triangle`], with the back face ignored when `cull_back` (a single-sided glTF
-/// material). `det = e1·(d × e2) = −d·(e1 × e2)` is positive exactly when the ray meets the
-/// front face (the one `e1 × e2` points out of, counter-clockwise winding).
+/// The ray–triangle test of the triangle `v0`, `v0 + e1`, `v0 + e2`, the same arithmetic as
+/// `intersect_triangle` in `shaders/trace/bvh.wgsl`: (t, u, v) where `origin + t·dir = v0 +
+/// u·e1 + v·e2` inside the triangle with `0 < t < tmax`. With `cull_back` (a single-sided glTF
+/// material) the back face is no hit: the front face is the one `n = e1 × e2` points out of
+/// (counter-clockwise winding), met when `dir·n < 0`.
+///
+/// Möller–Trumbore rearranged around the normal, as Embree's triangle test: with
+/// `c = v0 − origin`, `r = c × dir` and `den = dir·n`, Cramer's rule gives `u = (e2·r)/den`,
+/// `v = −(e1·r)/den`, `t = (c·n)/den`. Whether the ray's line meets the triangle in front of
+/// the origin is decided on the numerators times den's sign, against `|den|` (`0 ≤ u`,
+/// `0 ≤ v`, `u + v ≤ 1`, `0 < t`), with no division: a miss — most tests — costs none, and no
+/// reciprocal sits on the chain to the decision (measured faster, BENCHMARKS.md). Only then
+/// is t divided out and bounded, `0 < t < tmax`, in its own value: a closest-hit search
+/// passes its nearest hit so far as `tmax`, so a triangle counts exactly when its own t beats
+/// that hit, whatever order a traversal meets it in.
 #[must_use]
 #[inline]
 pub fn intersect_triangle_sided(
@@ -92,22 +103,25 @@ pub fn intersect_triangle_sided(
     tmax: f32,
     cull_back: bool,
 ) -> Option<(f32, f32, f32)> {
-    let pv = dir.cross(e2);
-    let det = e1.dot(pv);
-    if det == 0.0 || !det.is_finite() || (cull_back && det < 0.0) {
+    let n = e1.cross(e2);
+    let c = v0 - origin;
+    let r = c.cross(dir);
+    let den = n.dot(dir);
+    let (a, b, tn) = (e2.dot(r), e1.dot(r), c.dot(n));
+    let abs_den = den.abs();
+    if den == 0.0 || !(abs_den < f32::INFINITY) || (cull_back && den > 0.0) {
         return None;
     }
-    let inv_det = 1.0 / det;
-    let tv = origin - v0;
-    let u = tv.dot(pv) * inv_det;
-    let qv = tv.cross(e1);
-    let v = dir.dot(qv) * inv_det;
-    let t = e2.dot(qv) * inv_det;
-    if u >= 0.0 && v >= 0.0 && u + v <= 1.0 && t > 0.0 && t < tmax {
-        Some((t, u, v))
-    } else {
-        None
+    // The numerators times den's sign (a sign flip: exact).
+    let sign = den.to_bits() & 0x8000_0000;
+    let signed = |x: f32| f32::from_bits(x.to_bits() ^ sign);
+    let (us, vs, ts) = (signed(a), signed(-b), signed(tn));
+    if !(us >= 0.0 && vs >= 0.0 && us + vs <= abs_den && ts > 0.0) {
+        return None;
     }
+    let inv = 1.0 / den;
+    let t = tn * inv;
+    (t > 0.0 && t < tmax).then_some((t, a * inv, -(b * inv)))
 }
 
 /// obvhs' near-plane bound of the node test (`NODE_EPSILON` in bvh.wgsl).
@@ -219,8 +233,8 @@ impl SceneBvh {
     /// (the others get `None`): [`Self::closest_hit`]'s hits to the bit, for rays that travel
     /// together — a camera's rays through neighbouring pixels. The rays share the walk: a node
     /// is visited once for the rays that enter it, its eight boxes tested against all of them
-    /// in lanes (a ray per lane), a leaf's triangles likewise (the same Möller–Trumbore
-    /// arithmetic per lane as the one-ray test), and a child is taken for the rays that enter
+    /// in lanes (a ray per lane), a leaf's triangles likewise (the same triangle
+    /// test's arithmetic per lane as the one-ray test's), and a child is taken for the rays that enter
     /// its box, nearest first by its first ray's entry. One decision per node for eight rays
     /// instead of eight: measured faster for camera rays (BENCHMARKS.md). Scenes with
     /// alpha-tested triangles take [`Self::closest_hit`] per ray.
@@ -301,6 +315,66 @@ mod tests {
                 [c, c + a, c + b]
             })
             .collect()
+    }
+
+    /// The triangle test against Cramer's rule in f64: wherever the exact answer is clear of
+    /// the test's edges (the barycentrics, t against 0 and tmax) by a margin, the f32 test
+    /// agrees whether the ray hits and gives t, u, v to 1e-4; a single-sided triangle is hit
+    /// from the front only; a ray in the triangle's plane misses.
+    #[test]
+    fn the_triangle_test_agrees_with_an_exact_solve() {
+        let mut r = uniforms(5);
+        let (mut hits, mut misses, mut culled) = (0, 0, 0);
+        for _ in 0..20_000 {
+            let v0 = Vec3::new(r(), r(), r()) * 4.0 - 2.0;
+            let (e1, e2) = (
+                Vec3::new(r(), r(), r()) - 0.5,
+                Vec3::new(r(), r(), r()) - 0.5,
+            );
+            let o = Vec3::new(r(), r(), r()) * 6.0 - 3.0;
+            // Towards a point near the triangle, so that about half the rays hit.
+            let aim = v0 + e1 * (1.6 * r() - 0.3) + e2 * (1.6 * r() - 0.3);
+            let d = (aim - o).normalize();
+            let tmax = 0.5 + 6.0 * r();
+            let f = |v: Vec3| v.as_dvec3();
+            let (dd, de1, de2, tv) = (f(d), f(e1), f(e2), f(o) - f(v0));
+            let det = -dd.dot(de1.cross(de2));
+            if det.abs() < 1e-3 {
+                continue;
+            }
+            // o + t·d = v0 + u·e1 + v·e2: [−d e1 e2]·(t, u, v) = o − v0.
+            let col = |a: glam::DVec3, b: glam::DVec3, c: glam::DVec3| a.dot(b.cross(c));
+            let t = col(tv, de1, de2) / det;
+            let u = col(-dd, tv, de2) / det;
+            let v = col(-dd, de1, tv) / det;
+            let margin = u.min(v).min(1.0 - u - v).min(t).min(f64::from(tmax) - t);
+            let got = intersect_triangle(o, d, v0, e1, e2, tmax);
+            if margin > 1e-4 {
+                let (gt, gu, gv) = got.expect("a clear hit is found");
+                for (g, w) in [(gt, t), (gu, u), (gv, v)] {
+                    assert!(
+                        (f64::from(g) - w).abs() < 1e-4 * w.abs().max(1.0),
+                        "{g} vs {w}"
+                    );
+                }
+                hits += 1;
+                // Single-sided: the front face is the one e1 × e2 points out of.
+                let front = d.dot(e1.cross(e2)) < 0.0;
+                let sided = intersect_triangle_sided(o, d, v0, e1, e2, tmax, true);
+                assert_eq!(sided.is_some(), front);
+                culled += usize::from(!front);
+            } else if margin < -1e-4 {
+                assert!(got.is_none(), "a clear miss is missed: t {t} u {u} v {v}");
+                misses += 1;
+            }
+        }
+        assert!(
+            hits > 1000 && misses > 3000 && culled > 300,
+            "{hits} {misses} {culled}"
+        );
+        // In the triangle's plane: no hit, however the edges lie.
+        let (v0, e1, e2) = (Vec3::ZERO, Vec3::X, Vec3::Y);
+        assert!(intersect_triangle(Vec3::new(-1.0, 0.2, 0.0), Vec3::X, v0, e1, e2, 9.0).is_none());
     }
 
     #[test]

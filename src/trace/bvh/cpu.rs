@@ -21,6 +21,9 @@
 use std::mem::MaybeUninit;
 use std::time::Duration;
 
+#[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+use std::arch::x86_64::__m256;
+
 use glam::Vec3;
 use obvhs::{BvhBuildParams, bvh2::Bvh2, triangle::Triangle as ObvhsTriangle};
 use wide::{f32x8, u32x8};
@@ -378,9 +381,10 @@ fn depth(nodes: &[CpuNode], root: usize) -> usize {
         .unwrap_or(0)
 }
 
-/// The tree's triangles as ten arrays (v0, e1, e2 by component, then 1.0 for a single-sided
-/// one), each padded by `LANE_PAD` zeros, so that a leaf's triangles load as 8-wide lanes;
-/// `triangle`: each primitive's original triangle; `alpha`: whether any primitive is
+/// The tree's triangles as [`ARRAYS`] arrays — v0, e1, e2 by component, 1.0 for a
+/// single-sided one, and the normal `e1 × e2` by component (glam's cross, as the scalar test
+/// computes it) — each padded by `LANE_PAD` zeros, so that a leaf's triangles load as 8-wide
+/// lanes; `triangle`: each primitive's original triangle; `alpha`: whether any primitive is
 /// alpha-tested (then the per-triangle test runs, since coverage is decided per hit).
 #[derive(Clone, Debug, Default)]
 struct PrimLanes {
@@ -390,6 +394,9 @@ struct PrimLanes {
     alpha: bool,
 }
 
+/// The arrays of [`PrimLanes`].
+const ARRAYS: usize = 13;
+
 /// Zeros after each array of [`PrimLanes`]: the lanes of a leaf's last eight may run past the
 /// last primitive (such lanes are masked off, and a zero triangle is no hit anyway).
 const LANE_PAD: usize = 8;
@@ -398,14 +405,20 @@ impl PrimLanes {
     fn new(prims: &[[f32; 4]]) -> Self {
         let n = prims.len() / 3;
         let stride = n + LANE_PAD;
-        let mut data = vec![0.0; 10 * stride];
+        let mut data = vec![0.0; ARRAYS * stride];
         let mut alpha = false;
         for i in 0..n {
-            for k in 0..9 {
-                data[k * stride + i] = prims[3 * i + k / 3][k % 3];
+            let row = |r: usize| Vec3::from_slice(&prims[3 * i + r][..3]);
+            let normal = row(1).cross(row(2));
+            let values = [row(0), row(1), row(2)].map(|v| v.to_array());
+            for (k, value) in values.as_flattened().iter().enumerate() {
+                data[k * stride + i] = *value;
             }
             let flags = prims[3 * i + 2][3] as u32;
             data[9 * stride + i] = if flags & PRIM_CULL != 0 { 1.0 } else { 0.0 };
+            for (k, value) in normal.to_array().into_iter().enumerate() {
+                data[(10 + k) * stride + i] = value;
+            }
             alpha |= flags & PRIM_ALPHA != 0;
         }
         Self {
@@ -604,10 +617,88 @@ fn sort_farthest_first(entries: &mut [u64]) {
 }
 #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
 impl PrimLanes {
-    /// [`intersect_triangle_sided`] on the eight primitives `first..first + 8` at once, the
-    /// same operations in the same order per lane (no FMA in this build, so each lane's t, u,
-    /// v are the scalar test's to the bit): the mask of the lanes hit with `0 < t < tmax`, and
-    /// t, u, v per lane.
+    /// [`intersect_triangle_sided`]'s first decision on the eight primitives `first..first +
+    /// 8` at once, the same operations in the same order per lane (no FMA: glam's cross and
+    /// dot products, so each lane's numbers are the scalar test's to the bit): the mask of the
+    /// lanes whose triangle the ray's line meets in front of the origin, and per lane den,
+    /// e2·r, e1·r and c·n, from which t, u, v follow ([`Self::test8`]). No division: the
+    /// decision is made on the numerators.
+    #[inline(always)]
+    fn meets8(&self, first: usize, o: Vec3, d: Vec3) -> (u32, [__m256; 4]) {
+        use std::arch::x86_64::{
+            _CMP_GE_OQ, _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_NEQ_OQ, _mm256_add_ps,
+            _mm256_and_ps, _mm256_andnot_ps, _mm256_cmp_ps, _mm256_loadu_ps, _mm256_movemask_ps,
+            _mm256_mul_ps, _mm256_set1_ps, _mm256_setzero_ps, _mm256_sub_ps, _mm256_xor_ps,
+        };
+        assert!(first + 8 <= self.stride, "lanes past the padding");
+        // SAFETY: AVX and AVX2 are enabled for the whole build (the `cfg`); the loads read
+        // `data[k·stride + first .. k·stride + first + 8]`, inside array k (`first + 8 ≤
+        // stride`, asserted above) and so inside `data` (`ARRAYS · stride` long, k <
+        // `ARRAYS`). Why it pays: BENCHMARKS.md (the per-triangle test was the largest part
+        // of traversal).
+        unsafe {
+            let ld = |k: usize| _mm256_loadu_ps(self.data.as_ptr().add(k * self.stride + first));
+            let mul = |a: __m256, b: __m256| _mm256_mul_ps(a, b);
+            let sub = |a: __m256, b: __m256| _mm256_sub_ps(a, b);
+            let add = |a: __m256, b: __m256| _mm256_add_ps(a, b);
+            // glam's dot: (x·x' + y·y') + z·z'
+            let dot = |a: [__m256; 3], b: [__m256; 3]| {
+                add(add(mul(a[0], b[0]), mul(a[1], b[1])), mul(a[2], b[2]))
+            };
+            let zero = _mm256_setzero_ps();
+            let sign = _mm256_set1_ps(-0.0);
+            let d = [
+                _mm256_set1_ps(d.x),
+                _mm256_set1_ps(d.y),
+                _mm256_set1_ps(d.z),
+            ];
+            let c = [
+                sub(ld(0), _mm256_set1_ps(o.x)),
+                sub(ld(1), _mm256_set1_ps(o.y)),
+                sub(ld(2), _mm256_set1_ps(o.z)),
+            ];
+            let n = [ld(10), ld(11), ld(12)];
+            // r = c × d (glam's cross: y·z' − y'·z, z·x' − z'·x, x·y' − x'·y)
+            let r = [
+                sub(mul(c[1], d[2]), mul(d[1], c[2])),
+                sub(mul(c[2], d[0]), mul(d[2], c[0])),
+                sub(mul(c[0], d[1]), mul(d[0], c[1])),
+            ];
+            let den = dot(n, d);
+            let a = dot([ld(6), ld(7), ld(8)], r);
+            let b = dot([ld(3), ld(4), ld(5)], r);
+            let tn = dot(c, n);
+            let den_sign = _mm256_and_ps(den, sign);
+            let abs_den = _mm256_andnot_ps(sign, den);
+            let us = _mm256_xor_ps(a, den_sign);
+            let vs = _mm256_xor_ps(b, _mm256_xor_ps(den_sign, sign));
+            let ts = _mm256_xor_ps(tn, den_sign);
+            let finite = _mm256_cmp_ps::<_CMP_LT_OQ>(abs_den, _mm256_set1_ps(f32::INFINITY));
+            let nonzero = _mm256_cmp_ps::<_CMP_NEQ_OQ>(den, zero);
+            let culled = _mm256_and_ps(
+                _mm256_cmp_ps::<_CMP_NEQ_OQ>(ld(9), zero),
+                _mm256_cmp_ps::<_CMP_GT_OQ>(den, zero),
+            );
+            let ok = _mm256_andnot_ps(culled, _mm256_and_ps(finite, nonzero));
+            let inside = _mm256_and_ps(
+                _mm256_and_ps(
+                    _mm256_cmp_ps::<_CMP_GE_OQ>(us, zero),
+                    _mm256_cmp_ps::<_CMP_GE_OQ>(vs, zero),
+                ),
+                _mm256_and_ps(
+                    _mm256_cmp_ps::<_CMP_LE_OQ>(add(us, vs), abs_den),
+                    _mm256_cmp_ps::<_CMP_GT_OQ>(ts, zero),
+                ),
+            );
+            let mask = _mm256_movemask_ps(_mm256_and_ps(ok, inside)) as u32;
+            (mask, [den, a, b, tn])
+        }
+    }
+
+    /// [`intersect_triangle_sided`] on the eight primitives `first..first + 8` at once (to
+    /// the bit, as [`Self::meets8`]): the mask of the lanes hit with `0 < t < tmax`, and t, u,
+    /// v per lane (only the masked lanes' are meaningful). The division only when a lane is
+    /// met.
     #[inline(always)]
     fn test8(
         &self,
@@ -617,83 +708,30 @@ impl PrimLanes {
         tmax: f32,
     ) -> (u32, [f32; 8], [f32; 8], [f32; 8]) {
         use std::arch::x86_64::{
-            __m256, _CMP_GE_OQ, _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_NEQ_OQ, _mm256_add_ps,
-            _mm256_and_ps, _mm256_andnot_ps, _mm256_cmp_ps, _mm256_div_ps, _mm256_loadu_ps,
+            _CMP_GT_OQ, _CMP_LT_OQ, _mm256_and_ps, _mm256_cmp_ps, _mm256_div_ps,
             _mm256_movemask_ps, _mm256_mul_ps, _mm256_set1_ps, _mm256_setzero_ps, _mm256_storeu_ps,
-            _mm256_sub_ps,
+            _mm256_xor_ps,
         };
-        assert!(first + 8 <= self.stride, "lanes past the padding");
+        let (met, [den, a, b, tn]) = self.meets8(first, o, d);
         let (mut tt, mut uu, mut vv) = ([0f32; 8], [0f32; 8], [0f32; 8]);
-        // SAFETY: AVX and AVX2 are enabled for the whole build (the `cfg`); the loads read
-        // `data[k·stride + first .. k·stride + first + 8]`, inside array k (`first + 8 ≤
-        // stride`, asserted above) and so inside `data` (10 · stride long); the stores write
-        // the three local arrays of 8. Why it pays: BENCHMARKS.md (the per-triangle test was
-        // the largest part of traversal).
-        let mask = unsafe {
-            let ld = |k: usize| _mm256_loadu_ps(self.data.as_ptr().add(k * self.stride + first));
-            let (dx, dy, dz) = (
-                _mm256_set1_ps(d.x),
-                _mm256_set1_ps(d.y),
-                _mm256_set1_ps(d.z),
-            );
-            let (v0x, v0y, v0z) = (ld(0), ld(1), ld(2));
-            let (e1x, e1y, e1z) = (ld(3), ld(4), ld(5));
-            let (e2x, e2y, e2z) = (ld(6), ld(7), ld(8));
-            let cull = ld(9);
-            let mul = |a: __m256, b: __m256| _mm256_mul_ps(a, b);
-            let sub = |a: __m256, b: __m256| _mm256_sub_ps(a, b);
-            let add = |a: __m256, b: __m256| _mm256_add_ps(a, b);
-            let zero = _mm256_setzero_ps();
-            // pv = d × e2 (glam's cross: y·z' − y'·z, z·x' − z'·x, x·y' − x'·y)
-            let pvx = sub(mul(dy, e2z), mul(e2y, dz));
-            let pvy = sub(mul(dz, e2x), mul(e2z, dx));
-            let pvz = sub(mul(dx, e2y), mul(e2x, dy));
-            // det = e1 · pv (glam's dot: (x·x' + y·y') + z·z')
-            let det = add(add(mul(e1x, pvx), mul(e1y, pvy)), mul(e1z, pvz));
-            let abs_det = _mm256_andnot_ps(_mm256_set1_ps(-0.0), det);
-            let finite = _mm256_cmp_ps::<_CMP_LT_OQ>(abs_det, _mm256_set1_ps(f32::INFINITY));
-            let nonzero = _mm256_cmp_ps::<_CMP_NEQ_OQ>(det, zero);
-            let culled = _mm256_and_ps(
-                _mm256_cmp_ps::<_CMP_NEQ_OQ>(cull, zero),
-                _mm256_cmp_ps::<_CMP_LT_OQ>(det, zero),
-            );
-            let ok = _mm256_andnot_ps(culled, _mm256_and_ps(finite, nonzero));
-            let inv_det = _mm256_div_ps(_mm256_set1_ps(1.0), det);
-            let tvx = sub(_mm256_set1_ps(o.x), v0x);
-            let tvy = sub(_mm256_set1_ps(o.y), v0y);
-            let tvz = sub(_mm256_set1_ps(o.z), v0z);
-            let u = mul(
-                add(add(mul(tvx, pvx), mul(tvy, pvy)), mul(tvz, pvz)),
-                inv_det,
-            );
-            // qv = tv × e1
-            let qvx = sub(mul(tvy, e1z), mul(e1y, tvz));
-            let qvy = sub(mul(tvz, e1x), mul(e1z, tvx));
-            let qvz = sub(mul(tvx, e1y), mul(e1x, tvy));
-            let v = mul(add(add(mul(dx, qvx), mul(dy, qvy)), mul(dz, qvz)), inv_det);
-            let t = mul(
-                add(add(mul(e2x, qvx), mul(e2y, qvy)), mul(e2z, qvz)),
-                inv_det,
-            );
-            let inside = _mm256_and_ps(
-                _mm256_and_ps(
-                    _mm256_cmp_ps::<_CMP_GE_OQ>(u, zero),
-                    _mm256_cmp_ps::<_CMP_GE_OQ>(v, zero),
-                ),
-                _mm256_and_ps(
-                    _mm256_cmp_ps::<_CMP_LE_OQ>(add(u, v), _mm256_set1_ps(1.0)),
-                    _mm256_and_ps(
-                        _mm256_cmp_ps::<_CMP_GT_OQ>(t, zero),
-                        _mm256_cmp_ps::<_CMP_LT_OQ>(t, _mm256_set1_ps(tmax)),
-                    ),
-                ),
-            );
+        if met == 0 {
+            return (0, tt, uu, vv);
+        }
+        // SAFETY: AVX is enabled for the whole build (the `cfg`); the stores write the three
+        // local arrays of 8.
+        let below = unsafe {
+            let inv = _mm256_div_ps(_mm256_set1_ps(1.0), den);
+            let t = _mm256_mul_ps(tn, inv);
             _mm256_storeu_ps(tt.as_mut_ptr(), t);
-            _mm256_storeu_ps(uu.as_mut_ptr(), u);
+            _mm256_storeu_ps(uu.as_mut_ptr(), _mm256_mul_ps(a, inv));
+            let v = _mm256_xor_ps(_mm256_mul_ps(b, inv), _mm256_set1_ps(-0.0));
             _mm256_storeu_ps(vv.as_mut_ptr(), v);
-            _mm256_movemask_ps(_mm256_and_ps(ok, inside)) as u32
+            _mm256_movemask_ps(_mm256_and_ps(
+                _mm256_cmp_ps::<_CMP_GT_OQ>(t, _mm256_setzero_ps()),
+                _mm256_cmp_ps::<_CMP_LT_OQ>(t, _mm256_set1_ps(tmax)),
+            )) as u32
         };
-        (mask, tt, uu, vv)
+        (met & below, tt, uu, vv)
     }
 
     /// The primitives `first..first + count` (a leaf) hit with `0 < t < tmax`, each kept in
@@ -859,8 +897,8 @@ impl CpuTree {
     /// (the others get `None`): `closest_hit`'s hits to the bit, for rays that travel
     /// together — a camera's rays through neighbouring pixels. The rays share the walk: a node
     /// is visited once for the rays that enter it, its eight boxes tested against all of them
-    /// in lanes (a ray per lane), a leaf's triangles likewise (the same Möller–Trumbore
-    /// arithmetic per lane as the one-ray test), and a child is taken for the rays that enter
+    /// in lanes (a ray per lane), a leaf's triangles likewise (the same triangle
+    /// test's arithmetic per lane as the one-ray test's), and a child is taken for the rays that enter
     /// its box, nearest first by its first ray's entry. One decision per node for eight rays
     /// instead of eight: measured faster for camera rays, and slower for rays that scatter
     /// (BENCHMARKS.md). Scenes with alpha-tested triangles take `closest_hit` per ray.
@@ -1002,26 +1040,26 @@ impl CpuTree {
     fn test_rays(&self, prim: usize, o: V3, d: V3, tmax: f32x8) -> (f32x8, f32x8, f32x8, f32x8) {
         let (v0, e1, e2) = self.prim(prim);
         let cull = self.flags(prim) & PRIM_CULL != 0;
-        let (e1, e2) = (V3::splat(e1), V3::splat(e2));
-        let pv = d.cross(e2);
-        let det = e1.dot(pv);
+        let (n, e1, e2) = (V3::splat(e1.cross(e2)), V3::splat(e1), V3::splat(e2));
+        let c = V3::splat(v0) - o;
+        let r = c.cross(d);
+        let den = n.dot(d);
+        let (a, b, tn) = (e2.dot(r), e1.dot(r), c.dot(n));
         let zero = f32x8::ZERO;
-        let mut ok = det.simd_ne(zero) & det.is_finite();
+        let abs_den = den.abs();
+        let mut ok = den.simd_ne(zero) & abs_den.simd_lt(f32x8::INFINITY);
         if cull {
-            ok &= !det.simd_lt(zero);
+            ok &= !den.simd_gt(zero);
         }
-        let inv_det = f32x8::ONE / det;
-        let tv = o - V3::splat(v0);
-        let u = tv.dot(pv) * inv_det;
-        let qv = tv.cross(e1);
-        let v = d.dot(qv) * inv_det;
-        let t = e2.dot(qv) * inv_det;
-        let inside = u.simd_ge(zero)
-            & v.simd_ge(zero)
-            & (u + v).simd_le(f32x8::ONE)
-            & t.simd_gt(zero)
-            & t.simd_lt(tmax);
-        (ok & inside, t, u, v)
+        // The numerators times den's sign (a sign flip, as the scalar test's).
+        let den_sign = den & f32x8::splat(-0.0);
+        let (us, vs, ts) = (a ^ den_sign, -b ^ den_sign, tn ^ den_sign);
+        let met =
+            us.simd_ge(zero) & vs.simd_ge(zero) & (us + vs).simd_le(abs_den) & ts.simd_gt(zero);
+        let inv = f32x8::ONE / den;
+        let t = tn * inv;
+        let hit = ok & met & t.simd_gt(zero) & t.simd_lt(tmax);
+        (hit, t, a * inv, -(b * inv))
     }
 
     /// Whether anything blocks `origin + t·dir` for `0 < t < tmax`, with the coverage test of
