@@ -88,8 +88,9 @@ pub fn intersect_triangle(
 /// `v = −(e1·r)/den`, `t = (c·n)/den`. Whether the ray's line meets the triangle in front of
 /// the origin is decided on the numerators times den's sign, against `|den|` (`0 ≤ u`,
 /// `0 ≤ v`, `u + v ≤ 1`, `0 < t`), with no division: a miss — most tests — costs none, and no
-/// reciprocal sits on the chain to the decision (measured faster, BENCHMARKS.md). Only then
-/// is t divided out and bounded, `0 < t < tmax`, in its own value: a closest-hit search
+/// reciprocal sits on the chain to the decision (the walks ×0.94–0.98 in `cargo bench --bench
+/// traversal`; the whole render unchanged within this machine's noise, BENCHMARKS.md). Only
+/// then is t divided out and bounded, `0 < t < tmax`, in its own value: a closest-hit search
 /// passes its nearest hit so far as `tmax`, so a triangle counts exactly when its own t beats
 /// that hit, whatever order a traversal meets it in.
 #[must_use]
@@ -233,9 +234,9 @@ impl SceneBvh {
     /// (the others get `None`): [`Self::closest_hit`]'s hits to the bit, for rays that travel
     /// together — a camera's rays through neighbouring pixels. The rays share the walk: a node
     /// is visited once for the rays that enter it, its eight boxes tested against all of them
-    /// in lanes (a ray per lane), a leaf's triangles likewise (the same triangle
-    /// test's arithmetic per lane as the one-ray test's), and a child is taken for the rays that enter
-    /// its box, nearest first by its first ray's entry. One decision per node for eight rays
+    /// in lanes (a ray per lane), a leaf's triangles likewise (the same triangle test's
+    /// arithmetic per lane as the one-ray test's), and a child is taken for the rays that
+    /// enter its box, nearest first by its first ray's entry. One decision per node for eight rays
     /// instead of eight: measured faster for camera rays (BENCHMARKS.md). Scenes with
     /// alpha-tested triangles take [`Self::closest_hit`] per ray.
     #[must_use]

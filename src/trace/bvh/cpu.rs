@@ -897,9 +897,9 @@ impl CpuTree {
     /// (the others get `None`): `closest_hit`'s hits to the bit, for rays that travel
     /// together — a camera's rays through neighbouring pixels. The rays share the walk: a node
     /// is visited once for the rays that enter it, its eight boxes tested against all of them
-    /// in lanes (a ray per lane), a leaf's triangles likewise (the same triangle
-    /// test's arithmetic per lane as the one-ray test's), and a child is taken for the rays that enter
-    /// its box, nearest first by its first ray's entry. One decision per node for eight rays
+    /// in lanes (a ray per lane), a leaf's triangles likewise (the same triangle test's
+    /// arithmetic per lane as the one-ray test's), and a child is taken for the rays that
+    /// enter its box, nearest first by its first ray's entry. One decision per node for eight rays
     /// instead of eight: measured faster for camera rays, and slower for rays that scatter
     /// (BENCHMARKS.md). Scenes with alpha-tested triangles take `closest_hit` per ray.
     pub(super) fn closest_hits8(
