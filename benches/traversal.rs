@@ -109,7 +109,7 @@ fn main() {
     });
     let rays = record(&sc, &camera);
     let bvh = &sc.bvh;
-    let camera_rays = |_: ()| {
+    let camera_rays = || {
         rays.camera
             .chunks(8)
             .map(|group| {
@@ -125,7 +125,7 @@ fn main() {
         (
             "camera, 8 at a time",
             rays.camera.len(),
-            time(rounds, rays.camera.len(), || camera_rays(())),
+            time(rounds, rays.camera.len(), camera_rays),
         ),
         (
             "bounces, closest hit",
