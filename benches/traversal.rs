@@ -41,15 +41,21 @@ fn record(sc: &PackedScene, camera: &RenderCamera) -> Rays {
         bounce: Vec::new(),
         shadow: Vec::new(),
     };
+    // The paths advance a bounce at a time, as the renderer's batches trace them: each
+    // bounce's rays in pixel order.
+    let mut paths = Vec::new();
     for pixel in 0..WIDTH * HEIGHT {
-        let r = |dim: u32| pcg4d([pixel, dim, 0x7261_7973, 0]).map(unit_f32);
-        let j = r(0);
+        let j = pcg4d([pixel, 0, 0x7261_7973, 0]).map(unit_f32);
         let (x, y) = ((pixel % WIDTH) as f32 + j[0], (pixel / WIDTH) as f32 + j[1]);
-        let (mut o, mut d) = camera.ray(x, y, WIDTH, HEIGHT);
+        let (o, d) = camera.ray(x, y, WIDTH, HEIGHT);
         rays.camera.push((o, d));
-        for bounce in 0..=BOUNCES {
+        paths.push((pixel, o, d));
+    }
+    for bounce in 0..=BOUNCES {
+        let mut next = Vec::new();
+        for (pixel, o, d) in paths {
             let Some(hit) = sc.bvh.closest_hit(o, d, f32::INFINITY) else {
-                break;
+                continue;
             };
             let prim = sc.bvh.hit_prim(hit.prim);
             let e1 = Vec3::from_slice(&prim[1][..3]);
@@ -59,14 +65,15 @@ fn record(sc: &PackedScene, camera: &RenderCamera) -> Rays {
                 n = -n;
             }
             let p = o + d * hit.t + n * 1e-4;
-            let u = r(1 + bounce);
+            let u = pcg4d([pixel, 1 + bounce, 0x7261_7973, 0]).map(unit_f32);
             rays.shadow.push((p, cosine(n, u[0], u[1])));
-            if bounce == BOUNCES {
-                break;
+            if bounce < BOUNCES {
+                let d = cosine(n, u[2], u[3]);
+                rays.bounce.push((p, d));
+                next.push((pixel, p, d));
             }
-            (o, d) = (p, cosine(n, u[2], u[3]));
-            rays.bounce.push((o, d));
         }
+        paths = next;
     }
     rays
 }
@@ -128,6 +135,26 @@ fn main() {
             time(rounds, rays.camera.len(), camera_rays),
         ),
         (
+            "camera, 16 at a time",
+            rays.camera.len(),
+            time(rounds, rays.camera.len(), || {
+                rays.camera
+                    .chunks(16)
+                    .map(|group| {
+                        let origins = std::array::from_fn(|i| group[i.min(group.len() - 1)].0);
+                        let dirs = std::array::from_fn(|i| group[i.min(group.len() - 1)].1);
+                        let active = (1u32 << group.len()) - 1;
+                        let hits = bvh.closest_hits16(
+                            black_box(&origins),
+                            black_box(&dirs),
+                            active as u16,
+                        );
+                        hits.iter().filter(|h| h.is_some()).count()
+                    })
+                    .sum()
+            }),
+        ),
+        (
             "bounces, closest hit",
             rays.bounce.len(),
             time(rounds, rays.bounce.len(), || {
@@ -138,6 +165,26 @@ fn main() {
                             .is_some()
                     })
                     .count()
+            }),
+        ),
+        (
+            "bounces, 16 at a time",
+            rays.bounce.len(),
+            time(rounds, rays.bounce.len(), || {
+                rays.bounce
+                    .chunks(16)
+                    .map(|group| {
+                        let origins = std::array::from_fn(|i| group[i.min(group.len() - 1)].0);
+                        let dirs = std::array::from_fn(|i| group[i.min(group.len() - 1)].1);
+                        let active = (1u32 << group.len()) - 1;
+                        let hits = bvh.closest_hits16(
+                            black_box(&origins),
+                            black_box(&dirs),
+                            active as u16,
+                        );
+                        hits.iter().filter(|h| h.is_some()).count()
+                    })
+                    .sum()
             }),
         ),
         (

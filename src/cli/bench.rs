@@ -623,10 +623,10 @@ fn check_before(cmd: &BenchCommand) -> anyhow::Result<()> {
         crate::output::check_writable(p).context("--out")?;
     }
     if let BenchCommand::Guided(a) = cmd {
-        if let Some(p) = &a.plot {
-            if crate::output::check_image_path(p).context("--plot")? != crate::output::Format::Png {
-                anyhow::bail!("--plot {}: the plot is a PNG", p.display());
-            }
+        if let Some(p) = &a.plot
+            && crate::output::check_image_path(p).context("--plot")? != crate::output::Format::Png
+        {
+            anyhow::bail!("--plot {}: the plot is a PNG", p.display());
         }
         if a.iterations == 0 {
             anyhow::bail!("--iterations must be at least 1 (every figure is per iteration)");

@@ -249,6 +249,30 @@ impl SceneBvh {
         self.cpu().closest_hits8(origins, dirs, active)
     }
 
+    /// Whether [`Self::closest_hits16`] walks its rays as packets here (the processor has
+    /// AVX-512 F and DQ, the scene no alpha-tested triangles, and `RAYGUN_CPU_PACKETS` is not
+    /// `0`); otherwise it walks them one at a time, as [`Self::closest_hit`].
+    #[must_use]
+    pub fn packets(&self) -> bool {
+        self.cpu().packets()
+    }
+
+    /// The closest hits of sixteen rays (`0 < t < ∞`) for the lanes set in `active` (the
+    /// others get `None`): [`Self::closest_hit`]'s hits to the bit. Where the processor has
+    /// AVX-512, the rays are walked together as long as more than seven of them enter a node,
+    /// then each alone (Embree's hybrid traversal, `bvh/cpu/hybrid.rs`): for rays that start
+    /// near each other, such as a bounce's from neighbouring pixels. Elsewhere, and for scenes
+    /// with alpha-tested triangles, one ray at a time.
+    #[must_use]
+    pub fn closest_hits16(
+        &self,
+        origins: &[Vec3; 16],
+        dirs: &[Vec3; 16],
+        active: u16,
+    ) -> [Option<TraceHit>; 16] {
+        self.cpu().closest_hits16(origins, dirs, active)
+    }
+
     /// Whether anything blocks `origin + t·dir` for `0 < t < tmax` (shadow rays).
     #[must_use]
     pub fn occluded(&self, origin: Vec3, dir: Vec3, tmax: f32) -> bool {

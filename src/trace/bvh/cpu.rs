@@ -31,6 +31,9 @@ use wide::{f32x8, u32x8};
 use super::{NODE_EPSILON, PRIM_ALPHA, PRIM_CULL, TraceHit, intersect_triangle_sided};
 use crate::trace::lanes::V3;
 
+#[cfg(target_arch = "x86_64")]
+mod hybrid;
+
 /// The CPU's tree ([`CpuNode`]s, the root first) and its primitives in leaf order.
 #[derive(Clone, Debug, Default)]
 pub(super) struct CpuTree {
@@ -454,10 +457,19 @@ impl NodeRay {
             obvhs::ray::safe_inverse(dir.y),
             obvhs::ray::safe_inverse(dir.z),
         ];
+        Self::from_inverse(
+            inv,
+            [origin.x * inv[0], origin.y * inv[1], origin.z * inv[2]],
+        )
+    }
+
+    /// The ray of the reciprocal direction `inv` and `origin · inv` (rounded per axis).
+    #[inline(always)]
+    fn from_inverse(inv: [f32; 3], origin_inv: [f32; 3]) -> Self {
         let negative = inv.map(|i| usize::from(i < 0.0));
         Self {
             inv,
-            origin_inv: [origin.x * inv[0], origin.y * inv[1], origin.z * inv[2]],
+            origin_inv,
             near: [negative[0], 2 + negative[1], 4 + negative[2]],
             far: [1 - negative[0], 3 - negative[1], 5 - negative[2]],
         }
@@ -588,6 +600,14 @@ const LEAF_REF: u32 = 1 << 31;
 /// The entries a traversal stack holds on a thread's own stack; deeper trees (more than 17
 /// levels) allocate theirs.
 const INLINE_STACK: usize = 128;
+
+/// Whether [`CpuTree::closest_hits16`] walks its rays as a hybrid packet: the processor has
+/// AVX-512 F and DQ, and `RAYGUN_CPU_PACKETS` is not `0` (which keeps the one-ray walk, to
+/// compare the two).
+#[cfg(target_arch = "x86_64")]
+static HYBRID: std::sync::LazyLock<bool> = std::sync::LazyLock::new(|| {
+    hybrid::available() && std::env::var_os("RAYGUN_CPU_PACKETS").is_none_or(|v| v != "0")
+});
 
 /// `f` with a traversal stack of at least `size` entries, uninitialised: the traversals write
 /// an entry before they read it.
@@ -826,17 +846,43 @@ impl CpuTree {
         if self.nodes.is_empty() {
             return None;
         }
+        let mut best = None;
         let ray = NodeRay::new(origin, dir);
+        self.walk_closest(0, &ray, origin, dir, tmax, &mut best, &covered);
+        best.map(|(t, u, v, i)| TraceHit {
+            t,
+            u,
+            v,
+            triangle: self.triangle(i),
+            prim: i,
+        })
+    }
+
+    /// The closest hit's walk below node `root` for a ray (`ray`: its reciprocal direction, of
+    /// `origin` and `dir`) whose closest hit so far is `best`
+    /// (t, u, v, primitive), kept in `best` ([`Self::closest_hit_filtered`]'s walk; the
+    /// hybrid packets finish their rays' walks with it).
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn walk_closest(
+        &self,
+        root: usize,
+        ray: &NodeRay,
+        origin: Vec3,
+        dir: Vec3,
+        tmax: f32,
+        best: &mut Option<(f32, f32, f32, u32)>,
+        covered: &impl Fn(u32, f32, f32) -> bool,
+    ) {
         let ray_tmax = tmax;
         // The nodes' bound: the closest hit's t once there is one (a node entered exactly there
         // is still visited: it may hold an equally near hit on a higher triangle).
-        let mut tmax = tmax;
-        let mut best: Option<(f32, f32, f32, u32)> = None;
+        let mut tmax = best.map_or(tmax, |b| b.0);
         with_stack(self.stack_size, |stack| {
-            let (mut index, mut len) = (0, 0);
+            let (mut index, mut len) = (root, 0);
             loop {
                 let node = &self.nodes[index];
-                let (hit, entry) = node_hits(node, &ray, tmax);
+                let (hit, entry) = node_hits(node, ray, tmax);
                 let mut leaves = hit & !node.imask;
                 let mut inner = hit & node.imask;
                 // Leaves entered beyond the nearest inner child wait on the stack with the
@@ -869,11 +915,11 @@ impl CpuTree {
                         origin,
                         dir,
                         ray_tmax,
-                        &mut best,
-                        &covered,
+                        best,
+                        covered,
                     );
                 }
-                if changed && let Some(b) = best {
+                if changed && let Some(b) = *best {
                     tmax = b.0;
                     inner = entered_by(inner, &entry, tmax);
                     deferred = entered_by(deferred, &entry, tmax);
@@ -946,9 +992,9 @@ impl CpuTree {
                             origin,
                             dir,
                             ray_tmax,
-                            &mut best,
-                            &covered,
-                        ) && let Some(b) = best
+                            best,
+                            covered,
+                        ) && let Some(b) = *best
                         {
                             tmax = b.0;
                         }
@@ -956,12 +1002,43 @@ impl CpuTree {
                 }
             }
         });
-        best.map(|(t, u, v, i)| TraceHit {
-            t,
-            u,
-            v,
-            triangle: self.triangle(i),
-            prim: i,
+    }
+
+    /// Whether [`Self::closest_hits16`] walks packets: a tree with nodes, no alpha-tested
+    /// primitives and a stack within [`INLINE_STACK`], on a processor with AVX-512 F and DQ,
+    /// and `RAYGUN_CPU_PACKETS` not `0`.
+    pub(super) fn packets(&self) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        return !self.nodes.is_empty()
+            && !self.lanes.alpha
+            && self.stack_size <= INLINE_STACK
+            && *HYBRID;
+        #[cfg(not(target_arch = "x86_64"))]
+        false
+    }
+
+    /// The closest hits of sixteen rays (`0 < t < ∞`) for the lanes set in `active` (the
+    /// others get `None`): `closest_hit`'s hits to the bit. Where the processor has AVX-512
+    /// (and the scene no alpha-tested triangles), walked as a hybrid packet (`hybrid.rs`:
+    /// together while more than [`hybrid::SWITCH`] rays enter a node, then one at a time);
+    /// elsewhere one ray at a time.
+    pub(super) fn closest_hits16(
+        &self,
+        origins: &[Vec3; 16],
+        dirs: &[Vec3; 16],
+        active: u16,
+    ) -> [Option<TraceHit>; 16] {
+        #[cfg(target_arch = "x86_64")]
+        if self.packets() {
+            // SAFETY: `packets` checks that the processor has AVX-512 F and DQ, the tree no
+            // alpha-tested primitives and a stack bound within `INLINE_STACK`.
+            return unsafe { self.hybrid16(origins, dirs, active, hybrid::SWITCH) };
+        }
+        std::array::from_fn(|i| {
+            if active & (1 << i) == 0 {
+                return None;
+            }
+            self.closest_hit_filtered(origins[i], dirs[i], f32::INFINITY, |_, _, _| true)
         })
     }
 

@@ -70,6 +70,7 @@ fn batches<const FULL: bool>(
     out: &mut [Option<(Vec3, u32)>],
 ) {
     let alpha_scene = FULL && sc.features & FEAT_ALPHA != 0;
+    let packets = sc.bvh.packets();
     for ((pixels, samples), out) in pixels
         .chunks(BATCH)
         .zip(samples.chunks(BATCH))
@@ -158,6 +159,19 @@ fn batches<const FULL: bool>(
                             .closest_hit_filtered(path.o, path.d, f32::INFINITY, |tri, u, v| {
                                 alpha_covered(sc, tri, u, v, seed)
                             });
+                }
+            } else if packets {
+                // Sixteen neighbouring paths' rays at a time: they leave from nearby points
+                // (hybrid packets where the processor has AVX-512).
+                for group in live[..n_live].chunks(16) {
+                    let lane = |i: usize| &paths[group[i.min(group.len() - 1)] as usize];
+                    let origins = std::array::from_fn(|i| lane(i).o);
+                    let dirs = std::array::from_fn(|i| lane(i).d);
+                    let active = (1u32 << group.len()) - 1;
+                    let found = sc.bvh.closest_hits16(&origins, &dirs, active as u16);
+                    for (&k, hit) in group.iter().zip(found) {
+                        hits[k as usize] = hit;
+                    }
                 }
             } else if depth == 0 {
                 for group in live[..n_live].chunks(8) {
