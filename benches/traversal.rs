@@ -197,6 +197,28 @@ fn main() {
                     .count()
             }),
         ),
+        (
+            "shadow rays, 16 at a time",
+            rays.shadow.len(),
+            time(rounds, rays.shadow.len(), || {
+                rays.shadow
+                    .chunks(16)
+                    .map(|group| {
+                        let origins = std::array::from_fn(|i| group[i.min(group.len() - 1)].0);
+                        let dirs = std::array::from_fn(|i| group[i.min(group.len() - 1)].1);
+                        let active = (1u32 << group.len()) - 1;
+                        let tmax = [f32::INFINITY; 16];
+                        let blocked = bvh.occluded16(
+                            black_box(&origins),
+                            black_box(&dirs),
+                            &tmax,
+                            active as u16,
+                        );
+                        blocked.count_ones() as usize
+                    })
+                    .sum()
+            }),
+        ),
     ];
     println!(
         "{name}: {} triangles, {rounds} rounds, one thread",

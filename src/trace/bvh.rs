@@ -273,6 +273,21 @@ impl SceneBvh {
         self.cpu().closest_hits16(origins, dirs, active)
     }
 
+    /// Whether something blocks each of sixteen shadow rays `origins[i] + t·dirs[i]`, `0 < t <
+    /// tmax[i]`, for the lanes set in `active`: a bit set per blocked ray, [`Self::occluded`]'s
+    /// answers. Walked as a hybrid packet where [`Self::packets`] says so (rays from
+    /// neighbouring points share the top of the tree), elsewhere one ray at a time.
+    #[must_use]
+    pub fn occluded16(
+        &self,
+        origins: &[Vec3; 16],
+        dirs: &[Vec3; 16],
+        tmax: &[f32; 16],
+        active: u16,
+    ) -> u16 {
+        self.cpu().occluded16(origins, dirs, tmax, active)
+    }
+
     /// Whether anything blocks `origin + t·dir` for `0 < t < tmax` (shadow rays).
     #[must_use]
     pub fn occluded(&self, origin: Vec3, dir: Vec3, tmax: f32) -> bool {

@@ -1042,6 +1042,30 @@ impl CpuTree {
         })
     }
 
+    /// Whether something blocks each of sixteen shadow rays `origins[i] + t·dirs[i]`, `0 < t <
+    /// tmax[i]`, for the lanes set in `active`: a bit set per blocked ray, `occluded`'s
+    /// answers. Walked as a hybrid packet where [`Self::packets`] says so, elsewhere one ray at
+    /// a time.
+    pub(super) fn occluded16(
+        &self,
+        origins: &[Vec3; 16],
+        dirs: &[Vec3; 16],
+        tmax: &[f32; 16],
+        active: u16,
+    ) -> u16 {
+        #[cfg(target_arch = "x86_64")]
+        if self.packets() {
+            // SAFETY: as in `closest_hits16`.
+            return unsafe { self.hybrid_occluded16(origins, dirs, tmax, active, hybrid::SWITCH) };
+        }
+        (0..16)
+            .filter(|&i| {
+                active & (1 << i) != 0
+                    && self.occluded_filtered(origins[i], dirs[i], tmax[i], |_, _, _| true)
+            })
+            .fold(0, |m, i| m | (1 << i))
+    }
+
     /// The closest hits of eight rays at once (`0 < t < ∞`), for the lanes set in `active`
     /// (the others get `None`): `closest_hit`'s hits to the bit, for rays that travel
     /// together — a camera's rays through neighbouring pixels. The rays share the walk: a node
@@ -1225,17 +1249,33 @@ impl CpuTree {
             return false;
         }
         let ray = NodeRay::new(origin, dir);
+        self.walk_any(0, &ray, origin, dir, tmax, &covered)
+    }
+
+    /// The shadow ray's walk below node `root` (`ray`: the reciprocal direction of `origin`
+    /// and `dir`): whether a primitive there blocks it ([`Self::occluded_filtered`]'s walk;
+    /// the hybrid packets finish their rays' walks with it).
+    #[inline(always)]
+    fn walk_any(
+        &self,
+        root: usize,
+        ray: &NodeRay,
+        origin: Vec3,
+        dir: Vec3,
+        tmax: f32,
+        covered: &impl Fn(u32, f32, f32) -> bool,
+    ) -> bool {
         with_stack(self.stack_size, |stack| {
-            let (mut index, mut len) = (0, 0);
+            let (mut index, mut len) = (root, 0);
             loop {
                 let node = &self.nodes[index];
-                let (hit, _) = node_hits(node, &ray, tmax);
+                let (hit, _) = node_hits(node, ray, tmax);
                 let mut leaves = hit & !node.imask;
                 while leaves != 0 {
                     let c = leaves.trailing_zeros() as usize;
                     leaves &= leaves - 1;
                     let (first, count) = (node.child[c], u32::from(node.count[c]));
-                    if self.leaf_any(first, count, origin, dir, tmax, &covered) {
+                    if self.leaf_any(first, count, origin, dir, tmax, covered) {
                         return true;
                     }
                 }

@@ -71,6 +71,9 @@ fn batches<const FULL: bool>(
 ) {
     let alpha_scene = FULL && sc.features & FEAT_ALPHA != 0;
     let packets = sc.bvh.packets();
+    // With packets, a vertex's shadow rays wait until every group is shaded and go sixteen at
+    // a time (neighbouring paths' shadow rays leave from nearby points).
+    let mut shadows = (packets && !alpha_scene).then(ShadowRays::new);
     for ((pixels, samples), out) in pixels
         .chunks(BATCH)
         .zip(samples.chunks(BATCH))
@@ -227,7 +230,11 @@ fn batches<const FULL: bool>(
                     &mut paths,
                     &mut live,
                     &mut n_live,
+                    shadows.as_deref_mut(),
                 );
+            }
+            if let Some(shadows) = &mut shadows {
+                shadows.trace(sc, &mut paths);
             }
         }
         for (k, out) in out.iter_mut().enumerate() {
@@ -241,6 +248,60 @@ fn batches<const FULL: bool>(
                 *out = (radiance, p.rays);
             }
         }
+    }
+}
+
+/// A vertex's shadow rays, queued while its groups are shaded and traced sixteen at a time
+/// once they all are: per ray its path, origin, direction, length and the contribution it
+/// carries if nothing blocks it. Adding the contribution later changes no value: nothing else
+/// adds to the path's radiance between its vertex's shading and its next trace, so the sums
+/// are the same, in the same order.
+struct ShadowRays {
+    path: [u8; BATCH],
+    origin: [Vec3; BATCH],
+    dir: [Vec3; BATCH],
+    tmax: [f32; BATCH],
+    contrib: [Vec3; BATCH],
+    len: usize,
+}
+
+impl ShadowRays {
+    fn new() -> Box<Self> {
+        Box::new(Self {
+            path: [0; BATCH],
+            origin: [Vec3::ZERO; BATCH],
+            dir: [Vec3::ZERO; BATCH],
+            tmax: [0.0; BATCH],
+            contrib: [Vec3::ZERO; BATCH],
+            len: 0,
+        })
+    }
+
+    /// Queues path `path`'s shadow ray (a path casts at most one a vertex).
+    #[inline(always)]
+    fn push(&mut self, path: u8, origin: Vec3, dir: Vec3, tmax: f32, contrib: Vec3) {
+        let k = self.len;
+        (self.path[k], self.origin[k], self.dir[k]) = (path, origin, dir);
+        (self.tmax[k], self.contrib[k]) = (tmax, contrib);
+        self.len += 1;
+    }
+
+    /// Traces the queued rays, adds each unblocked ray's contribution to its path's radiance,
+    /// and empties the queue.
+    fn trace(&mut self, sc: &PackedScene, paths: &mut [Path; BATCH]) {
+        for start in (0..self.len).step_by(16) {
+            let n = (self.len - start).min(16);
+            let at = |i: usize| start + i.min(n - 1);
+            let origins = std::array::from_fn(|i| self.origin[at(i)]);
+            let dirs = std::array::from_fn(|i| self.dir[at(i)]);
+            let tmax = std::array::from_fn(|i| self.tmax[at(i)]);
+            let active = (1u32 << n) - 1;
+            let blocked = sc.bvh.occluded16(&origins, &dirs, &tmax, active as u16);
+            for i in (0..n).filter(|&i| blocked & (1 << i) == 0) {
+                paths[self.path[start + i] as usize].radiance += self.contrib[start + i];
+            }
+        }
+        self.len = 0;
     }
 }
 
@@ -361,6 +422,7 @@ fn shade8<const FULL: bool>(
     paths: &mut [Path; BATCH],
     live: &mut [u8; BATCH],
     n_live: &mut usize,
+    mut shadows: Option<&mut ShadowRays>,
 ) {
     let bvh = &sc.bvh;
     let tri_select = 1.0 - sc.env_select - sc.punct_select;
@@ -669,6 +731,10 @@ fn shade8<const FULL: bool>(
             for i in 0..group.len() {
                 if shadow & (1 << i) != 0 {
                     rays[i] += 1;
+                    if let Some(shadows) = &mut shadows {
+                        shadows.push(group[i], from[i], wi[i], tmax[i], contrib[i]);
+                        continue;
+                    }
                     let blocked = if FULL {
                         let shadow_seed = if alpha_scene {
                             ray_seed(g.pixel[i], g.sample[i], s.seed, depth, 1)
