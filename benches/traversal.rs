@@ -1,10 +1,12 @@
 //! `cargo bench --bench traversal [-- SCENE [ROUNDS]]`: the CPU tree's walks alone, in
-//! nanoseconds per ray, on the rays a path tracer casts — the camera's (eight at a time, as
-//! the batches trace them), the bounces' (one at a time) and the shadow rays' — recorded once
-//! from the scene (default `builtin:city-small`, the peer benchmark's small city) and replayed
-//! `ROUNDS` times (default 9). Without the shading around them, a change to the walk shows in
-//! a second with less of the noise of a whole render: the minimum over the rounds is the
-//! figure to compare; the median says how noisy the machine was.
+//! nanoseconds per ray, on the rays a path tracer casts — the camera's (eight at a time, and
+//! sixteen at a time as hybrid packets), the bounces' and the shadow rays' (one at a time, and
+//! sixteen at a time) — recorded once from the scene (default `builtin:city-small`, the peer
+//! benchmark's small city), a bounce at a time in pixel order as the renderer's batches trace
+//! them, and replayed `ROUNDS` times (default 9). The sixteen-ray rows are hybrid packets where
+//! the processor has AVX-512 (else one ray at a time). Without the shading around them, a
+//! change to the walk shows in a second with less of the noise of a whole render: the minimum
+//! over the rounds is the figure to compare; the median says how noisy the machine was.
 
 use std::hint::black_box;
 use std::time::Instant;

@@ -4,11 +4,13 @@
 //! (tests below and in `tests/twins/trace.rs`), only faster (BENCHMARKS.md, the CPU twin
 //! against Mitsuba).
 //!
-//! A vertex of the batch: every live path's ray is traced (a pinhole's camera rays eight at a
-//! time, the others one at a time); the paths that leave the scene take the environment, one
-//! at a time as `trace_path` does; the others are shaded in groups of eight: geometry,
-//! emission with its MIS weight, the BSDF, next-event estimation (the shadow rays traced one
-//! at a time), the BSDF sample and Russian roulette. What reads per-triangle or per-texel data
+//! A vertex of the batch: every live path's ray is traced (where the processor has AVX-512,
+//! sixteen neighbouring paths' rays at a time as hybrid packets, `bvh/cpu/hybrid.rs`; elsewhere
+//! a pinhole's camera rays eight at a time, the others one at a time); the paths that leave the
+//! scene take the environment, one at a time as `trace_path` does; the others are shaded in
+//! groups of eight: geometry, emission with its MIS weight, the BSDF, next-event estimation
+//! (with packets, the shadow rays queued and traced sixteen at a time once every group is
+//! shaded, [`ShadowRays`]; elsewhere one at a time), the BSDF sample and Russian roulette. What reads per-triangle or per-texel data
 //! — emission and base colour with their textures, the environment map, the light's pick —
 //! and what only some materials and scenes have — normal and metallic-roughness maps, the
 //! extensions' BSDF (glass, clear coat), punctual lights, alpha-tested triangles — is
