@@ -130,6 +130,19 @@ fn main() {
             })
             .sum()
     };
+    // Closest hits sixteen at a time (hybrid packets where the processor has AVX-512): how
+    // many rays hit.
+    let sixteen = |rays: &[(Vec3, Vec3)]| -> usize {
+        rays.chunks(16)
+            .map(|group| {
+                let origins = std::array::from_fn(|i| group[i.min(group.len() - 1)].0);
+                let dirs = std::array::from_fn(|i| group[i.min(group.len() - 1)].1);
+                let active = (1u32 << group.len()) - 1;
+                let hits = bvh.closest_hits16(black_box(&origins), black_box(&dirs), active as u16);
+                hits.iter().filter(|h| h.is_some()).count()
+            })
+            .sum()
+    };
     let rows = [
         (
             "camera, 8 at a time",
@@ -139,22 +152,7 @@ fn main() {
         (
             "camera, 16 at a time",
             rays.camera.len(),
-            time(rounds, rays.camera.len(), || {
-                rays.camera
-                    .chunks(16)
-                    .map(|group| {
-                        let origins = std::array::from_fn(|i| group[i.min(group.len() - 1)].0);
-                        let dirs = std::array::from_fn(|i| group[i.min(group.len() - 1)].1);
-                        let active = (1u32 << group.len()) - 1;
-                        let hits = bvh.closest_hits16(
-                            black_box(&origins),
-                            black_box(&dirs),
-                            active as u16,
-                        );
-                        hits.iter().filter(|h| h.is_some()).count()
-                    })
-                    .sum()
-            }),
+            time(rounds, rays.camera.len(), || sixteen(&rays.camera)),
         ),
         (
             "bounces, closest hit",
@@ -172,22 +170,7 @@ fn main() {
         (
             "bounces, 16 at a time",
             rays.bounce.len(),
-            time(rounds, rays.bounce.len(), || {
-                rays.bounce
-                    .chunks(16)
-                    .map(|group| {
-                        let origins = std::array::from_fn(|i| group[i.min(group.len() - 1)].0);
-                        let dirs = std::array::from_fn(|i| group[i.min(group.len() - 1)].1);
-                        let active = (1u32 << group.len()) - 1;
-                        let hits = bvh.closest_hits16(
-                            black_box(&origins),
-                            black_box(&dirs),
-                            active as u16,
-                        );
-                        hits.iter().filter(|h| h.is_some()).count()
-                    })
-                    .sum()
-            }),
+            time(rounds, rays.bounce.len(), || sixteen(&rays.bounce)),
         ),
         (
             "shadow rays, any hit",

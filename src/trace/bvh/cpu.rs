@@ -1034,6 +1034,16 @@ impl CpuTree {
             // alpha-tested primitives and a stack bound within `INLINE_STACK`.
             return unsafe { self.hybrid16(origins, dirs, active, hybrid::SWITCH) };
         }
+        self.closest_hits16_alone(origins, dirs, active)
+    }
+
+    /// [`Self::closest_hits16`] one ray at a time (without packets).
+    fn closest_hits16_alone(
+        &self,
+        origins: &[Vec3; 16],
+        dirs: &[Vec3; 16],
+        active: u16,
+    ) -> [Option<TraceHit>; 16] {
         std::array::from_fn(|i| {
             if active & (1 << i) == 0 {
                 return None;
@@ -1058,6 +1068,17 @@ impl CpuTree {
             // SAFETY: as in `closest_hits16`.
             return unsafe { self.hybrid_occluded16(origins, dirs, tmax, active, hybrid::SWITCH) };
         }
+        self.occluded16_alone(origins, dirs, tmax, active)
+    }
+
+    /// [`Self::occluded16`] one ray at a time (without packets).
+    fn occluded16_alone(
+        &self,
+        origins: &[Vec3; 16],
+        dirs: &[Vec3; 16],
+        tmax: &[f32; 16],
+        active: u16,
+    ) -> u16 {
         (0..16)
             .filter(|&i| {
                 active & (1 << i) != 0

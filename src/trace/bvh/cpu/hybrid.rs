@@ -508,7 +508,8 @@ mod tests {
     /// stays whole down to the leaves), from nearby points in all directions (a bounce's) and
     /// from everywhere, with lanes switched off; single-sided triangles seen from both sides;
     /// triangles given twice, every hit on them an exact tie, which the higher one wins. On a
-    /// processor without AVX-512 the public walk (one ray at a time there) is checked alone.
+    /// processor without AVX-512 the public walk (one ray at a time there) is checked alone; the
+    /// one-ray fallback is checked everywhere.
     #[test]
     fn packets_find_each_rays_hit() {
         let mut tris = random_triangles(1500, 5);
@@ -545,9 +546,12 @@ mod tests {
             let bits = |h: Option<TraceHit>| {
                 h.map(|h| (h.t.to_bits(), h.u.to_bits(), h.v.to_bits(), h.triangle))
             };
-            let mut got = vec![bvh.closest_hits16(&origins, &dirs, active)];
+            let tree = bvh.cpu();
+            let mut got = vec![
+                bvh.closest_hits16(&origins, &dirs, active),
+                tree.closest_hits16_alone(&origins, &dirs, active),
+            ];
             if packets {
-                let tree = bvh.cpu();
                 assert!(tree.packets());
                 for switch in [0, SWITCH, 16] {
                     // SAFETY: the processor has AVX-512 F and DQ (`available`), the scene no
@@ -578,8 +582,8 @@ mod tests {
         assert!(hits > 2000 && ties > 300, "{hits} hits, {ties} ties");
     }
 
-    /// The shadow-ray packets answer as the one-ray walk does, with the switch never, at 7 and
-    /// always: rays from one point, from nearby points and from everywhere, each with its own
+    /// The shadow-ray packets (and their one-ray fallback) answer as the one-ray walk does,
+    /// with the switch never, at 7 and always: rays from one point, from nearby points and from everywhere, each with its own
     /// length — unbounded, ending just before its closest hit (not blocked, unless another
     /// triangle is nearer), exactly there (not blocked by it: `t < tmax`), just beyond it, or
     /// far short — and lanes switched off.
@@ -625,7 +629,10 @@ mod tests {
             let want = (0..16)
                 .filter(|&i| active & (1 << i) != 0 && bvh.occluded(origins[i], dirs[i], tmax[i]))
                 .fold(0u16, |m, i| m | (1 << i));
-            let mut got = vec![bvh.occluded16(&origins, &dirs, &tmax, active)];
+            let mut got = vec![
+                bvh.occluded16(&origins, &dirs, &tmax, active),
+                bvh.cpu().occluded16_alone(&origins, &dirs, &tmax, active),
+            ];
             if packets {
                 for switch in [0, SWITCH, 16] {
                     // SAFETY: as in `packets_find_each_rays_hit`.
