@@ -601,9 +601,9 @@ const LEAF_REF: u32 = 1 << 31;
 /// levels) allocate theirs.
 const INLINE_STACK: usize = 128;
 
-/// Whether [`CpuTree::closest_hits16`] walks its rays as a hybrid packet: the processor has
-/// AVX-512 F and DQ, and `RAYGUN_CPU_PACKETS` is not `0` (which keeps the one-ray walk, to
-/// compare the two).
+/// Whether the sixteen-ray walks ([`CpuTree::closest_hits16`], [`CpuTree::occluded16`]) may
+/// walk hybrid packets: the processor has AVX-512 F and DQ, and `RAYGUN_CPU_PACKETS` is not `0`
+/// (which keeps the one-ray walks, to compare the two).
 #[cfg(target_arch = "x86_64")]
 static HYBRID: std::sync::LazyLock<bool> = std::sync::LazyLock::new(|| {
     hybrid::available() && std::env::var_os("RAYGUN_CPU_PACKETS").is_none_or(|v| v != "0")
@@ -859,9 +859,9 @@ impl CpuTree {
     }
 
     /// The closest hit's walk below node `root` for a ray (`ray`: its reciprocal direction, of
-    /// `origin` and `dir`) whose closest hit so far is `best`
-    /// (t, u, v, primitive), kept in `best` ([`Self::closest_hit_filtered`]'s walk; the
-    /// hybrid packets finish their rays' walks with it).
+    /// `origin` and `dir`) whose closest hit so far is `best` (t, u, v, primitive), kept in
+    /// `best` ([`Self::closest_hit_filtered`]'s walk; the hybrid packets finish their rays'
+    /// walks with it).
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
     fn walk_closest(
@@ -1004,7 +1004,7 @@ impl CpuTree {
         });
     }
 
-    /// Whether [`Self::closest_hits16`] walks packets: a tree with nodes, no alpha-tested
+    /// Whether the sixteen-ray walks use packets: a tree with nodes, no alpha-tested
     /// primitives and a stack within [`INLINE_STACK`], on a processor with AVX-512 F and DQ,
     /// and `RAYGUN_CPU_PACKETS` not `0`.
     pub(super) fn packets(&self) -> bool {

@@ -10,13 +10,13 @@
 //! scene take the environment, one at a time as `trace_path` does; the others are shaded in
 //! groups of eight: geometry, emission with its MIS weight, the BSDF, next-event estimation
 //! (with packets, the shadow rays queued and traced sixteen at a time once every group is
-//! shaded, [`ShadowRays`]; elsewhere one at a time), the BSDF sample and Russian roulette. What reads per-triangle or per-texel data
-//! — emission and base colour with their textures, the environment map, the light's pick —
-//! and what only some materials and scenes have — normal and metallic-roughness maps, the
-//! extensions' BSDF (glass, clear coat), punctual lights, alpha-tested triangles — is
-//! `trace_path`'s own code, called for the lanes that need it. Like `trace_path`, the batches
-//! come in two instantiations: the plain one for a [`PackedScene::plain`] scene, with those
-//! branches compiled out, and the full one.
+//! shaded, [`ShadowRays`]; elsewhere one at a time), the BSDF sample and Russian roulette. What
+//! reads per-triangle or per-texel data — emission and base colour with their textures, the
+//! environment map, the light's pick — and what only some materials and scenes have — normal
+//! and metallic-roughness maps, the extensions' BSDF (glass, clear coat), punctual lights,
+//! alpha-tested triangles — is `trace_path`'s own code, called for the lanes that need it. Like
+//! `trace_path`, the batches come in two instantiations: the plain one for a
+//! [`PackedScene::plain`] scene, with those branches compiled out, and the full one.
 
 use wide::{f32x8, u32x8};
 
