@@ -4,7 +4,8 @@
 //! sixteen at a time) — recorded once from the scene (default `builtin:city-small`, the peer
 //! benchmark's small city), a bounce at a time in pixel order as the renderer's batches trace
 //! them, and replayed `ROUNDS` times (default 9). The sixteen-ray rows are hybrid packets where
-//! the processor has AVX-512 (else one ray at a time). Without the shading around them, a
+//! the processor has AVX-512 (else one ray at a time); the "by octant" rows group each 256 rays
+//! by their direction's octant first, as the batches do past the camera. Without the shading around them, a
 //! change to the walk shows in a second with less of the noise of a whole render: the minimum
 //! over the rounds is the figure to compare; the median says how noisy the machine was.
 
@@ -143,6 +144,34 @@ fn main() {
             })
             .sum()
     };
+    // Rays as the batches trace them past the camera: each batch's (256 paths') by the octant
+    // of their direction, stable.
+    let by_octant = |rays: &[(Vec3, Vec3)]| -> Vec<(Vec3, Vec3)> {
+        let octant =
+            |d: Vec3| u8::from(d.x < 0.0) | u8::from(d.y < 0.0) << 1 | u8::from(d.z < 0.0) << 2;
+        rays.chunks(256)
+            .flat_map(|batch| {
+                let mut batch = batch.to_vec();
+                batch.sort_by_key(|&(_, d)| octant(d));
+                batch
+            })
+            .collect()
+    };
+    let (bounce_by_octant, shadow_by_octant) = (by_octant(&rays.bounce), by_octant(&rays.shadow));
+    // Shadow rays sixteen at a time: how many are blocked.
+    let occluded16 = |rays: &[(Vec3, Vec3)]| -> usize {
+        rays.chunks(16)
+            .map(|group| {
+                let origins = std::array::from_fn(|i| group[i.min(group.len() - 1)].0);
+                let dirs = std::array::from_fn(|i| group[i.min(group.len() - 1)].1);
+                let active = (1u32 << group.len()) - 1;
+                let tmax = [f32::INFINITY; 16];
+                let blocked =
+                    bvh.occluded16(black_box(&origins), black_box(&dirs), &tmax, active as u16);
+                blocked.count_ones() as usize
+            })
+            .sum()
+    };
     let rows = [
         (
             "camera, 8 at a time",
@@ -173,6 +202,11 @@ fn main() {
             time(rounds, rays.bounce.len(), || sixteen(&rays.bounce)),
         ),
         (
+            "bounces, 16 at a time by octant",
+            rays.bounce.len(),
+            time(rounds, rays.bounce.len(), || sixteen(&bounce_by_octant)),
+        ),
+        (
             "shadow rays, any hit",
             rays.shadow.len(),
             time(rounds, rays.shadow.len(), || {
@@ -185,24 +219,12 @@ fn main() {
         (
             "shadow rays, 16 at a time",
             rays.shadow.len(),
-            time(rounds, rays.shadow.len(), || {
-                rays.shadow
-                    .chunks(16)
-                    .map(|group| {
-                        let origins = std::array::from_fn(|i| group[i.min(group.len() - 1)].0);
-                        let dirs = std::array::from_fn(|i| group[i.min(group.len() - 1)].1);
-                        let active = (1u32 << group.len()) - 1;
-                        let tmax = [f32::INFINITY; 16];
-                        let blocked = bvh.occluded16(
-                            black_box(&origins),
-                            black_box(&dirs),
-                            &tmax,
-                            active as u16,
-                        );
-                        blocked.count_ones() as usize
-                    })
-                    .sum()
-            }),
+            time(rounds, rays.shadow.len(), || occluded16(&rays.shadow)),
+        ),
+        (
+            "shadow rays, 16 at a time by octant",
+            rays.shadow.len(),
+            time(rounds, rays.shadow.len(), || occluded16(&shadow_by_octant)),
         ),
     ];
     println!(

@@ -103,6 +103,17 @@ fn wrap(i: i32, n: u32, mode: u32) -> u32 {
     }) as u32
 }
 
+/// `i.rem_euclid(n)` for `n > 0`, a mask where `n` is a power of two (most textures' sizes):
+/// the same value without an integer division.
+#[inline(always)]
+fn rem_euclid(i: i32, n: i32) -> i32 {
+    if n & (n - 1) == 0 {
+        i & (n - 1)
+    } else {
+        i.rem_euclid(n)
+    }
+}
+
 /// `(wrap(i, n, mode), wrap(i + 1, n, mode))` (`i + 1` wrapping as a bilinear lookup's
 /// neighbour does) with one integer division instead of two: the neighbour of the wrapped
 /// `i` is the next value, back to the start past the end. Four divisions a bilinear lookup
@@ -117,13 +128,13 @@ fn wrap_pair(i: i32, n: u32, mode: u32) -> (u32, u32) {
     let (a, b) = match mode {
         1 => (i.clamp(0, n - 1), j.clamp(0, n - 1)),
         2 => {
-            let k = i.rem_euclid(2 * n);
+            let k = rem_euclid(i, 2 * n);
             let next = if k + 1 == 2 * n { 0 } else { k + 1 };
             let mirror = |k: i32| if k >= n { 2 * n - 1 - k } else { k };
             (mirror(k), mirror(next))
         }
         _ => {
-            let k = i.rem_euclid(n);
+            let k = rem_euclid(i, n);
             (k, if k + 1 == n { 0 } else { k + 1 })
         }
     };

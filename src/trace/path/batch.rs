@@ -5,9 +5,10 @@
 //! against Mitsuba).
 //!
 //! A vertex of the batch: every live path's ray is traced (where the processor has AVX-512,
-//! sixteen neighbouring paths' rays at a time as hybrid packets, `bvh/cpu/hybrid.rs`; elsewhere
-//! a pinhole's camera rays eight at a time, the others one at a time); the paths that leave the
-//! scene take the environment, one at a time as `trace_path` does; the others are shaded in
+//! sixteen neighbouring paths' rays at a time as hybrid packets, `bvh/cpu/hybrid.rs`, past the
+//! camera those of one direction octant together, [`by_octant`]; elsewhere a pinhole's camera
+//! rays eight at a time, the others one at a time); the paths that leave the scene take the
+//! environment, one at a time as `trace_path` does; the others are shaded in
 //! groups of eight: geometry, emission with its MIS weight, the BSDF, next-event estimation
 //! (with packets, the shadow rays queued and traced sixteen at a time once every group is
 //! shaded, [`ShadowRays`]; elsewhere one at a time), the BSDF sample and Russian roulette. What
@@ -167,8 +168,15 @@ fn batches<const FULL: bool>(
                 }
             } else if packets {
                 // Sixteen neighbouring paths' rays at a time: they leave from nearby points
-                // (hybrid packets where the processor has AVX-512).
-                for group in live[..n_live].chunks(16) {
+                // (hybrid packets where the processor has AVX-512); past the camera, those of
+                // one direction octant together (they cross the boxes' planes in one order).
+                let mut sorted = [0u8; BATCH];
+                let order = if depth == 0 {
+                    &live[..n_live]
+                } else {
+                    by_octant(&live[..n_live], |k| paths[k as usize].d, &mut sorted)
+                };
+                for group in order.chunks(16) {
                     let lane = |i: usize| &paths[group[i.min(group.len() - 1)] as usize];
                     let origins = std::array::from_fn(|i| lane(i).o);
                     let dirs = std::array::from_fn(|i| lane(i).d);
@@ -256,8 +264,9 @@ fn batches<const FULL: bool>(
 /// A vertex's shadow rays, queued while its groups are shaded and traced sixteen at a time
 /// once they all are: per ray its path, origin, direction, length and the contribution it
 /// carries if nothing blocks it. Adding the contribution later changes no value: nothing else
-/// adds to the path's radiance between its vertex's shading and its next trace, so the sums
-/// are the same, in the same order.
+/// adds to the path's radiance between its vertex's shading and its next trace, and a path
+/// casts one shadow ray a vertex, so each path's sums are the same, in the same order,
+/// whatever order the rays are traced in (by octant, [`by_octant`]).
 struct ShadowRays {
     path: [u8; BATCH],
     origin: [Vec3; BATCH],
@@ -291,20 +300,47 @@ impl ShadowRays {
     /// Traces the queued rays, adds each unblocked ray's contribution to its path's radiance,
     /// and empties the queue.
     fn trace(&mut self, sc: &PackedScene, paths: &mut [Path; BATCH]) {
+        // Those of one direction octant together, as the bounces.
+        let queued: [u8; BATCH] = std::array::from_fn(|k| k as u8);
+        let mut sorted = [0u8; BATCH];
+        let order = by_octant(&queued[..self.len], |k| self.dir[k as usize], &mut sorted);
         for start in (0..self.len).step_by(16) {
             let n = (self.len - start).min(16);
-            let at = |i: usize| start + i.min(n - 1);
+            let at = |i: usize| order[start + i.min(n - 1)] as usize;
             let origins = std::array::from_fn(|i| self.origin[at(i)]);
             let dirs = std::array::from_fn(|i| self.dir[at(i)]);
             let tmax = std::array::from_fn(|i| self.tmax[at(i)]);
             let active = (1u32 << n) - 1;
             let blocked = sc.bvh.occluded16(&origins, &dirs, &tmax, active as u16);
             for i in (0..n).filter(|&i| blocked & (1 << i) == 0) {
-                paths[self.path[start + i] as usize].radiance += self.contrib[start + i];
+                paths[self.path[at(i)] as usize].radiance += self.contrib[at(i)];
             }
         }
         self.len = 0;
     }
+}
+
+/// `items` in the order of their direction's octant (`dir`; which of x, y and z are below
+/// zero), each octant's in their order in `items` (a counting sort), written into `out`.
+#[inline(always)]
+fn by_octant<'a>(items: &[u8], dir: impl Fn(u8) -> Vec3, out: &'a mut [u8; BATCH]) -> &'a [u8] {
+    let octant = |k: u8| {
+        let d = dir(k);
+        usize::from(d.x < 0.0) | usize::from(d.y < 0.0) << 1 | usize::from(d.z < 0.0) << 2
+    };
+    let mut start = [0usize; 9];
+    for &k in items {
+        start[octant(k) + 1] += 1;
+    }
+    for o in 0..8 {
+        start[o + 1] += start[o];
+    }
+    for &k in items {
+        let o = octant(k);
+        out[start[o]] = k;
+        start[o] += 1;
+    }
+    &out[..items.len()]
 }
 
 /// Asks the processor to bring the rows that shading `group` reads first — each hit's
@@ -813,6 +849,35 @@ fn shade8<const FULL: bool>(
 mod tests {
     use super::*;
     use crate::scene::Scene;
+
+    /// The octant order is a permutation of its items, grouped by their direction's octant
+    /// (x's sign the lowest bit, z's the highest), each octant's in their order (a stable
+    /// sort's); a zero component, of either sign, counts as not negative.
+    #[test]
+    fn by_octant_groups_in_order() {
+        let dirs: Vec<Vec3> = (0..200u32)
+            .map(|k| {
+                let c = |shift: u32| match (k * 2_654_435_761) >> shift & 3 {
+                    0 => -1.0,
+                    1 => 0.5,
+                    2 => 0.0,
+                    _ => -0.0,
+                };
+                Vec3::new(c(3), c(9), c(17))
+            })
+            .collect();
+        let items: Vec<u8> = (0..200).map(|k| (199 - k) as u8).collect();
+        let mut out = [0u8; BATCH];
+        let order = by_octant(&items, |k| dirs[k as usize], &mut out);
+        let octant = |k: u8| {
+            let d = dirs[k as usize];
+            (d.x < 0.0) as u8 | ((d.y < 0.0) as u8) << 1 | ((d.z < 0.0) as u8) << 2
+        };
+        let mut want = items.clone();
+        want.sort_by_key(|&k| octant(k));
+        assert_eq!(order, &want[..]);
+        assert!((0..8).all(|o| items.iter().any(|&k| octant(k) == o)));
+    }
 
     /// Every path of a batch is `trace_counted_with`'s to the bit — radiance and rays — on the
     /// builtin plain scenes (area light, environment, textures), through the pinhole and the
