@@ -857,7 +857,7 @@ mod tests {
     fn by_octant_groups_in_order() {
         let dirs: Vec<Vec3> = (0..200u32)
             .map(|k| {
-                let c = |shift: u32| match (k * 2_654_435_761) >> shift & 3 {
+                let c = |shift: u32| match k.wrapping_mul(2_654_435_761) >> shift & 3 {
                     0 => -1.0,
                     1 => 0.5,
                     2 => 0.0,
