@@ -5,9 +5,11 @@
 //! benchmark's small city), a bounce at a time in pixel order as the renderer's batches trace
 //! them, and replayed `ROUNDS` times (default 9). The sixteen-ray rows are hybrid packets where
 //! the processor has AVX-512 (else one ray at a time); the "by octant" rows group each 256 rays
-//! by their direction's octant first, as the batches do past the camera. Without the shading around them, a
-//! change to the walk shows in a second with less of the noise of a whole render: the minimum
-//! over the rounds is the figure to compare; the median says how noisy the machine was.
+//! by their direction's octant first, as the batches do past the camera (the recorded shadow
+//! rays are cosine-distributed about the normal, not aimed at a light). Without the shading
+//! around them, a change to the walk shows in a second with less of the noise of a whole
+//! render: the minimum over the rounds is the figure to compare; the median says how noisy the
+//! machine was.
 
 use std::hint::black_box;
 use std::time::Instant;
