@@ -8,13 +8,23 @@ in one run mean anything (BENCHMARKS.md).
 
 Scenes, sizes and settings are bench_peers.py's (its Lambert copies, 1280 x 720, 8 spp,
 --max-depth 8, 2 threads by default); needs numpy (the GLB rewrite), not Mitsuba.
+
+    python3 tools/peers/ab_raygun.py --side-by-side --rounds 8 before/raygun after/raygun
+
+--side-by-side runs the two builds at the same time, one thread each, each pinned to a core of
+its own (the cores swapped every round), and reports each round's ratio: both builds meet the
+same moments of a shared machine's noise, which drifts by more than a small change is worth
+between one run and the next (BENCHMARKS.md, eighth session: a build against itself gave
+x1.006, rounds 0.95-1.08). Needs two cores and exactly two builds.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import statistics
+import subprocess
 import sys
 import tempfile
 
@@ -35,7 +45,11 @@ def main() -> None:
     ap.add_argument("--threads", type=int, default=os.cpu_count() or 1)
     ap.add_argument("--scenes", help="comma-separated subset of " +
                     ",".join(s[0] for s in bench_peers.SCENES))
+    ap.add_argument("--side-by-side", action="store_true",
+                    help="two builds at once, one thread and one core each, swapped per round")
     a = ap.parse_args()
+    if a.rounds < 1:
+        sys.exit("ab_raygun: --rounds must be at least 1")
     for b in a.binaries:
         if not os.access(b, os.X_OK):
             sys.exit(f"ab_raygun: {b}: not an executable")
@@ -44,6 +58,9 @@ def main() -> None:
     if unknown:
         sys.exit(f"ab_raygun: unknown scene(s): {', '.join(sorted(unknown))}")
     envs = {name: env for name, _, env in bench_peers.SCENES}
+    if a.side_by_side:
+        side_by_side(a, wanted, envs)
+        return
     times: dict[tuple[str, str], list[float]] = {}
     with tempfile.TemporaryDirectory() as tmp:
         files = bench_peers.lambert_copies(tmp)
@@ -65,6 +82,50 @@ def main() -> None:
             m = statistics.median(t)
             cells.append(f"{m:.1f} ({min(t):.0f}-{max(t):.0f}) x{m / base:.3f}")
         print(f"| {name} | " + " | ".join(cells) + " |")
+
+
+def side_by_side(a, wanted: list[str], envs: dict[str, str]) -> None:
+    """The two builds at once per round and scene, one thread each, on two cores swapped
+    every round; each round's ratio (second / first), and their median."""
+    if len(a.binaries) != 2:
+        sys.exit("ab_raygun: --side-by-side compares exactly two builds")
+    cores = sorted(os.sched_getaffinity(0))
+    if len(cores) < 2:
+        sys.exit("ab_raygun: --side-by-side needs two cores; this process may use "
+                 f"{len(cores)}")
+    pair = cores[:2]
+    ratios: dict[str, list[float]] = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        files = bench_peers.lambert_copies(tmp)
+        for r in range(a.rounds):
+            for name in wanted:
+                order = pair if r % 2 == 0 else pair[::-1]
+                procs = []
+                for b, core in zip(a.binaries, order):
+                    cmd = [b, "bench", "trace", "--backend", "cpu", "--scene", files[name],
+                           "--size", a.size, "--spp", str(a.spp), "--max-depth",
+                           str(a.max_depth), "--env", envs[name], "--json"]
+                    procs.append(subprocess.Popen(
+                        cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                        env=dict(os.environ, RAYON_NUM_THREADS="1"),
+                        preexec_fn=lambda core=core: os.sched_setaffinity(0, {core})))
+                ms = []
+                for b, p in zip(a.binaries, procs):
+                    out, err = p.communicate()
+                    if p.returncode != 0:
+                        sys.exit(f"ab_raygun: {b} failed:\n{err[-2000:]}")
+                    row = json.loads(out[out.index("{"):])["rows"][0]
+                    ms.append(row["ms_per_megasample"])
+                ratios.setdefault(name, []).append(ms[1] / ms[0])
+                print(f"  round {r + 1} {name:13s} {ms[0]:.1f} / {ms[1]:.1f} ms/Msample "
+                      f"(cores {order[0]}, {order[1]}): x{ms[1] / ms[0]:.3f}", flush=True)
+    print(f"\n{a.binaries[1]} / {a.binaries[0]}, side by side, one thread each: median of "
+          f"{a.rounds} rounds' ratios (min-max)")
+    print("| scene | ratio |")
+    print("|---|---|")
+    for name in wanted:
+        t = ratios[name]
+        print(f"| {name} | x{statistics.median(t):.3f} ({min(t):.3f}-{max(t):.3f}) |")
 
 
 if __name__ == "__main__":
