@@ -69,6 +69,11 @@ fn bad_arguments_are_refused_in_one_line() {
             "--train needs one executable",
         ),
         (&["--bogus"][..], "unknown option --bogus"),
+        (
+            &["tools"][..],
+            "OUT is the binary's path, one file, not a folder",
+        ),
+        (&["a", "b"][..], "OUT is the binary's path"),
     ] {
         let o = script(args);
         let log = stderr(&o);

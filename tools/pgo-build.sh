@@ -80,6 +80,10 @@ case ${1:-} in
     ;;
 esac
 out=${1:-target/pgo/raygun}
+if [ $# -gt 1 ] || [ -d "$out" ]; then
+  echo "pgo-build: OUT is the binary's path, one file, not a folder (got: $*)" >&2
+  exit 2
+fi
 
 host=$(rustc -vV | sed -n 's/^host: //p')
 profdata="$(rustc --print sysroot)/lib/rustlib/$host/bin/llvm-profdata"
