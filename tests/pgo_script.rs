@@ -6,10 +6,15 @@
 use std::process::{Command, Output};
 
 fn script(args: &[&str]) -> Output {
+    script_in(env!("CARGO_MANIFEST_DIR"), args)
+}
+
+/// The script run from `dir`.
+fn script_in(dir: &str, args: &[&str]) -> Output {
     Command::new("bash")
-        .arg("tools/pgo-build.sh")
+        .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/tools/pgo-build.sh"))
         .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .current_dir(dir)
         .env("XDG_RUNTIME_DIR", std::env::temp_dir())
         .output()
         .unwrap()
@@ -55,6 +60,16 @@ fn a_failing_training_run_stops_the_script_and_names_the_run() {
         "{log}"
     );
     assert_eq!(log.matches("  raygun ").count(), 1, "{log}");
+}
+
+#[test]
+fn a_relative_binary_is_the_callers() {
+    // Run from /bin, `./false` is /bin/false (found, and failing its first run), not a file
+    // in the repository the script works from.
+    let o = script_in("/bin", &["--train", "./false"]);
+    let log = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{log}");
+    assert!(log.contains("the training run failed"), "{log}");
 }
 
 #[test]

@@ -2,7 +2,7 @@
 # raygun built with profile-guided optimisation (PGO): the CPU twin's fastest binary, for a
 # machine with no GPU (the twin is then the renderer) and for the peer benchmark.
 #
-#   bash tools/pgo-build.sh [OUT]        # default OUT: target/pgo/raygun
+#   bash tools/pgo-build.sh [OUT]        # default OUT: the repository's target/pgo/raygun
 #   bash tools/pgo-build.sh --train BIN  # only the training runs, with BIN (a check)
 #
 # Three steps, each in its own folder under target/pgo/ (the ordinary target/release is left
@@ -24,8 +24,17 @@
 # Needs the toolchain's llvm-tools (`rustup component add llvm-tools`; added here when missing
 # and rustup is present). Settings (environment): PGO_TRAIN_THREADS (default 2).
 set -euo pipefail
+caller=$PWD
 cd "$(dirname "$0")/.."
 ROOT=$PWD
+
+# A relative path on the command line is the caller's (the script works from the repository).
+from_caller() {
+  case $1 in
+    /*) echo "$1" ;;
+    *) echo "$caller/$1" ;;
+  esac
+}
 
 peers=tests/data/peers/scenes
 
@@ -66,11 +75,11 @@ case ${1:-} in
     exit 0
     ;;
   --train)
-    if [ $# -ne 2 ] || [ ! -x "$2" ]; then
+    if [ $# -ne 2 ] || [ ! -x "$(from_caller "$2")" ]; then
       echo "pgo-build: --train needs one executable raygun binary (got: ${*:2})" >&2
       exit 2
     fi
-    train_all "$2"
+    train_all "$(from_caller "$2")"
     echo "pgo-build: every training run finished" >&2
     exit 0
     ;;
@@ -79,7 +88,7 @@ case ${1:-} in
     exit 2
     ;;
 esac
-out=${1:-target/pgo/raygun}
+out=$(from_caller "${1:-$ROOT/target/pgo/raygun}")
 if [ $# -gt 1 ] || [ -d "$out" ]; then
   echo "pgo-build: OUT is the binary's path, one file, not a folder (got: $*)" >&2
   exit 2
@@ -139,7 +148,7 @@ if [ -x target/release/raygun ]; then
   for case in "builtin:city-small 1,1,1" "builtin:cornell-light 0,0,0" "$peers/glossy.glb 1,1,1"; do
     read -r scene env <<<"$case"
     for bin in target/release/raygun "$out"; do
-      "$bin" render --backend cpu --scene "$scene" --env "$env" --size 96,54 --spp 4 \
+      "$bin" render --backend cpu --scene "$scene" --env "$env" --size 96,54 --spp 4 --quiet \
         --out "$tmp/$([ "$bin" = "$out" ] && echo pgo || echo release).exr" >/dev/null
     done
     if ! cmp -s "$tmp/release.exr" "$tmp/pgo.exr"; then
