@@ -13,12 +13,13 @@
 #      punctual lights, the wall camera) and the guided benchmark (DGI, schedule, filter) — at
 #      small sizes, about ten seconds on two cores; the counts are merged with the toolchain's
 #      llvm-profdata into target/pgo/raygun.profdata;
-#   3. a release build that uses them (-Cprofile-use) in target/pgo/use, copied to OUT.
+#   3. a release build that uses them (-Cprofile-use) in target/pgo/use, copied to OUT once
+#      it renders what the ordinary build renders.
 # The two builds take as long as two release builds from scratch (about 16 minutes here).
 #
 # What PGO changes: the compiler's layout and inlining of the code the training ran most (the
 # walks, the shading, the batch loop); not one floating-point operation — the binary renders
-# the same pixels to the bit (checked at the end against target/release/raygun when it exists).
+# the same pixels to the bit (checked against target/release/raygun when it exists).
 # Measured in BENCHMARKS.md (the CPU twin against Mitsuba 3).
 #
 # Needs the toolchain's llvm-tools (`rustup component add llvm-tools`; added here when missing
@@ -38,24 +39,23 @@ from_caller() {
 
 peers=tests/data/peers/scenes
 
-# The training set, run with `$1` (its counts go where LLVM_PROFILE_FILE says, when it is an
-# instrumented build).
+# The training set, run with the binary `$bin` (its counts go where LLVM_PROFILE_FILE says,
+# when it is an instrumented build).
+train() {
+  echo "  raygun $*" >&2
+  if ! "$bin" "$@" >/dev/null; then
+    echo "pgo-build: the training run failed: raygun $*" >&2
+    exit 1
+  fi
+}
+trace() { # SCENE ENV [extra…]
+  local scene=$1 env=$2
+  shift 2
+  train bench trace --backend cpu --scene "$scene" --env "$env" --size 320,180 --spp 4 \
+    --max-depth 8 "$@"
+}
 train_all() {
-  local bin=$1
   export RAYON_NUM_THREADS=${PGO_TRAIN_THREADS:-2}
-  train() {
-    echo "  raygun $*" >&2
-    if ! "$bin" "$@" >/dev/null; then
-      echo "pgo-build: the training run failed: raygun $*" >&2
-      exit 1
-    fi
-  }
-  trace() { # SCENE ENV [extra…]
-    local scene=$1 env=$2
-    shift 2
-    train bench trace --backend cpu --scene "$scene" --env "$env" --size 320,180 --spp 4 \
-      --max-depth 8 "$@"
-  }
   trace builtin:cornell-light 0,0,0
   trace builtin:cornell 1,1,1
   trace builtin:city-small 1,1,1
@@ -71,15 +71,16 @@ train_all() {
 
 case ${1:-} in
   -h | --help)
-    sed -n '2,25p' "$0" | sed 's/^# \{0,1\}//'
+    sed -n '2,26p' "$0" | sed 's/^# \{0,1\}//'
     exit 0
     ;;
   --train)
-    if [ $# -ne 2 ] || [ ! -x "$(from_caller "$2")" ]; then
+    bin=$(from_caller "${2:-}")
+    if [ $# -ne 2 ] || [ ! -x "$bin" ]; then
       echo "pgo-build: --train needs one executable raygun binary (got: ${*:2})" >&2
       exit 2
     fi
-    train_all "$(from_caller "$2")"
+    train_all
     echo "pgo-build: every training run finished" >&2
     exit 0
     ;;
@@ -131,32 +132,38 @@ build "$pgo/gen" "-Cprofile-generate=$profiles"
 
 echo "pgo-build: 2/3 training runs" >&2
 export LLVM_PROFILE_FILE="$profiles/raygun-%p-%m.profraw"
-train_all "$pgo/gen/release/raygun"
+bin=$pgo/gen/release/raygun
+train_all
 unset LLVM_PROFILE_FILE
 "$profdata" merge -o "$pgo/raygun.profdata" "$profiles"
 
 echo "pgo-build: 3/3 optimised build (target/pgo/use)" >&2
 build "$pgo/use" "-Cprofile-use=$pgo/raygun.profdata"
-mkdir -p "$(dirname "$out")"
-cp "$pgo/use/release/raygun" "$out.tmp"
-mv "$out.tmp" "$out"
+built=$pgo/use/release/raygun
 
-# The same pixels as the ordinary build, where there is one to compare with.
+# The same pixels as the ordinary build, where there is one to compare with, before OUT is
+# written.
 if [ -x target/release/raygun ]; then
   tmp=$(mktemp -d)
   trap 'rm -rf "$tmp"' EXIT
+  render() { # BIN NAME SCENE ENV
+    "$1" render --backend cpu --scene "$3" --env "$4" --size 96,54 --spp 4 --quiet \
+      --out "$tmp/$2.exr" >/dev/null
+  }
   for case in "builtin:city-small 1,1,1" "builtin:cornell-light 0,0,0" "$peers/glossy.glb 1,1,1"; do
     read -r scene env <<<"$case"
-    for bin in target/release/raygun "$out"; do
-      "$bin" render --backend cpu --scene "$scene" --env "$env" --size 96,54 --spp 4 --quiet \
-        --out "$tmp/$([ "$bin" = "$out" ] && echo pgo || echo release).exr" >/dev/null
-    done
+    render target/release/raygun release "$scene" "$env"
+    render "$built" pgo "$scene" "$env"
     if ! cmp -s "$tmp/release.exr" "$tmp/pgo.exr"; then
-      echo "pgo-build: $out renders other pixels than target/release/raygun ($scene;" \
+      echo "pgo-build: $built renders other pixels than target/release/raygun ($scene;" \
         "is target/release/raygun built from these sources?)" >&2
       exit 1
     fi
   done
   echo "pgo-build: the same pixels as target/release/raygun (three scenes, 96×54, 4 spp)" >&2
 fi
+
+mkdir -p "$(dirname "$out")"
+cp "$built" "$out.tmp"
+mv "$out.tmp" "$out"
 echo "pgo-build: $out" >&2
