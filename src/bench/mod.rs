@@ -5,6 +5,7 @@ pub mod all;
 pub mod cluster;
 pub mod dgi;
 pub mod filter;
+pub mod font;
 pub mod guided;
 pub mod native;
 pub mod paper;
