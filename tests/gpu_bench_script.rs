@@ -6,7 +6,7 @@
 use std::path::Path;
 use std::process::Command;
 
-const GROUPS: [&str; 11] = [
+const GROUPS: [&str; 12] = [
     "adapter",
     "dgi",
     "schedule",
@@ -15,12 +15,17 @@ const GROUPS: [&str; 11] = [
     "native",
     "filter",
     "all-quick",
-    "all",
     "wall",
     "cluster",
+    "sizes",
+    "all",
 ];
 
 fn smoke(out: &Path, limit_s: Option<u32>) -> std::process::Output {
+    smoke_groups(out, limit_s, None)
+}
+
+fn smoke_groups(out: &Path, limit_s: Option<u32>, groups: Option<&str>) -> std::process::Output {
     let mut c = Command::new("bash");
     c.args(["tools/gpu-bench.sh", "smoke"])
         .current_dir(env!("CARGO_MANIFEST_DIR"))
@@ -29,6 +34,9 @@ fn smoke(out: &Path, limit_s: Option<u32>) -> std::process::Output {
         .env("XDG_RUNTIME_DIR", std::env::temp_dir());
     if let Some(l) = limit_s {
         c.env("GPU_BENCH_LIMIT_S", l.to_string());
+    }
+    if let Some(g) = groups {
+        c.env("GPU_BENCH_GROUPS", g);
     }
     c.output().unwrap()
 }
@@ -92,6 +100,8 @@ fn the_smoke_run_leaves_a_summary_and_a_tarball_that_names_every_group() {
         "all-quick/report.md",
         "adapter/adapter.json",
         "cluster/cluster.md",
+        "sizes/trace-16x9.md",
+        "sizes/trace-8x4.md",
     ] {
         let p = unpacked.join(table);
         assert!(
@@ -120,5 +130,31 @@ fn groups_that_would_overrun_the_budget_are_skipped_and_said_so() {
     assert!(row("adapter").contains("| ok |"), "{summary}");
     assert!(row("all").contains("skipped"), "{}", row("all"));
     assert!(row("all").contains("budget"), "{}", row("all"));
+    std::fs::remove_dir_all(&out).ok();
+}
+
+#[test]
+fn a_rerun_runs_only_the_groups_named_in_the_scripts_order() {
+    let out = fresh("subset");
+    let o = smoke_groups(&out, None, Some("guided adapter"));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let summary = std::fs::read_to_string(out.join("summary.md")).unwrap();
+    let rows: Vec<&str> = summary
+        .lines()
+        .filter(|l| l.starts_with("| ") && !l.starts_with("| group"))
+        .filter(|l| GROUPS.iter().any(|g| l.starts_with(&format!("| {g} |"))))
+        .collect();
+    assert_eq!(rows.len(), 2, "{summary}");
+    assert!(rows[0].starts_with("| adapter | ok |"), "{summary}");
+    assert!(rows[1].starts_with("| guided | ok |"), "{summary}");
+    std::fs::remove_dir_all(&out).ok();
+
+    // A name that is no group stops the script before any work, naming it.
+    let out = fresh("subset-bad");
+    let o = smoke_groups(&out, None, Some("adapter trace-sizes"));
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("'trace-sizes'"), "{err}");
+    assert!(!out.join("summary.md").exists());
     std::fs::remove_dir_all(&out).ok();
 }

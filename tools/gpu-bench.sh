@@ -22,7 +22,8 @@
 #
 # Settings (environment): RAYGUN_BIN (default .dev/raygun for run, target/release/raygun or
 # target/debug/raygun for smoke), GPU_BENCH_LIMIT_S (the whole run's budget: 420 for run, 120
-# for smoke), OUT (where the results go; required).
+# for smoke), GPU_BENCH_GROUPS (some groups only, by name, e.g. "adapter guided all" for a
+# rerun of what failed; default every group), OUT (where the results go; required).
 set -uo pipefail
 cd "$(dirname "$0")/.."
 
@@ -32,13 +33,24 @@ stage() {
   mkdir -p .dev
   cp target/release/raygun .dev/raygun
   strip .dev/raygun
-  if ! ls .gl/libvulkan1_*.deb >/dev/null 2>&1; then
+  # The shared libraries beyond the C and C++ runtimes (fontconfig, freetype and theirs: the
+  # plots' fonts), for a GPU machine whose image lacks them; `setup_device` uses only those
+  # it misses, so its own stay first.
+  rm -rf .dev/lib
+  mkdir -p .dev/lib
+  ldd .dev/raygun | awk '$2 == "=>" && $3 ~ /^\// {print $3}' \
+    | { grep -vE '/(libc|libm|libgcc_s|libstdc\+\+|libpthread|libdl|librt)\.so' || true; } \
+    | xargs -r cp -L -t .dev/lib
+  # The Vulkan loader, and glvnd's libraries that NVIDIA's driver library links against.
+  local pkgs="libvulkan1 libglvnd0 libegl1 libgl1 libglx0 libopengl0 libgles2" p need=""
+  for p in $pkgs; do ls ".gl/${p}_"*.deb >/dev/null 2>&1 || need="$need $p"; done
+  if [ -n "$need" ]; then
     mkdir -p .gl /tmp/amd64/partial
     local o='-oAPT::Architecture=amd64 -oAPT::Architectures=amd64 -oDir::State::Lists=/tmp/amd64'
     # shellcheck disable=SC2086
     apt-get $o update -qq
     # shellcheck disable=SC2086
-    (cd .gl && apt-get $o download libvulkan1)
+    (cd .gl && apt-get $o download $need)
   fi
   du -ch .dev .gl | tail -1
   echo 'staged: run with carry [".dev", ".gl"] and `bash tools/gpu-bench.sh run`'
@@ -48,22 +60,52 @@ stage() {
 setup_device() {
   for f in .gl/*.deb; do dpkg -x "$f" /; done
   ldconfig
-  if ! "$BIN" bench adapter >/dev/null 2>&1 \
-     || "$BIN" bench adapter 2>/dev/null | grep -q '^adapter: llvmpipe'; then
-    export VK_DRIVER_FILES=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
+  # Libraries the image lacks, from the ones staged beside the binary, a round per level of
+  # dependence (fontconfig needs freetype, which needs libpng ...).
+  local libs missing changed=1
+  libs="$(mktemp -d)"
+  while [ "$changed" = 1 ]; do
+    changed=0
+    for missing in $(LD_LIBRARY_PATH="$libs" ldd "$BIN" | awk '/not found/ {print $1}'); do
+      if [ -e ".dev/lib/$missing" ]; then cp ".dev/lib/$missing" "$libs/"; changed=1; fi
+    done
+  done
+  if [ -n "$(ls -A "$libs")" ]; then
+    export LD_LIBRARY_PATH="$libs${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
+    echo "libraries from .dev/lib: $(ls "$libs" | tr '\n' ' ')"
   fi
+  # No adapter, or only Mesa's software one: point the loader at NVIDIA's driver manifest.
+  local first f
+  first="$("$BIN" bench adapter 2>/dev/null | grep -m1 '^adapter:')"
+  if [ -z "$first" ] || [[ "$first" == *llvmpipe* ]]; then
+    for f in /usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json \
+      /usr/share/vulkan/icd.d/nvidia_icd.json /etc/vulkan/icd.d/nvidia_icd.json; do
+      if [ -e "$f" ]; then export VK_DRIVER_FILES="$f"; break; fi
+    done
+    f=/usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json
+    [ -e "$f" ] && export __EGL_VENDOR_LIBRARY_FILENAMES="$f"
+    echo "VK_DRIVER_FILES=${VK_DRIVER_FILES:-unset}"
+  fi
+  first="$("$BIN" bench adapter 2>/dev/null | grep -m1 '^adapter:')"
+  if [ -z "$first" ]; then
+    # Still none: say why (the loader's own errors), so one run is enough to fix it.
+    VK_LOADER_DEBUG=error,warn "$BIN" bench adapter 2>&1 | head -40
+  fi
+  echo "${first:-adapter: none found}"
   nvidia-smi --query-gpu=name,driver_version,memory.total,clocks.max.sm,clocks.max.mem --format=csv || true
   lscpu | grep -E 'Model name|^CPU\(s\)' || true
 }
 
 # The groups, most important first: NAME BUDGET_SECONDS (the H200's; smoke mode has its own).
-BENCH_GROUPS=(adapter dgi schedule trace guided native filter all-quick all wall cluster)
+# The full report goes last: on an H200 it runs for minutes (its 4K convergence curves), and
+# takes what the others leave.
+BENCH_GROUPS=(adapter dgi schedule trace guided native filter all-quick wall cluster sizes all)
 declare -A BUDGET=([adapter]=20 [dgi]=60 [schedule]=30 [trace]=90 [guided]=120 [native]=60
-  [filter]=45 [all-quick]=60 [all]=150 [wall]=60 [cluster]=60)
+  [filter]=45 [all-quick]=60 [wall]=60 [cluster]=60 [sizes]=40 [all]=300)
 declare -A SMOKE_BUDGET=([adapter]=10 [dgi]=20 [schedule]=20 [trace]=20 [guided]=40
-  [native]=20 [filter]=30 [all-quick]=60 [all]=60 [wall]=20 [cluster]=20)
+  [native]=20 [filter]=30 [all-quick]=60 [wall]=20 [cluster]=20 [sizes]=20 [all]=60)
 
-# One group's command line (printed, then run by `run_group`), for size S.
+# One group's command line (printed, then run by `bash -c` in `run_groups`).
 group_command() {
   local g="$1" d="$2"
   local s="$SIZE"
@@ -93,6 +135,11 @@ group_command() {
         echo "$BIN bench guided --cluster --cluster-threads 1 --backend gpu --size $s --fov 10,60 --iterations $CLUSTER_ITERATIONS $CLUSTER_MODEL --out $d/cluster.md"
       fi
       ;;
+    sizes)
+      # The full frame at smaller launches: how ms per megasample grows as a launch holds fewer
+      # paths than the GPU has threads (a 10° iteration traces 2.9 % of 3840×2160).
+      echo "for s in $TRACE_SIZES; do $BIN bench trace --backend gpu --size \$s --scene builtin:cornell,$CITY --spp $SPP --out $d/trace-\${s/,/x}.md || exit; done"
+      ;;
   esac
 }
 
@@ -107,6 +154,8 @@ run_groups() {
     budget=${BUDGETS[$g]}
     now=$(date +%s)
     left=$((LIMIT - (now - start)))
+    # The last group (the full report, on a whole run) takes all the time the others left.
+    if [ "$g" = "${BENCH_GROUPS[-1]}" ] && [ "$left" -gt "$budget" ]; then budget=$left; fi
     cmd=$(group_command "$g" "$d")
     if [ -z "$cmd" ]; then
       status="not in this build"
@@ -122,8 +171,7 @@ run_groups() {
     fi
     echo "== $g ($(date -u +%FT%TZ)), budget ${budget} s: $cmd" | tee "$d/$g.log"
     t0=$(date +%s)
-    # shellcheck disable=SC2086
-    timeout --signal=TERM --kill-after=5 "$budget" $cmd >>"$d/$g.log" 2>&1
+    timeout --signal=TERM --kill-after=5 "$budget" bash -c "$cmd" >>"$d/$g.log" 2>&1
     rc=$?
     t1=$(date +%s)
     case "$rc" in
@@ -175,7 +223,7 @@ main() {
       LIMIT="${GPU_BENCH_LIMIT_S:-420}"
       SIZE=3840,2160 REPS=20 SPP=4 ITERATIONS=100 REFERENCE_SPP=256 CITY=builtin:city
       ALL_QUICK_SIZE="" ALL_SIZE="" WALL_SIZE=native NATIVE_ITERATIONS=20 NATIVE_DISPLAY=""
-      CLUSTER_ITERATIONS=20 CLUSTER_MODEL=""
+      CLUSTER_ITERATIONS=20 CLUSTER_MODEL="" TRACE_SIZES="1920,1080 960,540 480,270"
       declare -gA BUDGETS
       for g in "${BENCH_GROUPS[@]}"; do BUDGETS[$g]=${BUDGET[$g]}; done
       ;;
@@ -188,6 +236,7 @@ main() {
       ALL_QUICK_SIZE="--size 16,9 --scene builtin:cornell" ALL_SIZE="--size 24,12 --scene builtin:cornell"
       WALL_SIZE=64,26 NATIVE_ITERATIONS=2 NATIVE_DISPLAY=tiny
       CLUSTER_ITERATIONS=2 CLUSTER_MODEL="--model-size 64,26 --model-ranks 3"
+      TRACE_SIZES="16,9 8,4"
       declare -gA BUDGETS
       for g in "${BENCH_GROUPS[@]}"; do BUDGETS[$g]=${SMOKE_BUDGET[$g]}; done
       export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-/tmp}"
@@ -197,6 +246,22 @@ main() {
       exit 2
       ;;
   esac
+  if [ -n "${GPU_BENCH_GROUPS:-}" ]; then
+    # A rerun of some groups (in the script's order), e.g. those the first run failed or skipped.
+    local want g known picked=()
+    for want in $GPU_BENCH_GROUPS; do
+      known=0
+      for g in "${BENCH_GROUPS[@]}"; do [ "$g" = "$want" ] && known=1; done
+      if [ "$known" = 0 ]; then
+        echo "GPU_BENCH_GROUPS: no group '$want' (groups: ${BENCH_GROUPS[*]})" >&2
+        exit 2
+      fi
+    done
+    for g in "${BENCH_GROUPS[@]}"; do
+      for want in $GPU_BENCH_GROUPS; do [ "$g" = "$want" ] && picked+=("$g"); done
+    done
+    BENCH_GROUPS=("${picked[@]}")
+  fi
   local out="${OUT:?set OUT to the folder for the results}"
   mkdir -p "$out"
   WORK="$(mktemp -d)/gpu-bench"
