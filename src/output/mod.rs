@@ -4,6 +4,7 @@
 use std::path::{Path, PathBuf};
 
 pub mod file;
+pub mod srgb8;
 pub mod tiles;
 
 pub use file::{FileError, check_folder, check_writable, replace_with, write_bytes};
@@ -170,12 +171,7 @@ pub fn write_rgb(
             })
         }
         Format::Png => {
-            let scale = exposure.exp2();
-            let bytes: Vec<u8> = pixels
-                .iter()
-                .flat_map(|p| p.to_array())
-                .map(|v| unit_to_u8(linear_to_srgb(v * scale)))
-                .collect();
+            let bytes = srgb8::display_rgb(pixels, exposure);
             let img =
                 image::RgbImage::from_raw(width, height, bytes).expect("length checked above");
             replace_with(path, |tmp| {

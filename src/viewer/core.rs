@@ -606,18 +606,7 @@ impl<'a> ViewerCore<'a> {
         self.stats.seconds_on_roi = self.roi_since.elapsed().as_secs_f64();
         let size = [acc.width, acc.height];
         let mut rgba = match self.state.overlay {
-            Overlay::Image => {
-                let scale = self.state.exposure.exp2();
-                image
-                    .iter()
-                    .flat_map(|p| {
-                        let s = |v: f32| {
-                            crate::output::unit_to_u8(crate::output::linear_to_srgb(v * scale))
-                        };
-                        [s(p.x), s(p.y), s(p.z), 255]
-                    })
-                    .collect()
-            }
+            Overlay::Image => crate::output::srgb8::display_rgba(&image, self.state.exposure),
             Overlay::Dgi => dgi
                 .iter()
                 .flat_map(|&d| {

@@ -68,17 +68,11 @@ impl<'a> TilesApp<'a> {
     /// The tiles' pictures as textures (sRGB at `exposure` stops, as the viewer shows).
     fn show(&mut self, ctx: &egui::Context, pictures: &[TilePicture], exposure: f32) {
         let model = self.view.model();
-        let scale = exposure.exp2();
-        let s = |v: f32| crate::output::unit_to_u8(crate::output::linear_to_srgb(v * scale));
         self.textures = pictures
             .iter()
             .map(|p| {
                 let [w, h] = model.tiles()[p.tile].resolution();
-                let rgba: Vec<u8> = p
-                    .pixels
-                    .iter()
-                    .flat_map(|c| [s(c.x), s(c.y), s(c.z), 255])
-                    .collect();
+                let rgba = crate::output::srgb8::display_rgba(&p.pixels, exposure);
                 let image =
                     egui::ColorImage::from_rgba_unmultiplied([w as usize, h as usize], &rgba);
                 let name = format!("tile {}", model.tiles()[p.tile].id());

@@ -29,14 +29,7 @@ use super::AllBenchError;
 /// (`ViewerCore::picture` with the image overlay).
 #[must_use]
 pub fn display_rgba(image: &[Vec3], exposure: f32) -> Vec<u8> {
-    let scale = exposure.exp2();
-    image
-        .iter()
-        .flat_map(|p| {
-            let s = |v: f32| crate::output::unit_to_u8(crate::output::linear_to_srgb(v * scale));
-            [s(p.x), s(p.y), s(p.z), 255]
-        })
-        .collect()
+    crate::output::srgb8::display_rgba(image, exposure)
 }
 
 /// One FOV's stage times (ms). Stage columns are means over the iterations, so that they add
