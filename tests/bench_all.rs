@@ -425,13 +425,23 @@ fn check_stages(md: &str, json: &serde_json::Value) -> Vec<serde_json::Value> {
             sum <= mean + SLACK_MS,
             "{fov}°: stages {sum} ms > iteration {mean} ms"
         );
-        assert!((num(&r["other_ms"]) - (mean - sum)).abs() <= SLACK_MS);
+        let (readback, transfer) = (num(&r["readback_ms"]), num(&r["filter_transfer_ms"]));
+        assert!(readback > 0.0, "{fov}°: the read-back is timed");
+        assert!(transfer >= 0.0, "{fov}°");
+        assert!(
+            sum + readback + transfer <= mean + SLACK_MS,
+            "{fov}°: stages and transfers {} ms > iteration {mean} ms",
+            sum + readback + transfer
+        );
+        assert!((num(&r["other_ms"]) - (mean - sum - readback - transfer)).abs() <= SLACK_MS);
         assert!(num(&r["iteration_ms_min"]) <= num(&r["iteration_ms_median"]));
         let target = dgi + num(&r["schedule_ms"]) + num(&r["trace_ms"]) + num(&r["filter_ms"]);
         assert!((num(&r["target_iteration_ms"]) - target).abs() <= SLACK_MS);
         let cells = row_cells(md, "## Per-stage times per iteration", &format!("{fov}°"));
         assert_eq!(cells[10], format!("{:.3}", num(&r["stage_sum_ms"])));
         assert_eq!(cells[13], format!("{:.3}", num(&r["target_iteration_ms"])));
+        assert_eq!(cells[14], format!("{:.3}", readback));
+        assert_eq!(cells[15], format!("{:.3}", transfer));
     }
     // The 60° ROI samples a larger share of the image than the 10° one.
     assert!(num(&rows[0]["share_sampled"]) < num(&rows[1]["share_sampled"]));

@@ -56,7 +56,13 @@ pub struct StageRow {
     pub iteration_ms_mean: f64,
     pub iteration_ms_median: f64,
     pub iteration_ms_min: f64,
-    /// iteration_ms_mean − stage_sum_ms: read-backs, uploads, waits, bookkeeping.
+    /// The accumulation's and the DGI's read-back (GPU; the CPU twin clones them).
+    pub readback_ms: f64,
+    /// The filter's wall clock beyond its kernels: its inputs' upload, its preparation and its
+    /// picture's read-back (GPU; about 0 on the CPU, where the filter's time is its wall clock).
+    pub filter_transfer_ms: f64,
+    /// iteration_ms_mean − stage_sum_ms − readback_ms − filter_transfer_ms: the frame's
+    /// submission and waits, bookkeeping.
     pub other_ms: f64,
     /// The target iteration on the iteration with an ROI change: DGI + schedule +
     /// trace + fast filter (display excluded).
@@ -94,6 +100,7 @@ pub fn measure(
     let n = iterations.max(1);
     let (mut dgi_change, mut stamps) = (None, matches!(backend, Backend::Cpu));
     let (mut sched, mut trace, mut filt, mut disp) = (0f64, 0f64, 0f64, 0f64);
+    let (mut readback, mut transfer) = (0f64, 0f64);
     let (mut walls, mut pixels) = (Vec::new(), 0u64);
     for i in 0..n {
         let t0 = Instant::now();
@@ -103,9 +110,14 @@ pub fn measure(
             g.set_roi(Some(roi))?;
         }
         let s = g.run_frame(true)?;
+        let t = Instant::now();
         let acc = g.accumulation()?;
         let dgi = g.dgi()?;
+        let ms_readback = t.elapsed().as_secs_f64() * 1e3;
+        let t = Instant::now();
         let (image, ms_filter, stamped) = filter_stage.timed_image(filter, &acc, &dgi)?;
+        // The kernels' time is at most the call's wall clock (timestamps lie inside it).
+        let ms_transfer = (t.elapsed().as_secs_f64() * 1e3 - ms_filter).max(0.0);
         let t = Instant::now();
         let rgba = display_rgba(&image, exposure);
         std::hint::black_box(&rgba);
@@ -122,9 +134,12 @@ pub fn measure(
         trace += s.ms_trace.unwrap_or(0.0);
         filt += ms_filter;
         disp += ms_display;
+        readback += ms_readback;
+        transfer += ms_transfer;
     }
     let k = f64::from(n);
     let (sched, trace, filt, disp) = (sched / k, trace / k, filt / k, disp / k);
+    let (readback, transfer) = (readback / k, transfer / k);
     let dgi_amortised = dgi_change.unwrap_or(0.0) / k;
     let stage_sum = dgi_amortised + sched + trace + filt + disp;
     let mean = walls.iter().sum::<f64>() / k;
@@ -143,7 +158,9 @@ pub fn measure(
         iteration_ms_median: crate::bench::median(walls.clone()),
         iteration_ms_min: walls.iter().copied().fold(f64::INFINITY, f64::min),
         iteration_ms_mean: mean,
-        other_ms: mean - stage_sum,
+        readback_ms: readback,
+        filter_transfer_ms: transfer,
+        other_ms: mean - stage_sum - readback - transfer,
         target_iteration_ms: dgi_change.unwrap_or(0.0) + sched + trace + filt,
         gpu_timestamps: stamps,
     })
@@ -153,11 +170,11 @@ pub fn measure(
 #[must_use]
 pub fn markdown(rows: &[StageRow], device: &str) -> String {
     let mut s = format!(
-        "Device: {device}. Means over the iterations (ms), so the stages add up; the wall clock of whole iterations is given as mean, median and min. *Display* = the viewer's conversion of the filtered image to the 8-bit sRGB RGBA texture it uploads (CPU); *other* = the rest of the wall clock (read-backs of the accumulation and DGI, the filter's upload and read-back on the GPU, waits). Filter and display run every iteration here. The *target iteration* is DGI on a change + mask/compaction + trace + fast filter.\n\n| FOV | size | iterations | share sampled | DGI per change | DGI amortised | mask+compaction | trace | filter | display | sum of stages | other | iteration (mean / median / min) | target iteration |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n"
+        "Device: {device}. Means over the iterations (ms), so the stages add up; the wall clock of whole iterations is given as mean, median and min. *Display* = the viewer's conversion of the filtered image to the 8-bit sRGB RGBA texture it uploads (CPU); *read-back* = the accumulation's and the DGI's read-back (a copy on the CPU); *filter transfers* = the filter's wall clock beyond its kernels (its inputs' upload, preparation, its picture's read-back; about 0 on the CPU); *other* = the rest of the wall clock (the frame's submission and waits, bookkeeping). Filter and display run every iteration here. The *target iteration* is DGI on a change + mask/compaction + trace + fast filter.\n\n| FOV | size | iterations | share sampled | DGI per change | DGI amortised | mask+compaction | trace | filter | display | sum of stages | other | iteration (mean / median / min) | target iteration | read-back | filter transfers |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n"
     );
     for r in rows {
         s += &format!(
-            "| {}° | {}×{} | {} | {:.2} % | {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} / {:.3} / {:.3} | {:.3} |\n",
+            "| {}° | {}×{} | {} | {:.2} % | {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} / {:.3} / {:.3} | {:.3} | {:.3} | {:.3} |\n",
             r.fov_deg,
             r.size[0],
             r.size[1],
@@ -176,6 +193,8 @@ pub fn markdown(rows: &[StageRow], device: &str) -> String {
             r.iteration_ms_median,
             r.iteration_ms_min,
             r.target_iteration_ms,
+            r.readback_ms,
+            r.filter_transfer_ms,
         );
     }
     s
