@@ -209,6 +209,19 @@ fn bench_guided_report_is_consistent() {
         assert_eq!(row.equal_time_full_spp, spp);
     }
     assert!(narrow.roi_pixels > 0 && wide.roi_pixels > narrow.roi_pixels);
+    // The CPU twin counts rays: every sample casts its camera ray, and at most a closest-hit
+    // and a shadow ray per vertex up to one past the maximum depth.
+    let most = 2.0 * f64::from(report.config.max_depth + 1);
+    let full_rays = report.full_frame[0].rays_per_sample.unwrap();
+    for r in [
+        full_rays,
+        narrow.rays_per_sample.unwrap(),
+        wide.rays_per_sample.unwrap(),
+    ] {
+        assert!((1.0..=most).contains(&r), "{r} rays a sample");
+    }
+    let md = raygun::bench::guided::markdown(&report);
+    assert!(md.contains(&format!("| {full_rays:.2} |")), "{md}");
     assert!(narrow.ms_dgi.is_some());
     // Every ROI pixel is traced every iteration; when that is at least twice the equal-time
     // full frame's samples (how many depends on the clock), the guided ROI must be the closer

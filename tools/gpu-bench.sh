@@ -258,7 +258,9 @@ main() {
       fi
     done
     for g in "${BENCH_GROUPS[@]}"; do
-      for want in $GPU_BENCH_GROUPS; do [ "$g" = "$want" ] && picked+=("$g"); done
+      for want in $GPU_BENCH_GROUPS; do
+        if [ "$g" = "$want" ]; then picked+=("$g"); break; fi
+      done
     done
     BENCH_GROUPS=("${picked[@]}")
   fi
@@ -266,8 +268,15 @@ main() {
   mkdir -p "$out"
   WORK="$(mktemp -d)/gpu-bench"
   mkdir -p "$WORK"
+  local dmon=""
   if [ "$MODE" = run ]; then
     setup_device >"$WORK/setup.log" 2>&1
+    # The GPU's clocks, power and load each second through the run: a kernel that ran slower in
+    # one group than in another is told apart from a GPU that had clocked down.
+    if command -v nvidia-smi >/dev/null 2>&1; then
+      nvidia-smi dmon -s pucm -d 1 -o T >"$WORK/dmon.log" 2>&1 &
+      dmon=$!
+    fi
   fi
   if [ "$NATIVE_DISPLAY" = tiny ]; then
     # Smoke: a 3×2 curved wall of 24×12-pixel tiles (lavapipe's 128 MiB bindings hold no
@@ -280,6 +289,7 @@ JSON
     NATIVE_DISPLAY="--display $WORK/tiny-wall.json"
   fi
   run_groups
+  if [ -n "$dmon" ]; then kill "$dmon" 2>/dev/null; wait "$dmon" 2>/dev/null; fi
   write_summary "$out"
   echo "wrote $out/summary.md and $out/gpu-bench.tar.gz"
   cat "$WORK/status.tsv"

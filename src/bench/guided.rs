@@ -65,6 +65,8 @@ pub struct FullFrameRow {
     pub scene: String,
     pub ms_per_frame: f64,
     pub ms_per_megasample: f64,
+    /// Rays traced per sample (closest-hit and shadow rays), where the backend counts them.
+    pub rays_per_sample: Option<f64>,
 }
 
 /// One scene × FOV × list order.
@@ -82,6 +84,9 @@ pub struct GuidedBenchRow {
     /// DGI time of the frame that recomputed it (ms).
     pub ms_dgi: Option<f64>,
     pub ms_per_megasample: f64,
+    /// Rays traced per sample over the guided iterations (closest-hit and shadow rays), where
+    /// the backend counts them: against the full frame's, whether the ROI's paths are longer.
+    pub rays_per_sample: Option<f64>,
     /// Full-frame ms per frame ÷ guided ms per iteration.
     pub speedup: f64,
     /// Total time of the guided iterations (ms); the full-frame render got the same time.
@@ -189,6 +194,8 @@ pub fn run(
             scene: name.clone(),
             ms_per_frame: ms_full,
             ms_per_megasample: ms_full / megapixels,
+            rays_per_sample: (timed.rays_per_iteration > 0.0)
+                .then(|| timed.rays_per_iteration / (megapixels * 1e6)),
         });
         drop(full);
         progress(&format!("{name}: reference ({} spp)", cfg.reference_spp));
@@ -219,9 +226,11 @@ pub fn run(
                 )?;
                 let (mut per_iter, mut sched, mut trace) = (Vec::new(), Vec::new(), Vec::new());
                 let (mut pixels, mut ms_dgi, mut stamps, mut total) = (0u64, None, false, 0.0);
+                let mut rays = Some(0u64);
                 for _ in 0..cfg.iterations.max(1) {
                     let s = g.run_frame(true)?;
                     pixels += u64::from(s.pixels.unwrap_or(0));
+                    rays = rays.zip(s.rays).map(|(a, b)| a + b);
                     if s.dgi_recomputed {
                         ms_dgi = s.ms_dgi;
                     }
@@ -264,6 +273,9 @@ pub fn run(
                     ms_trace: (!trace.is_empty()).then(|| median(trace)),
                     ms_dgi,
                     ms_per_megasample: ms_iter / (share * megapixels),
+                    rays_per_sample: rays
+                        .filter(|_| pixels > 0)
+                        .map(|r| r as f64 / pixels as f64),
                     speedup: ms_full / ms_iter,
                     guided_total_ms: total,
                     equal_time_full_spp: spp_eq,
@@ -294,20 +306,24 @@ fn backend_is_gpu(b: &Backend) -> bool {
 pub fn markdown(r: &GuidedBenchReport) -> String {
     let c = &r.config;
     let mut s = format!(
-        "Device: {}\n\nSetup: {}×{}, viewer at {:?} pointing {:?}, {} iterations per FOV, p_min {}, reference {} spp.\n\n| scene | full frame ms | ms/megasample |\n|---|---|---|\n",
+        "Device: {}\n\nSetup: {}×{}, viewer at {:?} pointing {:?}, {} iterations per FOV, p_min {}, reference {} spp.\n\n| scene | full frame ms | ms/megasample | rays/sample |\n|---|---|---|---|\n",
         r.device, c.size[0], c.size[1], c.origin, c.dir, c.iterations, c.p_min, c.reference_spp
     );
+    let rays = |v: Option<f64>| v.map_or("–".into(), |v| format!("{v:.2}"));
     for f in &r.full_frame {
         s += &format!(
-            "| {} | {:.2} | {:.2} |\n",
-            f.scene, f.ms_per_frame, f.ms_per_megasample
+            "| {} | {:.2} | {:.2} | {} |\n",
+            f.scene,
+            f.ms_per_frame,
+            f.ms_per_megasample,
+            rays(f.rays_per_sample)
         );
     }
-    s += "\n| scene | FOV | order | share sampled | ms/iteration | schedule ms | trace ms | DGI ms | ms/megasample | speed-up | equal-time full spp | ROI px | ROI rel. RMSE guided | ROI rel. RMSE full frame |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+    s += "\n| scene | FOV | order | share sampled | ms/iteration | schedule ms | trace ms | DGI ms | ms/megasample | speed-up | equal-time full spp | ROI px | ROI rel. RMSE guided | ROI rel. RMSE full frame | rays/sample |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
     let o = |v: Option<f64>| v.map_or("–".into(), |v| format!("{v:.3}"));
     for row in &r.rows {
         s += &format!(
-            "| {} | {}° | {:?} | {:.2} % | {:.3} | {} | {} | {} | {:.2} | {:.2}× | {} | {} | {:.4} | {:.4} |\n",
+            "| {} | {}° | {:?} | {:.2} % | {:.3} | {} | {} | {} | {:.2} | {:.2}× | {} | {} | {:.4} | {:.4} | {} |\n",
             row.scene,
             row.fov_deg,
             row.order,
@@ -322,6 +338,7 @@ pub fn markdown(r: &GuidedBenchReport) -> String {
             row.roi_pixels,
             row.rel_rmse_roi_guided,
             row.rel_rmse_roi_full,
+            rays(row.rays_per_sample),
         );
     }
     s += "\nThe paper (GTX 980, OptiX, Cornell box, 3840×2160): full frame 460 ms (55.46 ms/megasample); 10° 12.29 ms per iteration (37.43×); 60° 188 ms (2.44×).\n";
