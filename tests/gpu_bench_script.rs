@@ -6,7 +6,7 @@
 use std::path::Path;
 use std::process::Command;
 
-const GROUPS: [&str; 12] = [
+const GROUPS: [&str; 13] = [
     "adapter",
     "dgi",
     "schedule",
@@ -18,6 +18,7 @@ const GROUPS: [&str; 12] = [
     "wall",
     "cluster",
     "sizes",
+    "readback",
     "all",
 ];
 
@@ -102,6 +103,7 @@ fn the_smoke_run_leaves_a_summary_and_a_tarball_that_names_every_group() {
         "cluster/cluster.md",
         "sizes/trace-16x9.md",
         "sizes/trace-8x4.md",
+        "readback/readback.md",
     ] {
         let p = unpacked.join(table);
         assert!(

@@ -99,11 +99,13 @@ setup_device() {
 # The groups, most important first: NAME BUDGET_SECONDS (the H200's; smoke mode has its own).
 # The full report goes last: on an H200 it runs for minutes (its 4K convergence curves), and
 # takes what the others leave.
-BENCH_GROUPS=(adapter dgi schedule trace guided native filter all-quick wall cluster sizes all)
+BENCH_GROUPS=(adapter dgi schedule trace guided native filter all-quick wall cluster sizes readback
+  all)
 declare -A BUDGET=([adapter]=20 [dgi]=60 [schedule]=30 [trace]=90 [guided]=120 [native]=60
-  [filter]=45 [all-quick]=60 [wall]=60 [cluster]=60 [sizes]=40 [all]=300)
+  [filter]=45 [all-quick]=60 [wall]=60 [cluster]=60 [sizes]=40 [readback]=30 [all]=300)
 declare -A SMOKE_BUDGET=([adapter]=10 [dgi]=20 [schedule]=20 [trace]=20 [guided]=40
-  [native]=20 [filter]=30 [all-quick]=60 [wall]=20 [cluster]=20 [sizes]=20 [all]=60)
+  [native]=20 [filter]=30 [all-quick]=60 [wall]=20 [cluster]=20 [sizes]=20 [readback]=10
+  [all]=60)
 
 # One group's command line (printed, then run by `bash -c` in `run_groups`).
 group_command() {
@@ -139,6 +141,10 @@ group_command() {
       # The full frame at smaller launches: how ms per megasample grows as a launch holds fewer
       # paths than the GPU has threads (a 10° iteration traces 2.9 % of 3840×2160).
       echo "for s in $TRACE_SIZES; do $BIN bench trace --backend gpu --size \$s --scene builtin:cornell,$CITY --spp $SPP --out $d/trace-\${s/,/x}.md || exit; done"
+      ;;
+    readback)
+      # A picture's read-back through a fresh and a kept mappable buffer.
+      echo "$BIN bench readback --size $s --rounds $READBACK_ROUNDS --out $d/readback.md"
       ;;
   esac
 }
@@ -224,6 +230,7 @@ main() {
       SIZE=3840,2160 REPS=20 SPP=4 ITERATIONS=100 REFERENCE_SPP=256 CITY=builtin:city
       ALL_QUICK_SIZE="" ALL_SIZE="" WALL_SIZE=native NATIVE_ITERATIONS=20 NATIVE_DISPLAY=""
       CLUSTER_ITERATIONS=20 CLUSTER_MODEL="" TRACE_SIZES="1920,1080 960,540 480,270"
+      READBACK_ROUNDS=9
       declare -gA BUDGETS
       for g in "${BENCH_GROUPS[@]}"; do BUDGETS[$g]=${BUDGET[$g]}; done
       ;;
@@ -236,7 +243,7 @@ main() {
       ALL_QUICK_SIZE="--size 16,9 --scene builtin:cornell" ALL_SIZE="--size 24,12 --scene builtin:cornell"
       WALL_SIZE=64,26 NATIVE_ITERATIONS=2 NATIVE_DISPLAY=tiny
       CLUSTER_ITERATIONS=2 CLUSTER_MODEL="--model-size 64,26 --model-ranks 3"
-      TRACE_SIZES="16,9 8,4"
+      TRACE_SIZES="16,9 8,4" READBACK_ROUNDS=2
       declare -gA BUDGETS
       for g in "${BENCH_GROUPS[@]}"; do BUDGETS[$g]=${SMOKE_BUDGET[$g]}; done
       export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-/tmp}"

@@ -36,6 +36,37 @@ pub enum BenchCommand {
     /// the paper's table and the targets beside ours, into DIR: report.md, report.json,
     /// fig5.png, dgi_metrics.png, convergence.png.
     All(AllBenchArgs),
+    /// The accumulation's read-back from the GPU (16 bytes a pixel) through a fresh mappable
+    /// buffer and through a kept one, side by side: ms and GB/s.
+    Readback(ReadbackArgs),
+}
+
+#[derive(Clone, Debug, clap::Args)]
+pub struct ReadbackArgs {
+    /// Image size whose accumulation is read back.
+    #[arg(long, value_name = "W,H", default_value = "3840,2160", value_parser = crate::cli::args::parse_size)]
+    pub size: [u32; 2],
+    /// Rounds (each reads back both ways).
+    #[arg(long, default_value_t = 9)]
+    pub rounds: u32,
+    /// Print JSON instead of Markdown.
+    #[arg(long)]
+    pub json: bool,
+    /// Also write the output to this file.
+    #[arg(long, value_name = "FILE")]
+    pub out: Option<PathBuf>,
+}
+
+/// `raygun bench readback` (a GPU is required: there is nothing to read back on the CPU).
+fn run_readback(args: &ReadbackArgs) -> anyhow::Result<()> {
+    let ctx = crate::gpu::GpuContext::new()?;
+    let report = crate::bench::readback::run(&ctx, args.size, args.rounds)?;
+    let text = if args.json {
+        serde_json::to_string_pretty(&report)?
+    } else {
+        crate::bench::readback::markdown(&report)
+    };
+    print_and_save(&text, args.out.as_deref())
 }
 
 #[derive(Clone, Debug, clap::Args)]
@@ -614,6 +645,7 @@ fn check_before(cmd: &BenchCommand) -> anyhow::Result<()> {
         BenchCommand::Trace(a) => a.out.as_deref(),
         BenchCommand::Guided(a) => a.out.as_deref(),
         BenchCommand::Native(a) => a.out.as_deref(),
+        BenchCommand::Readback(a) => a.out.as_deref(),
         BenchCommand::All(a) => {
             crate::output::check_folder(&a.out).context("--out")?;
             None
@@ -651,6 +683,7 @@ pub fn run(cmd: &BenchCommand) -> anyhow::Result<()> {
         BenchCommand::Guided(args) => run_guided_bench(args),
         BenchCommand::Native(args) => run_native_bench(args),
         BenchCommand::All(args) => run_all_bench(args),
+        BenchCommand::Readback(args) => run_readback(args),
         BenchCommand::Dgi(args) => {
             let model = DisplayModel::open(&args.display)?.0;
             let surface = Surface::from_model(&model);

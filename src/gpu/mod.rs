@@ -196,7 +196,16 @@ pub struct GpuContext {
     pub timestamps: bool,
     /// What the adapter supports (not all of it is enabled).
     pub supported: wgpu::Features,
+    /// Mappable buffers kept between read-backs ([`STAGING_KEEP_BYTES`] in all; clones share
+    /// them): a viewer reads the same buffers back for every picture, and on a discrete GPU
+    /// each fresh mappable buffer is a fresh host allocation the driver must map for the GPU.
+    staging: std::sync::Arc<std::sync::Mutex<Vec<wgpu::Buffer>>>,
 }
+
+/// The most bytes of read-back staging buffers a context keeps for reuse (a 3840×2160
+/// picture's accumulation, counts, DGI and filtered image are 366 MB; a larger read-back
+/// still works, through a buffer of its own).
+pub const STAGING_KEEP_BYTES: u64 = 1 << 30;
 
 impl fmt::Debug for GpuContext {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
@@ -389,6 +398,7 @@ impl GpuContext {
             limits,
             timestamps,
             supported,
+            staging: std::sync::Arc::default(),
         })
     }
 
@@ -476,12 +486,7 @@ impl GpuContext {
         if size == 0 {
             return Ok(Vec::new());
         }
-        let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("raygun read-back"),
-            size,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let staging = self.take_staging(size);
         let mut enc = self
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
@@ -489,7 +494,7 @@ impl GpuContext {
             });
         enc.copy_buffer_to_buffer(src, 0, &staging, 0, size);
         self.queue.submit([enc.finish()]);
-        let slice = staging.slice(..);
+        let slice = staging.slice(..size);
         let (tx, rx) = std::sync::mpsc::channel();
         slice.map_async(wgpu::MapMode::Read, move |r| {
             let _ = tx.send(r);
@@ -505,7 +510,67 @@ impl GpuContext {
             bytemuck::cast_slice(&view).to_vec()
         };
         staging.unmap();
+        self.keep_staging(staging);
         Ok(data)
+    }
+
+    /// A mappable buffer of at least `size` bytes: the smallest kept one that holds it, else a
+    /// new one.
+    fn take_staging(&self, size: u64) -> wgpu::Buffer {
+        let mut kept = self
+            .staging
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        let best = kept
+            .iter()
+            .enumerate()
+            .filter(|(_, b)| b.size() >= size)
+            .min_by_key(|(_, b)| b.size())
+            .map(|(i, _)| i);
+        match best {
+            Some(i) => kept.swap_remove(i),
+            None => self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("raygun read-back"),
+                size,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+        }
+    }
+
+    /// Keeps an unmapped read-back buffer for the next read-back, the oldest kept ones
+    /// dropped past [`STAGING_KEEP_BYTES`] (a buffer larger than that alone is dropped).
+    fn keep_staging(&self, buffer: wgpu::Buffer) {
+        if buffer.size() > STAGING_KEEP_BYTES {
+            return;
+        }
+        let mut kept = self
+            .staging
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        kept.push(buffer);
+        while kept.iter().map(wgpu::Buffer::size).sum::<u64>() > STAGING_KEEP_BYTES {
+            kept.remove(0);
+        }
+    }
+
+    /// Drops the kept read-back buffers (the next read-back makes a fresh one: what every
+    /// read-back did before they were kept; `raygun bench readback` compares the two).
+    pub fn clear_staging(&self) {
+        self.staging
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .clear();
+    }
+
+    /// Bytes of read-back buffers kept for reuse now.
+    #[must_use]
+    pub fn staging_kept_bytes(&self) -> u64 {
+        let kept = self
+            .staging
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        kept.iter().map(wgpu::Buffer::size).sum()
     }
 }
 
@@ -609,5 +674,51 @@ mod tests {
         assert!(adapter_rank(D::DiscreteGpu, B::Vulkan) < adapter_rank(D::DiscreteGpu, B::Gl));
         assert!(adapter_rank(D::DiscreteGpu, B::Gl) < adapter_rank(D::IntegratedGpu, B::Vulkan));
         assert!(adapter_rank(D::VirtualGpu, B::Vulkan) < adapter_rank(D::Cpu, B::Vulkan));
+    }
+
+    /// Read-backs through kept staging buffers return exactly the source's bytes: a smaller
+    /// read through a larger kept buffer, the larger one again, prefixes, and one past the
+    /// keep limit's share; the kept bytes stay within the limit and clear empties them.
+    #[test]
+    fn read_backs_through_kept_buffers_are_exact() {
+        use wgpu::util::DeviceExt;
+        let ctx = GpuContext::for_tests();
+        let buffer = |words: u32, salt: u32| {
+            let data: Vec<u32> = (0..words)
+                .map(|i| i.wrapping_mul(2_654_435_761) ^ salt)
+                .collect();
+            let b = ctx
+                .device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("read-back test"),
+                    contents: bytemuck::cast_slice(&data),
+                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                });
+            (b, data)
+        };
+        let (big, big_data) = buffer(1 << 20, 7);
+        let (small, small_data) = buffer(1000, 11);
+        ctx.clear_staging();
+        assert_eq!(ctx.read_buffer::<u32>(&big).unwrap(), big_data);
+        assert_eq!(ctx.staging_kept_bytes(), 4 << 20, "the buffer is kept");
+        // The small read goes through the kept 4 MiB buffer and returns its own bytes only.
+        assert_eq!(ctx.read_buffer::<u32>(&small).unwrap(), small_data);
+        assert_eq!(
+            ctx.staging_kept_bytes(),
+            4 << 20,
+            "reused, not a second buffer"
+        );
+        assert_eq!(
+            ctx.read_prefix::<u32>(&big, 400).unwrap(),
+            big_data[..100].to_vec()
+        );
+        assert_eq!(ctx.read_buffer::<u32>(&big).unwrap(), big_data);
+        // Two read-backs in a row of different buffers each see their own data.
+        let (other, other_data) = buffer(1 << 20, 13);
+        assert_eq!(ctx.read_buffer::<u32>(&other).unwrap(), other_data);
+        assert_eq!(ctx.read_buffer::<u32>(&big).unwrap(), big_data);
+        assert!(ctx.staging_kept_bytes() <= STAGING_KEEP_BYTES);
+        ctx.clear_staging();
+        assert_eq!(ctx.staging_kept_bytes(), 0);
     }
 }
