@@ -148,12 +148,24 @@ impl UploadedInputs {
     }
 }
 
-/// The compiled filter kernels.
+/// The compiled filter kernels, and the last picture's buffers and bindings: a viewer filters
+/// a picture of the same size with the same settings every frame, so its inputs go into the
+/// buffers the last one used instead of fresh ones (on a discrete GPU each fresh buffer is an
+/// allocation and a staging copy).
 pub struct FilterKernels {
     exact: wgpu::ComputePipeline,
     fast: wgpu::ComputePipeline,
     blur_accumulation: wgpu::ComputePipeline,
     blur: wgpu::ComputePipeline,
+    kept: std::sync::Mutex<Option<Box<KeptRun>>>,
+}
+
+/// A prepared filter over uploaded inputs, kept for the next picture of its size and settings.
+struct KeptRun {
+    size: [u32; 2],
+    params: FilterParams,
+    uploaded: UploadedInputs,
+    run: FilterRun,
 }
 
 fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
@@ -228,7 +240,50 @@ impl FilterKernels {
                 "blur_accumulation",
             ),
             blur: ctx.compute_pipeline_in(&pyramid, "filter/pyramid blur", "blur"),
+            kept: std::sync::Mutex::new(None),
         }
+    }
+
+    /// Runs `f` on a filter prepared over `acc` and `dgi`: the kept one, its buffers
+    /// overwritten, when the size and `params` are the last picture's; else a new one, kept
+    /// for the next picture.
+    pub fn with_prepared<R>(
+        &self,
+        ctx: &GpuContext,
+        params: &FilterParams,
+        acc: &Accumulation,
+        dgi: &[f32],
+        f: impl FnOnce(&FilterRun) -> Result<R, FilterGpuError>,
+    ) -> Result<R, FilterGpuError> {
+        check_inputs(params, acc, dgi)?;
+        let size = [acc.width, acc.height];
+        let mut kept = self
+            .kept
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        match kept.as_ref() {
+            Some(k) if k.size == size && k.params == *params => {
+                let u = &k.uploaded;
+                ctx.queue
+                    .write_buffer(&u.accum, 0, bytemuck::cast_slice(&acc.sum));
+                ctx.queue
+                    .write_buffer(&u.counts, 0, bytemuck::cast_slice(&acc.count));
+                ctx.queue.write_buffer(&u.dgi, 0, bytemuck::cast_slice(dgi));
+            }
+            _ => {
+                // The old buffers go before the new ones are made: a picture's buffers, not two.
+                *kept = None;
+                let uploaded = UploadedInputs::new(ctx, acc, dgi)?;
+                let run = self.prepare(ctx, params, &uploaded.inputs())?;
+                *kept = Some(Box::new(KeptRun {
+                    size,
+                    params: *params,
+                    uploaded,
+                    run,
+                }));
+            }
+        }
+        f(&kept.as_ref().expect("prepared above").run)
     }
 
     /// [`Self::filter`] for an image of any height: one that does not fit the adapter's
@@ -293,13 +348,12 @@ impl FilterKernels {
         acc: &Accumulation,
         dgi: &[f32],
     ) -> Result<Vec<[f32; 4]>, FilterGpuError> {
-        check_inputs(params, acc, dgi)?;
-        let uploaded = UploadedInputs::new(ctx, acc, dgi)?;
-        let run = self.prepare(ctx, params, &uploaded.inputs())?;
-        let mut enc = ctx.device.create_command_encoder(&Default::default());
-        run.record(&mut enc, None);
-        ctx.queue.submit([enc.finish()]);
-        Ok(ctx.read_buffer(&run.output)?)
+        self.with_prepared(ctx, params, acc, dgi, |run| {
+            let mut enc = ctx.device.create_command_encoder(&Default::default());
+            run.record(&mut enc, None);
+            ctx.queue.submit([enc.finish()]);
+            Ok(ctx.read_buffer(&run.output)?)
+        })
     }
 
     /// Allocates the output (and the pyramid for `fast`) and binds everything: all but the
@@ -479,6 +533,75 @@ impl FilterKernels {
 mod tests {
     use super::*;
     use crate::gpu::wgsl::{assert_same_layout, validated};
+
+    /// A kept filter gives what a fresh one gives, bit for bit, whatever came before it: two
+    /// different pictures in turn, then new settings, then a new size, then the first again.
+    #[test]
+    fn a_kept_filter_equals_a_fresh_one() {
+        let ctx = GpuContext::for_tests();
+        let picture = |w: u32, h: u32, salt: u32| {
+            let n = (w * h) as usize;
+            let hash = |i: usize, k: u32| {
+                let x = (i as u32).wrapping_mul(0x9E37_79B9) ^ k.wrapping_mul(0x85EB_CA6B) ^ salt;
+                ((x ^ (x >> 15)).wrapping_mul(0x2C1B_3C6D) >> 8) as f32 / (1 << 24) as f32
+            };
+            let count: Vec<u32> = (0..n).map(|i| (hash(i, 1) * 4.0) as u32).collect();
+            let sum = (0..n)
+                .map(|i| {
+                    let c = count[i] as f32;
+                    [
+                        hash(i, 2) * c,
+                        hash(i, 3) * c,
+                        hash(i, 4) * c,
+                        hash(i, 5) * c,
+                    ]
+                })
+                .collect();
+            let dgi = (0..n).map(|i| hash(i, 6)).collect::<Vec<f32>>();
+            (
+                Accumulation {
+                    width: w,
+                    height: h,
+                    sum,
+                    count,
+                },
+                dgi,
+            )
+        };
+        let fast = FilterParams {
+            kind: FilterKind::Fast,
+            k_max: 6.0,
+            ..FilterParams::default()
+        };
+        let exact = FilterParams {
+            kind: FilterKind::Exact,
+            k_max: 3.0,
+            ..FilterParams::default()
+        };
+        let kept = FilterKernels::new(&ctx);
+        let (a, b, c) = (picture(40, 24, 1), picture(40, 24, 2), picture(24, 40, 3));
+        let order = [
+            (fast, &a),
+            (fast, &b),
+            (exact, &b),
+            (exact, &c),
+            (fast, &a),
+            (fast, &b),
+        ];
+        for (params, (acc, dgi)) in order {
+            let fresh = FilterKernels::new(&ctx)
+                .filter(&ctx, &params, acc, dgi)
+                .unwrap();
+            let again = kept.filter(&ctx, &params, acc, dgi).unwrap();
+            assert!(
+                fresh == again,
+                "{:?} {}×{}",
+                params.kind,
+                acc.width,
+                acc.height
+            );
+        }
+    }
 
     /// The kernels parse and validate without a GPU, and every struct shared with Rust has the
     /// same size on both sides.

@@ -410,26 +410,25 @@ impl<'a> Filter<'a> {
                 if params.kind != FilterKind::Off
                     && gpu::fits_one_binding(ctx, params, [acc.width, acc.height]) =>
             {
-                check_inputs(params, acc, dgi)?;
-                let uploaded = gpu::UploadedInputs::new(ctx, acc, dgi)?;
-                let run = kernels.prepare(ctx, params, &uploaded.inputs())?;
-                let timer = crate::gpu::PassTimer::new(ctx, 1);
-                let t = std::time::Instant::now();
-                let mut enc = ctx.device.create_command_encoder(&Default::default());
-                run.record(&mut enc, timer.as_ref().map(|t| (t, 0)));
-                if let Some(timer) = &timer {
-                    timer.resolve(&mut enc);
-                }
-                ctx.queue.submit([enc.finish()]);
-                ctx.wait()?;
-                let wall = t.elapsed().as_secs_f64() * 1e3;
-                let ms = match &timer {
-                    Some(timer) => timer.read_ms(ctx)?[0],
-                    None => wall,
-                };
-                let out: Vec<[f32; 4]> = ctx.read_buffer(&run.output)?;
-                let image = out.iter().map(|p| Vec3::new(p[0], p[1], p[2])).collect();
-                Ok((image, ms, timer.is_some()))
+                kernels.with_prepared(ctx, params, acc, dgi, |run| {
+                    let timer = crate::gpu::PassTimer::new(ctx, 1);
+                    let t = std::time::Instant::now();
+                    let mut enc = ctx.device.create_command_encoder(&Default::default());
+                    run.record(&mut enc, timer.as_ref().map(|t| (t, 0)));
+                    if let Some(timer) = &timer {
+                        timer.resolve(&mut enc);
+                    }
+                    ctx.queue.submit([enc.finish()]);
+                    ctx.wait()?;
+                    let wall = t.elapsed().as_secs_f64() * 1e3;
+                    let ms = match &timer {
+                        Some(timer) => timer.read_ms(ctx)?[0],
+                        None => wall,
+                    };
+                    let out: Vec<[f32; 4]> = ctx.read_buffer(&run.output)?;
+                    let image = out.iter().map(|p| Vec3::new(p[0], p[1], p[2])).collect();
+                    Ok((image, ms, timer.is_some()))
+                })
             }
             _ => {
                 let t = std::time::Instant::now();
