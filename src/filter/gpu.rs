@@ -535,7 +535,8 @@ mod tests {
     use crate::gpu::wgsl::{assert_same_layout, validated};
 
     /// A kept filter gives what a fresh one gives, bit for bit, whatever came before it: two
-    /// different pictures in turn, then new settings, then a new size, then the first again.
+    /// different pictures in turn, then new settings, then a new size, then the first two
+    /// again (a rebuild, then a reuse).
     #[test]
     fn a_kept_filter_equals_a_fresh_one() {
         let ctx = GpuContext::for_tests();

@@ -677,8 +677,8 @@ mod tests {
     }
 
     /// Read-backs through kept staging buffers return exactly the source's bytes: a smaller
-    /// read through a larger kept buffer, the larger one again, prefixes, and one past the
-    /// keep limit's share; the kept bytes stay within the limit and clear empties them.
+    /// read through a larger kept buffer, the larger one again, a prefix, and two different
+    /// sources in turn; the kept bytes stay within the limit and clearing empties them.
     #[test]
     fn read_backs_through_kept_buffers_are_exact() {
         use wgpu::util::DeviceExt;
