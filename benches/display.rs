@@ -4,7 +4,10 @@
 //! table), the table (`output::srgb8::linear_to_srgb8`) on one thread, and
 //! `output::srgb8::display_rgba` (the table on all cores, what the viewer runs) — in ms per
 //! picture (minimum and median over the rounds) and as ratios of the minima. The three give the
-//! same bytes (checked before timing).
+//! same bytes (checked before timing). Then two of the passes the viewer makes over every shown
+//! picture besides: the noise image (each pixel's standard error) and the ROI's outline, one
+//! thread (the code before, kept here) against `viewer::diagnostics` on all cores, again checked
+//! equal first.
 
 use std::hint::black_box;
 use std::time::Instant;
@@ -12,6 +15,40 @@ use std::time::Instant;
 use glam::Vec3;
 use raygun::output::srgb8::{display_rgba, linear_to_srgb8};
 use raygun::output::{linear_to_srgb, unit_to_u8};
+use raygun::trace::accum::Accumulation;
+use raygun::viewer::diagnostics::{noise_image, roi_outline};
+
+/// The noise image on one thread (the code before it ran on all cores).
+fn noise_one_thread(acc: &Accumulation) -> Vec<f32> {
+    (0..acc.count.len())
+        .map(|i| {
+            acc.luminance_variance_of_mean(i)
+                .map_or(f32::NAN, f32::sqrt)
+        })
+        .collect()
+}
+
+/// The ROI outline on one thread (the code before it ran on all cores).
+fn outline_one_thread(dgi: &[f32], (w, h): (usize, usize)) -> Vec<usize> {
+    let mut out = Vec::new();
+    for y in 0..h {
+        for x in 0..w {
+            let i = y * w + x;
+            if dgi[i] != 0.0 {
+                continue;
+            }
+            let outside = |j: usize| dgi[j] > 0.0;
+            if (x > 0 && outside(i - 1))
+                || (x + 1 < w && outside(i + 1))
+                || (y > 0 && outside(i - w))
+                || (y + 1 < h && outside(i + w))
+            {
+                out.push(i);
+            }
+        }
+    }
+    out
+}
 
 fn by_powf(image: &[Vec3], scale: f32) -> Vec<u8> {
     image
@@ -100,5 +137,79 @@ fn main() {
                 (*s).to_string()
             });
         println!("| {name} | {min:.2} | {med:.2} | ×{:.3} |", min / mins[0].0);
+    }
+
+    // The statistics passes, on an accumulation of 0–19 samples a pixel and a DGI whose ROI is
+    // a disc of a third of the height.
+    let hash = |i: usize, k: u32| {
+        let x = (i as u32).wrapping_mul(0x9E37_79B9) ^ k.wrapping_mul(0x85EB_CA6B);
+        ((x ^ (x >> 15)).wrapping_mul(0x2C1B_3C6D) >> 8) as f32 / (1 << 24) as f32
+    };
+    let count: Vec<u32> = (0..w * h).map(|i| (hash(i, 1) * 20.0) as u32).collect();
+    let acc = Accumulation {
+        width: w as u32,
+        height: h as u32,
+        sum: (0..w * h)
+            .map(|i| {
+                let c = count[i] as f32;
+                [
+                    hash(i, 2) * c,
+                    hash(i, 3) * c,
+                    hash(i, 4) * c,
+                    2.0 * hash(i, 5) * c,
+                ]
+            })
+            .collect(),
+        count,
+    };
+    let dgi: Vec<f32> = (0..w * h)
+        .map(|i| {
+            let (x, y) = (
+                (i % w) as f32 - w as f32 / 2.0,
+                (i / w) as f32 - h as f32 / 2.0,
+            );
+            ((x.hypot(y) - h as f32 / 6.0) / h as f32).clamp(0.0, 1.0)
+        })
+        .collect();
+    let same_noise = noise_image(&acc)
+        .iter()
+        .zip(noise_one_thread(&acc))
+        .all(|(a, b)| a.to_bits() == b.to_bits());
+    assert!(same_noise, "noise images differ");
+    assert!(
+        roi_outline(&dgi, [w as u32, h as u32]) == outline_one_thread(&dgi, (w, h)),
+        "outlines differ"
+    );
+    let mut st = [Vec::new(), Vec::new(), Vec::new(), Vec::new()];
+    for _ in 0..rounds {
+        let t = Instant::now();
+        black_box(noise_one_thread(black_box(&acc)));
+        st[0].push(t.elapsed().as_secs_f64() * 1e3);
+        let t = Instant::now();
+        black_box(noise_image(black_box(&acc)));
+        st[1].push(t.elapsed().as_secs_f64() * 1e3);
+        let t = Instant::now();
+        black_box(outline_one_thread(black_box(&dgi), (w, h)));
+        st[2].push(t.elapsed().as_secs_f64() * 1e3);
+        let t = Instant::now();
+        black_box(roi_outline(black_box(&dgi), [w as u32, h as u32]));
+        st[3].push(t.elapsed().as_secs_f64() * 1e3);
+    }
+    let st: Vec<(f64, f64)> = st.iter_mut().map(stat).collect();
+    println!();
+    println!("the viewer's statistics passes, {w}×{h}, {rounds} rounds");
+    println!(
+        "| pass | one thread: ms min / median | {threads} threads: ms min / median | ÷ one thread (minima) |"
+    );
+    println!("|---|---|---|---|");
+    for (name, one, all) in [("noise image", st[0], st[1]), ("ROI outline", st[2], st[3])] {
+        println!(
+            "| {name} | {:.2} / {:.2} | {:.2} / {:.2} | ×{:.3} |",
+            one.0,
+            one.1,
+            all.0,
+            all.1,
+            all.0 / one.0
+        );
     }
 }
