@@ -82,36 +82,30 @@ pub fn linear_to_srgb8(v: f32) -> u8 {
 /// cores.
 #[must_use]
 pub fn display_rgba(image: &[Vec3], exposure: f32) -> Vec<u8> {
-    let scale = exposure.exp2();
-    let mut rgba = vec![0u8; image.len() * 4];
-    rgba.par_chunks_mut(4 * 4096)
-        .zip(image.par_chunks(4096))
-        .for_each(|(out, px)| {
-            for (o, p) in out.chunks_exact_mut(4).zip(px) {
-                o[0] = linear_to_srgb8(p.x * scale);
-                o[1] = linear_to_srgb8(p.y * scale);
-                o[2] = linear_to_srgb8(p.z * scale);
-                o[3] = 255;
-            }
-        });
-    rgba
+    encode::<4>(image, exposure)
 }
 
 /// A linear picture as 8-bit sRGB RGB (a PNG's bytes) at `exposure` stops, on all cores.
 #[must_use]
 pub fn display_rgb(image: &[Vec3], exposure: f32) -> Vec<u8> {
+    encode::<3>(image, exposure)
+}
+
+/// `N` bytes a pixel: its three channels at `exposure` stops, then (N = 4) an opaque alpha.
+fn encode<const N: usize>(image: &[Vec3], exposure: f32) -> Vec<u8> {
+    const CHUNK: usize = 4096;
     let scale = exposure.exp2();
-    let mut rgb = vec![0u8; image.len() * 3];
-    rgb.par_chunks_mut(3 * 4096)
-        .zip(image.par_chunks(4096))
+    let mut out = vec![255u8; image.len() * N];
+    out.par_chunks_mut(N * CHUNK)
+        .zip(image.par_chunks(CHUNK))
         .for_each(|(out, px)| {
-            for (o, p) in out.chunks_exact_mut(3).zip(px) {
+            for (o, p) in out.chunks_exact_mut(N).zip(px) {
                 o[0] = linear_to_srgb8(p.x * scale);
                 o[1] = linear_to_srgb8(p.y * scale);
                 o[2] = linear_to_srgb8(p.z * scale);
             }
         });
-    rgb
+    out
 }
 
 #[cfg(test)]

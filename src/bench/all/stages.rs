@@ -14,23 +14,16 @@
 
 use std::time::Instant;
 
-use glam::Vec3;
 use serde::Serialize;
 
 use crate::display::DisplayModel;
 use crate::filter::{Filter, FilterParams};
 use crate::frame::{GuideConfig, Renderer};
 use crate::gpu::Backend;
+use crate::output::srgb8::display_rgba;
 use crate::scene::Scene;
 
 use super::AllBenchError;
-
-/// The viewer's picture of a linear image: `exposure` stops, sRGB, 8 bits, opaque RGBA
-/// (`ViewerCore::picture` with the image overlay).
-#[must_use]
-pub fn display_rgba(image: &[Vec3], exposure: f32) -> Vec<u8> {
-    crate::output::srgb8::display_rgba(image, exposure)
-}
 
 /// One FOV's stage times (ms). Stage columns are means over the iterations, so that they add
 /// up: the mean of the per-iteration sums is the sum of the means.
