@@ -4,6 +4,7 @@
 use std::path::{Path, PathBuf};
 
 pub mod file;
+pub mod gpu;
 pub mod srgb8;
 pub mod tiles;
 

@@ -78,6 +78,24 @@ pub fn linear_to_srgb8(v: f32) -> u8 {
     t.base[i] + u8::from(v >= t.next[i])
 }
 
+/// The table as the GPU twin (`shaders/output/srgb8.wgsl`) reads it: per bucket, the code of
+/// its first float and the IEEE pattern of the least float with the next code (`+inf`'s,
+/// `0x7F80_0000`, where the bucket has no step). Positive floats order as their patterns, so
+/// the kernel compares patterns as integers: the same byte as [`linear_to_srgb8`] for every
+/// `f32`, whatever the GPU's float comparisons do with NaN.
+#[must_use]
+pub fn gpu_table() -> Vec<[u32; 2]> {
+    let t = &*TABLE;
+    t.base
+        .iter()
+        .zip(&t.next)
+        .map(|(&b, &n)| [u32::from(b), n.to_bits()])
+        .collect()
+}
+
+/// Bits dropped from an `f32`'s pattern to index [`gpu_table`] (the kernel's `SHIFT`).
+pub const GPU_TABLE_SHIFT: u32 = SHIFT;
+
 /// A linear picture as the viewer shows it: `exposure` stops, sRGB, 8 bits, opaque RGBA, on all
 /// cores.
 #[must_use]

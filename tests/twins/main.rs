@@ -7,7 +7,8 @@
 //!   (the selection is one integer hash and one f32 comparison on both sides);
 //! * `trace` — statistical: the same image in distribution with different seeds (a Welch test
 //!   per block), and the same samples to rounding with the same seed;
-//! * `filter` — f32 kernels against the f64 twins, relative to the image's scale.
+//! * `filter` — f32 kernels against the f64 twins, relative to the image's scale;
+//! * `output` — exact: the display kernel's 8-bit sRGB bytes are the CPU table's.
 
 #[path = "../support/gltf_scenes.rs"]
 mod gltf_scenes;
@@ -17,6 +18,7 @@ mod render;
 mod scenes;
 
 mod filter;
+mod output;
 mod roi;
 mod schedule;
 mod trace;
