@@ -1,0 +1,282 @@
+//! The picture as a window shows it (`Renderer::shown_picture`): on the GPU (lavapipe in CI) it
+//! stays there — the filter reads the renderer's own buffers and the display kernel converts —
+//! and must give the bytes of the host path it replaces (read back, filter, convert on the CPU:
+//! `display_rgba(picture(..))`), byte for byte, for guided, full-frame and wall-camera renders,
+//! across frames, filter settings and exposures. The unfiltered mean divides on the GPU
+//! instead of the CPU (WGSL's division need not round as the CPU's does), so it may differ by
+//! one code where the mean lies on a step.
+
+use glam::DVec3;
+use raygun::display::DisplayModel;
+use raygun::filter::{Blend, FilterKind, FilterParams};
+use raygun::frame::{GuideConfig, Renderer};
+use raygun::gpu::{Backend, GpuContext};
+use raygun::output::srgb8::display_rgba;
+use raygun::roi::cone::Cone;
+use raygun::roi::dgi::Roi;
+use raygun::scene::Scene;
+use raygun::trace::camera::RenderCamera;
+use raygun::trace::path::TraceSettings;
+use raygun::trace::wall::{WallCamera, WorldFromRoom};
+
+const SIZE: [u32; 2] = [96, 40];
+
+fn settings(scene: &Scene) -> TraceSettings {
+    settings_of(scene, SIZE)
+}
+
+fn settings_of(scene: &Scene, [w, h]: [u32; 2]) -> TraceSettings {
+    TraceSettings {
+        width: w,
+        height: h,
+        seed: 11,
+        max_depth: 3,
+        camera: RenderCamera::choose(scene, None, w, h).unwrap(),
+    }
+}
+
+/// HORNET at a third of its canvas: its bezels hold some pixel centres.
+const WALL_SIZE: [u32; 2] = [331, 134];
+
+fn roi() -> Roi {
+    Roi::Cone(
+        Cone::from_pose(
+            DVec3::new(0.3, 0.0, 1.0),
+            DVec3::NEG_Z,
+            DVec3::Y,
+            25.0,
+            25.0,
+        )
+        .unwrap(),
+    )
+}
+
+fn params() -> Vec<FilterParams> {
+    vec![
+        FilterParams::default(),
+        FilterParams {
+            kind: FilterKind::Exact,
+            k_max: 6.0,
+            ..FilterParams::default()
+        },
+        FilterParams {
+            kind: FilterKind::Fast,
+            blend: Blend::Variance,
+            k_max: 32.0,
+            ..FilterParams::default()
+        },
+        FilterParams {
+            kind: FilterKind::Off,
+            ..FilterParams::default()
+        },
+    ]
+}
+
+/// The shown picture equals the host path's bytes (within one code, on few pixels, for the
+/// unfiltered mean), and is not a flat picture.
+fn check_same(r: &Renderer, p: &FilterParams, exposure: f32, what: &str) {
+    let shown = r.shown_picture(p, exposure, false).unwrap();
+    assert_eq!(shown.size, [r.settings.width, r.settings.height]);
+    let host = display_rgba(&r.picture(p).unwrap(), exposure);
+    assert_eq!(shown.rgba.len(), host.len(), "{what}");
+    let distinct: std::collections::BTreeSet<u8> = shown.rgba.iter().copied().collect();
+    assert!(distinct.len() > 20, "{what}: a flat picture proves nothing");
+    if p.kind == FilterKind::Off {
+        let off: Vec<usize> = (0..host.len())
+            .filter(|&i| shown.rgba[i] != host[i])
+            .collect();
+        assert!(
+            off.iter().all(|&i| shown.rgba[i].abs_diff(host[i]) <= 1),
+            "{what}: the mean differs by more than a code"
+        );
+        assert!(
+            off.len() * 100 <= host.len(),
+            "{what}: {} codes off",
+            off.len()
+        );
+    } else if let Some(i) = (0..host.len()).find(|&i| shown.rgba[i] != host[i]) {
+        panic!(
+            "{what}: byte {i} (pixel {}, channel {}): shown {} host {}",
+            i / 4,
+            i % 4,
+            shown.rgba[i],
+            host[i]
+        );
+    }
+}
+
+fn gpu() -> Backend {
+    Backend::Gpu(Box::new(GpuContext::for_tests()))
+}
+
+#[test]
+fn a_guided_render_shows_the_host_paths_bytes_across_frames_settings_and_exposures() {
+    let backend = gpu();
+    let model = DisplayModel::open("hornet").unwrap().0;
+    let scene = Scene::builtin("cornell").unwrap();
+    let mut r = Renderer::guided(
+        &backend,
+        &scene,
+        settings(&scene),
+        &model,
+        GuideConfig {
+            p_min: 0.05,
+            ..GuideConfig::default()
+        },
+    )
+    .unwrap();
+    assert!(r.shows_on_gpu(&FilterParams::default()));
+    r.set_roi(Some(roi())).unwrap();
+    r.iterate(2).unwrap();
+    for (k, p) in params().iter().enumerate() {
+        check_same(&r, p, 0.0, &format!("settings {k}"));
+    }
+    // More frames into the same bindings: the shown picture follows the accumulation.
+    let before = r.shown_picture(&params()[0], 0.0, false).unwrap().rgba;
+    r.iterate(3).unwrap();
+    let after = r.shown_picture(&params()[0], 0.0, false).unwrap().rgba;
+    assert_ne!(before, after, "the shown picture is of the latest frames");
+    check_same(&r, &params()[0], 0.0, "after more frames");
+    // Exposure changes on kept bindings.
+    for e in [1.5, -2.0] {
+        check_same(&r, &params()[0], e, &format!("exposure {e}"));
+    }
+    // A moved ROI (a new DGI installed by the next frame) is filtered with the new DGI.
+    r.set_roi(Some(Roi::Cone(
+        Cone::from_pose(
+            DVec3::new(-0.8, 0.2, 1.0),
+            DVec3::NEG_Z,
+            DVec3::Y,
+            10.0,
+            10.0,
+        )
+        .unwrap(),
+    )))
+    .unwrap();
+    r.iterate(1).unwrap();
+    check_same(&r, &params()[1], 0.0, "moved ROI");
+    // Timing reports the resident path and positive stage times.
+    let t = r
+        .shown_picture(&params()[0], 0.0, true)
+        .unwrap()
+        .times
+        .unwrap();
+    assert!(t.resident);
+    assert!(
+        t.filter_ms > 0.0 && t.display_ms > 0.0 && t.wall_ms > 0.0,
+        "{t:?}"
+    );
+}
+
+#[test]
+fn a_full_frame_render_shows_the_host_paths_bytes() {
+    let backend = gpu();
+    let scene = Scene::builtin("cornell").unwrap();
+    let mut r = Renderer::full(&backend, &scene, settings(&scene)).unwrap();
+    r.iterate(2).unwrap();
+    for (k, p) in params().iter().enumerate() {
+        check_same(&r, p, 0.5, &format!("full frame, settings {k}"));
+    }
+}
+
+#[test]
+fn a_wall_camera_render_shows_its_unshown_pixels_black() {
+    let backend = gpu();
+    let model = DisplayModel::open("hornet").unwrap().0;
+    let scene = Scene::builtin("cornell").unwrap();
+    let s = settings_of(&scene, WALL_SIZE);
+    let c = &s.camera;
+    let wall = WallCamera::new(
+        &model,
+        WALL_SIZE,
+        DVec3::new(0.0, 0.0, 1.0),
+        &WorldFromRoom::Auto,
+        (c.position.as_dvec3(), c.forward.as_dvec3(), c.up.as_dvec3()),
+    )
+    .unwrap();
+    let unshown = (0..WALL_SIZE[0] * WALL_SIZE[1])
+        .filter(|&p| !wall.is_shown(p))
+        .count();
+    assert!(unshown > 0, "HORNET's bezels hide some pixels");
+    let mut r = Renderer::guided_wall(
+        &backend,
+        &scene,
+        s,
+        &model,
+        GuideConfig::default(),
+        Some(wall.clone()),
+    )
+    .unwrap();
+    r.set_roi(Some(roi())).unwrap();
+    r.iterate(2).unwrap();
+    for (k, p) in params().iter().enumerate() {
+        check_same(&r, p, 0.0, &format!("wall camera, settings {k}"));
+    }
+    let shown = r.shown_picture(&params()[0], 0.0, false).unwrap().rgba;
+    for p in 0..WALL_SIZE[0] * WALL_SIZE[1] {
+        if !wall.is_shown(p) {
+            let i = 4 * p as usize;
+            assert_eq!(shown[i..i + 4], [0, 0, 0, 255], "unshown pixel {p}");
+        }
+    }
+}
+
+/// The CPU twin takes the host path: the same function, its bytes exactly.
+#[test]
+fn the_cpu_twin_shows_its_picture_converted() {
+    let backend = Backend::Cpu;
+    let model = DisplayModel::open("hornet").unwrap().0;
+    let scene = Scene::builtin("cornell").unwrap();
+    let mut r = Renderer::guided(
+        &backend,
+        &scene,
+        settings(&scene),
+        &model,
+        GuideConfig::default(),
+    )
+    .unwrap();
+    assert!(!r.shows_on_gpu(&FilterParams::default()));
+    r.set_roi(Some(roi())).unwrap();
+    r.iterate(2).unwrap();
+    let p = FilterParams::default();
+    let shown = r.shown_picture(&p, 0.25, true).unwrap();
+    assert_eq!(shown.rgba, display_rgba(&r.picture(&p).unwrap(), 0.25));
+    assert!(!shown.times.unwrap().resident);
+}
+
+/// A frame split into bands of rows (an adapter whose binding holds less than the frame) takes
+/// the host path, and shows what one band shows on the resident path: the accumulation is the
+/// same bit for bit, and the exact filter's bands are the whole image's values.
+#[test]
+fn a_banded_frame_takes_the_host_path_and_shows_the_same_picture() {
+    let scene = Scene::builtin("cornell").unwrap();
+    let whole = gpu();
+    // 96 × 40 × 16 bytes = 61 440: a quarter of it per binding.
+    let cap = 16 * 96 * 10;
+    let banded = Backend::Gpu(Box::new(GpuContext::with_max_binding(cap).unwrap()));
+    let p = FilterParams {
+        kind: FilterKind::Exact,
+        k_max: 3.0,
+        ..FilterParams::default()
+    };
+    let mut pictures = Vec::new();
+    for backend in [&whole, &banded] {
+        let mut r = Renderer::full(backend, &scene, settings(&scene)).unwrap();
+        r.iterate(2).unwrap();
+        pictures.push((
+            r.gpu_bands(),
+            r.shows_on_gpu(&p),
+            r.shown_picture(&p, 0.0, false).unwrap().rgba,
+        ));
+    }
+    assert_eq!((pictures[0].0, pictures[0].1), (Some(1), true));
+    assert!(
+        pictures[1].0.unwrap() > 1 && !pictures[1].1,
+        "{:?}",
+        (pictures[1].0, pictures[1].1)
+    );
+    assert!(
+        pictures[0].2 == pictures[1].2,
+        "banded and whole pictures differ"
+    );
+}
