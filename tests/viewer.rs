@@ -286,6 +286,69 @@ fn gpu_backend_follows_the_click_and_reports_stats() {
     assert_eq!(core.stats.iterations, n);
 }
 
+/// The window's picture on the GPU stays there (filtered and converted on the GPU) and shows
+/// the bytes of the picture read back and converted on the CPU, with the ROI outline (remade
+/// when the ROI moves), the wall view and any exposure; the statistics it measures are the
+/// full picture's; other overlays take the read-back path. With the wall camera too.
+#[test]
+fn the_gpu_window_picture_stays_on_the_gpu_and_shows_the_read_back_pictures_bytes() {
+    let (model, scene) = (hornet(), scene());
+    let backend = Backend::Gpu(Box::new(raygun::gpu::GpuContext::for_tests()));
+    for wall in [false, true] {
+        let mut state = ViewerState::new(RoiSource::Mouse, 3);
+        state.mouse_radius_px = 1500.0;
+        state.click(&model, DVec2::new(20.5, 12.5), [W, H]);
+        state.exposure = 0.5;
+        let w = wall.then(|| wall_camera(&model, &scene));
+        let mut core =
+            ViewerCore::with_wall(&backend, &scene, &model, base(&scene), state, w).unwrap();
+        for _ in 0..3 {
+            core.step(ONE).unwrap();
+        }
+        // The statistics are measured every STATS_PERIOD: after that long they are the
+        // picture's.
+        let check = |core: &mut ViewerCore, what: &str| {
+            std::thread::sleep(raygun::viewer::core::STATS_PERIOD);
+            let window = core.window_picture().unwrap();
+            let stats = core.stats;
+            let whole = core.picture().unwrap();
+            assert_eq!(window.size, whole.size, "{what}");
+            assert!(
+                window.rgba == whole.rgba,
+                "wall {wall}, {what}: the bytes differ"
+            );
+            assert_eq!(stats.roi_samples, core.stats.roi_samples, "{what}");
+            assert_eq!(stats.roi_pixels, core.stats.roi_pixels, "{what}");
+            assert_eq!(stats.roi_progress, core.stats.roi_progress, "{what}");
+            window.resident
+        };
+        assert!(check(&mut core, "first picture"));
+        assert!(core.stats.roi_pixels > 0);
+        assert!(
+            (0..(W * H) as usize)
+                .any(|i| core.picture().unwrap().rgba[4 * i..4 * i + 4] == OUTLINE),
+            "the outline is drawn"
+        );
+        // The ROI moves: the outline follows once the new DGI is installed.
+        core.state.click(&model, DVec2::new(44.5, 8.5), [W, H]);
+        core.step(ONE).unwrap();
+        assert!(check(&mut core, "moved ROI"));
+        core.state.wall_view = true;
+        core.state.exposure = -1.0;
+        assert!(check(&mut core, "wall view, exposure -1"));
+        core.state.wall_view = false;
+        core.state.filter.kind = FilterKind::Exact;
+        core.state.filter.k_max = 4.0;
+        core.step(ONE).unwrap();
+        assert!(check(&mut core, "exact filter"));
+        core.state.overlay = Overlay::Counts;
+        assert!(
+            !check(&mut core, "counts overlay"),
+            "other overlays read back"
+        );
+    }
+}
+
 /// Live DTrack: datagrams on the listener's port reach the viewer's state — the aim where the
 /// stick points (the wall centre) and, after a trigger press, the ROI there.
 #[test]

@@ -482,7 +482,7 @@ impl eframe::App for ViewerApp<'_> {
         self.core.console_pixels = self
             .shown_pixels
             .clamp(MIN_CONSOLE_PIXELS, crate::cluster::CONSOLE_PIXELS);
-        let picture = stepped.and_then(|()| self.core.picture());
+        let picture = stepped.and_then(|()| self.core.window_picture());
         let picture = match picture {
             Ok(p) => {
                 self.error = None;
@@ -508,12 +508,15 @@ impl eframe::App for ViewerApp<'_> {
                 ));
             }
         }
-        // Files take the whole picture: across ranks the window's may be reduced (the console's
-        // size), and then the owners send every pixel for these frames only.
+        // Files take the whole picture with its data (the window's has only its bytes, and
+        // across ranks it may be reduced to the console's size: then the owners send every
+        // pixel for these frames only). A recording takes the window's bytes where they are
+        // the whole picture's.
         let shot_due = self
             .screenshot_after
             .is_some_and(|n| self.core.stats.iterations >= n);
-        let whole = if (save || self.recording || shot_due) && self.core.console_every() > 1 {
+        let whole_view = self.core.console_every() == 1;
+        let whole = if save || shot_due || (self.recording && !whole_view) {
             match self.core.whole_picture() {
                 Ok(p) => Some(p),
                 Err(e) => {
@@ -525,16 +528,19 @@ impl eframe::App for ViewerApp<'_> {
         } else {
             None
         };
-        let picture = whole.as_ref().unwrap_or(&picture);
         if self.recording {
             let dir = self.save_dir.join("recording");
             let path = dir.join(format!("frame-{:05}.png", self.recorded));
+            let (size, rgba) = match &whole {
+                Some(p) => (p.size, &p.rgba),
+                None => (picture.size, &picture.rgba),
+            };
             let saved = std::fs::create_dir_all(&dir)
                 .map_err(|error| super::ViewerError::CreateDir {
                     dir: dir.clone(),
                     error,
                 })
-                .and_then(|()| super::core::save_view_png(&path, picture));
+                .and_then(|()| super::core::save_rgba_png(&path, size, rgba));
             match saved {
                 Ok(()) => {
                     self.recorded += 1;
@@ -547,16 +553,19 @@ impl eframe::App for ViewerApp<'_> {
                 }
             }
         }
-        if save {
+        if let (true, Some(whole)) = (save, &whole) {
             self.saves += 1;
             let stem = format!("view-{:03}", self.saves);
-            let _ = self.save(&stem, picture);
+            let _ = self.save(&stem, whole);
         }
         if let Some(n) = self.screenshot_after
             && self.core.stats.iterations >= n
         {
             // The picture files now; the whole window once the integration has read it back.
-            if let Err(e) = self.save("screenshot", picture) {
+            let whole = whole
+                .as_ref()
+                .expect("taken above when a screenshot is due");
+            if let Err(e) = self.save("screenshot", whole) {
                 self.fail(ui.ctx(), e);
                 return;
             }

@@ -256,7 +256,26 @@ pub struct ViewerCore<'a> {
     /// The most pixels of the window's picture across ranks ([`CONSOLE_PIXELS`] unless set;
     /// the window sets the pixels it shows the picture on).
     pub console_pixels: u64,
+    /// When a picture that stays on the GPU last measured the statistics
+    /// ([`Self::window_picture`]; `None`: measure on the next one).
+    stats_at: Option<Instant>,
+    /// The ROI outline's pixels and the renderer's DGI install they were made from (pictures
+    /// that stay on the GPU read the DGI back only when a new one was installed).
+    outline: Option<(u64, Vec<usize>)>,
 }
+
+/// What the window shows: RGBA8, row-major, `size` (see [`ViewerCore::window_picture`]).
+#[derive(Clone, Debug)]
+pub struct WindowPicture {
+    pub size: [u32; 2],
+    pub rgba: Vec<u8>,
+    /// Whether the picture stayed on the GPU (filtered and converted there).
+    pub resident: bool,
+}
+
+/// How often a window picture that stays on the GPU measures the statistics (each
+/// measurement reads the accumulation and the DGI back: 20 bytes a pixel).
+pub const STATS_PERIOD: Duration = Duration::from_millis(500);
 
 /// Every this many frames one is timed (stage times, pixel count), which makes the GPU wait.
 pub const TIMED_EVERY: u32 = 8;
@@ -361,6 +380,8 @@ impl<'a> ViewerCore<'a> {
             restarts: 0,
             filter: std::cell::OnceCell::new(),
             console_pixels: CONSOLE_PIXELS,
+            stats_at: None,
+            outline: None,
         }
     }
 
@@ -450,6 +471,9 @@ impl<'a> ViewerCore<'a> {
         self.window = (0, Instant::now());
         self.roi_since = Instant::now();
         self.stats = Stats::default();
+        self.stats_at = None;
+        // A rebuilt renderer counts its DGI installs from 0 again.
+        self.outline = None;
     }
 
     /// Moves the wall camera's eye to the one the state asks for, or the pinhole camera to the
@@ -535,7 +559,9 @@ impl<'a> ViewerCore<'a> {
         }
     }
 
-    /// The window's picture: [`Self::picture_every`] at [`Self::console_every`].
+    /// The picture with its data (image, DGI, counts, noise) at the window's reduction:
+    /// [`Self::picture_every`] at [`Self::console_every`]. The window itself shows
+    /// [`Self::window_picture`], the same bytes.
     pub fn picture(&mut self) -> Result<Picture, ViewerError> {
         self.picture_every(self.console_every())
     }
@@ -543,6 +569,97 @@ impl<'a> ViewerCore<'a> {
     /// The whole picture, every pixel (saves).
     pub fn whole_picture(&mut self) -> Result<Picture, ViewerError> {
         self.picture_every(1)
+    }
+
+    /// The picture the window shows this UI frame. With one process on a GPU, the image
+    /// overlay and a frame of one band, it stays on the GPU ([`Renderer::shown_picture`]: the
+    /// filter reads the renderer's buffers, the display kernel converts, 4 bytes a pixel come
+    /// back) and the statistics are measured every [`STATS_PERIOD`] (each time a read-back of
+    /// the accumulation and the DGI); the ROI outline is remade only when a new DGI was
+    /// installed. Otherwise it is [`Self::picture`]'s. Either way the same bytes as
+    /// [`Self::picture`] (tested); files take [`Self::whole_picture`].
+    pub fn window_picture(&mut self) -> Result<WindowPicture, ViewerError> {
+        let params = self.state.filter_params();
+        let resident = match &self.engine {
+            Engine::Local(r) => self.state.overlay == Overlay::Image && r.shows_on_gpu(&params),
+            Engine::Cluster(_) => false,
+        };
+        if !resident {
+            let p = self.picture()?;
+            return Ok(WindowPicture {
+                size: p.size,
+                rgba: p.rgba,
+                resident: false,
+            });
+        }
+        if self.stats_at.is_none_or(|t| t.elapsed() >= STATS_PERIOD) {
+            let (acc, dgi) = self.engine.accumulation(1)?;
+            let noise = noise_image(&acc);
+            self.measure_stats(&acc, &dgi, &noise, 1);
+            self.stats_at = Some(Instant::now());
+        }
+        self.stats.seconds_on_roi = self.roi_since.elapsed().as_secs_f64();
+        let Engine::Local(r) = &self.engine else {
+            unreachable!("checked above");
+        };
+        let shown = r.shown_picture(&params, self.state.exposure, false)?;
+        let (size, mut rgba) = (shown.size, shown.rgba);
+        if self.state.roi_outline && r.roi().is_some() {
+            let installs = r.dgi_installs();
+            if self.outline.as_ref().is_none_or(|(k, _)| *k != installs) {
+                self.outline = Some((installs, roi_outline(&r.dgi()?, size)));
+            }
+            if let Some((_, outline)) = &self.outline {
+                paint_outline(&mut rgba, outline);
+            }
+        }
+        Ok(WindowPicture {
+            size,
+            rgba: self.wall_view(rgba, size),
+            resident: true,
+        })
+    }
+
+    /// The statistics measured over a picture's accumulation and DGI (every `every`-th pixel
+    /// of every such row of the image) and its noise image.
+    fn measure_stats(&mut self, acc: &Accumulation, dgi: &[f32], noise: &[f32], every: u32) {
+        let full_width = self.size()[0] as usize;
+        let width = acc.width as usize;
+        let step = every as usize;
+        let pixel = |i: usize| ((i / width * step) * full_width + (i % width) * step) as u32;
+        let r = self.engine.view();
+        let wall = r.wall();
+        let shown = |i: usize| wall.is_none_or(|w| w.is_shown(pixel(i)));
+        let (roi_samples, roi_pixels) = roi_samples(acc, dgi, r.roi().is_some(), shown);
+        let contrast = r.roi().and_then(|_| {
+            let regions = NoiseRegions {
+                dgi,
+                p_min: r.guide_config().map_or(0.0, |c| c.p_min),
+            };
+            NoiseContrast::measure(noise, &regions)
+        });
+        let progress = r
+            .roi()
+            .and_then(|_| crate::frame::stop::RoiProgress::measure_where(acc, dgi, shown));
+        self.stats.console_every = every;
+        self.stats.roi_samples = roi_samples;
+        self.stats.roi_pixels = roi_pixels;
+        self.stats.roi_noise = contrast.map(|c| c.roi);
+        self.stats.periphery_noise = contrast.map(|c| c.periphery);
+        self.stats.roi_progress = progress;
+        self.stats.seconds_on_roi = self.roi_since.elapsed().as_secs_f64();
+    }
+
+    /// The picture as the wall shows it when the state asks for the wall view, else as it is.
+    fn wall_view(&self, rgba: Vec<u8>, size: [u32; 2]) -> Vec<u8> {
+        if !self.state.wall_view {
+            return rgba;
+        }
+        let px: Vec<[u8; 4]> = rgba
+            .chunks_exact(4)
+            .map(|c| [c[0], c[1], c[2], c[3]])
+            .collect();
+        wall_view(self.model, &px, size, [0, 0, 0, 255]).concat()
     }
 
     /// Reads the accumulation and the DGI back at every `every`-th pixel of every `every`-th
@@ -585,25 +702,8 @@ impl<'a> ViewerCore<'a> {
                 image
             }
         };
-        let r = self.engine.view();
-        let (roi_samples, roi_pixels) = roi_samples(&acc, &dgi, r.roi().is_some(), shown);
-        self.stats.console_every = every;
-        self.stats.roi_samples = roi_samples;
-        self.stats.roi_pixels = roi_pixels;
         let noise = noise_image(&acc);
-        let contrast = r.roi().and_then(|_| {
-            let regions = NoiseRegions {
-                dgi: &dgi,
-                p_min: r.guide_config().map_or(0.0, |c| c.p_min),
-            };
-            NoiseContrast::measure(&noise, &regions)
-        });
-        self.stats.roi_noise = contrast.map(|c| c.roi);
-        self.stats.periphery_noise = contrast.map(|c| c.periphery);
-        self.stats.roi_progress = r
-            .roi()
-            .and_then(|_| crate::frame::stop::RoiProgress::measure_where(&acc, &dgi, shown));
-        self.stats.seconds_on_roi = self.roi_since.elapsed().as_secs_f64();
+        self.measure_stats(&acc, &dgi, &noise, every);
         let size = [acc.width, acc.height];
         let mut rgba = match self.state.overlay {
             Overlay::Image => crate::output::srgb8::display_rgba(&image, self.state.exposure),
@@ -618,17 +718,9 @@ impl<'a> ViewerCore<'a> {
             Overlay::Noise => noise_map(&noise),
         };
         if self.state.roi_outline && self.renderer().roi().is_some() {
-            for i in roi_outline(&dgi, size) {
-                rgba[4 * i..4 * i + 4].copy_from_slice(&OUTLINE);
-            }
+            paint_outline(&mut rgba, &roi_outline(&dgi, size));
         }
-        if self.state.wall_view {
-            let px: Vec<[u8; 4]> = rgba
-                .chunks_exact(4)
-                .map(|c| [c[0], c[1], c[2], c[3]])
-                .collect();
-            rgba = wall_view(self.model, &px, size, [0, 0, 0, 255]).concat();
-        }
+        let rgba = self.wall_view(rgba, size);
         Ok(Picture {
             size,
             rgba,
@@ -637,6 +729,13 @@ impl<'a> ViewerCore<'a> {
             counts: acc.count,
             noise,
         })
+    }
+}
+
+/// Paints the ROI outline's pixels into an RGBA8 picture.
+fn paint_outline(rgba: &mut [u8], outline: &[usize]) {
+    for &i in outline {
+        rgba[4 * i..4 * i + 4].copy_from_slice(&OUTLINE);
     }
 }
 
@@ -688,8 +787,12 @@ pub fn save_picture(
 
 /// Writes the picture as shown (RGBA8 PNG).
 pub fn save_view_png(path: &Path, p: &Picture) -> Result<(), ViewerError> {
-    let [w, h] = p.size;
-    let img = image::RgbaImage::from_raw(w, h, p.rgba.clone()).ok_or(ViewerError::PictureSize)?;
+    save_rgba_png(path, p.size, &p.rgba)
+}
+
+/// Writes `size` RGBA8 bytes as a PNG (through a temporary name).
+pub fn save_rgba_png(path: &Path, [w, h]: [u32; 2], rgba: &[u8]) -> Result<(), ViewerError> {
+    let img = image::RgbaImage::from_raw(w, h, rgba.to_vec()).ok_or(ViewerError::PictureSize)?;
     crate::output::replace_with(path, |tmp| {
         img.save_with_format(tmp, image::ImageFormat::Png)
             .map_err(|error| ViewerError::Png {
