@@ -510,12 +510,13 @@ fn solver_bench_runs_the_wgsl_on_the_gpu() {
     assert!(!md.contains("not run"));
 }
 
-/// Per-stage times on the GPU backend (lavapipe, a tiny image): every stage is timed, and the
-/// stages fit in the iteration's wall clock. GPU timestamps and the CPU clock are different
+/// Per-stage times on the GPU backend (lavapipe, a tiny image), both ways a picture is made:
+/// every stage is timed, and the stages fit in the iteration's wall clock. GPU timestamps and the CPU clock are different
 /// clocks, so the sum may exceed the wall clock by the timestamp period's calibration error:
 /// 1 % plus 0.05 ms is allowed.
 #[test]
 fn stage_times_on_the_gpu_fit_in_the_iteration() {
+    use raygun::bench::all::stages::PicturePath;
     let backend = raygun::gpu::Backend::Gpu(Box::new(raygun::gpu::GpuContext::for_tests()));
     let display = raygun::display::DisplayModel::load(concat!(
         env!("CARGO_MANIFEST_DIR"),
@@ -528,36 +529,42 @@ fn stage_times_on_the_gpu_fit_in_the_iteration() {
         k_max: 1.0,
         ..Default::default()
     };
-    let r = raygun::bench::all::stages::measure(
-        &backend,
-        &display,
-        "cornell",
-        &scene,
-        [48, 27],
-        60.0,
-        3,
-        &filter,
-        0.0,
-        1,
-    )
-    .unwrap();
-    assert_eq!(r.iterations, 3);
-    assert!(r.share_sampled > 0.0 && r.share_sampled < 1.0);
-    for (what, v) in [
-        ("filter", r.filter_ms),
-        ("display", r.display_ms),
-        ("trace", r.trace_ms),
-    ] {
-        assert!(v > 0.0, "{what}");
+    for path in [PicturePath::Host, PicturePath::Gpu] {
+        let r = raygun::bench::all::stages::measure(
+            &backend,
+            &display,
+            "cornell",
+            &scene,
+            [48, 27],
+            60.0,
+            3,
+            &filter,
+            0.0,
+            1,
+            path,
+        )
+        .unwrap();
+        assert_eq!(r.picture, path, "a one-band frame takes the way asked for");
+        assert_eq!(r.iterations, 3);
+        assert!(r.share_sampled > 0.0 && r.share_sampled < 1.0);
+        for (what, v) in [
+            ("filter", r.filter_ms),
+            ("display", r.display_ms),
+            ("trace", r.trace_ms),
+        ] {
+            assert!(v > 0.0, "{path:?}: {what}");
+        }
+        // Kept on the GPU, nothing but the 8-bit picture is read back.
+        assert_eq!(r.readback_ms == 0.0, path == PicturePath::Gpu, "{path:?}");
+        if r.gpu_timestamps {
+            assert!(r.dgi_ms_per_change.is_some_and(|v| v > 0.0));
+            assert!(r.schedule_ms > 0.0);
+        }
+        assert!(
+            r.stage_sum_ms <= r.iteration_ms_mean * 1.01 + 0.05,
+            "{path:?}: stages {} ms > iteration {} ms",
+            r.stage_sum_ms,
+            r.iteration_ms_mean
+        );
     }
-    if r.gpu_timestamps {
-        assert!(r.dgi_ms_per_change.is_some_and(|v| v > 0.0));
-        assert!(r.schedule_ms > 0.0);
-    }
-    assert!(
-        r.stage_sum_ms <= r.iteration_ms_mean * 1.01 + 0.05,
-        "stages {} ms > iteration {} ms",
-        r.stage_sum_ms,
-        r.iteration_ms_mean
-    );
 }

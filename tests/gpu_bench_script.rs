@@ -6,8 +6,9 @@
 use std::path::Path;
 use std::process::Command;
 
-const GROUPS: [&str; 13] = [
+const GROUPS: [&str; 14] = [
     "adapter",
+    "picture",
     "dgi",
     "schedule",
     "trace",
@@ -104,6 +105,7 @@ fn the_smoke_run_leaves_a_summary_and_a_tarball_that_names_every_group() {
         "sizes/trace-16x9.md",
         "sizes/trace-8x4.md",
         "readback/readback.md",
+        "picture/picture.md",
     ] {
         let p = unpacked.join(table);
         assert!(

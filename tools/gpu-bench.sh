@@ -99,11 +99,11 @@ setup_device() {
 # The groups, most important first: NAME BUDGET_SECONDS (the H200's; smoke mode has its own).
 # The full report goes last: on an H200 it runs for minutes (its 4K convergence curves), and
 # takes what the others leave.
-BENCH_GROUPS=(adapter dgi schedule trace guided native filter all-quick wall cluster sizes readback
-  all)
-declare -A BUDGET=([adapter]=20 [dgi]=60 [schedule]=30 [trace]=90 [guided]=120 [native]=60
+BENCH_GROUPS=(adapter picture dgi schedule trace guided native filter all-quick wall cluster sizes
+  readback all)
+declare -A BUDGET=([adapter]=20 [picture]=40 [dgi]=60 [schedule]=30 [trace]=90 [guided]=120 [native]=60
   [filter]=45 [all-quick]=60 [wall]=60 [cluster]=60 [sizes]=40 [readback]=30 [all]=300)
-declare -A SMOKE_BUDGET=([adapter]=10 [dgi]=20 [schedule]=20 [trace]=20 [guided]=40
+declare -A SMOKE_BUDGET=([adapter]=10 [picture]=10 [dgi]=20 [schedule]=20 [trace]=20 [guided]=40
   [native]=20 [filter]=30 [all-quick]=60 [wall]=20 [cluster]=20 [sizes]=20 [readback]=10
   [all]=60)
 
@@ -141,6 +141,11 @@ group_command() {
       # The full frame at smaller launches: how ms per megasample grows as a launch holds fewer
       # paths than the GPU has threads (a 10° iteration traces 2.9 % of 3840×2160).
       echo "for s in $TRACE_SIZES; do $BIN bench trace --backend gpu --size \$s --scene builtin:cornell,$CITY --spp $SPP --out $d/trace-\${s/,/x}.md || exit; done"
+      ;;
+    picture)
+      # One shown picture per iteration both ways: read back, filter, convert on the CPU
+      # (what the viewer did) against filtered and converted on the GPU (what it does now).
+      echo "$BIN bench picture --size $s --fov 10 --k-max 32 --rounds $READBACK_ROUNDS --out $d/picture.md"
       ;;
     readback)
       # A picture's read-back through a fresh and a kept mappable buffer.

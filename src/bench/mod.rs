@@ -9,6 +9,7 @@ pub mod font;
 pub mod guided;
 pub mod native;
 pub mod paper;
+pub mod picture;
 pub mod readback;
 pub mod schedule;
 pub mod solver;

@@ -39,6 +39,76 @@ pub enum BenchCommand {
     /// The accumulation's read-back from the GPU (16 bytes a pixel) through a fresh mappable
     /// buffer and through a kept one, side by side: ms and GB/s.
     Readback(ReadbackArgs),
+    /// One shown picture of a guided render by the host path (read back, filter, convert on
+    /// the CPU) and the GPU-resident one (filter and convert on the GPU, read back 8 bits),
+    /// side by side: ms per picture, stage times and bytes moved.
+    Picture(PictureArgs),
+}
+
+#[derive(Clone, Debug, clap::Args)]
+pub struct PictureArgs {
+    /// Scene (a file or builtin:NAME).
+    #[arg(long, value_name = "SCENE", default_value = "builtin:cornell")]
+    pub scene: String,
+    /// Display model (the paper's setup: HORNET).
+    #[arg(long, value_name = "MODEL", default_value = crate::display::DEFAULT_MODEL)]
+    pub display: String,
+    /// Image size.
+    #[arg(long, value_name = "W,H", default_value = "3840,2160", value_parser = crate::cli::args::parse_size)]
+    pub size: [u32; 2],
+    /// The ROI's field of view, degrees (a square cone).
+    #[arg(long, value_name = "DEG", default_value_t = 10.0)]
+    pub fov: f64,
+    /// Rounds (each runs a frame, then shows its picture both ways).
+    #[arg(long, default_value_t = 9)]
+    pub rounds: u32,
+    /// Exposure of the shown picture, stops.
+    #[arg(
+        long,
+        value_name = "STOPS",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    pub exposure: f32,
+    #[command(flatten)]
+    pub filter: crate::cli::filter::FilterArgs,
+    /// Print JSON instead of Markdown.
+    #[arg(long)]
+    pub json: bool,
+    /// Also write the output to this file.
+    #[arg(long, value_name = "FILE")]
+    pub out: Option<PathBuf>,
+}
+
+/// `raygun bench picture` (a GPU is required: the CPU twin has one path).
+fn run_picture(args: &PictureArgs) -> anyhow::Result<()> {
+    let display = DisplayModel::open(&args.display).context("--display")?.0;
+    let filter = args.filter.params()?;
+    if !args.exposure.is_finite() {
+        anyhow::bail!(
+            "--exposure must be a finite number of stops, not {}",
+            args.exposure
+        );
+    }
+    let ctx = crate::gpu::GpuContext::new()?;
+    let backend = Backend::Gpu(Box::new(ctx));
+    let mut scenes = crate::cli::scene::load_scenes(std::slice::from_ref(&args.scene), None)?;
+    let (name, scene) = scenes.remove(0);
+    let cfg = crate::bench::picture::PictureConfig {
+        size: args.size,
+        fov_deg: args.fov,
+        rounds: args.rounds,
+        filter,
+        exposure: args.exposure,
+        seed: 1,
+    };
+    let report = crate::bench::picture::run(&backend, &display, &name, &scene, &cfg)?;
+    let text = if args.json {
+        serde_json::to_string_pretty(&report)?
+    } else {
+        crate::bench::picture::markdown(&report)
+    };
+    print_and_save(&text, args.out.as_deref())
 }
 
 #[derive(Clone, Debug, clap::Args)]
@@ -646,6 +716,7 @@ fn check_before(cmd: &BenchCommand) -> anyhow::Result<()> {
         BenchCommand::Guided(a) => a.out.as_deref(),
         BenchCommand::Native(a) => a.out.as_deref(),
         BenchCommand::Readback(a) => a.out.as_deref(),
+        BenchCommand::Picture(a) => a.out.as_deref(),
         BenchCommand::All(a) => {
             crate::output::check_folder(&a.out).context("--out")?;
             None
@@ -684,6 +755,7 @@ pub fn run(cmd: &BenchCommand) -> anyhow::Result<()> {
         BenchCommand::Native(args) => run_native_bench(args),
         BenchCommand::All(args) => run_all_bench(args),
         BenchCommand::Readback(args) => run_readback(args),
+        BenchCommand::Picture(args) => run_picture(args),
         BenchCommand::Dgi(args) => {
             let model = DisplayModel::open(&args.display)?.0;
             let surface = Surface::from_model(&model);

@@ -197,7 +197,7 @@ pub fn progress_steps(cfg: &AllConfig, name: &str, gpu: bool) -> u64 {
         + (1 + 4 * ends) // filter (one k_max: exact and fast)
         + (1 + 2 * ends) // convergence
         + (2 + u64::from(gpu)) // solver
-        + ends // stages
+        + ends * (1 + u64::from(gpu)) // stages (the host way, and on a GPU the GPU way)
 }
 
 /// Runs every benchmark on `scene` (named `name`): DGI, full-frame tracing (plus `builtin:city`
@@ -306,20 +306,30 @@ pub fn run(
     let convergence = convergence(backend, display, name, scene, &fovs, cfg, &mut progress)?;
     let solver = solver::run(backend, cfg.solver_reps, &mut progress)?;
     let mut stage_rows = Vec::new();
+    // On a GPU both ways the picture reaches the window: the host way first (the rows the
+    // targets read), then the picture kept on the GPU.
+    let paths: &[stages::PicturePath] = if backend.is_gpu() {
+        &[stages::PicturePath::Host, stages::PicturePath::Gpu]
+    } else {
+        &[stages::PicturePath::Host]
+    };
     for &fov in &fovs {
-        progress(&format!("per-stage times: {fov}°"));
-        stage_rows.push(stages::measure(
-            backend,
-            display,
-            name,
-            scene,
-            cfg.size,
-            fov,
-            cfg.stage_iterations,
-            &cfg.filter,
-            0.0,
-            cfg.seed.wrapping_add(21),
-        )?);
+        for &path in paths {
+            progress(&format!("per-stage times: {fov}°, picture {path:?}"));
+            stage_rows.push(stages::measure(
+                backend,
+                display,
+                name,
+                scene,
+                cfg.size,
+                fov,
+                cfg.stage_iterations,
+                &cfg.filter,
+                0.0,
+                cfg.seed.wrapping_add(21),
+                path,
+            )?);
+        }
     }
     let mut report = AllReport {
         header,

@@ -3,14 +3,15 @@
 //! measured inside the iteration's own wall-clock interval so that their sum can be checked
 //! against it.
 //!
-//! *Display* is what the viewer does to show the filtered image (`ViewerCore::picture`):
-//! exposure scaling, the sRGB transfer function and 8-bit RGBA packing on the CPU — the bytes it
-//! hands to egui as a texture ([`display_rgba`] is that code; a test checks it against the
-//! viewer's picture). Filter and display run every iteration here, as if each iteration were
-//! shown (the viewer shows one picture per UI frame). On the GPU the renderer's buffers are its
-//! own, so the filter runs on a copy of the read-back accumulation, like the viewer's; its time
-//! is the kernels' (timestamps) and the copies count as *other*, the remainder of the wall
-//! clock.
+//! *Display* is what the viewer does to show the filtered image: exposure scaling, the sRGB
+//! transfer function and 8-bit RGBA packing — the bytes it hands to egui as a texture. Filter
+//! and display run every iteration here, as if each iteration were shown (the viewer shows one
+//! picture per UI frame). A row's *picture* says which way: **host** — the accumulation and the
+//! DGI read back, the filter on a copy (its time the kernels', the copies *filter transfers*),
+//! the conversion on the CPU ([`display_rgba`]; a test checks it against the viewer's
+//! picture); **GPU** — the filter on the renderer's own buffers and the display kernel, the
+//! 8-bit picture read back ([`Renderer::shown_picture`], the viewer's window picture on one
+//! GPU). `bench all` measures both on a GPU.
 
 use std::time::Instant;
 
@@ -62,11 +63,27 @@ pub struct StageRow {
     pub target_iteration_ms: f64,
     /// Whether the GPU stages came from timestamps (else wall clock).
     pub gpu_timestamps: bool,
+    /// How the picture was made: `host` (read back, filter a copy, convert on the CPU) or
+    /// `gpu` (filtered and converted on the GPU, 8 bits read back: `Renderer::shown_picture`).
+    pub picture: PicturePath,
+}
+
+/// The two ways a GPU renderer's picture reaches the window (the CPU twin has the first).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum PicturePath {
+    /// The accumulation and DGI read back, the filter on a copy, the conversion on the CPU.
+    Host,
+    /// The filter on the renderer's own buffers and the conversion on the GPU; 4 bytes a pixel
+    /// read back ([`Renderer::shown_picture`]).
+    Gpu,
 }
 
 /// Measures `iterations` guided iterations of `scene` in the paper's setup (viewer at
 /// (0, 0, 1) m pointing at the wall centre, square cone of `fov` degrees) with the ROI set on
-/// the first, filtering with `filter` and converting for display with `exposure` every one.
+/// the first, filtering with `filter` and converting for display with `exposure` every one,
+/// the picture made the `picture` way (a GPU renderer whose frame is one band; else the host
+/// way, and the row says so).
 #[allow(clippy::too_many_arguments)]
 pub fn measure(
     backend: &Backend,
@@ -79,6 +96,7 @@ pub fn measure(
     filter: &FilterParams,
     exposure: f32,
     seed: u32,
+    picture: PicturePath,
 ) -> Result<StageRow, AllBenchError> {
     let [w, h] = size;
     let settings =
@@ -90,6 +108,7 @@ pub fn measure(
     let roi = crate::bench::paper::roi(fov)?;
     let mut g = Renderer::guided(backend, scene, settings, display, GuideConfig::default())?;
     let filter_stage = Filter::new(backend);
+    let resident = picture == PicturePath::Gpu && g.shows_on_gpu(filter);
     let n = iterations.max(1);
     let (mut dgi_change, mut stamps) = (None, matches!(backend, Backend::Cpu));
     let (mut sched, mut trace, mut filt, mut disp) = (0f64, 0f64, 0f64, 0f64);
@@ -103,18 +122,36 @@ pub fn measure(
             g.set_roi(Some(roi))?;
         }
         let s = g.run_frame(true)?;
-        let t = Instant::now();
-        let acc = g.accumulation()?;
-        let dgi = g.dgi()?;
-        let ms_readback = t.elapsed().as_secs_f64() * 1e3;
-        let t = Instant::now();
-        let (image, ms_filter, stamped) = filter_stage.timed_image(filter, &acc, &dgi)?;
-        // The kernels' time is at most the call's wall clock (timestamps lie inside it).
-        let ms_transfer = (t.elapsed().as_secs_f64() * 1e3 - ms_filter).max(0.0);
-        let t = Instant::now();
-        let rgba = display_rgba(&image, exposure);
-        std::hint::black_box(&rgba);
-        let ms_display = t.elapsed().as_secs_f64() * 1e3;
+        let (ms_readback, ms_filter, ms_transfer, ms_display, stamped) = if resident {
+            // Filtered and converted on the GPU; the 8-bit picture read back.
+            let t = Instant::now();
+            let shown = g.shown_picture(filter, exposure, true)?;
+            std::hint::black_box(&shown.rgba);
+            let wall = t.elapsed().as_secs_f64() * 1e3;
+            let st = shown.times.expect("timed");
+            let transfer = (wall - st.filter_ms - st.display_ms).max(0.0);
+            (
+                0.0,
+                st.filter_ms,
+                transfer,
+                st.display_ms,
+                st.gpu_timestamps,
+            )
+        } else {
+            let t = Instant::now();
+            let acc = g.accumulation()?;
+            let dgi = g.dgi()?;
+            let ms_readback = t.elapsed().as_secs_f64() * 1e3;
+            let t = Instant::now();
+            let (image, ms_filter, stamped) = filter_stage.timed_image(filter, &acc, &dgi)?;
+            // The kernels' time is at most the call's wall clock (timestamps lie inside it).
+            let ms_transfer = (t.elapsed().as_secs_f64() * 1e3 - ms_filter).max(0.0);
+            let t = Instant::now();
+            let rgba = display_rgba(&image, exposure);
+            std::hint::black_box(&rgba);
+            let ms_display = t.elapsed().as_secs_f64() * 1e3;
+            (ms_readback, ms_filter, ms_transfer, ms_display, stamped)
+        };
         walls.push(t0.elapsed().as_secs_f64() * 1e3);
         if s.dgi_recomputed {
             dgi_change = s.ms_dgi;
@@ -156,6 +193,11 @@ pub fn measure(
         other_ms: mean - stage_sum - readback - transfer,
         target_iteration_ms: dgi_change.unwrap_or(0.0) + sched + trace + filt,
         gpu_timestamps: stamps,
+        picture: if resident {
+            PicturePath::Gpu
+        } else {
+            PicturePath::Host
+        },
     })
 }
 
@@ -163,11 +205,11 @@ pub fn measure(
 #[must_use]
 pub fn markdown(rows: &[StageRow], device: &str) -> String {
     let mut s = format!(
-        "Device: {device}. Means over the iterations (ms), so the stages add up; the wall clock of whole iterations is given as mean, median and min. *Display* = the viewer's conversion of the filtered image to the 8-bit sRGB RGBA texture it uploads (CPU); *read-back* = the accumulation's and the DGI's read-back (a copy on the CPU); *filter transfers* = the filter's wall clock beyond its kernels (its inputs' upload, preparation, its picture's read-back; about 0 on the CPU); *other* = the rest of the wall clock (the frame's submission and waits, bookkeeping). Filter and display run every iteration here. The *target iteration* is DGI on a change + mask/compaction + trace + fast filter.\n\n| FOV | size | iterations | share sampled | DGI per change | DGI amortised | mask+compaction | trace | filter | display | sum of stages | other | iteration (mean / median / min) | target iteration | read-back | filter transfers |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n"
+        "Device: {device}. Means over the iterations (ms), so the stages add up; the wall clock of whole iterations is given as mean, median and min. *Display* = the viewer's conversion of the filtered image to the 8-bit sRGB RGBA texture it uploads (CPU); *read-back* = the accumulation's and the DGI's read-back (a copy on the CPU); *filter transfers* = the filter's wall clock beyond its kernels (its inputs' upload, preparation, its picture's read-back; about 0 on the CPU); *other* = the rest of the wall clock (the frame's submission and waits, bookkeeping). Filter and display run every iteration here. The *target iteration* is DGI on a change + mask/compaction + trace + fast filter. *Picture*: host = the accumulation and DGI read back, filtered as a copy, converted on the CPU (the columns above); GPU = filtered on the renderer's own buffers and converted by the display kernel, 4 bytes a pixel read back (`Renderer::shown_picture`, what the viewer does on one GPU): its *display* is that kernel, its *filter transfers* the 8-bit read-back and the waits, its *read-back* 0.\n\n| FOV | size | iterations | share sampled | DGI per change | DGI amortised | mask+compaction | trace | filter | display | sum of stages | other | iteration (mean / median / min) | target iteration | read-back | filter transfers | picture |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n"
     );
     for r in rows {
         s += &format!(
-            "| {}° | {}×{} | {} | {:.2} % | {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} / {:.3} / {:.3} | {:.3} | {:.3} | {:.3} |\n",
+            "| {}° | {}×{} | {} | {:.2} % | {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} / {:.3} / {:.3} | {:.3} | {:.3} | {:.3} | {} |\n",
             r.fov_deg,
             r.size[0],
             r.size[1],
@@ -188,6 +230,10 @@ pub fn markdown(rows: &[StageRow], device: &str) -> String {
             r.target_iteration_ms,
             r.readback_ms,
             r.filter_transfer_ms,
+            match r.picture {
+                PicturePath::Host => "host",
+                PicturePath::Gpu => "GPU",
+            },
         );
     }
     s

@@ -1,0 +1,331 @@
+//! `raygun bench picture`: what showing one picture costs, by the two paths a GPU renderer has.
+//!
+//! * **host** — what the viewer did before the picture stayed on the GPU: read the
+//!   accumulation and the DGI back, upload them again as the filter's inputs, filter, read the
+//!   filtered picture back, convert it to 8-bit sRGB on the CPU ([`Renderer::picture`], then
+//!   [`display_rgba`]).
+//! * **GPU-resident** — [`Renderer::shown_picture`]: the filter reads the renderer's own
+//!   buffers, the display kernel converts, and only the 8-bit picture comes back.
+//!
+//! A guided render of the paper's setup runs one more frame before each round (the picture
+//! changes every time, as in a viewer); each round times both paths on that accumulation, in
+//! alternating order, and the first round checks that both give the same bytes.
+
+use std::time::Instant;
+
+use serde::Serialize;
+
+use crate::display::DisplayModel;
+use crate::filter::{FilterKind, FilterParams};
+use crate::frame::{FrameError, GuideConfig, Renderer};
+use crate::gpu::Backend;
+use crate::output::srgb8::display_rgba;
+use crate::scene::Scene;
+
+/// One path over the rounds (ms, medians unless said).
+#[derive(Clone, Debug, Serialize)]
+pub struct PicturePathRow {
+    pub path: &'static str,
+    pub ms_min: f64,
+    pub ms_median: f64,
+    /// Host: the accumulation's and the DGI's read-back. Resident: 0 (nothing read back but
+    /// the picture).
+    pub readback_ms: f64,
+    /// Host: the filter call's wall clock (inputs' upload, kernels, picture's read-back).
+    /// Resident: the filter's kernels (timestamps where the adapter has them).
+    pub filter_ms: f64,
+    /// Host: the CPU's conversion. Resident: the display kernel.
+    pub display_ms: f64,
+    /// Bytes that cross between host and GPU per picture, by construction of the path.
+    pub bytes_moved: u64,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct PictureReport {
+    pub device: String,
+    pub scene: String,
+    pub size: [u32; 2],
+    pub fov_deg: f64,
+    pub filter: FilterParams,
+    pub rounds: u32,
+    /// Frames rendered before the first round.
+    pub warmup_frames: u32,
+    /// Whether the resident path's stage times came from GPU timestamps.
+    pub gpu_timestamps: bool,
+    pub rows: Vec<PicturePathRow>,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum PictureBenchError {
+    #[error("bench picture compares the GPU's two paths; the CPU twin has one (pick a GPU)")]
+    NoGpu,
+    #[error(
+        "{w}×{h} does not fit one band on this adapter: its frames and pictures take the host path alone"
+    )]
+    NotResident { w: u32, h: u32 },
+    #[error(
+        "the GPU-resident picture differs from the host path's at byte {byte} (pixel {pixel}): {resident} against {host}"
+    )]
+    Differs {
+        byte: usize,
+        pixel: usize,
+        resident: u8,
+        host: u8,
+    },
+    #[error(transparent)]
+    Frame(#[from] FrameError),
+    #[error(transparent)]
+    Cone(#[from] crate::roi::cone::ConeError),
+    #[error(transparent)]
+    Camera(#[from] crate::trace::camera::CameraError),
+}
+
+/// What to measure.
+#[derive(Clone, Debug)]
+pub struct PictureConfig {
+    pub size: [u32; 2],
+    pub fov_deg: f64,
+    pub rounds: u32,
+    pub filter: FilterParams,
+    pub exposure: f32,
+    pub seed: u32,
+}
+
+const WARMUP_FRAMES: u32 = 2;
+
+/// Times both paths on `scene` in the paper's setup on `display`.
+pub fn run(
+    backend: &Backend,
+    display: &DisplayModel,
+    name: &str,
+    scene: &Scene,
+    cfg: &PictureConfig,
+) -> Result<PictureReport, PictureBenchError> {
+    if !backend.is_gpu() {
+        return Err(PictureBenchError::NoGpu);
+    }
+    let [w, h] = cfg.size;
+    let settings = crate::bench::paper::settings(
+        scene,
+        cfg.size,
+        cfg.seed,
+        crate::trace::path::DEFAULT_MAX_DEPTH,
+    )?;
+    let roi = crate::bench::paper::roi(cfg.fov_deg)?;
+    let mut g = crate::bench::paper::guided(
+        backend,
+        scene,
+        settings,
+        display,
+        GuideConfig::default(),
+        roi,
+    )?;
+    if !g.shows_on_gpu(&cfg.filter) {
+        return Err(PictureBenchError::NotResident { w, h });
+    }
+    g.iterate(WARMUP_FRAMES)?;
+    let rounds = cfg.rounds.max(1);
+    let (mut host, mut resident) = (Vec::new(), Vec::new());
+    let mut stamps = false;
+    for round in 0..rounds {
+        g.iterate(1)?;
+        let (a, b) = if round % 2 == 0 {
+            let a = time_host(&g, cfg)?;
+            (a, time_resident(&g, cfg)?)
+        } else {
+            let b = time_resident(&g, cfg)?;
+            (time_host(&g, cfg)?, b)
+        };
+        if round == 0 {
+            same_bytes(&b.1, &a.1, cfg.filter.kind)?;
+        }
+        stamps = b.2;
+        host.push(a.0);
+        resident.push(b.0);
+    }
+    let n = u64::from(w) * u64::from(h);
+    Ok(PictureReport {
+        device: backend.describe(),
+        scene: name.to_string(),
+        size: cfg.size,
+        fov_deg: cfg.fov_deg,
+        filter: cfg.filter,
+        rounds,
+        warmup_frames: WARMUP_FRAMES,
+        gpu_timestamps: stamps,
+        rows: vec![
+            // Read back: sums 16 + counts 4 + DGI 4; uploaded again: 24; picture back: 16.
+            row(
+                "host (read back, filter, convert on the CPU)",
+                &host,
+                64 * n,
+            ),
+            row(
+                "GPU-resident (filter and convert on the GPU)",
+                &resident,
+                4 * n,
+            ),
+        ],
+    })
+}
+
+/// One round's times: [whole, read-back, filter, display].
+type Times = [f64; 4];
+
+fn time_host(g: &Renderer, cfg: &PictureConfig) -> Result<(Times, Vec<u8>), FrameError> {
+    let t0 = Instant::now();
+    let acc = g.accumulation()?;
+    let dgi = g.dgi()?;
+    let readback = t0.elapsed().as_secs_f64() * 1e3;
+    let t = Instant::now();
+    let image = g.picture_of(&cfg.filter, &acc, &dgi)?;
+    let filter = t.elapsed().as_secs_f64() * 1e3;
+    let t = Instant::now();
+    let rgba = display_rgba(&image, cfg.exposure);
+    let display = t.elapsed().as_secs_f64() * 1e3;
+    let whole = t0.elapsed().as_secs_f64() * 1e3;
+    Ok(([whole, readback, filter, display], rgba))
+}
+
+fn time_resident(g: &Renderer, cfg: &PictureConfig) -> Result<(Times, Vec<u8>, bool), FrameError> {
+    let t0 = Instant::now();
+    let p = g.shown_picture(&cfg.filter, cfg.exposure, true)?;
+    let whole = t0.elapsed().as_secs_f64() * 1e3;
+    let t = p.times.expect("timed");
+    Ok((
+        [whole, 0.0, t.filter_ms, t.display_ms],
+        p.rgba,
+        t.gpu_timestamps,
+    ))
+}
+
+/// The paths must agree: byte for byte, but for the unfiltered mean (the GPU divides there,
+/// the host path's CPU mean divides on the CPU) within one code.
+fn same_bytes(resident: &[u8], host: &[u8], kind: FilterKind) -> Result<(), PictureBenchError> {
+    let slack = u8::from(kind == FilterKind::Off);
+    let n = resident.len().min(host.len());
+    match (0..n).find(|&i| resident[i].abs_diff(host[i]) > slack) {
+        None if resident.len() == host.len() => Ok(()),
+        found => {
+            let byte = found.unwrap_or(n);
+            Err(PictureBenchError::Differs {
+                byte,
+                pixel: byte / 4,
+                resident: resident.get(byte).copied().unwrap_or(0),
+                host: host.get(byte).copied().unwrap_or(0),
+            })
+        }
+    }
+}
+
+fn row(path: &'static str, rounds: &[Times], bytes_moved: u64) -> PicturePathRow {
+    let part = |k: usize| crate::bench::median(rounds.iter().map(|t| t[k]).collect());
+    PicturePathRow {
+        path,
+        ms_min: rounds.iter().map(|t| t[0]).fold(f64::INFINITY, f64::min),
+        ms_median: part(0),
+        readback_ms: part(1),
+        filter_ms: part(2),
+        display_ms: part(3),
+        bytes_moved,
+    }
+}
+
+/// The report as Markdown, with the resident path's median over the host path's.
+#[must_use]
+pub fn markdown(r: &PictureReport) -> String {
+    let f = &r.filter;
+    let mut s = format!(
+        "One shown picture of a guided render ({}, {}×{}, {}° ROI, filter {:?} k_max {}), {} rounds after {} frames, a frame before each round, both paths in each (alternating order); device: {}. Medians in ms; *bytes moved* between host and GPU per picture, by construction of the path. Resident stage times from {}.\n\n| path | ms min | ms median | read-back | filter | display | bytes moved |\n|---|---|---|---|---|---|---|\n",
+        r.scene,
+        r.size[0],
+        r.size[1],
+        r.fov_deg,
+        f.kind,
+        f.k_max,
+        r.rounds,
+        r.warmup_frames,
+        r.device,
+        if r.gpu_timestamps {
+            "GPU timestamps"
+        } else {
+            "the wall clock around each stage (no timestamps)"
+        }
+    );
+    for row in &r.rows {
+        s += &format!(
+            "| {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.1} MB |\n",
+            row.path,
+            row.ms_min,
+            row.ms_median,
+            row.readback_ms,
+            row.filter_ms,
+            row.display_ms,
+            row.bytes_moved as f64 / 1e6
+        );
+    }
+    if let [host, resident] = &r.rows[..] {
+        s += &format!(
+            "\nGPU-resident ÷ host (medians): ×{:.3}\n",
+            resident.ms_median / host.ms_median
+        );
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Both paths run and agree (checked inside `run`), and the table names both with their
+    /// stage times inside the whole.
+    #[test]
+    fn both_paths_agree_and_are_reported() {
+        let backend = Backend::Gpu(Box::new(crate::gpu::GpuContext::for_tests()));
+        let display = DisplayModel::open("hornet").unwrap().0;
+        let scene = Scene::open("builtin:cornell").unwrap();
+        let cfg = PictureConfig {
+            size: [64, 36],
+            fov_deg: 30.0,
+            rounds: 3,
+            filter: FilterParams::default(),
+            exposure: 0.0,
+            seed: 1,
+        };
+        let r = run(&backend, &display, "cornell", &scene, &cfg).unwrap();
+        assert_eq!(r.rows.len(), 2);
+        for row in &r.rows {
+            assert!(row.ms_min > 0.0 && row.ms_min <= row.ms_median, "{row:?}");
+            assert!(row.filter_ms > 0.0 && row.display_ms > 0.0, "{row:?}");
+        }
+        assert!(r.rows[0].readback_ms > 0.0 && r.rows[1].readback_ms == 0.0);
+        assert_eq!(r.rows[0].bytes_moved, 16 * r.rows[1].bytes_moved);
+        let md = markdown(&r);
+        assert!(md.contains("| host (read back"), "{md}");
+        assert!(md.contains("GPU-resident ÷ host"), "{md}");
+        assert!(matches!(
+            run(&Backend::Cpu, &display, "cornell", &scene, &cfg),
+            Err(PictureBenchError::NoGpu)
+        ));
+    }
+
+    #[test]
+    fn a_differing_byte_is_named() {
+        assert!(same_bytes(&[1, 2, 3], &[1, 2, 3], FilterKind::Fast).is_ok());
+        assert!(same_bytes(&[1, 2, 4], &[1, 2, 3], FilterKind::Off).is_ok());
+        let e = same_bytes(&[1, 2, 4, 0, 9], &[1, 2, 3, 0, 9], FilterKind::Fast).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                PictureBenchError::Differs {
+                    byte: 2,
+                    pixel: 0,
+                    resident: 4,
+                    host: 3
+                }
+            ),
+            "{e}"
+        );
+        assert!(same_bytes(&[1, 2], &[1, 2, 3], FilterKind::Fast).is_err());
+    }
+}
