@@ -86,6 +86,10 @@ pub struct RankRun {
     #[serde(default)]
     pub ms_per_iteration_sync: f64,
     pub ms_trace: f64,
+    /// Of `ms_trace`, the tracer's call (GPU: the list's upload, the kernel, the samples'
+    /// read-back; CPU: the tracing); the rest is the host's work around it.
+    #[serde(default)]
+    pub ms_trace_call: f64,
     pub ms_schedule: f64,
     /// The counts of the pixels this rank traces for other owners (received before the trace).
     #[serde(default)]
@@ -317,6 +321,7 @@ pub fn scaling(
             ms_per_iteration: median(frames.iter().map(|(ms, _)| *ms).collect()),
             ms_per_iteration_sync: median(sync),
             ms_trace: med(&|s| s.ms_trace),
+            ms_trace_call: med(&|s| s.ms_trace_call),
             ms_schedule: med(&|s| s.ms_schedule),
             ms_counts: med(&|s| s.ms_counts),
             ms_exchange: med(&|s| s.ms_exchange),
@@ -619,7 +624,7 @@ fn mb(bytes: f64) -> String {
 pub fn markdown(r: &ClusterBenchReport) -> String {
     let c = &r.config;
     let mut s = format!(
-        "Device: {}\n\n## Strong scaling (measured)\n\n{} at {}×{}, max depth {}, HORNET, viewer 1 m in front of the centre, {} timed iterations per FOV after the DGI's.\n\n| FOV | ranks | share sampled | ms/iteration (rank 0), exchange overlapped / not | rank | ms trace | ms schedule | ms counts | ms exchange | samples traced/it | bytes sent/it | bytes received/it | DGI computed ms | DGI broadcast ms | DGI split ms | own tiles' picture ms (bytes sent / received) | rank 0: gather + whole filter ms | rank 0: console picture (every k-th pixel) ms, bytes received |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "Device: {}\n\n## Strong scaling (measured)\n\n{} at {}×{}, max depth {}, HORNET, viewer 1 m in front of the centre, {} timed iterations per FOV after the DGI's.\n\n| FOV | ranks | share sampled | ms/iteration (rank 0), exchange overlapped / not | rank | ms trace (of which the tracer's call) | ms schedule | ms counts | ms exchange | samples traced/it | bytes sent/it | bytes received/it | DGI computed ms | DGI broadcast ms | DGI split ms | own tiles' picture ms (bytes sent / received) | rank 0: gather + whole filter ms | rank 0: console picture (every k-th pixel) ms, bytes received |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
         r.device, c.scene, c.size[0], c.size[1], c.max_depth, c.iterations
     );
     for row in &r.scaling {
@@ -648,9 +653,10 @@ pub fn markdown(r: &ClusterBenchReport) -> String {
                 (String::new(), String::new())
             };
             s += &format!(
-                "{head}| {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.0} | {:.0} | {:.0} | {:.1} | {:.1} | {:.1} | {:.1} ({} / {}) | {gather} | {console} |\n",
+                "{head}| {} | {:.1} ({:.1}) | {:.1} | {:.1} | {:.1} | {:.0} | {:.0} | {:.0} | {:.1} | {:.1} | {:.1} | {:.1} ({} / {}) | {gather} | {console} |\n",
                 p.rank,
                 p.ms_trace,
+                p.ms_trace_call,
                 p.ms_schedule,
                 p.ms_counts,
                 p.ms_exchange,

@@ -57,6 +57,8 @@ pub mod owners;
 pub mod picture;
 
 use std::sync::Arc;
+
+use rayon::prelude::*;
 use std::time::{Duration, Instant};
 
 use glam::{DVec2, DVec3, Vec3};
@@ -450,6 +452,10 @@ pub struct ClusterFrameStats {
     /// owners.
     pub ms_counts: f64,
     pub ms_trace: f64,
+    /// Of `ms_trace`, the tracer's call: on a GPU the list's upload, the kernel and the
+    /// samples' read-back; on the CPU twin the tracing. The rest is the host's work around it
+    /// (the list put together, the rays per block).
+    pub ms_trace_call: f64,
     /// Taking in and adding the samples in flight (the previous frame's, overlapped; this
     /// frame's, not overlapped) and posting this frame's.
     pub ms_exchange: f64,
@@ -975,12 +981,20 @@ impl ClusterRenderer {
         let owner = |i: usize| self.owners.owner[list.blocks[i] as usize] as usize;
         let mut got = vec![Vec::new(); n];
         if n > 1 {
-            let mut parts = vec![Vec::new(); n];
+            let mut bytes = vec![0usize; n];
+            for (i, &t) in tracer.iter().enumerate() {
+                if t as usize != me && owner(i) == me {
+                    bytes[t as usize] += 4 * list.len_of(i) as usize;
+                }
+            }
+            let mut parts: Vec<Vec<u8>> = bytes.iter().map(|&b| Vec::with_capacity(b)).collect();
             for (i, &t) in tracer.iter().enumerate() {
                 let t = t as usize;
                 if t != me && owner(i) == me {
+                    let base = self.own_base(list.blocks[i]).expect("a block of this rank");
                     for &p in list.pixels_of(i) {
-                        parts[t].extend(self.own_count(p).to_le_bytes());
+                        let c = self.counts[base + self.local(p)];
+                        parts[t].extend_from_slice(&c.to_le_bytes());
                     }
                 }
             }
@@ -1007,7 +1021,12 @@ impl ClusterRenderer {
         for i in (0..list.blocks.len()).filter(|&i| tracer[i] as usize == me) {
             let o = owner(i);
             if o == me {
-                counts.extend(list.pixels_of(i).iter().map(|&p| self.own_count(p)));
+                let base = self.own_base(list.blocks[i]).expect("a block of this rank");
+                counts.extend(
+                    list.pixels_of(i)
+                        .iter()
+                        .map(|&p| self.counts[base + self.local(p)]),
+                );
             } else {
                 let len = list.len_of(i) as usize;
                 let bytes = &got[o][4 * at[o]..4 * (at[o] + len)];
@@ -1037,21 +1056,32 @@ impl ClusterRenderer {
         let mine: Vec<usize> = (0..list.blocks.len())
             .filter(|&i| tracer[i] as usize == self.rank)
             .collect();
-        let pixels: Vec<u32> = mine
-            .iter()
-            .flat_map(|&i| list.pixels_of(i).iter().copied())
-            .collect();
+        let total: usize = mine.iter().map(|&i| list.len_of(i) as usize).sum();
+        let mut pixels = Vec::with_capacity(total);
+        for &i in &mine {
+            pixels.extend_from_slice(list.pixels_of(i));
+        }
         debug_assert_eq!(counts.len(), pixels.len());
         let (sc, s, wall) = (&self.packed, &self.settings, self.wall.as_ref());
-        let samples = match &mut self.gpu {
-            Some(g) => g.run.samples(&g.ctx, &g.scene, &pixels, counts)?,
-            None => samples_cpu(sc, s, wall, &pixels, counts),
+        let t_call = Instant::now();
+        let samples: Vec<[f32; 4]> = match &mut self.gpu {
+            Some(g) => g.run.samples_raw(&g.ctx, &g.scene, &pixels, counts)?,
+            None => samples_cpu(sc, s, wall, &pixels, counts)
+                .into_iter()
+                .map(|(c, r)| [c.x, c.y, c.z, f32::from_bits(r)])
+                .collect(),
         };
+        stats.ms_trace_call = t_call.elapsed().as_secs_f64() * 1e3;
         let mut rays = Vec::with_capacity(mine.len());
         let mut at = 0;
         for &i in &mine {
             let n = list.len_of(i) as usize;
-            rays.push(samples[at..at + n].iter().map(|s| s.1).sum::<u32>());
+            rays.push(
+                samples[at..at + n]
+                    .iter()
+                    .map(|s| s[3].to_bits())
+                    .sum::<u32>(),
+            );
             at += n;
         }
         stats.pixels_traced = pixels.len() as u64;
@@ -1059,7 +1089,7 @@ impl ClusterRenderer {
         stats.ms_trace = t0.elapsed().as_secs_f64() * 1e3;
         Ok(Traced {
             blocks: mine,
-            rgb: samples.into_iter().map(|s| s.0).collect(),
+            samples,
             rays,
         })
     }
@@ -1079,36 +1109,51 @@ impl ClusterRenderer {
         debug_assert!(self.in_flight.is_none(), "one frame's samples in flight");
         let n = self.ranks;
         let rays: Vec<u8> = mine.rays.iter().flat_map(|r| r.to_le_bytes()).collect();
+        // Each other owner's share: the rays, then 12 bytes a sample of its blocks.
+        let owner_of = |i: usize| self.owners.owner[list.blocks[i] as usize] as usize;
+        let mut bytes = vec![0usize; n];
+        for &i in &mine.blocks {
+            bytes[owner_of(i)] += 12 * list.len_of(i) as usize;
+        }
         let mut parts: Vec<Vec<u8>> = (0..n)
             .map(|r| {
                 if r == self.rank {
                     Vec::new()
                 } else {
-                    rays.clone()
+                    let mut part = Vec::with_capacity(rays.len() + bytes[r]);
+                    part.extend_from_slice(&rays);
+                    part
                 }
             })
             .collect();
         let mut at = 0;
         for &i in &mine.blocks {
             let len = list.len_of(i) as usize;
-            let owner = self.owners.owner[list.blocks[i] as usize] as usize;
+            let owner = owner_of(i);
             if owner != self.rank {
-                for rgb in &mine.rgb[at..at + len] {
-                    for v in rgb.to_array() {
-                        parts[owner].extend(v.to_le_bytes());
-                    }
+                let part = &mut parts[owner];
+                for s in &mine.samples[at..at + len] {
+                    part.extend_from_slice(&rgb_bytes(s));
                 }
             }
             at += len;
         }
+        // Each owned block's pixels counted in its own slot: the blocks on all cores.
+        let mut jobs: Vec<Option<&[u32]>> = vec![None; self.slots()];
         for i in 0..list.blocks.len() {
-            if self.owners.owner[list.blocks[i] as usize] as usize == self.rank {
-                for &p in list.pixels_of(i) {
-                    let k = self.own_index(p).expect("a pixel of this rank");
-                    self.counts[k] += 1;
-                }
+            if let Some(base) = self.own_base(list.blocks[i]) {
+                jobs[base / BLOCK_PIXELS as usize] = Some(list.pixels_of(i));
             }
         }
+        let width = self.settings.width;
+        self.counts
+            .par_chunks_mut(BLOCK_PIXELS as usize)
+            .zip(jobs.par_iter())
+            .for_each(|(counts, job)| {
+                for &p in job.unwrap_or_default() {
+                    counts[local_in_block(p, width)] += 1;
+                }
+            });
         self.total += list.len();
         let what = format!("the samples of iteration {}", self.iteration);
         let own = c.all_to_all_post(&what, parts)?;
@@ -1133,15 +1178,17 @@ impl ClusterRenderer {
         let (list, tracer, mine) = (&f.list, &f.tracer, &f.mine);
         let what = format!("the samples of iteration {}", f.iteration);
         let got = c.all_to_all_collect(&what, f.own)?;
-        // Own blocks first (no bytes), then each other rank's, by the same layout.
+        // Own blocks first (no bytes), then each other rank's, by the same layout: each owned
+        // block's samples found (at most one rank traced it), then added on all cores, a
+        // block's pixels in its own slot.
+        let mut jobs: Vec<Option<(&[u32], BlockSamples)>> = vec![None; self.slots()];
         let mut at = 0;
         for (k, &i) in mine.blocks.iter().enumerate() {
             let len = list.len_of(i) as usize;
             let b = list.blocks[i];
-            if !f.stale && self.owners.owner[b as usize] as usize == self.rank {
-                for (j, &p) in list.pixels_of(i).iter().enumerate() {
-                    self.add_sums(p, mine.rgb[at + j]);
-                }
+            if let Some(base) = self.own_base(b) {
+                let samples = BlockSamples::Own(&mine.samples[at..at + len]);
+                jobs[base / BLOCK_PIXELS as usize] = Some((list.pixels_of(i), samples));
             }
             self.costs.record(b, mine.rays[k], len as u32);
             at += len;
@@ -1173,23 +1220,40 @@ impl ClusterRenderer {
                 }
                 .into());
             }
-            let (ray_bytes, rgb_bytes) = bytes.split_at(4 * theirs.len());
-            let rgb = f32s(rgb_bytes, 3);
-            let mut at = 0;
+            let (ray_bytes, rgb) = bytes.split_at(4 * theirs.len());
+            let mut off = 0;
             for (k, &i) in theirs.iter().enumerate() {
                 let b = list.blocks[i];
+                let len = list.len_of(i) as usize;
                 let r = u32::from_le_bytes(ray_bytes[4 * k..4 * k + 4].try_into().expect("4"));
-                self.costs.record(b, r, list.len_of(i));
+                self.costs.record(b, r, len as u32);
                 if owned[k] {
-                    for &p in list.pixels_of(i) {
-                        if !f.stale {
-                            let v = Vec3::new(rgb[at], rgb[at + 1], rgb[at + 2]);
-                            self.add_sums(p, v);
-                        }
-                        at += 3;
-                    }
+                    let base = self.own_base(b).expect("a block of this rank");
+                    let samples = BlockSamples::Wire(&rgb[12 * off..12 * (off + len)]);
+                    jobs[base / BLOCK_PIXELS as usize] = Some((list.pixels_of(i), samples));
+                    off += len;
                 }
             }
+        }
+        if !f.stale {
+            let width = self.settings.width;
+            self.sums
+                .par_chunks_mut(BLOCK_PIXELS as usize)
+                .zip(jobs.par_iter())
+                .for_each(|(sums, job)| match job {
+                    Some((pixels, BlockSamples::Own(samples))) => {
+                        for (&p, s) in pixels.iter().zip(*samples) {
+                            let v = Vec3::new(s[0], s[1], s[2]);
+                            accumulate_sums(&mut sums[local_in_block(p, width)], v);
+                        }
+                    }
+                    Some((pixels, BlockSamples::Wire(bytes))) => {
+                        for (&p, c) in pixels.iter().zip(bytes.chunks_exact(12)) {
+                            accumulate_sums(&mut sums[local_in_block(p, width)], rgb_of(c));
+                        }
+                    }
+                    None => {}
+                });
         }
         Ok(())
     }
@@ -1211,18 +1275,29 @@ impl ClusterRenderer {
     /// Where pixel `p`'s sums and count are in `sums` and `counts`, if its block is this
     /// rank's.
     fn own_index(&self, p: u32) -> Option<usize> {
-        let w = self.settings.width;
-        let slot = self.slot[block_of(p, w, self.owners.tiles[0]) as usize];
-        (slot != u32::MAX).then(|| {
-            let (x, y) = (p % w, p / w);
-            let local = (y % TILE_EDGE) * TILE_EDGE + x % TILE_EDGE;
-            (slot * BLOCK_PIXELS + local) as usize
-        })
+        let b = block_of(p, self.settings.width, self.owners.tiles[0]);
+        self.own_base(b).map(|base| base + self.local(p))
     }
 
-    /// An owned pixel's sample count.
-    fn own_count(&self, p: u32) -> u32 {
-        self.counts[self.own_index(p).expect("a pixel of this rank")]
+    /// Where block `b`'s pixels begin in `sums` and `counts`, if the block is this rank's (the
+    /// loops over a block's pixels look it up once, not per pixel).
+    fn own_base(&self, b: u32) -> Option<usize> {
+        let slot = self.slot[b as usize];
+        if slot == u32::MAX {
+            None
+        } else {
+            Some((slot * BLOCK_PIXELS) as usize)
+        }
+    }
+
+    /// Pixel `p`'s place inside its block (row-major).
+    fn local(&self, p: u32) -> usize {
+        local_in_block(p, self.settings.width)
+    }
+
+    /// The owned blocks' slots (`BLOCK_PIXELS` entries of `sums` and `counts` each).
+    fn slots(&self) -> usize {
+        self.counts.len() / BLOCK_PIXELS as usize
     }
 
     /// An owned pixel's sums and count as they travel: 16 bytes of sums (f32), 4 of count.
@@ -1230,13 +1305,6 @@ impl ClusterRenderer {
         let k = self.own_index(p).expect("a pixel of this rank");
         out.extend(f32_bytes(&self.sums[k]));
         out.extend(self.counts[k].to_le_bytes());
-    }
-
-    /// Adds one sample to an owned pixel's sums, with the one-process renderer's arithmetic
-    /// (its count was added when the sample was posted).
-    fn add_sums(&mut self, p: u32, rgb: Vec3) {
-        let k = self.own_index(p).expect("a pixel of this rank");
-        accumulate_sums(&mut self.sums[k], rgb);
     }
 
     /// How far the ROI has come, on rank 0 (`Some(None)` without ROI pixels; `None` on the
@@ -1360,10 +1428,40 @@ impl ClusterRenderer {
 struct Traced {
     /// Indices into the frame's [`BlockList`], ascending.
     blocks: Vec<usize>,
-    /// One per pixel of those blocks, in block order.
-    rgb: Vec<Vec3>,
+    /// One per pixel of those blocks, in block order: RGB, then the sample's rays as the bits
+    /// of the fourth float (the GPU's read-back as it comes).
+    samples: Vec<[f32; 4]>,
     /// Rays per block.
     rays: Vec<u32>,
+}
+
+/// Pixel `p`'s place inside its block (row-major) in an image `width` pixels wide.
+fn local_in_block(p: u32, width: u32) -> usize {
+    let (x, y) = (p % width, p / width);
+    ((y % TILE_EDGE) * TILE_EDGE + x % TILE_EDGE) as usize
+}
+
+/// The samples an owned block receives in one frame: its own (as traced here) or another
+/// rank's (as they travelled).
+#[derive(Clone, Copy)]
+enum BlockSamples<'a> {
+    Own(&'a [[f32; 4]]),
+    Wire(&'a [u8]),
+}
+
+/// A sample's RGB as it travels: three f32, little-endian.
+fn rgb_bytes(s: &[f32; 4]) -> [u8; 12] {
+    let mut b = [0u8; 12];
+    for (c, v) in b.chunks_exact_mut(4).zip(&s[..3]) {
+        c.copy_from_slice(&v.to_le_bytes());
+    }
+    b
+}
+
+/// The RGB of a sample's 12 travelling bytes.
+fn rgb_of(b: &[u8]) -> Vec3 {
+    let f = |k: usize| f32::from_le_bytes(b[4 * k..4 * k + 4].try_into().expect("4 bytes"));
+    Vec3::new(f(0), f(1), f(2))
 }
 
 /// The DGI computed by the ranks together ([`DgiMode::Split`]): rank k of N computes the bands

@@ -637,8 +637,28 @@ impl SampleRun {
         pixels: &[u32],
         counts: &[u32],
     ) -> Result<Vec<(glam::Vec3, u32)>, GpuError> {
+        Ok(self
+            .samples_raw(ctx, scene, pixels, counts)?
+            .iter()
+            .map(|v| (glam::Vec3::new(v[0], v[1], v[2]), v[3].to_bits()))
+            .collect())
+    }
+
+    /// [`Self::samples`] as the kernel writes them: RGB, then the rays as the bits of the
+    /// fourth float — the read-back itself, not a converted copy (a GPU rank's list is
+    /// millions of samples).
+    pub fn samples_raw(
+        &mut self,
+        ctx: &GpuContext,
+        scene: &GpuScene,
+        pixels: &[u32],
+        counts: &[u32],
+    ) -> Result<Vec<[f32; 4]>, GpuError> {
         assert_eq!(pixels.len(), counts.len(), "a sample index for each pixel");
         let piece = (ctx.max_binding() / 16).clamp(1, 1 << 30) as usize;
+        if pixels.len() <= piece {
+            return self.samples_in_one(ctx, scene, pixels, counts);
+        }
         let mut out = Vec::with_capacity(pixels.len());
         for (p, c) in pixels.chunks(piece).zip(counts.chunks(piece)) {
             out.extend(self.samples_in_one(ctx, scene, p, c)?);
@@ -653,7 +673,7 @@ impl SampleRun {
         scene: &GpuScene,
         pixels: &[u32],
         counts: &[u32],
-    ) -> Result<Vec<(glam::Vec3, u32)>, GpuError> {
+    ) -> Result<Vec<[f32; 4]>, GpuError> {
         if pixels.is_empty() {
             return Ok(Vec::new());
         }
@@ -688,11 +708,7 @@ impl SampleRun {
             pass.dispatch_workgroups(gx, gy, 1);
         }
         ctx.queue.submit([enc.finish()]);
-        let out: Vec<[f32; 4]> = ctx.read_prefix(&b.out, bytes)?;
-        Ok(out
-            .iter()
-            .map(|v| (glam::Vec3::new(v[0], v[1], v[2]), v[3].to_bits()))
-            .collect())
+        ctx.read_prefix(&b.out, bytes)
     }
 }
 
