@@ -75,8 +75,8 @@ use crate::schedule::gpu::BlockMasksRun;
 use crate::schedule::{
     BLOCK_PIXELS, Order, ScheduleError, TILE_EDGE, schedule_cpu_block_masks, schedule_cpu_shown,
 };
-use crate::trace::accum::{Accumulation, accumulate_sums, every, every_size};
-use crate::trace::gpu::{GpuScene, SampleRun, TraceKernel};
+use crate::trace::accum::{Accumulation, accumulate_sums, block_rays, every, every_size};
+use crate::trace::gpu::{GpuScene, OwnedSums, SampleRun, TraceKernel};
 use crate::trace::pack::PackedScene;
 use crate::trace::path::{TraceSettings, samples_cpu};
 use crate::trace::wall::WallCamera;
@@ -498,8 +498,11 @@ pub struct ClusterRenderer {
     owners: BlockOwners,
     /// Per block: its index among this rank's blocks, or `u32::MAX`.
     slot: Vec<u32>,
-    /// `BLOCK_PIXELS` sums per owned block, row-major inside the block.
+    /// `BLOCK_PIXELS` sums per owned block, row-major inside the block (on a GPU rank whose
+    /// owned sums live on its GPU, their copy as of the last [`Self::sync_sums`]).
     sums: Vec<[f32; 4]>,
+    /// Whether the GPU's owned sums changed since `sums` was read back.
+    sums_stale: bool,
     costs: CostTable,
     /// A full frame's list (every shown pixel), made once.
     full_list: Option<Arc<BlockList>>,
@@ -538,6 +541,9 @@ struct GpuRank {
     /// (`None`: a full frame, scattered order, or an image whose DGI is over one binding of
     /// this adapter: the CPU's split draw).
     masks: Option<BlockMasksRun>,
+    /// The owned sums on this GPU: the samples of this rank's own blocks that it traces
+    /// never leave the GPU (`None`: more owned pixels than one binding holds; the CPU adds).
+    owned: Option<OwnedSums>,
 }
 
 impl GpuRank {
@@ -632,6 +638,7 @@ impl ClusterRenderer {
             counts: vec![0; mine.len() * BLOCK_PIXELS as usize],
             costs: CostTable::new(owners.owner.len()),
             sums: vec![[0.0; 4]; mine.len() * BLOCK_PIXELS as usize],
+            sums_stale: false,
             owners,
             slot,
             full_list: None,
@@ -674,12 +681,19 @@ impl ClusterRenderer {
             }
             _ => None,
         };
+        let owned = OwnedSums::new(&ctx, self.sums.len() as u64);
+        // The owned sums start from the CPU's (zero before the first frame).
+        if let Some(o) = &owned {
+            ctx.queue
+                .write_buffer(&o.sums, 0, bytemuck::cast_slice(&self.sums));
+        }
         self.gpu = Some(Box::new(GpuRank {
             ctx,
             scene,
             run,
             dgi,
             masks,
+            owned,
         }));
         Ok(())
     }
@@ -777,6 +791,12 @@ impl ClusterRenderer {
         self.total = 0;
         self.counts.fill(0);
         self.sums.fill([0.0; 4]);
+        if let Some(g) = &mut self.gpu
+            && let Some(o) = &mut g.owned
+        {
+            o.clear(&g.ctx);
+        }
+        self.sums_stale = false;
         self.iteration = 0;
     }
 
@@ -1056,40 +1076,112 @@ impl ClusterRenderer {
         let mine: Vec<usize> = (0..list.blocks.len())
             .filter(|&i| tracer[i] as usize == self.rank)
             .collect();
-        let total: usize = mine.iter().map(|&i| list.len_of(i) as usize).sum();
+        let lens: Vec<u32> = mine.iter().map(|&i| list.len_of(i)).collect();
+        let total: usize = lens.iter().map(|&n| n as usize).sum();
+        let owned_here =
+            |k: usize| self.owners.owner[list.blocks[mine[k]] as usize] as usize == self.rank;
+        // A GPU rank with its owned sums on its GPU traces the other owners' blocks first and
+        // its own after them, reads back the others' samples only and keeps its own there.
+        let keep = self
+            .gpu
+            .as_deref()
+            .is_some_and(|g| g.owned.is_some() && SampleRun::fits_one_binding(&g.ctx, total));
+        let order: Vec<usize> = if keep {
+            let (own, others): (Vec<usize>, Vec<usize>) =
+                (0..mine.len()).partition(|&k| owned_here(k));
+            others.into_iter().chain(own).collect()
+        } else {
+            (0..mine.len()).collect()
+        };
+        let mut first = Vec::with_capacity(mine.len() + 1);
+        first.push(0usize);
+        for &n in &lens {
+            first.push(first.last().expect("starts at 0") + n as usize);
+        }
         let mut pixels = Vec::with_capacity(total);
-        for &i in &mine {
-            pixels.extend_from_slice(list.pixels_of(i));
+        let mut ordered_counts = Vec::with_capacity(total);
+        for &k in &order {
+            pixels.extend_from_slice(list.pixels_of(mine[k]));
+            ordered_counts.extend_from_slice(&counts[first[k]..first[k + 1]]);
         }
         debug_assert_eq!(counts.len(), pixels.len());
+        let read = if keep {
+            order
+                .iter()
+                .filter(|&&k| !owned_here(k))
+                .map(|&k| lens[k] as usize)
+                .sum()
+        } else {
+            total
+        };
+        // Where each block's samples are: in `samples` (read back) or kept on the GPU.
+        let mut at = vec![None; mine.len()];
+        let mut segments = Vec::new();
+        let mut kept = Vec::new();
+        let mut pos = 0usize;
+        for &k in &order {
+            if pos < read {
+                at[k] = Some(pos);
+            } else {
+                segments.push([(pos - read) as u32, lens[k]]);
+                kept.push(k);
+            }
+            pos += lens[k] as usize;
+        }
         let (sc, s, wall) = (&self.packed, &self.settings, self.wall.as_ref());
         let t_call = Instant::now();
-        let samples: Vec<[f32; 4]> = match &mut self.gpu {
-            Some(g) => g.run.samples_raw(&g.ctx, &g.scene, &pixels, counts)?,
-            None => samples_cpu(sc, s, wall, &pixels, counts)
-                .into_iter()
-                .map(|(c, r)| [c.x, c.y, c.z, f32::from_bits(r)])
-                .collect(),
+        let (samples, kept_rays) = match &mut self.gpu {
+            Some(g) if keep => {
+                let samples =
+                    g.run
+                        .samples_prefix(&g.ctx, &g.scene, &pixels, &ordered_counts, read)?;
+                let out = g.run.out();
+                let owned = g.owned.as_mut().expect("checked above");
+                let rays =
+                    owned.keep(&g.ctx, out, read as u64, (total - read) as u32, &segments)?;
+                (samples, rays)
+            }
+            Some(g) => (
+                g.run
+                    .samples_raw(&g.ctx, &g.scene, &pixels, &ordered_counts)?,
+                Vec::new(),
+            ),
+            None => (
+                samples_cpu(sc, s, wall, &pixels, &ordered_counts)
+                    .into_iter()
+                    .map(|(c, r)| [c.x, c.y, c.z, f32::from_bits(r)])
+                    .collect(),
+                Vec::new(),
+            ),
         };
         stats.ms_trace_call = t_call.elapsed().as_secs_f64() * 1e3;
-        let mut rays = Vec::with_capacity(mine.len());
-        let mut at = 0;
-        for &i in &mine {
-            let n = list.len_of(i) as usize;
-            rays.push(
-                samples[at..at + n]
-                    .iter()
-                    .map(|s| s[3].to_bits())
-                    .sum::<u32>(),
-            );
-            at += n;
+        let read_segments: Vec<[u32; 2]> = (0..mine.len())
+            .filter_map(|k| at[k].map(|a| [a as u32, lens[k]]))
+            .collect();
+        let read_rays = block_rays(&samples, &read_segments);
+        let (mut read_rays, mut kept_rays) = (read_rays.into_iter(), kept_rays.into_iter());
+        let mut rays = vec![0u32; mine.len()];
+        for (k, r) in rays.iter_mut().enumerate() {
+            *r = if at[k].is_some() {
+                read_rays.next()
+            } else {
+                None
+            }
+            .unwrap_or(0);
         }
-        stats.pixels_traced = pixels.len() as u64;
+        for &k in &kept {
+            rays[k] = kept_rays.next().unwrap_or(0);
+        }
+        stats.pixels_traced = total as u64;
         stats.rays = rays.iter().map(|&r| u64::from(r)).sum();
         stats.ms_trace = t0.elapsed().as_secs_f64() * 1e3;
+        kept.sort_unstable();
         Ok(Traced {
             blocks: mine,
             samples,
+            at,
+            kept,
+            kept_on_gpu: keep,
             rays,
         })
     }
@@ -1126,17 +1218,17 @@ impl ClusterRenderer {
                 }
             })
             .collect();
-        let mut at = 0;
-        for &i in &mine.blocks {
+        for (k, &i) in mine.blocks.iter().enumerate() {
             let len = list.len_of(i) as usize;
             let owner = owner_of(i);
             if owner != self.rank {
+                // Other owners' samples are always read back.
+                let at = mine.at[k].expect("another owner's block is read back");
                 let part = &mut parts[owner];
                 for s in &mine.samples[at..at + len] {
                     part.extend_from_slice(&rgb_bytes(s));
                 }
             }
-            at += len;
         }
         // Each owned block's pixels counted in its own slot: the blocks on all cores.
         let mut jobs: Vec<Option<&[u32]>> = vec![None; self.slots()];
@@ -1179,19 +1271,17 @@ impl ClusterRenderer {
         let what = format!("the samples of iteration {}", f.iteration);
         let got = c.all_to_all_collect(&what, f.own)?;
         // Own blocks first (no bytes), then each other rank's, by the same layout: each owned
-        // block's samples found (at most one rank traced it), then added on all cores, a
-        // block's pixels in its own slot.
+        // block's samples found (at most one rank traced it), then added — on this rank's GPU
+        // where its owned sums are there, else on all cores, a block's pixels in its own slot.
         let mut jobs: Vec<Option<(&[u32], BlockSamples)>> = vec![None; self.slots()];
-        let mut at = 0;
         for (k, &i) in mine.blocks.iter().enumerate() {
             let len = list.len_of(i) as usize;
             let b = list.blocks[i];
-            if let Some(base) = self.own_base(b) {
+            if let (Some(base), Some(at)) = (self.own_base(b), mine.at[k]) {
                 let samples = BlockSamples::Own(&mine.samples[at..at + len]);
                 jobs[base / BLOCK_PIXELS as usize] = Some((list.pixels_of(i), samples));
             }
             self.costs.record(b, mine.rays[k], len as u32);
-            at += len;
         }
         for (src, bytes) in got.iter().enumerate() {
             if src == self.rank {
@@ -1235,8 +1325,55 @@ impl ClusterRenderer {
                 }
             }
         }
-        if !f.stale {
-            let width = self.settings.width;
+        let width = self.settings.width;
+        if let Some(g) = self.gpu.as_deref_mut()
+            && let Some(owned) = g.owned.as_mut()
+        {
+            // The kept samples' destinations in kept order, then every other sample's.
+            let mut own_dst = Vec::new();
+            for &k in &mine.kept {
+                let i = mine.blocks[k];
+                let base = own_base_of(&self.slot, list.blocks[i]).expect("a block of this rank");
+                own_dst.extend(
+                    list.pixels_of(i)
+                        .iter()
+                        .map(|&p| (base + local_in_block(p, width)) as u32),
+                );
+            }
+            let (mut rgb, mut dst) = (Vec::new(), Vec::new());
+            for (slot, job) in jobs.iter().enumerate() {
+                let Some((pixels, samples)) = job else {
+                    continue;
+                };
+                let base = slot * BLOCK_PIXELS as usize;
+                dst.extend(
+                    pixels
+                        .iter()
+                        .map(|&p| (base + local_in_block(p, width)) as u32),
+                );
+                match samples {
+                    BlockSamples::Own(v) => {
+                        for s in *v {
+                            rgb.extend_from_slice(&s[..3]);
+                        }
+                    }
+                    BlockSamples::Wire(bytes) => {
+                        for c in bytes.chunks_exact(12) {
+                            rgb.extend_from_slice(&rgb_of(c).to_array());
+                        }
+                    }
+                }
+            }
+            if f.stale {
+                // Restarted since: the kept samples go, nothing is added.
+                if mine.kept_on_gpu {
+                    owned.drop_kept();
+                }
+            } else {
+                owned.add(&g.ctx, mine.kept_on_gpu.then_some(&own_dst[..]), &rgb, &dst)?;
+                self.sums_stale = true;
+            }
+        } else if !f.stale {
             self.sums
                 .par_chunks_mut(BLOCK_PIXELS as usize)
                 .zip(jobs.par_iter())
@@ -1255,6 +1392,24 @@ impl ClusterRenderer {
                     None => {}
                 });
         }
+        Ok(())
+    }
+
+    /// The owned sums as the readers need them: on a GPU rank whose owned sums live on its
+    /// GPU, read back when they changed since the last time.
+    fn sync_sums(&mut self) -> Result<(), ClusterError> {
+        if !self.sums_stale {
+            return Ok(());
+        }
+        if let Some(g) = self.gpu.as_deref()
+            && let Some(owned) = &g.owned
+        {
+            let n = self.sums.len();
+            let mut sums = owned.read(&g.ctx)?;
+            sums.truncate(n);
+            self.sums = sums;
+        }
+        self.sums_stale = false;
         Ok(())
     }
 
@@ -1282,12 +1437,7 @@ impl ClusterRenderer {
     /// Where block `b`'s pixels begin in `sums` and `counts`, if the block is this rank's (the
     /// loops over a block's pixels look it up once, not per pixel).
     fn own_base(&self, b: u32) -> Option<usize> {
-        let slot = self.slot[b as usize];
-        if slot == u32::MAX {
-            None
-        } else {
-            Some((slot * BLOCK_PIXELS) as usize)
-        }
+        own_base_of(&self.slot, b)
     }
 
     /// Pixel `p`'s place inside its block (row-major).
@@ -1315,6 +1465,7 @@ impl ClusterRenderer {
         c: &mut Cluster,
     ) -> Result<Option<Option<RoiProgress>>, ClusterError> {
         self.collect(c)?;
+        self.sync_sums()?;
         let size = [self.settings.width, self.settings.height];
         let tiles_x = self.owners.tiles[0];
         let in_roi = |p: &u32| self.dgi.get(*p as usize) == Some(&0.0);
@@ -1377,6 +1528,7 @@ impl ClusterRenderer {
         step: u32,
     ) -> Result<Option<(Accumulation, Vec<f32>)>, ClusterError> {
         self.collect(c)?;
+        self.sync_sums()?;
         let size = [self.settings.width, self.settings.height];
         let pixels_of = |rank: usize| {
             let tiles_x = self.owners.tiles[0];
@@ -1428,11 +1580,29 @@ impl ClusterRenderer {
 struct Traced {
     /// Indices into the frame's [`BlockList`], ascending.
     blocks: Vec<usize>,
-    /// One per pixel of those blocks, in block order: RGB, then the sample's rays as the bits
-    /// of the fourth float (the GPU's read-back as it comes).
+    /// The samples read back: RGB, then the sample's rays as the bits of the fourth float
+    /// (the GPU's read-back as it comes).
     samples: Vec<[f32; 4]>,
+    /// Per block: where its samples begin in `samples`, or `None` where they stayed on the
+    /// GPU (an owned block of a GPU rank whose owned sums are there).
+    at: Vec<Option<usize>>,
+    /// The blocks (positions in `blocks`) whose samples stayed on the GPU, in the order the
+    /// GPU keeps them: ascending.
+    kept: Vec<usize>,
+    /// Whether the GPU kept this frame's own samples (even none): its collect takes them.
+    kept_on_gpu: bool,
     /// Rays per block.
     rays: Vec<u32>,
+}
+
+/// Where block `b`'s pixels begin in a rank's sums and counts, by its `slot` table.
+fn own_base_of(slot: &[u32], b: u32) -> Option<usize> {
+    let slot = slot[b as usize];
+    if slot == u32::MAX {
+        None
+    } else {
+        Some((slot * BLOCK_PIXELS) as usize)
+    }
 }
 
 /// Pixel `p`'s place inside its block (row-major) in an image `width` pixels wide.

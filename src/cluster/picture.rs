@@ -192,6 +192,7 @@ impl ClusterRenderer {
         halo: (u32, u32),
     ) -> Result<Vec<TilePicture>, ClusterError> {
         self.collect(c)?;
+        self.sync_sums()?;
         let size = [self.settings.width, self.settings.height];
         let (me, n) = (self.rank, self.ranks);
         let reads = |rank: usize| -> Vec<Rect> {

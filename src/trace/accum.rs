@@ -22,7 +22,7 @@ pub fn accumulate(sum: &mut [f32; 4], count: &mut u32, rgb: Vec3) {
 }
 
 /// [`accumulate`]'s sums without the count: the cluster's owners count a sample when it is
-/// dealt and add its sums when it arrives.
+/// dealt and add its sums when it arrives (on a GPU rank, `add` in `shaders/trace/accum.wgsl`).
 #[inline]
 pub fn accumulate_sums(sum: &mut [f32; 4], rgb: Vec3) {
     let l = luminance(rgb);
@@ -30,6 +30,23 @@ pub fn accumulate_sums(sum: &mut [f32; 4], rgb: Vec3) {
     sum[1] += rgb.y;
     sum[2] += rgb.z;
     sum[3] += l * l;
+}
+
+/// The rays of each run of samples: `segments` are (first, length) into `samples`, whose
+/// fourth float holds a sample's rays as its bits (the trace's compact output) — a cluster
+/// rank's rays per traced block, the deal's weights (`block_rays` in
+/// `shaders/trace/accum.wgsl` on a GPU rank).
+#[must_use]
+pub fn block_rays(samples: &[[f32; 4]], segments: &[[u32; 2]]) -> Vec<u32> {
+    segments
+        .iter()
+        .map(|&[first, len]| {
+            samples[first as usize..(first + len) as usize]
+                .iter()
+                .map(|s| s[3].to_bits())
+                .sum()
+        })
+        .collect()
 }
 
 /// Per-pixel sums and sample counts of a progressive render.

@@ -26,6 +26,9 @@ pub const TRACE_WGSL: &str = concat!(
 
 /// Threads per workgroup of the trace kernel (`WORKGROUP` in path.wgsl).
 pub const WORKGROUP: u32 = 64;
+
+/// A cluster rank's owned sums and the rays per block it traced: `shaders/trace/accum.wgsl`.
+pub const ACCUM_WGSL: &str = include_str!("../../shaders/trace/accum.wgsl");
 /// Vec4s of the stand-in wall table when there is no wall camera (a binding is never empty).
 const TILE_VEC4S_MIN: usize = 4;
 /// The most workgroups in one dimension of a dispatch.
@@ -674,6 +677,22 @@ impl SampleRun {
         pixels: &[u32],
         counts: &[u32],
     ) -> Result<Vec<[f32; 4]>, GpuError> {
+        self.samples_prefix(ctx, scene, pixels, counts, pixels.len())
+    }
+
+    /// Traces `pixels` (a list one binding holds: [`Self::fits_one_binding`]) and reads back
+    /// the first `read` samples only; the others stay in [`Self::out`] until the next list (a
+    /// cluster rank keeps the samples of its own blocks on its GPU: [`OwnedSums::keep`]).
+    pub fn samples_prefix(
+        &mut self,
+        ctx: &GpuContext,
+        scene: &GpuScene,
+        pixels: &[u32],
+        counts: &[u32],
+        read: usize,
+    ) -> Result<Vec<[f32; 4]>, GpuError> {
+        assert_eq!(pixels.len(), counts.len(), "a sample index for each pixel");
+        assert!(read <= pixels.len(), "{read} of {} samples", pixels.len());
         if pixels.is_empty() {
             return Ok(Vec::new());
         }
@@ -695,8 +714,7 @@ impl SampleRun {
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("trace/samples"),
             });
-        let bytes = 16 * u64::from(len);
-        enc.clear_buffer(&b.out, 0, Some(bytes));
+        enc.clear_buffer(&b.out, 0, Some(16 * u64::from(len)));
         {
             let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("trace/samples"),
@@ -708,7 +726,279 @@ impl SampleRun {
             pass.dispatch_workgroups(gx, gy, 1);
         }
         ctx.queue.submit([enc.finish()]);
-        ctx.read_prefix(&b.out, bytes)
+        ctx.read_prefix(&b.out, 16 * read as u64)
+    }
+
+    /// Whether a list of `len` samples is traced in one dispatch (16 bytes a sample in one
+    /// binding), so [`Self::samples_prefix`] can take it.
+    #[must_use]
+    pub fn fits_one_binding(ctx: &GpuContext, len: usize) -> bool {
+        (len as u64) * 16 <= ctx.max_binding()
+    }
+
+    /// The last list's samples (RGB, rays as bits), entry i for its pixel i.
+    #[must_use]
+    pub fn out(&self) -> Option<&wgpu::Buffer> {
+        self.buffers.as_ref().map(|b| &b.out)
+    }
+}
+
+/// The parameters of `shaders/trace/accum.wgsl` (mirrors `OwnedParams`, 16 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct GpuOwnedParams {
+    pub own: u32,
+    pub foreign: u32,
+    pub segments: u32,
+    pub _pad: u32,
+}
+
+/// Threads per workgroup of `accum.wgsl`'s entry points.
+const ACCUM_WORKGROUP: u32 = 256;
+
+/// A cluster rank's owned sums on its GPU (DESIGN.md §12): `BLOCK_PIXELS` entries per owned
+/// block (RGB sum, Σ lum²), as the rank's CPU lays them out. The samples of its own blocks that
+/// it traced stay on the GPU from the trace ([`Self::keep`]) and are added with the other
+/// ranks' samples when the frame is collected ([`Self::add`]), so only other owners' samples
+/// are read back. CPU twins: `accumulate_sums` and `block_rays` (src/trace/accum.rs).
+pub struct OwnedSums {
+    add: wgpu::ComputePipeline,
+    rays: wgpu::ComputePipeline,
+    /// The owned sums.
+    pub sums: wgpu::Buffer,
+    /// The kept samples, oldest first: each traced frame's own blocks' samples, in the order
+    /// of their blocks, with their count, until its frame is collected (with the exchange
+    /// overlapped, the next frame keeps its own before the last one's are added).
+    kept: std::collections::VecDeque<(wgpu::Buffer, u32)>,
+    /// Kept buffers added already, for the next frames to reuse.
+    free: Vec<wgpu::Buffer>,
+    /// Owned pixels.
+    entries: u64,
+}
+
+fn storage_init(ctx: &GpuContext, label: &str, bytes: &[u8]) -> wgpu::Buffer {
+    // A binding may not be empty: one zero word where there is nothing.
+    let bytes = if bytes.is_empty() {
+        &[0u8; 4][..]
+    } else {
+        bytes
+    };
+    ctx.device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(label),
+            contents: bytes,
+            usage: wgpu::BufferUsages::STORAGE,
+        })
+}
+
+/// A 2D grid of `groups` workgroups within the adapter's per-dimension limit.
+fn grid_of(ctx: &GpuContext, groups: u32) -> (u32, u32) {
+    let max = ctx.limits.max_compute_workgroups_per_dimension.max(1);
+    let gy = groups.max(1).div_ceil(max);
+    (groups.max(1).div_ceil(gy), gy)
+}
+
+impl OwnedSums {
+    /// Zeroed sums for `entries` owned pixels (`None` where they exceed one binding: the rank
+    /// adds on its CPU then).
+    pub fn new(ctx: &GpuContext, entries: u64) -> Option<Self> {
+        if entries * 16 > ctx.max_binding() {
+            return None;
+        }
+        let module = ctx.shader_module("trace/accum.wgsl", ACCUM_WGSL);
+        Some(Self {
+            add: ctx.compute_pipeline_in(&module, "trace/accum add", "add"),
+            rays: ctx.compute_pipeline_in(&module, "trace/accum block_rays", "block_rays"),
+            sums: ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("owned sums"),
+                size: (entries * 16).max(16),
+                usage: wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::COPY_SRC
+                    | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+            kept: std::collections::VecDeque::new(),
+            free: Vec::new(),
+            entries,
+        })
+    }
+
+    /// Every owned sum back to zero (a restart; the frames in flight are collected as stale:
+    /// [`Self::drop_kept`]).
+    pub fn clear(&mut self, ctx: &GpuContext) {
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        enc.clear_buffer(&self.sums, 0, None);
+        ctx.queue.submit([enc.finish()]);
+    }
+
+    /// Drops the oldest kept samples unadded (their frame was collected after a restart).
+    pub fn drop_kept(&mut self) {
+        if let Some((b, _)) = self.kept.pop_front() {
+            self.free.push(b);
+        }
+    }
+
+    /// Keeps entries `from..from + len` of `out` (the last list's samples: own blocks' samples
+    /// after the others; `None` where the list was empty) until [`Self::add`], and returns the rays of each run `segments`
+    /// gives ((first, length) in the kept samples).
+    pub fn keep(
+        &mut self,
+        ctx: &GpuContext,
+        out: Option<&wgpu::Buffer>,
+        from: u64,
+        len: u32,
+        segments: &[[u32; 2]],
+    ) -> Result<Vec<u32>, GpuError> {
+        let bytes = 16 * u64::from(len.max(1));
+        ctx.check_binding("a rank's own samples (16 bytes each)", bytes)?;
+        let buffer = match self.free.iter().position(|b| b.size() >= bytes) {
+            Some(i) => self.free.swap_remove(i),
+            None => ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("owned samples kept"),
+                size: bytes.next_power_of_two(),
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+        };
+        self.kept.push_back((buffer, len));
+        let kept = &self.kept.back().expect("pushed above").0;
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        if len > 0 {
+            let out = out.expect("samples to keep come from a traced list");
+            enc.copy_buffer_to_buffer(out, 16 * from, kept, 0, 16 * u64::from(len));
+        }
+        if segments.is_empty() {
+            ctx.queue.submit([enc.finish()]);
+            return Ok(Vec::new());
+        }
+        let n = u32::try_from(segments.len()).expect("blocks of a u32 list");
+        let params = self.params(ctx, 0, 0, n);
+        let seg = storage_init(ctx, "owned segments", bytemuck::cast_slice(segments));
+        let rays = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("owned block rays"),
+            size: 4 * u64::from(n),
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("owned block rays"),
+            layout: &self.rays.get_bind_group_layout(0),
+            entries: &[
+                entry(0, &params),
+                entry(2, kept),
+                entry(6, &seg),
+                entry(7, &rays),
+            ],
+        });
+        let (gx, gy) = grid_of(ctx, n);
+        {
+            let mut pass = enc.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&self.rays);
+            pass.set_bind_group(0, &bind, &[]);
+            pass.dispatch_workgroups(gx, gy, 1);
+        }
+        ctx.queue.submit([enc.finish()]);
+        ctx.read_buffer(&rays)
+    }
+
+    fn params(&self, ctx: &GpuContext, own: u32, foreign: u32, segments: u32) -> wgpu::Buffer {
+        ctx.device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("owned params"),
+                contents: bytemuck::bytes_of(&GpuOwnedParams {
+                    own,
+                    foreign,
+                    segments,
+                    _pad: 0,
+                }),
+                usage: wgpu::BufferUsages::UNIFORM,
+            })
+    }
+
+    /// Adds the kept samples to the sums at `own_dst` (one entry each, in kept order; `None`:
+    /// the kept samples are dropped, as a restarted accumulation drops them) and the samples
+    /// `foreign` (RGB triples) at `foreign_dst`. No two of them may be one pixel (a pixel gets
+    /// at most one sample a frame).
+    pub fn add(
+        &mut self,
+        ctx: &GpuContext,
+        own_dst: Option<&[u32]>,
+        foreign: &[f32],
+        foreign_dst: &[u32],
+    ) -> Result<(), GpuError> {
+        assert_eq!(
+            foreign.len(),
+            3 * foreign_dst.len(),
+            "an RGB triple per destination"
+        );
+        let kept = match own_dst {
+            Some(d) => {
+                let (b, len) = self.kept.pop_front().expect("samples kept for this frame");
+                assert_eq!(d.len(), len as usize, "a destination per kept sample");
+                Some((b, len))
+            }
+            None => None,
+        };
+        let own = kept.as_ref().map_or(0, |k| k.1);
+        let foreign_n = u32::try_from(foreign_dst.len()).expect("a u32 list");
+        let total = own + foreign_n;
+        if total == 0 {
+            self.free.extend(kept.map(|k| k.0));
+            return Ok(());
+        }
+        ctx.check_binding(
+            "other ranks' samples (12 bytes each)",
+            12 * u64::from(foreign_n),
+        )?;
+        let params = self.params(ctx, own, foreign_n, 0);
+        let own_dst = storage_init(
+            ctx,
+            "owned destinations",
+            bytemuck::cast_slice(own_dst.unwrap_or(&[])),
+        );
+        let foreign_buf = storage_init(ctx, "other ranks' samples", bytemuck::cast_slice(foreign));
+        let foreign_dst = storage_init(
+            ctx,
+            "other ranks' destinations",
+            bytemuck::cast_slice(foreign_dst),
+        );
+        let empty;
+        let kept_buffer = match &kept {
+            Some(k) => &k.0,
+            None => {
+                empty = storage_init(ctx, "no kept samples", &[0u8; 16]);
+                &empty
+            }
+        };
+        let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("owned add"),
+            layout: &self.add.get_bind_group_layout(0),
+            entries: &[
+                entry(0, &params),
+                entry(1, &self.sums),
+                entry(2, kept_buffer),
+                entry(3, &own_dst),
+                entry(4, &foreign_buf),
+                entry(5, &foreign_dst),
+            ],
+        });
+        let (gx, gy) = grid_of(ctx, total.div_ceil(ACCUM_WORKGROUP));
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = enc.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&self.add);
+            pass.set_bind_group(0, &bind, &[]);
+            pass.dispatch_workgroups(gx, gy, 1);
+        }
+        ctx.queue.submit([enc.finish()]);
+        // Reused only by a later submit, which the queue orders after this one.
+        self.free.extend(kept.map(|k| k.0));
+        Ok(())
+    }
+
+    /// The owned sums, read back.
+    pub fn read(&self, ctx: &GpuContext) -> Result<Vec<[f32; 4]>, GpuError> {
+        ctx.read_prefix(&self.sums, 16 * self.entries)
     }
 }
 
@@ -733,6 +1023,20 @@ mod tests {
             struct_size(&module, "Node"),
             std::mem::size_of::<obvhs::cwbvh::node::CwBvhNode>()
         );
+    }
+
+    #[test]
+    fn the_owned_sums_kernel_validates_and_matches_its_rust_twins() {
+        let module = validated("accum.wgsl", ACCUM_WGSL);
+        assert_same_layout(
+            &module,
+            "OwnedParams",
+            &crate::rust_layout!(GpuOwnedParams; own, foreign, segments, _pad),
+        );
+        assert!(ACCUM_WGSL.contains(&format!("@workgroup_size({ACCUM_WORKGROUP})")));
+        // The luminance the one-process kernel and the CPU use.
+        let lum = "return 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z;";
+        assert!(ACCUM_WGSL.contains(lum) && TRACE_WGSL.contains(lum));
     }
 
     #[test]

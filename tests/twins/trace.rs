@@ -265,3 +265,115 @@ fn the_cpu_twins_batches_are_its_one_path_code_to_the_bit() {
         );
     }
 }
+
+/// A cluster rank's owned sums on its GPU (`shaders/trace/accum.wgsl`) against the CPU twins:
+/// the kept samples' rays per block equal `block_rays`, and the sums after adding kept and
+/// other ranks' samples equal `accumulate_sums` on the CPU — exactly: the same IEEE
+/// operations in the same order per pixel (one sample per pixel and frame; a driver that fused
+/// `lum`'s multiply-adds would differ in Σ lum²'s last bits, as the one-process kernel's own
+/// accumulation would, which uses the same expression), over three frames
+/// with the exchange overlapped (a frame keeps its samples before the last one's are added)
+/// and a frame dropped unadded.
+#[test]
+fn owned_sums_on_the_gpu_equal_the_cpu_twins() {
+    use raygun::trace::accum::{accumulate_sums, block_rays};
+    use raygun::trace::gpu::OwnedSums;
+    use wgpu::util::DeviceExt;
+    let ctx = GpuContext::for_tests();
+    let entries = 4 * 1024u32;
+    let mut owned = OwnedSums::new(&ctx, u64::from(entries)).expect("fits one binding");
+    let mut cpu = vec![[0f32; 4]; entries as usize];
+    let hash = |i: u32, k: u32| {
+        let x = i.wrapping_mul(0x9E37_79B9) ^ k.wrapping_mul(0x85EB_CA6B);
+        ((x ^ (x >> 15)).wrapping_mul(0x2C1B_3C6D) >> 8) as f32 / (1 << 24) as f32
+    };
+    // Per frame: `out` as a trace leaves it (the first `read` entries other owners' samples,
+    // then own samples), destinations for the own and for other ranks' samples.
+    let frame = |f: u32| {
+        let (read, own, foreign) = (37u32 + f, 900u32 + 50 * f, 300u32);
+        let out: Vec<[f32; 4]> = (0..read + own)
+            .map(|i| {
+                let v = |k| hash(i + 7919 * f, k) * 3.0;
+                [v(1), v(2), v(3), f32::from_bits(1 + (i * 13 + f) % 17)]
+            })
+            .collect();
+        // Distinct destinations: a permutation's prefix, own ones first.
+        let mut dst: Vec<u32> = (0..entries).collect();
+        for i in (1..entries as usize).rev() {
+            let j = (hash(i as u32, 40 + f) * (i + 1) as f32) as usize % (i + 1);
+            dst.swap(i, j);
+        }
+        let own_dst = dst[..own as usize].to_vec();
+        let foreign_dst = dst[own as usize..(own + foreign) as usize].to_vec();
+        let foreign: Vec<f32> = (0..3 * foreign).map(|i| hash(i, 90 + f) * 2.0).collect();
+        (read, own, out, own_dst, foreign, foreign_dst)
+    };
+    let segments = |own: u32| -> Vec<[u32; 2]> {
+        let mut s = Vec::new();
+        let mut at = 0;
+        while at < own {
+            let n = (own - at).min(300);
+            s.push([at, n]);
+            at += n;
+        }
+        s
+    };
+    let keep = |owned: &mut OwnedSums, f: u32| {
+        let (read, own, out, ..) = frame(f);
+        let buffer = ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: None,
+                contents: bytemuck::cast_slice(&out),
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            });
+        let segs = segments(own);
+        let rays = owned
+            .keep(&ctx, Some(&buffer), u64::from(read), own, &segs)
+            .unwrap();
+        assert_eq!(rays, block_rays(&out[read as usize..], &segs), "frame {f}");
+    };
+    let add_cpu = |cpu: &mut Vec<[f32; 4]>, f: u32| {
+        let (read, _, out, own_dst, foreign, foreign_dst) = frame(f);
+        for (s, &d) in out[read as usize..].iter().zip(&own_dst) {
+            accumulate_sums(&mut cpu[d as usize], glam::Vec3::new(s[0], s[1], s[2]));
+        }
+        for (c, &d) in foreign.chunks_exact(3).zip(&foreign_dst) {
+            accumulate_sums(&mut cpu[d as usize], glam::Vec3::new(c[0], c[1], c[2]));
+        }
+    };
+    // Frame 0 kept; frame 1 kept before frame 0 is added; frame 1 dropped; frame 2 kept and
+    // added; then other ranks' samples alone.
+    keep(&mut owned, 0);
+    keep(&mut owned, 1);
+    let (_, _, _, own_dst, foreign, foreign_dst) = frame(0);
+    owned
+        .add(&ctx, Some(&own_dst), &foreign, &foreign_dst)
+        .unwrap();
+    add_cpu(&mut cpu, 0);
+    owned.drop_kept();
+    keep(&mut owned, 2);
+    let (_, _, _, own_dst, foreign, foreign_dst) = frame(2);
+    owned
+        .add(&ctx, Some(&own_dst), &foreign, &foreign_dst)
+        .unwrap();
+    add_cpu(&mut cpu, 2);
+    let (_, _, _, _, foreign, foreign_dst) = frame(3);
+    owned.add(&ctx, None, &foreign, &foreign_dst).unwrap();
+    for (c, &d) in foreign.chunks_exact(3).zip(&foreign_dst) {
+        accumulate_sums(&mut cpu[d as usize], glam::Vec3::new(c[0], c[1], c[2]));
+    }
+    let gpu = owned.read(&ctx).unwrap();
+    assert_eq!(gpu.len(), cpu.len());
+    assert!(
+        cpu.iter().filter(|s| s[0] != 0.0).count() > 1500,
+        "most pixels got samples"
+    );
+    for (i, (g, c)) in gpu.iter().zip(&cpu).enumerate() {
+        assert_eq!(
+            g.map(f32::to_bits),
+            c.map(f32::to_bits),
+            "entry {i}: GPU {g:?} CPU {c:?}"
+        );
+    }
+}
