@@ -31,7 +31,9 @@
 //! but the schedule of scattered order and of a single rank (the whole draw), and the DGI of a
 //! new ROI (`--cluster-dgi`). A GPU rank draws the whole coherent schedule on its GPU, as every
 //! block's slot mask (128 bytes a block read back: 9 MB at 73.8 MP), so no masks cross the link
-//! between GPU ranks.
+//! between GPU ranks; and it keeps its owned sums on its GPU (`OwnedSums`): the samples of its
+//! own blocks never leave the GPU, the other ranks' are uploaded and added there, and the
+//! CPU's copy is read back only when something reads it.
 //!
 //! What crosses the link each iteration, per rank: the control message from rank 0 (tens of
 //! bytes), 4 bytes (the count, u32) per sample an owner has traced elsewhere, to the rank that
