@@ -1116,17 +1116,18 @@ impl ClusterRenderer {
         } else {
             total
         };
-        // Where each block's samples are: in `samples` (read back) or kept on the GPU.
+        // Where each block's samples are: in `samples` (read back) or kept on the GPU, in
+        // `order`'s order (own blocks ascending, after the others).
         let mut at = vec![None; mine.len()];
         let mut segments = Vec::new();
         let mut kept = Vec::new();
         let mut pos = 0usize;
         for &k in &order {
-            if pos < read {
-                at[k] = Some(pos);
-            } else {
+            if keep && owned_here(k) {
                 segments.push([(pos - read) as u32, lens[k]]);
                 kept.push(k);
+            } else {
+                at[k] = Some(pos);
             }
             pos += lens[k] as usize;
         }
@@ -1157,27 +1158,20 @@ impl ClusterRenderer {
             ),
         };
         stats.ms_trace_call = t_call.elapsed().as_secs_f64() * 1e3;
-        let read_segments: Vec<[u32; 2]> = (0..mine.len())
-            .filter_map(|k| at[k].map(|a| [a as u32, lens[k]]))
+        let read_blocks: Vec<(usize, [u32; 2])> = (0..mine.len())
+            .filter_map(|k| at[k].map(|a| (k, [a as u32, lens[k]])))
             .collect();
-        let read_rays = block_rays(&samples, &read_segments);
-        let (mut read_rays, mut kept_rays) = (read_rays.into_iter(), kept_rays.into_iter());
+        let read_segments: Vec<[u32; 2]> = read_blocks.iter().map(|&(_, seg)| seg).collect();
         let mut rays = vec![0u32; mine.len()];
-        for (k, r) in rays.iter_mut().enumerate() {
-            *r = if at[k].is_some() {
-                read_rays.next()
-            } else {
-                None
-            }
-            .unwrap_or(0);
+        for (&(k, _), r) in read_blocks.iter().zip(block_rays(&samples, &read_segments)) {
+            rays[k] = r;
         }
-        for &k in &kept {
-            rays[k] = kept_rays.next().unwrap_or(0);
+        for (&k, r) in kept.iter().zip(kept_rays) {
+            rays[k] = r;
         }
         stats.pixels_traced = total as u64;
         stats.rays = rays.iter().map(|&r| u64::from(r)).sum();
         stats.ms_trace = t0.elapsed().as_secs_f64() * 1e3;
-        kept.sort_unstable();
         Ok(Traced {
             blocks: mine,
             samples,

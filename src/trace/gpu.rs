@@ -658,26 +658,20 @@ impl SampleRun {
         counts: &[u32],
     ) -> Result<Vec<[f32; 4]>, GpuError> {
         assert_eq!(pixels.len(), counts.len(), "a sample index for each pixel");
-        let piece = (ctx.max_binding() / 16).clamp(1, 1 << 30) as usize;
-        if pixels.len() <= piece {
-            return self.samples_in_one(ctx, scene, pixels, counts);
+        if Self::fits_one_binding(ctx, pixels.len()) {
+            return self.samples_prefix(ctx, scene, pixels, counts, pixels.len());
         }
+        let piece = Self::piece(ctx);
         let mut out = Vec::with_capacity(pixels.len());
         for (p, c) in pixels.chunks(piece).zip(counts.chunks(piece)) {
-            out.extend(self.samples_in_one(ctx, scene, p, c)?);
+            out.extend(self.samples_prefix(ctx, scene, p, c, p.len())?);
         }
         Ok(out)
     }
 
-    /// [`Self::samples`] of a list one binding holds.
-    fn samples_in_one(
-        &mut self,
-        ctx: &GpuContext,
-        scene: &GpuScene,
-        pixels: &[u32],
-        counts: &[u32],
-    ) -> Result<Vec<[f32; 4]>, GpuError> {
-        self.samples_prefix(ctx, scene, pixels, counts, pixels.len())
+    /// The most samples one dispatch takes: one binding of 16 bytes each.
+    fn piece(ctx: &GpuContext) -> usize {
+        (ctx.max_binding() / 16).clamp(1, 1 << 30) as usize
     }
 
     /// Traces `pixels` (a list one binding holds: [`Self::fits_one_binding`]) and reads back
@@ -733,7 +727,7 @@ impl SampleRun {
     /// binding), so [`Self::samples_prefix`] can take it.
     #[must_use]
     pub fn fits_one_binding(ctx: &GpuContext, len: usize) -> bool {
-        (len as u64) * 16 <= ctx.max_binding()
+        len <= Self::piece(ctx)
     }
 
     /// The last list's samples (RGB, rays as bits), entry i for its pixel i.
