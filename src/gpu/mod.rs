@@ -574,6 +574,28 @@ impl GpuContext {
     }
 }
 
+/// The 2D dispatch grid `[gx, gy]` of `groups` workgroups with at most `max_per_dim` along a
+/// dimension (65 535 in WebGPU's defaults): gx·gy ≥ groups with fewer than gy idle groups, and
+/// `[0, 1]` for no groups. A kernel indexes its group as `wg.y · gx + wg.x`. Every 2D grid
+/// raygun dispatches comes from here (the tracer's indirect one through
+/// [`crate::schedule::indirect_grid`], its CPU twin).
+#[must_use]
+pub fn grid_2d(groups: u32, max_per_dim: u32) -> [u32; 2] {
+    if groups == 0 {
+        return [0, 1];
+    }
+    let gy = groups.div_ceil(max_per_dim.max(1));
+    [groups.div_ceil(gy), gy]
+}
+
+impl GpuContext {
+    /// [`grid_2d`] within this adapter's per-dimension limit.
+    #[must_use]
+    pub fn grid_2d(&self, groups: u32) -> [u32; 2] {
+        grid_2d(groups, self.limits.max_compute_workgroups_per_dimension)
+    }
+}
+
 /// Loads a WGSL module from `shaders/`, concatenating the given files in order (our shaders
 /// share functions by concatenation: WGSL has no includes). The sources are embedded at build
 /// time so the binary runs from any directory.

@@ -61,9 +61,7 @@ fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
 /// A 2D grid of `WORKGROUP`-thread groups covering `pixels` (at most 65 535 groups along x;
 /// the kernel indexes `x + y · groups_x · WORKGROUP`).
 fn grid(pixels: u32, max_per_dim: u32) -> [u32; 2] {
-    let groups = pixels.div_ceil(WORKGROUP).max(1);
-    let gy = groups.div_ceil(max_per_dim.max(1));
-    [groups.div_ceil(gy), gy]
+    crate::gpu::grid_2d(pixels.div_ceil(WORKGROUP).max(1), max_per_dim)
 }
 
 impl DisplayKernel {

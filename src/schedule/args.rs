@@ -11,11 +11,6 @@
 /// to `shaders/schedule/args.wgsl`.
 #[must_use]
 pub fn indirect_grid(count: u32, workgroup_size: u32, max_per_dim: u32) -> [u32; 3] {
-    let groups = count.div_ceil(workgroup_size);
-    if groups == 0 {
-        return [0, 1, 1];
-    }
-    let gy = groups.div_ceil(max_per_dim);
-    let gx = groups.div_ceil(gy);
+    let [gx, gy] = crate::gpu::grid_2d(count.div_ceil(workgroup_size), max_per_dim);
     [gx, gy, 1]
 }

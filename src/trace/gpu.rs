@@ -691,10 +691,7 @@ impl SampleRun {
             return Ok(Vec::new());
         }
         let len = u32::try_from(pixels.len()).expect("a list of u32 pixel indices");
-        let max_per_dim = ctx.limits.max_compute_workgroups_per_dimension.max(1);
-        let groups = len.div_ceil(WORKGROUP);
-        let gy = groups.div_ceil(max_per_dim);
-        let gx = groups.div_ceil(gy);
+        let [gx, gy] = ctx.grid_2d(len.div_ceil(WORKGROUP));
         let pipeline = self.pipeline.clone();
         let b = self.buffers(ctx, len)?;
         ctx.queue
@@ -783,13 +780,6 @@ fn storage_init(ctx: &GpuContext, label: &str, bytes: &[u8]) -> wgpu::Buffer {
             contents: bytes,
             usage: wgpu::BufferUsages::STORAGE,
         })
-}
-
-/// A 2D grid of `groups` workgroups within the adapter's per-dimension limit.
-fn grid_of(ctx: &GpuContext, groups: u32) -> (u32, u32) {
-    let max = ctx.limits.max_compute_workgroups_per_dimension.max(1);
-    let gy = groups.max(1).div_ceil(max);
-    (groups.max(1).div_ceil(gy), gy)
 }
 
 impl OwnedSums {
@@ -884,7 +874,7 @@ impl OwnedSums {
                 entry(7, &rays),
             ],
         });
-        let (gx, gy) = grid_of(ctx, n);
+        let [gx, gy] = ctx.grid_2d(n);
         {
             let mut pass = enc.begin_compute_pass(&Default::default());
             pass.set_pipeline(&self.rays);
@@ -976,7 +966,7 @@ impl OwnedSums {
                 entry(5, &foreign_dst),
             ],
         });
-        let (gx, gy) = grid_of(ctx, total.div_ceil(ACCUM_WORKGROUP));
+        let [gx, gy] = ctx.grid_2d(total.div_ceil(ACCUM_WORKGROUP));
         let mut enc = ctx.device.create_command_encoder(&Default::default());
         {
             let mut pass = enc.begin_compute_pass(&Default::default());
