@@ -7,9 +7,15 @@
 //! * **GPU-resident** — [`Renderer::shown_picture`]: the filter reads the renderer's own
 //!   buffers, the display kernel converts, and only the 8-bit picture comes back.
 //!
+//! Each path also measures the ROI's statistics the window shows under the picture (every
+//! 0.5 s there, [`crate::viewer::core::STATS_PERIOD`]): the host path with the CPU twin
+//! ([`RoiStats::measure`]) on the accumulation it read back, the resident path where the
+//! accumulation lives ([`Renderer::roi_stats`]: 208 bytes back).
+//!
 //! A guided render of the paper's setup runs one more frame before each round (the picture
 //! changes every time, as in a viewer); each round times both paths on that accumulation, in
-//! alternating order, and the first round checks that both give the same bytes.
+//! alternating order, and the first round checks that both give the same bytes and the same
+//! statistics (the medians within [`SE_TOLERANCE`]).
 
 use std::time::Instant;
 
@@ -19,7 +25,9 @@ use crate::display::DisplayModel;
 use crate::filter::{FilterKind, FilterParams};
 use crate::frame::{FrameError, GuideConfig, Renderer};
 use crate::gpu::Backend;
+use crate::output::gpu::SE_TOLERANCE;
 use crate::output::srgb8::display_rgba;
+use crate::output::stats::RoiStats;
 use crate::scene::Scene;
 
 /// One path over the rounds (ms, medians unless said).
@@ -38,6 +46,10 @@ pub struct PicturePathRow {
     pub display_ms: f64,
     /// Bytes that cross between host and GPU per picture, by construction of the path.
     pub bytes_moved: u64,
+    /// The ROI's statistics, outside `ms_*`. Host: the CPU twin on the accumulation read back
+    /// (the read-back is `readback_ms`; without a picture it would be read for them alone).
+    /// Resident: [`Renderer::roi_stats`]'s wall clock (submit, kernels, read-back).
+    pub stats_ms: f64,
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -72,6 +84,8 @@ pub enum PictureBenchError {
         resident: u8,
         host: u8,
     },
+    #[error("the statistics measured on the GPU differ from the CPU twin's: {0}")]
+    StatsDiffer(String),
     #[error(transparent)]
     Frame(#[from] FrameError),
     #[error(transparent)]
@@ -138,6 +152,8 @@ pub fn run(
         };
         if round == 0 {
             same_bytes(&b.1, &a.1, cfg.filter.kind)?;
+            a.2.matches(&b.3, SE_TOLERANCE)
+                .map_err(PictureBenchError::StatsDiffer)?;
         }
         stamps = b.2;
         host.push(a.0);
@@ -169,10 +185,10 @@ pub fn run(
     })
 }
 
-/// One round's times: [whole, read-back, filter, display].
-type Times = [f64; 4];
+/// One round's times: [whole, read-back, filter, display, statistics].
+type Times = [f64; 5];
 
-fn time_host(g: &Renderer, cfg: &PictureConfig) -> Result<(Times, Vec<u8>), FrameError> {
+fn time_host(g: &Renderer, cfg: &PictureConfig) -> Result<(Times, Vec<u8>, RoiStats), FrameError> {
     let t0 = Instant::now();
     let acc = g.accumulation()?;
     let dgi = g.dgi()?;
@@ -184,18 +200,32 @@ fn time_host(g: &Renderer, cfg: &PictureConfig) -> Result<(Times, Vec<u8>), Fram
     let rgba = display_rgba(&image, cfg.exposure);
     let display = t.elapsed().as_secs_f64() * 1e3;
     let whole = t0.elapsed().as_secs_f64() * 1e3;
-    Ok(([whole, readback, filter, display], rgba))
+    let t = Instant::now();
+    let p_min = g.guide_config().map_or(0.0, |c| c.p_min);
+    let wall = g.wall();
+    let stats = RoiStats::measure(&acc, &dgi, p_min, |i| {
+        wall.is_none_or(|w| w.is_shown(i as u32))
+    });
+    let stats_ms = t.elapsed().as_secs_f64() * 1e3;
+    Ok(([whole, readback, filter, display, stats_ms], rgba, stats))
 }
 
-fn time_resident(g: &Renderer, cfg: &PictureConfig) -> Result<(Times, Vec<u8>, bool), FrameError> {
+fn time_resident(
+    g: &Renderer,
+    cfg: &PictureConfig,
+) -> Result<(Times, Vec<u8>, bool, RoiStats), FrameError> {
     let t0 = Instant::now();
     let p = g.shown_picture(&cfg.filter, cfg.exposure, true)?;
     let whole = t0.elapsed().as_secs_f64() * 1e3;
     let t = p.times.expect("timed");
+    let s = Instant::now();
+    let stats = g.roi_stats()?;
+    let stats_ms = s.elapsed().as_secs_f64() * 1e3;
     Ok((
-        [whole, 0.0, t.filter_ms, t.display_ms],
+        [whole, 0.0, t.filter_ms, t.display_ms, stats_ms],
         p.rgba,
         t.gpu_timestamps,
+        stats,
     ))
 }
 
@@ -228,6 +258,7 @@ fn row(path: &'static str, rounds: &[Times], bytes_moved: u64) -> PicturePathRow
         filter_ms: part(2),
         display_ms: part(3),
         bytes_moved,
+        stats_ms: part(4),
     }
 }
 
@@ -236,7 +267,7 @@ fn row(path: &'static str, rounds: &[Times], bytes_moved: u64) -> PicturePathRow
 pub fn markdown(r: &PictureReport) -> String {
     let f = &r.filter;
     let mut s = format!(
-        "One shown picture of a guided render ({}, {}×{}, {}° ROI, filter {:?} k_max {}), {} rounds after {} frames, a frame before each round, both paths in each (alternating order); device: {}. Medians in ms; *bytes moved* between host and GPU per picture, by construction of the path. Resident stage times from {}.\n\n| path | ms min | ms median | read-back | filter | display | bytes moved |\n|---|---|---|---|---|---|---|\n",
+        "One shown picture of a guided render ({}, {}×{}, {}° ROI, filter {:?} k_max {}), {} rounds after {} frames, a frame before each round, both paths in each (alternating order); device: {}. Medians in ms; *bytes moved* between host and GPU per picture, by construction of the path. Resident stage times from {}. *statistics*: the ROI's statistics the window shows (every 0.5 s), outside the picture's ms: host, the CPU twin on the accumulation read back for the picture; resident, measured on the GPU (208 bytes back).\n\n| path | ms min | ms median | read-back | filter | display | bytes moved | statistics |\n|---|---|---|---|---|---|---|---|\n",
         r.scene,
         r.size[0],
         r.size[1],
@@ -254,20 +285,23 @@ pub fn markdown(r: &PictureReport) -> String {
     );
     for row in &r.rows {
         s += &format!(
-            "| {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.1} MB |\n",
+            "| {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.1} MB | {:.3} |\n",
             row.path,
             row.ms_min,
             row.ms_median,
             row.readback_ms,
             row.filter_ms,
             row.display_ms,
-            row.bytes_moved as f64 / 1e6
+            row.bytes_moved as f64 / 1e6,
+            row.stats_ms
         );
     }
     if let [host, resident] = &r.rows[..] {
         s += &format!(
-            "\nGPU-resident ÷ host (medians): ×{:.3}\n",
-            resident.ms_median / host.ms_median
+            "\nGPU-resident ÷ host (medians): picture ×{:.3}, statistics ×{:.3} (host with its read-back: ×{:.3})\n",
+            resident.ms_median / host.ms_median,
+            resident.stats_ms / host.stats_ms,
+            resident.stats_ms / (host.stats_ms + host.readback_ms)
         );
     }
     s
@@ -297,6 +331,7 @@ mod tests {
         for row in &r.rows {
             assert!(row.ms_min > 0.0 && row.ms_min <= row.ms_median, "{row:?}");
             assert!(row.filter_ms > 0.0 && row.display_ms > 0.0, "{row:?}");
+            assert!(row.stats_ms > 0.0, "{row:?}");
         }
         assert!(r.rows[0].readback_ms > 0.0 && r.rows[1].readback_ms == 0.0);
         assert_eq!(r.rows[0].bytes_moved, 16 * r.rows[1].bytes_moved);

@@ -25,6 +25,7 @@
 //!
 //! [`stop`] holds the halt conditions measured on the accumulation (`--until`).
 
+pub mod roi_stats;
 pub mod shown;
 pub mod stop;
 
@@ -49,7 +50,6 @@ use crate::trace::gpu::{GpuAccum, GpuScene, TraceKernel, TraceRun, WORKGROUP};
 use crate::trace::pack::PackedScene;
 use crate::trace::path::{TraceSettings, render_cpu_with};
 use crate::trace::wall::{WallCamera, WallCameraError};
-use stop::RoiProgress;
 
 /// How the ROI steers sampling.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
@@ -237,6 +237,8 @@ pub struct Renderer<'a> {
     display: OnceCell<crate::output::gpu::DisplayKernel>,
     /// The filter and display kernel bound to this renderer's buffers ([`shown`]).
     resident: std::cell::RefCell<Option<shown::Resident>>,
+    /// The ROI's statistics bound to this renderer's buffers ([`roi_stats`]).
+    stats: roi_stats::Stats,
     /// The wall camera (DESIGN.md §11): primary rays from its eye through each pixel's wall
     /// point, and only the pixels its display shows are scheduled and traced.
     wall: Option<WallCamera>,
@@ -390,6 +392,7 @@ impl<'a> Renderer<'a> {
             filter: OnceCell::new(),
             display: OnceCell::new(),
             resident: std::cell::RefCell::new(None),
+            stats: roi_stats::Stats::new(),
             wall,
         })
     }
@@ -865,20 +868,6 @@ impl<'a> Renderer<'a> {
                 dgi_kernel: None, ..
             }
             | Engine::Cpu { guide: None, .. } => vec![0.0; n],
-        })
-    }
-
-    /// How far the ROI has come (a read-back on the GPU; with a wall camera over the pixels
-    /// its display shows); `None` without ROI pixels.
-    pub fn roi_progress(&self) -> Result<Option<RoiProgress>, FrameError> {
-        let wall = self.wall.as_ref();
-        let shown = |i: usize| wall.is_none_or(|w| w.is_shown(i as u32));
-        Ok(match &self.engine {
-            Engine::Cpu {
-                accum,
-                guide: Some(g),
-            } => RoiProgress::measure_where(accum, &g.dgi, shown),
-            _ => RoiProgress::measure_where(&self.accumulation()?, &self.dgi()?, shown),
         })
     }
 

@@ -7,8 +7,6 @@
 use std::fmt;
 use std::str::FromStr;
 
-use crate::trace::accum::Accumulation;
-
 /// One halt condition.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum StopCondition {
@@ -63,73 +61,16 @@ impl fmt::Display for StopCondition {
 }
 
 impl StopCondition {
-    /// Whether the condition needs the accumulation (a read-back on the GPU) to be judged.
+    /// Whether the condition needs the accumulation's statistics (`Renderer::roi_progress`).
     #[must_use]
     pub fn needs_progress(&self) -> bool {
         !matches!(self, Self::Time(_))
     }
 }
 
-/// How far the ROI has come: its pixels (d = 0), their fewest samples and the median standard
-/// error of their mean luminance (pixels with fewer than two samples count as infinitely
-/// noisy: the median is +∞ until most have two).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct RoiProgress {
-    pub pixels: u64,
-    pub min_samples: u32,
-    pub median_se: f32,
-}
-
-impl RoiProgress {
-    /// Measures `acc` over the pixels where `dgi` is 0; `None` when there are none.
-    #[must_use]
-    pub fn measure(acc: &Accumulation, dgi: &[f32]) -> Option<Self> {
-        Self::measure_where(acc, dgi, |_| true)
-    }
-
-    /// [`Self::measure`] over the ROI pixels `shown` keeps (a wall camera's: pixels no tile
-    /// shows are never sampled and would hold the fewest samples at 0 for ever).
-    pub fn measure_where(
-        acc: &Accumulation,
-        dgi: &[f32],
-        shown: impl Fn(usize) -> bool,
-    ) -> Option<Self> {
-        let mut se = Vec::new();
-        let mut min_samples = u32::MAX;
-        for (i, d) in dgi.iter().enumerate() {
-            if *d != 0.0 || !shown(i) {
-                continue;
-            }
-            min_samples = min_samples.min(acc.count[i]);
-            se.push(
-                acc.luminance_variance_of_mean(i)
-                    .map_or(f32::INFINITY, f32::sqrt),
-            );
-        }
-        if se.is_empty() {
-            return None;
-        }
-        let n = se.len();
-        let median = *se.select_nth_unstable_by(n / 2, f32::total_cmp).1;
-        Some(Self {
-            pixels: n as u64,
-            min_samples,
-            median_se: median,
-        })
-    }
-
-    /// Seconds until the median SE reaches `target`, from the rate it fell at: SE ∝ 1/√n, and
-    /// samples grow linearly in time, so t_target = t · (SE/target)² − t for `elapsed` = t
-    /// seconds of sampling this ROI. `None` while the SE is undefined.
-    #[must_use]
-    pub fn seconds_to_se(&self, target: f64, elapsed: f64) -> Option<f64> {
-        let se = f64::from(self.median_se);
-        if !se.is_finite() || !(target > 0.0) || !(elapsed > 0.0) {
-            return None;
-        }
-        Some((elapsed * (se / target).powi(2) - elapsed).max(0.0))
-    }
-}
+/// How far the ROI has come: defined with the ROI's statistics (the output stage's, so that
+/// the GPU measures the same).
+pub use crate::output::stats::RoiProgress;
 
 /// Why a render stopped.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -167,6 +108,7 @@ pub fn reached(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::trace::accum::Accumulation;
     use glam::Vec3;
 
     #[test]

@@ -1,5 +1,6 @@
-//! The picture as the viewer shows it, on the GPU: the GPU twin of
-//! [`display_rgba`](super::srgb8::display_rgba) (`shaders/output/srgb8.wgsl`).
+//! The output stage's kernels: the picture as the viewer shows it, the GPU twin of
+//! [`display_rgba`](super::srgb8::display_rgba) (`shaders/output/srgb8.wgsl`), and the ROI's
+//! statistics, the GPU twin of [`RoiStats::measure`] (`shaders/output/stats.wgsl`, below).
 //!
 //! A filtered picture that stays on the GPU is converted there to the 8-bit RGBA the window
 //! shows, so a frame reads back 4 bytes a pixel instead of the accumulation, the DGI and the
@@ -13,6 +14,7 @@ use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use wgpu::util::DeviceExt;
 
+use super::stats::{NoiseContrast, RoiProgress, RoiStats};
 use crate::gpu::{GpuContext, GpuError, PassTimer};
 
 /// The kernel's source.
@@ -233,6 +235,381 @@ impl DisplayRun {
     }
 }
 
+// ---------------------------------------------------------------------------------------------
+// [`RoiStats`] measured on the GPU (`shaders/output/stats.wgsl`): the GPU twin of
+// [`RoiStats::measure`].
+//
+// The kernel reads the renderer's own accumulation, counts, DGI and the wall camera's shown
+// mask, and one submit of ten dispatches leaves the totals and five selected values (the
+// medians' order statistics, exact: a radix select over the values' IEEE patterns) in a
+// buffer of 224 bytes, which is all that comes back. The totals are the CPU's exactly; each
+// pixel's standard error is the CPU's within a few units in the last place (the CPU computes
+// the variance in f64, the kernel in f32 with the cancelling product carried exactly by FMA:
+// [`SE_TOLERANCE`]), and the medians with them.
+
+/// The kernel's source.
+pub const STATS_WGSL: &str = include_str!("../../shaders/output/stats.wgsl");
+
+/// How far a standard error measured by the kernel may lie from the CPU's, relative: the CPU's
+/// variance is f64 rounded once to f32, the kernel's f32 with four roundings after the exact
+/// cancellation (and the luminance's sum may be fused), then a square root that WGSL does not
+/// require correctly rounded. The medians, order statistics of such values, lie as close.
+pub const SE_TOLERANCE: f32 = 4e-6;
+
+/// The statistics' threads per workgroup and pixels per thread (the kernel's `WORKGROUP` and `PER_THREAD`).
+const STATS_WORKGROUP: u32 = 256;
+const PER_THREAD: u32 = 16;
+/// Selections, bins a round, rounds (the kernel's `SELECTIONS`, `BINS`; 32 bits, 8 a round).
+const SELECTIONS: usize = 5;
+const BINS: usize = 256;
+const ROUNDS: usize = 4;
+
+/// The kernel's parameters (mirrors `StatsParams` in the WGSL, 16 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct GpuStatsParams {
+    pub pixels: u32,
+    /// 1: only the pixels whose bit in the shown mask is set are the ROI's.
+    pub masked: u32,
+    /// 1 − p_min: the periphery is d > 0 and d ≥ floor.
+    pub floor: f32,
+    pub _pad: u32,
+}
+
+/// One order statistic being selected (mirrors `Selection` in the WGSL, 32 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct GpuSelection {
+    pub group: u32,
+    pub rank: u32,
+    pub prefix: u32,
+    pub mask: u32,
+    pub wanted: u32,
+    pub _pad0: u32,
+    pub _pad1: u32,
+    pub _pad2: u32,
+}
+
+/// The part of the kernel's `Stats` that is read back (its totals and selections; 208 bytes);
+/// the histograms follow it.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct GpuStatsHead {
+    pub totals: [u32; 8],
+    pub rounds_done: u32,
+    pub _pad0: u32,
+    pub _pad1: u32,
+    pub _pad2: u32,
+    pub sel: [GpuSelection; SELECTIONS],
+}
+
+/// Indices of [`GpuStatsHead::totals`] (the kernel's `T_*`).
+const T_ROI_NOISY: usize = 0;
+const T_PERIPHERY_NOISY: usize = 1;
+const T_ROI_PIXELS: usize = 2;
+const T_SAMPLES_LO: usize = 3;
+const T_SAMPLES_HI: usize = 4;
+const T_MIN_SAMPLES: usize = 5;
+
+/// Bytes of the kernel's `Stats`: the head, then 5 × 256 histogram bins.
+const STATE_BYTES: u64 = (size_of::<GpuStatsHead>() + 4 * SELECTIONS * BINS) as u64;
+
+/// The compiled entry points.
+pub struct StatsKernel {
+    totals: wgpu::ComputePipeline,
+    ranks: wgpu::ComputePipeline,
+    histogram: wgpu::ComputePipeline,
+    pick: wgpu::ComputePipeline,
+}
+
+/// The buffers a measurement reads: a frame's accumulation (`vec4<f32>` per pixel: RGB sum,
+/// Σ luminance²), sample counts (`u32`) and DGI (`f32`), all `STORAGE`, and the wall camera's
+/// shown mask (bit `p % 32` of word `p / 32`), if any.
+pub struct GpuStatsInputs<'a> {
+    pub pixels: u32,
+    pub accum: &'a wgpu::Buffer,
+    pub counts: &'a wgpu::Buffer,
+    pub dgi: &'a wgpu::Buffer,
+    pub shown: Option<&'a [u32]>,
+}
+
+/// The measurement bound to one frame's buffers: [`Self::measure`] it as often as wanted.
+pub struct StatsRun {
+    totals: wgpu::ComputePipeline,
+    ranks: wgpu::ComputePipeline,
+    histogram: wgpu::ComputePipeline,
+    pick: wgpu::ComputePipeline,
+    params: wgpu::Buffer,
+    state: wgpu::Buffer,
+    /// Bindings of `totals` and `histogram` (every input), and of `ranks` and `pick` (the
+    /// state only): each entry point's layout is its own.
+    bind_totals: wgpu::BindGroup,
+    bind_histogram: wgpu::BindGroup,
+    bind_ranks: wgpu::BindGroup,
+    bind_pick: wgpu::BindGroup,
+    groups: [u32; 2],
+    pixels: u32,
+    masked: bool,
+}
+
+impl StatsKernel {
+    #[must_use]
+    pub fn new(ctx: &GpuContext) -> Self {
+        let module = ctx.shader_module("output/stats.wgsl", STATS_WGSL);
+        let pipeline =
+            |entry: &str| ctx.compute_pipeline_in(&module, &format!("output/stats {entry}"), entry);
+        Self {
+            totals: pipeline("totals"),
+            ranks: pipeline("ranks"),
+            histogram: pipeline("histogram"),
+            pick: pipeline("pick"),
+        }
+    }
+
+    /// Binds a measurement of `inputs`.
+    pub fn prepare(
+        &self,
+        ctx: &GpuContext,
+        inputs: &GpuStatsInputs<'_>,
+    ) -> Result<StatsRun, GpuError> {
+        let max = ctx.limits.max_compute_workgroups_per_dimension;
+        self.prepare_on_grid(ctx, inputs, max)
+    }
+
+    /// [`Self::prepare`] with at most `max_per_dim` workgroups along x (tests force a grid of
+    /// several rows with a small one).
+    fn prepare_on_grid(
+        &self,
+        ctx: &GpuContext,
+        inputs: &GpuStatsInputs<'_>,
+        max_per_dim: u32,
+    ) -> Result<StatsRun, GpuError> {
+        let n = u64::from(inputs.pixels);
+        for (what, buffer, bytes) in [
+            ("accumulation", inputs.accum, 16 * n),
+            ("sample counts", inputs.counts, 4 * n),
+            ("DGI", inputs.dgi, 4 * n),
+        ] {
+            assert!(
+                buffer.size() >= bytes,
+                "the statistics' {what} holds {} bytes, {n} pixels need {bytes}",
+                buffer.size()
+            );
+        }
+        if let Some(mask) = inputs.shown {
+            assert!(
+                mask.len() as u64 >= n.div_ceil(32),
+                "a shown mask of {} words for {n} pixels",
+                mask.len()
+            );
+        }
+        let params = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("statistics params"),
+            size: size_of::<GpuStatsParams>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        // Without a mask the binding still needs a buffer (one word, never read).
+        let mask = ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("statistics shown mask"),
+                contents: bytemuck::cast_slice(inputs.shown.unwrap_or(&[0u32])),
+                usage: wgpu::BufferUsages::STORAGE,
+            });
+        let state = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("statistics state"),
+            size: STATE_BYTES,
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_SRC
+                | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let all = |pipeline: &wgpu::ComputePipeline, label| {
+            ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some(label),
+                layout: &pipeline.get_bind_group_layout(0),
+                entries: &[
+                    entry(0, &params),
+                    entry(1, inputs.accum),
+                    entry(2, inputs.counts),
+                    entry(3, inputs.dgi),
+                    entry(4, &mask),
+                    entry(5, &state),
+                ],
+            })
+        };
+        let state_only = |pipeline: &wgpu::ComputePipeline, label| {
+            ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some(label),
+                layout: &pipeline.get_bind_group_layout(0),
+                entries: &[entry(5, &state)],
+            })
+        };
+        let per_group = STATS_WORKGROUP * PER_THREAD;
+        Ok(StatsRun {
+            bind_totals: all(&self.totals, "statistics totals"),
+            bind_histogram: all(&self.histogram, "statistics histogram"),
+            bind_ranks: state_only(&self.ranks, "statistics ranks"),
+            bind_pick: state_only(&self.pick, "statistics pick"),
+            totals: self.totals.clone(),
+            ranks: self.ranks.clone(),
+            histogram: self.histogram.clone(),
+            pick: self.pick.clone(),
+            params,
+            state,
+            groups: crate::gpu::grid_2d(inputs.pixels.div_ceil(per_group), max_per_dim),
+            pixels: inputs.pixels,
+            masked: inputs.shown.is_some(),
+        })
+    }
+
+    /// Uploads an accumulation and a DGI and measures them (tests and benchmarks; a renderer
+    /// measures its own buffers in place).
+    pub fn measure_upload(
+        &self,
+        ctx: &GpuContext,
+        acc: &crate::trace::accum::Accumulation,
+        dgi: &[f32],
+        p_min: f32,
+        shown: Option<&[u32]>,
+    ) -> Result<RoiStats, GpuError> {
+        let pixels = u32::try_from(acc.count.len()).map_err(|_| GpuError::TooLarge {
+            what: "statistics of more than 2^32 pixels",
+            bytes: 16 * acc.count.len() as u64,
+            max: ctx.max_binding(),
+        })?;
+        assert_eq!(dgi.len(), acc.count.len(), "one DGI value a pixel");
+        self.measure_upload_on_grid(ctx, acc, dgi, p_min, shown, pixels, None)
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn measure_upload_on_grid(
+        &self,
+        ctx: &GpuContext,
+        acc: &crate::trace::accum::Accumulation,
+        dgi: &[f32],
+        p_min: f32,
+        shown: Option<&[u32]>,
+        pixels: u32,
+        max_per_dim: Option<u32>,
+    ) -> Result<RoiStats, GpuError> {
+        ctx.check_binding(
+            "statistics' accumulation (16 bytes per pixel)",
+            16 * u64::from(pixels),
+        )?;
+        let upload = |label, contents: &[u8]| {
+            ctx.device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some(label),
+                    // A binding is never empty.
+                    contents: if contents.is_empty() {
+                        &[0; 16]
+                    } else {
+                        contents
+                    },
+                    usage: wgpu::BufferUsages::STORAGE,
+                })
+        };
+        let accum = upload("statistics accumulation", bytemuck::cast_slice(&acc.sum));
+        let counts = upload("statistics counts", bytemuck::cast_slice(&acc.count));
+        let dgi = upload("statistics DGI", bytemuck::cast_slice(dgi));
+        let inputs = GpuStatsInputs {
+            pixels,
+            accum: &accum,
+            counts: &counts,
+            dgi: &dgi,
+            shown,
+        };
+        let run = match max_per_dim {
+            Some(max) => self.prepare_on_grid(ctx, &inputs, max)?,
+            None => self.prepare(ctx, &inputs)?,
+        };
+        run.measure(ctx, p_min)
+    }
+}
+
+impl StatsRun {
+    /// Records the measurement with the periphery of `p_min`: the state cleared, the totals,
+    /// the ranks and four rounds of the select.
+    pub fn record(&self, ctx: &GpuContext, enc: &mut wgpu::CommandEncoder, p_min: f32) {
+        let params = GpuStatsParams {
+            pixels: self.pixels,
+            masked: u32::from(self.masked),
+            floor: 1.0 - p_min,
+            _pad: 0,
+        };
+        ctx.queue
+            .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+        // Zero totals and histograms, the fewest samples at u32::MAX (written at the submit,
+        // before the passes).
+        let mut state = vec![0u8; STATE_BYTES as usize];
+        let mut head = GpuStatsHead::zeroed();
+        head.totals[T_MIN_SAMPLES] = u32::MAX;
+        state[..size_of::<GpuStatsHead>()].copy_from_slice(bytemuck::bytes_of(&head));
+        ctx.queue.write_buffer(&self.state, 0, &state);
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("statistics"),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(&self.totals);
+        pass.set_bind_group(0, &self.bind_totals, &[]);
+        pass.dispatch_workgroups(self.groups[0], self.groups[1], 1);
+        pass.set_pipeline(&self.ranks);
+        pass.set_bind_group(0, &self.bind_ranks, &[]);
+        pass.dispatch_workgroups(1, 1, 1);
+        for _ in 0..ROUNDS {
+            pass.set_pipeline(&self.histogram);
+            pass.set_bind_group(0, &self.bind_histogram, &[]);
+            pass.dispatch_workgroups(self.groups[0], self.groups[1], 1);
+            pass.set_pipeline(&self.pick);
+            pass.set_bind_group(0, &self.bind_pick, &[]);
+            pass.dispatch_workgroups(1, 1, 1);
+        }
+    }
+
+    /// Measures the bound buffers as they are now (one submit, 208 bytes read back).
+    pub fn measure(&self, ctx: &GpuContext, p_min: f32) -> Result<RoiStats, GpuError> {
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        self.record(ctx, &mut enc, p_min);
+        ctx.queue.submit([enc.finish()]);
+        let head: Vec<GpuStatsHead> =
+            ctx.read_prefix(&self.state, size_of::<GpuStatsHead>() as u64)?;
+        Ok(stats_of(&head[0]))
+    }
+}
+
+/// The statistics in a read-back head: the totals as they are, each median from its
+/// selections as the CPU's `median_finite` and `RoiProgress::measure_where` take it.
+fn stats_of(head: &GpuStatsHead) -> RoiStats {
+    let t = &head.totals;
+    let value = |s: usize| f32::from_bits(head.sel[s].prefix);
+    // The upper middle value (rank n/2), and for an even n the mean with the lower one.
+    let median = |upper: usize, n: u32| {
+        if n % 2 == 1 {
+            value(upper)
+        } else {
+            0.5 * (value(upper + 1) + value(upper))
+        }
+    };
+    let (n_roi, n_far, n_px) = (t[T_ROI_NOISY], t[T_PERIPHERY_NOISY], t[T_ROI_PIXELS]);
+    RoiStats {
+        roi_samples: u64::from(t[T_SAMPLES_LO]) | (u64::from(t[T_SAMPLES_HI]) << 32),
+        roi_pixels: u64::from(n_px),
+        contrast: (n_roi > 0 && n_far > 0).then(|| NoiseContrast {
+            roi: median(0, n_roi),
+            periphery: median(2, n_far),
+            roi_pixels: n_roi as usize,
+            periphery_pixels: n_far as usize,
+        }),
+        progress: (n_px > 0).then(|| RoiProgress {
+            pixels: u64::from(n_px),
+            min_samples: t[T_MIN_SAMPLES],
+            median_se: value(4),
+        }),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -315,5 +692,73 @@ mod tests {
         }
         assert!(blacked > 1000 && blacked < 4000, "{blacked} unshown");
         assert_eq!(gpu, want);
+    }
+
+    use crate::trace::accum::Accumulation;
+
+    #[test]
+    fn kernel_validates_and_its_structs_match_rust() {
+        let m = validated("stats.wgsl", STATS_WGSL);
+        assert_same_layout(
+            &m,
+            "StatsParams",
+            &crate::rust_layout!(GpuStatsParams; pixels, masked, floor, _pad),
+        );
+        assert_same_layout(
+            &m,
+            "Selection",
+            &crate::rust_layout!(GpuSelection; group, rank, prefix, mask, wanted, _pad0, _pad1, _pad2),
+        );
+        for (name, value) in [
+            ("WORKGROUP", STATS_WORKGROUP as usize),
+            ("PER_THREAD", PER_THREAD as usize),
+            ("SELECTIONS", SELECTIONS),
+            ("BINS", BINS),
+            ("T_ROI_NOISY", T_ROI_NOISY),
+            ("T_PERIPHERY_NOISY", T_PERIPHERY_NOISY),
+            ("T_ROI_PIXELS", T_ROI_PIXELS),
+            ("T_SAMPLES_LO", T_SAMPLES_LO),
+            ("T_SAMPLES_HI", T_SAMPLES_HI),
+            ("T_MIN_SAMPLES", T_MIN_SAMPLES),
+        ] {
+            assert!(
+                STATS_WGSL.contains(&format!("const {name}: u32 = {value}u;")),
+                "{name} = {value} in the kernel"
+            );
+        }
+        assert!(STATS_WGSL.contains(&format!("@workgroup_size({STATS_WORKGROUP})")));
+        assert!(STATS_WGSL.contains(&format!("hist: array<atomic<u32>, {}>", SELECTIONS * BINS)));
+        // The head as the kernel lays it out: 8 totals, the rounds done and padding, 5 selections.
+        assert_eq!(size_of::<GpuStatsHead>(), 48 + SELECTIONS * 32);
+    }
+
+    /// Sample totals beyond 2^32 carry into the high word within a workgroup and across
+    /// workgroups, and a grid of several rows of workgroups covers every pixel.
+    #[test]
+    fn sample_totals_carry_past_32_bits_on_a_grid_of_rows() {
+        let ctx = GpuContext::for_tests();
+        let kernel = StatsKernel::new(&ctx);
+        let (w, h) = (128u32, 100u32);
+        let n = (w * h) as usize;
+        let mut acc = Accumulation::new(w, h);
+        let mut dgi = vec![0.5f32; n];
+        for (i, d) in dgi.iter_mut().enumerate() {
+            if i % 3 == 0 {
+                *d = 0.0;
+                acc.count[i] = 1 + (i as u32 % 5);
+            }
+        }
+        // Three pixels of 3·10^9 samples (sums 0: SE 0): in one workgroup (pixels 0 and 3) and
+        // in another (pixel 9 999).
+        for i in [0, 3, 9_999] {
+            acc.count[i] = 3_000_000_000;
+        }
+        let cpu = RoiStats::measure(&acc, &dgi, 0.5, |_| true);
+        assert!(cpu.roi_samples > 9_000_000_000, "{}", cpu.roi_samples);
+        let gpu = kernel
+            .measure_upload_on_grid(&ctx, &acc, &dgi, 0.5, None, w * h, Some(1))
+            .unwrap();
+        // 12 800 pixels: four workgroups of 4 096 on a grid of one column.
+        assert_eq!(cpu, gpu);
     }
 }

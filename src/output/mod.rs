@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 pub mod file;
 pub mod gpu;
 pub mod srgb8;
+pub mod stats;
 pub mod tiles;
 
 pub use file::{FileError, check_folder, check_writable, replace_with, write_bytes};

@@ -26,7 +26,8 @@ pub struct Stopping {
     pub until: Vec<StopCondition>,
 }
 
-/// How often the ROI's progress is measured for a stop condition (a read-back on the GPU).
+/// How often the ROI's progress is measured for a stop condition (on a GPU renderer of one
+/// band a submit and 208 bytes back, `Renderer::roi_stats`; elsewhere a read-back).
 const PROGRESS_INTERVAL_S: f64 = 0.5;
 
 /// What a guided render produced.

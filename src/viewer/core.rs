@@ -16,6 +16,7 @@ use crate::display::DisplayModel;
 use crate::filter::Filter;
 use crate::frame::{EyeFollow, FrameStats, GuideConfig, Renderer};
 use crate::gpu::Backend;
+use crate::output::stats::RoiStats;
 use crate::output::tiles::wall_view;
 use crate::roi::dgi::Roi;
 use crate::scene::Scene;
@@ -26,10 +27,7 @@ use crate::trace::path::TraceSettings;
 use crate::trace::wall::WallCamera;
 
 use super::ViewerError;
-use super::diagnostics::{
-    NoiseContrast, NoiseRegions, OUTLINE, heat_map, noise_image, noise_map, roi_outline,
-    roi_samples,
-};
+use super::diagnostics::{OUTLINE, heat_map, noise_image, noise_map, roi_outline};
 use super::orbit::{camera_moved, camera_orbit, eye_orbit};
 use super::state::{Overlay, ViewerState};
 
@@ -273,8 +271,9 @@ pub struct WindowPicture {
     pub resident: bool,
 }
 
-/// How often a window picture that stays on the GPU measures the statistics (each
-/// measurement reads the accumulation and the DGI back: 20 bytes a pixel).
+/// How often a window picture that stays on the GPU measures the statistics (on a GPU a
+/// measurement is one submit and 208 bytes read back, [`Renderer::roi_stats`]; the period keeps
+/// the numbers readable).
 pub const STATS_PERIOD: Duration = Duration::from_millis(500);
 
 /// Every this many frames one is timed (stage times, pixel count), which makes the GPU wait.
@@ -574,9 +573,9 @@ impl<'a> ViewerCore<'a> {
     /// The picture the window shows this UI frame. With one process on a GPU, the image
     /// overlay and a frame of one band, it stays on the GPU ([`Renderer::shown_picture`]: the
     /// filter reads the renderer's buffers, the display kernel converts, 4 bytes a pixel come
-    /// back) and the statistics are measured every [`STATS_PERIOD`] (each time a read-back of
-    /// the accumulation and the DGI); the ROI outline is remade only when a new DGI was
-    /// installed. Otherwise it is [`Self::picture`]'s. Either way the same bytes as
+    /// back) and the statistics are measured every [`STATS_PERIOD`] where the accumulation
+    /// lives ([`Renderer::roi_stats`]: a guided renderer's on the GPU, nothing read back
+    /// without an ROI); the ROI outline is remade only when a new DGI was installed. Otherwise it is [`Self::picture`]'s. Either way the same bytes as
     /// [`Self::picture`] (tested); files take [`Self::whole_picture`].
     pub fn window_picture(&mut self) -> Result<WindowPicture, ViewerError> {
         let params = self.state.filter_params();
@@ -592,10 +591,14 @@ impl<'a> ViewerCore<'a> {
                 resident: false,
             });
         }
+        let Engine::Local(r) = &self.engine else {
+            unreachable!("checked above");
+        };
         if self.stats_at.is_none_or(|t| t.elapsed() >= STATS_PERIOD) {
-            let (acc, dgi) = self.engine.accumulation(1)?;
-            let noise = noise_image(&acc);
-            self.measure_stats(&acc, &dgi, &noise, 1);
+            // Measured where the accumulation lives (a GPU renderer of one band: a few dozen
+            // bytes back), not read back.
+            let measured = r.roi_stats()?;
+            self.set_stats(measured, 1);
             self.stats_at = Some(Instant::now());
         }
         self.stats.seconds_on_roi = self.roi_since.elapsed().as_secs_f64();
@@ -628,25 +631,25 @@ impl<'a> ViewerCore<'a> {
         let step = every as usize;
         let pixel = |i: usize| ((i / width * step) * full_width + (i % width) * step) as u32;
         let r = self.engine.view();
-        let wall = r.wall();
-        let shown = |i: usize| wall.is_none_or(|w| w.is_shown(pixel(i)));
-        let (roi_samples, roi_pixels) = roi_samples(acc, dgi, r.roi().is_some(), shown);
-        let contrast = r.roi().and_then(|_| {
-            let regions = NoiseRegions {
-                dgi,
-                p_min: r.guide_config().map_or(0.0, |c| c.p_min),
-            };
-            NoiseContrast::measure(noise, &regions)
-        });
-        let progress = r
-            .roi()
-            .and_then(|_| crate::frame::stop::RoiProgress::measure_where(acc, dgi, shown));
+        let measured = if r.roi().is_some() {
+            let wall = r.wall();
+            let shown = |i: usize| wall.is_none_or(|w| w.is_shown(pixel(i)));
+            let p_min = r.guide_config().map_or(0.0, |c| c.p_min);
+            RoiStats::measure_with_noise(acc, dgi, noise, p_min, shown)
+        } else {
+            RoiStats::default()
+        };
+        self.set_stats(measured, every);
+    }
+
+    /// Shows `measured`, taken over every `every`-th pixel of every such row.
+    fn set_stats(&mut self, measured: RoiStats, every: u32) {
         self.stats.console_every = every;
-        self.stats.roi_samples = roi_samples;
-        self.stats.roi_pixels = roi_pixels;
-        self.stats.roi_noise = contrast.map(|c| c.roi);
-        self.stats.periphery_noise = contrast.map(|c| c.periphery);
-        self.stats.roi_progress = progress;
+        self.stats.roi_samples = measured.roi_samples;
+        self.stats.roi_pixels = measured.roi_pixels;
+        self.stats.roi_noise = measured.contrast.map(|c| c.roi);
+        self.stats.periphery_noise = measured.contrast.map(|c| c.periphery);
+        self.stats.roi_progress = measured.progress;
         self.stats.seconds_on_roi = self.roi_since.elapsed().as_secs_f64();
     }
 

@@ -8,12 +8,15 @@
 //! * `trace` — statistical: the same image in distribution with different seeds (a Welch test
 //!   per block), and the same samples to rounding with the same seed;
 //! * `filter` — f32 kernels against the f64 twins, relative to the image's scale;
-//! * `output` — exact: the display kernel's 8-bit sRGB bytes are the CPU table's.
+//! * `output` — exact: the display kernel's 8-bit sRGB bytes are the CPU table's; the ROI's
+//!   statistics: totals exact, medians within `output::gpu::SE_TOLERANCE`.
 
 #[path = "../support/gltf_scenes.rs"]
 mod gltf_scenes;
 #[path = "../support/render.rs"]
 mod render;
+#[path = "../support/roi_stats.rs"]
+mod roi_stats;
 #[path = "../support/scenes.rs"]
 mod scenes;
 

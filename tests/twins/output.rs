@@ -75,3 +75,124 @@ fn equals_the_cpu_twin_on_the_hard_values() {
         }
     }
 }
+
+// ---------------------------------------------------------------------------------------------
+// The ROI's statistics (`shaders/output/stats.wgsl`) against `RoiStats::measure`. Tolerance:
+// the totals (pixels, samples, fewest samples, noisy pixels) **exact**; the medians within
+// `SE_TOLERANCE` relative — each pixel's SE is the CPU's f64 variance against the kernel's f32
+// one with the cancelling product carried exactly, and an order statistic of values that each
+// lie within a relative bound lies within it too. The select itself is exact: a wrong rank
+// would land on a neighbouring value, which on these images lies 100–1000× farther.
+
+mod stats {
+    use glam::Vec3;
+    use raygun::filter::synth;
+    use raygun::gpu::GpuContext;
+    use raygun::output::gpu::StatsKernel;
+    use raygun::output::stats::RoiStats;
+
+    use crate::roi_stats::same;
+    use raygun::trace::accum::Accumulation;
+
+    const W: u32 = 96;
+    const H: u32 = 64;
+
+    /// A ROI disc of radius 9 pixels (d = 0), then d rising linearly to 1 at 40 pixels: every
+    /// class of pixel (ROI, between, periphery for the p_min used) in numbers.
+    fn dgi() -> Vec<f32> {
+        (0..W * H)
+            .map(|i| {
+                let (x, y) = ((i % W) as f32 - 40.0, (i / W) as f32 - 30.0);
+                ((x.hypot(y) - 9.0) / 31.0).clamp(0.0, 1.0)
+            })
+            .collect()
+    }
+
+    fn accumulations(dgi: &[f32]) -> Vec<(&'static str, Accumulation)> {
+        let smooth = synth::reference(synth::Pattern::Smooth, W, H);
+        let edges = synth::reference(synth::Pattern::Edges, W, H);
+        let black = vec![Vec3::ZERO; (W * H) as usize];
+        vec![
+            (
+                "edges, p = max(0.1, 1 − d), 9 rounds",
+                synth::accumulate(&edges, W, H, |i| (1.0 - dgi[i]).max(0.1), 9, 1),
+            ),
+            (
+                "smooth, p = max(0.3, 1 − d), 4 rounds",
+                synth::accumulate(&smooth, W, H, |i| (1.0 - dgi[i]).max(0.3), 4, 2),
+            ),
+            // Constant pixels: SE 0 everywhere, no noisy pixel in any region.
+            (
+                "black, 3 rounds",
+                synth::accumulate(&black, W, H, |_| 1.0, 3, 3),
+            ),
+        ]
+    }
+
+    /// A shown mask with about a third of the pixels unshown.
+    fn mask() -> Vec<u32> {
+        (0..(W * H).div_ceil(32))
+            .map(|w| 0x9E37_79B9u32.wrapping_mul(w + 1) | 0x0101_0101)
+            .collect()
+    }
+
+    fn is_shown(mask: &[u32], i: usize) -> bool {
+        mask[i / 32] & (1 << (i % 32)) != 0
+    }
+
+    #[test]
+    fn roi_statistics_match_their_cpu_twin() {
+        let ctx = GpuContext::for_tests();
+        let kernel = StatsKernel::new(&ctx);
+        let dgi = dgi();
+        let mask = mask();
+        let mut measured = 0;
+        for (label, acc) in accumulations(&dgi) {
+            for p_min in [0.1f32, 0.3, 1.0] {
+                for masked in [false, true] {
+                    let label = format!("{label}, p_min {p_min}, masked {masked}");
+                    let shown = |i: usize| !masked || is_shown(&mask, i);
+                    let cpu = RoiStats::measure(&acc, &dgi, p_min, shown);
+                    let gpu = kernel
+                        .measure_upload(&ctx, &acc, &dgi, p_min, masked.then_some(&mask[..]))
+                        .unwrap();
+                    same(&label, &cpu, &gpu);
+                    measured += usize::from(cpu.contrast.is_some());
+                    eprintln!("{label}: {cpu:?}");
+                }
+            }
+        }
+        // The noisy images have both regions at p_min 0.1 and 0.3, masked or not.
+        assert!(
+            measured >= 8,
+            "{measured} measurements had a noise contrast"
+        );
+    }
+
+    /// Odd and even set sizes (the median's mean of the two middle values), one value, and
+    /// regions with no pixel: the ROI's progress without ROI, no periphery at p_min = 1.
+    #[test]
+    fn medians_of_every_set_size_and_empty_regions() {
+        let ctx = GpuContext::for_tests();
+        let kernel = StatsKernel::new(&ctx);
+        let edges = synth::reference(synth::Pattern::Edges, W, H);
+        let acc = synth::accumulate(&edges, W, H, |_| 1.0, 5, 7);
+        let n = (W * H) as usize;
+        for roi in [0usize, 1, 2, 3, 4, 7, 64, 65] {
+            // `roi` ROI pixels spread over the image, the rest periphery (d = 1).
+            let mut dgi = vec![1.0f32; n];
+            for k in 0..roi {
+                dgi[(k * 97 + 13) % n] = 0.0;
+            }
+            for p_min in [0.1f32, 1.0] {
+                let label = format!("{roi} ROI pixels, p_min {p_min}");
+                let cpu = RoiStats::measure(&acc, &dgi, p_min, |_| true);
+                let gpu = kernel
+                    .measure_upload(&ctx, &acc, &dgi, p_min, None)
+                    .unwrap();
+                same(&label, &cpu, &gpu);
+                assert_eq!(cpu.progress.is_some(), roi > 0, "{label}");
+            }
+        }
+    }
+}
