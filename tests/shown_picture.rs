@@ -1,8 +1,9 @@
 //! The picture as a window shows it (`Renderer::shown_picture`): on the GPU (lavapipe in CI) it
 //! stays there — the filter reads the renderer's own buffers and the display kernel converts —
 //! and must give the bytes of the host path it replaces (read back, filter, convert on the CPU:
-//! `display_rgba(picture(..))`), byte for byte, for guided, full-frame and wall-camera renders,
-//! across frames, filter settings and exposures. The unfiltered mean divides on the GPU
+//! `display_rgba(picture(..))`, the ROI's outline painted from the DGI read back), byte for
+//! byte, for guided, full-frame and wall-camera renders, across frames, filter settings,
+//! exposures and with and without the outline. The unfiltered mean divides on the GPU
 //! instead of the CPU (WGSL's division need not round as the CPU's does), so it may differ by
 //! one code where the mean lies on a step.
 
@@ -11,7 +12,7 @@ use raygun::display::DisplayModel;
 use raygun::filter::{Blend, FilterKind, FilterParams};
 use raygun::frame::{GuideConfig, Renderer};
 use raygun::gpu::{Backend, GpuContext};
-use raygun::output::srgb8::display_rgba;
+use raygun::output::srgb8::{OUTLINE, display_rgba, paint_outline, roi_outline};
 use raygun::roi::cone::Cone;
 use raygun::roi::dgi::Roi;
 use raygun::scene::Scene;
@@ -73,11 +74,18 @@ fn params() -> Vec<FilterParams> {
 }
 
 /// The shown picture equals the host path's bytes (within one code, on few pixels, for the
-/// unfiltered mean), and is not a flat picture.
-fn check_same(r: &Renderer, p: &FilterParams, exposure: f32, what: &str) {
-    let shown = r.shown_picture(p, exposure, false).unwrap();
-    assert_eq!(shown.size, [r.settings.width, r.settings.height]);
-    let host = display_rgba(&r.picture(p).unwrap(), exposure);
+/// unfiltered mean), and is not a flat picture; with `outline` (and an ROI) the outline is
+/// painted over both.
+fn check_same(r: &Renderer, p: &FilterParams, exposure: f32, outline: bool, what: &str) {
+    let shown = r.shown_picture(p, exposure, outline, false).unwrap();
+    let size = [r.settings.width, r.settings.height];
+    assert_eq!(shown.size, size);
+    let mut host = display_rgba(&r.picture(p).unwrap(), exposure);
+    if outline && r.roi().is_some() {
+        let pixels = roi_outline(&r.dgi().unwrap(), size);
+        assert!(!pixels.is_empty(), "{what}: an outline to paint");
+        paint_outline(&mut host, &pixels);
+    }
     assert_eq!(shown.rgba.len(), host.len(), "{what}");
     let distinct: std::collections::BTreeSet<u8> = shown.rgba.iter().copied().collect();
     assert!(distinct.len() > 20, "{what}: a flat picture proves nothing");
@@ -129,18 +137,31 @@ fn a_guided_render_shows_the_host_paths_bytes_across_frames_settings_and_exposur
     r.set_roi(Some(roi())).unwrap();
     r.iterate(2).unwrap();
     for (k, p) in params().iter().enumerate() {
-        check_same(&r, p, 0.0, &format!("settings {k}"));
+        check_same(&r, p, 0.0, k % 2 == 0, &format!("settings {k}"));
     }
     // More frames into the same bindings: the shown picture follows the accumulation.
-    let before = r.shown_picture(&params()[0], 0.0, false).unwrap().rgba;
+    let before = r
+        .shown_picture(&params()[0], 0.0, false, false)
+        .unwrap()
+        .rgba;
     r.iterate(3).unwrap();
-    let after = r.shown_picture(&params()[0], 0.0, false).unwrap().rgba;
+    let after = r
+        .shown_picture(&params()[0], 0.0, false, false)
+        .unwrap()
+        .rgba;
     assert_ne!(before, after, "the shown picture is of the latest frames");
-    check_same(&r, &params()[0], 0.0, "after more frames");
-    // Exposure changes on kept bindings.
+    check_same(&r, &params()[0], 0.0, false, "after more frames");
+    // Exposure and the outline change on kept bindings.
     for e in [1.5, -2.0] {
-        check_same(&r, &params()[0], e, &format!("exposure {e}"));
+        check_same(&r, &params()[0], e, true, &format!("exposure {e}, outline"));
+        check_same(&r, &params()[0], e, false, &format!("exposure {e}"));
     }
+    let outlined = r
+        .shown_picture(&params()[0], 0.0, true, false)
+        .unwrap()
+        .rgba;
+    let painted = outlined.chunks_exact(4).filter(|p| *p == OUTLINE).count();
+    assert!(painted > 10, "{painted} outline pixels");
     // A moved ROI (a new DGI installed by the next frame) is filtered with the new DGI.
     r.set_roi(Some(Roi::Cone(
         Cone::from_pose(
@@ -154,10 +175,22 @@ fn a_guided_render_shows_the_host_paths_bytes_across_frames_settings_and_exposur
     )))
     .unwrap();
     r.iterate(1).unwrap();
-    check_same(&r, &params()[1], 0.0, "moved ROI");
+    check_same(&r, &params()[1], 0.0, false, "moved ROI");
+    // The outline follows the new DGI on the GPU.
+    check_same(&r, &params()[1], 0.0, true, "moved ROI, outline");
+    let moved = r
+        .shown_picture(&params()[1], 0.0, true, false)
+        .unwrap()
+        .rgba;
+    let at = |rgba: &[u8]| -> Vec<usize> {
+        (0..rgba.len() / 4)
+            .filter(|&i| rgba[4 * i..4 * i + 4] == OUTLINE)
+            .collect()
+    };
+    assert_ne!(at(&moved), at(&outlined), "the outline moved with the ROI");
     // Timing reports the resident path and positive stage times.
     let t = r
-        .shown_picture(&params()[0], 0.0, true)
+        .shown_picture(&params()[0], 0.0, true, true)
         .unwrap()
         .times
         .unwrap();
@@ -175,7 +208,8 @@ fn a_full_frame_render_shows_the_host_paths_bytes() {
     let mut r = Renderer::full(&backend, &scene, settings(&scene)).unwrap();
     r.iterate(2).unwrap();
     for (k, p) in params().iter().enumerate() {
-        check_same(&r, p, 0.5, &format!("full frame, settings {k}"));
+        // No ROI: nothing outlined either way.
+        check_same(&r, p, 0.5, k % 2 == 1, &format!("full frame, settings {k}"));
     }
 }
 
@@ -210,9 +244,18 @@ fn a_wall_camera_render_shows_its_unshown_pixels_black() {
     r.set_roi(Some(roi())).unwrap();
     r.iterate(2).unwrap();
     for (k, p) in params().iter().enumerate() {
-        check_same(&r, p, 0.0, &format!("wall camera, settings {k}"));
+        check_same(
+            &r,
+            p,
+            0.0,
+            k % 2 == 1,
+            &format!("wall camera, settings {k}"),
+        );
     }
-    let shown = r.shown_picture(&params()[0], 0.0, false).unwrap().rgba;
+    let shown = r
+        .shown_picture(&params()[0], 0.0, false, false)
+        .unwrap()
+        .rgba;
     for p in 0..WALL_SIZE[0] * WALL_SIZE[1] {
         if !wall.is_shown(p) {
             let i = 4 * p as usize;
@@ -239,8 +282,9 @@ fn the_cpu_twin_shows_its_picture_converted() {
     r.set_roi(Some(roi())).unwrap();
     r.iterate(2).unwrap();
     let p = FilterParams::default();
-    let shown = r.shown_picture(&p, 0.25, true).unwrap();
+    let shown = r.shown_picture(&p, 0.25, false, true).unwrap();
     assert_eq!(shown.rgba, display_rgba(&r.picture(&p).unwrap(), 0.25));
+    check_same(&r, &p, 0.25, true, "CPU twin, outline");
     assert!(!shown.times.unwrap().resident);
 }
 
@@ -266,7 +310,7 @@ fn a_banded_frame_takes_the_host_path_and_shows_the_same_picture() {
         pictures.push((
             r.gpu_bands(),
             r.shows_on_gpu(&p),
-            r.shown_picture(&p, 0.0, false).unwrap().rgba,
+            r.shown_picture(&p, 0.0, false, false).unwrap().rgba,
         ));
     }
     assert_eq!((pictures[0].0, pictures[0].1), (Some(1), true));

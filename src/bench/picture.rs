@@ -3,9 +3,10 @@
 //! * **host** — what the viewer did before the picture stayed on the GPU: read the
 //!   accumulation and the DGI back, upload them again as the filter's inputs, filter, read the
 //!   filtered picture back, convert it to 8-bit sRGB on the CPU ([`Renderer::picture`], then
-//!   [`display_rgba`]).
+//!   [`display_rgba`]) and paint the ROI's outline from the DGI read back.
 //! * **GPU-resident** — [`Renderer::shown_picture`]: the filter reads the renderer's own
-//!   buffers, the display kernel converts, and only the 8-bit picture comes back.
+//!   buffers, the display kernel converts and paints the outline, and only the 8-bit picture
+//!   comes back.
 //!
 //! Each path also measures the ROI's statistics the window shows under the picture (every
 //! 0.5 s there, [`crate::viewer::core::STATS_PERIOD`]): the host path with the CPU twin
@@ -26,7 +27,7 @@ use crate::filter::{FilterKind, FilterParams};
 use crate::frame::{FrameError, GuideConfig, Renderer};
 use crate::gpu::Backend;
 use crate::output::gpu::SE_TOLERANCE;
-use crate::output::srgb8::display_rgba;
+use crate::output::srgb8::{display_rgba, paint_outline, roi_outline};
 use crate::output::stats::RoiStats;
 use crate::scene::Scene;
 
@@ -197,7 +198,8 @@ fn time_host(g: &Renderer, cfg: &PictureConfig) -> Result<(Times, Vec<u8>, RoiSt
     let image = g.picture_of(&cfg.filter, &acc, &dgi)?;
     let filter = t.elapsed().as_secs_f64() * 1e3;
     let t = Instant::now();
-    let rgba = display_rgba(&image, cfg.exposure);
+    let mut rgba = display_rgba(&image, cfg.exposure);
+    paint_outline(&mut rgba, &roi_outline(&dgi, [acc.width, acc.height]));
     let display = t.elapsed().as_secs_f64() * 1e3;
     let whole = t0.elapsed().as_secs_f64() * 1e3;
     let t = Instant::now();
@@ -215,7 +217,7 @@ fn time_resident(
     cfg: &PictureConfig,
 ) -> Result<(Times, Vec<u8>, bool, RoiStats), FrameError> {
     let t0 = Instant::now();
-    let p = g.shown_picture(&cfg.filter, cfg.exposure, true)?;
+    let p = g.shown_picture(&cfg.filter, cfg.exposure, true, true)?;
     let whole = t0.elapsed().as_secs_f64() * 1e3;
     let t = p.times.expect("timed");
     let s = Instant::now();

@@ -229,8 +229,6 @@ pub struct Renderer<'a> {
     guidance: Option<Guidance>,
     engine: Engine<'a>,
     iteration: u32,
-    /// DGIs installed by frames so far ([`Self::dgi_installs`]).
-    dgi_installs: u64,
     /// The filter stage, made on the first picture (its GPU kernels compile once).
     filter: OnceCell<Filter<'a>>,
     /// The display kernel, made on the first shown picture on the GPU.
@@ -388,7 +386,6 @@ impl<'a> Renderer<'a> {
             guidance,
             engine,
             iteration: 0,
-            dgi_installs: 0,
             filter: OnceCell::new(),
             display: OnceCell::new(),
             resident: std::cell::RefCell::new(None),
@@ -486,13 +483,6 @@ impl<'a> Renderer<'a> {
         self.submit(frame)
     }
 
-    /// How many DGIs frames have installed so far: [`Self::dgi`] changes only when this does
-    /// (a caller that keeps something made from the DGI knows when to remake it).
-    #[must_use]
-    pub fn dgi_installs(&self) -> u64 {
-        self.dgi_installs
-    }
-
     /// Starts a frame: on the GPU, the command encoder the steps record into (and, timed, the
     /// cleared ray counter).
     fn begin(&self, timed: bool) -> FrameInProgress {
@@ -555,9 +545,6 @@ impl<'a> Renderer<'a> {
                 }
             }
             Engine::Cpu { guide: None, .. } => {}
-        }
-        if frame.stats.dgi_recomputed {
-            self.dgi_installs += 1;
         }
     }
 

@@ -16,8 +16,8 @@ use super::{Engine, FrameError, Renderer};
 use crate::filter::gpu::{FilterRun, GpuFilterInputs, fits_one_binding};
 use crate::filter::{Filter, FilterParams};
 use crate::gpu::PassTimer;
-use crate::output::gpu::{DisplayKernel, DisplayRun};
-use crate::output::srgb8::display_rgba;
+use crate::output::gpu::{DisplayKernel, DisplayRun, OutlineDgi};
+use crate::output::srgb8::{display_rgba, paint_outline, roi_outline};
 
 /// A picture as shown: RGBA8, row-major.
 pub struct ShownPicture {
@@ -69,23 +69,31 @@ impl Renderer<'_> {
 
     /// The picture as a window shows it: [`Self::picture`] filtered by `params`, at `exposure`
     /// stops, in 8-bit sRGB RGBA (`output::srgb8::display_rgba`), the wall camera's unshown
-    /// pixels black; on the GPU without leaving it where it can ([`Self::shows_on_gpu`]).
-    /// With `timed`, the stages' times come with it.
+    /// pixels black, and with `outline` the ROI's outline painted over (where there is an ROI:
+    /// `output::srgb8::roi_outline`); on the GPU without leaving it where it can
+    /// ([`Self::shows_on_gpu`]: the DGI stays there too). With `timed`, the stages' times come
+    /// with it.
     pub fn shown_picture(
         &self,
         params: &FilterParams,
         exposure: f32,
+        outline: bool,
         timed: bool,
     ) -> Result<ShownPicture, FrameError> {
         let size = [self.settings.width, self.settings.height];
+        let outline = outline && self.roi().is_some();
         let t0 = Instant::now();
         if self.shows_on_gpu(params) {
-            return self.shown_on_gpu(params, exposure, timed, t0);
+            return self.shown_on_gpu(params, exposure, outline, timed, t0);
         }
-        let image = self.picture(params)?;
+        let (acc, dgi) = (self.accumulation()?, self.dgi()?);
+        let image = self.picture_of(params, &acc, &dgi)?;
         let filter_ms = t0.elapsed().as_secs_f64() * 1e3;
         let t = Instant::now();
-        let rgba = display_rgba(&image, exposure);
+        let mut rgba = display_rgba(&image, exposure);
+        if outline {
+            paint_outline(&mut rgba, &roi_outline(&dgi, size));
+        }
         let display_ms = t.elapsed().as_secs_f64() * 1e3;
         Ok(ShownPicture {
             size,
@@ -104,6 +112,7 @@ impl Renderer<'_> {
         &self,
         params: &FilterParams,
         exposure: f32,
+        outline: bool,
         timed: bool,
         t0: Instant,
     ) -> Result<ShownPicture, FrameError> {
@@ -144,7 +153,13 @@ impl Renderer<'_> {
             let filter = kernels.prepare(ctx, params, &inputs)?;
             let kernel = self.display.get_or_init(|| DisplayKernel::new(ctx));
             let mask = self.wall.as_ref().map(|wc| wc.shown_mask());
-            let display = kernel.prepare(ctx, &filter.output, pixels, mask)?;
+            let display = kernel.prepare(
+                ctx,
+                &filter.output,
+                pixels,
+                mask,
+                Some(OutlineDgi { dgi, size: [w, h] }),
+            )?;
             *resident = Some(Resident {
                 params: *params,
                 filter,
@@ -153,7 +168,7 @@ impl Renderer<'_> {
             });
         }
         let r = resident.as_ref().expect("prepared above");
-        r.display.set_exposure(ctx, exposure);
+        r.display.set_look(ctx, exposure, outline);
         let timer = if timed { PassTimer::new(ctx, 2) } else { None };
         let times = if timed && timer.is_none() {
             // No timestamps: each stage submitted and waited for on its own, by the wall clock.

@@ -23,7 +23,7 @@ pub const SRGB8_WGSL: &str = include_str!("../../shaders/output/srgb8.wgsl");
 /// Threads per workgroup (the kernel's `@workgroup_size`).
 const WORKGROUP: u32 = 256;
 
-/// The kernel's parameters (mirrors `DisplayParams` in the WGSL, 16 bytes).
+/// The kernel's parameters (mirrors `DisplayParams` in the WGSL, 32 bytes).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct GpuDisplayParams {
@@ -32,7 +32,13 @@ pub struct GpuDisplayParams {
     pub scale: f32,
     /// 1: pixels whose bit in the shown mask is 0 are black.
     pub masked: u32,
-    pub _pad: u32,
+    /// 1: the ROI's outline in the bound DGI is painted ([`super::srgb8::roi_outline`]).
+    pub outline: u32,
+    /// The picture's size (the outline's neighbours).
+    pub width: u32,
+    pub height: u32,
+    pub _pad0: u32,
+    pub _pad1: u32,
 }
 
 /// The compiled kernel and the sRGB table it reads.
@@ -49,8 +55,18 @@ pub struct DisplayRun {
     groups: [u32; 2],
     pixels: u32,
     masked: bool,
+    /// The picture's size when a DGI is bound (its outline can be painted).
+    outline_size: Option<[u32; 2]>,
     /// The shown picture: one u32 per pixel, bytes R, G, B, A (255) in memory order.
     pub output: wgpu::Buffer,
+}
+
+/// A DGI for the display kernel's outline: the buffer (`f32` per pixel, `STORAGE`) and the
+/// picture's size.
+#[derive(Clone, Copy)]
+pub struct OutlineDgi<'a> {
+    pub dgi: &'a wgpu::Buffer,
+    pub size: [u32; 2],
 }
 
 fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
@@ -84,17 +100,19 @@ impl DisplayKernel {
 
     /// Binds the conversion of `image` (`vec4<f32>` per pixel, `pixels` of them, `STORAGE`
     /// usage) into a new output buffer; with `shown` (one bit per pixel, bit `p % 32` of word
-    /// `p / 32`), the pixels whose bit is 0 come out black. The exposure is set per
-    /// conversion ([`DisplayRun::set_exposure`]; 0 stops until then).
+    /// `p / 32`), the pixels whose bit is 0 come out black; with `dgi`, the ROI's outline can
+    /// be painted over. The exposure and the outline are set per conversion
+    /// ([`DisplayRun::set_look`]; 0 stops and no outline until then).
     pub fn prepare(
         &self,
         ctx: &GpuContext,
         image: &wgpu::Buffer,
         pixels: u32,
         shown: Option<&[u32]>,
+        dgi: Option<OutlineDgi<'_>>,
     ) -> Result<DisplayRun, GpuError> {
         let max = ctx.limits.max_compute_workgroups_per_dimension;
-        self.prepare_on_grid(ctx, image, pixels, shown, max)
+        self.prepare_on_grid(ctx, image, pixels, shown, dgi, max)
     }
 
     /// [`Self::prepare`] with at most `max_per_dim` workgroups along x (tests force a grid of
@@ -105,6 +123,7 @@ impl DisplayKernel {
         image: &wgpu::Buffer,
         pixels: u32,
         shown: Option<&[u32]>,
+        dgi: Option<OutlineDgi<'_>>,
         max_per_dim: u32,
     ) -> Result<DisplayRun, GpuError> {
         let n = u64::from(pixels);
@@ -122,18 +141,43 @@ impl DisplayKernel {
                 mask.len()
             );
         }
+        if let Some(d) = dgi {
+            assert!(
+                u64::from(d.size[0]) * u64::from(d.size[1]) == n && d.dgi.size() >= 4 * n,
+                "an outline DGI of {} bytes for a {}×{} picture of {pixels} pixels",
+                d.dgi.size(),
+                d.size[0],
+                d.size[1]
+            );
+        }
+        let outline_size = dgi.map(|d| d.size);
         let params = ctx
             .device
             .create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("display params"),
-                contents: bytemuck::bytes_of(&GpuDisplayParams {
+                contents: bytemuck::bytes_of(&display_params(
                     pixels,
-                    scale: 1.0,
-                    masked: u32::from(shown.is_some()),
-                    _pad: 0,
-                }),
+                    1.0,
+                    shown.is_some(),
+                    outline_size,
+                    false,
+                )),
                 usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             });
+        // Without a DGI the binding still needs a buffer (one value, never read).
+        let no_dgi;
+        let dgi_buffer = match dgi {
+            Some(d) => d.dgi,
+            None => {
+                no_dgi = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("display without DGI"),
+                    size: 4,
+                    usage: wgpu::BufferUsages::STORAGE,
+                    mapped_at_creation: false,
+                });
+                &no_dgi
+            }
+        };
         // Without a mask the binding still needs a buffer (one word, never read).
         let mask = ctx
             .device
@@ -157,6 +201,7 @@ impl DisplayKernel {
                 entry(2, &self.table),
                 entry(3, &mask),
                 entry(4, &output),
+                entry(5, dgi_buffer),
             ],
         });
         Ok(DisplayRun {
@@ -166,18 +211,21 @@ impl DisplayKernel {
             groups: grid(pixels, max_per_dim),
             pixels,
             masked: shown.is_some(),
+            outline_size,
             output,
         })
     }
 
-    /// Uploads `image`, converts it at `exposure` stops and reads the bytes back (tests and
-    /// benchmarks; the renderer converts its own filtered picture in place).
+    /// Uploads `image`, converts it at `exposure` stops (with `outline`, the ROI's outline of
+    /// that DGI and picture size painted over) and reads the bytes back (tests and benchmarks;
+    /// the renderer converts its own filtered picture in place).
     pub fn convert(
         &self,
         ctx: &GpuContext,
         image: &[Vec3],
         exposure: f32,
         shown: Option<&[u32]>,
+        outline: Option<(&[f32], [u32; 2])>,
     ) -> Result<Vec<u8>, GpuError> {
         let texels: Vec<[f32; 4]> = image.iter().map(|p| [p.x, p.y, p.z, 1.0]).collect();
         ctx.check_binding(
@@ -196,8 +244,20 @@ impl DisplayKernel {
             bytes: 16 * image.len() as u64,
             max: ctx.max_binding(),
         })?;
-        let run = self.prepare(ctx, &input, pixels, shown)?;
-        run.set_exposure(ctx, exposure);
+        let dgi = outline.map(|(dgi, _)| {
+            ctx.device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("display outline DGI"),
+                    contents: bytemuck::cast_slice(dgi),
+                    usage: wgpu::BufferUsages::STORAGE,
+                })
+        });
+        let bound = dgi
+            .as_ref()
+            .zip(outline)
+            .map(|(dgi, (_, size))| OutlineDgi { dgi, size });
+        let run = self.prepare(ctx, &input, pixels, shown, bound)?;
+        run.set_look(ctx, exposure, outline.is_some());
         let mut enc = ctx.device.create_command_encoder(&Default::default());
         run.record(&mut enc, None);
         ctx.queue.submit([enc.finish()]);
@@ -205,15 +265,38 @@ impl DisplayKernel {
     }
 }
 
+/// The kernel's parameters; the outline is painted only with a DGI bound (`size`).
+fn display_params(
+    pixels: u32,
+    scale: f32,
+    masked: bool,
+    size: Option<[u32; 2]>,
+    outline: bool,
+) -> GpuDisplayParams {
+    let [width, height] = size.unwrap_or([pixels, 1]);
+    GpuDisplayParams {
+        pixels,
+        scale,
+        masked: u32::from(masked),
+        outline: u32::from(outline && size.is_some()),
+        width,
+        height,
+        _pad0: 0,
+        _pad1: 0,
+    }
+}
+
 impl DisplayRun {
-    /// The exposure of the next conversions submitted (a uniform written before the submit).
-    pub fn set_exposure(&self, ctx: &GpuContext, exposure: f32) {
-        let params = GpuDisplayParams {
-            pixels: self.pixels,
-            scale: exposure.exp2(),
-            masked: u32::from(self.masked),
-            _pad: 0,
-        };
+    /// The exposure of the next conversions submitted, and whether they paint the ROI's
+    /// outline (only where a DGI is bound; a uniform written before the submit).
+    pub fn set_look(&self, ctx: &GpuContext, exposure: f32, outline: bool) {
+        let params = display_params(
+            self.pixels,
+            exposure.exp2(),
+            self.masked,
+            self.outline_size,
+            outline,
+        );
         ctx.queue
             .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
     }
@@ -622,9 +705,13 @@ mod tests {
         assert_same_layout(
             &m,
             "DisplayParams",
-            &crate::rust_layout!(GpuDisplayParams; pixels, scale, masked, _pad),
+            &crate::rust_layout!(GpuDisplayParams; pixels, scale, masked, outline, width, height, _pad0, _pad1),
         );
         assert!(SRGB8_WGSL.contains(&format!("const SHIFT: u32 = {GPU_TABLE_SHIFT}u;")));
+        assert!(SRGB8_WGSL.contains(&format!(
+            "const OUTLINE: u32 = 0x{:08X}u;",
+            u32::from_le_bytes(crate::output::srgb8::OUTLINE)
+        )));
         assert!(SRGB8_WGSL.contains(&format!("@workgroup_size({WORKGROUP})")));
     }
 
@@ -674,10 +761,10 @@ mod tests {
             });
         // 20 groups of 256 on rows of 3: 7 rows, the last partial.
         let run = kernel
-            .prepare_on_grid(&ctx, &input, n, Some(&shown), 3)
+            .prepare_on_grid(&ctx, &input, n, Some(&shown), None, 3)
             .unwrap();
         assert_eq!(run.groups, [3, 7]);
-        run.set_exposure(&ctx, 0.5);
+        run.set_look(&ctx, 0.5, true);
         let mut enc = ctx.device.create_command_encoder(&Default::default());
         run.record(&mut enc, None);
         ctx.queue.submit([enc.finish()]);

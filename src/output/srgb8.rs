@@ -103,6 +103,41 @@ pub fn display_rgba(image: &[Vec3], exposure: f32) -> Vec<u8> {
     encode::<4>(image, exposure)
 }
 
+/// The ROI outline colour (opaque yellow).
+pub const OUTLINE: [u8; 4] = [255, 220, 0, 255];
+
+/// Pixels inside the ROI (d = 0) with a 4-neighbour outside it: the ROI's outline on the wall,
+/// whatever the ROI's kind.
+#[must_use]
+pub fn roi_outline(dgi: &[f32], size: [u32; 2]) -> Vec<usize> {
+    let (w, h) = (size[0] as usize, size[1] as usize);
+    // Rows on all cores, in row order (every shown picture runs this over every pixel).
+    (0..h)
+        .into_par_iter()
+        .flat_map_iter(|y| {
+            (0..w).filter_map(move |x| {
+                let i = y * w + x;
+                if dgi[i] != 0.0 {
+                    return None;
+                }
+                let outside = |j: usize| dgi[j] > 0.0;
+                ((x > 0 && outside(i - 1))
+                    || (x + 1 < w && outside(i + 1))
+                    || (y > 0 && outside(i - w))
+                    || (y + 1 < h && outside(i + w)))
+                .then_some(i)
+            })
+        })
+        .collect()
+}
+
+/// Paints the pixels `outline` lists ([`roi_outline`]) in [`OUTLINE`] on an RGBA picture.
+pub fn paint_outline(rgba: &mut [u8], outline: &[usize]) {
+    for &i in outline {
+        rgba[4 * i..4 * i + 4].copy_from_slice(&OUTLINE);
+    }
+}
+
 /// A linear picture as 8-bit sRGB RGB (a PNG's bytes) at `exposure` stops, on all cores.
 #[must_use]
 pub fn display_rgb(image: &[Vec3], exposure: f32) -> Vec<u8> {

@@ -27,9 +27,10 @@ use crate::trace::path::TraceSettings;
 use crate::trace::wall::WallCamera;
 
 use super::ViewerError;
-use super::diagnostics::{OUTLINE, heat_map, noise_image, noise_map, roi_outline};
+use super::diagnostics::{heat_map, noise_image, noise_map, roi_outline};
 use super::orbit::{camera_moved, camera_orbit, eye_orbit};
 use super::state::{Overlay, ViewerState};
+use crate::output::srgb8::paint_outline;
 
 /// Live statistics.
 #[derive(Clone, Copy, Debug, Default)]
@@ -257,9 +258,6 @@ pub struct ViewerCore<'a> {
     /// When a picture that stays on the GPU last measured the statistics
     /// ([`Self::window_picture`]; `None`: measure on the next one).
     stats_at: Option<Instant>,
-    /// The ROI outline's pixels and the renderer's DGI install they were made from (pictures
-    /// that stay on the GPU read the DGI back only when a new one was installed).
-    outline: Option<(u64, Vec<usize>)>,
 }
 
 /// What the window shows: RGBA8, row-major, `size` (see [`ViewerCore::window_picture`]).
@@ -380,7 +378,6 @@ impl<'a> ViewerCore<'a> {
             filter: std::cell::OnceCell::new(),
             console_pixels: CONSOLE_PIXELS,
             stats_at: None,
-            outline: None,
         }
     }
 
@@ -471,8 +468,6 @@ impl<'a> ViewerCore<'a> {
         self.roi_since = Instant::now();
         self.stats = Stats::default();
         self.stats_at = None;
-        // A rebuilt renderer counts its DGI installs from 0 again.
-        self.outline = None;
     }
 
     /// Moves the wall camera's eye to the one the state asks for, or the pinhole camera to the
@@ -573,10 +568,11 @@ impl<'a> ViewerCore<'a> {
     /// The picture the window shows this UI frame. With one process on a GPU, the image
     /// overlay and a frame of one band, it stays on the GPU ([`Renderer::shown_picture`]: the
     /// filter reads the renderer's buffers, the display kernel converts, 4 bytes a pixel come
-    /// back) and the statistics are measured every [`STATS_PERIOD`] where the accumulation
-    /// lives ([`Renderer::roi_stats`]: a guided renderer's on the GPU, nothing read back
-    /// without an ROI); the ROI outline is remade only when a new DGI was installed. Otherwise it is [`Self::picture`]'s. Either way the same bytes as
-    /// [`Self::picture`] (tested); files take [`Self::whole_picture`].
+    /// back; the ROI outline painted there from the DGI) and the statistics are measured every
+    /// [`STATS_PERIOD`] where the accumulation lives ([`Renderer::roi_stats`]: a guided
+    /// renderer's on the GPU, nothing read back without an ROI). Otherwise it is
+    /// [`Self::picture`]'s. Either way the same bytes as [`Self::picture`] (tested); files take
+    /// [`Self::whole_picture`].
     pub fn window_picture(&mut self) -> Result<WindowPicture, ViewerError> {
         let params = self.state.filter_params();
         let resident = match &self.engine {
@@ -605,17 +601,9 @@ impl<'a> ViewerCore<'a> {
         let Engine::Local(r) = &self.engine else {
             unreachable!("checked above");
         };
-        let shown = r.shown_picture(&params, self.state.exposure, false)?;
-        let (size, mut rgba) = (shown.size, shown.rgba);
-        if self.state.roi_outline && r.roi().is_some() {
-            let installs = r.dgi_installs();
-            if self.outline.as_ref().is_none_or(|(k, _)| *k != installs) {
-                self.outline = Some((installs, roi_outline(&r.dgi()?, size)));
-            }
-            if let Some((_, outline)) = &self.outline {
-                paint_outline(&mut rgba, outline);
-            }
-        }
+        // The outline painted by the display kernel from the DGI on the GPU.
+        let shown = r.shown_picture(&params, self.state.exposure, self.state.roi_outline, false)?;
+        let (size, rgba) = (shown.size, shown.rgba);
         Ok(WindowPicture {
             size,
             rgba: self.wall_view(rgba, size),
@@ -732,13 +720,6 @@ impl<'a> ViewerCore<'a> {
             counts: acc.count,
             noise,
         })
-    }
-}
-
-/// Paints the ROI outline's pixels into an RGBA8 picture.
-fn paint_outline(rgba: &mut [u8], outline: &[usize]) {
-    for &i in outline {
-        rgba[4 * i..4 * i + 4].copy_from_slice(&OUTLINE);
     }
 }
 

@@ -1,41 +1,13 @@
 //! Images that explain a render: the ROI outline, the sample-count heat map, the noise map and
 //! the noise contrast between ROI and periphery.
 
-use rayon::prelude::*;
-
+/// The ROI outline, painted by the display kernel's twin (`output::srgb8`).
+pub use crate::output::srgb8::{OUTLINE, roi_outline};
 /// The statistics the window shows, defined with the ROI's statistics (the output stage's, so
 /// that the GPU measures the same): re-exported where the viewer has always had them.
 pub use crate::output::stats::{
     NoiseContrast, NoiseRegions, median_finite, noise_image, roi_samples,
 };
-
-/// The ROI outline colour (opaque yellow).
-pub const OUTLINE: [u8; 4] = [255, 220, 0, 255];
-
-/// Pixels inside the ROI (d = 0) with a 4-neighbour outside it: the ROI's outline on the wall,
-/// whatever the ROI's kind.
-#[must_use]
-pub fn roi_outline(dgi: &[f32], size: [u32; 2]) -> Vec<usize> {
-    let (w, h) = (size[0] as usize, size[1] as usize);
-    // Rows on all cores, in row order (every shown picture runs this over every pixel).
-    (0..h)
-        .into_par_iter()
-        .flat_map_iter(|y| {
-            (0..w).filter_map(move |x| {
-                let i = y * w + x;
-                if dgi[i] != 0.0 {
-                    return None;
-                }
-                let outside = |j: usize| dgi[j] > 0.0;
-                ((x > 0 && outside(i - 1))
-                    || (x + 1 < w && outside(i + 1))
-                    || (y > 0 && outside(i - w))
-                    || (y + 1 < h && outside(i + w)))
-                .then_some(i)
-            })
-        })
-        .collect()
-}
 
 /// Samples per pixel as RGBA: black (0) through red and yellow to white (the most).
 #[must_use]

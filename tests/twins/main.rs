@@ -8,8 +8,9 @@
 //! * `trace` — statistical: the same image in distribution with different seeds (a Welch test
 //!   per block), and the same samples to rounding with the same seed;
 //! * `filter` — f32 kernels against the f64 twins, relative to the image's scale;
-//! * `output` — exact: the display kernel's 8-bit sRGB bytes are the CPU table's; the ROI's
-//!   statistics: totals exact, medians within `output::gpu::SE_TOLERANCE`.
+//! * `output` — exact: the display kernel's 8-bit sRGB bytes are the CPU table's, its ROI
+//!   outline the twin's pixels; the ROI's statistics: totals exact, medians within
+//!   `output::gpu::SE_TOLERANCE`.
 
 #[path = "../support/gltf_scenes.rs"]
 mod gltf_scenes;

@@ -60,7 +60,7 @@ fn equals_the_cpu_twin_on_the_hard_values() {
         let image: Vec<Vec3> = (0..n)
             .map(|i| Vec3::new(v[i], v[(i + 1) % n], v[(i + 7) % n]))
             .collect();
-        let gpu = kernel.convert(&ctx, &image, exposure, None).unwrap();
+        let gpu = kernel.convert(&ctx, &image, exposure, None, None).unwrap();
         let cpu = display_rgba(&image, exposure);
         assert_eq!(gpu.len(), cpu.len());
         if let Some(i) = (0..gpu.len()).find(|&i| gpu[i] != cpu[i]) {
@@ -73,6 +73,74 @@ fn equals_the_cpu_twin_on_the_hard_values() {
                 cpu[i]
             );
         }
+    }
+}
+
+/// The ROI's outline painted by the display kernel is the twin's `roi_outline` painted over
+/// `display_rgba`, byte for byte: ROI shapes with edges on the picture's border, single ROI
+/// pixels and pixels next to d = 0 exactly, over a wall camera's mask (the outline is painted
+/// over unshown pixels too, as the host path does).
+#[test]
+fn the_outline_is_the_twins_exactly() {
+    use raygun::output::srgb8::{paint_outline, roi_outline};
+    let ctx = GpuContext::for_tests();
+    let kernel = DisplayKernel::new(&ctx);
+    let (w, h) = (67u32, 45u32);
+    let n = (w * h) as usize;
+    let image: Vec<Vec3> = (0..n)
+        .map(|i| Vec3::new((i % 7) as f32 / 7.0, (i % 11) as f32 / 11.0, 0.5))
+        .collect();
+    // A disc touching the left border, a band along the bottom row, lone ROI pixels, and d
+    // values of 0 exactly, just above 0 and negative zero (an ROI pixel).
+    let dgi: Vec<f32> = (0..n)
+        .map(|i| {
+            let (x, y) = ((i as u32 % w) as f32, (i as u32 / w) as f32);
+            if (x - 3.0).hypot(y - 20.0) < 9.0 || y == (h - 1) as f32 {
+                if (x as u32).is_multiple_of(5) {
+                    -0.0
+                } else {
+                    0.0
+                }
+            } else if (x as u32, y as u32) == (40, 10) || (x as u32, y as u32) == (60, 0) {
+                0.0
+            } else {
+                1e-7 + x / 100.0
+            }
+        })
+        .collect();
+    let mask: Vec<u32> = (0..(n as u32).div_ceil(32))
+        .map(|k| 0x9E37_79B9u32.wrapping_mul(k + 3))
+        .collect();
+    let outline = roi_outline(&dgi, [w, h]);
+    assert!(outline.len() > 40, "{} outline pixels", outline.len());
+    for masked in [false, true] {
+        let shown = masked.then_some(&mask[..]);
+        let gpu = kernel
+            .convert(&ctx, &image, 0.5, shown, Some((&dgi, [w, h])))
+            .unwrap();
+        let mut cpu = display_rgba(&image, 0.5);
+        if masked {
+            for p in 0..n {
+                if mask[p / 32] & (1 << (p % 32)) == 0 {
+                    cpu[4 * p..4 * p + 4].copy_from_slice(&[0, 0, 0, 255]);
+                }
+            }
+        }
+        paint_outline(&mut cpu, &outline);
+        if let Some(i) = (0..gpu.len()).find(|&i| gpu[i] != cpu[i]) {
+            panic!(
+                "masked {masked}: pixel {} ({}, {}) byte {}: GPU {} CPU {}",
+                i / 4,
+                (i / 4) as u32 % w,
+                (i / 4) as u32 / w,
+                i % 4,
+                gpu[i],
+                cpu[i]
+            );
+        }
+        // Without the outline asked for, the same DGI paints nothing.
+        let plain = kernel.convert(&ctx, &image, 0.5, shown, None).unwrap();
+        assert_ne!(plain, gpu);
     }
 }
 

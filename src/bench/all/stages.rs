@@ -125,7 +125,7 @@ pub fn measure(
         let (ms_readback, ms_filter, ms_transfer, ms_display, stamped) = if resident {
             // Filtered and converted on the GPU; the 8-bit picture read back.
             let t = Instant::now();
-            let shown = g.shown_picture(filter, exposure, true)?;
+            let shown = g.shown_picture(filter, exposure, false, true)?;
             std::hint::black_box(&shown.rgba);
             let wall = t.elapsed().as_secs_f64() * 1e3;
             let st = shown.times.expect("timed");
