@@ -2,16 +2,19 @@
 //! (lavapipe in CI) they are measured where the accumulation lives and must be what the CPU
 //! twin (`RoiStats::measure`) measures on the same accumulation read back — totals exactly,
 //! medians within `SE_TOLERANCE` — for guided and wall-camera renders, across frames and a
-//! moved ROI; the stop conditions' progress is the same measurement. Without an ROI nothing is
-//! measured; the CPU twin and a banded frame measure the read-back accumulation.
+//! moved ROI; the stop conditions' progress is the same measurement (every pixel's without an
+//! ROI). Without an ROI the statistics measure nothing; the CPU twin and a banded frame measure
+//! the read-back accumulation.
 
 #[path = "support/roi_stats.rs"]
 mod roi_stats;
 
 use glam::DVec3;
 use raygun::display::DisplayModel;
+use raygun::frame::stop::RoiProgress;
 use raygun::frame::{GuideConfig, Renderer};
 use raygun::gpu::{Backend, GpuContext};
+use raygun::output::gpu::SE_TOLERANCE;
 use raygun::output::stats::RoiStats;
 use raygun::roi::cone::Cone;
 use raygun::roi::dgi::Roi;
@@ -81,8 +84,18 @@ fn a_guided_gpu_render_measures_its_statistics_in_place() {
     )
     .unwrap();
     assert!(r.measures_stats_on_gpu());
-    // No ROI yet: nothing measured.
+    // No ROI yet: the window's statistics measure nothing, while the progress `render
+    // --until` judges is every pixel's (the DGI is 0 everywhere), measured on the GPU too.
+    r.iterate(2).unwrap();
     assert_eq!(r.roi_stats().unwrap(), RoiStats::default());
+    let whole = RoiProgress::measure(&r.accumulation().unwrap(), &r.dgi().unwrap()).unwrap();
+    let measured = r.roi_progress().unwrap().unwrap();
+    assert_eq!(
+        (measured.pixels, measured.min_samples),
+        (whole.pixels, whole.min_samples)
+    );
+    assert_eq!(whole.pixels, 96 * 40);
+    assert!((measured.median_se - whole.median_se).abs() <= SE_TOLERANCE * whole.median_se);
     r.set_roi(Some(cone(0.0, 60.0))).unwrap();
     r.iterate(4).unwrap();
     let first = check(&r, |_| true, "4 frames");

@@ -11,6 +11,7 @@ use super::{Engine, FrameError, Renderer};
 use crate::frame::stop::RoiProgress;
 use crate::output::gpu::{GpuStatsInputs, StatsKernel, StatsRun};
 use crate::output::stats::RoiStats;
+use crate::trace::accum::Accumulation;
 
 impl Renderer<'_> {
     /// Whether [`Self::roi_stats`] measures on the GPU: a guided GPU renderer whose frame is
@@ -30,57 +31,66 @@ impl Renderer<'_> {
         if self.roi().is_none() {
             return Ok(RoiStats::default());
         }
-        let p_min = self.guide_config().map_or(0.0, |c| c.p_min);
-        if self.measures_stats_on_gpu() {
-            let Engine::Gpu { ctx, bands, .. } = &self.engine else {
-                unreachable!("measures_stats_on_gpu checked the engine");
-            };
-            let run = match self.stats.get() {
-                Some(run) => run,
-                None => {
-                    let band = &bands[0];
-                    let guide = band.guide.as_ref().expect("checked above");
-                    let run = StatsKernel::new(ctx).prepare(
-                        ctx,
-                        &GpuStatsInputs {
-                            pixels: self.settings.width * self.settings.height,
-                            accum: &band.accum.accum,
-                            counts: &band.accum.counts,
-                            dgi: &guide.dgi,
-                            shown: self.wall.as_ref().map(|w| w.shown_mask()),
-                        },
-                    )?;
-                    self.stats.get_or_init(|| run)
-                }
-            };
-            return Ok(run.measure(ctx, p_min)?);
-        }
-        let wall = self.wall.as_ref();
-        let shown = |i: usize| wall.is_none_or(|w| w.is_shown(i as u32));
-        Ok(match &self.engine {
-            Engine::Cpu {
-                accum,
-                guide: Some(g),
-            } => RoiStats::measure(accum, &g.dgi, p_min, shown),
-            _ => RoiStats::measure(&self.accumulation()?, &self.dgi()?, p_min, shown),
-        })
+        self.measured_stats()
     }
 
-    /// How far the ROI has come (with a wall camera over the pixels its display shows);
-    /// `None` without ROI pixels. On a GPU renderer of one band measured there
-    /// ([`Self::roi_stats`]); otherwise from the accumulation (a read-back on the GPU).
+    /// How far the pixels of d = 0 have come (with a wall camera over the pixels its display
+    /// shows): the ROI's, or every pixel's while a guided renderer has no ROI or a full frame
+    /// is rendered; `None` without such pixels. On a GPU renderer of one band measured there
+    /// ([`Self::roi_stats`]'s measurement); otherwise from the accumulation (a read-back on
+    /// the GPU).
     pub fn roi_progress(&self) -> Result<Option<RoiProgress>, FrameError> {
         if self.measures_stats_on_gpu() {
-            return Ok(self.roi_stats()?.progress);
+            return Ok(self.measured_stats()?.progress);
         }
+        self.on_host(|acc, dgi, shown| RoiProgress::measure_where(acc, dgi, shown))
+    }
+
+    /// The statistics of the pixels of d = 0 as they are, ROI or not.
+    fn measured_stats(&self) -> Result<RoiStats, FrameError> {
+        let p_min = self.guide_config().map_or(0.0, |c| c.p_min);
+        let (Engine::Gpu { ctx, bands, .. }, true) = (&self.engine, self.measures_stats_on_gpu())
+        else {
+            return self.on_host(|acc, dgi, shown| RoiStats::measure(acc, dgi, p_min, shown));
+        };
+        let run = match self.stats.get() {
+            Some(run) => run,
+            None => {
+                let band = &bands[0];
+                let guide = band
+                    .guide
+                    .as_ref()
+                    .expect("measures_stats_on_gpu checked it");
+                let run = StatsKernel::new(ctx).prepare(
+                    ctx,
+                    &GpuStatsInputs {
+                        pixels: self.settings.width * self.settings.height,
+                        accum: &band.accum.accum,
+                        counts: &band.accum.counts,
+                        dgi: &guide.dgi,
+                        shown: self.wall.as_ref().map(|w| w.shown_mask()),
+                    },
+                )?;
+                self.stats.get_or_init(|| run)
+            }
+        };
+        Ok(run.measure(ctx, p_min)?)
+    }
+
+    /// `f` of the accumulation, the DGI and the wall camera's shown pixels on the host: the
+    /// CPU twin's own, or read back from the GPU.
+    fn on_host<R>(
+        &self,
+        f: impl FnOnce(&Accumulation, &[f32], &dyn Fn(usize) -> bool) -> R,
+    ) -> Result<R, FrameError> {
         let wall = self.wall.as_ref();
         let shown = |i: usize| wall.is_none_or(|w| w.is_shown(i as u32));
         Ok(match &self.engine {
             Engine::Cpu {
                 accum,
                 guide: Some(g),
-            } => RoiProgress::measure_where(accum, &g.dgi, shown),
-            _ => RoiProgress::measure_where(&self.accumulation()?, &self.dgi()?, shown),
+            } => f(accum, &g.dgi, &shown),
+            _ => f(&self.accumulation()?, &self.dgi()?, &shown),
         })
     }
 }
