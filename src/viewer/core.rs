@@ -52,7 +52,8 @@ pub struct Stats {
     pub roi_samples: u64,
     pub roi_pixels: u64,
     /// Median standard error of the mean luminance ([`noise_image`]) over the ROI's noisy
-    /// pixels and the periphery's ([`NoiseContrast`]); `None` without an ROI or such pixels.
+    /// pixels and the periphery's ([`NoiseContrast`](crate::output::stats::NoiseContrast));
+    /// `None` without an ROI or such pixels.
     pub roi_noise: Option<f32>,
     pub periphery_noise: Option<f32>,
     /// The ROI's progress as `render --until` measures it (median SE over every ROI pixel,
