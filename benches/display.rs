@@ -7,7 +7,11 @@
 //! same bytes (checked before timing). Then two of the passes the viewer makes over every shown
 //! picture besides: the noise image (each pixel's standard error) and the ROI's outline, one
 //! thread (the code before, kept here) against `viewer::diagnostics` on all cores, again checked
-//! equal first.
+//! equal first. Last, a window picture under the sample-count overlay on the CPU twin and, where
+//! there is one, the GPU (a guided Cornell box at a quarter of the size, 960×540 by default): with the filtered image made as
+//! the window did before (`ViewerCore::picture`) against without it
+//! (`ViewerCore::window_picture`, which no longer filters for an overlay that does not show the
+//! image), the same bytes checked first.
 
 use std::hint::black_box;
 use std::time::Instant;
@@ -212,4 +216,81 @@ fn main() {
             all.0 / one.0
         );
     }
+    overlay_window(&raygun::gpu::Backend::Cpu, w / 4, h / 4, rounds);
+    // And on the GPU where there is one (its host path: the filter's round trip).
+    if let Ok(ctx) = raygun::gpu::GpuContext::new() {
+        overlay_window(
+            &raygun::gpu::Backend::Gpu(Box::new(ctx)),
+            w / 4,
+            h / 4,
+            rounds,
+        );
+    }
+}
+
+/// A window picture under the sample-count overlay on `backend`, with and without the filtered
+/// image.
+fn overlay_window(backend: &raygun::gpu::Backend, w: usize, h: usize, rounds: usize) {
+    use raygun::display::DisplayModel;
+    use raygun::scene::Scene;
+    use raygun::trace::camera::RenderCamera;
+    use raygun::trace::path::TraceSettings;
+    use raygun::viewer::core::ViewerCore;
+    use raygun::viewer::state::{Overlay, RoiSource, ViewerState};
+    let model = DisplayModel::open("hornet")
+        .expect("the builtin HORNET model")
+        .0;
+    let scene = Scene::open("builtin:cornell").expect("the builtin Cornell box");
+    let (w, h) = (w as u32, h as u32);
+    let base = TraceSettings {
+        width: w,
+        height: h,
+        seed: 5,
+        max_depth: 3,
+        camera: RenderCamera::choose(&scene, None, w, h).expect("a camera"),
+    };
+    let mut state = ViewerState::new(RoiSource::Mouse, 3);
+    state.click(
+        &model,
+        glam::DVec2::new(f64::from(w) / 2.0, f64::from(h) / 2.0),
+        [w, h],
+    );
+    state.overlay = Overlay::Counts;
+    let mut core = ViewerCore::new(backend, &scene, &model, base, state).expect("a viewer");
+    for _ in 0..2 {
+        core.step(std::time::Duration::ZERO).expect("a frame");
+    }
+    assert!(
+        core.window_picture().expect("window").rgba == core.picture().expect("picture").rgba,
+        "window and picture differ"
+    );
+    let mut ms = [Vec::new(), Vec::new()];
+    for _ in 0..rounds {
+        let t = Instant::now();
+        black_box(core.picture().expect("picture"));
+        ms[0].push(t.elapsed().as_secs_f64() * 1e3);
+        let t = Instant::now();
+        black_box(core.window_picture().expect("window"));
+        ms[1].push(t.elapsed().as_secs_f64() * 1e3);
+    }
+    let stat = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        (v[0], v[v.len() / 2])
+    };
+    let (before, after) = (stat(&mut ms[0]), stat(&mut ms[1]));
+    println!();
+    println!(
+        "a window picture under the sample-count overlay, guided Cornell box {w}×{h}, default filter, {rounds} rounds; {}",
+        backend.describe()
+    );
+    println!("| window picture | ms min | ms median |");
+    println!("|---|---|---|");
+    println!(
+        "| with the filtered image (before) | {:.2} | {:.2} |",
+        before.0, before.1
+    );
+    println!(
+        "| without it (`window_picture`) | {:.2} | {:.2} |",
+        after.0, after.1
+    );
 }

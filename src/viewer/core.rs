@@ -572,7 +572,8 @@ impl<'a> ViewerCore<'a> {
     /// back; the ROI outline painted there from the DGI) and the statistics are measured every
     /// [`STATS_PERIOD`] where the accumulation lives ([`Renderer::roi_stats`]: a guided
     /// renderer's on the GPU, nothing read back without an ROI). Otherwise it is
-    /// [`Self::picture`]'s. Either way the same bytes as [`Self::picture`] (tested); files take
+    /// [`Self::picture`]'s (without the filtered image the DGI, count and noise overlays do
+    /// not show). Either way the same bytes as [`Self::picture`] (tested); files take
     /// [`Self::whole_picture`].
     pub fn window_picture(&mut self) -> Result<WindowPicture, ViewerError> {
         let params = self.state.filter_params();
@@ -581,7 +582,9 @@ impl<'a> ViewerCore<'a> {
             Engine::Cluster(_) => false,
         };
         if !resident {
-            let p = self.picture()?;
+            // Another overlay than the image shows no filtered picture: none is made.
+            let with_image = self.state.overlay == Overlay::Image;
+            let p = self.compose(self.console_every(), with_image)?;
             return Ok(WindowPicture {
                 size: p.size,
                 rgba: p.rgba,
@@ -658,6 +661,13 @@ impl<'a> ViewerCore<'a> {
     /// row (1: whole), filters, and composes the picture for the state's overlay (with the ROI
     /// outline and the wall view as asked); the statistics are measured over its pixels.
     pub fn picture_every(&mut self, every: u32) -> Result<Picture, ViewerError> {
+        self.compose(every, true)
+    }
+
+    /// [`Self::picture_every`]; without `with_image` the filtered image is not made (its
+    /// `image` is empty): the DGI, count and noise overlays do not show it, and the filter is
+    /// most of a picture's cost on the CPU twin and its round trip most of the bytes on a GPU.
+    fn compose(&mut self, every: u32, with_image: bool) -> Result<Picture, ViewerError> {
         let (acc, dgi) = self.engine.accumulation(every)?;
         let full_width = self.size()[0] as usize;
         let width = acc.width as usize;
@@ -678,6 +688,7 @@ impl<'a> ViewerCore<'a> {
         let shown = |i: usize| wall.is_none_or(|w| w.is_shown(pixel(i)));
         let params = self.state.filter_params();
         let image = match &self.engine {
+            _ if !with_image => Vec::new(),
             Engine::Local(r) => r.picture_of(&params, &acc, &dgi)?,
             Engine::Cluster(_) => {
                 // Across ranks on rank 0's backend (a reduced picture at its own size), the
