@@ -11,7 +11,9 @@
 //! there is one, the GPU (a guided Cornell box at a quarter of the size, 960×540 by default): with the filtered image made as
 //! the window did before (`ViewerCore::picture`) against without it
 //! (`ViewerCore::window_picture`, which no longer filters for an overlay that does not show the
-//! image), the same bytes checked first.
+//! image), the same bytes checked first; and before it the window's loop without a window
+//! (30 ms of rendering a UI frame, then a picture every UI frame or only when one is due:
+//! iterations and pictures per second).
 
 use std::hint::black_box;
 use std::time::Instant;
@@ -264,6 +266,7 @@ fn overlay_window(backend: &raygun::gpu::Backend, w: usize, h: usize, rounds: us
         core.window_picture().expect("window").rgba == core.picture().expect("picture").rgba,
         "window and picture differ"
     );
+    ui_loop(&mut core, w, h, backend);
     let mut ms = [Vec::new(), Vec::new()];
     for _ in 0..rounds {
         let t = Instant::now();
@@ -293,4 +296,52 @@ fn overlay_window(backend: &raygun::gpu::Backend, w: usize, h: usize, rounds: us
         "| without it (`window_picture`) | {:.2} | {:.2} |",
         after.0, after.1
     );
+}
+
+/// The window's loop without a window, under the image overlay: each UI frame renders for 30 ms
+/// (`viewer::app::FRAME_BUDGET`), then makes a picture — every UI frame (before) or only when
+/// one is due (`ViewerCore::picture_due`, after), 4 s each, twice alternating: iterations
+/// rendered and pictures made per second.
+fn ui_loop(
+    core: &mut raygun::viewer::core::ViewerCore,
+    w: u32,
+    h: u32,
+    backend: &raygun::gpu::Backend,
+) {
+    use raygun::viewer::state::Overlay;
+    let overlay = core.state.overlay;
+    core.state.overlay = Overlay::Image;
+    let budget = std::time::Duration::from_millis(30);
+    let mut rows = [(0.0, 0.0, 0.0), (0.0, 0.0, 0.0)];
+    for round in 0..4 {
+        let when_due = round % 2 == 1;
+        let start_iterations = core.stats.iterations;
+        let (t0, mut pictures) = (Instant::now(), 0u32);
+        while t0.elapsed().as_secs_f64() < 4.0 {
+            core.step(budget).expect("frames");
+            if !when_due || core.picture_due() {
+                black_box(core.window_picture().expect("picture"));
+                pictures += 1;
+            }
+        }
+        let secs = t0.elapsed().as_secs_f64();
+        let r = &mut rows[usize::from(when_due)];
+        r.0 += f64::from(core.stats.iterations - start_iterations) / secs / 2.0;
+        r.1 += f64::from(pictures) / secs / 2.0;
+        r.2 += core.picture_took().map_or(0.0, |d| d.as_secs_f64() * 1e3) / 2.0;
+    }
+    core.state.overlay = overlay;
+    println!();
+    println!(
+        "the window's loop, image overlay, guided Cornell box {w}×{h}, 30 ms of rendering a UI frame, 2 × 4 s each, alternating; {}",
+        backend.describe()
+    );
+    println!("| pictures | iterations/s | pictures/s | ms a picture (last) |");
+    println!("|---|---|---|---|");
+    for (name, r) in ["every UI frame (before)", "when due (`picture_due`)"]
+        .iter()
+        .zip(rows)
+    {
+        println!("| {name} | {:.1} | {:.1} | {:.1} |", r.0, r.1, r.2);
+    }
 }

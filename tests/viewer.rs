@@ -1107,3 +1107,34 @@ fn gpu_ranks_show_the_one_process_gpu_pictures_bit_for_bit() {
         assert!(g.rgba == w.rgba, "picture {k}: the window's picture");
     }
 }
+
+/// The window makes a new picture when it has none, when the look changes, or once as long as
+/// the last picture took has passed since it was done (so pictures take at most half the time);
+/// otherwise it keeps showing the last one.
+#[test]
+fn a_new_picture_is_due_once_rendering_has_had_as_long_as_the_last_one_took() {
+    let (model, scene, backend) = (hornet(), scene(), Backend::Cpu);
+    let mut state = ViewerState::new(RoiSource::Mouse, 3);
+    state.mouse_radius_px = 900.0;
+    state.click(&model, DVec2::new(20.5, 12.5), [W, H]);
+    let mut core = ViewerCore::new(&backend, &scene, &model, base(&scene), state).unwrap();
+    core.step(ONE).unwrap();
+    assert!(core.picture_due(), "no picture yet");
+    let t = std::time::Instant::now();
+    core.window_picture().unwrap();
+    let took = core.picture_took().unwrap();
+    // Right after a picture: not due (unless this thread was held up for as long again).
+    let due = core.picture_due();
+    assert!(!due || t.elapsed() >= 2 * took, "due {took:?} after");
+    // A changed look is shown at once, and the picture made for it resets the wait.
+    core.state.exposure += 1.0;
+    assert!(core.picture_due(), "exposure changed");
+    core.window_picture().unwrap();
+    core.state.overlay = Overlay::Counts;
+    assert!(core.picture_due(), "overlay changed");
+    core.window_picture().unwrap();
+    let took = core.picture_took().unwrap();
+    // Once as long as it took has passed, the next is due.
+    std::thread::sleep(took + Duration::from_millis(1));
+    assert!(core.picture_due(), "{took:?} passed");
+}

@@ -40,6 +40,8 @@ pub struct ViewerApp<'a> {
     /// Save the picture after this many iterations and close.
     pub screenshot_after: Option<u32>,
     texture: Option<egui::TextureHandle>,
+    /// The size of the picture the texture shows (clicks map through it).
+    picture_size: [u32; 2],
     /// The screen pixels the picture filled in the last UI frame: across ranks, the console's
     /// picture need not have more ([`ViewerCore::console_pixels`]).
     shown_pixels: u64,
@@ -74,6 +76,7 @@ impl<'a> ViewerApp<'a> {
             save_dir,
             screenshot_after,
             texture: None,
+            picture_size: [1, 1],
             shown_pixels: crate::cluster::CONSOLE_PIXELS,
             window_shot: None,
             last: Instant::now(),
@@ -112,6 +115,7 @@ impl<'a> ViewerApp<'a> {
 
     /// The statistics, first in the panel so that no window is too small to show them.
     fn statistics(&mut self, ui: &mut egui::Ui) {
+        let picture_took = self.core.picture_took();
         let s = &mut self.core.state;
         ui.heading("Statistics");
         let st = &self.core.stats;
@@ -128,6 +132,10 @@ impl<'a> ViewerApp<'a> {
                 ms(t.ms_schedule),
                 ms(t.ms_trace)
             ));
+        }
+        if let Some(took) = picture_took {
+            // A picture at most every `took` of rendering (ViewerCore::picture_due).
+            ui.label(format!("picture {:.1} ms", took.as_secs_f64() * 1e3));
         }
         if st.console_every > 1 {
             let k = st.console_every;
@@ -482,7 +490,24 @@ impl eframe::App for ViewerApp<'_> {
         self.core.console_pixels = self
             .shown_pixels
             .clamp(MIN_CONSOLE_PIXELS, crate::cluster::CONSOLE_PIXELS);
-        let picture = stepped.and_then(|()| self.core.window_picture());
+        // Files take the whole picture with its data (the window's has only its bytes, and
+        // across ranks it may be reduced to the console's size: then the owners send every
+        // pixel for these frames only). A recording takes the window's bytes where they are
+        // the whole picture's.
+        let shot_due = self
+            .screenshot_after
+            .is_some_and(|n| self.core.stats.iterations >= n);
+        // A new picture when one is due (`ViewerCore::picture_due`: at most half of the time
+        // goes to pictures) or a file or the recording wants one; else the last stays shown.
+        let wanted =
+            save || shot_due || self.recording || self.texture.is_none() || self.core.picture_due();
+        let picture = stepped.and_then(|()| {
+            if wanted {
+                self.core.window_picture().map(Some)
+            } else {
+                Ok(None)
+            }
+        });
         let picture = match picture {
             Ok(p) => {
                 self.error = None;
@@ -494,27 +519,25 @@ impl eframe::App for ViewerApp<'_> {
                 return;
             }
         };
-        let [w, h] = picture.size;
-        let max_side = ui.ctx().input(|i| i.max_texture_side) as u32;
-        let (texels, [tw, th]) = super::core::fit_texture(&picture.rgba, [w, h], max_side);
-        let image = egui::ColorImage::from_rgba_unmultiplied([tw as usize, th as usize], &texels);
-        match &mut self.texture {
-            Some(t) => t.set(image, egui::TextureOptions::NEAREST),
-            None => {
-                self.texture = Some(ui.ctx().load_texture(
-                    "raygun picture",
-                    image,
-                    egui::TextureOptions::NEAREST,
-                ));
+        if let Some(picture) = &picture {
+            let max_side = ui.ctx().input(|i| i.max_texture_side) as u32;
+            let (texels, [tw, th]) =
+                super::core::fit_texture(&picture.rgba, picture.size, max_side);
+            let image =
+                egui::ColorImage::from_rgba_unmultiplied([tw as usize, th as usize], &texels);
+            match &mut self.texture {
+                Some(t) => t.set(image, egui::TextureOptions::NEAREST),
+                None => {
+                    self.texture = Some(ui.ctx().load_texture(
+                        "raygun picture",
+                        image,
+                        egui::TextureOptions::NEAREST,
+                    ));
+                }
             }
+            self.picture_size = picture.size;
         }
-        // Files take the whole picture with its data (the window's has only its bytes, and
-        // across ranks it may be reduced to the console's size: then the owners send every
-        // pixel for these frames only). A recording takes the window's bytes where they are
-        // the whole picture's.
-        let shot_due = self
-            .screenshot_after
-            .is_some_and(|n| self.core.stats.iterations >= n);
+        let [w, h] = self.picture_size;
         let whole_view = self.core.console_every() == 1;
         let whole = if save || shot_due || (self.recording && !whole_view) {
             match self.core.whole_picture() {
@@ -528,7 +551,8 @@ impl eframe::App for ViewerApp<'_> {
         } else {
             None
         };
-        if self.recording {
+        // Recording makes a picture every UI frame (`wanted` above).
+        if let Some(picture) = picture.as_ref().filter(|_| self.recording) {
             let dir = self.save_dir.join("recording");
             let path = dir.join(format!("frame-{:05}.png", self.recorded));
             let (size, rgba) = match &whole {
