@@ -203,18 +203,19 @@ fn taps(c0: f64, sigma: f64) -> (i32, Vec<f32>) {
 pub(super) type Grid = Vec<[f64; 4]>;
 
 /// One separable pass on the CPU, the twin of `pyramid.wgsl`'s `blur`/`blur_accumulation`.
-fn run_pass(pass: &Pass, src: &(dyn Fn(u32, u32) -> [f64; 4] + Sync)) -> Grid {
+fn run_pass(pass: &Pass, src: &[[f64; 4]]) -> Grid {
     let [dw, dh] = pass.dst_size;
     let [sw, sh] = pass.src_size;
+    let sw_usize = sw as usize;
     let weights: Vec<f64> = pass.weights.iter().map(|&w| f64::from(w)).collect();
     (0..dw as usize * dh as usize)
         .into_par_iter()
         .map(|i| {
-            let (x, y) = ((i % dw as usize) as u32, (i / dw as usize) as u32);
+            let (x, y) = (i % dw as usize, i / dw as usize);
             let (base, len) = if pass.axis == 0 {
-                (i64::from(x), sw)
+                (x as i64, sw)
             } else {
-                (i64::from(y), sh)
+                (y as i64, sh)
             };
             let start = base * i64::from(pass.dec) + i64::from(pass.first);
             let mut acc = [0.0; 4];
@@ -224,9 +225,9 @@ fn run_pass(pass: &Pass, src: &(dyn Fn(u32, u32) -> [f64; 4] + Sync)) -> Grid {
                     continue;
                 }
                 let v = if pass.axis == 0 {
-                    src(j as u32, y)
+                    src[y * sw_usize + j as usize]
                 } else {
-                    src(x, j as u32)
+                    src[j as usize * sw_usize + x]
                 };
                 for c in 0..4 {
                     acc[c] += wt * v[c];
@@ -237,34 +238,41 @@ fn run_pass(pass: &Pass, src: &(dyn Fn(u32, u32) -> [f64; 4] + Sync)) -> Grid {
         .collect()
 }
 
+/// Each pixel's (u_i, 1), or 0 without samples: the first passes' source, made once (the same
+/// values the passes divided out tap by tap before, at a division per channel and tap).
+fn accumulation_grid(acc: &Accumulation) -> Grid {
+    (0..acc.count.len())
+        .into_par_iter()
+        .map(|i| {
+            let n = acc.count[i];
+            if n == 0 {
+                return [0.0; 4];
+            }
+            let s = acc.sum[i];
+            let n = f64::from(n);
+            [
+                f64::from(s[0]) / n,
+                f64::from(s[1]) / n,
+                f64::from(s[2]) / n,
+                1.0,
+            ]
+        })
+        .collect()
+}
+
 /// Builds every level (the twin of the pyramid passes).
 #[must_use]
 pub fn build_pyramid(plan: &Plan, acc: &Accumulation) -> Vec<Grid> {
     let mut levels: Vec<Grid> = Vec::with_capacity(plan.levels.len());
     let mut temp: Grid = Vec::new();
+    let mut first: Option<Grid> = None;
     for pass in &plan.passes {
-        let sw = pass.src_size[0] as usize;
         let out = match pass.source {
-            Source::Accumulation => run_pass(pass, &|x, y| {
-                let i = y as usize * sw + x as usize;
-                let n = acc.count[i];
-                if n == 0 {
-                    return [0.0; 4];
-                }
-                let s = acc.sum[i];
-                let n = f64::from(n);
-                [
-                    f64::from(s[0]) / n,
-                    f64::from(s[1]) / n,
-                    f64::from(s[2]) / n,
-                    1.0,
-                ]
-            }),
-            Source::Level(l) => {
-                let g = &levels[l];
-                run_pass(pass, &|x, y| g[y as usize * sw + x as usize])
+            Source::Accumulation => {
+                run_pass(pass, first.get_or_insert_with(|| accumulation_grid(acc)))
             }
-            Source::Temp => run_pass(pass, &|x, y| temp[y as usize * sw + x as usize]),
+            Source::Level(l) => run_pass(pass, &levels[l]),
+            Source::Temp => run_pass(pass, &temp),
         };
         match pass.target {
             Target::Temp => temp = out,
