@@ -265,12 +265,11 @@ fn accumulation_grid(acc: &Accumulation) -> Grid {
 pub fn build_pyramid(plan: &Plan, acc: &Accumulation) -> Vec<Grid> {
     let mut levels: Vec<Grid> = Vec::with_capacity(plan.levels.len());
     let mut temp: Grid = Vec::new();
-    let mut first: Option<Grid> = None;
     for pass in &plan.passes {
         let out = match pass.source {
-            Source::Accumulation => {
-                run_pass(pass, first.get_or_insert_with(|| accumulation_grid(acc)))
-            }
+            // Only level 0's first pass reads it: made for that pass and dropped after it, so
+            // that it never lives beside the levels (the working set `memory.rs` states).
+            Source::Accumulation => run_pass(pass, &accumulation_grid(acc)),
             Source::Level(l) => run_pass(pass, &levels[l]),
             Source::Temp => run_pass(pass, &temp),
         };
