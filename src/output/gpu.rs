@@ -557,16 +557,11 @@ impl StatsKernel {
         p_min: f32,
         shown: Option<&[u32]>,
     ) -> Result<RoiStats, GpuError> {
-        let pixels = u32::try_from(acc.count.len()).map_err(|_| GpuError::TooLarge {
-            what: "statistics of more than 2^32 pixels",
-            bytes: 16 * acc.count.len() as u64,
-            max: ctx.max_binding(),
-        })?;
-        assert_eq!(dgi.len(), acc.count.len(), "one DGI value a pixel");
-        self.measure_upload_on_grid(ctx, acc, dgi, p_min, shown, pixels, None)
+        let max = ctx.limits.max_compute_workgroups_per_dimension;
+        self.measure_upload_on_grid(ctx, acc, dgi, p_min, shown, max)
     }
 
-    #[allow(clippy::too_many_arguments)]
+    /// [`Self::measure_upload`] on a grid of at most `max_per_dim` workgroups along x.
     fn measure_upload_on_grid(
         &self,
         ctx: &GpuContext,
@@ -574,9 +569,14 @@ impl StatsKernel {
         dgi: &[f32],
         p_min: f32,
         shown: Option<&[u32]>,
-        pixels: u32,
-        max_per_dim: Option<u32>,
+        max_per_dim: u32,
     ) -> Result<RoiStats, GpuError> {
+        let pixels = u32::try_from(acc.count.len()).map_err(|_| GpuError::TooLarge {
+            what: "statistics of more than 2^32 pixels",
+            bytes: 16 * acc.count.len() as u64,
+            max: ctx.max_binding(),
+        })?;
+        assert_eq!(dgi.len(), acc.count.len(), "one DGI value a pixel");
         ctx.check_binding(
             "statistics' accumulation (16 bytes per pixel)",
             16 * u64::from(pixels),
@@ -604,11 +604,8 @@ impl StatsKernel {
             dgi: &dgi,
             shown,
         };
-        let run = match max_per_dim {
-            Some(max) => self.prepare_on_grid(ctx, &inputs, max)?,
-            None => self.prepare(ctx, &inputs)?,
-        };
-        run.measure(ctx, p_min)
+        self.prepare_on_grid(ctx, &inputs, max_per_dim)?
+            .measure(ctx, p_min)
     }
 }
 
@@ -843,7 +840,7 @@ mod tests {
         let cpu = RoiStats::measure(&acc, &dgi, 0.5, |_| true);
         assert!(cpu.roi_samples > 9_000_000_000, "{}", cpu.roi_samples);
         let gpu = kernel
-            .measure_upload_on_grid(&ctx, &acc, &dgi, 0.5, None, w * h, Some(1))
+            .measure_upload_on_grid(&ctx, &acc, &dgi, 0.5, None, 1)
             .unwrap();
         // 12 800 pixels: four workgroups of 4 096 on a grid of one column.
         assert_eq!(cpu, gpu);
