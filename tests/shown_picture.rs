@@ -324,3 +324,136 @@ fn a_banded_frame_takes_the_host_path_and_shows_the_same_picture() {
         "banded and whole pictures differ"
     );
 }
+
+/// A texture of `size` that a picture can be written into and read back from.
+fn picture_texture(
+    ctx: &GpuContext,
+    [w, h]: [u32; 2],
+    format: wgpu::TextureFormat,
+) -> wgpu::Texture {
+    ctx.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("test picture"),
+        size: wgpu::Extent3d {
+            width: w,
+            height: h,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage: wgpu::TextureUsages::COPY_DST | wgpu::TextureUsages::COPY_SRC,
+        view_formats: &[],
+    })
+}
+
+/// The texture's texels, row-major RGBA8 (read through a buffer with rows padded to 256 bytes).
+fn texels(ctx: &GpuContext, texture: &wgpu::Texture) -> Vec<u8> {
+    let (w, h) = (texture.width(), texture.height());
+    let pitch = (4 * w).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+    let buffer = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("test texels"),
+        size: u64::from(pitch * h),
+        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    });
+    let mut enc = ctx.device.create_command_encoder(&Default::default());
+    enc.copy_texture_to_buffer(
+        texture.as_image_copy(),
+        wgpu::TexelCopyBufferInfo {
+            buffer: &buffer,
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(pitch),
+                rows_per_image: Some(h),
+            },
+        },
+        texture.size(),
+    );
+    ctx.queue.submit([enc.finish()]);
+    let padded: Vec<u8> = ctx.read_buffer(&buffer).unwrap();
+    padded
+        .chunks_exact(pitch as usize)
+        .flat_map(|row| row[..4 * w as usize].iter().copied())
+        .collect()
+}
+
+/// The picture written into a texture on the GPU (what a window drawing with the renderer's
+/// device shows: nothing read back) is the shown picture's bytes, for a width whose rows copy
+/// at once (128: 512 bytes) and one copied a row at a time (96: 384 bytes), in both 8-bit
+/// formats, and follows the frames; a texture of another size or format, a CPU renderer and a
+/// frame in bands are refused with errors that say why.
+#[test]
+fn a_picture_written_into_a_texture_is_the_shown_pictures_bytes() {
+    let backend = gpu();
+    let Backend::Gpu(ctx) = &backend else {
+        unreachable!("a GPU backend")
+    };
+    let model = DisplayModel::open("hornet").unwrap().0;
+    let scene = Scene::builtin("cornell").unwrap();
+    let p = FilterParams::default();
+    for size in [[128, 40], SIZE] {
+        let mut r = Renderer::guided(
+            &backend,
+            &scene,
+            settings_of(&scene, size),
+            &model,
+            GuideConfig::default(),
+        )
+        .unwrap();
+        r.set_roi(Some(roi())).unwrap();
+        r.iterate(2).unwrap();
+        for format in [
+            wgpu::TextureFormat::Rgba8UnormSrgb,
+            wgpu::TextureFormat::Rgba8Unorm,
+        ] {
+            let texture = picture_texture(ctx, size, format);
+            r.shown_picture_into(&p, 0.5, true, &texture).unwrap();
+            let shown = r.shown_picture(&p, 0.5, true, false).unwrap().rgba;
+            let got = texels(ctx, &texture);
+            assert!(got == shown, "{size:?} {format:?}: the texture differs");
+            assert!(
+                got.chunks_exact(4).any(|t| t == OUTLINE),
+                "{size:?}: no outline"
+            );
+        }
+        // The next frames reach the same texture.
+        let texture = picture_texture(ctx, size, wgpu::TextureFormat::Rgba8UnormSrgb);
+        r.shown_picture_into(&p, 0.0, false, &texture).unwrap();
+        let before = texels(ctx, &texture);
+        r.iterate(2).unwrap();
+        r.shown_picture_into(&p, 0.0, false, &texture).unwrap();
+        let after = texels(ctx, &texture);
+        assert_ne!(
+            before, after,
+            "{size:?}: the texture shows the latest frames"
+        );
+        assert!(after == r.shown_picture(&p, 0.0, false, false).unwrap().rgba);
+        // Refused: another size, a format of other texels.
+        for (tsize, format) in [
+            ([size[0] + 1, size[1]], wgpu::TextureFormat::Rgba8UnormSrgb),
+            (size, wgpu::TextureFormat::Bgra8Unorm),
+        ] {
+            let wrong = picture_texture(ctx, tsize, format);
+            let e = r.shown_picture_into(&p, 0.0, false, &wrong).unwrap_err();
+            let message = e.to_string();
+            assert!(
+                message.contains(&format!("{}×{}", size[0], size[1]))
+                    && message.contains(&format!("{format:?}")),
+                "{message}"
+            );
+        }
+    }
+    // A CPU renderer and a frame in bands keep their pictures on the host.
+    let texture = picture_texture(ctx, SIZE, wgpu::TextureFormat::Rgba8UnormSrgb);
+    let cpu = Backend::Cpu;
+    let banded = Backend::Gpu(Box::new(
+        GpuContext::with_max_binding(16 * 96 * 10).unwrap(),
+    ));
+    for backend in [&cpu, &banded] {
+        let mut r = Renderer::full(backend, &scene, settings(&scene)).unwrap();
+        r.iterate(1).unwrap();
+        let e = r.shown_picture_into(&p, 0.0, false, &texture).unwrap_err();
+        assert!(e.to_string().contains("does not stay on a GPU"), "{e}");
+    }
+}

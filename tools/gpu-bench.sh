@@ -143,8 +143,10 @@ group_command() {
       echo "for s in $TRACE_SIZES; do $BIN bench trace --backend gpu --size \$s --scene builtin:cornell,$CITY --spp $SPP --out $d/trace-\${s/,/x}.md || exit; done"
       ;;
     picture)
-      # One shown picture per iteration both ways: read back, filter, convert on the CPU
-      # (what the viewer did) against filtered and converted on the GPU (what it does now).
+      # One shown picture per iteration three ways: read back, filter, convert on the CPU
+      # (what the viewer did), filtered and converted on the GPU with the 8-bit picture read
+      # back (what it does now), and written into a texture on the GPU (nothing read back);
+      # with the window's upload of the bytes the first two need.
       echo "$BIN bench picture --size $s --fov 10 --k-max 32 --rounds $READBACK_ROUNDS --out $d/picture.md"
       ;;
     readback)

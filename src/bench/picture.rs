@@ -1,4 +1,4 @@
-//! `raygun bench picture`: what showing one picture costs, by the two paths a GPU renderer has.
+//! `raygun bench picture`: what showing one picture costs, by the three paths a GPU renderer has.
 //!
 //! * **host** — what the viewer did before the picture stayed on the GPU: read the
 //!   accumulation and the DGI back, upload them again as the filter's inputs, filter, read the
@@ -7,6 +7,14 @@
 //! * **GPU-resident** — [`Renderer::shown_picture`]: the filter reads the renderer's own
 //!   buffers, the display kernel converts and paints the outline, and only the 8-bit picture
 //!   comes back.
+//! * **into a texture** — [`Renderer::shown_picture_into`]: the same kernels, then a copy into
+//!   a texture on the GPU; nothing comes back (what a window drawing with the renderer's own
+//!   device would show).
+//!
+//! A window shows a picture from the host by uploading its bytes into a texture: the first two
+//! paths' *upload* is that (`Queue::write_texture` of the picture into an `Rgba8UnormSrgb`
+//! texture, waited for), outside their ms; the window's whole cost of a picture is ms + upload.
+//! egui adds its own copy of the bytes into an image before its upload (not measured here).
 //!
 //! Each path also measures the ROI's statistics the window shows under the picture (every
 //! 0.5 s there, [`crate::viewer::core::STATS_PERIOD`]): the host path with the CPU twin
@@ -14,9 +22,9 @@
 //! accumulation lives ([`Renderer::roi_stats`]: 208 bytes back).
 //!
 //! A guided render of the paper's setup runs one more frame before each round (the picture
-//! changes every time, as in a viewer); each round times both paths on that accumulation, in
-//! alternating order, and the first round checks that both give the same bytes and the same
-//! statistics (the medians within [`SE_TOLERANCE`]).
+//! changes every time, as in a viewer); each round times the three paths on that accumulation,
+//! in a rotating order, and the first round checks that they give the same bytes (the texture
+//! read back) and the same statistics (the medians within [`SE_TOLERANCE`]).
 
 use std::time::Instant;
 
@@ -25,7 +33,7 @@ use serde::Serialize;
 use crate::display::DisplayModel;
 use crate::filter::{FilterKind, FilterParams};
 use crate::frame::{FrameError, GuideConfig, Renderer};
-use crate::gpu::Backend;
+use crate::gpu::{Backend, GpuContext, GpuError};
 use crate::output::gpu::SE_TOLERANCE;
 use crate::output::srgb8::{display_rgba, paint_outline, roi_outline};
 use crate::output::stats::RoiStats;
@@ -51,6 +59,9 @@ pub struct PicturePathRow {
     /// (the read-back is `readback_ms`; without a picture it would be read for them alone).
     /// Resident: [`Renderer::roi_stats`]'s wall clock (submit, kernels, read-back).
     pub stats_ms: f64,
+    /// The window's upload of the picture's bytes into a texture, outside `ms_*` (0 for the
+    /// picture written into a texture on the GPU: it has no bytes on the host).
+    pub upload_ms: f64,
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -70,7 +81,9 @@ pub struct PictureReport {
 
 #[derive(Debug, thiserror::Error)]
 pub enum PictureBenchError {
-    #[error("bench picture compares the GPU's two paths; the CPU twin has one (pick a GPU)")]
+    #[error(
+        "bench picture compares a GPU renderer's three paths; the CPU twin has one (pick a GPU)"
+    )]
     NoGpu,
     #[error(
         "{w}×{h} does not fit one band on this adapter: its frames and pictures take the host path alone"
@@ -87,6 +100,10 @@ pub enum PictureBenchError {
     },
     #[error("the statistics measured on the GPU differ from the CPU twin's: {0}")]
     StatsDiffer(String),
+    #[error("the picture written into a texture differs from the GPU-resident bytes at byte {0}")]
+    TextureDiffers(usize),
+    #[error(transparent)]
+    Gpu(#[from] crate::gpu::GpuError),
     #[error(transparent)]
     Frame(#[from] FrameError),
     #[error(transparent)]
@@ -108,7 +125,7 @@ pub struct PictureConfig {
 
 const WARMUP_FRAMES: u32 = 2;
 
-/// Times both paths on `scene` in the paper's setup on `display`.
+/// Times the three paths on `scene` in the paper's setup on `display`.
 pub fn run(
     backend: &Backend,
     display: &DisplayModel,
@@ -116,9 +133,9 @@ pub fn run(
     scene: &Scene,
     cfg: &PictureConfig,
 ) -> Result<PictureReport, PictureBenchError> {
-    if !backend.is_gpu() {
+    let Backend::Gpu(ctx) = backend else {
         return Err(PictureBenchError::NoGpu);
-    }
+    };
     let [w, h] = cfg.size;
     let settings = crate::bench::paper::settings(
         scene,
@@ -140,25 +157,36 @@ pub fn run(
     }
     g.iterate(WARMUP_FRAMES)?;
     let rounds = cfg.rounds.max(1);
-    let (mut host, mut resident) = (Vec::new(), Vec::new());
+    let texture = picture_texture(ctx, cfg.size);
+    let (mut host, mut resident, mut into) = (Vec::new(), Vec::new(), Vec::new());
     let mut stamps = false;
     for round in 0..rounds {
         g.iterate(1)?;
-        let (a, b) = if round % 2 == 0 {
-            let a = time_host(&g, cfg)?;
-            (a, time_resident(&g, cfg)?)
-        } else {
-            let b = time_resident(&g, cfg)?;
-            (time_host(&g, cfg)?, b)
-        };
+        // The three paths in a rotating order.
+        let (mut a, mut b, mut c) = (None, None, None);
+        for k in 0..3 {
+            match (round as usize + k) % 3 {
+                0 => a = Some(time_host(&g, cfg, ctx, &texture)?),
+                1 => b = Some(time_resident(&g, cfg, ctx, &texture)?),
+                _ => c = Some(time_into(&g, cfg, ctx, &texture)?),
+            }
+        }
+        let (a, b, c) = (a.expect("timed"), b.expect("timed"), c.expect("timed"));
         if round == 0 {
             same_bytes(&b.1, &a.1, cfg.filter.kind)?;
             a.2.matches(&b.3, SE_TOLERANCE)
                 .map_err(PictureBenchError::StatsDiffer)?;
+            g.shown_picture_into(&cfg.filter, cfg.exposure, true, &texture)?;
+            let texels = read_texture(ctx, &texture)?;
+            if let Some(i) = (0..texels.len().max(b.1.len())).find(|&i| texels.get(i) != b.1.get(i))
+            {
+                return Err(PictureBenchError::TextureDiffers(i));
+            }
         }
         stamps = b.2;
         host.push(a.0);
         resident.push(b.0);
+        into.push(c);
     }
     let n = u64::from(w) * u64::from(h);
     Ok(PictureReport {
@@ -182,14 +210,93 @@ pub fn run(
                 &resident,
                 4 * n,
             ),
+            row(
+                "into a texture (filter, convert and copy on the GPU)",
+                &into,
+                0,
+            ),
         ],
     })
 }
 
-/// One round's times: [whole, read-back, filter, display, statistics].
-type Times = [f64; 5];
+/// One round's times: [whole, read-back, filter, display, statistics, upload].
+type Times = [f64; 6];
 
-fn time_host(g: &Renderer, cfg: &PictureConfig) -> Result<(Times, Vec<u8>, RoiStats), FrameError> {
+/// The texture the window's upload and the into-texture path write (the picture's size).
+fn picture_texture(ctx: &GpuContext, [w, h]: [u32; 2]) -> wgpu::Texture {
+    ctx.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("bench picture texture"),
+        size: wgpu::Extent3d {
+            width: w,
+            height: h,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Rgba8UnormSrgb,
+        usage: wgpu::TextureUsages::COPY_DST
+            | wgpu::TextureUsages::COPY_SRC
+            | wgpu::TextureUsages::TEXTURE_BINDING,
+        view_formats: &[],
+    })
+}
+
+/// The window's upload of a picture's bytes into `texture`, waited for (ms).
+fn upload(ctx: &GpuContext, texture: &wgpu::Texture, rgba: &[u8]) -> Result<f64, GpuError> {
+    let t = Instant::now();
+    ctx.queue.write_texture(
+        texture.as_image_copy(),
+        rgba,
+        wgpu::TexelCopyBufferLayout {
+            offset: 0,
+            bytes_per_row: Some(4 * texture.width()),
+            rows_per_image: Some(texture.height()),
+        },
+        texture.size(),
+    );
+    ctx.queue.submit([]);
+    ctx.wait()?;
+    Ok(t.elapsed().as_secs_f64() * 1e3)
+}
+
+/// `texture`'s texels, row-major RGBA8 (through a buffer with rows padded to 256 bytes).
+fn read_texture(ctx: &GpuContext, texture: &wgpu::Texture) -> Result<Vec<u8>, GpuError> {
+    let (w, h) = (texture.width(), texture.height());
+    let pitch = (4 * w).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+    let buffer = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("bench picture texels"),
+        size: u64::from(pitch) * u64::from(h),
+        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    });
+    let mut enc = ctx.device.create_command_encoder(&Default::default());
+    enc.copy_texture_to_buffer(
+        texture.as_image_copy(),
+        wgpu::TexelCopyBufferInfo {
+            buffer: &buffer,
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(pitch),
+                rows_per_image: Some(h),
+            },
+        },
+        texture.size(),
+    );
+    ctx.queue.submit([enc.finish()]);
+    let padded: Vec<u8> = ctx.read_buffer(&buffer)?;
+    Ok(padded
+        .chunks_exact(pitch as usize)
+        .flat_map(|row| row[..4 * w as usize].iter().copied())
+        .collect())
+}
+
+fn time_host(
+    g: &Renderer,
+    cfg: &PictureConfig,
+    ctx: &GpuContext,
+    texture: &wgpu::Texture,
+) -> Result<(Times, Vec<u8>, RoiStats), FrameError> {
     let t0 = Instant::now();
     let acc = g.accumulation()?;
     let dgi = g.dgi()?;
@@ -209,12 +316,19 @@ fn time_host(g: &Renderer, cfg: &PictureConfig) -> Result<(Times, Vec<u8>, RoiSt
         wall.is_none_or(|w| w.is_shown(i as u32))
     });
     let stats_ms = t.elapsed().as_secs_f64() * 1e3;
-    Ok(([whole, readback, filter, display, stats_ms], rgba, stats))
+    let upload_ms = upload(ctx, texture, &rgba)?;
+    Ok((
+        [whole, readback, filter, display, stats_ms, upload_ms],
+        rgba,
+        stats,
+    ))
 }
 
 fn time_resident(
     g: &Renderer,
     cfg: &PictureConfig,
+    ctx: &GpuContext,
+    texture: &wgpu::Texture,
 ) -> Result<(Times, Vec<u8>, bool, RoiStats), FrameError> {
     let t0 = Instant::now();
     let p = g.shown_picture(&cfg.filter, cfg.exposure, true, true)?;
@@ -223,12 +337,31 @@ fn time_resident(
     let s = Instant::now();
     let stats = g.roi_stats()?;
     let stats_ms = s.elapsed().as_secs_f64() * 1e3;
+    let upload_ms = upload(ctx, texture, &p.rgba)?;
     Ok((
-        [whole, 0.0, t.filter_ms, t.display_ms, stats_ms],
+        [whole, 0.0, t.filter_ms, t.display_ms, stats_ms, upload_ms],
         p.rgba,
         t.gpu_timestamps,
         stats,
     ))
+}
+
+/// The picture written into `texture` on the GPU and waited for: the whole is the call and the
+/// wait (no stage times: the kernels are the resident path's); the statistics as there.
+fn time_into(
+    g: &Renderer,
+    cfg: &PictureConfig,
+    ctx: &GpuContext,
+    texture: &wgpu::Texture,
+) -> Result<Times, FrameError> {
+    let t0 = Instant::now();
+    g.shown_picture_into(&cfg.filter, cfg.exposure, true, texture)?;
+    ctx.wait()?;
+    let whole = t0.elapsed().as_secs_f64() * 1e3;
+    let s = Instant::now();
+    g.roi_stats()?;
+    let stats_ms = s.elapsed().as_secs_f64() * 1e3;
+    Ok([whole, 0.0, f64::NAN, f64::NAN, stats_ms, 0.0])
 }
 
 /// The paths must agree: byte for byte, but for the unfiltered mean (the GPU divides there,
@@ -261,6 +394,7 @@ fn row(path: &'static str, rounds: &[Times], bytes_moved: u64) -> PicturePathRow
         display_ms: part(3),
         bytes_moved,
         stats_ms: part(4),
+        upload_ms: part(5),
     }
 }
 
@@ -269,7 +403,7 @@ fn row(path: &'static str, rounds: &[Times], bytes_moved: u64) -> PicturePathRow
 pub fn markdown(r: &PictureReport) -> String {
     let f = &r.filter;
     let mut s = format!(
-        "One shown picture of a guided render ({}, {}×{}, {}° ROI, filter {:?} k_max {}), {} rounds after {} frames, a frame before each round, both paths in each (alternating order); device: {}. Medians in ms; *bytes moved* between host and GPU per picture, by construction of the path. Resident stage times from {}. *statistics*: the ROI's statistics the window shows (every 0.5 s), outside the picture's ms: host, the CPU twin on the accumulation read back for the picture; resident, measured on the GPU (208 bytes back).\n\n| path | ms min | ms median | read-back | filter | display | bytes moved | statistics |\n|---|---|---|---|---|---|---|---|\n",
+        "One shown picture of a guided render ({}, {}×{}, {}° ROI, filter {:?} k_max {}), {} rounds after {} frames, a frame before each round, the three paths in each (in a rotating order); device: {}. Medians in ms; *bytes moved* between host and GPU per picture, by construction of the path. Resident stage times from {}. *statistics*: the ROI's statistics the window shows (every 0.5 s), outside the picture's ms: host, the CPU twin on the accumulation read back for the picture; resident, measured on the GPU (208 bytes back). *upload*: the window's upload of the picture's bytes into a texture, waited for, outside ms; *window*: ms + upload, what a window pays for a picture (egui's own copy of the bytes before its upload not included). The texture path's filter and display are the resident path's kernels (not timed apart).\n\n| path | ms min | ms median | read-back | filter | display | bytes moved | statistics | upload | window |\n|---|---|---|---|---|---|---|---|---|---|\n",
         r.scene,
         r.size[0],
         r.size[1],
@@ -285,25 +419,35 @@ pub fn markdown(r: &PictureReport) -> String {
             "the wall clock around each stage (no timestamps)"
         }
     );
+    let ms = |v: f64| {
+        if v.is_nan() {
+            "—".to_string()
+        } else {
+            format!("{v:.3}")
+        }
+    };
     for row in &r.rows {
         s += &format!(
-            "| {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.1} MB | {:.3} |\n",
+            "| {} | {:.3} | {:.3} | {:.3} | {} | {} | {:.1} MB | {:.3} | {:.3} | {:.3} |\n",
             row.path,
             row.ms_min,
             row.ms_median,
             row.readback_ms,
-            row.filter_ms,
-            row.display_ms,
+            ms(row.filter_ms),
+            ms(row.display_ms),
             row.bytes_moved as f64 / 1e6,
-            row.stats_ms
+            row.stats_ms,
+            row.upload_ms,
+            row.ms_median + row.upload_ms
         );
     }
-    if let [host, resident] = &r.rows[..] {
+    if let [host, resident, into] = &r.rows[..] {
         s += &format!(
-            "\nGPU-resident ÷ host (medians): picture ×{:.3}, statistics ×{:.3} (host with its read-back: ×{:.3})\n",
+            "\nGPU-resident ÷ host (medians): picture ×{:.3}, statistics ×{:.3} (host with its read-back: ×{:.3}); the window's picture into a texture ÷ resident with its upload: ×{:.3}\n",
             resident.ms_median / host.ms_median,
             resident.stats_ms / host.stats_ms,
-            resident.stats_ms / (host.stats_ms + host.readback_ms)
+            resident.stats_ms / (host.stats_ms + host.readback_ms),
+            into.ms_median / (resident.ms_median + resident.upload_ms)
         );
     }
     s
@@ -329,17 +473,26 @@ mod tests {
             seed: 1,
         };
         let r = run(&backend, &display, "cornell", &scene, &cfg).unwrap();
-        assert_eq!(r.rows.len(), 2);
+        assert_eq!(r.rows.len(), 3);
         for row in &r.rows {
             assert!(row.ms_min > 0.0 && row.ms_min <= row.ms_median, "{row:?}");
-            assert!(row.filter_ms > 0.0 && row.display_ms > 0.0, "{row:?}");
             assert!(row.stats_ms > 0.0, "{row:?}");
+        }
+        for row in &r.rows[..2] {
+            assert!(row.filter_ms > 0.0 && row.display_ms > 0.0, "{row:?}");
+            assert!(row.upload_ms > 0.0, "{row:?}");
         }
         assert!(r.rows[0].readback_ms > 0.0 && r.rows[1].readback_ms == 0.0);
         assert_eq!(r.rows[0].bytes_moved, 16 * r.rows[1].bytes_moved);
+        assert_eq!((r.rows[2].bytes_moved, r.rows[2].upload_ms), (0, 0.0));
         let md = markdown(&r);
         assert!(md.contains("| host (read back"), "{md}");
+        assert!(md.contains("| into a texture"), "{md}");
         assert!(md.contains("GPU-resident ÷ host"), "{md}");
+        assert!(
+            md.contains("into a texture ÷ resident with its upload"),
+            "{md}"
+        );
         assert!(matches!(
             run(&Backend::Cpu, &display, "cornell", &scene, &cfg),
             Err(PictureBenchError::NoGpu)

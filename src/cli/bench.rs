@@ -40,8 +40,9 @@ pub enum BenchCommand {
     /// buffer and through a kept one, side by side: ms and GB/s.
     Readback(ReadbackArgs),
     /// One shown picture of a guided render by the host path (read back, filter, convert on
-    /// the CPU) and the GPU-resident one (filter and convert on the GPU, read back 8 bits),
-    /// side by side: ms per picture, stage times and bytes moved.
+    /// the CPU), the GPU-resident one (filter and convert on the GPU, read back 8 bits) and
+    /// into a texture on the GPU (nothing read back), side by side: ms per picture, stage
+    /// times, bytes moved and the window's upload of the bytes.
     Picture(PictureArgs),
 }
 

@@ -94,6 +94,19 @@ pub enum FrameError {
     WallSize { wall: [u32; 2], image: [u32; 2] },
     #[error("this renderer has no wall camera whose eye could move (build it with a wall camera)")]
     NoWall,
+    #[error(
+        "this renderer's picture does not stay on a GPU (a CPU renderer, a frame in bands or a filter larger than one binding): it cannot be written into a texture"
+    )]
+    NotResident,
+    #[error(
+        "a picture of {}×{} cannot be written into a {}×{}×{} {format:?} texture (it needs the picture's size, one layer, Rgba8Unorm or Rgba8UnormSrgb, and COPY_DST usage)",
+        picture[0], picture[1], texture[0], texture[1], texture[2]
+    )]
+    PictureTexture {
+        texture: [u32; 3],
+        format: wgpu::TextureFormat,
+        picture: [u32; 2],
+    },
     #[error(transparent)]
     Wall(#[from] WallCameraError),
 }

@@ -108,14 +108,62 @@ impl Renderer<'_> {
         })
     }
 
-    fn shown_on_gpu(
+    /// [`Self::shown_picture`]'s bytes written into `texture` on the GPU, read back by nobody:
+    /// the filter, the display kernel and a copy into the texture recorded in one submit,
+    /// not waited for (what is submitted after it on the same queue, such as a window's frame
+    /// drawing the texture, sees the picture). For a window that draws with the renderer's own
+    /// device: no 8-bit read-back and no upload from the host. Only where
+    /// [`Self::shows_on_gpu`]; `texture` must be the picture's size, `Rgba8Unorm` or
+    /// `Rgba8UnormSrgb` (the bytes are sRGB-encoded either way), with `COPY_DST` usage.
+    pub fn shown_picture_into(
         &self,
         params: &FilterParams,
         exposure: f32,
         outline: bool,
-        timed: bool,
-        t0: Instant,
-    ) -> Result<ShownPicture, FrameError> {
+        texture: &wgpu::Texture,
+    ) -> Result<(), FrameError> {
+        let size = [self.settings.width, self.settings.height];
+        let Engine::Gpu { ctx, .. } = &self.engine else {
+            return Err(FrameError::NotResident);
+        };
+        if !self.shows_on_gpu(params) {
+            return Err(FrameError::NotResident);
+        }
+        let extent = texture.size();
+        let format = texture.format();
+        if [extent.width, extent.height] != size
+            || extent.depth_or_array_layers != 1
+            || !matches!(
+                format,
+                wgpu::TextureFormat::Rgba8Unorm | wgpu::TextureFormat::Rgba8UnormSrgb
+            )
+            || !texture.usage().contains(wgpu::TextureUsages::COPY_DST)
+        {
+            return Err(FrameError::PictureTexture {
+                texture: [extent.width, extent.height, extent.depth_or_array_layers],
+                format,
+                picture: size,
+            });
+        }
+        let outline = outline && self.roi().is_some();
+        let resident = self.prepare_resident(params)?;
+        let r = resident.as_ref().expect("prepared above");
+        r.display.set_look(ctx, exposure, outline);
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        r.filter.record(&mut enc, None);
+        r.display.record(&mut enc, None);
+        r.display.copy_to_texture(&mut enc, texture, size);
+        ctx.queue.submit([enc.finish()]);
+        Ok(())
+    }
+
+    /// The filter and the display kernel bound to the renderer's buffers for `params` (made
+    /// now unless the last picture's were for the same settings). Only where
+    /// [`Self::shows_on_gpu`].
+    fn prepare_resident(
+        &self,
+        params: &FilterParams,
+    ) -> Result<std::cell::RefMut<'_, Option<Resident>>, FrameError> {
         let Engine::Gpu { ctx, bands, .. } = &self.engine else {
             unreachable!("shows_on_gpu checked the engine");
         };
@@ -167,6 +215,22 @@ impl Renderer<'_> {
                 _zero_dgi: zero_dgi,
             });
         }
+        Ok(resident)
+    }
+
+    fn shown_on_gpu(
+        &self,
+        params: &FilterParams,
+        exposure: f32,
+        outline: bool,
+        timed: bool,
+        t0: Instant,
+    ) -> Result<ShownPicture, FrameError> {
+        let Engine::Gpu { ctx, .. } = &self.engine else {
+            unreachable!("shows_on_gpu checked the engine");
+        };
+        let [w, h] = [self.settings.width, self.settings.height];
+        let resident = self.prepare_resident(params)?;
         let r = resident.as_ref().expect("prepared above");
         r.display.set_look(ctx, exposure, outline);
         let timer = if timed { PassTimer::new(ctx, 2) } else { None };

@@ -312,6 +312,50 @@ impl DisplayRun {
         pass.dispatch_workgroups(self.groups[0], self.groups[1], 1);
     }
 
+    /// Records a copy of the shown picture (`size` = width × height, row-major RGBA8) into
+    /// `texture` (that size, four bytes a texel, `COPY_DST`). A buffer-to-texture copy of more
+    /// than one row needs rows of a multiple of 256 bytes: a width that is a multiple of 64 is
+    /// copied at once, any other width a row at a time.
+    pub fn copy_to_texture(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        texture: &wgpu::Texture,
+        [w, h]: [u32; 2],
+    ) {
+        let row_bytes = 4 * w;
+        let copy = |enc: &mut wgpu::CommandEncoder, y: u32, rows: u32| {
+            enc.copy_buffer_to_texture(
+                wgpu::TexelCopyBufferInfo {
+                    buffer: &self.output,
+                    // One row needs no row pitch (and an unaligned one would be refused).
+                    layout: wgpu::TexelCopyBufferLayout {
+                        offset: u64::from(y) * u64::from(row_bytes),
+                        bytes_per_row: (rows > 1).then_some(row_bytes),
+                        rows_per_image: (rows > 1).then_some(rows),
+                    },
+                },
+                wgpu::TexelCopyTextureInfo {
+                    texture,
+                    mip_level: 0,
+                    origin: wgpu::Origin3d { x: 0, y, z: 0 },
+                    aspect: wgpu::TextureAspect::All,
+                },
+                wgpu::Extent3d {
+                    width: w,
+                    height: rows,
+                    depth_or_array_layers: 1,
+                },
+            );
+        };
+        if row_bytes % wgpu::COPY_BYTES_PER_ROW_ALIGNMENT == 0 {
+            copy(enc, 0, h);
+        } else {
+            for y in 0..h {
+                copy(enc, y, 1);
+            }
+        }
+    }
+
     /// The shown picture's bytes (RGBA8, row-major), read back.
     pub fn read(&self, ctx: &GpuContext) -> Result<Vec<u8>, GpuError> {
         ctx.read_prefix(&self.output, 4 * u64::from(self.pixels))
