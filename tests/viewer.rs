@@ -371,6 +371,103 @@ fn the_gpu_window_picture_stays_on_the_gpu_and_shows_the_read_back_pictures_byte
     }
 }
 
+/// The texture's texels, row-major RGBA8 (through a buffer with rows padded to 256 bytes).
+fn texels(ctx: &raygun::gpu::GpuContext, texture: &wgpu::Texture) -> Vec<u8> {
+    let (w, h) = (texture.width(), texture.height());
+    let pitch = (4 * w).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+    let buffer = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("test texels"),
+        size: u64::from(pitch * h),
+        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    });
+    let mut enc = ctx.device.create_command_encoder(&Default::default());
+    enc.copy_texture_to_buffer(
+        texture.as_image_copy(),
+        wgpu::TexelCopyBufferInfo {
+            buffer: &buffer,
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(pitch),
+                rows_per_image: Some(h),
+            },
+        },
+        texture.size(),
+    );
+    ctx.queue.submit([enc.finish()]);
+    let padded: Vec<u8> = ctx.read_buffer(&buffer).unwrap();
+    padded
+        .chunks_exact(pitch as usize)
+        .flat_map(|row| row[..4 * w as usize].iter().copied())
+        .collect()
+}
+
+/// The window's picture written into a texture on the renderer's GPU (what the window draws
+/// when it shares the renderer's device) is the window picture's bytes, frame after frame; the
+/// overlays other than the image, the wall view and the CPU twin are not written (`false`: the
+/// window takes the bytes then).
+#[test]
+fn the_window_picture_written_into_a_texture_is_the_window_pictures_bytes() {
+    let (model, scene) = (hornet(), scene());
+    let ctx = raygun::gpu::GpuContext::for_tests();
+    let backend = Backend::Gpu(Box::new(ctx.clone()));
+    let mut state = ViewerState::new(RoiSource::Mouse, 3);
+    state.mouse_radius_px = 1500.0;
+    state.click(&model, DVec2::new(20.5, 12.5), [W, H]);
+    let mut core = ViewerCore::new(&backend, &scene, &model, base(&scene), state).unwrap();
+    assert!(core.gpu().is_some());
+    let texture = ctx.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("test window picture"),
+        size: wgpu::Extent3d {
+            width: W,
+            height: H,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Rgba8Unorm,
+        usage: wgpu::TextureUsages::COPY_DST | wgpu::TextureUsages::COPY_SRC,
+        view_formats: &[],
+    });
+    let mut last = Vec::new();
+    for frame in 0..3 {
+        core.step(ONE).unwrap();
+        assert!(core.window_picture_into(&texture).unwrap(), "frame {frame}");
+        assert!(
+            core.picture_took().is_some(),
+            "frame {frame}: timed for picture_due"
+        );
+        let got = texels(&ctx, &texture);
+        let want = core.window_picture().unwrap();
+        assert!(
+            want.resident && got == want.rgba,
+            "frame {frame}: the bytes differ"
+        );
+        assert!(
+            got.chunks_exact(4).any(|p| p == OUTLINE),
+            "frame {frame}: no outline"
+        );
+        assert_ne!(got, last, "frame {frame}: the picture follows the frames");
+        last = got;
+    }
+    core.state.wall_view = true;
+    assert!(
+        !core.window_picture_into(&texture).unwrap(),
+        "the wall view"
+    );
+    core.state.wall_view = false;
+    core.state.overlay = Overlay::Counts;
+    assert!(!core.window_picture_into(&texture).unwrap(), "the counts");
+    let cpu = Backend::Cpu;
+    let mut state = ViewerState::new(RoiSource::Mouse, 3);
+    state.click(&model, DVec2::new(20.5, 12.5), [W, H]);
+    let mut core = ViewerCore::new(&cpu, &scene, &model, base(&scene), state).unwrap();
+    core.step(ONE).unwrap();
+    assert!(core.gpu().is_none());
+    assert!(!core.window_picture_into(&texture).unwrap(), "the CPU twin");
+}
+
 /// Live DTrack: datagrams on the listener's port reach the viewer's state — the aim where the
 /// stick points (the wall centre) and, after a trigger press, the ROI there.
 #[test]

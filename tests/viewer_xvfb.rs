@@ -16,6 +16,17 @@ const W: u32 = xvfb::SIZE[0];
 const H: u32 = xvfb::SIZE[1];
 const N: u32 = xvfb::ITERATIONS;
 
+/// What `raygun view` says when its window draws with the renderer's GPU.
+const SHARED: &str = "the window draws with the renderer's GPU";
+
+/// Pixels of the ROI outline's yellow in a window screenshot.
+fn outline_pixels(window: &image::RgbImage) -> usize {
+    window
+        .pixels()
+        .filter(|p| p.0[0] >= 250 && (215..=225).contains(&p.0[1]) && p.0[2] <= 5)
+        .count()
+}
+
 fn gray_exr(path: &Path) -> Vec<f32> {
     let img = exr::prelude::read_first_flat_layer_from_file(path).unwrap();
     img.layer_data.channel_data.list[0]
@@ -53,7 +64,11 @@ fn viewer_under_xvfb_renders_and_saves_a_screenshot() {
         .unwrap();
     let log = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{log}");
-    // The window: not blank, and showing the picture with its yellow ROI outline.
+    // The window draws with the renderer's device (`--window-gpu shared`, the default): the
+    // pictures, the screenshot's included, are written into its texture on the GPU.
+    assert!(log.contains(SHARED), "{log}");
+    // The window: not blank, and showing the picture with its yellow ROI outline (in its
+    // exact colour: the texture holds the sRGB bytes egui's own textures hold).
     let window = image::open(dir.join("screenshot.window.png"))
         .unwrap_or_else(|e| panic!("no window screenshot ({e}): {log}"))
         .to_rgb8();
@@ -65,10 +80,7 @@ fn viewer_under_xvfb_renders_and_saves_a_screenshot() {
         "{} colours: blank window",
         colours.len()
     );
-    let outline = window
-        .pixels()
-        .filter(|p| p.0[0] >= 250 && (215..=225).contains(&p.0[1]) && p.0[2] <= 5)
-        .count();
+    let outline = outline_pixels(&window);
     assert!(outline > 20, "{outline} outline pixels in the window");
     // The side panel is taller than the window: it shows a scroll bar, a column just left of
     // the panel's edge that differs from the panel's background over most of the height.
@@ -199,5 +211,37 @@ fn viewer_under_xvfb_renders_through_the_wall_camera_with_a_tracked_head() {
         "a bezel pixel was sampled"
     );
     assert!(counts.iter().any(|&c| c > 0.0));
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// `--window-gpu own`: the window picks its own device, and the pictures come to it as bytes
+/// through the host — the path for a renderer on a GPU that drives no display. The same picture
+/// shows, outline and all.
+#[test]
+fn viewer_under_xvfb_with_its_own_device_shows_the_picture_through_the_host() {
+    let dir = std::env::temp_dir().join(format!("raygun-xvfb-own-{}", std::process::id()));
+    let o = Command::new("xvfb-run")
+        .args(["-a", "-s", "-screen 0 1280x700x24"])
+        .arg(env!("CARGO_BIN_EXE_raygun"))
+        .args(["view", "--backend", "gpu", "--window-gpu", "own"])
+        .args(["--size", &format!("{W},{H}")])
+        .args([
+            "--roi-at",
+            &format!("{},{}", xvfb::ROI_AT[0], xvfb::ROI_AT[1]),
+        ])
+        .args(["--roi-radius", &xvfb::ROI_RADIUS.to_string()])
+        .args(["--filter", "off", "--screenshot-after", "4", "--save-dir"])
+        .arg(&dir)
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .output()
+        .unwrap();
+    let log = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{log}");
+    assert!(!log.contains(SHARED), "{log}");
+    let window = image::open(dir.join("screenshot.window.png"))
+        .unwrap_or_else(|e| panic!("no window screenshot ({e}): {log}"))
+        .to_rgb8();
+    let outline = outline_pixels(&window);
+    assert!(outline > 20, "{outline} outline pixels in the window");
     std::fs::remove_dir_all(&dir).ok();
 }

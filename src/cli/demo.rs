@@ -383,6 +383,7 @@ pub fn view_args(args: &DemoArgs, display: &Path, replay: &Path) -> ViewArgs {
         yfov: None,
         max_depth: DEFAULT_MAX_DEPTH,
         backend: args.backend,
+        window_gpu: crate::cli::view::WindowGpu::Shared,
         dtrack: None,
         osc: None,
         vrpn: None,

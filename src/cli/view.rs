@@ -22,6 +22,15 @@ use crate::viewer::app::ViewerApp;
 use crate::viewer::core::ViewerCore;
 use crate::viewer::state::{RoiSource, ViewerState};
 
+/// The device the viewer's window draws with ([`ViewArgs::window_gpu`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum WindowGpu {
+    /// The GPU raygun renders on.
+    Shared,
+    /// A device of the window's own.
+    Own,
+}
+
 #[derive(Clone, Debug, clap::Args)]
 #[command(group(clap::ArgGroup::new("tracking").args(["dtrack", "osc", "vrpn", "replay"])))]
 pub struct ViewArgs {
@@ -69,6 +78,12 @@ pub struct ViewArgs {
     pub max_depth: u32,
     #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
     pub backend: BackendChoice,
+    /// The device the window draws with where raygun renders on a GPU: `shared`, the GPU raygun
+    /// renders on (the picture is written into the window's texture there and never leaves
+    /// it), or `own`, a device the window picks for its display (each picture then comes back
+    /// through the host: for a GPU that drives no display).
+    #[arg(long, value_enum, default_value_t = WindowGpu::Shared)]
+    pub window_gpu: WindowGpu,
     /// Live DTrack ASCII on this loopback UDP port.
     #[arg(long, value_name = "PORT")]
     pub dtrack: Option<u16>,
@@ -464,7 +479,7 @@ fn open_window(
     live: Option<LiveTracking>,
     args: &ViewArgs,
 ) -> anyhow::Result<()> {
-    let app = ViewerApp::new(
+    let mut app = ViewerApp::new(
         core,
         timeline,
         live,
@@ -472,11 +487,31 @@ fn open_window(
         args.screenshot_after,
     );
     let failure = std::sync::Arc::clone(&app.failure);
-    let options = eframe::NativeOptions {
+    let mut options = eframe::NativeOptions {
         viewport: eframe::egui::ViewportBuilder::default()
             .with_title("raygun view")
             .with_inner_size([1400.0, 700.0]),
         ..Default::default()
+    };
+    // The window draws with the renderer's device: its pictures need not leave the GPU.
+    let shared = app
+        .core
+        .gpu()
+        .filter(|_| args.window_gpu == WindowGpu::Shared);
+    app.shares_gpu = shared.is_some();
+    if let Some(ctx) = shared {
+        options.wgpu_options.wgpu_setup =
+            eframe::egui_wgpu::WgpuSetup::Existing(eframe::egui_wgpu::WgpuSetupExisting {
+                instance: ctx.instance.clone(),
+                adapter: ctx.adapter.clone(),
+                device: ctx.device.clone(),
+                queue: ctx.queue.clone(),
+            });
+    }
+    let hint = if shared.is_some() {
+        "; `--window-gpu own` lets the window pick a device for its display"
+    } else {
+        ""
     };
     eframe::run_native(
         "raygun view",
@@ -485,7 +520,7 @@ fn open_window(
     )
     .map_err(|e| {
         anyhow::anyhow!(
-            "the viewer's window could not open on display {}: {} (`raygun render … --guide …` and `raygun demo --headless` need no window)",
+            "the viewer's window could not open on display {}: {} (`raygun render … --guide …` and `raygun demo --headless` need no window{hint})",
             std::env::var("DISPLAY")
                 .or_else(|_| std::env::var("WAYLAND_DISPLAY"))
                 .unwrap_or_default(),

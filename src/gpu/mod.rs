@@ -188,6 +188,10 @@ impl Band {
 /// clone shares the device and queue (wgpu's handles): a second user of the same GPU.
 #[derive(Clone)]
 pub struct GpuContext {
+    /// The instance and the adapter the device was made from: a window that draws with the
+    /// same device needs them (`raygun view`, where the picture then never leaves the GPU).
+    pub instance: wgpu::Instance,
+    pub adapter: wgpu::Adapter,
     pub device: wgpu::Device,
     pub queue: wgpu::Queue,
     pub info: wgpu::AdapterInfo,
@@ -392,6 +396,8 @@ impl GpuContext {
                 source,
             })?;
         Ok(Self {
+            instance,
+            adapter,
             device,
             queue,
             info,

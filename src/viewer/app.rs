@@ -32,6 +32,13 @@ type ShotSlot = Arc<Mutex<Option<Arc<egui::ColorImage>>>>;
 /// minimised one shows none): 640 × 360.
 const MIN_CONSOLE_PIXELS: u64 = 640 * 360;
 
+/// A picture on the renderer's GPU that egui draws: the texture and egui's name for it.
+struct GpuPicture {
+    texture: wgpu::Texture,
+    id: egui::TextureId,
+    size: [u32; 2],
+}
+
 pub struct ViewerApp<'a> {
     pub core: ViewerCore<'a>,
     pub timeline: Option<Timeline>,
@@ -40,6 +47,17 @@ pub struct ViewerApp<'a> {
     /// Save the picture after this many iterations and close.
     pub screenshot_after: Option<u32>,
     texture: Option<egui::TextureHandle>,
+    /// Where the window draws with the renderer's own device: the texture on that GPU the
+    /// renderer writes each picture into ([`ViewerCore::window_picture_into`]), and egui's name
+    /// for it.
+    gpu_picture: Option<GpuPicture>,
+    /// Whether the last picture made is `gpu_picture`'s (else `texture`'s).
+    showing_gpu: bool,
+    /// Whether the window was given the renderer's device to draw with (`raygun view
+    /// --window-gpu shared`, eframe's `WgpuSetup::Existing`): only then can it draw a texture
+    /// the renderer writes. (wgpu's handles of two instances can compare equal: ids restart
+    /// per instance.)
+    pub shares_gpu: bool,
     /// The size of the picture the texture shows (clicks map through it).
     picture_size: [u32; 2],
     /// The screen pixels the picture filled in the last UI frame: across ranks, the console's
@@ -76,6 +94,9 @@ impl<'a> ViewerApp<'a> {
             save_dir,
             screenshot_after,
             texture: None,
+            gpu_picture: None,
+            showing_gpu: false,
+            shares_gpu: false,
             picture_size: [1, 1],
             shown_pixels: crate::cluster::CONSOLE_PIXELS,
             window_shot: None,
@@ -96,6 +117,60 @@ impl<'a> ViewerApp<'a> {
             f.get_or_insert(message);
         }
         ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+    }
+
+    /// The picture written into the window's texture on the renderer's GPU, where the window
+    /// draws with the renderer's device and the picture stays on it
+    /// ([`ViewerCore::window_picture_into`]); `Ok(false)`: not here (make the bytes).
+    fn picture_on_gpu(&mut self, frame: &eframe::Frame) -> Result<bool, super::ViewerError> {
+        let Some(rs) = frame.wgpu_render_state().filter(|_| self.shares_gpu) else {
+            return Ok(false);
+        };
+        let size = self.core.size();
+        let Some(ctx) = self.core.gpu() else {
+            return Ok(false);
+        };
+        let max = ctx.limits.max_texture_dimension_2d;
+        if size[0] > max || size[1] > max {
+            return Ok(false);
+        }
+        if self.gpu_picture.as_ref().is_none_or(|g| g.size != size) {
+            let texture = ctx.device.create_texture(&wgpu::TextureDescriptor {
+                label: Some("raygun picture"),
+                size: wgpu::Extent3d {
+                    width: size[0],
+                    height: size[1],
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                // egui's own textures: sRGB-encoded bytes in an Rgba8Unorm texture.
+                format: wgpu::TextureFormat::Rgba8Unorm,
+                usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+                view_formats: &[],
+            });
+            let view = texture.create_view(&Default::default());
+            let mut renderer = rs.renderer.write();
+            let nearest = wgpu::FilterMode::Nearest;
+            let id = match &self.gpu_picture {
+                Some(old) => {
+                    renderer
+                        .update_egui_texture_from_wgpu_texture(&rs.device, &view, nearest, old.id);
+                    old.id
+                }
+                None => {
+                    eprintln!(
+                        "raygun view: the window draws with the renderer's GPU ({}): its pictures stay there",
+                        ctx.info.name
+                    );
+                    renderer.register_native_texture(&rs.device, &view, nearest)
+                }
+            };
+            self.gpu_picture = Some(GpuPicture { texture, id, size });
+        }
+        let g = self.gpu_picture.as_ref().expect("made above");
+        self.core.window_picture_into(&g.texture)
     }
 
     fn save(&mut self, stem: &str, picture: &super::core::Picture) -> Result<(), String> {
@@ -451,7 +526,7 @@ fn view_keys(ui: &egui::Ui) -> Vec<Gesture> {
 }
 
 impl eframe::App for ViewerApp<'_> {
-    fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
+    fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
         let dt = self.last.elapsed().as_secs_f64();
         self.last = Instant::now();
         if let Some(t) = &self.timeline
@@ -499,10 +574,34 @@ impl eframe::App for ViewerApp<'_> {
             .is_some_and(|n| self.core.stats.iterations >= n);
         // A new picture when one is due (`ViewerCore::picture_due`: at most half of the time
         // goes to pictures) or a file or the recording wants one; else the last stays shown.
-        let wanted =
-            save || shot_due || self.recording || self.texture.is_none() || self.core.picture_due();
+        let shown = if self.showing_gpu {
+            self.gpu_picture.is_some()
+        } else {
+            self.texture.is_some()
+        };
+        let wanted = save || shot_due || self.recording || !shown || self.core.picture_due();
+        // On the renderer's own device the picture goes into the window's texture on the GPU
+        // and nothing comes back (saves and screenshots take the whole picture below, on their
+        // own); a recording wants the window's bytes.
+        let on_gpu = match &stepped {
+            Ok(()) if wanted && !self.recording => self.picture_on_gpu(frame),
+            _ => Ok(false),
+        };
+        let on_gpu = match on_gpu {
+            Ok(done) => done,
+            Err(e) => {
+                self.error = Some(crate::messages::chain(&e));
+                ui.ctx().request_repaint_after(Duration::from_millis(200));
+                return;
+            }
+        };
+        if on_gpu {
+            self.error = None;
+            self.showing_gpu = true;
+            self.picture_size = self.core.size();
+        }
         let picture = stepped.and_then(|()| {
-            if wanted {
+            if wanted && !on_gpu {
                 self.core.window_picture().map(Some)
             } else {
                 Ok(None)
@@ -525,6 +624,7 @@ impl eframe::App for ViewerApp<'_> {
                 super::core::fit_texture(&picture.rgba, picture.size, max_side);
             let image =
                 egui::ColorImage::from_rgba_unmultiplied([tw as usize, th as usize], &texels);
+            self.showing_gpu = false;
             match &mut self.texture {
                 Some(t) => t.set(image, egui::TextureOptions::NEAREST),
                 None => {
@@ -649,7 +749,16 @@ impl eframe::App for ViewerApp<'_> {
                 .and_then(|t| self.core.state.cursor_mark(t)),
         };
         egui::CentralPanel::default_margins().show(ui, |ui| {
-            let Some(tex) = &self.texture else { return };
+            let tex = if self.showing_gpu {
+                self.gpu_picture.as_ref().map(|g| {
+                    egui::load::SizedTexture::new(g.id, [g.size[0] as f32, g.size[1] as f32])
+                })
+            } else {
+                self.texture
+                    .as_ref()
+                    .map(egui::load::SizedTexture::from_handle)
+            };
+            let Some(tex) = tex else { return };
             let avail = ui.available_size();
             let aspect = w as f32 / h as f32;
             let fit = if avail.x / aspect <= avail.y {

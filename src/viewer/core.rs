@@ -596,6 +596,70 @@ impl<'a> ViewerCore<'a> {
         Ok(picture)
     }
 
+    /// The GPU the renderer runs on, where it is one process's renderer on a GPU: a window that
+    /// draws with this device can be handed the picture on it ([`Self::window_picture_into`]).
+    #[must_use]
+    pub fn gpu(&self) -> Option<&crate::gpu::GpuContext> {
+        match (&self.engine, self.backend) {
+            (Engine::Local(_), Backend::Gpu(ctx)) => Some(ctx),
+            _ => None,
+        }
+    }
+
+    /// [`Self::window_picture`] written into `texture` on the GPU instead of read back
+    /// ([`Renderer::shown_picture_into`]: the window's texture, `Rgba8Unorm`, on the renderer's
+    /// device, the picture's size, `COPY_DST`), where the picture stays there: one process on
+    /// a GPU, the image overlay, a filter that fits one binding and not the wall view (which
+    /// rearranges the bytes on the CPU). `Ok(false)`: not here, nothing written — take
+    /// [`Self::window_picture`]. The statistics are measured on the GPU as there.
+    pub fn window_picture_into(&mut self, texture: &wgpu::Texture) -> Result<bool, ViewerError> {
+        let t0 = Instant::now();
+        let params = self.state.filter_params();
+        let resident = match &self.engine {
+            Engine::Local(r) => {
+                self.state.overlay == Overlay::Image
+                    && !self.state.wall_view
+                    && r.shows_on_gpu(&params)
+            }
+            Engine::Cluster(_) => false,
+        };
+        if !resident {
+            return Ok(false);
+        }
+        self.refresh_gpu_stats()?;
+        let Engine::Local(r) = &self.engine else {
+            unreachable!("checked above");
+        };
+        r.shown_picture_into(
+            &params,
+            self.state.exposure,
+            self.state.roi_outline,
+            texture,
+        )?;
+        // Waited for, so that what it took is the kernels' time ([`Self::picture_due`]: on a
+        // slow device pictures still take at most half of the time).
+        if let Some(ctx) = self.gpu() {
+            ctx.wait().map_err(crate::frame::FrameError::from)?;
+        }
+        self.last_picture = Some((Instant::now(), t0.elapsed(), self.look()));
+        Ok(true)
+    }
+
+    /// Every [`STATS_PERIOD`], the statistics measured where a GPU renderer's accumulation
+    /// lives (a few dozen bytes back, nothing read back but them).
+    fn refresh_gpu_stats(&mut self) -> Result<(), ViewerError> {
+        let Engine::Local(r) = &self.engine else {
+            return Ok(());
+        };
+        if self.stats_at.is_none_or(|t| t.elapsed() >= STATS_PERIOD) {
+            let measured = r.roi_stats()?;
+            self.set_stats(measured, 1);
+            self.stats_at = Some(Instant::now());
+        }
+        self.stats.seconds_on_roi = self.roi_since.elapsed().as_secs_f64();
+        Ok(())
+    }
+
     /// Whether the window should make a new picture this UI frame (it shows its last one
     /// otherwise): when it has none, when the look changed (overlay, exposure, filter, outline,
     /// wall view), or when at least as long as the last picture took has passed since it was
@@ -641,17 +705,8 @@ impl<'a> ViewerCore<'a> {
                 resident: false,
             });
         }
-        let Engine::Local(r) = &self.engine else {
-            unreachable!("checked above");
-        };
-        if self.stats_at.is_none_or(|t| t.elapsed() >= STATS_PERIOD) {
-            // Measured where the accumulation lives (a GPU renderer of one band: a few dozen
-            // bytes back), not read back.
-            let measured = r.roi_stats()?;
-            self.set_stats(measured, 1);
-            self.stats_at = Some(Instant::now());
-        }
-        self.stats.seconds_on_roi = self.roi_since.elapsed().as_secs_f64();
+        // Measured where the accumulation lives (a GPU renderer of one band), not read back.
+        self.refresh_gpu_stats()?;
         let Engine::Local(r) = &self.engine else {
             unreachable!("checked above");
         };
