@@ -260,7 +260,9 @@ impl<'a> Collapse<'a> {
         }
         self.best[n] = best;
         self.split[n] = split;
-        self.leaf[n] = as_leaf <= as_node;
+        // Only a node of at most eight triangles can be a leaf, whatever the costs (both are +∞
+        // where the boxes' areas overflow f32: coordinates beyond ~10¹⁹).
+        self.leaf[n] = self.count[n] <= LEAF_PRIMS && as_leaf <= as_node;
         self.node_split[n] = k8;
     }
 
@@ -1531,6 +1533,46 @@ mod tests {
             assert!(
                 (built - computed).abs() <= 1e-3 * computed,
                 "n = {n}: the tree costs {built}, the collapse computed {computed}"
+            );
+        }
+    }
+
+    /// Triangles spread so far that the boxes' areas overflow f32 (the collapse's costs are +∞
+    /// at the top of the tree): the tree still builds, its leaves hold at most eight triangles,
+    /// and every hit is the brute-force one.
+    #[test]
+    fn coordinates_whose_areas_overflow_still_build_a_tree() {
+        let tris: Vec<[Vec3; 3]> = (0..3000)
+            .map(|i| {
+                let s = 1.02f32.powi(i);
+                let c = Vec3::new(s, 0.3 * (i % 7) as f32, -0.001 * i as f32);
+                [
+                    c,
+                    c + Vec3::new(0.5 * s, 0.0, 0.0),
+                    c + Vec3::new(0.0, 0.5 * s, 0.0),
+                ]
+            })
+            .collect();
+        assert!(
+            tris[2999][1].x.powi(2).is_infinite(),
+            "the areas must overflow"
+        );
+        let bvh = SceneBvh::build(&tris, &vec![0.0; tris.len()]);
+        let tree = bvh.cpu();
+        assert!(
+            tree.nodes
+                .iter()
+                .all(|n| n.count.iter().all(|&c| u32::from(c) <= LEAF_PRIMS))
+        );
+        for i in 0..400 {
+            let x = 1.02f32.powf(i as f32 / 2.0);
+            let o = Vec3::new(x, 0.2 * (i % 13) as f32, 5.0);
+            let d = Vec3::new(0.01 * ((i % 9) as f32 - 4.0), 0.0, -1.0).normalize();
+            let got = bvh.closest_hit(o, d, f32::INFINITY);
+            assert_eq!(
+                got.map(|h| (h.t, h.triangle)),
+                brute(&tris, o, d),
+                "ray {o} {d}"
             );
         }
     }
