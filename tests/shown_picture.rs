@@ -347,37 +347,6 @@ fn picture_texture(
     })
 }
 
-/// The texture's texels, row-major RGBA8 (read through a buffer with rows padded to 256 bytes).
-fn texels(ctx: &GpuContext, texture: &wgpu::Texture) -> Vec<u8> {
-    let (w, h) = (texture.width(), texture.height());
-    let pitch = (4 * w).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
-    let buffer = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("test texels"),
-        size: u64::from(pitch * h),
-        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
-        mapped_at_creation: false,
-    });
-    let mut enc = ctx.device.create_command_encoder(&Default::default());
-    enc.copy_texture_to_buffer(
-        texture.as_image_copy(),
-        wgpu::TexelCopyBufferInfo {
-            buffer: &buffer,
-            layout: wgpu::TexelCopyBufferLayout {
-                offset: 0,
-                bytes_per_row: Some(pitch),
-                rows_per_image: Some(h),
-            },
-        },
-        texture.size(),
-    );
-    ctx.queue.submit([enc.finish()]);
-    let padded: Vec<u8> = ctx.read_buffer(&buffer).unwrap();
-    padded
-        .chunks_exact(pitch as usize)
-        .flat_map(|row| row[..4 * w as usize].iter().copied())
-        .collect()
-}
-
 /// The picture written into a texture on the GPU (what a window drawing with the renderer's
 /// device shows: nothing read back) is the shown picture's bytes, for a width whose rows copy
 /// at once (128: 512 bytes) and one copied a row at a time (96: 384 bytes), in both 8-bit
@@ -410,7 +379,7 @@ fn a_picture_written_into_a_texture_is_the_shown_pictures_bytes() {
             let texture = picture_texture(ctx, size, format);
             r.shown_picture_into(&p, 0.5, true, &texture).unwrap();
             let shown = r.shown_picture(&p, 0.5, true, false).unwrap().rgba;
-            let got = texels(ctx, &texture);
+            let got = ctx.read_texture(&texture).unwrap();
             assert!(got == shown, "{size:?} {format:?}: the texture differs");
             assert!(
                 got.chunks_exact(4).any(|t| t == OUTLINE),
@@ -420,10 +389,10 @@ fn a_picture_written_into_a_texture_is_the_shown_pictures_bytes() {
         // The next frames reach the same texture.
         let texture = picture_texture(ctx, size, wgpu::TextureFormat::Rgba8UnormSrgb);
         r.shown_picture_into(&p, 0.0, false, &texture).unwrap();
-        let before = texels(ctx, &texture);
+        let before = ctx.read_texture(&texture).unwrap();
         r.iterate(2).unwrap();
         r.shown_picture_into(&p, 0.0, false, &texture).unwrap();
-        let after = texels(ctx, &texture);
+        let after = ctx.read_texture(&texture).unwrap();
         assert_ne!(
             before, after,
             "{size:?}: the texture shows the latest frames"

@@ -371,37 +371,6 @@ fn the_gpu_window_picture_stays_on_the_gpu_and_shows_the_read_back_pictures_byte
     }
 }
 
-/// The texture's texels, row-major RGBA8 (through a buffer with rows padded to 256 bytes).
-fn texels(ctx: &raygun::gpu::GpuContext, texture: &wgpu::Texture) -> Vec<u8> {
-    let (w, h) = (texture.width(), texture.height());
-    let pitch = (4 * w).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
-    let buffer = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("test texels"),
-        size: u64::from(pitch * h),
-        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
-        mapped_at_creation: false,
-    });
-    let mut enc = ctx.device.create_command_encoder(&Default::default());
-    enc.copy_texture_to_buffer(
-        texture.as_image_copy(),
-        wgpu::TexelCopyBufferInfo {
-            buffer: &buffer,
-            layout: wgpu::TexelCopyBufferLayout {
-                offset: 0,
-                bytes_per_row: Some(pitch),
-                rows_per_image: Some(h),
-            },
-        },
-        texture.size(),
-    );
-    ctx.queue.submit([enc.finish()]);
-    let padded: Vec<u8> = ctx.read_buffer(&buffer).unwrap();
-    padded
-        .chunks_exact(pitch as usize)
-        .flat_map(|row| row[..4 * w as usize].iter().copied())
-        .collect()
-}
-
 /// The window's picture written into a texture on the renderer's GPU (what the window draws
 /// when it shares the renderer's device) is the window picture's bytes, frame after frame; the
 /// overlays other than the image, the wall view and the CPU twin are not written (`false`: the
@@ -438,7 +407,7 @@ fn the_window_picture_written_into_a_texture_is_the_window_pictures_bytes() {
             core.picture_took().is_some(),
             "frame {frame}: timed for picture_due"
         );
-        let got = texels(&ctx, &texture);
+        let got = ctx.read_texture(&texture).unwrap();
         let want = core.window_picture().unwrap();
         assert!(
             want.resident && got == want.rgba,

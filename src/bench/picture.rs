@@ -177,7 +177,7 @@ pub fn run(
             a.2.matches(&b.3, SE_TOLERANCE)
                 .map_err(PictureBenchError::StatsDiffer)?;
             g.shown_picture_into(&cfg.filter, cfg.exposure, true, &texture)?;
-            let texels = read_texture(ctx, &texture)?;
+            let texels = ctx.read_texture(&texture)?;
             if let Some(i) = (0..texels.len().max(b.1.len())).find(|&i| texels.get(i) != b.1.get(i))
             {
                 return Err(PictureBenchError::TextureDiffers(i));
@@ -258,37 +258,6 @@ fn upload(ctx: &GpuContext, texture: &wgpu::Texture, rgba: &[u8]) -> Result<f64,
     ctx.queue.submit([]);
     ctx.wait()?;
     Ok(t.elapsed().as_secs_f64() * 1e3)
-}
-
-/// `texture`'s texels, row-major RGBA8 (through a buffer with rows padded to 256 bytes).
-fn read_texture(ctx: &GpuContext, texture: &wgpu::Texture) -> Result<Vec<u8>, GpuError> {
-    let (w, h) = (texture.width(), texture.height());
-    let pitch = (4 * w).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
-    let buffer = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("bench picture texels"),
-        size: u64::from(pitch) * u64::from(h),
-        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
-        mapped_at_creation: false,
-    });
-    let mut enc = ctx.device.create_command_encoder(&Default::default());
-    enc.copy_texture_to_buffer(
-        texture.as_image_copy(),
-        wgpu::TexelCopyBufferInfo {
-            buffer: &buffer,
-            layout: wgpu::TexelCopyBufferLayout {
-                offset: 0,
-                bytes_per_row: Some(pitch),
-                rows_per_image: Some(h),
-            },
-        },
-        texture.size(),
-    );
-    ctx.queue.submit([enc.finish()]);
-    let padded: Vec<u8> = ctx.read_buffer(&buffer)?;
-    Ok(padded
-        .chunks_exact(pitch as usize)
-        .flat_map(|row| row[..4 * w as usize].iter().copied())
-        .collect())
 }
 
 fn time_host(

@@ -478,6 +478,39 @@ impl GpuContext {
         Ok(())
     }
 
+    /// The texels of a four-byte-a-texel 2D `texture` (which needs `COPY_SRC`), row-major
+    /// without padding: copied into a buffer whose rows are padded to
+    /// [`wgpu::COPY_BYTES_PER_ROW_ALIGNMENT`], read back, and the padding dropped.
+    pub fn read_texture(&self, texture: &wgpu::Texture) -> Result<Vec<u8>, GpuError> {
+        let (w, h) = (texture.width(), texture.height());
+        let pitch = (4 * w).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+        let buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("texture read-back"),
+            size: u64::from(pitch) * u64::from(h),
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let mut enc = self.device.create_command_encoder(&Default::default());
+        enc.copy_texture_to_buffer(
+            texture.as_image_copy(),
+            wgpu::TexelCopyBufferInfo {
+                buffer: &buffer,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(pitch),
+                    rows_per_image: Some(h),
+                },
+            },
+            texture.size(),
+        );
+        self.queue.submit([enc.finish()]);
+        let padded: Vec<u8> = self.read_buffer(&buffer)?;
+        Ok(padded
+            .chunks_exact(pitch as usize)
+            .flat_map(|row| row[..4 * w as usize].iter().copied())
+            .collect())
+    }
+
     /// Copies `src` (which needs `COPY_SRC`) into a fresh mappable buffer and reads it back.
     pub fn read_buffer<T: bytemuck::Pod>(&self, src: &wgpu::Buffer) -> Result<Vec<T>, GpuError> {
         self.read_prefix(src, src.size())
