@@ -398,6 +398,22 @@ fn a_picture_written_into_a_texture_is_the_shown_pictures_bytes() {
             "{size:?}: the texture shows the latest frames"
         );
         assert!(after == r.shown_picture(&p, 0.0, false, false).unwrap().rgba);
+        // Timed: waited for, the stages' times inside the call's.
+        r.iterate(1).unwrap();
+        let t = r.shown_picture_into_timed(&p, 0.0, true, &texture).unwrap();
+        assert!(
+            t.resident && t.filter_ms > 0.0 && t.display_ms > 0.0,
+            "{t:?}"
+        );
+        // (GPU timestamps and the CPU's clock differ by the timestamp period's calibration.)
+        assert!(
+            t.wall_ms * 1.01 + 0.05 >= t.filter_ms.max(t.display_ms),
+            "{t:?}"
+        );
+        assert!(
+            ctx.read_texture(&texture).unwrap()
+                == r.shown_picture(&p, 0.0, true, false).unwrap().rgba
+        );
         // Refused: another size, a format of other texels.
         for (tsize, format) in [
             ([size[0] + 1, size[1]], wgpu::TextureFormat::Rgba8UnormSrgb),

@@ -122,6 +122,33 @@ impl Renderer<'_> {
         outline: bool,
         texture: &wgpu::Texture,
     ) -> Result<(), FrameError> {
+        self.write_shown(params, exposure, outline, texture, false)
+            .map(|_| ())
+    }
+
+    /// [`Self::shown_picture_into`] waited for, with its times: the filter's and the display
+    /// kernel's (GPU timestamps where the adapter has them, else each stage submitted and
+    /// waited for on its own — the copy with the display), and the whole call's wall clock.
+    pub fn shown_picture_into_timed(
+        &self,
+        params: &FilterParams,
+        exposure: f32,
+        outline: bool,
+        texture: &wgpu::Texture,
+    ) -> Result<ShownTimes, FrameError> {
+        let times = self.write_shown(params, exposure, outline, texture, true)?;
+        Ok(times.expect("timed"))
+    }
+
+    fn write_shown(
+        &self,
+        params: &FilterParams,
+        exposure: f32,
+        outline: bool,
+        texture: &wgpu::Texture,
+        timed: bool,
+    ) -> Result<Option<ShownTimes>, FrameError> {
+        let t0 = Instant::now();
         let size = [self.settings.width, self.settings.height];
         let Engine::Gpu { ctx, .. } = &self.engine else {
             return Err(FrameError::NotResident);
@@ -149,12 +176,16 @@ impl Renderer<'_> {
         let resident = self.prepare_resident(params)?;
         let r = resident.as_ref().expect("prepared above");
         r.display.set_look(ctx, exposure, outline);
-        let mut enc = ctx.device.create_command_encoder(&Default::default());
-        r.filter.record(&mut enc, None);
-        r.display.record(&mut enc, None);
-        r.display.copy_to_texture(&mut enc, texture, size);
-        ctx.queue.submit([enc.finish()]);
-        Ok(())
+        let times = run_resident(ctx, r, timed, Some((texture, size)))?;
+        Ok(
+            times.map(|(filter_ms, display_ms, gpu_timestamps)| ShownTimes {
+                resident: true,
+                filter_ms,
+                display_ms,
+                wall_ms: t0.elapsed().as_secs_f64() * 1e3,
+                gpu_timestamps,
+            }),
+        )
     }
 
     /// The filter and the display kernel bound to the renderer's buffers for `params` (made
@@ -233,38 +264,7 @@ impl Renderer<'_> {
         let resident = self.prepare_resident(params)?;
         let r = resident.as_ref().expect("prepared above");
         r.display.set_look(ctx, exposure, outline);
-        let timer = if timed { PassTimer::new(ctx, 2) } else { None };
-        let times = if timed && timer.is_none() {
-            // No timestamps: each stage submitted and waited for on its own, by the wall clock.
-            let mut ms = [0.0; 2];
-            for (stage, m) in ms.iter_mut().enumerate() {
-                let t = Instant::now();
-                let mut enc = ctx.device.create_command_encoder(&Default::default());
-                match stage {
-                    0 => r.filter.record(&mut enc, None),
-                    _ => r.display.record(&mut enc, None),
-                }
-                ctx.queue.submit([enc.finish()]);
-                ctx.wait()?;
-                *m = t.elapsed().as_secs_f64() * 1e3;
-            }
-            Some((ms[0], ms[1], false))
-        } else {
-            let mut enc = ctx.device.create_command_encoder(&Default::default());
-            r.filter.record(&mut enc, timer.as_ref().map(|t| (t, 0)));
-            r.display.record(&mut enc, timer.as_ref().map(|t| (t, 1)));
-            if let Some(t) = &timer {
-                t.resolve(&mut enc);
-            }
-            ctx.queue.submit([enc.finish()]);
-            match &timer {
-                Some(t) => {
-                    let ms = t.read_ms(ctx)?;
-                    Some((ms[0], ms[1], true))
-                }
-                None => None,
-            }
-        };
+        let times = run_resident(ctx, r, timed, None)?;
         let rgba = r.display.read(ctx)?;
         Ok(ShownPicture {
             size: [w, h],
@@ -277,5 +277,56 @@ impl Renderer<'_> {
                 gpu_timestamps,
             }),
         })
+    }
+}
+
+/// Records the resident filter and display (and, with `copy`, the display's copy into a
+/// texture) and submits them; with `timed`, waits and returns the filter's and the display's
+/// ms and whether they are GPU timestamps (without timestamps each stage is submitted and
+/// waited for on its own, by the wall clock). Untimed, nothing is waited for.
+fn run_resident(
+    ctx: &crate::gpu::GpuContext,
+    r: &Resident,
+    timed: bool,
+    copy: Option<(&wgpu::Texture, [u32; 2])>,
+) -> Result<Option<(f64, f64, bool)>, FrameError> {
+    let copy_into = |enc: &mut wgpu::CommandEncoder| {
+        if let Some((texture, size)) = copy {
+            r.display.copy_to_texture(enc, texture, size);
+        }
+    };
+    let timer = if timed { PassTimer::new(ctx, 2) } else { None };
+    if timed && timer.is_none() {
+        let mut ms = [0.0; 2];
+        for (stage, m) in ms.iter_mut().enumerate() {
+            let t = Instant::now();
+            let mut enc = ctx.device.create_command_encoder(&Default::default());
+            match stage {
+                0 => r.filter.record(&mut enc, None),
+                _ => {
+                    r.display.record(&mut enc, None);
+                    copy_into(&mut enc);
+                }
+            }
+            ctx.queue.submit([enc.finish()]);
+            ctx.wait()?;
+            *m = t.elapsed().as_secs_f64() * 1e3;
+        }
+        return Ok(Some((ms[0], ms[1], false)));
+    }
+    let mut enc = ctx.device.create_command_encoder(&Default::default());
+    r.filter.record(&mut enc, timer.as_ref().map(|t| (t, 0)));
+    r.display.record(&mut enc, timer.as_ref().map(|t| (t, 1)));
+    copy_into(&mut enc);
+    if let Some(t) = &timer {
+        t.resolve(&mut enc);
+    }
+    ctx.queue.submit([enc.finish()]);
+    match &timer {
+        Some(t) => {
+            let ms = t.read_ms(ctx)?;
+            Ok(Some((ms[0], ms[1], true)))
+        }
+        None => Ok(None),
     }
 }

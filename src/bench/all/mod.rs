@@ -306,10 +306,15 @@ pub fn run(
     let convergence = convergence(backend, display, name, scene, &fovs, cfg, &mut progress)?;
     let solver = solver::run(backend, cfg.solver_reps, &mut progress)?;
     let mut stage_rows = Vec::new();
-    // On a GPU both ways the picture reaches the window: the host way first (the rows the
-    // targets read), then the picture kept on the GPU.
+    // On a GPU the three ways the picture reaches the window: the host way first (the rows
+    // the targets read), then the picture kept on the GPU and read back, then written into a
+    // texture there.
     let paths: &[stages::PicturePath] = if backend.is_gpu() {
-        &[stages::PicturePath::Host, stages::PicturePath::Gpu]
+        &[
+            stages::PicturePath::Host,
+            stages::PicturePath::Gpu,
+            stages::PicturePath::Texture,
+        ]
     } else {
         &[stages::PicturePath::Host]
     };

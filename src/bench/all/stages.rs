@@ -10,8 +10,10 @@
 //! DGI read back, the filter on a copy (its time the kernels', the copies *filter transfers*),
 //! the conversion on the CPU ([`display_rgba`]; a test checks it against the viewer's
 //! picture); **GPU** — the filter on the renderer's own buffers and the display kernel, the
-//! 8-bit picture read back ([`Renderer::shown_picture`], the viewer's window picture on one
-//! GPU). `bench all` measures both on a GPU.
+//! 8-bit picture read back ([`Renderer::shown_picture`]); **texture** — the same kernels, the
+//! picture copied into a texture on the GPU and nothing read back
+//! ([`Renderer::shown_picture_into`], the window's picture where it draws with the renderer's
+//! device). `bench all` measures the three on a GPU.
 
 use std::time::Instant;
 
@@ -63,12 +65,13 @@ pub struct StageRow {
     pub target_iteration_ms: f64,
     /// Whether the GPU stages came from timestamps (else wall clock).
     pub gpu_timestamps: bool,
-    /// How the picture was made: `host` (read back, filter a copy, convert on the CPU) or
-    /// `gpu` (filtered and converted on the GPU, 8 bits read back: `Renderer::shown_picture`).
+    /// How the picture was made: `host` (read back, filter a copy, convert on the CPU), `gpu`
+    /// (filtered and converted on the GPU, 8 bits read back: `Renderer::shown_picture`) or
+    /// `texture` (the same, into a texture there: `Renderer::shown_picture_into`).
     pub picture: PicturePath,
 }
 
-/// The two ways a GPU renderer's picture reaches the window (the CPU twin has the first).
+/// The ways a GPU renderer's picture reaches the window (the CPU twin has the first).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum PicturePath {
@@ -77,6 +80,9 @@ pub enum PicturePath {
     /// The filter on the renderer's own buffers and the conversion on the GPU; 4 bytes a pixel
     /// read back ([`Renderer::shown_picture`]).
     Gpu,
+    /// As `Gpu`, but written into a texture on the GPU and nothing read back
+    /// ([`Renderer::shown_picture_into`]: the window that draws with the renderer's device).
+    Texture,
 }
 
 /// Measures `iterations` guided iterations of `scene` in the paper's setup (viewer at
@@ -108,7 +114,24 @@ pub fn measure(
     let roi = crate::bench::paper::roi(fov)?;
     let mut g = Renderer::guided(backend, scene, settings, display, GuideConfig::default())?;
     let filter_stage = Filter::new(backend);
-    let resident = picture == PicturePath::Gpu && g.shows_on_gpu(filter);
+    let resident = picture != PicturePath::Host && g.shows_on_gpu(filter);
+    let texture = match (backend, resident && picture == PicturePath::Texture) {
+        (Backend::Gpu(ctx), true) => Some(ctx.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("stages picture"),
+            size: wgpu::Extent3d {
+                width: w,
+                height: h,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::Rgba8Unorm,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            view_formats: &[],
+        })),
+        _ => None,
+    };
     let n = iterations.max(1);
     let (mut dgi_change, mut stamps) = (None, matches!(backend, Backend::Cpu));
     let (mut sched, mut trace, mut filt, mut disp) = (0f64, 0f64, 0f64, 0f64);
@@ -123,12 +146,18 @@ pub fn measure(
         }
         let s = g.run_frame(true)?;
         let (ms_readback, ms_filter, ms_transfer, ms_display, stamped) = if resident {
-            // Filtered and converted on the GPU; the 8-bit picture read back.
+            // Filtered and converted on the GPU; the 8-bit picture read back, or written into
+            // the window's texture there.
             let t = Instant::now();
-            let shown = g.shown_picture(filter, exposure, false, true)?;
-            std::hint::black_box(&shown.rgba);
+            let st = match &texture {
+                Some(texture) => g.shown_picture_into_timed(filter, exposure, false, texture)?,
+                None => {
+                    let shown = g.shown_picture(filter, exposure, false, true)?;
+                    std::hint::black_box(&shown.rgba);
+                    shown.times.expect("timed")
+                }
+            };
             let wall = t.elapsed().as_secs_f64() * 1e3;
-            let st = shown.times.expect("timed");
             let transfer = (wall - st.filter_ms - st.display_ms).max(0.0);
             (
                 0.0,
@@ -193,11 +222,7 @@ pub fn measure(
         other_ms: mean - stage_sum - readback - transfer,
         target_iteration_ms: dgi_change.unwrap_or(0.0) + sched + trace + filt,
         gpu_timestamps: stamps,
-        picture: if resident {
-            PicturePath::Gpu
-        } else {
-            PicturePath::Host
-        },
+        picture: if resident { picture } else { PicturePath::Host },
     })
 }
 
@@ -205,7 +230,7 @@ pub fn measure(
 #[must_use]
 pub fn markdown(rows: &[StageRow], device: &str) -> String {
     let mut s = format!(
-        "Device: {device}. Means over the iterations (ms), so the stages add up; the wall clock of whole iterations is given as mean, median and min. *Display* = the viewer's conversion of the filtered image to the 8-bit sRGB RGBA texture it uploads (CPU); *read-back* = the accumulation's and the DGI's read-back (a copy on the CPU); *filter transfers* = the filter's wall clock beyond its kernels (its inputs' upload, preparation, its picture's read-back; about 0 on the CPU); *other* = the rest of the wall clock (the frame's submission and waits, bookkeeping). Filter and display run every iteration here. The *target iteration* is DGI on a change + mask/compaction + trace + fast filter. *Picture*: host = the accumulation and DGI read back, filtered as a copy, converted on the CPU (the columns above); GPU = filtered on the renderer's own buffers and converted by the display kernel, 4 bytes a pixel read back (`Renderer::shown_picture`, what the viewer does on one GPU): its *display* is that kernel, its *filter transfers* the 8-bit read-back and the waits, its *read-back* 0.\n\n| FOV | size | iterations | share sampled | DGI per change | DGI amortised | mask+compaction | trace | filter | display | sum of stages | other | iteration (mean / median / min) | target iteration | read-back | filter transfers | picture |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n"
+        "Device: {device}. Means over the iterations (ms), so the stages add up; the wall clock of whole iterations is given as mean, median and min. *Display* = the viewer's conversion of the filtered image to the 8-bit sRGB RGBA texture it uploads (CPU); *read-back* = the accumulation's and the DGI's read-back (a copy on the CPU); *filter transfers* = the filter's wall clock beyond its kernels (its inputs' upload, preparation, its picture's read-back; about 0 on the CPU); *other* = the rest of the wall clock (the frame's submission and waits, bookkeeping). Filter and display run every iteration here. The *target iteration* is DGI on a change + mask/compaction + trace + fast filter. *Picture*: host = the accumulation and DGI read back, filtered as a copy, converted on the CPU (the columns above); GPU = filtered on the renderer's own buffers and converted by the display kernel, 4 bytes a pixel read back (`Renderer::shown_picture`): its *display* is that kernel, its *filter transfers* the 8-bit read-back and the waits, its *read-back* 0; texture = the same kernels, the picture copied into a texture on the GPU and nothing read back (`Renderer::shown_picture_into`, what the window does when it draws with the renderer's device): its *filter transfers* the copy, the submission and the wait.\n\n| FOV | size | iterations | share sampled | DGI per change | DGI amortised | mask+compaction | trace | filter | display | sum of stages | other | iteration (mean / median / min) | target iteration | read-back | filter transfers | picture |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n"
     );
     for r in rows {
         s += &format!(
@@ -233,6 +258,7 @@ pub fn markdown(rows: &[StageRow], device: &str) -> String {
             match r.picture {
                 PicturePath::Host => "host",
                 PicturePath::Gpu => "GPU",
+                PicturePath::Texture => "texture",
             },
         );
     }
