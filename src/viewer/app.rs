@@ -210,7 +210,12 @@ impl<'a> ViewerApp<'a> {
         }
         if let Some(took) = picture_took {
             // A picture at most every `took` of rendering (ViewerCore::picture_due).
-            ui.label(format!("picture {:.1} ms", took.as_secs_f64() * 1e3));
+            let way = if self.showing_gpu {
+                " (on the GPU, nothing read back)"
+            } else {
+                ""
+            };
+            ui.label(format!("picture {:.1} ms{way}", took.as_secs_f64() * 1e3));
         }
         if st.console_every > 1 {
             let k = st.console_every;
