@@ -349,7 +349,7 @@ fn picture_texture(
 
 /// The picture written into a texture on the GPU (what a window drawing with the renderer's
 /// device shows: nothing read back) is the shown picture's bytes, for a width whose rows copy
-/// at once (128: 512 bytes) and one copied a row at a time (96: 384 bytes), in both 8-bit
+/// at once (128: 512 bytes a row) and one whose rows are padded for the copy (96: 384 bytes, 512 apart), in both 8-bit
 /// formats, and follows the frames; a texture of another size or format, a CPU renderer and a
 /// frame in bands are refused with errors that say why.
 #[test]

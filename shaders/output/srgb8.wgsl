@@ -18,7 +18,9 @@ struct DisplayParams {
     outline: u32,
     width: u32,
     height: u32,
-    _pad0: u32,
+    // Output words a row: `width` (packed), or more where the rows are padded for a copy into
+    // a texture (a multiple of 64 pixels: 256 bytes).
+    pitch: u32,
     _pad1: u32,
 }
 
@@ -76,14 +78,15 @@ fn main(
     if i >= cfg.pixels {
         return;
     }
+    let o = (i / cfg.width) * cfg.pitch + i % cfg.width;
     if cfg.outline != 0u && on_outline(i) {
-        rgba[i] = OUTLINE;
+        rgba[o] = OUTLINE;
         return;
     }
     if cfg.masked != 0u && (shown[i / 32u] & (1u << (i % 32u))) == 0u {
-        rgba[i] = 0xFF000000u;
+        rgba[o] = 0xFF000000u;
         return;
     }
     let p = image[i].xyz * cfg.scale;
-    rgba[i] = srgb8(p.x) | (srgb8(p.y) << 8u) | (srgb8(p.z) << 16u) | 0xFF000000u;
+    rgba[o] = srgb8(p.x) | (srgb8(p.y) << 8u) | (srgb8(p.z) << 16u) | 0xFF000000u;
 }

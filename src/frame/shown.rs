@@ -175,8 +175,8 @@ impl Renderer<'_> {
         let outline = outline && self.roi().is_some();
         let resident = self.prepare_resident(params)?;
         let r = resident.as_ref().expect("prepared above");
-        r.display.set_look(ctx, exposure, outline);
-        let times = run_resident(ctx, r, timed, Some((texture, size)))?;
+        r.display.set_look(ctx, exposure, outline, true);
+        let times = run_resident(ctx, r, timed, Some(texture))?;
         Ok(
             times.map(|(filter_ms, display_ms, gpu_timestamps)| ShownTimes {
                 resident: true,
@@ -263,7 +263,7 @@ impl Renderer<'_> {
         let [w, h] = [self.settings.width, self.settings.height];
         let resident = self.prepare_resident(params)?;
         let r = resident.as_ref().expect("prepared above");
-        r.display.set_look(ctx, exposure, outline);
+        r.display.set_look(ctx, exposure, outline, false);
         let times = run_resident(ctx, r, timed, None)?;
         let rgba = r.display.read(ctx)?;
         Ok(ShownPicture {
@@ -288,11 +288,11 @@ fn run_resident(
     ctx: &crate::gpu::GpuContext,
     r: &Resident,
     timed: bool,
-    copy: Option<(&wgpu::Texture, [u32; 2])>,
+    copy: Option<&wgpu::Texture>,
 ) -> Result<Option<(f64, f64, bool)>, FrameError> {
     let copy_into = |enc: &mut wgpu::CommandEncoder| {
-        if let Some((texture, size)) = copy {
-            r.display.copy_to_texture(enc, texture, size);
+        if let Some(texture) = copy {
+            r.display.copy_to_texture(enc, texture);
         }
     };
     let timer = if timed { PassTimer::new(ctx, 2) } else { None };

@@ -37,8 +37,16 @@ pub struct GpuDisplayParams {
     /// The picture's size (the outline's neighbours).
     pub width: u32,
     pub height: u32,
-    pub _pad0: u32,
+    /// Output words a row: `width`, or [`texture_pitch`] for a copy into a texture.
+    pub pitch: u32,
     pub _pad1: u32,
+}
+
+/// The output's row pitch, in pixels, for a copy into a texture of `width`: a buffer-to-texture
+/// copy of several rows needs rows of a multiple of 256 bytes (64 pixels).
+#[must_use]
+pub fn texture_pitch(width: u32) -> u32 {
+    width.next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT / 4)
 }
 
 /// The compiled kernel and the sRGB table it reads.
@@ -161,6 +169,7 @@ impl DisplayKernel {
                     shown.is_some(),
                     outline_size,
                     false,
+                    false,
                 )),
                 usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             });
@@ -186,9 +195,12 @@ impl DisplayKernel {
                 contents: bytemuck::cast_slice(shown.unwrap_or(&[0u32])),
                 usage: wgpu::BufferUsages::STORAGE,
             });
+        // Room for rows padded for a copy into a texture where the picture's size is known.
+        let words = outline_size.map_or(n, |[w, h]| u64::from(texture_pitch(w)) * u64::from(h));
+        ctx.check_binding("shown picture (rows padded for a texture)", words * 4)?;
         let output = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("shown picture"),
-            size: (n * 4).max(4),
+            size: (words * 4).max(4),
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         });
@@ -257,7 +269,7 @@ impl DisplayKernel {
             .zip(outline)
             .map(|(dgi, (_, size))| OutlineDgi { dgi, size });
         let run = self.prepare(ctx, &input, pixels, shown, bound)?;
-        run.set_look(ctx, exposure, outline.is_some());
+        run.set_look(ctx, exposure, outline.is_some(), false);
         let mut enc = ctx.device.create_command_encoder(&Default::default());
         run.record(&mut enc, None);
         ctx.queue.submit([enc.finish()]);
@@ -266,12 +278,15 @@ impl DisplayKernel {
 }
 
 /// The kernel's parameters; the outline is painted only with a DGI bound (`size`).
+/// The kernel's parameters; with `padded` (only for a picture of known `size`) the output's
+/// rows are [`texture_pitch`] apart, else packed.
 fn display_params(
     pixels: u32,
     scale: f32,
     masked: bool,
     size: Option<[u32; 2]>,
     outline: bool,
+    padded: bool,
 ) -> GpuDisplayParams {
     let [width, height] = size.unwrap_or([pixels, 1]);
     GpuDisplayParams {
@@ -281,21 +296,28 @@ fn display_params(
         outline: u32::from(outline && size.is_some()),
         width,
         height,
-        _pad0: 0,
+        pitch: if padded && size.is_some() {
+            texture_pitch(width)
+        } else {
+            width
+        },
         _pad1: 0,
     }
 }
 
 impl DisplayRun {
-    /// The exposure of the next conversions submitted, and whether they paint the ROI's
-    /// outline (only where a DGI is bound; a uniform written before the submit).
-    pub fn set_look(&self, ctx: &GpuContext, exposure: f32, outline: bool) {
+    /// The exposure of the next conversions submitted, whether they paint the ROI's outline
+    /// (only where a DGI is bound), and whether their rows are padded for
+    /// [`Self::copy_to_texture`] (else packed, as [`Self::read`] takes them); a uniform
+    /// written before the submit.
+    pub fn set_look(&self, ctx: &GpuContext, exposure: f32, outline: bool, for_texture: bool) {
         let params = display_params(
             self.pixels,
             exposure.exp2(),
             self.masked,
             self.outline_size,
             outline,
+            for_texture,
         );
         ctx.queue
             .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
@@ -312,48 +334,30 @@ impl DisplayRun {
         pass.dispatch_workgroups(self.groups[0], self.groups[1], 1);
     }
 
-    /// Records a copy of the shown picture (`size` = width × height, row-major RGBA8) into
-    /// `texture` (that size, four bytes a texel, `COPY_DST`). A buffer-to-texture copy of more
-    /// than one row needs rows of a multiple of 256 bytes: a width that is a multiple of 64 is
-    /// copied at once, any other width a row at a time.
-    pub fn copy_to_texture(
-        &self,
-        enc: &mut wgpu::CommandEncoder,
-        texture: &wgpu::Texture,
-        [w, h]: [u32; 2],
-    ) {
-        let row_bytes = 4 * w;
-        let copy = |enc: &mut wgpu::CommandEncoder, y: u32, rows: u32| {
-            enc.copy_buffer_to_texture(
-                wgpu::TexelCopyBufferInfo {
-                    buffer: &self.output,
-                    // One row needs no row pitch (and an unaligned one would be refused).
-                    layout: wgpu::TexelCopyBufferLayout {
-                        offset: u64::from(y) * u64::from(row_bytes),
-                        bytes_per_row: (rows > 1).then_some(row_bytes),
-                        rows_per_image: (rows > 1).then_some(rows),
-                    },
+    /// Records a copy of the shown picture, converted with its rows padded
+    /// ([`Self::set_look`] `for_texture`), into `texture` (the picture's size, four bytes a
+    /// texel, `COPY_DST`): one copy of rows [`texture_pitch`] apart. Only for a run bound with
+    /// its picture's size (a DGI).
+    pub fn copy_to_texture(&self, enc: &mut wgpu::CommandEncoder, texture: &wgpu::Texture) {
+        let [w, h] = self
+            .outline_size
+            .expect("a picture copied into a texture has a known size");
+        enc.copy_buffer_to_texture(
+            wgpu::TexelCopyBufferInfo {
+                buffer: &self.output,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(4 * texture_pitch(w)),
+                    rows_per_image: Some(h),
                 },
-                wgpu::TexelCopyTextureInfo {
-                    texture,
-                    mip_level: 0,
-                    origin: wgpu::Origin3d { x: 0, y, z: 0 },
-                    aspect: wgpu::TextureAspect::All,
-                },
-                wgpu::Extent3d {
-                    width: w,
-                    height: rows,
-                    depth_or_array_layers: 1,
-                },
-            );
-        };
-        if row_bytes % wgpu::COPY_BYTES_PER_ROW_ALIGNMENT == 0 {
-            copy(enc, 0, h);
-        } else {
-            for y in 0..h {
-                copy(enc, y, 1);
-            }
-        }
+            },
+            texture.as_image_copy(),
+            wgpu::Extent3d {
+                width: w,
+                height: h,
+                depth_or_array_layers: 1,
+            },
+        );
     }
 
     /// The shown picture's bytes (RGBA8, row-major), read back.
@@ -746,7 +750,7 @@ mod tests {
         assert_same_layout(
             &m,
             "DisplayParams",
-            &crate::rust_layout!(GpuDisplayParams; pixels, scale, masked, outline, width, height, _pad0, _pad1),
+            &crate::rust_layout!(GpuDisplayParams; pixels, scale, masked, outline, width, height, pitch, _pad1),
         );
         assert!(SRGB8_WGSL.contains(&format!("const SHIFT: u32 = {GPU_TABLE_SHIFT}u;")));
         assert!(SRGB8_WGSL.contains(&format!(
@@ -805,7 +809,7 @@ mod tests {
             .prepare_on_grid(&ctx, &input, n, Some(&shown), None, 3)
             .unwrap();
         assert_eq!(run.groups, [3, 7]);
-        run.set_look(&ctx, 0.5, true);
+        run.set_look(&ctx, 0.5, true, false);
         let mut enc = ctx.device.create_command_encoder(&Default::default());
         run.record(&mut enc, None);
         ctx.queue.submit([enc.finish()]);
