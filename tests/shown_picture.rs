@@ -331,20 +331,12 @@ fn picture_texture(
     [w, h]: [u32; 2],
     format: wgpu::TextureFormat,
 ) -> wgpu::Texture {
-    ctx.device.create_texture(&wgpu::TextureDescriptor {
-        label: Some("test picture"),
-        size: wgpu::Extent3d {
-            width: w,
-            height: h,
-            depth_or_array_layers: 1,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
+    ctx.picture_texture(
+        "test picture",
+        [w, h],
         format,
-        usage: wgpu::TextureUsages::COPY_DST | wgpu::TextureUsages::COPY_SRC,
-        view_formats: &[],
-    })
+        wgpu::TextureUsages::COPY_DST | wgpu::TextureUsages::COPY_SRC,
+    )
 }
 
 /// The picture written into a texture on the GPU (what a window drawing with the renderer's

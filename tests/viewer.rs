@@ -385,20 +385,12 @@ fn the_window_picture_written_into_a_texture_is_the_window_pictures_bytes() {
     state.click(&model, DVec2::new(20.5, 12.5), [W, H]);
     let mut core = ViewerCore::new(&backend, &scene, &model, base(&scene), state).unwrap();
     assert!(core.gpu().is_some());
-    let texture = ctx.device.create_texture(&wgpu::TextureDescriptor {
-        label: Some("test window picture"),
-        size: wgpu::Extent3d {
-            width: W,
-            height: H,
-            depth_or_array_layers: 1,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format: wgpu::TextureFormat::Rgba8Unorm,
-        usage: wgpu::TextureUsages::COPY_DST | wgpu::TextureUsages::COPY_SRC,
-        view_formats: &[],
-    });
+    let texture = ctx.picture_texture(
+        "test window picture",
+        [W, H],
+        wgpu::TextureFormat::Rgba8Unorm,
+        wgpu::TextureUsages::COPY_DST | wgpu::TextureUsages::COPY_SRC,
+    );
     let mut last = Vec::new();
     for frame in 0..3 {
         core.step(ONE).unwrap();

@@ -157,7 +157,15 @@ pub fn run(
     }
     g.iterate(WARMUP_FRAMES)?;
     let rounds = cfg.rounds.max(1);
-    let texture = picture_texture(ctx, cfg.size);
+    // The texture the window's upload and the into-texture path write.
+    let texture = ctx.picture_texture(
+        "bench picture texture",
+        cfg.size,
+        wgpu::TextureFormat::Rgba8UnormSrgb,
+        wgpu::TextureUsages::COPY_DST
+            | wgpu::TextureUsages::COPY_SRC
+            | wgpu::TextureUsages::TEXTURE_BINDING,
+    );
     let (mut host, mut resident, mut into) = (Vec::new(), Vec::new(), Vec::new());
     let mut stamps = false;
     for round in 0..rounds {
@@ -221,26 +229,6 @@ pub fn run(
 
 /// One round's times: [whole, read-back, filter, display, statistics, upload].
 type Times = [f64; 6];
-
-/// The texture the window's upload and the into-texture path write (the picture's size).
-fn picture_texture(ctx: &GpuContext, [w, h]: [u32; 2]) -> wgpu::Texture {
-    ctx.device.create_texture(&wgpu::TextureDescriptor {
-        label: Some("bench picture texture"),
-        size: wgpu::Extent3d {
-            width: w,
-            height: h,
-            depth_or_array_layers: 1,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format: wgpu::TextureFormat::Rgba8UnormSrgb,
-        usage: wgpu::TextureUsages::COPY_DST
-            | wgpu::TextureUsages::COPY_SRC
-            | wgpu::TextureUsages::TEXTURE_BINDING,
-        view_formats: &[],
-    })
-}
 
 /// The window's upload of a picture's bytes into `texture`, waited for (ms).
 fn upload(ctx: &GpuContext, texture: &wgpu::Texture, rgba: &[u8]) -> Result<f64, GpuError> {

@@ -478,6 +478,31 @@ impl GpuContext {
         Ok(())
     }
 
+    /// A 2D texture of `size` (one layer, one mip level, no multisampling) in `format` with
+    /// `usage`: a picture's texture (the window's, and the benchmarks' and tests').
+    pub fn picture_texture(
+        &self,
+        label: &str,
+        [width, height]: [u32; 2],
+        format: wgpu::TextureFormat,
+        usage: wgpu::TextureUsages,
+    ) -> wgpu::Texture {
+        self.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some(label),
+            size: wgpu::Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format,
+            usage,
+            view_formats: &[],
+        })
+    }
+
     /// The texels of a four-byte-a-texel 2D `texture` (which needs `COPY_SRC`), row-major
     /// without padding: copied into a buffer whose rows are padded to
     /// [`wgpu::COPY_BYTES_PER_ROW_ALIGNMENT`], read back, and the padding dropped.

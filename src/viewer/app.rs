@@ -135,21 +135,13 @@ impl<'a> ViewerApp<'a> {
             return Ok(false);
         }
         if self.gpu_picture.as_ref().is_none_or(|g| g.size != size) {
-            let texture = ctx.device.create_texture(&wgpu::TextureDescriptor {
-                label: Some("raygun picture"),
-                size: wgpu::Extent3d {
-                    width: size[0],
-                    height: size[1],
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                // egui's own textures: sRGB-encoded bytes in an Rgba8Unorm texture.
-                format: wgpu::TextureFormat::Rgba8Unorm,
-                usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-                view_formats: &[],
-            });
+            // egui's own textures: sRGB-encoded bytes in an Rgba8Unorm texture.
+            let texture = ctx.picture_texture(
+                "raygun picture",
+                size,
+                wgpu::TextureFormat::Rgba8Unorm,
+                wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            );
             let view = texture.create_view(&Default::default());
             let mut renderer = rs.renderer.write();
             let nearest = wgpu::FilterMode::Nearest;

@@ -615,15 +615,8 @@ impl<'a> ViewerCore<'a> {
     pub fn window_picture_into(&mut self, texture: &wgpu::Texture) -> Result<bool, ViewerError> {
         let t0 = Instant::now();
         let params = self.state.filter_params();
-        let resident = match &self.engine {
-            Engine::Local(r) => {
-                self.state.overlay == Overlay::Image
-                    && !self.state.wall_view
-                    && r.shows_on_gpu(&params)
-            }
-            Engine::Cluster(_) => false,
-        };
-        if !resident {
+        // The wall view rearranges the bytes on the CPU.
+        if !self.picture_stays_on_gpu(&params) || self.state.wall_view {
             return Ok(false);
         }
         self.refresh_gpu_stats()?;
@@ -643,6 +636,16 @@ impl<'a> ViewerCore<'a> {
         }
         self.last_picture = Some((Instant::now(), t0.elapsed(), self.look()));
         Ok(true)
+    }
+
+    /// Whether the window's picture with `params` is made where the accumulation lives: one
+    /// process's renderer that keeps its picture on the GPU ([`Renderer::shows_on_gpu`]) under
+    /// the image overlay (the others show no filtered picture).
+    fn picture_stays_on_gpu(&self, params: &crate::filter::FilterParams) -> bool {
+        match &self.engine {
+            Engine::Local(r) => self.state.overlay == Overlay::Image && r.shows_on_gpu(params),
+            Engine::Cluster(_) => false,
+        }
     }
 
     /// Every [`STATS_PERIOD`], the statistics measured where a GPU renderer's accumulation
@@ -691,11 +694,7 @@ impl<'a> ViewerCore<'a> {
 
     fn make_window_picture(&mut self) -> Result<WindowPicture, ViewerError> {
         let params = self.state.filter_params();
-        let resident = match &self.engine {
-            Engine::Local(r) => self.state.overlay == Overlay::Image && r.shows_on_gpu(&params),
-            Engine::Cluster(_) => false,
-        };
-        if !resident {
+        if !self.picture_stays_on_gpu(&params) {
             // Another overlay than the image shows no filtered picture: none is made.
             let with_image = self.state.overlay == Overlay::Image;
             let p = self.compose(self.console_every(), with_image)?;

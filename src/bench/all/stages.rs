@@ -116,20 +116,12 @@ pub fn measure(
     let filter_stage = Filter::new(backend);
     let resident = picture != PicturePath::Host && g.shows_on_gpu(filter);
     let texture = match (backend, resident && picture == PicturePath::Texture) {
-        (Backend::Gpu(ctx), true) => Some(ctx.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("stages picture"),
-            size: wgpu::Extent3d {
-                width: w,
-                height: h,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::Rgba8Unorm,
-            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-            view_formats: &[],
-        })),
+        (Backend::Gpu(ctx), true) => Some(ctx.picture_texture(
+            "stages picture",
+            [w, h],
+            wgpu::TextureFormat::Rgba8Unorm,
+            wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        )),
         _ => None,
     };
     let n = iterations.max(1);
