@@ -277,3 +277,97 @@ fn record_stops_on_ctrl_c_and_keeps_every_datagram() {
     assert!(lines.len() > 10, "{} lines", lines.len());
     assert!(text.contains(&format!("fr {}", sent - 1)), "{text}");
 }
+
+/// `bench trace --trace-kernel` times the trace kernel's variants side by side and labels every
+/// row; `RAYGUN_TRACE_KERNEL` compiles another variant for any command, and a guided render
+/// made with it writes the default kernel's files byte for byte; bad names are refused by name.
+#[test]
+fn trace_kernel_variants_are_timed_side_by_side_and_render_the_same_files() {
+    let o = raygun(&[
+        "bench",
+        "trace",
+        "--backend",
+        "gpu",
+        "--scene",
+        "builtin:cornell",
+        "--size",
+        "32,18",
+        "--spp",
+        "1",
+        "--json",
+        "--trace-kernel",
+        "function,workgroup+unchecked",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = String::from_utf8_lossy(&o.stdout);
+    let json: serde_json::Value = serde_json::from_str(&out[out.find('{').unwrap()..]).unwrap();
+    let kernels: Vec<&str> = json["rows"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r["kernel"].as_str().unwrap())
+        .collect();
+    assert_eq!(kernels, ["function", "workgroup+unchecked"]);
+
+    let o = raygun(&[
+        "bench",
+        "trace",
+        "--backend",
+        "cpu",
+        "--scene",
+        "builtin:cornell",
+        "--size",
+        "8,8",
+        "--spp",
+        "1",
+        "--trace-kernel",
+        "private",
+    ]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--backend gpu"));
+    let o = raygun(&["bench", "trace", "--trace-kernel", "shared"]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("function, private or workgroup"));
+
+    let dir = support::tmp_dir("trace-kernel-env");
+    let render = |name: &str, variant: Option<&str>| {
+        let out = dir.join(name);
+        let mut c = support::command(
+            std::path::Path::new(support::ROOT),
+            &[
+                "render",
+                "--scene",
+                "builtin:cornell-light",
+                "--backend",
+                "gpu",
+                "--size",
+                "48,27",
+                "--iterations",
+                "3",
+                "--guide",
+                "pose:0,0,1:0,0,-1:20",
+                "--display",
+                "hornet",
+            ],
+        );
+        c.arg("--out").arg(&out);
+        if let Some(v) = variant {
+            c.env("RAYGUN_TRACE_KERNEL", v);
+        }
+        (c.output().unwrap(), out)
+    };
+    let (a, a_file) = render("function.exr", None);
+    assert!(a.status.success(), "{}", String::from_utf8_lossy(&a.stderr));
+    let (b, b_file) = render("private.exr", Some("private+unchecked"));
+    assert!(b.status.success(), "{}", String::from_utf8_lossy(&b.stderr));
+    assert!(
+        String::from_utf8_lossy(&b.stderr).contains("trace kernel private+unchecked")
+            || String::from_utf8_lossy(&b.stdout).contains("trace kernel private+unchecked"),
+        "the run names its kernel"
+    );
+    assert!(std::fs::read(&a_file).unwrap() == std::fs::read(&b_file).unwrap());
+    let (bad, _) = render("bad.exr", Some("stack"));
+    assert!(!bad.status.success());
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(err.contains("RAYGUN_TRACE_KERNEL=\"stack\""), "{err}");
+}

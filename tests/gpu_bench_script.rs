@@ -6,12 +6,13 @@
 use std::path::Path;
 use std::process::Command;
 
-const GROUPS: [&str; 14] = [
+const GROUPS: [&str; 15] = [
     "adapter",
     "picture",
     "dgi",
     "schedule",
     "trace",
+    "kernels",
     "guided",
     "native",
     "filter",
@@ -106,12 +107,17 @@ fn the_smoke_run_leaves_a_summary_and_a_tarball_that_names_every_group() {
         "sizes/trace-8x4.md",
         "readback/readback.md",
         "picture/picture.md",
+        "kernels/kernels.md",
     ] {
         let p = unpacked.join(table);
         assert!(
             std::fs::metadata(&p).is_ok_and(|m| m.len() > 0),
             "{table} missing or empty"
         );
+    }
+    let kernels = std::fs::read_to_string(unpacked.join("kernels/kernels.md")).unwrap();
+    for variant in ["| private |", "| workgroup+unchecked |", "÷ function"] {
+        assert!(kernels.contains(variant), "{variant}:\n{kernels}");
     }
     assert!(unpacked.join("guided/fig5.png").exists());
     std::fs::remove_dir_all(&out).ok();

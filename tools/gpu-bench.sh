@@ -99,13 +99,14 @@ setup_device() {
 # The groups, most important first: NAME BUDGET_SECONDS (the H200's; smoke mode has its own).
 # The full report goes last: on an H200 it runs for minutes (its 4K convergence curves), and
 # takes what the others leave.
-BENCH_GROUPS=(adapter picture dgi schedule trace guided native filter all-quick wall cluster sizes
-  readback all)
-declare -A BUDGET=([adapter]=20 [picture]=40 [dgi]=60 [schedule]=30 [trace]=90 [guided]=120 [native]=60
-  [filter]=45 [all-quick]=60 [wall]=60 [cluster]=60 [sizes]=40 [readback]=30 [all]=300)
-declare -A SMOKE_BUDGET=([adapter]=10 [picture]=10 [dgi]=20 [schedule]=20 [trace]=20 [guided]=40
-  [native]=20 [filter]=30 [all-quick]=60 [wall]=20 [cluster]=20 [sizes]=20 [readback]=10
-  [all]=60)
+BENCH_GROUPS=(adapter picture dgi schedule trace kernels guided native filter all-quick wall cluster
+  sizes readback all)
+declare -A BUDGET=([adapter]=20 [picture]=40 [dgi]=60 [schedule]=30 [trace]=90 [kernels]=90
+  [guided]=120 [native]=60 [filter]=45 [all-quick]=60 [wall]=60 [cluster]=60 [sizes]=40
+  [readback]=30 [all]=300)
+declare -A SMOKE_BUDGET=([adapter]=10 [picture]=10 [dgi]=20 [schedule]=20 [trace]=20 [kernels]=30
+  [guided]=40 [native]=20 [filter]=30 [all-quick]=60 [wall]=20 [cluster]=20 [sizes]=20
+  [readback]=10 [all]=60)
 
 # One group's command line (printed, then run by `bash -c` in `run_groups`).
 group_command() {
@@ -116,6 +117,13 @@ group_command() {
     dgi) echo "$BIN bench dgi --backend gpu --size $s --fov 10,30,60 --reps $REPS --cpu-reps 1 --out $d/dgi.md" ;;
     schedule) echo "$BIN bench schedule --backend gpu --size $s --fov 10,30,60 --order coherent,scattered --reps $REPS --cpu-reps 1 --out $d/schedule.md" ;;
     trace) echo "$BIN bench trace --backend gpu --size $s --scene builtin:cornell,$CITY --spp $SPP --out $d/trace.md" ;;
+    kernels)
+      # The trace kernel's variants side by side (frames interleaved): where the traversal
+      # stack lives, and wgpu's run-time checks on or off. Same pictures, different code.
+      if "$BIN" bench trace --help 2>/dev/null | grep -q -- '--trace-kernel'; then
+        echo "$BIN bench trace --backend gpu --size $s --scene builtin:cornell,$CITY --spp $SPP --trace-kernel function,private,workgroup,function+unchecked,private+unchecked,workgroup+unchecked --out $d/kernels.md"
+      fi
+      ;;
     guided) echo "$BIN bench guided --backend gpu --size $s --scene builtin:cornell --fov 10,20,30,40,50,60 --iterations $ITERATIONS --reference-spp $REFERENCE_SPP --plot $d/fig5.png --out $d/guided.md" ;;
     native)
       # A guided iteration at the canvas's own resolution (HORNET: 73.8 MP), wall camera.

@@ -81,6 +81,9 @@ const NO_TILE: u32 = 0xffffffffu;
 
 var<private> rays_traced: u32;
 var<workgroup> workgroup_rays: atomic<u32>;
+// This thread's index in its workgroup (the workgroup-memory traversal stack's variant,
+// src/trace/gpu.rs `TraceStack::Workgroup`, indexes its entries by it).
+var<private> trace_lane: u32;
 
 fn rand4(pixel: u32, sample: u32, dim: u32) -> vec4<f32> {
     let r = pcg4d(vec4<u32>(pixel, sample, params.seed, STREAM_TRACE + dim));
@@ -604,6 +607,7 @@ fn trace_sample(pixel: u32, sample: u32, tile: u32) -> vec3<f32> {
 @compute @workgroup_size(64)
 fn trace(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
     // No early return: the ray count is reduced per workgroup behind a barrier.
+    trace_lane = li;
     // `slot` indexes this band's buffers; `pixel` is the image pixel it holds.
     var slot = 0u;
     var pixel = 0u;

@@ -15,6 +15,7 @@ use crate::frame::Renderer;
 use crate::gpu::{Backend, GpuError};
 use crate::scene::Scene;
 use crate::trace::camera::CameraError;
+use crate::trace::gpu::TraceVariant;
 use crate::trace::wall::{WallCameraError, WallSpec};
 
 /// What to measure.
@@ -47,6 +48,8 @@ pub struct TraceBenchRow {
     pub scene: String,
     /// "pinhole" (the scene's camera) or "wall" (the wall camera).
     pub camera: &'static str,
+    /// The GPU trace kernel's variant ([`TraceVariant`]); none on the CPU.
+    pub kernel: Option<String>,
     /// Pixels traced per frame (the wall camera skips those no tile shows).
     pub pixels: u64,
     pub triangles: usize,
@@ -87,6 +90,8 @@ pub enum TraceBenchError {
         #[source]
         source: WallCameraError,
     },
+    #[error("--trace-kernel: the trace kernel's variants are GPU kernels; use --backend gpu")]
+    KernelsNeedGpu,
 }
 
 /// The paper's full-frame figure and our target for a scene name ("cornell…", "city…").
@@ -100,15 +105,35 @@ fn reference(scene: &str) -> (Option<f64>, Option<f64>) {
     }
 }
 
-/// Measures each scene (with `wall`, the pinhole and the wall camera interleaved); `progress`
-/// is told the scene name before it starts.
+/// Measures each scene (with `wall`, the pinhole and the wall camera interleaved; with
+/// `kernels`, each of the trace kernel's variants on `backend`'s GPU, interleaved too: one
+/// frame of each in turn, so that every variant sees the same GPU state); `progress` is told
+/// the scene name before it starts.
 pub fn run(
     backend: &Backend,
     scenes: &[(String, Scene)],
     cfg: &TraceBenchConfig,
     wall: Option<&WallSpec>,
+    kernels: &[TraceVariant],
     mut progress: impl FnMut(&str),
 ) -> Result<Vec<TraceBenchRow>, TraceBenchError> {
+    let variants: Vec<Backend> = match backend {
+        Backend::Gpu(ctx) => kernels
+            .iter()
+            .map(|&v| Ok(Backend::Gpu(Box::new(ctx.with_trace_variant(v)?))))
+            .collect::<Result<_, GpuError>>()?,
+        Backend::Cpu if kernels.is_empty() => Vec::new(),
+        Backend::Cpu => return Err(TraceBenchError::KernelsNeedGpu),
+    };
+    let engines: Vec<&Backend> = if variants.is_empty() {
+        vec![backend]
+    } else {
+        variants.iter().collect()
+    };
+    let kernel_of = |b: &Backend| match b {
+        Backend::Gpu(ctx) => Some(ctx.trace_variant().to_string()),
+        Backend::Cpu => None,
+    };
     let mut rows = Vec::new();
     for (name, scene) in scenes {
         progress(name);
@@ -119,17 +144,27 @@ pub fn run(
                     source,
                 }
             })?;
-        let mut renderers = vec![("pinhole", Renderer::full(backend, scene, settings)?)];
-        if let Some(spec) = wall {
-            let wc = spec.camera(cfg.size, &settings.camera).map_err(|source| {
-                TraceBenchError::Wall {
-                    scene: name.clone(),
-                    source,
-                }
+        let wall_camera = wall
+            .map(|spec| spec.camera(cfg.size, &settings.camera))
+            .transpose()
+            .map_err(|source| TraceBenchError::Wall {
+                scene: name.clone(),
+                source,
             })?;
-            renderers.push(("wall", Renderer::full_wall(backend, scene, settings, wc)?));
+        let mut renderers = Vec::new();
+        for &engine in &engines {
+            let kernel = kernel_of(engine);
+            renderers.push((
+                "pinhole",
+                kernel.clone(),
+                Renderer::full(engine, scene, settings)?,
+            ));
+            if let Some(wc) = &wall_camera {
+                let r = Renderer::full_wall(engine, scene, settings, wc.clone())?;
+                renderers.push(("wall", kernel, r));
+            }
         }
-        for (_, r) in &mut renderers {
+        for (_, _, r) in &mut renderers {
             r.iterate(cfg.warmup)?;
         }
         let mut ms = vec![Vec::new(); renderers.len()];
@@ -137,7 +172,7 @@ pub fn run(
         let mut pixels = vec![0u64; renderers.len()];
         let mut stamps = false;
         for _ in 0..cfg.frames.max(1) {
-            for (k, (_, r)) in renderers.iter_mut().enumerate() {
+            for (k, (_, _, r)) in renderers.iter_mut().enumerate() {
                 let s = r.run_frame(true)?;
                 ms[k].push(s.ms_trace.unwrap_or(f64::NAN));
                 rays[k] += s.rays.unwrap_or(0);
@@ -146,7 +181,7 @@ pub fn run(
             }
         }
         let frames = f64::from(cfg.frames.max(1));
-        for (k, (camera, r)) in renderers.iter().enumerate() {
+        for (k, (camera, kernel, r)) in renderers.iter().enumerate() {
             let med = median(ms[k].clone());
             let ms_min = ms[k].iter().copied().fold(f64::NAN, f64::min);
             let megasamples = pixels[k] as f64 / 1e6;
@@ -155,6 +190,7 @@ pub fn run(
             rows.push(TraceBenchRow {
                 scene: name.clone(),
                 camera,
+                kernel: kernel.clone(),
                 pixels: pixels[k],
                 triangles: scene.triangles.len(),
                 bvh_nodes: r.packed.bvh.cwbvh.nodes.len(),
@@ -174,18 +210,30 @@ pub fn run(
     Ok(rows)
 }
 
-/// The rows as a Markdown table.
+/// The rows as a Markdown table; where several trace kernels were measured, each row's
+/// median frame time also as a ratio to the first kernel's on the same scene and camera.
 #[must_use]
 pub fn markdown(rows: &[TraceBenchRow], device: &str) -> String {
+    let first_kernel = rows.first().and_then(|r| r.kernel.clone());
+    let several = rows.iter().any(|r| r.kernel != first_kernel);
+    let (ratio_head, ratio_rule) = if several {
+        (
+            format!(" ÷ {} |", first_kernel.as_deref().unwrap_or("–")),
+            "---|",
+        )
+    } else {
+        (String::new(), "")
+    };
     let mut s = format!(
-        "Device: {device}\n\n| scene | camera | pixels traced | triangles | size | ms/frame (median) | ms/megasample | Mrays/s | rays/pixel | paper ms/frame (3840×2160, GTX 980) | target ms/frame (3840×2160, H100) |\n|---|---|---|---|---|---|---|---|---|---|---|\n"
+        "Device: {device}\n\n| scene | camera | trace kernel | pixels traced | triangles | size | ms/frame (median) | ms/megasample | Mrays/s | rays/pixel | paper ms/frame (3840×2160, GTX 980) | target ms/frame (3840×2160, H100) |{ratio_head}\n|---|---|---|---|---|---|---|---|---|---|---|---|{ratio_rule}\n"
     );
     let opt = |v: Option<f64>| v.map_or("–".to_string(), |v| format!("{v:.0}"));
     for r in rows {
         s += &format!(
-            "| {} | {} | {} | {} | {}×{} | {:.2} | {:.2} | {:.1} | {:.2} | {} | {} |\n",
+            "| {} | {} | {} | {} | {} | {}×{} | {:.2} | {:.2} | {:.1} | {:.2} | {} | {} |",
             r.scene,
             r.camera,
+            r.kernel.as_deref().unwrap_or("– (CPU)"),
             r.pixels,
             r.triangles,
             r.size[0],
@@ -197,6 +245,16 @@ pub fn markdown(rows: &[TraceBenchRow], device: &str) -> String {
             opt(r.paper_ms_per_frame),
             opt(r.target_ms_per_frame),
         );
+        if several {
+            let base = rows
+                .iter()
+                .find(|b| b.scene == r.scene && b.camera == r.camera && b.kernel == first_kernel);
+            s += &match base {
+                Some(b) => format!(" ×{:.3} |", r.ms_per_frame_median / b.ms_per_frame_median),
+                None => " – |".to_string(),
+            };
+        }
+        s += "\n";
     }
     s
 }

@@ -634,6 +634,12 @@ pub struct TraceBenchArgs {
     pub display: Option<String>,
     #[command(flatten)]
     pub wall: crate::cli::wall::WallArgs,
+    /// Time these variants of the GPU trace kernel side by side, their frames interleaved:
+    /// where the traversal stack lives (`function`, as written; `private`; `workgroup`
+    /// memory), each optionally `+unchecked` (without wgpu's run-time checks). Same pictures,
+    /// different code; default: the one `RAYGUN_TRACE_KERNEL` names, else `function`.
+    #[arg(long, value_name = "VARIANT,…", value_delimiter = ',')]
+    pub trace_kernel: Vec<crate::trace::gpu::TraceVariant>,
 }
 
 fn run_trace_bench(args: &TraceBenchArgs) -> anyhow::Result<()> {
@@ -657,7 +663,14 @@ fn run_trace_bench(args: &TraceBenchArgs) -> anyhow::Result<()> {
         ..Default::default()
     };
     let (bar, progress) = bench_progress(args.json, scenes.len() as u64);
-    let rows = crate::bench::trace::run(&backend, &scenes, &cfg, wall.as_ref(), progress)?;
+    let rows = crate::bench::trace::run(
+        &backend,
+        &scenes,
+        &cfg,
+        wall.as_ref(),
+        &args.trace_kernel,
+        progress,
+    )?;
     bar.finish_and_clear();
     let device = backend.describe();
     let text = if args.json {

@@ -120,6 +120,10 @@ pub enum GpuError {
     },
     #[error("RAYGUN_MAX_BINDING={value:?}: expected a number of bytes, at least 4")]
     BadMaxBinding { value: String },
+    #[error("RAYGUN_TRACE_KERNEL={value:?}: {why}")]
+    BadTraceKernel { value: String, why: String },
+    #[error("trace kernel {variant}: {why}")]
+    TraceVariant { variant: String, why: String },
     #[error("GPU buffer read-back failed: {0}")]
     Map(#[from] wgpu::BufferAsyncError),
     #[error("GPU poll failed: {0}")]
@@ -204,6 +208,9 @@ pub struct GpuContext {
     /// them): a viewer reads the same buffers back for every picture, and on a discrete GPU
     /// each fresh mappable buffer is a fresh host allocation the driver must map for the GPU.
     staging: std::sync::Arc<std::sync::Mutex<Vec<wgpu::Buffer>>>,
+    /// The trace kernel's variant ([`crate::trace::gpu::TraceVariant`]): the default unless
+    /// `RAYGUN_TRACE_KERNEL` or [`Self::with_trace_variant`] chose another.
+    trace_variant: crate::trace::gpu::TraceVariant,
 }
 
 /// The most bytes of read-back staging buffers a context keeps for reuse (a 3840×2160
@@ -320,6 +327,10 @@ impl GpuContext {
     /// `RAYGUN_MAX_BINDING=BYTES` caps the storage binding the device is created with (wgpu
     /// then enforces it): a frame larger than one binding is split into bands of rows
     /// (DESIGN.md §11), and this exercises that split on an adapter whose own limit is large.
+    ///
+    /// `RAYGUN_TRACE_KERNEL=VARIANT` compiles the trace kernel as another variant of the same
+    /// function ([`crate::trace::gpu::TraceVariant`]: `function`, `private` or `workgroup`, each
+    /// optionally `+unchecked`), for timing them on a GPU.
     pub fn new() -> Result<Self, GpuError> {
         let cap = match std::env::var("RAYGUN_MAX_BINDING") {
             Ok(v) => Some(
@@ -331,7 +342,17 @@ impl GpuContext {
             ),
             Err(_) => None,
         };
-        pollster::block_on(Self::new_async(cap))
+        let ctx = pollster::block_on(Self::new_async(cap))?;
+        match std::env::var("RAYGUN_TRACE_KERNEL") {
+            Ok(v) => {
+                let variant = v.parse().map_err(|why| GpuError::BadTraceKernel {
+                    value: v.clone(),
+                    why,
+                })?;
+                ctx.with_trace_variant(variant)
+            }
+            Err(_) => Ok(ctx),
+        }
     }
 
     /// [`Self::new`] with the storage binding capped at `max_binding` bytes (rounded down to a
@@ -405,6 +426,26 @@ impl GpuContext {
             timestamps,
             supported,
             staging: std::sync::Arc::default(),
+            trace_variant: crate::trace::gpu::TraceVariant::default(),
+        })
+    }
+
+    /// The trace kernel's variant renderers made on this context compile.
+    #[must_use]
+    pub fn trace_variant(&self) -> crate::trace::gpu::TraceVariant {
+        self.trace_variant
+    }
+
+    /// This context (the same device, queue and kept buffers) with the trace kernel compiled
+    /// as `variant`; an error naming the variant where the adapter's limits do not allow it.
+    pub fn with_trace_variant(
+        &self,
+        variant: crate::trace::gpu::TraceVariant,
+    ) -> Result<Self, GpuError> {
+        variant.check(&self.limits)?;
+        Ok(Self {
+            trace_variant: variant,
+            ..self.clone()
         })
     }
 
@@ -456,20 +497,26 @@ impl GpuContext {
                 "shader_int64": has(wgpu::Features::SHADER_INT64),
             },
             "timestamps_enabled": self.timestamps,
+            "trace_kernel": self.trace_variant.to_string(),
         })
     }
 
-    /// "NAME (API, driver DRIVER INFO)".
+    /// "NAME (API, driver DRIVER INFO)", and ", trace kernel VARIANT" where the trace kernel
+    /// is not the default one (so that every figure it measured says which).
     #[must_use]
     pub fn describe(&self) -> String {
-        format!(
+        let mut s = format!(
             "{} ({:?}, {:?}, driver {} {})",
             self.info.name,
             self.info.backend,
             self.info.device_type,
             self.info.driver,
             self.info.driver_info
-        )
+        );
+        if self.trace_variant != crate::trace::gpu::TraceVariant::default() {
+            s += &format!(", trace kernel {}", self.trace_variant);
+        }
+        s
     }
 
     /// Blocks until all submitted work is done.

@@ -142,15 +142,184 @@ impl GpuTraceParams {
     }
 }
 
+/// Where the trace kernel keeps its BVH traversal stack (`STACK_SIZE` = 32 entries of 8
+/// bytes a ray, in `shaders/trace/bvh.wgsl`). Every choice visits the same nodes in the same
+/// order and finds the same hits; they differ only in the memory the GPU uses, which on a GPU
+/// decides how fast a traversal-bound scene (the 343 740-triangle city) traces. Chosen per
+/// context ([`GpuContext::with_trace_variant`], `RAYGUN_TRACE_KERNEL`) so that one binary can
+/// time every choice on a lent GPU.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum TraceStack {
+    /// A variable of `traverse`, as written: WGSL zero-initialises it at every call, so every
+    /// ray first writes 256 bytes of the thread's local memory.
+    #[default]
+    Function,
+    /// A module-scope private variable: the same local memory, zeroed once a thread.
+    Private,
+    /// Workgroup (shared) memory, entry `i` of thread `l` at `i · WORKGROUP + l` (16 KiB a
+    /// workgroup of 64; wgpu zeroes it once a workgroup).
+    Workgroup,
+}
+
+/// A compiled variant of the trace kernel: the same function (tested against the default bit
+/// for bit), different code.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct TraceVariant {
+    pub stack: TraceStack,
+    /// Compiled without wgpu's run-time checks (index clamping of the kernel's arrays, loop
+    /// counters, integer-division guards): `wgpu::ShaderRuntimeChecks::unchecked`. Sound
+    /// because the kernel bounds every index itself (the stack's pushes and pops, the lists by
+    /// their counts, the scene's indices by construction) and every loop ends; for timing.
+    pub unchecked: bool,
+}
+
+/// Workgroup memory the [`TraceStack::Workgroup`] stack takes (bytes).
+pub const WORKGROUP_STACK_BYTES: u32 = 32 * 8 * WORKGROUP;
+
+impl TraceVariant {
+    /// Every variant, the default first.
+    pub const ALL: [Self; 6] = [
+        Self::new(TraceStack::Function, false),
+        Self::new(TraceStack::Private, false),
+        Self::new(TraceStack::Workgroup, false),
+        Self::new(TraceStack::Function, true),
+        Self::new(TraceStack::Private, true),
+        Self::new(TraceStack::Workgroup, true),
+    ];
+
+    #[must_use]
+    pub const fn new(stack: TraceStack, unchecked: bool) -> Self {
+        Self { stack, unchecked }
+    }
+
+    /// The kernel's source for this variant: `TRACE_WGSL` with the stack's declaration and
+    /// accesses moved.
+    #[must_use]
+    pub fn source(self) -> std::borrow::Cow<'static, str> {
+        const LOCAL: &str = "    var stack: array<vec2<u32>, STACK_SIZE>;\n";
+        const PUSH: &str = "stack[sp] = current;";
+        const POP: &str = "current = stack[sp];";
+        let once = |s: &str, from: &str, to: &str| {
+            assert_eq!(
+                s.matches(from).count(),
+                1,
+                "trace kernel: {from:?} not found once"
+            );
+            s.replacen(from, to, 1)
+        };
+        match self.stack {
+            TraceStack::Function => TRACE_WGSL.into(),
+            TraceStack::Private => {
+                let s = once(TRACE_WGSL, LOCAL, "");
+                (s + "\nvar<private> stack: array<vec2<u32>, STACK_SIZE>;\n").into()
+            }
+            TraceStack::Workgroup => {
+                let s = once(TRACE_WGSL, LOCAL, "");
+                let s = once(
+                    &s,
+                    PUSH,
+                    "trace_stack[sp * WORKGROUP + trace_lane] = current;",
+                );
+                let s = once(
+                    &s,
+                    POP,
+                    "current = trace_stack[sp * WORKGROUP + trace_lane];",
+                );
+                (s + "\nvar<workgroup> trace_stack: array<vec2<u32>, STACK_SIZE * WORKGROUP>;\n")
+                    .into()
+            }
+        }
+    }
+
+    /// Whether `limits` allow this variant (the workgroup stack's 16 KiB beside the kernel's
+    /// own 4 bytes).
+    pub fn check(self, limits: &wgpu::Limits) -> Result<(), GpuError> {
+        let needs = match self.stack {
+            TraceStack::Workgroup => WORKGROUP_STACK_BYTES + 4,
+            _ => 4,
+        };
+        if needs > limits.max_compute_workgroup_storage_size {
+            return Err(GpuError::TraceVariant {
+                variant: self.to_string(),
+                why: format!(
+                    "needs {needs} bytes of workgroup memory; this adapter allows {}",
+                    limits.max_compute_workgroup_storage_size
+                ),
+            });
+        }
+        Ok(())
+    }
+}
+
+impl std::fmt::Display for TraceVariant {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self.stack {
+            TraceStack::Function => "function",
+            TraceStack::Private => "private",
+            TraceStack::Workgroup => "workgroup",
+        })?;
+        if self.unchecked {
+            f.write_str("+unchecked")?;
+        }
+        Ok(())
+    }
+}
+
+impl std::str::FromStr for TraceVariant {
+    type Err = String;
+
+    /// `function`, `private` or `workgroup` (the stack), each optionally `+unchecked`.
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let t = s.trim();
+        let (stack, unchecked) = match t.strip_suffix("+unchecked") {
+            Some(stack) => (stack, true),
+            None => (t, false),
+        };
+        let stack = match stack {
+            "function" => TraceStack::Function,
+            "private" => TraceStack::Private,
+            "workgroup" => TraceStack::Workgroup,
+            _ => {
+                return Err(format!(
+                    "unknown trace kernel {s:?}: expected function, private or workgroup, \
+                     each optionally followed by +unchecked"
+                ));
+            }
+        };
+        Ok(Self { stack, unchecked })
+    }
+}
+
 /// The compiled kernel.
 pub struct TraceKernel {
     pipeline: wgpu::ComputePipeline,
 }
 
 impl TraceKernel {
+    /// The kernel in the variant `ctx` was made with ([`GpuContext::trace_variant`]).
     #[must_use]
     pub fn new(ctx: &GpuContext) -> Self {
-        let pipeline = ctx.compute_pipeline("trace/path", TRACE_WGSL, "trace");
+        let variant = ctx.trace_variant();
+        let label = format!("trace/path ({variant})");
+        let source = variant.source();
+        let module = if variant.unchecked {
+            let desc = wgpu::ShaderModuleDescriptor {
+                label: Some(&label),
+                source: wgpu::ShaderSource::Wgsl(source),
+            };
+            // SAFETY: the kernel keeps every index in bounds itself — the stack is pushed only
+            // below STACK_SIZE and popped only above 0, the pixel lists are read below their
+            // counts, the scene's indices come from its own packing — and every loop ends
+            // (bounded by the path depth, the stack and the sampling tables' sizes); tests
+            // compare its renders with the checked kernel's bit for bit.
+            unsafe {
+                ctx.device
+                    .create_shader_module_trusted(desc, wgpu::ShaderRuntimeChecks::unchecked())
+            }
+        } else {
+            ctx.shader_module(&label, &source)
+        };
+        let pipeline = ctx.compute_pipeline_in(&module, &label, "trace");
         Self { pipeline }
     }
 }
@@ -1021,6 +1190,72 @@ mod tests {
         // The luminance the one-process kernel and the CPU use.
         let lum = "return 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z;";
         assert!(ACCUM_WGSL.contains(lum) && TRACE_WGSL.contains(lum));
+    }
+
+    #[test]
+    fn every_trace_kernel_variant_validates_and_names_itself() {
+        // The workgroup stack's size is the kernel's stack and workgroup.
+        assert!(TRACE_WGSL.contains("const STACK_SIZE: u32 = 32u;"));
+        assert!(TRACE_WGSL.contains(&format!("const WORKGROUP: u32 = {WORKGROUP}u;")));
+        assert_eq!(WORKGROUP_STACK_BYTES, 32 * 8 * WORKGROUP);
+        let mut sources = std::collections::HashSet::new();
+        for v in TraceVariant::ALL {
+            let source = v.source();
+            validated(&format!("path.wgsl ({v})"), &source);
+            // Only the function-scope variant zeroes a stack in `traverse`.
+            let local = source.contains("    var stack: array<vec2<u32>, STACK_SIZE>;\n");
+            assert_eq!(local, v.stack == TraceStack::Function, "{v}");
+            assert_eq!(
+                source.contains("var<workgroup> trace_stack"),
+                v.stack == TraceStack::Workgroup,
+                "{v}"
+            );
+            sources.insert(source.into_owned());
+            assert_eq!(v.to_string().parse::<TraceVariant>(), Ok(v));
+        }
+        // Three sources (the checks are a compile option, not a source change).
+        assert_eq!(sources.len(), 3);
+        assert_eq!(TraceVariant::default().to_string(), "function");
+        assert_eq!(
+            " workgroup+unchecked ".parse::<TraceVariant>(),
+            Ok(TraceVariant::new(TraceStack::Workgroup, true))
+        );
+        for bad in [
+            "",
+            "shared",
+            "workgroup+",
+            "+unchecked",
+            "unchecked+workgroup",
+        ] {
+            let err = bad.parse::<TraceVariant>().unwrap_err();
+            assert!(
+                err.contains("function, private or workgroup"),
+                "{bad:?}: {err}"
+            );
+        }
+    }
+
+    #[test]
+    fn the_workgroup_stack_is_refused_where_the_adapter_lacks_the_memory() {
+        let mut limits = wgpu::Limits {
+            max_compute_workgroup_storage_size: WORKGROUP_STACK_BYTES + 4,
+            ..wgpu::Limits::default()
+        };
+        for v in TraceVariant::ALL {
+            v.check(&limits).unwrap();
+        }
+        limits.max_compute_workgroup_storage_size = WORKGROUP_STACK_BYTES;
+        let err = TraceVariant::new(TraceStack::Workgroup, false)
+            .check(&limits)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("trace kernel workgroup") && err.contains("16388 bytes"),
+            "{err}"
+        );
+        TraceVariant::new(TraceStack::Private, true)
+            .check(&limits)
+            .unwrap();
     }
 
     #[test]

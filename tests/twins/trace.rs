@@ -146,6 +146,52 @@ fn gpu_and_cpu_twin_agree_on_a_scene_with_every_feature() {
     );
 }
 
+/// Every variant of the trace kernel (where its traversal stack lives, wgpu's run-time checks
+/// on or off) is the same function: the same accumulation to the bit as the default kernel,
+/// on the small city (a tree deep enough that walks push and pop), the Cornell box with its
+/// ceiling light and the scene with every feature (alpha-tested shadow rays, glass, punctual
+/// lights).
+#[test]
+fn every_trace_kernel_variant_renders_the_default_kernels_bits() {
+    use raygun::trace::gpu::TraceVariant;
+    let ctx = GpuContext::for_tests();
+    let data = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/scenes");
+    let scenes = [
+        (
+            "city-small",
+            Scene::load(format!("{data}/city-small.glb")).unwrap(),
+        ),
+        (
+            "cornell-light",
+            Scene::load(format!("{data}/cornell-light.glb")).unwrap(),
+        ),
+        ("every feature", everything()),
+    ];
+    assert_eq!(TraceVariant::ALL[0], TraceVariant::default());
+    for (name, scene) in &scenes {
+        let s = settings(scene, 40, 24, 7, 6);
+        let reference = render_gpu(&ctx, scene, &s, 2);
+        assert!(reference.count.iter().all(|&c| c == 2));
+        assert!(
+            reference.mean_image().iter().any(|c| luminance(*c) > 0.0),
+            "{name} is lit"
+        );
+        for v in &TraceVariant::ALL[1..] {
+            let vctx = ctx.with_trace_variant(*v).unwrap();
+            assert_eq!(vctx.trace_variant(), *v);
+            let got = render_gpu(&vctx, scene, &s, 2);
+            assert_eq!(got.count, reference.count, "{name}, {v}: counts");
+            let differing = (got.sum.iter().zip(&reference.sum))
+                .filter(|(a, b)| a.map(f32::to_bits) != b.map(f32::to_bits))
+                .count();
+            assert_eq!(
+                differing, 0,
+                "{name}, {v}: pixels whose sums differ from the default's"
+            );
+        }
+    }
+}
+
 /// A cluster rank's samples (the kernel's compact mode, `SampleRun`, DESIGN.md §12): the very
 /// bits the accumulating kernel adds, in any list order, and the CPU twin's samples
 /// (`samples_cpu`) to rounding, rays included — for the sample index asked, not another.

@@ -250,6 +250,7 @@ pub fn run(
             ..TraceBenchConfig::default()
         },
         None,
+        &[],
         &mut progress,
     )?;
     drop(trace_scenes);
