@@ -296,7 +296,7 @@ fn trace_kernel_variants_are_timed_side_by_side_and_render_the_same_files() {
         "1",
         "--json",
         "--trace-kernel",
-        "function,workgroup+unchecked",
+        "function,workgroup+unchecked+wg32",
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let out = String::from_utf8_lossy(&o.stdout);
@@ -307,7 +307,7 @@ fn trace_kernel_variants_are_timed_side_by_side_and_render_the_same_files() {
         .iter()
         .map(|r| r["kernel"].as_str().unwrap())
         .collect();
-    assert_eq!(kernels, ["function", "workgroup+unchecked"]);
+    assert_eq!(kernels, ["function", "workgroup+unchecked+wg32"]);
 
     let o = raygun(&[
         "bench",
@@ -358,11 +358,11 @@ fn trace_kernel_variants_are_timed_side_by_side_and_render_the_same_files() {
     };
     let (a, a_file) = render("function.exr", None);
     assert!(a.status.success(), "{}", String::from_utf8_lossy(&a.stderr));
-    let (b, b_file) = render("private.exr", Some("private+unchecked"));
+    let (b, b_file) = render("private.exr", Some("private+unchecked+wg128"));
     assert!(b.status.success(), "{}", String::from_utf8_lossy(&b.stderr));
     assert!(
-        String::from_utf8_lossy(&b.stderr).contains("trace kernel private+unchecked")
-            || String::from_utf8_lossy(&b.stdout).contains("trace kernel private+unchecked"),
+        String::from_utf8_lossy(&b.stderr).contains("trace kernel private+unchecked+wg128")
+            || String::from_utf8_lossy(&b.stdout).contains("trace kernel private+unchecked+wg128"),
         "the run names its kernel"
     );
     assert!(std::fs::read(&a_file).unwrap() == std::fs::read(&b_file).unwrap());

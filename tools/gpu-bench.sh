@@ -108,6 +108,11 @@ declare -A SMOKE_BUDGET=([adapter]=10 [picture]=10 [dgi]=20 [schedule]=20 [trace
   [guided]=40 [native]=20 [filter]=30 [all-quick]=60 [wall]=20 [cluster]=20 [sizes]=20
   [readback]=10 [all]=60)
 
+# The trace kernel's variants the `kernels` group times (`raygun bench trace --help`).
+KERNEL_VARIANTS=function,private,workgroup,function+unchecked,private+unchecked
+KERNEL_VARIANTS+=,workgroup+unchecked,function+wg32,function+wg128,function+wg256
+KERNEL_VARIANTS+=,private+unchecked+wg32,workgroup+unchecked+wg32,workgroup+unchecked+wg128
+
 # One group's command line (printed, then run by `bash -c` in `run_groups`).
 group_command() {
   local g="$1" d="$2"
@@ -119,9 +124,10 @@ group_command() {
     trace) echo "$BIN bench trace --backend gpu --size $s --scene builtin:cornell,$CITY --spp $SPP --out $d/trace.md" ;;
     kernels)
       # The trace kernel's variants side by side (frames interleaved): where the traversal
-      # stack lives, and wgpu's run-time checks on or off. Same pictures, different code.
+      # stack lives, wgpu's run-time checks on or off, the workgroup's size. Same pictures,
+      # different code; the table's last column is each one's time over the default's.
       if "$BIN" bench trace --help 2>/dev/null | grep -q -- '--trace-kernel'; then
-        echo "$BIN bench trace --backend gpu --size $s --scene builtin:cornell,$CITY --spp $SPP --trace-kernel function,private,workgroup,function+unchecked,private+unchecked,workgroup+unchecked --out $d/kernels.md"
+        echo "$BIN bench trace --backend gpu --size $s --scene builtin:cornell,$CITY --spp $SPP --trace-kernel $KERNEL_VARIANTS --out $d/kernels.md"
       fi
       ;;
     guided) echo "$BIN bench guided --backend gpu --size $s --scene builtin:cornell --fov 10,20,30,40,50,60 --iterations $ITERATIONS --reference-spp $REFERENCE_SPP --plot $d/fig5.png --out $d/guided.md" ;;

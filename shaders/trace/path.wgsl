@@ -604,7 +604,7 @@ fn trace_sample(pixel: u32, sample: u32, tile: u32) -> vec3<f32> {
     return vec3<f32>(0.0);
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WORKGROUP)
 fn trace(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
     // No early return: the ray count is reduced per workgroup behind a barrier.
     trace_lane = li;

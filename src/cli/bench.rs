@@ -636,8 +636,11 @@ pub struct TraceBenchArgs {
     pub wall: crate::cli::wall::WallArgs,
     /// Time these variants of the GPU trace kernel side by side, their frames interleaved:
     /// where the traversal stack lives (`function`, as written; `private`; `workgroup`
-    /// memory), each optionally `+unchecked` (without wgpu's run-time checks). Same pictures,
-    /// different code; default: the one `RAYGUN_TRACE_KERNEL` names, else `function`.
+    /// memory), then optionally `+unchecked` (without wgpu's run-time checks) and `+wgN`
+    /// (N = 32, 64, 128 or 256 threads a workgroup; 64 otherwise), e.g.
+    /// `function,private+unchecked+wg32`. Same pictures, different code; variants the adapter
+    /// cannot run are named and left out. Default: the one `RAYGUN_TRACE_KERNEL` names, else
+    /// `function`.
     #[arg(long, value_name = "VARIANT,…", value_delimiter = ',')]
     pub trace_kernel: Vec<crate::trace::gpu::TraceVariant>,
 }
@@ -663,14 +666,32 @@ fn run_trace_bench(args: &TraceBenchArgs) -> anyhow::Result<()> {
         ..Default::default()
     };
     let (bar, progress) = bench_progress(args.json, scenes.len() as u64);
-    let rows = crate::bench::trace::run(
-        &backend,
-        &scenes,
-        &cfg,
-        wall.as_ref(),
-        &args.trace_kernel,
-        progress,
-    )?;
+    // Variants this adapter cannot run (a workgroup stack over its workgroup memory) are
+    // left out and named, so that one list serves every adapter.
+    let (kernels, refused): (Vec<_>, Vec<_>) = match &backend {
+        Backend::Gpu(ctx) => args
+            .trace_kernel
+            .iter()
+            .map(|v| v.check(&ctx.limits).map(|()| *v))
+            .partition(Result::is_ok),
+        Backend::Cpu => (
+            args.trace_kernel.iter().map(|v| Ok(*v)).collect(),
+            Vec::new(),
+        ),
+    };
+    let kernels: Vec<_> = kernels.into_iter().filter_map(Result::ok).collect();
+    let refused: Vec<String> = refused
+        .into_iter()
+        .filter_map(|r| r.err().map(|e| e.to_string()))
+        .collect();
+    for r in &refused {
+        eprintln!("raygun bench trace: not run: {r}");
+    }
+    if !args.trace_kernel.is_empty() && kernels.is_empty() {
+        anyhow::bail!("--trace-kernel: this adapter can run none of the variants asked for");
+    }
+    let rows =
+        crate::bench::trace::run(&backend, &scenes, &cfg, wall.as_ref(), &kernels, progress)?;
     bar.finish_and_clear();
     let device = backend.describe();
     let text = if args.json {
@@ -678,9 +699,14 @@ fn run_trace_bench(args: &TraceBenchArgs) -> anyhow::Result<()> {
             "device": device,
             "config": cfg,
             "rows": rows,
+            "kernels_not_run": refused,
         }))?
     } else {
-        crate::bench::trace::markdown(&rows, &device)
+        let mut md = crate::bench::trace::markdown(&rows, &device);
+        for r in &refused {
+            md += &format!("\nNot run on this adapter: {r}.\n");
+        }
+        md
     };
     print_and_save(&text, args.out.as_deref())?;
     Ok(())

@@ -46,7 +46,7 @@ use crate::schedule::gpu::{ScheduleConfig, ScheduleKernel, ScheduleRun};
 use crate::schedule::{Order, ScheduleError, schedule_cpu_shown};
 use crate::trace::accum::Accumulation;
 use crate::trace::camera::RenderCamera;
-use crate::trace::gpu::{GpuAccum, GpuScene, TraceKernel, TraceRun, WORKGROUP};
+use crate::trace::gpu::{GpuAccum, GpuScene, TraceKernel, TraceRun};
 use crate::trace::pack::PackedScene;
 use crate::trace::path::{TraceSettings, render_cpu_with};
 use crate::trace::wall::{WallCamera, WallCameraError};
@@ -348,6 +348,7 @@ impl<'a> Renderer<'a> {
                             band,
                             &g.config,
                             wall.as_ref().map(WallCamera::shown_mask),
+                            kernel.workgroup(),
                         )?),
                         _ => None,
                     };
@@ -1035,6 +1036,7 @@ fn gpu_guide(
     band: Band,
     config: &GuideConfig,
     shown: Option<&[u32]>,
+    trace_workgroup_size: u32,
 ) -> Result<GpuGuide, FrameError> {
     let dgi = ctx.device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("frame dgi"),
@@ -1055,7 +1057,7 @@ fn gpu_guide(
             height: band.rows,
             p_min: config.p_min,
             order: config.order,
-            trace_workgroup_size: WORKGROUP,
+            trace_workgroup_size,
         },
         base,
     )?;

@@ -24,7 +24,8 @@ pub const TRACE_WGSL: &str = concat!(
     include_str!("../../shaders/trace/path.wgsl")
 );
 
-/// Threads per workgroup of the trace kernel (`WORKGROUP` in path.wgsl).
+/// Threads per workgroup of the trace kernel (`WORKGROUP` in path.wgsl), unless its variant
+/// says otherwise ([`TraceVariant::workgroup`]).
 pub const WORKGROUP: u32 = 64;
 
 /// A cluster rank's owned sums and the rays per block it traced: `shaders/trace/accum.wgsl`.
@@ -71,31 +72,28 @@ pub struct GpuTraceParams {
     pub _pad1: u32,
 }
 
-/// The full-frame grid: threads (8 × 8 tiles, padded) and a 2D workgroup grid within the
-/// per-dimension dispatch limit.
+/// The full-frame grid: threads (8 × 8 tiles, padded) and a 2D grid of `workgroup`-thread
+/// groups within the per-dimension dispatch limit.
 #[must_use]
-pub fn full_frame_grid(width: u32, height: u32) -> (u32, [u32; 2]) {
+pub fn full_frame_grid(width: u32, height: u32, workgroup: u32) -> (u32, [u32; 2]) {
     let threads = width.div_ceil(8) * height.div_ceil(8) * 64;
-    let groups = threads.div_ceil(WORKGROUP);
+    let groups = threads.div_ceil(workgroup);
     let gx = groups.min(MAX_GROUPS_X);
     (threads, [gx, groups.div_ceil(gx)])
 }
 
 impl GpuTraceParams {
-    #[must_use]
-    pub fn new(scene: &PackedScene, s: &TraceSettings, list_mode: bool) -> Self {
-        Self::with_wall(scene, s, None, list_mode)
-    }
-
-    /// The parameters with `wall`'s eye and tile count when given.
+    /// The parameters with `wall`'s eye and tile count when given, for a kernel of
+    /// `workgroup` threads a group.
     #[must_use]
     pub fn with_wall(
         scene: &PackedScene,
         s: &TraceSettings,
         wall: Option<&WallCamera>,
         list_mode: bool,
+        workgroup: u32,
     ) -> Self {
-        Self::for_band(scene, s, wall, list_mode, Band::whole(s.height))
+        Self::for_band(scene, s, wall, list_mode, Band::whole(s.height), workgroup)
     }
 
     /// [`Self::with_wall`] for the rows of `band` alone.
@@ -106,8 +104,9 @@ impl GpuTraceParams {
         wall: Option<&WallCamera>,
         list_mode: bool,
         band: Band,
+        workgroup: u32,
     ) -> Self {
-        let (threads, [gx, _]) = full_frame_grid(s.width, band.rows);
+        let (threads, [gx, _]) = full_frame_grid(s.width, band.rows, workgroup);
         let c = &s.camera;
         Self {
             size: [s.width, s.height],
@@ -157,13 +156,13 @@ pub enum TraceStack {
     /// A module-scope private variable: the same local memory, zeroed once a thread.
     Private,
     /// Workgroup (shared) memory, entry `i` of thread `l` at `i · WORKGROUP + l` (16 KiB a
-    /// workgroup of 64; wgpu zeroes it once a workgroup).
+    /// workgroup of 64, 256 bytes a thread; wgpu zeroes it once a workgroup).
     Workgroup,
 }
 
 /// A compiled variant of the trace kernel: the same function (tested against the default bit
 /// for bit), different code.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct TraceVariant {
     pub stack: TraceStack,
     /// Compiled without wgpu's run-time checks (index clamping of the kernel's arrays, loop
@@ -171,13 +170,26 @@ pub struct TraceVariant {
     /// because the kernel bounds every index itself (the stack's pushes and pops, the lists by
     /// their counts, the scene's indices by construction) and every loop ends; for timing.
     pub unchecked: bool,
+    /// Threads per workgroup, one of [`TraceVariant::WORKGROUPS`]: the kernel waits at a
+    /// barrier for the group's longest path before it ends (its ray count's reduction), so the
+    /// size decides how long finished threads hold their registers.
+    pub workgroup: u32,
 }
 
-/// Workgroup memory the [`TraceStack::Workgroup`] stack takes (bytes).
-pub const WORKGROUP_STACK_BYTES: u32 = 32 * 8 * WORKGROUP;
+impl Default for TraceVariant {
+    fn default() -> Self {
+        Self::new(TraceStack::Function, false)
+    }
+}
+
+/// Bytes of one thread's traversal stack (`STACK_SIZE` entries of `vec2<u32>`).
+const STACK_BYTES: u32 = 32 * 8;
 
 impl TraceVariant {
-    /// Every variant, the default first.
+    /// The workgroup sizes a variant may have.
+    pub const WORKGROUPS: [u32; 4] = [32, 64, 128, 256];
+
+    /// Every stack and checks choice at the default workgroup size, the default first.
     pub const ALL: [Self; 6] = [
         Self::new(TraceStack::Function, false),
         Self::new(TraceStack::Private, false),
@@ -187,18 +199,43 @@ impl TraceVariant {
         Self::new(TraceStack::Workgroup, true),
     ];
 
+    /// `stack`, checks off where `unchecked`, [`WORKGROUP`] threads a group.
     #[must_use]
     pub const fn new(stack: TraceStack, unchecked: bool) -> Self {
-        Self { stack, unchecked }
+        Self {
+            stack,
+            unchecked,
+            workgroup: WORKGROUP,
+        }
+    }
+
+    /// This variant with `threads` a workgroup (one of [`Self::WORKGROUPS`]).
+    #[must_use]
+    pub const fn with_workgroup(self, threads: u32) -> Self {
+        Self {
+            workgroup: threads,
+            ..self
+        }
+    }
+
+    /// Workgroup memory the kernel takes (bytes): its ray count, and the stacks of a
+    /// [`TraceStack::Workgroup`] variant.
+    #[must_use]
+    pub fn workgroup_bytes(self) -> u32 {
+        4 + match self.stack {
+            TraceStack::Workgroup => STACK_BYTES * self.workgroup,
+            _ => 0,
+        }
     }
 
     /// The kernel's source for this variant: `TRACE_WGSL` with the stack's declaration and
-    /// accesses moved.
+    /// accesses moved and the workgroup's size set.
     #[must_use]
     pub fn source(self) -> std::borrow::Cow<'static, str> {
         const LOCAL: &str = "    var stack: array<vec2<u32>, STACK_SIZE>;\n";
         const PUSH: &str = "stack[sp] = current;";
         const POP: &str = "current = stack[sp];";
+        const SIZE: &str = "const WORKGROUP: u32 = 64u;";
         let once = |s: &str, from: &str, to: &str| {
             assert_eq!(
                 s.matches(from).count(),
@@ -207,14 +244,19 @@ impl TraceVariant {
             );
             s.replacen(from, to, 1)
         };
+        let mut s = std::borrow::Cow::Borrowed(TRACE_WGSL);
+        if self.workgroup != WORKGROUP {
+            let size = format!("const WORKGROUP: u32 = {}u;", self.workgroup);
+            s = once(&s, SIZE, &size).into();
+        }
         match self.stack {
-            TraceStack::Function => TRACE_WGSL.into(),
+            TraceStack::Function => s,
             TraceStack::Private => {
-                let s = once(TRACE_WGSL, LOCAL, "");
+                let s = once(&s, LOCAL, "");
                 (s + "\nvar<private> stack: array<vec2<u32>, STACK_SIZE>;\n").into()
             }
             TraceStack::Workgroup => {
-                let s = once(TRACE_WGSL, LOCAL, "");
+                let s = once(&s, LOCAL, "");
                 let s = once(
                     &s,
                     PUSH,
@@ -231,21 +273,38 @@ impl TraceVariant {
         }
     }
 
-    /// Whether `limits` allow this variant (the workgroup stack's 16 KiB beside the kernel's
-    /// own 4 bytes).
+    /// Whether `limits` allow this variant: its workgroup's threads and memory.
     pub fn check(self, limits: &wgpu::Limits) -> Result<(), GpuError> {
-        let needs = match self.stack {
-            TraceStack::Workgroup => WORKGROUP_STACK_BYTES + 4,
-            _ => 4,
-        };
-        if needs > limits.max_compute_workgroup_storage_size {
-            return Err(GpuError::TraceVariant {
+        let refuse = |why: String| {
+            Err(GpuError::TraceVariant {
                 variant: self.to_string(),
-                why: format!(
-                    "needs {needs} bytes of workgroup memory; this adapter allows {}",
-                    limits.max_compute_workgroup_storage_size
-                ),
-            });
+                why,
+            })
+        };
+        if !Self::WORKGROUPS.contains(&self.workgroup) {
+            return refuse(format!(
+                "{} threads a workgroup; expected one of {:?}",
+                self.workgroup,
+                Self::WORKGROUPS
+            ));
+        }
+        if self.workgroup > limits.max_compute_invocations_per_workgroup
+            || self.workgroup > limits.max_compute_workgroup_size_x
+        {
+            return refuse(format!(
+                "{} threads a workgroup; this adapter allows {}",
+                self.workgroup,
+                limits
+                    .max_compute_invocations_per_workgroup
+                    .min(limits.max_compute_workgroup_size_x)
+            ));
+        }
+        let needs = self.workgroup_bytes();
+        if needs > limits.max_compute_workgroup_storage_size {
+            return refuse(format!(
+                "needs {needs} bytes of workgroup memory; this adapter allows {}",
+                limits.max_compute_workgroup_storage_size
+            ));
         }
         Ok(())
     }
@@ -261,6 +320,9 @@ impl std::fmt::Display for TraceVariant {
         if self.unchecked {
             f.write_str("+unchecked")?;
         }
+        if self.workgroup != WORKGROUP {
+            write!(f, "+wg{}", self.workgroup)?;
+        }
         Ok(())
     }
 }
@@ -268,31 +330,46 @@ impl std::fmt::Display for TraceVariant {
 impl std::str::FromStr for TraceVariant {
     type Err = String;
 
-    /// `function`, `private` or `workgroup` (the stack), each optionally `+unchecked`.
+    /// `function`, `private` or `workgroup` (the stack), then optionally `+unchecked` and
+    /// `+wgN` (N threads a workgroup: 32, 64, 128 or 256), e.g. `private+unchecked+wg32`.
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        let t = s.trim();
-        let (stack, unchecked) = match t.strip_suffix("+unchecked") {
-            Some(stack) => (stack, true),
-            None => (t, false),
+        let bad = || {
+            format!(
+                "unknown trace kernel {s:?}: expected function, private or workgroup, then \
+                 optionally +unchecked and +wgN (N = 32, 64, 128 or 256), e.g. \
+                 private+unchecked+wg32"
+            )
         };
-        let stack = match stack {
-            "function" => TraceStack::Function,
-            "private" => TraceStack::Private,
-            "workgroup" => TraceStack::Workgroup,
-            _ => {
-                return Err(format!(
-                    "unknown trace kernel {s:?}: expected function, private or workgroup, \
-                     each optionally followed by +unchecked"
-                ));
+        let mut words = s.trim().split('+');
+        let stack = match words.next() {
+            Some("function") => TraceStack::Function,
+            Some("private") => TraceStack::Private,
+            Some("workgroup") => TraceStack::Workgroup,
+            _ => return Err(bad()),
+        };
+        let mut v = Self::new(stack, false);
+        let mut sized = false;
+        for w in words {
+            match w {
+                "unchecked" if !v.unchecked => v.unchecked = true,
+                _ => match w.strip_prefix("wg").and_then(|n| n.parse::<u32>().ok()) {
+                    Some(n) if !sized && Self::WORKGROUPS.contains(&n) => {
+                        v.workgroup = n;
+                        sized = true;
+                    }
+                    _ => return Err(bad()),
+                },
             }
-        };
-        Ok(Self { stack, unchecked })
+        }
+        Ok(v)
     }
 }
 
 /// The compiled kernel.
 pub struct TraceKernel {
     pipeline: wgpu::ComputePipeline,
+    /// Threads per workgroup ([`TraceVariant::workgroup`]).
+    workgroup: u32,
 }
 
 impl TraceKernel {
@@ -320,7 +397,16 @@ impl TraceKernel {
             ctx.shader_module(&label, &source)
         };
         let pipeline = ctx.compute_pipeline_in(&module, &label, "trace");
-        Self { pipeline }
+        Self {
+            pipeline,
+            workgroup: variant.workgroup,
+        }
+    }
+
+    /// Threads per workgroup (what the scheduler's indirect dispatch arguments count in).
+    #[must_use]
+    pub fn workgroup(&self) -> u32 {
+        self.workgroup
     }
 }
 
@@ -488,6 +574,8 @@ pub struct TraceRun {
     /// The scheduler's `(x, y, z, count)` buffer in list mode.
     args: Option<wgpu::Buffer>,
     groups: [u32; 2],
+    /// Threads per workgroup of the kernel's variant.
+    workgroup: u32,
     /// The wall camera the tile table was uploaded for (its eye goes into the parameters).
     wall: Option<WallCamera>,
     /// The tile table ([`TILE_VEC4S`](super::wall::TILE_VEC4S) vec4s a tile).
@@ -550,6 +638,7 @@ impl TraceRun {
                     wall,
                     schedule.is_some(),
                     band,
+                    kernel.workgroup,
                 )),
                 usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             });
@@ -584,13 +673,14 @@ impl TraceRun {
                 entry(6, &wall_buf),
             ],
         });
-        let (_, groups) = full_frame_grid(settings.width, band.rows);
+        let (_, groups) = full_frame_grid(settings.width, band.rows, kernel.workgroup);
         Self {
             pipeline: kernel.pipeline.clone(),
             params,
             bind,
             args: schedule.map(|(_, a)| a.clone()),
             groups,
+            workgroup: kernel.workgroup,
             wall: wall.cloned(),
             wall_table: wall_buf,
             band,
@@ -623,6 +713,7 @@ impl TraceRun {
             self.wall.as_ref(),
             self.args.is_some(),
             self.band,
+            self.workgroup,
         );
         ctx.queue
             .write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
@@ -674,6 +765,8 @@ pub struct SampleRun {
     wall_table: wgpu::Buffer,
     wall: Option<WallCamera>,
     buffers: Option<SampleBuffers>,
+    /// Threads per workgroup of the kernel's variant.
+    workgroup: u32,
 }
 
 /// A [`SampleRun`]'s list-sized buffers and the frame bind group over them.
@@ -700,7 +793,12 @@ impl SampleRun {
             .device
             .create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("samples params"),
-                contents: bytemuck::bytes_of(&Self::params_of(scene, settings, wall)),
+                contents: bytemuck::bytes_of(&Self::params_of(
+                    scene,
+                    settings,
+                    wall,
+                    kernel.workgroup,
+                )),
                 usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             });
         let wall_table = wall_table_buffer(ctx, "samples wall tiles", wall);
@@ -710,6 +808,7 @@ impl SampleRun {
             wall_table,
             wall: wall.cloned(),
             buffers: None,
+            workgroup: kernel.workgroup,
         }
     }
 
@@ -717,10 +816,11 @@ impl SampleRun {
         scene: &PackedScene,
         settings: &TraceSettings,
         wall: Option<&WallCamera>,
+        workgroup: u32,
     ) -> GpuTraceParams {
         GpuTraceParams {
             mode: 2,
-            ..GpuTraceParams::with_wall(scene, settings, wall, true)
+            ..GpuTraceParams::with_wall(scene, settings, wall, true, workgroup)
         }
     }
 
@@ -743,7 +843,7 @@ impl SampleRun {
 
     /// Rewrites the parameters (a new camera or depth) before the next list.
     pub fn set_settings(&self, ctx: &GpuContext, scene: &PackedScene, settings: &TraceSettings) {
-        let p = Self::params_of(scene, settings, self.wall.as_ref());
+        let p = Self::params_of(scene, settings, self.wall.as_ref(), self.workgroup);
         ctx.queue
             .write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
     }
@@ -860,7 +960,7 @@ impl SampleRun {
             return Ok(Vec::new());
         }
         let len = u32::try_from(pixels.len()).expect("a list of u32 pixel indices");
-        let [gx, gy] = ctx.grid_2d(len.div_ceil(WORKGROUP));
+        let [gx, gy] = ctx.grid_2d(len.div_ceil(self.workgroup));
         let pipeline = self.pipeline.clone();
         let b = self.buffers(ctx, len)?;
         ctx.queue
@@ -1192,16 +1292,39 @@ mod tests {
         assert!(ACCUM_WGSL.contains(lum) && TRACE_WGSL.contains(lum));
     }
 
+    /// The variants the tests compile and render: every stack and checks choice, and every
+    /// workgroup size with the stack as written and in workgroup memory.
+    pub(crate) fn tested_variants() -> Vec<TraceVariant> {
+        let mut v = TraceVariant::ALL.to_vec();
+        for n in TraceVariant::WORKGROUPS {
+            if n != WORKGROUP {
+                v.push(TraceVariant::default().with_workgroup(n));
+                v.push(TraceVariant::new(TraceStack::Workgroup, true).with_workgroup(n));
+            }
+        }
+        v
+    }
+
     #[test]
     fn every_trace_kernel_variant_validates_and_names_itself() {
         // The workgroup stack's size is the kernel's stack and workgroup.
         assert!(TRACE_WGSL.contains("const STACK_SIZE: u32 = 32u;"));
         assert!(TRACE_WGSL.contains(&format!("const WORKGROUP: u32 = {WORKGROUP}u;")));
-        assert_eq!(WORKGROUP_STACK_BYTES, 32 * 8 * WORKGROUP);
+        assert!(TRACE_WGSL.contains("@workgroup_size(WORKGROUP)"));
+        assert_eq!(
+            TraceVariant::new(TraceStack::Workgroup, false).workgroup_bytes(),
+            4 + 32 * 8 * WORKGROUP
+        );
         let mut sources = std::collections::HashSet::new();
-        for v in TraceVariant::ALL {
+        for v in tested_variants() {
             let source = v.source();
-            validated(&format!("path.wgsl ({v})"), &source);
+            let module = validated(&format!("path.wgsl ({v})"), &source);
+            let entry = module
+                .entry_points
+                .iter()
+                .find(|e| e.name == "trace")
+                .unwrap();
+            assert_eq!(entry.workgroup_size, [v.workgroup, 1, 1], "{v}");
             // Only the function-scope variant zeroes a stack in `traverse`.
             let local = source.contains("    var stack: array<vec2<u32>, STACK_SIZE>;\n");
             assert_eq!(local, v.stack == TraceStack::Function, "{v}");
@@ -1213,12 +1336,17 @@ mod tests {
             sources.insert(source.into_owned());
             assert_eq!(v.to_string().parse::<TraceVariant>(), Ok(v));
         }
-        // Three sources (the checks are a compile option, not a source change).
-        assert_eq!(sources.len(), 3);
+        // The checks are a compile option, not a source change: 3 stacks at the default size,
+        // 2 at each of the 3 others.
+        assert_eq!(sources.len(), 3 + 2 * 3);
         assert_eq!(TraceVariant::default().to_string(), "function");
         assert_eq!(
-            " workgroup+unchecked ".parse::<TraceVariant>(),
-            Ok(TraceVariant::new(TraceStack::Workgroup, true))
+            " workgroup+wg32+unchecked ".parse::<TraceVariant>(),
+            Ok(TraceVariant::new(TraceStack::Workgroup, true).with_workgroup(32))
+        );
+        assert_eq!(
+            "private+wg64".parse(),
+            Ok(TraceVariant::new(TraceStack::Private, false))
         );
         for bad in [
             "",
@@ -1226,6 +1354,10 @@ mod tests {
             "workgroup+",
             "+unchecked",
             "unchecked+workgroup",
+            "function+unchecked+unchecked",
+            "function+wg48",
+            "function+wg32+wg64",
+            "function+wg",
         ] {
             let err = bad.parse::<TraceVariant>().unwrap_err();
             assert!(
@@ -1236,35 +1368,62 @@ mod tests {
     }
 
     #[test]
-    fn the_workgroup_stack_is_refused_where_the_adapter_lacks_the_memory() {
+    fn variants_the_adapter_cannot_run_are_refused_by_name() {
         let mut limits = wgpu::Limits {
-            max_compute_workgroup_storage_size: WORKGROUP_STACK_BYTES + 4,
+            max_compute_workgroup_storage_size: 4 + 32 * 8 * 64,
             ..wgpu::Limits::default()
         };
         for v in TraceVariant::ALL {
             v.check(&limits).unwrap();
         }
-        limits.max_compute_workgroup_storage_size = WORKGROUP_STACK_BYTES;
+        limits.max_compute_workgroup_storage_size -= 1;
         let err = TraceVariant::new(TraceStack::Workgroup, false)
             .check(&limits)
             .unwrap_err()
             .to_string();
         assert!(
-            err.contains("trace kernel workgroup") && err.contains("16388 bytes"),
+            err.contains("trace kernel workgroup:") && err.contains("16388 bytes"),
             "{err}"
         );
         TraceVariant::new(TraceStack::Private, true)
             .check(&limits)
             .unwrap();
+        // The workgroup stack grows with the workgroup: 64 KiB at 256 threads.
+        limits.max_compute_workgroup_storage_size = 49_152;
+        let big = TraceVariant::new(TraceStack::Workgroup, true).with_workgroup(256);
+        let err = big.check(&limits).unwrap_err().to_string();
+        assert!(
+            err.contains("workgroup+unchecked+wg256") && err.contains("65540"),
+            "{err}"
+        );
+        limits.max_compute_invocations_per_workgroup = 128;
+        let err = TraceVariant::default()
+            .with_workgroup(256)
+            .check(&limits)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("256 threads") && err.contains("allows 128"),
+            "{err}"
+        );
+        let odd = TraceVariant::default().with_workgroup(48);
+        assert!(
+            odd.check(&limits)
+                .unwrap_err()
+                .to_string()
+                .contains("[32, 64, 128, 256]")
+        );
     }
 
     #[test]
     fn full_frame_grid_stays_within_dispatch_limits() {
         for (w, h) in [(1, 1), (7, 9), (128, 72), (3840, 2160), (7680, 4320)] {
-            let (threads, [gx, gy]) = full_frame_grid(w, h);
-            assert!(gx <= MAX_GROUPS_X);
-            assert!(u64::from(gx) * u64::from(gy) * u64::from(WORKGROUP) >= u64::from(threads));
-            assert!(u64::from(threads) >= u64::from(w) * u64::from(h));
+            for wg in TraceVariant::WORKGROUPS {
+                let (threads, [gx, gy]) = full_frame_grid(w, h, wg);
+                assert!(gx <= MAX_GROUPS_X);
+                assert!(u64::from(gx) * u64::from(gy) * u64::from(wg) >= u64::from(threads));
+                assert!(u64::from(threads) >= u64::from(w) * u64::from(h));
+            }
         }
     }
 }

@@ -147,13 +147,46 @@ fn gpu_and_cpu_twin_agree_on_a_scene_with_every_feature() {
 }
 
 /// Every variant of the trace kernel (where its traversal stack lives, wgpu's run-time checks
-/// on or off) is the same function: the same accumulation to the bit as the default kernel,
-/// on the small city (a tree deep enough that walks push and pop), the Cornell box with its
-/// ceiling light and the scene with every feature (alpha-tested shadow rays, glass, punctual
-/// lights).
+/// on or off, its workgroup's size) is the same function: the same accumulation to the bit as
+/// the default kernel, on the small city (a tree deep enough that walks push and pop), the
+/// Cornell box with its ceiling light and the scene with every feature (alpha-tested shadow
+/// rays, glass, punctual lights); and the same samples in the compact mode a cluster rank
+/// runs (its own dispatch grid, counted in the variant's workgroups).
 #[test]
 fn every_trace_kernel_variant_renders_the_default_kernels_bits() {
-    use raygun::trace::gpu::TraceVariant;
+    use raygun::trace::gpu::{
+        GpuAccum, GpuScene, SampleRun, TraceKernel, TraceRun, TraceStack, TraceVariant,
+    };
+    use raygun::trace::path::TraceSettings;
+    /// Two frames' accumulation, then a rank's samples (index 1) of `pixels`, as bits.
+    fn run(
+        c: &GpuContext,
+        kernel: &TraceKernel,
+        scene: &Scene,
+        s: &TraceSettings,
+        pixels: &[u32],
+    ) -> (Vec<[u32; 4]>, Vec<u32>, Vec<[u32; 4]>) {
+        let packed = PackedScene::new(scene);
+        let gs = GpuScene::upload(c, kernel, &packed).unwrap();
+        let acc = GpuAccum::new(c, s.width, s.height).unwrap();
+        let frames = TraceRun::new(c, kernel, &packed, s, &acc, None);
+        let mut enc = c.device.create_command_encoder(&Default::default());
+        acc.clear(&mut enc);
+        frames.record(&mut enc, &gs, None);
+        frames.record(&mut enc, &gs, None);
+        c.queue.submit([enc.finish()]);
+        let a = acc.read(c).unwrap();
+        let mut ranks = SampleRun::new(c, kernel, &packed, s, None);
+        let got = ranks
+            .samples(c, &gs, pixels, &vec![1; pixels.len()])
+            .unwrap();
+        let sums = a.sum.iter().map(|v| v.map(f32::to_bits)).collect();
+        let samples = got
+            .iter()
+            .map(|(c, r)| [c.x.to_bits(), c.y.to_bits(), c.z.to_bits(), *r])
+            .collect();
+        (sums, a.count, samples)
+    }
     let ctx = GpuContext::for_tests();
     let data = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/scenes");
     let scenes = [
@@ -167,26 +200,42 @@ fn every_trace_kernel_variant_renders_the_default_kernels_bits() {
         ),
         ("every feature", everything()),
     ];
+    // 700 of the 960 pixels, backwards: 22 groups of 32, 3 of 256, none of them full.
+    let pixels: Vec<u32> = (0..700).rev().collect();
+    let kernel = TraceKernel::new(&ctx);
+    let reference: Vec<_> = scenes
+        .iter()
+        .map(|(name, scene)| {
+            let s = settings(scene, 40, 24, 7, 6);
+            let r = run(&ctx, &kernel, scene, &s, &pixels);
+            assert!(r.1.iter().all(|&c| c == 2));
+            assert!(r.0.iter().any(|v| v[1] != 0), "{name} is lit");
+            r
+        })
+        .collect();
     assert_eq!(TraceVariant::ALL[0], TraceVariant::default());
-    for (name, scene) in &scenes {
-        let s = settings(scene, 40, 24, 7, 6);
-        let reference = render_gpu(&ctx, scene, &s, 2);
-        assert!(reference.count.iter().all(|&c| c == 2));
-        assert!(
-            reference.mean_image().iter().any(|c| luminance(*c) > 0.0),
-            "{name} is lit"
-        );
-        for v in &TraceVariant::ALL[1..] {
-            let vctx = ctx.with_trace_variant(*v).unwrap();
-            assert_eq!(vctx.trace_variant(), *v);
-            let got = render_gpu(&vctx, scene, &s, 2);
-            assert_eq!(got.count, reference.count, "{name}, {v}: counts");
-            let differing = (got.sum.iter().zip(&reference.sum))
-                .filter(|(a, b)| a.map(f32::to_bits) != b.map(f32::to_bits))
-                .count();
+    let mut variants = TraceVariant::ALL[1..].to_vec();
+    for n in [32, 128, 256] {
+        variants.push(TraceVariant::default().with_workgroup(n));
+    }
+    // A workgroup stack of 128 threads needs 32 772 bytes: over lavapipe's 32 KiB.
+    variants.push(TraceVariant::new(TraceStack::Workgroup, true).with_workgroup(32));
+    for v in &variants {
+        let vctx = ctx.with_trace_variant(*v).unwrap();
+        assert_eq!(vctx.trace_variant(), *v);
+        let kernel = TraceKernel::new(&vctx);
+        for ((name, scene), want) in scenes.iter().zip(&reference) {
+            let s = settings(scene, 40, 24, 7, 6);
+            let (sums, counts, samples) = run(&vctx, &kernel, scene, &s, &pixels);
+            assert!(counts == want.1, "{name}, {v}: counts");
+            let differing = sums.iter().zip(&want.0).filter(|(a, b)| a != b).count();
             assert_eq!(
                 differing, 0,
                 "{name}, {v}: pixels whose sums differ from the default's"
+            );
+            assert!(
+                samples == want.2,
+                "{name}, {v}: a rank's samples differ from the default's"
             );
         }
     }
