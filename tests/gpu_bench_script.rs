@@ -6,13 +6,14 @@
 use std::path::Path;
 use std::process::Command;
 
-const GROUPS: [&str; 15] = [
+const GROUPS: [&str; 16] = [
     "adapter",
     "picture",
     "dgi",
     "schedule",
     "trace",
     "kernels",
+    "kernels-guided",
     "guided",
     "native",
     "filter",
@@ -108,6 +109,10 @@ fn the_smoke_run_leaves_a_summary_and_a_tarball_that_names_every_group() {
         "readback/readback.md",
         "picture/picture.md",
         "kernels/kernels.md",
+        "kernels-guided/guided-function.md",
+        "kernels-guided/guided-function+wg32.md",
+        "kernels-guided/guided-private+unchecked.md",
+        "kernels-guided/guided-workgroup+unchecked+wg32.md",
     ] {
         let p = unpacked.join(table);
         assert!(
@@ -115,6 +120,10 @@ fn the_smoke_run_leaves_a_summary_and_a_tarball_that_names_every_group() {
             "{table} missing or empty"
         );
     }
+    // Each guided run names the kernel it ran (the default says nothing).
+    let wg32 = unpacked.join("kernels-guided/guided-function+wg32.md");
+    let wg32 = std::fs::read_to_string(wg32).unwrap();
+    assert!(wg32.contains("trace kernel function+wg32"), "{wg32}");
     let kernels = std::fs::read_to_string(unpacked.join("kernels/kernels.md")).unwrap();
     for variant in [
         "| private |",

@@ -99,19 +99,21 @@ setup_device() {
 # The groups, most important first: NAME BUDGET_SECONDS (the H200's; smoke mode has its own).
 # The full report goes last: on an H200 it runs for minutes (its 4K convergence curves), and
 # takes what the others leave.
-BENCH_GROUPS=(adapter picture dgi schedule trace kernels guided native filter all-quick wall cluster
-  sizes readback all)
+BENCH_GROUPS=(adapter picture dgi schedule trace kernels kernels-guided guided native filter
+  all-quick wall cluster sizes readback all)
 declare -A BUDGET=([adapter]=20 [picture]=40 [dgi]=60 [schedule]=30 [trace]=90 [kernels]=90
-  [guided]=120 [native]=60 [filter]=45 [all-quick]=60 [wall]=60 [cluster]=60 [sizes]=40
-  [readback]=30 [all]=300)
+  [kernels-guided]=60 [guided]=120 [native]=60 [filter]=45 [all-quick]=60 [wall]=60 [cluster]=60
+  [sizes]=40 [readback]=30 [all]=300)
 declare -A SMOKE_BUDGET=([adapter]=10 [picture]=10 [dgi]=20 [schedule]=20 [trace]=20 [kernels]=30
-  [guided]=40 [native]=20 [filter]=30 [all-quick]=60 [wall]=20 [cluster]=20 [sizes]=20
-  [readback]=10 [all]=60)
+  [kernels-guided]=40 [guided]=40 [native]=20 [filter]=30 [all-quick]=60 [wall]=20 [cluster]=20
+  [sizes]=20 [readback]=10 [all]=60)
 
 # The trace kernel's variants the `kernels` group times (`raygun bench trace --help`).
 KERNEL_VARIANTS=function,private,workgroup,function+unchecked,private+unchecked
 KERNEL_VARIANTS+=,workgroup+unchecked,function+wg32,function+wg128,function+wg256
 KERNEL_VARIANTS+=,private+unchecked+wg32,workgroup+unchecked+wg32,workgroup+unchecked+wg128
+# ... and those the `kernels-guided` group runs guided iterations with.
+GUIDED_KERNEL_VARIANTS="function function+wg32 private+unchecked workgroup+unchecked+wg32"
 
 # One group's command line (printed, then run by `bash -c` in `run_groups`).
 group_command() {
@@ -128,6 +130,13 @@ group_command() {
       # different code; the table's last column is each one's time over the default's.
       if "$BIN" bench trace --help 2>/dev/null | grep -q -- '--trace-kernel'; then
         echo "$BIN bench trace --backend gpu --size $s --scene builtin:cornell,$CITY --spp $SPP --trace-kernel $KERNEL_VARIANTS --out $d/kernels.md"
+      fi
+      ;;
+    kernels-guided)
+      # A few of those variants in guided iterations (small launches: 2.9 % of the pixels at
+      # 10°), each a run of its own with RAYGUN_TRACE_KERNEL.
+      if "$BIN" bench trace --help 2>/dev/null | grep -q -- '--trace-kernel'; then
+        echo "for v in $GUIDED_KERNEL_VARIANTS; do RAYGUN_TRACE_KERNEL=\$v $BIN bench guided --backend gpu --size $s --scene builtin:cornell --fov 10,60 --iterations $ITERATIONS --reference-spp $REFERENCE_SPP --out $d/guided-\$v.md || exit; done"
       fi
       ;;
     guided) echo "$BIN bench guided --backend gpu --size $s --scene builtin:cornell --fov 10,20,30,40,50,60 --iterations $ITERATIONS --reference-spp $REFERENCE_SPP --plot $d/fig5.png --out $d/guided.md" ;;

@@ -22,6 +22,11 @@ const NO_HIT: u32 = 0xffffffffu;
 const T_FAR: f32 = 3.402823e38;
 const NODE_EPSILON: f32 = 0.0001;
 const STACK_SIZE: u32 = 32u;
+// The traversal stack, one an invocation at module scope: WGSL zero-initialises a function's
+// variables at every call (256 bytes written a ray), a private variable once an invocation.
+// src/trace/gpu.rs compiles variants with it in `traverse` or in workgroup memory
+// (`TraceStack`); all find the same hits.
+var<private> stack: array<vec2<u32>, STACK_SIZE>;
 
 @group(0) @binding(0) var<storage, read> nodes: array<Node>;
 @group(0) @binding(1) var<storage, read> prims: array<vec4<f32>>;
@@ -127,7 +132,6 @@ fn traverse(o: vec3<f32>, d: vec3<f32>, tmax_in: f32, any_hit: bool) -> Hit {
     }
     let inv_d = vec3<f32>(safe_inverse(d.x), safe_inverse(d.y), safe_inverse(d.z));
     let oct_inv4 = octant_inv4(d);
-    var stack: array<vec2<u32>, STACK_SIZE>;
     var sp = 0u;
     var current = vec2<u32>(0u, 0x80000000u);
     var prim_group = vec2<u32>(0u, 0u);

@@ -635,12 +635,12 @@ pub struct TraceBenchArgs {
     #[command(flatten)]
     pub wall: crate::cli::wall::WallArgs,
     /// Time these variants of the GPU trace kernel side by side, their frames interleaved:
-    /// where the traversal stack lives (`function`, as written; `private`; `workgroup`
-    /// memory), then optionally `+unchecked` (without wgpu's run-time checks) and `+wgN`
+    /// where the traversal stack lives (`private`, as written; `function`, zeroed at every
+    /// ray; `workgroup` memory), then optionally `+unchecked` (without wgpu's run-time checks) and `+wgN`
     /// (N = 32, 64, 128 or 256 threads a workgroup; 64 otherwise), e.g.
     /// `function,private+unchecked+wg32`. Same pictures, different code; variants the adapter
     /// cannot run are named and left out. Default: the one `RAYGUN_TRACE_KERNEL` names, else
-    /// `function`.
+    /// `private`.
     #[arg(long, value_name = "VARIANT,…", value_delimiter = ',')]
     pub trace_kernel: Vec<crate::trace::gpu::TraceVariant>,
 }

@@ -149,12 +149,13 @@ impl GpuTraceParams {
 /// time every choice on a lent GPU.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum TraceStack {
-    /// A variable of `traverse`, as written: WGSL zero-initialises it at every call, so every
-    /// ray first writes 256 bytes of the thread's local memory.
+    /// A module-scope private variable (the kernel as written): local memory, zeroed once a
+    /// thread.
     #[default]
-    Function,
-    /// A module-scope private variable: the same local memory, zeroed once a thread.
     Private,
+    /// A variable of `traverse` (the kernel before 2026-12-05): WGSL zero-initialises it at
+    /// every call, so every ray first writes 256 bytes of the thread's local memory.
+    Function,
     /// Workgroup (shared) memory, entry `i` of thread `l` at `i · WORKGROUP + l` (16 KiB a
     /// workgroup of 64, 256 bytes a thread; wgpu zeroes it once a workgroup).
     Workgroup,
@@ -178,7 +179,7 @@ pub struct TraceVariant {
 
 impl Default for TraceVariant {
     fn default() -> Self {
-        Self::new(TraceStack::Function, false)
+        Self::new(TraceStack::Private, false)
     }
 }
 
@@ -191,11 +192,11 @@ impl TraceVariant {
 
     /// Every stack and checks choice at the default workgroup size, the default first.
     pub const ALL: [Self; 6] = [
-        Self::new(TraceStack::Function, false),
         Self::new(TraceStack::Private, false),
+        Self::new(TraceStack::Function, false),
         Self::new(TraceStack::Workgroup, false),
-        Self::new(TraceStack::Function, true),
         Self::new(TraceStack::Private, true),
+        Self::new(TraceStack::Function, true),
         Self::new(TraceStack::Workgroup, true),
     ];
 
@@ -232,7 +233,9 @@ impl TraceVariant {
     /// accesses moved and the workgroup's size set.
     #[must_use]
     pub fn source(self) -> std::borrow::Cow<'static, str> {
+        const MODULE: &str = "var<private> stack: array<vec2<u32>, STACK_SIZE>;\n";
         const LOCAL: &str = "    var stack: array<vec2<u32>, STACK_SIZE>;\n";
+        const FIRST: &str = "    var sp = 0u;\n";
         const PUSH: &str = "stack[sp] = current;";
         const POP: &str = "current = stack[sp];";
         const SIZE: &str = "const WORKGROUP: u32 = 64u;";
@@ -250,13 +253,13 @@ impl TraceVariant {
             s = once(&s, SIZE, &size).into();
         }
         match self.stack {
-            TraceStack::Function => s,
-            TraceStack::Private => {
-                let s = once(&s, LOCAL, "");
-                (s + "\nvar<private> stack: array<vec2<u32>, STACK_SIZE>;\n").into()
+            TraceStack::Private => s,
+            TraceStack::Function => {
+                let s = once(&s, MODULE, "");
+                once(&s, FIRST, &format!("{LOCAL}{FIRST}")).into()
             }
             TraceStack::Workgroup => {
-                let s = once(&s, LOCAL, "");
+                let s = once(&s, MODULE, "");
                 let s = once(
                     &s,
                     PUSH,
@@ -1339,7 +1342,7 @@ mod tests {
         // The checks are a compile option, not a source change: 3 stacks at the default size,
         // 2 at each of the 3 others.
         assert_eq!(sources.len(), 3 + 2 * 3);
-        assert_eq!(TraceVariant::default().to_string(), "function");
+        assert_eq!(TraceVariant::default().to_string(), "private");
         assert_eq!(
             " workgroup+wg32+unchecked ".parse::<TraceVariant>(),
             Ok(TraceVariant::new(TraceStack::Workgroup, true).with_workgroup(32))
