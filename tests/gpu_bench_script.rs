@@ -109,6 +109,7 @@ fn the_smoke_run_leaves_a_summary_and_a_tarball_that_names_every_group() {
         "readback/readback.md",
         "picture/picture.md",
         "kernels/kernels.md",
+        "kernels/kernels-city.md",
         "kernels-guided/guided-function.md",
         "kernels-guided/guided-function+wg32.md",
         "kernels-guided/guided-private+unchecked.md",

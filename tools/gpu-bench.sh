@@ -129,7 +129,8 @@ group_command() {
       # stack lives, wgpu's run-time checks on or off, the workgroup's size. Same pictures,
       # different code; the table's last column is each one's time over the default's.
       if "$BIN" bench trace --help 2>/dev/null | grep -q -- '--trace-kernel'; then
-        echo "$BIN bench trace --backend gpu --size $s --scene builtin:cornell,$CITY --spp $SPP --trace-kernel $KERNEL_VARIANTS --out $d/kernels.md"
+        # A scene a run, so that a stopped group still leaves the Cornell box's table.
+        echo "$BIN bench trace --backend gpu --size $s --scene builtin:cornell --spp $SPP --trace-kernel $KERNEL_VARIANTS --out $d/kernels.md && $BIN bench trace --backend gpu --size $s --scene $CITY --spp $SPP --trace-kernel $KERNEL_VARIANTS --out $d/kernels-city.md"
       fi
       ;;
     kernels-guided)
