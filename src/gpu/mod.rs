@@ -7,6 +7,7 @@
 
 use std::fmt;
 
+pub mod variant;
 pub mod wgsl;
 
 /// What the user asked for on the command line (`--backend gpu|cpu|auto`).
@@ -208,9 +209,9 @@ pub struct GpuContext {
     /// them): a viewer reads the same buffers back for every picture, and on a discrete GPU
     /// each fresh mappable buffer is a fresh host allocation the driver must map for the GPU.
     staging: std::sync::Arc<std::sync::Mutex<Vec<wgpu::Buffer>>>,
-    /// The trace kernel's variant ([`crate::trace::gpu::TraceVariant`]): the default unless
+    /// The trace kernel's variant ([`variant::TraceVariant`]): the default unless
     /// `RAYGUN_TRACE_KERNEL` or [`Self::with_trace_variant`] chose another.
-    trace_variant: crate::trace::gpu::TraceVariant,
+    trace_variant: variant::TraceVariant,
 }
 
 /// The most bytes of read-back staging buffers a context keeps for reuse (a 3840×2160
@@ -329,7 +330,7 @@ impl GpuContext {
     /// (DESIGN.md §11), and this exercises that split on an adapter whose own limit is large.
     ///
     /// `RAYGUN_TRACE_KERNEL=VARIANT` compiles the trace kernel as another variant of the same
-    /// function ([`crate::trace::gpu::TraceVariant`]: `function`, `private` or `workgroup`, each
+    /// function ([`variant::TraceVariant`]: `function`, `private` or `workgroup`, each
     /// optionally `+unchecked`), for timing them on a GPU.
     pub fn new() -> Result<Self, GpuError> {
         let cap = match std::env::var("RAYGUN_MAX_BINDING") {
@@ -426,22 +427,19 @@ impl GpuContext {
             timestamps,
             supported,
             staging: std::sync::Arc::default(),
-            trace_variant: crate::trace::gpu::TraceVariant::default(),
+            trace_variant: variant::TraceVariant::default(),
         })
     }
 
     /// The trace kernel's variant renderers made on this context compile.
     #[must_use]
-    pub fn trace_variant(&self) -> crate::trace::gpu::TraceVariant {
+    pub fn trace_variant(&self) -> variant::TraceVariant {
         self.trace_variant
     }
 
     /// This context (the same device, queue and kept buffers) with the trace kernel compiled
     /// as `variant`; an error naming the variant where the adapter's limits do not allow it.
-    pub fn with_trace_variant(
-        &self,
-        variant: crate::trace::gpu::TraceVariant,
-    ) -> Result<Self, GpuError> {
+    pub fn with_trace_variant(&self, variant: variant::TraceVariant) -> Result<Self, GpuError> {
         variant.check(&self.limits)?;
         Ok(Self {
             trace_variant: variant,
@@ -513,7 +511,7 @@ impl GpuContext {
             self.info.driver,
             self.info.driver_info
         );
-        if self.trace_variant != crate::trace::gpu::TraceVariant::default() {
+        if self.trace_variant != variant::TraceVariant::default() {
             s += &format!(", trace kernel {}", self.trace_variant);
         }
         s

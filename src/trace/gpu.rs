@@ -11,6 +11,7 @@ use super::accum::Accumulation;
 use super::pack::PackedScene;
 use super::path::TraceSettings;
 use super::wall::WallCamera;
+pub use crate::gpu::variant::{TraceStack, TraceVariant};
 use crate::gpu::{Band, GpuContext, GpuError, PassTimer};
 
 /// The kernel source (WGSL has no includes).
@@ -26,7 +27,7 @@ pub const TRACE_WGSL: &str = concat!(
 
 /// Threads per workgroup of the trace kernel (`WORKGROUP` in path.wgsl), unless its variant
 /// says otherwise ([`TraceVariant::workgroup`]).
-pub const WORKGROUP: u32 = 64;
+pub const WORKGROUP: u32 = crate::gpu::variant::DEFAULT_WORKGROUP;
 
 /// A cluster rank's owned sums and the rays per block it traced: `shaders/trace/accum.wgsl`.
 pub const ACCUM_WGSL: &str = include_str!("../../shaders/trace/accum.wgsl");
@@ -141,230 +142,49 @@ impl GpuTraceParams {
     }
 }
 
-/// Where the trace kernel keeps its BVH traversal stack (`STACK_SIZE` = 32 entries of 8
-/// bytes a ray, in `shaders/trace/bvh.wgsl`). Every choice visits the same nodes in the same
-/// order and finds the same hits; they differ only in the memory the GPU uses, which on a GPU
-/// decides how fast a traversal-bound scene (the 343 740-triangle city) traces. Chosen per
-/// context ([`GpuContext::with_trace_variant`], `RAYGUN_TRACE_KERNEL`) so that one binary can
-/// time every choice on a lent GPU.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
-pub enum TraceStack {
-    /// A module-scope private variable (the kernel as written): local memory, zeroed once a
-    /// thread.
-    #[default]
-    Private,
-    /// A variable of `traverse` (the kernel before 2026-12-05): WGSL zero-initialises it at
-    /// every call, so every ray first writes 256 bytes of the thread's local memory.
-    Function,
-    /// Workgroup (shared) memory, entry `i` of thread `l` at `i · WORKGROUP + l` (16 KiB a
-    /// workgroup of 64, 256 bytes a thread; wgpu zeroes it once a workgroup).
-    Workgroup,
-}
-
-/// A compiled variant of the trace kernel: the same function (tested against the default bit
-/// for bit), different code.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub struct TraceVariant {
-    pub stack: TraceStack,
-    /// Compiled without wgpu's run-time checks (index clamping of the kernel's arrays, loop
-    /// counters, integer-division guards): `wgpu::ShaderRuntimeChecks::unchecked`. Sound
-    /// because the kernel bounds every index itself (the stack's pushes and pops, the lists by
-    /// their counts, the scene's indices by construction) and every loop ends; for timing.
-    pub unchecked: bool,
-    /// Threads per workgroup, one of [`TraceVariant::WORKGROUPS`]: the kernel waits at a
-    /// barrier for the group's longest path before it ends (its ray count's reduction), so the
-    /// size decides how long finished threads hold their registers.
-    pub workgroup: u32,
-}
-
-impl Default for TraceVariant {
-    fn default() -> Self {
-        Self::new(TraceStack::Private, false)
+/// The kernel's source for `variant`: `TRACE_WGSL` with the stack's declaration and accesses
+/// moved and the workgroup's size set.
+#[must_use]
+pub fn kernel_source(variant: TraceVariant) -> std::borrow::Cow<'static, str> {
+    const MODULE: &str = "var<private> stack: array<vec2<u32>, STACK_SIZE>;\n";
+    const LOCAL: &str = "    var stack: array<vec2<u32>, STACK_SIZE>;\n";
+    const FIRST: &str = "    var sp = 0u;\n";
+    const PUSH: &str = "stack[sp] = current;";
+    const POP: &str = "current = stack[sp];";
+    const SIZE: &str = "const WORKGROUP: u32 = 64u;";
+    let once = |s: &str, from: &str, to: &str| {
+        assert_eq!(
+            s.matches(from).count(),
+            1,
+            "trace kernel: {from:?} not found once"
+        );
+        s.replacen(from, to, 1)
+    };
+    let mut s = std::borrow::Cow::Borrowed(TRACE_WGSL);
+    if variant.workgroup != WORKGROUP {
+        let size = format!("const WORKGROUP: u32 = {}u;", variant.workgroup);
+        s = once(&s, SIZE, &size).into();
     }
-}
-
-/// Bytes of one thread's traversal stack (`STACK_SIZE` entries of `vec2<u32>`).
-const STACK_BYTES: u32 = 32 * 8;
-
-impl TraceVariant {
-    /// The workgroup sizes a variant may have.
-    pub const WORKGROUPS: [u32; 4] = [32, 64, 128, 256];
-
-    /// Every stack and checks choice at the default workgroup size, the default first.
-    pub const ALL: [Self; 6] = [
-        Self::new(TraceStack::Private, false),
-        Self::new(TraceStack::Function, false),
-        Self::new(TraceStack::Workgroup, false),
-        Self::new(TraceStack::Private, true),
-        Self::new(TraceStack::Function, true),
-        Self::new(TraceStack::Workgroup, true),
-    ];
-
-    /// `stack`, checks off where `unchecked`, [`WORKGROUP`] threads a group.
-    #[must_use]
-    pub const fn new(stack: TraceStack, unchecked: bool) -> Self {
-        Self {
-            stack,
-            unchecked,
-            workgroup: WORKGROUP,
+    match variant.stack {
+        TraceStack::Private => s,
+        TraceStack::Function => {
+            let s = once(&s, MODULE, "");
+            once(&s, FIRST, &format!("{LOCAL}{FIRST}")).into()
         }
-    }
-
-    /// This variant with `threads` a workgroup (one of [`Self::WORKGROUPS`]).
-    #[must_use]
-    pub const fn with_workgroup(self, threads: u32) -> Self {
-        Self {
-            workgroup: threads,
-            ..self
-        }
-    }
-
-    /// Workgroup memory the kernel takes (bytes): its ray count, and the stacks of a
-    /// [`TraceStack::Workgroup`] variant.
-    #[must_use]
-    pub fn workgroup_bytes(self) -> u32 {
-        4 + match self.stack {
-            TraceStack::Workgroup => STACK_BYTES * self.workgroup,
-            _ => 0,
-        }
-    }
-
-    /// The kernel's source for this variant: `TRACE_WGSL` with the stack's declaration and
-    /// accesses moved and the workgroup's size set.
-    #[must_use]
-    pub fn source(self) -> std::borrow::Cow<'static, str> {
-        const MODULE: &str = "var<private> stack: array<vec2<u32>, STACK_SIZE>;\n";
-        const LOCAL: &str = "    var stack: array<vec2<u32>, STACK_SIZE>;\n";
-        const FIRST: &str = "    var sp = 0u;\n";
-        const PUSH: &str = "stack[sp] = current;";
-        const POP: &str = "current = stack[sp];";
-        const SIZE: &str = "const WORKGROUP: u32 = 64u;";
-        let once = |s: &str, from: &str, to: &str| {
-            assert_eq!(
-                s.matches(from).count(),
-                1,
-                "trace kernel: {from:?} not found once"
+        TraceStack::Workgroup => {
+            let s = once(&s, MODULE, "");
+            let s = once(
+                &s,
+                PUSH,
+                "trace_stack[sp * WORKGROUP + trace_lane] = current;",
             );
-            s.replacen(from, to, 1)
-        };
-        let mut s = std::borrow::Cow::Borrowed(TRACE_WGSL);
-        if self.workgroup != WORKGROUP {
-            let size = format!("const WORKGROUP: u32 = {}u;", self.workgroup);
-            s = once(&s, SIZE, &size).into();
+            let s = once(
+                &s,
+                POP,
+                "current = trace_stack[sp * WORKGROUP + trace_lane];",
+            );
+            (s + "\nvar<workgroup> trace_stack: array<vec2<u32>, STACK_SIZE * WORKGROUP>;\n").into()
         }
-        match self.stack {
-            TraceStack::Private => s,
-            TraceStack::Function => {
-                let s = once(&s, MODULE, "");
-                once(&s, FIRST, &format!("{LOCAL}{FIRST}")).into()
-            }
-            TraceStack::Workgroup => {
-                let s = once(&s, MODULE, "");
-                let s = once(
-                    &s,
-                    PUSH,
-                    "trace_stack[sp * WORKGROUP + trace_lane] = current;",
-                );
-                let s = once(
-                    &s,
-                    POP,
-                    "current = trace_stack[sp * WORKGROUP + trace_lane];",
-                );
-                (s + "\nvar<workgroup> trace_stack: array<vec2<u32>, STACK_SIZE * WORKGROUP>;\n")
-                    .into()
-            }
-        }
-    }
-
-    /// Whether `limits` allow this variant: its workgroup's threads and memory.
-    pub fn check(self, limits: &wgpu::Limits) -> Result<(), GpuError> {
-        let refuse = |why: String| {
-            Err(GpuError::TraceVariant {
-                variant: self.to_string(),
-                why,
-            })
-        };
-        if !Self::WORKGROUPS.contains(&self.workgroup) {
-            return refuse(format!(
-                "{} threads a workgroup; expected one of {:?}",
-                self.workgroup,
-                Self::WORKGROUPS
-            ));
-        }
-        if self.workgroup > limits.max_compute_invocations_per_workgroup
-            || self.workgroup > limits.max_compute_workgroup_size_x
-        {
-            return refuse(format!(
-                "{} threads a workgroup; this adapter allows {}",
-                self.workgroup,
-                limits
-                    .max_compute_invocations_per_workgroup
-                    .min(limits.max_compute_workgroup_size_x)
-            ));
-        }
-        let needs = self.workgroup_bytes();
-        if needs > limits.max_compute_workgroup_storage_size {
-            return refuse(format!(
-                "needs {needs} bytes of workgroup memory; this adapter allows {}",
-                limits.max_compute_workgroup_storage_size
-            ));
-        }
-        Ok(())
-    }
-}
-
-impl std::fmt::Display for TraceVariant {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self.stack {
-            TraceStack::Function => "function",
-            TraceStack::Private => "private",
-            TraceStack::Workgroup => "workgroup",
-        })?;
-        if self.unchecked {
-            f.write_str("+unchecked")?;
-        }
-        if self.workgroup != WORKGROUP {
-            write!(f, "+wg{}", self.workgroup)?;
-        }
-        Ok(())
-    }
-}
-
-impl std::str::FromStr for TraceVariant {
-    type Err = String;
-
-    /// `function`, `private` or `workgroup` (the stack), then optionally `+unchecked` and
-    /// `+wgN` (N threads a workgroup: 32, 64, 128 or 256), e.g. `private+unchecked+wg32`.
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        let bad = || {
-            format!(
-                "unknown trace kernel {s:?}: expected function, private or workgroup, then \
-                 optionally +unchecked and +wgN (N = 32, 64, 128 or 256), e.g. \
-                 private+unchecked+wg32"
-            )
-        };
-        let mut words = s.trim().split('+');
-        let stack = match words.next() {
-            Some("function") => TraceStack::Function,
-            Some("private") => TraceStack::Private,
-            Some("workgroup") => TraceStack::Workgroup,
-            _ => return Err(bad()),
-        };
-        let mut v = Self::new(stack, false);
-        let mut sized = false;
-        for w in words {
-            match w {
-                "unchecked" if !v.unchecked => v.unchecked = true,
-                _ => match w.strip_prefix("wg").and_then(|n| n.parse::<u32>().ok()) {
-                    Some(n) if !sized && Self::WORKGROUPS.contains(&n) => {
-                        v.workgroup = n;
-                        sized = true;
-                    }
-                    _ => return Err(bad()),
-                },
-            }
-        }
-        Ok(v)
     }
 }
 
@@ -381,7 +201,7 @@ impl TraceKernel {
     pub fn new(ctx: &GpuContext) -> Self {
         let variant = ctx.trace_variant();
         let label = format!("trace/path ({variant})");
-        let source = variant.source();
+        let source = kernel_source(variant);
         let module = if variant.unchecked {
             let desc = wgpu::ShaderModuleDescriptor {
                 label: Some(&label),
@@ -1320,7 +1140,7 @@ mod tests {
         );
         let mut sources = std::collections::HashSet::new();
         for v in tested_variants() {
-            let source = v.source();
+            let source = kernel_source(v);
             let module = validated(&format!("path.wgsl ({v})"), &source);
             let entry = module
                 .entry_points
@@ -1342,80 +1162,6 @@ mod tests {
         // The checks are a compile option, not a source change: 3 stacks at the default size,
         // 2 at each of the 3 others.
         assert_eq!(sources.len(), 3 + 2 * 3);
-        assert_eq!(TraceVariant::default().to_string(), "private");
-        assert_eq!(
-            " workgroup+wg32+unchecked ".parse::<TraceVariant>(),
-            Ok(TraceVariant::new(TraceStack::Workgroup, true).with_workgroup(32))
-        );
-        assert_eq!(
-            "private+wg64".parse(),
-            Ok(TraceVariant::new(TraceStack::Private, false))
-        );
-        for bad in [
-            "",
-            "shared",
-            "workgroup+",
-            "+unchecked",
-            "unchecked+workgroup",
-            "function+unchecked+unchecked",
-            "function+wg48",
-            "function+wg32+wg64",
-            "function+wg",
-        ] {
-            let err = bad.parse::<TraceVariant>().unwrap_err();
-            assert!(
-                err.contains("function, private or workgroup"),
-                "{bad:?}: {err}"
-            );
-        }
-    }
-
-    #[test]
-    fn variants_the_adapter_cannot_run_are_refused_by_name() {
-        let mut limits = wgpu::Limits {
-            max_compute_workgroup_storage_size: 4 + 32 * 8 * 64,
-            ..wgpu::Limits::default()
-        };
-        for v in TraceVariant::ALL {
-            v.check(&limits).unwrap();
-        }
-        limits.max_compute_workgroup_storage_size -= 1;
-        let err = TraceVariant::new(TraceStack::Workgroup, false)
-            .check(&limits)
-            .unwrap_err()
-            .to_string();
-        assert!(
-            err.contains("trace kernel workgroup:") && err.contains("16388 bytes"),
-            "{err}"
-        );
-        TraceVariant::new(TraceStack::Private, true)
-            .check(&limits)
-            .unwrap();
-        // The workgroup stack grows with the workgroup: 64 KiB at 256 threads.
-        limits.max_compute_workgroup_storage_size = 49_152;
-        let big = TraceVariant::new(TraceStack::Workgroup, true).with_workgroup(256);
-        let err = big.check(&limits).unwrap_err().to_string();
-        assert!(
-            err.contains("workgroup+unchecked+wg256") && err.contains("65540"),
-            "{err}"
-        );
-        limits.max_compute_invocations_per_workgroup = 128;
-        let err = TraceVariant::default()
-            .with_workgroup(256)
-            .check(&limits)
-            .unwrap_err()
-            .to_string();
-        assert!(
-            err.contains("256 threads") && err.contains("allows 128"),
-            "{err}"
-        );
-        let odd = TraceVariant::default().with_workgroup(48);
-        assert!(
-            odd.check(&limits)
-                .unwrap_err()
-                .to_string()
-                .contains("[32, 64, 128, 256]")
-        );
     }
 
     #[test]

@@ -1,0 +1,286 @@
+//! How the trace kernel is compiled: a choice the GPU context carries
+//! ([`super::GpuContext::trace_variant`]) and the trace stage applies (`src/trace/gpu.rs`
+//! turns a variant into the kernel's source and compile options). Every variant computes the
+//! same function; they differ in the code a GPU runs, so that one binary can time them all.
+
+use super::GpuError;
+
+/// Threads per workgroup of the trace kernel unless a variant says otherwise (`WORKGROUP` in
+/// `shaders/trace/path.wgsl`).
+pub const DEFAULT_WORKGROUP: u32 = 64;
+
+/// Where the trace kernel keeps its BVH traversal stack (`STACK_SIZE` = 32 entries of 8
+/// bytes a ray, in `shaders/trace/bvh.wgsl`). Every choice visits the same nodes in the same
+/// order and finds the same hits; they differ only in the memory the GPU uses, which on a GPU
+/// decides how fast a traversal-bound scene (the 343 740-triangle city) traces. Chosen per
+/// context ([`super::GpuContext::with_trace_variant`], `RAYGUN_TRACE_KERNEL`) so that one
+/// binary can time every choice on a lent GPU.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum TraceStack {
+    /// A module-scope private variable (the kernel as written): local memory, zeroed once a
+    /// thread.
+    #[default]
+    Private,
+    /// A variable of `traverse` (the kernel before 2026-12-05): WGSL zero-initialises it at
+    /// every call, so every ray first writes 256 bytes of the thread's local memory.
+    Function,
+    /// Workgroup (shared) memory, entry `i` of thread `l` at `i · WORKGROUP + l` (16 KiB a
+    /// workgroup of 64, 256 bytes a thread; wgpu zeroes it once a workgroup).
+    Workgroup,
+}
+
+/// A compiled variant of the trace kernel: the same function (tested against the default bit
+/// for bit), different code.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct TraceVariant {
+    pub stack: TraceStack,
+    /// Compiled without wgpu's run-time checks (index clamping of the kernel's arrays, loop
+    /// counters, integer-division guards): `wgpu::ShaderRuntimeChecks::unchecked`. Sound
+    /// because the kernel bounds every index itself (the stack's pushes and pops, the lists by
+    /// their counts, the scene's indices by construction) and every loop ends; for timing.
+    pub unchecked: bool,
+    /// Threads per workgroup, one of [`TraceVariant::WORKGROUPS`]: the kernel waits at a
+    /// barrier for the group's longest path before it ends (its ray count's reduction), so the
+    /// size decides how long finished threads hold their registers.
+    pub workgroup: u32,
+}
+
+impl Default for TraceVariant {
+    fn default() -> Self {
+        Self::new(TraceStack::Private, false)
+    }
+}
+
+/// Bytes of one thread's traversal stack (`STACK_SIZE` = 32 entries of `vec2<u32>` in
+/// `shaders/trace/bvh.wgsl`).
+pub const STACK_BYTES: u32 = 32 * 8;
+
+impl TraceVariant {
+    /// The workgroup sizes a variant may have.
+    pub const WORKGROUPS: [u32; 4] = [32, 64, 128, 256];
+
+    /// Every stack and checks choice at the default workgroup size, the default first.
+    pub const ALL: [Self; 6] = [
+        Self::new(TraceStack::Private, false),
+        Self::new(TraceStack::Function, false),
+        Self::new(TraceStack::Workgroup, false),
+        Self::new(TraceStack::Private, true),
+        Self::new(TraceStack::Function, true),
+        Self::new(TraceStack::Workgroup, true),
+    ];
+
+    /// `stack`, checks off where `unchecked`, [`DEFAULT_WORKGROUP`] threads a group.
+    #[must_use]
+    pub const fn new(stack: TraceStack, unchecked: bool) -> Self {
+        Self {
+            stack,
+            unchecked,
+            workgroup: DEFAULT_WORKGROUP,
+        }
+    }
+
+    /// This variant with `threads` a workgroup (one of [`Self::WORKGROUPS`]).
+    #[must_use]
+    pub const fn with_workgroup(self, threads: u32) -> Self {
+        Self {
+            workgroup: threads,
+            ..self
+        }
+    }
+
+    /// Workgroup memory the kernel takes (bytes): its ray count, and the stacks of a
+    /// [`TraceStack::Workgroup`] variant.
+    #[must_use]
+    pub fn workgroup_bytes(self) -> u32 {
+        4 + match self.stack {
+            TraceStack::Workgroup => STACK_BYTES * self.workgroup,
+            _ => 0,
+        }
+    }
+
+    /// Whether `limits` allow this variant: its workgroup's threads and memory.
+    pub fn check(self, limits: &wgpu::Limits) -> Result<(), GpuError> {
+        let refuse = |why: String| {
+            Err(GpuError::TraceVariant {
+                variant: self.to_string(),
+                why,
+            })
+        };
+        if !Self::WORKGROUPS.contains(&self.workgroup) {
+            return refuse(format!(
+                "{} threads a workgroup; expected one of {:?}",
+                self.workgroup,
+                Self::WORKGROUPS
+            ));
+        }
+        if self.workgroup > limits.max_compute_invocations_per_workgroup
+            || self.workgroup > limits.max_compute_workgroup_size_x
+        {
+            return refuse(format!(
+                "{} threads a workgroup; this adapter allows {}",
+                self.workgroup,
+                limits
+                    .max_compute_invocations_per_workgroup
+                    .min(limits.max_compute_workgroup_size_x)
+            ));
+        }
+        let needs = self.workgroup_bytes();
+        if needs > limits.max_compute_workgroup_storage_size {
+            return refuse(format!(
+                "needs {needs} bytes of workgroup memory; this adapter allows {}",
+                limits.max_compute_workgroup_storage_size
+            ));
+        }
+        Ok(())
+    }
+}
+
+impl std::fmt::Display for TraceVariant {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self.stack {
+            TraceStack::Function => "function",
+            TraceStack::Private => "private",
+            TraceStack::Workgroup => "workgroup",
+        })?;
+        if self.unchecked {
+            f.write_str("+unchecked")?;
+        }
+        if self.workgroup != DEFAULT_WORKGROUP {
+            write!(f, "+wg{}", self.workgroup)?;
+        }
+        Ok(())
+    }
+}
+
+impl std::str::FromStr for TraceVariant {
+    type Err = String;
+
+    /// `function`, `private` or `workgroup` (the stack), then optionally `+unchecked` and
+    /// `+wgN` (N threads a workgroup: 32, 64, 128 or 256), e.g. `private+unchecked+wg32`.
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let bad = || {
+            format!(
+                "unknown trace kernel {s:?}: expected function, private or workgroup, then \
+                 optionally +unchecked and +wgN (N = 32, 64, 128 or 256), e.g. \
+                 private+unchecked+wg32"
+            )
+        };
+        let mut words = s.trim().split('+');
+        let stack = match words.next() {
+            Some("function") => TraceStack::Function,
+            Some("private") => TraceStack::Private,
+            Some("workgroup") => TraceStack::Workgroup,
+            _ => return Err(bad()),
+        };
+        let mut v = Self::new(stack, false);
+        let mut sized = false;
+        for w in words {
+            match w {
+                "unchecked" if !v.unchecked => v.unchecked = true,
+                _ => match w.strip_prefix("wg").and_then(|n| n.parse::<u32>().ok()) {
+                    Some(n) if !sized && Self::WORKGROUPS.contains(&n) => {
+                        v.workgroup = n;
+                        sized = true;
+                    }
+                    _ => return Err(bad()),
+                },
+            }
+        }
+        Ok(v)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn variants_name_themselves_and_parse_back() {
+        for stack in [
+            TraceStack::Private,
+            TraceStack::Function,
+            TraceStack::Workgroup,
+        ] {
+            for unchecked in [false, true] {
+                for n in TraceVariant::WORKGROUPS {
+                    let v = TraceVariant::new(stack, unchecked).with_workgroup(n);
+                    assert_eq!(v.to_string().parse::<TraceVariant>(), Ok(v));
+                }
+            }
+        }
+        assert_eq!(TraceVariant::default().to_string(), "private");
+        assert_eq!(
+            " workgroup+wg32+unchecked ".parse::<TraceVariant>(),
+            Ok(TraceVariant::new(TraceStack::Workgroup, true).with_workgroup(32))
+        );
+        assert_eq!(
+            "private+wg64".parse(),
+            Ok(TraceVariant::new(TraceStack::Private, false))
+        );
+        for bad in [
+            "",
+            "shared",
+            "workgroup+",
+            "+unchecked",
+            "unchecked+workgroup",
+            "function+unchecked+unchecked",
+            "function+wg48",
+            "function+wg32+wg64",
+            "function+wg",
+        ] {
+            let err = bad.parse::<TraceVariant>().unwrap_err();
+            assert!(
+                err.contains("function, private or workgroup"),
+                "{bad:?}: {err}"
+            );
+        }
+    }
+
+    #[test]
+    fn variants_the_adapter_cannot_run_are_refused_by_name() {
+        let mut limits = wgpu::Limits {
+            max_compute_workgroup_storage_size: 4 + 32 * 8 * 64,
+            ..wgpu::Limits::default()
+        };
+        for v in TraceVariant::ALL {
+            v.check(&limits).unwrap();
+        }
+        limits.max_compute_workgroup_storage_size -= 1;
+        let err = TraceVariant::new(TraceStack::Workgroup, false)
+            .check(&limits)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("trace kernel workgroup:") && err.contains("16388 bytes"),
+            "{err}"
+        );
+        TraceVariant::new(TraceStack::Private, true)
+            .check(&limits)
+            .unwrap();
+        // The workgroup stack grows with the workgroup: 64 KiB at 256 threads.
+        limits.max_compute_workgroup_storage_size = 49_152;
+        let big = TraceVariant::new(TraceStack::Workgroup, true).with_workgroup(256);
+        let err = big.check(&limits).unwrap_err().to_string();
+        assert!(
+            err.contains("workgroup+unchecked+wg256") && err.contains("65540"),
+            "{err}"
+        );
+        limits.max_compute_invocations_per_workgroup = 128;
+        let err = TraceVariant::default()
+            .with_workgroup(256)
+            .check(&limits)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("256 threads") && err.contains("allows 128"),
+            "{err}"
+        );
+        let odd = TraceVariant::default().with_workgroup(48);
+        assert!(
+            odd.check(&limits)
+                .unwrap_err()
+                .to_string()
+                .contains("[32, 64, 128, 256]")
+        );
+    }
+}
