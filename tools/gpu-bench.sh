@@ -21,7 +21,7 @@
 #   OUT=/tmp/gb bash tools/gpu-bench.sh smoke
 #
 # Settings (environment): RAYGUN_BIN (default .dev/raygun for run, target/release/raygun or
-# target/debug/raygun for smoke), GPU_BENCH_LIMIT_S (the whole run's budget: 420 for run, 120
+# target/debug/raygun for smoke), GPU_BENCH_LIMIT_S (the whole run's budget: 420 for run, 150
 # for smoke), GPU_BENCH_GROUPS (some groups only, by name, e.g. "adapter guided all" for a
 # rerun of what failed; default every group), OUT (where the results go; required).
 set -uo pipefail
@@ -112,6 +112,8 @@ declare -A SMOKE_BUDGET=([adapter]=10 [picture]=10 [dgi]=20 [schedule]=20 [trace
 KERNEL_VARIANTS=function,private,workgroup,function+unchecked,private+unchecked
 KERNEL_VARIANTS+=,workgroup+unchecked,function+wg32,function+wg128,function+wg256
 KERNEL_VARIANTS+=,private+unchecked+wg32,workgroup+unchecked+wg32,workgroup+unchecked+wg128
+# Path regeneration in at most G workgroups: an H200 has 132 SMs, so 2 to 16 groups of 64 each.
+KERNEL_VARIANTS+=,private+regen264,private+regen528,private+regen1056,private+regen2112
 # ... and those the `kernels-guided` group runs guided iterations with.
 GUIDED_KERNEL_VARIANTS="function function+wg32 private+unchecked workgroup+unchecked+wg32"
 
@@ -269,12 +271,16 @@ main() {
       if [ -n "${RAYGUN_BIN:-}" ]; then BIN="$RAYGUN_BIN"
       elif [ -x target/release/raygun ]; then BIN=target/release/raygun
       else BIN=target/debug/raygun; fi
-      LIMIT="${GPU_BENCH_LIMIT_S:-120}"
+      LIMIT="${GPU_BENCH_LIMIT_S:-150}"
       SIZE=32,18 REPS=1 SPP=1 ITERATIONS=2 REFERENCE_SPP=2 CITY=builtin:city-small
       ALL_QUICK_SIZE="--size 16,9 --scene builtin:cornell" ALL_SIZE="--size 24,12 --scene builtin:cornell"
       WALL_SIZE=64,26 NATIVE_ITERATIONS=2 NATIVE_DISPLAY=tiny
       CLUSTER_ITERATIONS=2 CLUSTER_MODEL="--model-size 64,26 --model-ranks 3"
       TRACE_SIZES="16,9 8,4" READBACK_ROUNDS=2
+      # A few of each kind (one over lavapipe's workgroup memory: named, not run).
+      KERNEL_VARIANTS=function,private,workgroup+unchecked,function+wg32,private+regen264
+      KERNEL_VARIANTS+=,workgroup+unchecked+wg128
+      GUIDED_KERNEL_VARIANTS="function+wg32"
       declare -gA BUDGETS
       for g in "${BENCH_GROUPS[@]}"; do BUDGETS[$g]=${SMOKE_BUDGET[$g]}; done
       export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-/tmp}"

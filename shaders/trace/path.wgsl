@@ -34,7 +34,9 @@ struct Params {
     // buffers hold size.x × rows pixels from image row row0 (src/gpu/mod.rs, `Band`).
     row0: u32,
     rows: u32,
-    _pad1: u32,
+    // Full frames of a regenerating variant: threads launched (a thread's paths are that
+    // far apart); 0: a thread a path.
+    stride: u32,
 }
 
 // Layout constants: src/trace/pack.rs (module doc).
@@ -344,8 +346,23 @@ fn is_finite3(v: vec3<f32>) -> bool {
     return all(abs(v) <= vec3<f32>(T_FAR));
 }
 
-// One path of `pixel`; `tile` is its wall tile when the wall camera is on.
-fn trace_sample(pixel: u32, sample: u32, tile: u32) -> vec3<f32> {
+// A path in flight: where its next ray starts and goes, what it has gathered, and the vertex
+// it is at. `trace_sample` runs one path to its end; the regenerating entry point
+// (`trace_regen`) starts a thread's next path as soon as its last one ends.
+struct PathState {
+    o: vec3<f32>,
+    depth: u32,
+    d: vec3<f32>,
+    prev_pdf: f32,
+    throughput: vec3<f32>,
+    pixel: u32,
+    radiance: vec3<f32>,
+    sample: u32,
+}
+
+// The camera ray of sample `sample` of `pixel`; `tile` is its wall tile when the wall camera
+// is on.
+fn path_start(pixel: u32, sample: u32, tile: u32) -> PathState {
     let x = pixel % params.size.x;
     let y = pixel / params.size.x;
     let r0 = rand4(pixel, sample, 0u);
@@ -361,253 +378,370 @@ fn trace_sample(pixel: u32, sample: u32, tile: u32) -> vec3<f32> {
         d = camera_direction(f32(x) + r0.x, f32(y) + r0.y);
         o = params.cam_pos;
     }
-    var throughput = vec3<f32>(1.0);
-    var radiance = vec3<f32>(0.0);
-    var prev_pdf = 0.0;
+    return PathState(o, 0u, d, 0.0, vec3<f32>(1.0), pixel, vec3<f32>(0.0), sample);
+}
+
+// One vertex of the path `st`: its ray traced, emission gathered, the light sampled, the next
+// direction chosen. False when the path ends here (its radiance final).
+fn path_bounce(st: ptr<function, PathState>) -> bool {
+    var o = (*st).o;
+    var d = (*st).d;
+    var throughput = (*st).throughput;
+    var radiance = (*st).radiance;
+    var prev_pdf = (*st).prev_pdf;
+    let depth = (*st).depth;
+    let pixel = (*st).pixel;
+    let sample = (*st).sample;
     let alpha_scene = (params.features & FEAT_ALPHA) != 0u;
     let tri_select = 1.0 - params.env_select - params.punct_select;
-    for (var depth = 0u; depth < params.max_depth; depth++) {
-        ray_seed = 0u;
-        if alpha_scene {
-            ray_seed = seed_for(pixel, sample, depth, 0u);
+    ray_seed = 0u;
+    if alpha_scene {
+        ray_seed = seed_for(pixel, sample, depth, 0u);
+    }
+    let hit = traverse(o, d, T_FAR, false);
+    if hit.prim == NO_HIT {
+        let le = env_eval(d);
+        var w = 1.0;
+        if prev_pdf != 0.0 {
+            w = mis(prev_pdf, params.env_select * le.w);
         }
-        let hit = traverse(o, d, T_FAR, false);
-        if hit.prim == NO_HIT {
-            let le = env_eval(d);
-            var w = 1.0;
-            if prev_pdf != 0.0 {
-                w = mis(prev_pdf, params.env_select * le.w);
-            }
-            radiance += throughput * le.xyz * w;
-            break;
+        radiance += throughput * le.xyz * w;
+        (*st).radiance = radiance;
+        return false;
+    }
+    let pa = prims[3u * hit.prim];
+    let pb = prims[3u * hit.prim + 1u];
+    let pc = prims[3u * hit.prim + 2u];
+    let v0 = pa.xyz;
+    let e1 = pb.xyz;
+    let e2 = pc.xyz;
+    let light_density = pb.w;
+    var ng = normalize(cross(e1, e2));
+    let p = v0 + e1 * hit.u + e2 * hit.v;
+    let tri = bitcast<u32>(pa.w);
+    let ti = 4u * tri;
+    let s0 = shade[ti];
+    let s1 = shade[ti + 1u];
+    let s2 = shade[ti + 2u];
+    let s3 = shade[ti + 3u];
+    let b0 = 1.0 - hit.u - hit.v;
+    var ns = normalize(s0.xyz * b0 + s1.xyz * hit.u + s2.xyz * hit.v);
+    if !is_finite3(ns) {
+        ns = ng;
+    }
+    let mb = MATERIAL_STRIDE * bitcast<u32>(s3.w);
+    let m1 = materials[mb + 1u];
+    let m2 = materials[mb + 2u];
+    let flags = u32(m1.w);
+    let wo = -d;
+    let cos_hit = abs(dot(ng, d));
+    let front = dot(ng, wo) >= 0.0;
+    if !front {
+        ng = -ng;
+    }
+    if (flags & MAT_NORMAL_TEX) != 0u {
+        ns = normal_mapped(mb, tri, hit.u, hit.v, ns);
+    }
+    if dot(ns, ng) < 0.0 {
+        ns = -ns;
+    }
+    let emission = emission_at(mb, flags, tri, hit.u, hit.v);
+    if any(emission != vec3<f32>(0.0)) {
+        var w = 1.0;
+        if prev_pdf != 0.0 {
+            let pdf_light = tri_select * light_density * hit.t * hit.t / cos_hit;
+            w = mis(prev_pdf, pdf_light);
         }
-        let pa = prims[3u * hit.prim];
-        let pb = prims[3u * hit.prim + 1u];
-        let pc = prims[3u * hit.prim + 2u];
-        let v0 = pa.xyz;
-        let e1 = pb.xyz;
-        let e2 = pc.xyz;
-        let light_density = pb.w;
-        var ng = normalize(cross(e1, e2));
-        let p = v0 + e1 * hit.u + e2 * hit.v;
-        let tri = bitcast<u32>(pa.w);
-        let ti = 4u * tri;
-        let s0 = shade[ti];
-        let s1 = shade[ti + 1u];
-        let s2 = shade[ti + 2u];
-        let s3 = shade[ti + 3u];
-        let b0 = 1.0 - hit.u - hit.v;
-        var ns = normalize(s0.xyz * b0 + s1.xyz * hit.u + s2.xyz * hit.v);
-        if !is_finite3(ns) {
-            ns = ng;
-        }
-        let mb = MATERIAL_STRIDE * bitcast<u32>(s3.w);
-        let m1 = materials[mb + 1u];
-        let m2 = materials[mb + 2u];
-        let flags = u32(m1.w);
-        let wo = -d;
-        let cos_hit = abs(dot(ng, d));
-        let front = dot(ng, wo) >= 0.0;
-        if !front {
-            ng = -ng;
-        }
-        if (flags & MAT_NORMAL_TEX) != 0u {
-            ns = normal_mapped(mb, tri, hit.u, hit.v, ns);
-        }
-        if dot(ns, ng) < 0.0 {
-            ns = -ns;
-        }
-        let emission = emission_at(mb, flags, tri, hit.u, hit.v);
-        if any(emission != vec3<f32>(0.0)) {
-            var w = 1.0;
-            if prev_pdf != 0.0 {
-                let pdf_light = tri_select * light_density * hit.t * hit.t / cos_hit;
-                w = mis(prev_pdf, pdf_light);
-            }
-            radiance += throughput * emission * w;
-        }
-        let base = base_color(mb, flags, tri, hit.u, hit.v);
-        var metallic = m2.x;
-        var alpha = m2.y;
-        if (flags & MAT_MR_TEX) != 0u {
-            let mr = slot(mb, 1u, tri, hit.u, hit.v);
-            alpha = max(alpha * mr.y * mr.y, MIN_ALPHA);
-            metallic *= mr.z;
-        }
-        let bsdf = Bsdf(base.xyz, metallic, alpha, m2.z);
-        let has_ext = (flags & MAT_EXT_BSDF) != 0u;
-        var ext = BsdfExt(bsdf, vec3<f32>(1.0), 0.04, 1.5, 0.0, 0.0, 0.1);
-        if has_ext {
-            let m3 = materials[mb + 3u];
-            let m4 = materials[mb + 4u];
-            let ior = m4.x;
-            let f0 = (ior - 1.0) / (ior + 1.0);
-            ext = BsdfExt(bsdf, m3.xyz, f0 * f0, select(1.0 / ior, ior, front), m3.w, m4.y, m4.z);
-        }
-        let transmits = has_ext && ext_transmits(ext);
-        let r1 = rand4(pixel, sample, 1u + 2u * depth);
-        let r2 = rand4(pixel, sample, 2u + 2u * depth);
-        let po = offset_ray(p, ng);
+        radiance += throughput * emission * w;
+    }
+    let base = base_color(mb, flags, tri, hit.u, hit.v);
+    var metallic = m2.x;
+    var alpha = m2.y;
+    if (flags & MAT_MR_TEX) != 0u {
+        let mr = slot(mb, 1u, tri, hit.u, hit.v);
+        alpha = max(alpha * mr.y * mr.y, MIN_ALPHA);
+        metallic *= mr.z;
+    }
+    let bsdf = Bsdf(base.xyz, metallic, alpha, m2.z);
+    let has_ext = (flags & MAT_EXT_BSDF) != 0u;
+    var ext = BsdfExt(bsdf, vec3<f32>(1.0), 0.04, 1.5, 0.0, 0.0, 0.1);
+    if has_ext {
+        let m3 = materials[mb + 3u];
+        let m4 = materials[mb + 4u];
+        let ior = m4.x;
+        let f0 = (ior - 1.0) / (ior + 1.0);
+        ext = BsdfExt(bsdf, m3.xyz, f0 * f0, select(1.0 / ior, ior, front), m3.w, m4.y, m4.z);
+    }
+    let transmits = has_ext && ext_transmits(ext);
+    let r1 = rand4(pixel, sample, 1u + 2u * depth);
+    let r2 = rand4(pixel, sample, 2u + 2u * depth);
+    let po = offset_ray(p, ng);
 
-        if params.env_select > 0.0 || params.light_count > 0u || params.punctual_count > 0u {
-            var wi: vec3<f32>;
-            var le: vec3<f32>;
-            var pdf_l: f32;
-            var tmax: f32;
-            var delta = false;
-            if r1.x < params.env_select {
-                let es = sample_env(r1.y, r1.z);
-                wi = es.dir;
-                le = es.radiance;
-                pdf_l = params.env_select * es.pdf;
+    if params.env_select > 0.0 || params.light_count > 0u || params.punctual_count > 0u {
+        var wi: vec3<f32>;
+        var le: vec3<f32>;
+        var pdf_l: f32;
+        var tmax: f32;
+        var delta = false;
+        if r1.x < params.env_select {
+            let es = sample_env(r1.y, r1.z);
+            wi = es.dir;
+            le = es.radiance;
+            pdf_l = params.env_select * es.pdf;
+            tmax = T_FAR;
+        } else if r1.x < params.env_select + params.punct_select {
+            let n = params.punctual_count;
+            let k = min(u32((r1.x - params.env_select) / params.punct_select * f32(n)), n - 1u);
+            let l = 3u * (params.light_count + k);
+            let la = lights[l];
+            let lb = lights[l + 1u];
+            let lc = lights[l + 2u];
+            pdf_l = params.punct_select / f32(n);
+            delta = true;
+            if u32(la.w) == LIGHT_DIRECTIONAL {
+                wi = la.xyz;
+                le = lb.xyz;
                 tmax = T_FAR;
-            } else if r1.x < params.env_select + params.punct_select {
-                let n = params.punctual_count;
-                let k = min(u32((r1.x - params.env_select) / params.punct_select * f32(n)), n - 1u);
-                let l = 3u * (params.light_count + k);
-                let la = lights[l];
-                let lb = lights[l + 1u];
-                let lc = lights[l + 2u];
-                pdf_l = params.punct_select / f32(n);
-                delta = true;
-                if u32(la.w) == LIGHT_DIRECTIONAL {
-                    wi = la.xyz;
-                    le = lb.xyz;
-                    tmax = T_FAR;
-                } else {
-                    let to = la.xyz - po;
-                    let dist2 = dot(to, to);
-                    let dl = sqrt(dist2);
-                    wi = to / dl;
-                    le = lb.xyz / dist2;
-                    if u32(la.w) == LIGHT_SPOT {
-                        let scale = 1.0 / max(lc.w - lb.w, 0.001);
-                        let t = clamp((dot(lc.xyz, -wi) - lb.w) * scale, 0.0, 1.0);
-                        le *= t * t;
-                    }
-                    tmax = dl * (1.0 - 1e-4);
-                }
             } else {
-                let u = min((r1.x - params.env_select - params.punct_select) / tri_select, 0.99999994);
-                let k = sample_cdf(0u, params.light_count, u);
-                let la = lights[3u * k];
-                let le1 = lights[3u * k + 1u].xyz;
-                let le2 = lights[3u * k + 2u].xyz;
-                var a = r1.y;
-                var b = r1.z;
-                if a + b > 1.0 {
-                    a = 1.0 - a;
-                    b = 1.0 - b;
-                }
-                let q = la.xyz + le1 * a + le2 * b;
-                let to = q - po;
+                let to = la.xyz - po;
                 let dist2 = dot(to, to);
                 let dl = sqrt(dist2);
                 wi = to / dl;
-                let n_l = cross(le1, le2);
-                let area2 = length(n_l);
-                // A single-sided light emits ray_from its front (towards n_l) only; seen ray_from behind
-                // the sample is discarded (pdf 0).
-                let facing = -dot(n_l, wi) / area2;
-                var cos_l = max(facing, 0.0);
-                if lights[3u * k + 1u].w != 0.0 {
-                    cos_l = abs(facing);
-                }
-                let ltri = bitcast<u32>(la.w);
-                let lmb = material_base(ltri);
-                let lflags = u32(materials[lmb + 1u].w);
-                le = emission_at(lmb, lflags, ltri, a, b);
-                // A cut-out emitter emits only where it is there (BSDF rays see the same).
-                if (lflags & MAT_MASK) != 0u {
-                    if base_color(lmb, lflags, ltri, a, b).w < materials[lmb + 2u].w {
-                        le = vec3<f32>(0.0);
-                    }
-                } else if (lflags & MAT_BLEND) != 0u {
-                    le *= base_color(lmb, lflags, ltri, a, b).w;
-                }
-                let density = dist[k + 1u] - dist[k];
-                pdf_l = 0.0;
-                if cos_l > 0.0 {
-                    pdf_l = tri_select * density / (0.5 * area2) * dist2 / cos_l;
+                le = lb.xyz / dist2;
+                if u32(la.w) == LIGHT_SPOT {
+                    let scale = 1.0 / max(lc.w - lb.w, 0.001);
+                    let t = clamp((dot(lc.xyz, -wi) - lb.w) * scale, 0.0, 1.0);
+                    le *= t * t;
                 }
                 tmax = dl * (1.0 - 1e-4);
             }
-            let side = dot(wi, ng);
-            if pdf_l > 0.0 && pdf_l <= T_FAR && (side > 0.0 || (transmits && side < 0.0)) {
-                var fb: vec4<f32>;
-                if has_ext {
-                    fb = ext_eval(ext, ns, wo, wi);
-                } else {
-                    fb = bsdf_eval(bsdf, ns, wo, wi);
-                }
-                // The last vertex's light sample carries the whole estimate: no BSDF ray
-                // follows. A delta light cannot be hit at all.
-                var w = mis(pdf_l, fb.w);
-                if delta || depth + 1u == params.max_depth {
-                    w = 1.0;
-                }
-                let contrib = throughput * fb.xyz * le * (abs(dot(ns, wi)) / pdf_l) * w;
-                if any(contrib != vec3<f32>(0.0)) {
-                    var ray_from = po;
-                    if side < 0.0 {
-                        ray_from = offset_ray(p, -ng);
-                    }
-                    if alpha_scene {
-                        ray_seed = seed_for(pixel, sample, depth, 1u);
-                    }
-                    let blocker = traverse(ray_from, wi, tmax, true);
-                    if blocker.prim == NO_HIT {
-                        radiance += contrib;
-                    }
-                }
-            }
-        }
-
-        var wi: vec3<f32>;
-        if has_ext {
-            wi = ext_sample(ext, ns, wo, r1.w, r2.x, r2.y);
         } else {
-            wi = bsdf_sample(bsdf, ns, wo, r1.w, r2.x, r2.y);
+            let u = min((r1.x - params.env_select - params.punct_select) / tri_select, 0.99999994);
+            let k = sample_cdf(0u, params.light_count, u);
+            let la = lights[3u * k];
+            let le1 = lights[3u * k + 1u].xyz;
+            let le2 = lights[3u * k + 2u].xyz;
+            var a = r1.y;
+            var b = r1.z;
+            if a + b > 1.0 {
+                a = 1.0 - a;
+                b = 1.0 - b;
+            }
+            let q = la.xyz + le1 * a + le2 * b;
+            let to = q - po;
+            let dist2 = dot(to, to);
+            let dl = sqrt(dist2);
+            wi = to / dl;
+            let n_l = cross(le1, le2);
+            let area2 = length(n_l);
+            // A single-sided light emits ray_from its front (towards n_l) only; seen ray_from behind
+            // the sample is discarded (pdf 0).
+            let facing = -dot(n_l, wi) / area2;
+            var cos_l = max(facing, 0.0);
+            if lights[3u * k + 1u].w != 0.0 {
+                cos_l = abs(facing);
+            }
+            let ltri = bitcast<u32>(la.w);
+            let lmb = material_base(ltri);
+            let lflags = u32(materials[lmb + 1u].w);
+            le = emission_at(lmb, lflags, ltri, a, b);
+            // A cut-out emitter emits only where it is there (BSDF rays see the same).
+            if (lflags & MAT_MASK) != 0u {
+                if base_color(lmb, lflags, ltri, a, b).w < materials[lmb + 2u].w {
+                    le = vec3<f32>(0.0);
+                }
+            } else if (lflags & MAT_BLEND) != 0u {
+                le *= base_color(lmb, lflags, ltri, a, b).w;
+            }
+            let density = dist[k + 1u] - dist[k];
+            pdf_l = 0.0;
+            if cos_l > 0.0 {
+                pdf_l = tri_select * density / (0.5 * area2) * dist2 / cos_l;
+            }
+            tmax = dl * (1.0 - 1e-4);
         }
         let side = dot(wi, ng);
-        if !(side > 0.0 || (transmits && side < 0.0 && dot(ns, wi) < 0.0)) {
-            break;
-        }
-        var fb: vec4<f32>;
-        if has_ext {
-            fb = ext_eval(ext, ns, wo, wi);
-        } else {
-            fb = bsdf_eval(bsdf, ns, wo, wi);
-        }
-        if !(fb.w > 0.0) {
-            break;
-        }
-        throughput *= fb.xyz * (abs(dot(ns, wi)) / fb.w);
-        prev_pdf = fb.w;
-        if depth >= 3u {
-            let q = min(max(max(throughput.x, throughput.y), throughput.z), 0.95);
-            if r2.z >= q {
-                break;
+        if pdf_l > 0.0 && pdf_l <= T_FAR && (side > 0.0 || (transmits && side < 0.0)) {
+            var fb: vec4<f32>;
+            if has_ext {
+                fb = ext_eval(ext, ns, wo, wi);
+            } else {
+                fb = bsdf_eval(bsdf, ns, wo, wi);
             }
-            throughput /= q;
+            // The last vertex's light sample carries the whole estimate: no BSDF ray
+            // follows. A delta light cannot be hit at all.
+            var w = mis(pdf_l, fb.w);
+            if delta || depth + 1u == params.max_depth {
+                w = 1.0;
+            }
+            let contrib = throughput * fb.xyz * le * (abs(dot(ns, wi)) / pdf_l) * w;
+            if any(contrib != vec3<f32>(0.0)) {
+                var ray_from = po;
+                if side < 0.0 {
+                    ray_from = offset_ray(p, -ng);
+                }
+                if alpha_scene {
+                    ray_seed = seed_for(pixel, sample, depth, 1u);
+                }
+                let blocker = traverse(ray_from, wi, tmax, true);
+                if blocker.prim == NO_HIT {
+                    radiance += contrib;
+                }
+            }
         }
-        if side > 0.0 {
-            o = po;
-        } else {
-            o = offset_ray(p, -ng);
-        }
-        d = wi;
     }
-    if is_finite3(radiance) {
-        return radiance;
+
+    var wi: vec3<f32>;
+    if has_ext {
+        wi = ext_sample(ext, ns, wo, r1.w, r2.x, r2.y);
+    } else {
+        wi = bsdf_sample(bsdf, ns, wo, r1.w, r2.x, r2.y);
+    }
+    let side = dot(wi, ng);
+    if !(side > 0.0 || (transmits && side < 0.0 && dot(ns, wi) < 0.0)) {
+        (*st).radiance = radiance;
+        return false;
+    }
+    var fb: vec4<f32>;
+    if has_ext {
+        fb = ext_eval(ext, ns, wo, wi);
+    } else {
+        fb = bsdf_eval(bsdf, ns, wo, wi);
+    }
+    if !(fb.w > 0.0) {
+        (*st).radiance = radiance;
+        return false;
+    }
+    throughput *= fb.xyz * (abs(dot(ns, wi)) / fb.w);
+    prev_pdf = fb.w;
+    if depth >= 3u {
+        let q = min(max(max(throughput.x, throughput.y), throughput.z), 0.95);
+        if r2.z >= q {
+            (*st).radiance = radiance;
+            return false;
+        }
+        throughput /= q;
+    }
+    if side > 0.0 {
+        o = po;
+    } else {
+        o = offset_ray(p, -ng);
+    }
+    d = wi;
+    (*st).o = o;
+    (*st).d = d;
+    (*st).throughput = throughput;
+    (*st).radiance = radiance;
+    (*st).prev_pdf = prev_pdf;
+    (*st).depth = depth + 1u;
+    return true;
+}
+
+// The path's estimate (a non-finite one is dropped).
+fn path_result(st: PathState) -> vec3<f32> {
+    if is_finite3(st.radiance) {
+        return st.radiance;
     }
     return vec3<f32>(0.0);
+}
+
+// One path of `pixel`; `tile` is its wall tile when the wall camera is on.
+fn trace_sample(pixel: u32, sample: u32, tile: u32) -> vec3<f32> {
+    var st = path_start(pixel, sample, tile);
+    while st.depth < params.max_depth {
+        if !path_bounce(&st) {
+            break;
+        }
+    }
+    return path_result(st);
+}
+
+const NO_SLOT: u32 = 0xffffffffu;
+
+// Full-frame thread `linear`'s slot in this band's buffers, or NO_SLOT past the frame's edge:
+// 8 × 8 tiles in row-major tile order, so neighbouring threads trace neighbouring pixels.
+fn full_frame_slot(linear: u32) -> u32 {
+    let tiles_x = (params.size.x + 7u) / 8u;
+    let tile = linear / 64u;
+    let l = linear % 64u;
+    let x = (tile % tiles_x) * 8u + l % 8u;
+    let y = (tile / tiles_x) * 8u + l / 8u;
+    if linear < params.count && x < params.size.x && y < params.rows {
+        return y * params.size.x + x;
+    }
+    return NO_SLOT;
+}
+
+// The wall tile showing `pixel` (0 without the wall camera), or NO_TILE where none does.
+fn tile_of(pixel: u32) -> u32 {
+    if params.wall_tiles > 0u {
+        return wall_tile(pixel % params.size.x, pixel / params.size.x);
+    }
+    return 0u;
+}
+
+// Adds a finished path's estimate to its slot (one sample more).
+fn accumulate(slot: u32, sample: u32, rgb: vec3<f32>) {
+    let l = lum(rgb);
+    accum[slot] += vec4<f32>(rgb, l * l);
+    counts[slot] = sample + 1u;
+}
+
+// A full frame with path regeneration (`params.stride` threads launched): the thread traces the
+// slots linear, linear + stride, …, starting the next path as soon as the last one ends, so
+// that a group's threads stay busy while paths of different lengths finish. Each slot's path
+// is the one `trace_sample` traces, to the bit.
+fn trace_regen(linear: u32) {
+    var job = linear;
+    var st: PathState;
+    var slot = 0u;
+    var busy = false;
+    loop {
+        if !busy {
+            while !busy && job < params.count {
+                let s = full_frame_slot(job);
+                job += params.stride;
+                if s != NO_SLOT {
+                    let pixel = params.row0 * params.size.x + s;
+                    let tile = tile_of(pixel);
+                    if tile != NO_TILE {
+                        slot = s;
+                        st = path_start(pixel, counts[s], tile);
+                        busy = true;
+                    }
+                }
+            }
+            if !busy {
+                break;
+            }
+        }
+        if st.depth < params.max_depth && path_bounce(&st) {
+            continue;
+        }
+        accumulate(slot, st.sample, path_result(st));
+        busy = false;
+    }
 }
 
 @compute @workgroup_size(WORKGROUP)
 fn trace(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
     // No early return: the ray count is reduced per workgroup behind a barrier.
     trace_lane = li;
+    rays_traced = 0u;
+    if params.mode == 0u && params.stride != 0u {
+        trace_regen((wg.y * params.groups_x + wg.x) * WORKGROUP + li);
+    } else {
+        trace_one(wg, li);
+    }
+    atomicAdd(&workgroup_rays, rays_traced);
+    workgroupBarrier();
+    if li == 0u {
+        atomicAdd(&stats[0], atomicLoad(&workgroup_rays));
+    }
+}
+
+// A thread a path: the full frame's slot or the list's entry of this thread.
+fn trace_one(wg: vec3<u32>, li: u32) {
     // `slot` indexes this band's buffers; `pixel` is the image pixel it holds.
     var slot = 0u;
     var pixel = 0u;
@@ -625,26 +759,16 @@ fn trace(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) 
             live = true;
         }
     } else {
-        let linear = (wg.y * params.groups_x + wg.x) * WORKGROUP + li;
-        // 8 × 8 tiles in row-major tile order: neighbouring threads trace neighbouring pixels.
-        let tiles_x = (params.size.x + 7u) / 8u;
-        let tile = linear / 64u;
-        let l = linear % 64u;
-        let x = (tile % tiles_x) * 8u + l % 8u;
-        let y = (tile / tiles_x) * 8u + l / 8u;
-        if linear < params.count && x < params.size.x && y < params.rows {
-            slot = y * params.size.x + x;
-            pixel = params.row0 * params.size.x + slot;
-            live = true;
-        }
+        slot = full_frame_slot((wg.y * params.groups_x + wg.x) * WORKGROUP + li);
+        pixel = params.row0 * params.size.x + slot;
+        live = slot != NO_SLOT;
     }
     // The wall camera traces only pixels a tile shows (the schedule lists no others).
     var tile = 0u;
-    if live && params.wall_tiles > 0u {
-        tile = wall_tile(pixel % params.size.x, pixel / params.size.x);
+    if live {
+        tile = tile_of(pixel);
         live = tile != NO_TILE;
     }
-    rays_traced = 0u;
     if live {
         let sample = counts[slot];
         let rgb = trace_sample(pixel, sample, tile);
@@ -652,14 +776,7 @@ fn trace(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) 
             // The rank's CPU keeps the counts, the owner of the pixel the sums.
             accum[slot] = vec4<f32>(rgb, bitcast<f32>(rays_traced));
         } else {
-            let l = lum(rgb);
-            accum[slot] += vec4<f32>(rgb, l * l);
-            counts[slot] = sample + 1u;
+            accumulate(slot, sample, rgb);
         }
-    }
-    atomicAdd(&workgroup_rays, rays_traced);
-    workgroupBarrier();
-    if li == 0u {
-        atomicAdd(&stats[0], atomicLoad(&workgroup_rays));
     }
 }

@@ -636,11 +636,12 @@ pub struct TraceBenchArgs {
     pub wall: crate::cli::wall::WallArgs,
     /// Time these variants of the GPU trace kernel side by side, their frames interleaved:
     /// where the traversal stack lives (`private`, as written; `function`, zeroed at every
-    /// ray; `workgroup` memory), then optionally `+unchecked` (without wgpu's run-time checks) and `+wgN`
-    /// (N = 32, 64, 128 or 256 threads a workgroup; 64 otherwise), e.g.
-    /// `function,private+unchecked+wg32`. Same pictures, different code; variants the adapter
-    /// cannot run are named and left out. Default: the one `RAYGUN_TRACE_KERNEL` names, else
-    /// `private`.
+    /// ray; `workgroup` memory), then optionally `+unchecked` (without wgpu's run-time
+    /// checks), `+wgN` (N = 32, 64, 128 or 256 threads a workgroup; 64 otherwise) and
+    /// `+regenG` (a full frame's paths regenerated in at most G workgroups), e.g.
+    /// `function,private+unchecked+wg32,private+regen1056`. Same pictures, different code;
+    /// variants the adapter cannot run are named and left out. Default: the one
+    /// `RAYGUN_TRACE_KERNEL` names, else `private`.
     #[arg(long, value_name = "VARIANT,…", value_delimiter = ',')]
     pub trace_kernel: Vec<crate::trace::gpu::TraceVariant>,
 }

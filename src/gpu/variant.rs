@@ -43,6 +43,11 @@ pub struct TraceVariant {
     /// barrier for the group's longest path before it ends (its ray count's reduction), so the
     /// size decides how long finished threads hold their registers.
     pub workgroup: u32,
+    /// Full frames with at most this many workgroups (0: a thread a path): each thread starts
+    /// its next path as soon as its last one ends (path regeneration, Novák et al. 2010), so a
+    /// group's threads stay busy while paths of different lengths finish. Lists (guided
+    /// iterations, a cluster rank's samples) keep a thread a path.
+    pub regen: u32,
 }
 
 impl Default for TraceVariant {
@@ -76,6 +81,16 @@ impl TraceVariant {
             stack,
             unchecked,
             workgroup: DEFAULT_WORKGROUP,
+            regen: 0,
+        }
+    }
+
+    /// This variant regenerating full frames' paths in at most `groups` workgroups (0: off).
+    #[must_use]
+    pub const fn with_regen(self, groups: u32) -> Self {
+        Self {
+            regen: groups,
+            ..self
         }
     }
 
@@ -148,6 +163,9 @@ impl std::fmt::Display for TraceVariant {
         if self.workgroup != DEFAULT_WORKGROUP {
             write!(f, "+wg{}", self.workgroup)?;
         }
+        if self.regen != 0 {
+            write!(f, "+regen{}", self.regen)?;
+        }
         Ok(())
     }
 }
@@ -155,16 +173,19 @@ impl std::fmt::Display for TraceVariant {
 impl std::str::FromStr for TraceVariant {
     type Err = String;
 
-    /// `function`, `private` or `workgroup` (the stack), then optionally `+unchecked` and
-    /// `+wgN` (N threads a workgroup: 32, 64, 128 or 256), e.g. `private+unchecked+wg32`.
+    /// `function`, `private` or `workgroup` (the stack), then optionally `+unchecked`, `+wgN`
+    /// (N threads a workgroup: 32, 64, 128 or 256) and `+regenG` (full frames' paths
+    /// regenerated in at most G workgroups, 1 to 65 535), e.g. `private+unchecked+wg32` or
+    /// `private+regen2048`.
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         let bad = || {
             format!(
                 "unknown trace kernel {s:?}: expected function, private or workgroup, then \
-                 optionally +unchecked and +wgN (N = 32, 64, 128 or 256), e.g. \
-                 private+unchecked+wg32"
+                 optionally +unchecked, +wgN (N = 32, 64, 128 or 256) and +regenG (G = 1 to \
+                 65535 workgroups), e.g. private+unchecked+wg32"
             )
         };
+        let number = |w: &str, prefix: &str| w.strip_prefix(prefix)?.parse::<u32>().ok();
         let mut words = s.trim().split('+');
         let stack = match words.next() {
             Some("function") => TraceStack::Function,
@@ -175,15 +196,20 @@ impl std::str::FromStr for TraceVariant {
         let mut v = Self::new(stack, false);
         let mut sized = false;
         for w in words {
-            match w {
-                "unchecked" if !v.unchecked => v.unchecked = true,
-                _ => match w.strip_prefix("wg").and_then(|n| n.parse::<u32>().ok()) {
-                    Some(n) if !sized && Self::WORKGROUPS.contains(&n) => {
-                        v.workgroup = n;
-                        sized = true;
-                    }
-                    _ => return Err(bad()),
-                },
+            if w == "unchecked" && !v.unchecked {
+                v.unchecked = true;
+            } else if let Some(n) = number(w, "wg").filter(|n| Self::WORKGROUPS.contains(n)) {
+                if std::mem::replace(&mut sized, true) {
+                    return Err(bad());
+                }
+                v.workgroup = n;
+            } else if let Some(g) = number(w, "regen").filter(|g| (1..=65_535).contains(g)) {
+                if v.regen != 0 {
+                    return Err(bad());
+                }
+                v.regen = g;
+            } else {
+                return Err(bad());
             }
         }
         Ok(v)
@@ -203,10 +229,26 @@ mod tests {
         ] {
             for unchecked in [false, true] {
                 for n in TraceVariant::WORKGROUPS {
-                    let v = TraceVariant::new(stack, unchecked).with_workgroup(n);
-                    assert_eq!(v.to_string().parse::<TraceVariant>(), Ok(v));
+                    for g in [0, 1, 2048, 65_535] {
+                        let v = TraceVariant::new(stack, unchecked)
+                            .with_workgroup(n)
+                            .with_regen(g);
+                        assert_eq!(v.to_string().parse::<TraceVariant>(), Ok(v));
+                    }
                 }
             }
+        }
+        assert_eq!(
+            "private+regen512+wg32".parse(),
+            Ok(TraceVariant::default().with_workgroup(32).with_regen(512))
+        );
+        for bad in [
+            "private+regen0",
+            "private+regen65536",
+            "private+regen",
+            "private+regen4+regen8",
+        ] {
+            assert!(bad.parse::<TraceVariant>().is_err(), "{bad}");
         }
         assert_eq!(TraceVariant::default().to_string(), "private");
         assert_eq!(

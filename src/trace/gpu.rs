@@ -70,7 +70,9 @@ pub struct GpuTraceParams {
     /// pixels from image row `row0`.
     pub row0: u32,
     pub rows: u32,
-    pub _pad1: u32,
+    /// Full frames of a regenerating variant: the threads launched, each tracing the paths of
+    /// slots `linear`, `linear + stride`, …; 0: a thread a path.
+    pub stride: u32,
 }
 
 /// The full-frame grid: threads (8 × 8 tiles, padded) and a 2D grid of `workgroup`-thread
@@ -83,18 +85,38 @@ pub fn full_frame_grid(width: u32, height: u32, workgroup: u32) -> (u32, [u32; 2
     (threads, [gx, groups.div_ceil(gx)])
 }
 
+/// A full frame's launch for `variant`: the frame's threads (one a pixel slot, 8 × 8 tiles
+/// padded), the workgroup grid dispatched, and the stride between a thread's paths — 0 where
+/// each thread traces one path, the grid's thread count where a regenerating variant
+/// ([`TraceVariant::regen`]) launches fewer threads than paths.
+#[must_use]
+pub fn full_frame_launch(width: u32, height: u32, variant: TraceVariant) -> (u32, [u32; 2], u32) {
+    let (threads, [gx, gy]) = full_frame_grid(width, height, variant.workgroup);
+    let groups = gx * gy;
+    if variant.regen == 0 || variant.regen >= groups {
+        return (threads, [gx, gy], 0);
+    }
+    let rx = variant.regen.min(MAX_GROUPS_X);
+    let ry = variant.regen.div_ceil(rx);
+    if rx * ry >= groups {
+        // Rounded up to a 2D grid, as many groups as the frame needs: a thread a path.
+        return (threads, [gx, gy], 0);
+    }
+    (threads, [rx, ry], rx * ry * variant.workgroup)
+}
+
 impl GpuTraceParams {
-    /// The parameters with `wall`'s eye and tile count when given, for a kernel of
-    /// `workgroup` threads a group.
+    /// The parameters with `wall`'s eye and tile count when given, for the kernel compiled as
+    /// `variant`.
     #[must_use]
     pub fn with_wall(
         scene: &PackedScene,
         s: &TraceSettings,
         wall: Option<&WallCamera>,
         list_mode: bool,
-        workgroup: u32,
+        variant: TraceVariant,
     ) -> Self {
-        Self::for_band(scene, s, wall, list_mode, Band::whole(s.height), workgroup)
+        Self::for_band(scene, s, wall, list_mode, Band::whole(s.height), variant)
     }
 
     /// [`Self::with_wall`] for the rows of `band` alone.
@@ -105,9 +127,11 @@ impl GpuTraceParams {
         wall: Option<&WallCamera>,
         list_mode: bool,
         band: Band,
-        workgroup: u32,
+        variant: TraceVariant,
     ) -> Self {
-        let (threads, [gx, _]) = full_frame_grid(s.width, band.rows, workgroup);
+        let (threads, [gx, _], stride) = full_frame_launch(s.width, band.rows, variant);
+        // A list is dispatched from its count, a thread a path.
+        let stride = if list_mode { 0 } else { stride };
         let c = &s.camera;
         Self {
             size: [s.width, s.height],
@@ -137,7 +161,7 @@ impl GpuTraceParams {
             ortho_half_y: c.ortho_half_y,
             row0: band.row0,
             rows: band.rows,
-            _pad1: 0,
+            stride,
         }
     }
 }
@@ -191,8 +215,7 @@ pub fn kernel_source(variant: TraceVariant) -> std::borrow::Cow<'static, str> {
 /// The compiled kernel.
 pub struct TraceKernel {
     pipeline: wgpu::ComputePipeline,
-    /// Threads per workgroup ([`TraceVariant::workgroup`]).
-    workgroup: u32,
+    variant: TraceVariant,
 }
 
 impl TraceKernel {
@@ -220,16 +243,13 @@ impl TraceKernel {
             ctx.shader_module(&label, &source)
         };
         let pipeline = ctx.compute_pipeline_in(&module, &label, "trace");
-        Self {
-            pipeline,
-            workgroup: variant.workgroup,
-        }
+        Self { pipeline, variant }
     }
 
     /// Threads per workgroup (what the scheduler's indirect dispatch arguments count in).
     #[must_use]
     pub fn workgroup(&self) -> u32 {
-        self.workgroup
+        self.variant.workgroup
     }
 }
 
@@ -397,8 +417,8 @@ pub struct TraceRun {
     /// The scheduler's `(x, y, z, count)` buffer in list mode.
     args: Option<wgpu::Buffer>,
     groups: [u32; 2],
-    /// Threads per workgroup of the kernel's variant.
-    workgroup: u32,
+    /// The kernel's variant (its workgroup's size, whether full frames regenerate).
+    variant: TraceVariant,
     /// The wall camera the tile table was uploaded for (its eye goes into the parameters).
     wall: Option<WallCamera>,
     /// The tile table ([`TILE_VEC4S`](super::wall::TILE_VEC4S) vec4s a tile).
@@ -461,7 +481,7 @@ impl TraceRun {
                     wall,
                     schedule.is_some(),
                     band,
-                    kernel.workgroup,
+                    kernel.variant,
                 )),
                 usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             });
@@ -496,14 +516,14 @@ impl TraceRun {
                 entry(6, &wall_buf),
             ],
         });
-        let (_, groups) = full_frame_grid(settings.width, band.rows, kernel.workgroup);
+        let (_, groups, _) = full_frame_launch(settings.width, band.rows, kernel.variant);
         Self {
             pipeline: kernel.pipeline.clone(),
             params,
             bind,
             args: schedule.map(|(_, a)| a.clone()),
             groups,
-            workgroup: kernel.workgroup,
+            variant: kernel.variant,
             wall: wall.cloned(),
             wall_table: wall_buf,
             band,
@@ -536,7 +556,7 @@ impl TraceRun {
             self.wall.as_ref(),
             self.args.is_some(),
             self.band,
-            self.workgroup,
+            self.variant,
         );
         ctx.queue
             .write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
@@ -588,8 +608,8 @@ pub struct SampleRun {
     wall_table: wgpu::Buffer,
     wall: Option<WallCamera>,
     buffers: Option<SampleBuffers>,
-    /// Threads per workgroup of the kernel's variant.
-    workgroup: u32,
+    /// The kernel's variant (its workgroup's size, whether full frames regenerate).
+    variant: TraceVariant,
 }
 
 /// A [`SampleRun`]'s list-sized buffers and the frame bind group over them.
@@ -620,7 +640,7 @@ impl SampleRun {
                     scene,
                     settings,
                     wall,
-                    kernel.workgroup,
+                    kernel.variant,
                 )),
                 usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             });
@@ -631,7 +651,7 @@ impl SampleRun {
             wall_table,
             wall: wall.cloned(),
             buffers: None,
-            workgroup: kernel.workgroup,
+            variant: kernel.variant,
         }
     }
 
@@ -639,11 +659,11 @@ impl SampleRun {
         scene: &PackedScene,
         settings: &TraceSettings,
         wall: Option<&WallCamera>,
-        workgroup: u32,
+        variant: TraceVariant,
     ) -> GpuTraceParams {
         GpuTraceParams {
             mode: 2,
-            ..GpuTraceParams::with_wall(scene, settings, wall, true, workgroup)
+            ..GpuTraceParams::with_wall(scene, settings, wall, true, variant)
         }
     }
 
@@ -666,7 +686,7 @@ impl SampleRun {
 
     /// Rewrites the parameters (a new camera or depth) before the next list.
     pub fn set_settings(&self, ctx: &GpuContext, scene: &PackedScene, settings: &TraceSettings) {
-        let p = Self::params_of(scene, settings, self.wall.as_ref(), self.workgroup);
+        let p = Self::params_of(scene, settings, self.wall.as_ref(), self.variant);
         ctx.queue
             .write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
     }
@@ -783,7 +803,7 @@ impl SampleRun {
             return Ok(Vec::new());
         }
         let len = u32::try_from(pixels.len()).expect("a list of u32 pixel indices");
-        let [gx, gy] = ctx.grid_2d(len.div_ceil(self.workgroup));
+        let [gx, gy] = ctx.grid_2d(len.div_ceil(self.variant.workgroup));
         let pipeline = self.pipeline.clone();
         let b = self.buffers(ctx, len)?;
         ctx.queue
@@ -1093,7 +1113,7 @@ mod tests {
                 groups_x, env_size, env_marginal, env_conditional, env_constant, env_select,
                 cam_pos, tan_half_y, cam_fwd, aspect, cam_right, node_count, cam_up, wall_tiles,
                 features, extras_offset, punctual_count, punct_select, ortho_half_y, row0, rows,
-                _pad1),
+                stride),
         );
         assert_eq!(
             struct_size(&module, "Node"),
@@ -1162,6 +1182,34 @@ mod tests {
         // The checks are a compile option, not a source change: 3 stacks at the default size,
         // 2 at each of the 3 others.
         assert_eq!(sources.len(), 3 + 2 * 3);
+    }
+
+    #[test]
+    fn a_regenerating_launch_covers_every_slot_once() {
+        for (w, h) in [(1, 1), (40, 24), (3840, 2160), (13_519, 5_457)] {
+            for wg in TraceVariant::WORKGROUPS {
+                let one = TraceVariant::default().with_workgroup(wg);
+                let (threads, grid, stride) = full_frame_launch(w, h, one);
+                assert_eq!((stride, (threads, grid)), (0, full_frame_grid(w, h, wg)));
+                for g in [1, 7, 1000, 70_000] {
+                    let (t, [gx, gy], stride) = full_frame_launch(w, h, one.with_regen(g));
+                    assert_eq!(t, threads);
+                    assert!(gx <= MAX_GROUPS_X);
+                    if stride == 0 {
+                        // As many groups as the frame needs or more: a thread a path.
+                        assert_eq!([gx, gy], grid, "{w}x{h}, wg {wg}, regen {g}");
+                        let rx = g.min(MAX_GROUPS_X);
+                        assert!(rx * g.div_ceil(rx) >= grid[0] * grid[1]);
+                    } else {
+                        // Thread k traces slots k, k + stride, …: every slot below `threads`
+                        // once, as the launch has `stride` threads.
+                        assert_eq!(stride, gx * gy * wg);
+                        assert!(gx * gy >= g && gx * gy < g + gx);
+                        assert!(gx * gy < grid[0] * grid[1] && stride < threads);
+                    }
+                }
+            }
+        }
     }
 
     #[test]

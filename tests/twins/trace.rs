@@ -147,7 +147,7 @@ fn gpu_and_cpu_twin_agree_on_a_scene_with_every_feature() {
 }
 
 /// Every variant of the trace kernel (where its traversal stack lives, wgpu's run-time checks
-/// on or off, its workgroup's size) is the same function: the same accumulation to the bit as
+/// on or off, its workgroup's size, full frames' paths regenerated) is the same function: the same accumulation to the bit as
 /// the default kernel, on the small city (a tree deep enough that walks push and pop), the
 /// Cornell box with its ceiling light and the scene with every feature (alpha-tested shadow
 /// rays, glass, punctual lights); and the same samples in the compact mode a cluster rank
@@ -220,6 +220,18 @@ fn every_trace_kernel_variant_renders_the_default_kernels_bits() {
     }
     // A workgroup stack of 128 threads needs 32 772 bytes: over lavapipe's 32 KiB.
     variants.push(TraceVariant::new(TraceStack::Workgroup, true).with_workgroup(32));
+    // Full frames regenerated in 1 to 3 workgroups: 5 to 30 paths a thread (960 pixels).
+    variants.push(TraceVariant::default().with_regen(1));
+    variants.push(
+        TraceVariant::new(TraceStack::Function, false)
+            .with_workgroup(32)
+            .with_regen(3),
+    );
+    variants.push(
+        TraceVariant::new(TraceStack::Workgroup, true)
+            .with_workgroup(32)
+            .with_regen(2),
+    );
     for v in &variants {
         let vctx = ctx.with_trace_variant(*v).unwrap();
         assert_eq!(vctx.trace_variant(), *v);
