@@ -463,6 +463,37 @@ fn bezel_pixels_are_never_scheduled_or_traced_on_either_backend() {
     }
 }
 
+/// Full frames through the wall camera with path regeneration (a thread's next slots may be
+/// bezel pixels, which it skips): the default kernel's accumulation to the bit, every shown
+/// pixel traced once a frame and no bezel pixel.
+#[test]
+fn regenerated_wall_frames_skip_the_bezels_and_match_the_default_kernel() {
+    use raygun::trace::gpu::TraceVariant;
+    let model = DisplayModel::open("hornet").unwrap().0;
+    let size = size_of(&model, 32.0);
+    let [w, h] = size;
+    let wc = wall(&model, size, DVec3::new(-0.3, 0.1, 1.2));
+    let scene = index_scene();
+    let ctx = GpuContext::for_tests();
+    let regen = TraceVariant::default().with_regen(3);
+    let mut accs = Vec::new();
+    for c in [ctx.clone(), ctx.with_trace_variant(regen).unwrap()] {
+        let backend = Backend::Gpu(Box::new(c));
+        let mut r = Renderer::full_wall(&backend, &scene, settings(w, h, 3), wc.clone()).unwrap();
+        r.iterate(2).unwrap();
+        accs.push(r.accumulation().unwrap());
+    }
+    let (one, regenerated) = (&accs[0], &accs[1]);
+    for p in 0..(w * h) as usize {
+        let want = if wc.is_shown(p as u32) { 2 } else { 0 };
+        assert_eq!(regenerated.count[p], want, "pixel {p}");
+    }
+    assert!(regenerated.count == one.count);
+    let bits =
+        |a: &Accumulation| -> Vec<[u32; 4]> { a.sum.iter().map(|v| v.map(f32::to_bits)).collect() };
+    assert!(bits(regenerated) == bits(one), "the default kernel's sums");
+}
+
 fn err_of(args: &[&str]) -> String {
     let o = cli::raygun(args);
     assert!(!o.status.success(), "{args:?} succeeded");

@@ -101,7 +101,7 @@ setup_device() {
 # takes what the others leave.
 BENCH_GROUPS=(adapter picture dgi schedule trace kernels kernels-guided guided native filter
   all-quick wall cluster sizes readback all)
-declare -A BUDGET=([adapter]=20 [picture]=40 [dgi]=60 [schedule]=30 [trace]=90 [kernels]=90
+declare -A BUDGET=([adapter]=20 [picture]=40 [dgi]=60 [schedule]=30 [trace]=90 [kernels]=120
   [kernels-guided]=60 [guided]=120 [native]=60 [filter]=45 [all-quick]=60 [wall]=60 [cluster]=60
   [sizes]=40 [readback]=30 [all]=300)
 declare -A SMOKE_BUDGET=([adapter]=10 [picture]=10 [dgi]=20 [schedule]=20 [trace]=20 [kernels]=30
