@@ -366,6 +366,11 @@ fn trace_kernel_variants_are_timed_side_by_side_and_render_the_same_files() {
         "the run names its kernel"
     );
     assert!(std::fs::read(&a_file).unwrap() == std::fs::read(&b_file).unwrap());
+    // Regenerated in one workgroup: the full frames and every guided iteration's list (the
+    // scheduler's arguments capped to one group of 32) traced by 32 threads.
+    let (c, c_file) = render("regen.exr", Some("function+wg32+regen1"));
+    assert!(c.status.success(), "{}", String::from_utf8_lossy(&c.stderr));
+    assert!(std::fs::read(&a_file).unwrap() == std::fs::read(&c_file).unwrap());
     let (bad, _) = render("bad.exr", Some("stack"));
     assert!(!bad.status.success());
     let err = String::from_utf8_lossy(&bad.stderr);

@@ -185,6 +185,7 @@ fn gpu_counts_are_binomial_per_region() {
                     p_min,
                     order,
                     trace_workgroup_size: 64,
+                    trace_max_groups: 0,
                 },
             )
             .unwrap();

@@ -8,7 +8,10 @@ struct ArgsParams {
     workgroup_size: u32,
     // The adapter's max_compute_workgroups_per_dimension.
     max_per_dim: u32,
-    _pad: vec2<u32>,
+    // A regenerating tracer's most workgroups (0: a thread an entry); its threads then trace
+    // several entries each (shaders/trace/path.wgsl, `trace_jobs`).
+    max_groups: u32,
+    _pad: u32,
 }
 
 @group(0) @binding(0) var<uniform> cfg: ArgsParams;
@@ -23,7 +26,10 @@ fn div_ceil(a: u32, b: u32) -> u32 {
 @compute @workgroup_size(1)
 fn main() {
     let count = atomicExchange(&counter, 0u);
-    let groups = div_ceil(count, cfg.workgroup_size);
+    var groups = div_ceil(count, cfg.workgroup_size);
+    if cfg.max_groups > 0u {
+        groups = min(groups, cfg.max_groups);
+    }
     var gx = 0u;
     var gy = 1u;
     if groups > 0u {

@@ -1,6 +1,7 @@
 // The path-tracing integrator (CPU twin: src/trace/path.rs). One thread traces one path for one
 // pixel — every pixel in tile order (full frame) or the pixels of the scheduler's list — and
-// adds it to the pixel's accumulation. A cluster rank's samples (mode 2, DESIGN.md §12) are
+// adds it to the pixel's accumulation (a regenerating variant's thread traces several paths,
+// one after the other). A cluster rank's samples (mode 2, DESIGN.md §12) are
 // returned instead: entry i of a compact list traces pixel list[i] with sample index counts[i]
 // and writes its RGB and its ray count into accum[i] (CPU twin: `samples_cpu`).
 
@@ -347,8 +348,8 @@ fn is_finite3(v: vec3<f32>) -> bool {
 }
 
 // A path in flight: where its next ray starts and goes, what it has gathered, and the vertex
-// it is at. `trace_sample` runs one path to its end; the regenerating entry point
-// (`trace_regen`) starts a thread's next path as soon as its last one ends.
+// it is at. `trace_sample` runs one path to its end; a regenerating launch (`trace_jobs`)
+// starts a thread's next path as soon as its last one ends.
 struct PathState {
     o: vec3<f32>,
     depth: u32,
@@ -687,26 +688,54 @@ fn accumulate(slot: u32, sample: u32, rgb: vec3<f32>) {
     counts[slot] = sample + 1u;
 }
 
-// A full frame with path regeneration (`params.stride` threads launched): the thread traces the
-// slots linear, linear + stride, …, starting the next path as soon as the last one ends, so
-// that a group's threads stay busy while paths of different lengths finish. Each slot's path
-// is the one `trace_sample` traces, to the bit.
-fn trace_regen(linear: u32) {
-    var job = linear;
+// Job `job` of this dispatch (below its count): its slot in this band's buffers (NO_SLOT
+// where a full frame's padding has none) and the image pixel it traces — a full frame's
+// tile-ordered slot, the scheduler's listed pixel, or entry `job` of a rank's compact list.
+fn job_of(job: u32) -> vec2<u32> {
+    if params.mode == 2u {
+        return vec2<u32>(job, list[job]);
+    }
+    var slot: u32;
+    if params.mode == 0u {
+        slot = full_frame_slot(job);
+    } else {
+        slot = list[job];
+    }
+    return vec2<u32>(slot, params.row0 * params.size.x + slot);
+}
+
+// A finished path of `slot`: added to its accumulation, or — a rank's compact list — returned
+// with the rays it took (the rank's CPU keeps the counts, the owner of the pixel the sums).
+fn finish(slot: u32, sample: u32, rgb: vec3<f32>, rays: u32) {
+    if params.mode == 2u {
+        accum[slot] = vec4<f32>(rgb, bitcast<f32>(rays));
+    } else {
+        accumulate(slot, sample, rgb);
+    }
+}
+
+// Jobs `first`, `first + stride`, … below `count`, each path traced as `trace_sample` traces
+// it, to the bit, but the thread starts its next path as soon as its last one ends (path
+// regeneration: a regenerating variant's capped launch, `stride` its threads), so that a
+// group's threads stay busy while paths of different lengths finish.
+fn trace_jobs(first: u32, count: u32, stride: u32) {
+    var job = first;
     var st: PathState;
     var slot = 0u;
+    var rays_before = 0u;
     var busy = false;
     loop {
         if !busy {
-            while !busy && job < params.count {
-                let s = full_frame_slot(job);
-                job += params.stride;
-                if s != NO_SLOT {
-                    let pixel = params.row0 * params.size.x + s;
-                    let tile = tile_of(pixel);
+            while !busy && job < count {
+                let j = job_of(job);
+                job += stride;
+                if j.x != NO_SLOT {
+                    // The wall camera traces only pixels a tile shows.
+                    let tile = tile_of(j.y);
                     if tile != NO_TILE {
-                        slot = s;
-                        st = path_start(pixel, counts[s], tile);
+                        slot = j.x;
+                        rays_before = rays_traced;
+                        st = path_start(j.y, counts[j.x], tile);
                         busy = true;
                     }
                 }
@@ -718,65 +747,64 @@ fn trace_regen(linear: u32) {
         if st.depth < params.max_depth && path_bounce(&st) {
             continue;
         }
-        accumulate(slot, st.sample, path_result(st));
+        finish(slot, st.sample, path_result(st), rays_traced - rays_before);
         busy = false;
     }
 }
+
+// Job `job` alone, if below `count`: a thread a path.
+fn trace_job(job: u32, count: u32) {
+    if job >= count {
+        return;
+    }
+    let j = job_of(job);
+    if j.x == NO_SLOT {
+        return;
+    }
+    // The wall camera traces only pixels a tile shows (the schedule lists no others).
+    let tile = tile_of(j.y);
+    if tile == NO_TILE {
+        return;
+    }
+    let sample = counts[j.x];
+    finish(j.x, sample, trace_sample(j.y, sample, tile), rays_traced);
+}
+
+// Whether lists regenerate their paths (a regenerating variant: `src/trace/gpu.rs`,
+// `kernel_source`); its launches are capped by the scheduler's arguments pass or the rank's
+// dispatch, and the kernel reads its stride from the grid they launch.
+const REGENERATE: bool = false;
 
 @compute @workgroup_size(WORKGROUP)
 fn trace(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
     // No early return: the ray count is reduced per workgroup behind a barrier.
     trace_lane = li;
     rays_traced = 0u;
-    if params.mode == 0u && params.stride != 0u {
-        trace_regen((wg.y * params.groups_x + wg.x) * WORKGROUP + li);
+    // This thread's first job, the dispatch's job count, and the stride between the thread's
+    // jobs where its launch regenerates (0: a thread a job).
+    var first: u32;
+    var count: u32;
+    var stride = 0u;
+    if params.mode == 0u {
+        first = (wg.y * params.groups_x + wg.x) * WORKGROUP + li;
+        count = params.count;
+        stride = params.stride;
     } else {
-        trace_one(wg, li);
+        // A list, launched from `args` = (x, y, z, count).
+        first = (wg.y * args[0] + wg.x) * WORKGROUP + li;
+        count = args[3];
+        if REGENERATE {
+            stride = args[0] * args[1] * WORKGROUP;
+        }
+    }
+    if stride != 0u {
+        trace_jobs(first, count, stride);
+    } else {
+        trace_job(first, count);
     }
     atomicAdd(&workgroup_rays, rays_traced);
     workgroupBarrier();
     if li == 0u {
         atomicAdd(&stats[0], atomicLoad(&workgroup_rays));
-    }
-}
-
-// A thread a path: the full frame's slot or the list's entry of this thread.
-fn trace_one(wg: vec3<u32>, li: u32) {
-    // `slot` indexes this band's buffers; `pixel` is the image pixel it holds.
-    var slot = 0u;
-    var pixel = 0u;
-    var live = false;
-    if params.mode != 0u {
-        let linear = (wg.y * args[0] + wg.x) * WORKGROUP + li;
-        if linear < args[3] {
-            if params.mode == 2u {
-                slot = linear;
-                pixel = list[linear];
-            } else {
-                slot = list[linear];
-                pixel = params.row0 * params.size.x + slot;
-            }
-            live = true;
-        }
-    } else {
-        slot = full_frame_slot((wg.y * params.groups_x + wg.x) * WORKGROUP + li);
-        pixel = params.row0 * params.size.x + slot;
-        live = slot != NO_SLOT;
-    }
-    // The wall camera traces only pixels a tile shows (the schedule lists no others).
-    var tile = 0u;
-    if live {
-        tile = tile_of(pixel);
-        live = tile != NO_TILE;
-    }
-    if live {
-        let sample = counts[slot];
-        let rgb = trace_sample(pixel, sample, tile);
-        if params.mode == 2u {
-            // The rank's CPU keeps the counts, the owner of the pixel the sums.
-            accum[slot] = vec4<f32>(rgb, bitcast<f32>(rays_traced));
-        } else {
-            accumulate(slot, sample, rgb);
-        }
     }
 }

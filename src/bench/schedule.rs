@@ -122,6 +122,7 @@ fn time_gpu(
             p_min: config.p_min,
             order,
             trace_workgroup_size: config.trace_workgroup_size,
+            trace_max_groups: 0,
         },
     )?;
     // Iteration 0 doubles as the warm-up (pipeline compilation on some drivers).

@@ -348,7 +348,7 @@ impl<'a> Renderer<'a> {
                             band,
                             &g.config,
                             wall.as_ref().map(WallCamera::shown_mask),
-                            kernel.workgroup(),
+                            &kernel,
                         )?),
                         _ => None,
                     };
@@ -1036,7 +1036,7 @@ fn gpu_guide(
     band: Band,
     config: &GuideConfig,
     shown: Option<&[u32]>,
-    trace_workgroup_size: u32,
+    trace: &TraceKernel,
 ) -> Result<GpuGuide, FrameError> {
     let dgi = ctx.device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("frame dgi"),
@@ -1057,7 +1057,8 @@ fn gpu_guide(
             height: band.rows,
             p_min: config.p_min,
             order: config.order,
-            trace_workgroup_size,
+            trace_workgroup_size: trace.workgroup(),
+            trace_max_groups: trace.max_list_groups(),
         },
         base,
     )?;

@@ -43,10 +43,10 @@ pub struct TraceVariant {
     /// barrier for the group's longest path before it ends (its ray count's reduction), so the
     /// size decides how long finished threads hold their registers.
     pub workgroup: u32,
-    /// Full frames with at most this many workgroups (0: a thread a path): each thread starts
+    /// Launches of at most this many workgroups (0: a thread a path) — full frames, the
+    /// scheduler's lists (guided iterations) and a cluster rank's samples: each thread starts
     /// its next path as soon as its last one ends (path regeneration, Novák et al. 2010), so a
-    /// group's threads stay busy while paths of different lengths finish. Lists (guided
-    /// iterations, a cluster rank's samples) keep a thread a path.
+    /// group's threads stay busy while paths of different lengths finish.
     pub regen: u32,
 }
 
@@ -174,8 +174,8 @@ impl std::str::FromStr for TraceVariant {
     type Err = String;
 
     /// `function`, `private` or `workgroup` (the stack), then optionally `+unchecked`, `+wgN`
-    /// (N threads a workgroup: 32, 64, 128 or 256) and `+regenG` (full frames' paths
-    /// regenerated in at most G workgroups, 1 to 65 535), e.g. `private+unchecked+wg32` or
+    /// (N threads a workgroup: 32, 64, 128 or 256) and `+regenG` (paths regenerated
+    /// in launches of at most G workgroups, 1 to 65 535), e.g. `private+unchecked+wg32` or
     /// `private+regen2048`.
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         let bad = || {

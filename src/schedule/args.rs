@@ -7,10 +7,23 @@
 ///
 /// Returns `[gx, gy, 1]` with gx·gy ≥ ⌈count / workgroup_size⌉, gx, gy ≤ max_per_dim and fewer
 /// than gy idle groups; `[0, 1, 1]` when nothing is listed. The tracer's thread for list entry
-/// `(wg.y · gx + wg.x) · workgroup_size + local_index` returns when that is ≥ count. Identical
-/// to `shaders/schedule/args.wgsl`.
+/// `(wg.y · gx + wg.x) · workgroup_size + local_index` returns when that is ≥ count.
+///
+/// A regenerating tracer (`max_groups` > 0: [`crate::gpu::TraceVariant::regen`]) launches at
+/// most about `max_groups` groups (gx·gy ≥ min(⌈count / workgroup_size⌉, max_groups)); its
+/// thread `t` of the gx·gy·workgroup_size launched traces entries t, t + gx·gy·workgroup_size,
+/// … Identical to `shaders/schedule/args.wgsl`.
 #[must_use]
-pub fn indirect_grid(count: u32, workgroup_size: u32, max_per_dim: u32) -> [u32; 3] {
-    let [gx, gy] = crate::gpu::grid_2d(count.div_ceil(workgroup_size), max_per_dim);
+pub fn indirect_grid(
+    count: u32,
+    workgroup_size: u32,
+    max_groups: u32,
+    max_per_dim: u32,
+) -> [u32; 3] {
+    let mut groups = count.div_ceil(workgroup_size);
+    if max_groups > 0 {
+        groups = groups.min(max_groups);
+    }
+    let [gx, gy] = crate::gpu::grid_2d(groups, max_per_dim);
     [gx, gy, 1]
 }

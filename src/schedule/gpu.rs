@@ -107,7 +107,8 @@ pub struct GpuParams {
 pub struct GpuArgsParams {
     pub workgroup_size: u32,
     pub max_per_dim: u32,
-    pub _pad: [u32; 2],
+    pub max_groups: u32,
+    pub _pad: u32,
 }
 
 /// What a [`ScheduleRun`] schedules.
@@ -120,6 +121,9 @@ pub struct ScheduleConfig {
     pub order: Order,
     /// Threads per workgroup of the tracer that consumes the list (the indirect grid's unit).
     pub trace_workgroup_size: u32,
+    /// The most workgroups the tracer's launch may have (0: a thread an entry): a regenerating
+    /// tracer's cap ([`crate::gpu::TraceVariant::regen`]), whose threads trace several entries.
+    pub trace_max_groups: u32,
 }
 
 /// The compiled scheduling kernels.
@@ -257,8 +261,13 @@ impl ScheduleKernel {
                 entry(4, &mask),
             ],
         });
-        let args =
-            self.prepare_args(ctx, &counter, config.trace_workgroup_size, layout.pixels())?;
+        let args = self.prepare_args(
+            ctx,
+            &counter,
+            config.trace_workgroup_size,
+            config.trace_max_groups,
+            layout.pixels(),
+        )?;
         Ok(ScheduleRun {
             device: ctx.device.clone(),
             compact: self.compact.clone(),
@@ -275,13 +284,15 @@ impl ScheduleKernel {
     }
 
     /// The arguments pass alone, reading the count from any `counter` buffer (a u32 with
-    /// `STORAGE` usage, reset to 0 by every run) for up to `max_count` entries. [`Self::prepare`]
-    /// uses it for the list's counter; tests feed it synthetic counts.
+    /// `STORAGE` usage, reset to 0 by every run) for up to `max_count` entries, for a tracer of
+    /// `workgroup_size` threads a group launching at most `max_groups` groups (0: no cap).
+    /// [`Self::prepare`] uses it for the list's counter; tests feed it synthetic counts.
     pub fn prepare_args(
         &self,
         ctx: &GpuContext,
         counter: &wgpu::Buffer,
         workgroup_size: u32,
+        max_groups: u32,
         max_count: u32,
     ) -> Result<ArgsRun, ScheduleError> {
         let max_threads = ctx.limits.max_compute_invocations_per_workgroup;
@@ -307,7 +318,8 @@ impl ScheduleKernel {
                 contents: bytemuck::bytes_of(&GpuArgsParams {
                     workgroup_size,
                     max_per_dim,
-                    _pad: [0; 2],
+                    max_groups,
+                    _pad: 0,
                 }),
                 usage: wgpu::BufferUsages::UNIFORM,
             });
@@ -659,7 +671,7 @@ mod tests {
         assert_same_layout(
             &args,
             "ArgsParams",
-            &crate::rust_layout!(GpuArgsParams; workgroup_size, max_per_dim, _pad),
+            &crate::rust_layout!(GpuArgsParams; workgroup_size, max_per_dim, max_groups, _pad),
         );
     }
 

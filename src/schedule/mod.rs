@@ -294,7 +294,7 @@ mod tests {
                 if wg == 1 && count > 65_535 * 65_535 {
                     continue;
                 }
-                let [gx, gy, gz] = indirect_grid(count, wg, 65_535);
+                let [gx, gy, gz] = indirect_grid(count, wg, 0, 65_535);
                 assert_eq!(gz, 1);
                 assert!(gx <= 65_535 && gy <= 65_535, "{count}/{wg}: {gx}×{gy}");
                 let groups = u64::from(count).div_ceil(u64::from(wg));
@@ -306,8 +306,13 @@ mod tests {
                 );
             }
         }
-        assert_eq!(indirect_grid(0, 64, 65_535), [0, 1, 1]);
-        assert_eq!(indirect_grid(64, 64, 65_535), [1, 1, 1]);
-        assert_eq!(indirect_grid(3840 * 2160, 64, 65_535), [64_800, 2, 1]);
+        assert_eq!(indirect_grid(0, 64, 0, 65_535), [0, 1, 1]);
+        assert_eq!(indirect_grid(64, 64, 0, 65_535), [1, 1, 1]);
+        assert_eq!(indirect_grid(3840 * 2160, 64, 0, 65_535), [64_800, 2, 1]);
+        // A regenerating tracer's cap: at most that many groups, however long the list.
+        assert_eq!(indirect_grid(3840 * 2160, 64, 2112, 65_535), [2112, 1, 1]);
+        assert_eq!(indirect_grid(100, 64, 2112, 65_535), [2, 1, 1]);
+        assert_eq!(indirect_grid(0, 64, 2112, 65_535), [0, 1, 1]);
+        assert_eq!(indirect_grid(u32::MAX, 32, 65_535, 1000), [993, 66, 1]);
     }
 }

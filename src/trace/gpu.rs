@@ -176,6 +176,7 @@ pub fn kernel_source(variant: TraceVariant) -> std::borrow::Cow<'static, str> {
     const PUSH: &str = "stack[sp] = current;";
     const POP: &str = "current = stack[sp];";
     const SIZE: &str = "const WORKGROUP: u32 = 64u;";
+    const REGENERATE: &str = "const REGENERATE: bool = false;";
     let once = |s: &str, from: &str, to: &str| {
         assert_eq!(
             s.matches(from).count(),
@@ -188,6 +189,9 @@ pub fn kernel_source(variant: TraceVariant) -> std::borrow::Cow<'static, str> {
     if variant.workgroup != WORKGROUP {
         let size = format!("const WORKGROUP: u32 = {}u;", variant.workgroup);
         s = once(&s, SIZE, &size).into();
+    }
+    if variant.regen != 0 {
+        s = once(&s, REGENERATE, "const REGENERATE: bool = true;").into();
     }
     match variant.stack {
         TraceStack::Private => s,
@@ -250,6 +254,13 @@ impl TraceKernel {
     #[must_use]
     pub fn workgroup(&self) -> u32 {
         self.variant.workgroup
+    }
+
+    /// The most workgroups a list's launch may have (0: no cap): a regenerating variant's
+    /// [`TraceVariant::regen`], which the scheduler's indirect arguments must respect.
+    #[must_use]
+    pub fn max_list_groups(&self) -> u32 {
+        self.variant.regen
     }
 }
 
@@ -417,7 +428,7 @@ pub struct TraceRun {
     /// The scheduler's `(x, y, z, count)` buffer in list mode.
     args: Option<wgpu::Buffer>,
     groups: [u32; 2],
-    /// The kernel's variant (its workgroup's size, whether full frames regenerate).
+    /// The kernel's variant (its workgroup's size, whether its launches regenerate).
     variant: TraceVariant,
     /// The wall camera the tile table was uploaded for (its eye goes into the parameters).
     wall: Option<WallCamera>,
@@ -608,7 +619,7 @@ pub struct SampleRun {
     wall_table: wgpu::Buffer,
     wall: Option<WallCamera>,
     buffers: Option<SampleBuffers>,
-    /// The kernel's variant (its workgroup's size, whether full frames regenerate).
+    /// The kernel's variant (its workgroup's size, whether its launches regenerate).
     variant: TraceVariant,
 }
 
@@ -803,7 +814,13 @@ impl SampleRun {
             return Ok(Vec::new());
         }
         let len = u32::try_from(pixels.len()).expect("a list of u32 pixel indices");
-        let [gx, gy] = ctx.grid_2d(len.div_ceil(self.variant.workgroup));
+        // The scheduler's grid for this kernel (capped where it regenerates).
+        let [gx, gy, _] = crate::schedule::indirect_grid(
+            len,
+            self.variant.workgroup,
+            self.variant.regen,
+            ctx.limits.max_compute_workgroups_per_dimension,
+        );
         let pipeline = self.pipeline.clone();
         let b = self.buffers(ctx, len)?;
         ctx.queue

@@ -56,6 +56,7 @@ fn prepare(
                 p_min,
                 order,
                 trace_workgroup_size,
+                trace_max_groups: 0,
             },
         )
         .expect("valid schedule configuration")
@@ -140,6 +141,7 @@ fn gpu_list_equals_the_cpu_twin_for_seeds_iterations_sizes_and_orders() {
                             indirect_grid(
                                 args[3],
                                 64,
+                                0,
                                 ctx.limits.max_compute_workgroups_per_dimension
                             ),
                             "{what}: grid"
@@ -342,9 +344,19 @@ fn indirect_args_cover_tiny_and_synthetic_large_counts() {
     let kernel = ScheduleKernel::new(&ctx);
     let max_per_dim = ctx.limits.max_compute_workgroups_per_dimension;
     let counter = storage_buffer(&ctx, "synthetic counter", &[0; 4]);
-    for wg in [64u32, 128, 256] {
+    // No cap (a thread an entry), then a regenerating tracer's caps: one group, a few, and
+    // more than one grid row holds.
+    for (wg, max_groups) in [
+        (64u32, 0u32),
+        (128, 0),
+        (256, 0),
+        (64, 1),
+        (32, 3),
+        (256, 2112),
+        (64, 65_535),
+    ] {
         let args = kernel
-            .prepare_args(&ctx, &counter, wg, u32::MAX)
+            .prepare_args(&ctx, &counter, wg, max_groups, u32::MAX)
             .expect("u32::MAX entries fit a 2D grid of these workgroups");
         for count in [
             0u32,
@@ -352,6 +364,7 @@ fn indirect_args_cover_tiny_and_synthetic_large_counts() {
             wg - 1,
             wg,
             wg + 1,
+            3 * wg + 1,
             65_535 * wg,
             65_535 * wg + 1,
             3840 * 2160,
@@ -364,19 +377,32 @@ fn indirect_args_cover_tiny_and_synthetic_large_counts() {
             args.record(&mut enc);
             ctx.queue.submit([enc.finish()]);
             let [gx, gy, gz, got] = args.read(&ctx).unwrap();
-            assert_eq!(got, count);
-            assert_eq!([gx, gy, gz], indirect_grid(count, wg, max_per_dim));
-            assert!(gx <= max_per_dim && gy <= max_per_dim && gz == 1);
-            assert!(
-                u64::from(gx) * u64::from(gy) * u64::from(wg) >= u64::from(count),
-                "{count}/{wg}: {gx}×{gy}"
+            let what = format!("{count} entries, {wg} threads a group, at most {max_groups}");
+            assert_eq!(got, count, "{what}");
+            assert_eq!(
+                [gx, gy, gz],
+                indirect_grid(count, wg, max_groups, max_per_dim),
+                "{what}"
             );
+            assert!(gx <= max_per_dim && gy <= max_per_dim && gz == 1, "{what}");
+            let groups = u64::from(gx) * u64::from(gy);
+            let needed = u64::from(count).div_ceil(u64::from(wg));
+            if max_groups == 0 || needed <= u64::from(max_groups) {
+                assert!(groups >= needed, "{what}: {gx}×{gy} cover the list");
+                assert!(groups < needed + u64::from(gy), "{what}: {gx}×{gy}");
+            } else {
+                // Capped: the threads each trace several entries (the stride is the launch).
+                assert!(
+                    groups >= u64::from(max_groups) && groups < u64::from(max_groups + gy),
+                    "{what}: {gx}×{gy}"
+                );
+            }
             let reset: Vec<u32> = ctx.read_buffer(&counter).unwrap();
             assert_eq!(reset, [0], "the arguments pass resets the counter");
         }
     }
     let err = kernel
-        .prepare_args(&ctx, &counter, 0, 10)
+        .prepare_args(&ctx, &counter, 0, 0, 10)
         .err()
         .expect("rejected");
     assert!(err.to_string().contains("workgroup size 0"), "{err}");
@@ -393,6 +419,7 @@ fn bad_configurations_are_rejected_with_the_field_named() {
         p_min: 0.0,
         order: Order::Coherent,
         trace_workgroup_size: 64,
+        trace_max_groups: 0,
     };
     assert!(kernel.prepare(&ctx, &dgi, &config).is_ok());
     let bad_p = kernel.prepare(

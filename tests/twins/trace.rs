@@ -147,25 +147,30 @@ fn gpu_and_cpu_twin_agree_on_a_scene_with_every_feature() {
 }
 
 /// Every variant of the trace kernel (where its traversal stack lives, wgpu's run-time checks
-/// on or off, its workgroup's size, full frames' paths regenerated) is the same function: the same accumulation to the bit as
-/// the default kernel, on the small city (a tree deep enough that walks push and pop), the
-/// Cornell box with its ceiling light and the scene with every feature (alpha-tested shadow
-/// rays, glass, punctual lights); and the same samples in the compact mode a cluster rank
-/// runs (its own dispatch grid, counted in the variant's workgroups).
+/// on or off, its workgroup's size, paths regenerated) is the same function: the same
+/// accumulation to the bit as the default kernel — full frames and a scheduler's list — on the
+/// small city (a tree deep enough that walks push and pop), the Cornell box with its ceiling
+/// light and the scene with every feature (alpha-tested shadow rays, glass, punctual lights);
+/// and the same samples in the compact mode a cluster rank runs (its own dispatch grid,
+/// counted in the variant's workgroups).
 #[test]
 fn every_trace_kernel_variant_renders_the_default_kernels_bits() {
     use raygun::trace::gpu::{
         GpuAccum, GpuScene, SampleRun, TraceKernel, TraceRun, TraceStack, TraceVariant,
     };
     use raygun::trace::path::TraceSettings;
-    /// Two frames' accumulation, then a rank's samples (index 1) of `pixels`, as bits.
+    type Bits = (Vec<[u32; 4]>, Vec<u32>, Vec<[u32; 4]>, Vec<[u32; 4]>);
+    /// Two frames' accumulation; then `pixels` listed as the scheduler lists them (one more
+    /// sample each, launched from the indirect arguments the scheduler computes for this
+    /// kernel); then a rank's samples (index 1) of `pixels`, as bits.
     fn run(
         c: &GpuContext,
         kernel: &TraceKernel,
         scene: &Scene,
         s: &TraceSettings,
         pixels: &[u32],
-    ) -> (Vec<[u32; 4]>, Vec<u32>, Vec<[u32; 4]>) {
+    ) -> Bits {
+        use wgpu::util::DeviceExt;
         let packed = PackedScene::new(scene);
         let gs = GpuScene::upload(c, kernel, &packed).unwrap();
         let acc = GpuAccum::new(c, s.width, s.height).unwrap();
@@ -176,6 +181,39 @@ fn every_trace_kernel_variant_renders_the_default_kernels_bits() {
         frames.record(&mut enc, &gs, None);
         c.queue.submit([enc.finish()]);
         let a = acc.read(c).unwrap();
+        let len = pixels.len() as u32;
+        let [gx, gy, gz] = raygun::schedule::indirect_grid(
+            len,
+            kernel.workgroup(),
+            kernel.max_list_groups(),
+            c.limits.max_compute_workgroups_per_dimension,
+        );
+        let buffer = |label, contents: &[u32], usage| {
+            c.device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some(label),
+                    contents: bytemuck::cast_slice(contents),
+                    usage,
+                })
+        };
+        let list = buffer("list", pixels, wgpu::BufferUsages::STORAGE);
+        let args = buffer(
+            "args",
+            &[gx, gy, gz, len],
+            wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::INDIRECT,
+        );
+        let listed = TraceRun::new(c, kernel, &packed, s, &acc, Some((&list, &args)));
+        let mut enc = c.device.create_command_encoder(&Default::default());
+        listed.record(&mut enc, &gs, None);
+        c.queue.submit([enc.finish()]);
+        let l = acc.read(c).unwrap();
+        // Every listed pixel, and no other, took one sample more.
+        let mut want = vec![2u32; l.count.len()];
+        for &p in pixels {
+            want[p as usize] = 3;
+        }
+        assert!(l.count == want, "{}: the listed samples", c.describe());
+        let listed_sums = l.sum.iter().map(|v| v.map(f32::to_bits)).collect();
         let mut ranks = SampleRun::new(c, kernel, &packed, s, None);
         let got = ranks
             .samples(c, &gs, pixels, &vec![1; pixels.len()])
@@ -185,7 +223,7 @@ fn every_trace_kernel_variant_renders_the_default_kernels_bits() {
             .iter()
             .map(|(c, r)| [c.x.to_bits(), c.y.to_bits(), c.z.to_bits(), *r])
             .collect();
-        (sums, a.count, samples)
+        (sums, a.count, listed_sums, samples)
     }
     let ctx = GpuContext::for_tests();
     let data = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/scenes");
@@ -220,7 +258,8 @@ fn every_trace_kernel_variant_renders_the_default_kernels_bits() {
     }
     // A workgroup stack of 128 threads needs 32 772 bytes: over lavapipe's 32 KiB.
     variants.push(TraceVariant::new(TraceStack::Workgroup, true).with_workgroup(32));
-    // Full frames regenerated in 1 to 3 workgroups: 5 to 30 paths a thread (960 pixels).
+    // Launches regenerated in 1 to 3 workgroups: 5 to 30 paths a thread (960 pixels), 3 to 22
+    // (the list's 700).
     variants.push(TraceVariant::default().with_regen(1));
     variants.push(
         TraceVariant::new(TraceStack::Function, false)
@@ -238,15 +277,20 @@ fn every_trace_kernel_variant_renders_the_default_kernels_bits() {
         let kernel = TraceKernel::new(&vctx);
         for ((name, scene), want) in scenes.iter().zip(&reference) {
             let s = settings(scene, 40, 24, 7, 6);
-            let (sums, counts, samples) = run(&vctx, &kernel, scene, &s, &pixels);
+            let (sums, counts, listed, samples) = run(&vctx, &kernel, scene, &s, &pixels);
             assert!(counts == want.1, "{name}, {v}: counts");
             let differing = sums.iter().zip(&want.0).filter(|(a, b)| a != b).count();
             assert_eq!(
                 differing, 0,
                 "{name}, {v}: pixels whose sums differ from the default's"
             );
+            let differing = listed.iter().zip(&want.2).filter(|(a, b)| a != b).count();
+            assert_eq!(
+                differing, 0,
+                "{name}, {v}: pixels whose sums after the listed samples differ"
+            );
             assert!(
-                samples == want.2,
+                samples == want.3,
                 "{name}, {v}: a rank's samples differ from the default's"
             );
         }
