@@ -110,7 +110,7 @@ fn the_smoke_run_leaves_a_summary_and_a_tarball_that_names_every_group() {
         "picture/picture.md",
         "kernels/kernels.md",
         "kernels/kernels-city.md",
-        "kernels-guided/guided-function+wg32.md",
+        "kernels-guided/guided-private+regen4.md",
     ] {
         let p = unpacked.join(table);
         assert!(
@@ -119,16 +119,15 @@ fn the_smoke_run_leaves_a_summary_and_a_tarball_that_names_every_group() {
         );
     }
     // Each guided run names the kernel it ran (the default says nothing).
-    let wg32 = unpacked.join("kernels-guided/guided-function+wg32.md");
-    let wg32 = std::fs::read_to_string(wg32).unwrap();
-    assert!(wg32.contains("trace kernel function+wg32"), "{wg32}");
+    let regen = unpacked.join("kernels-guided/guided-private+regen4.md");
+    let regen = std::fs::read_to_string(regen).unwrap();
+    assert!(regen.contains("trace kernel private+regen4"), "{regen}");
     let kernels = std::fs::read_to_string(unpacked.join("kernels/kernels.md")).unwrap();
     for variant in [
         "| private |",
-        "| workgroup+unchecked |",
-        "| function+wg32 |",
+        "| workgroup+unchecked+wg32 |",
         "| private+regen264 |",
-        "÷ function",
+        "÷ private",
         // lavapipe's 32 KiB of workgroup memory: named, not run, and the group still ends well.
         "Not run on this adapter: trace kernel workgroup+unchecked+wg128",
     ] {
