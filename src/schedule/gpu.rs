@@ -122,7 +122,7 @@ pub struct ScheduleConfig {
     /// Threads per workgroup of the tracer that consumes the list (the indirect grid's unit).
     pub trace_workgroup_size: u32,
     /// The most workgroups the tracer's launch may have (0: a thread an entry): a regenerating
-    /// tracer's cap ([`crate::gpu::TraceVariant::regen`]), whose threads trace several entries.
+    /// tracer's cap ([`crate::gpu::variant::TraceVariant::regen`]), whose threads trace several entries.
     pub trace_max_groups: u32,
 }
 
