@@ -207,6 +207,19 @@ fn bench_guided_report_is_consistent() {
         );
         let spp = ((row.guided_total_ms / ms_full).floor() as u32).max(1);
         assert_eq!(row.equal_time_full_spp, spp);
+        let full = &report.full_frame[0];
+        assert_eq!(
+            row.ms_per_megasample_vs_full,
+            row.ms_per_megasample / full.ms_per_megasample
+        );
+        // Per ray: the ratio per sample over the ratio of rays a sample cast.
+        let per_ray = row.ms_per_ray_vs_full.unwrap();
+        let rays = row.rays_per_sample.unwrap() / full.rays_per_sample.unwrap();
+        assert!(
+            (per_ray * rays / row.ms_per_megasample_vs_full - 1.0).abs() < 1e-12,
+            "{per_ray} × {rays} vs {}",
+            row.ms_per_megasample_vs_full
+        );
     }
     assert!(narrow.roi_pixels > 0 && wide.roi_pixels > narrow.roi_pixels);
     // The CPU twin counts rays: every sample casts its camera ray, and at most a closest-hit
@@ -222,6 +235,17 @@ fn bench_guided_report_is_consistent() {
     }
     let md = raygun::bench::guided::markdown(&report);
     assert!(md.contains(&format!("| {full_rays:.2} |")), "{md}");
+    assert!(
+        md.contains(&format!(
+            "| {:.2} | {:.2}× | {:.2}× |",
+            narrow.ms_per_megasample, narrow.ms_per_megasample_vs_full, narrow.speedup
+        )),
+        "{md}"
+    );
+    assert!(
+        md.contains(&format!("| {:.2}× |\n", wide.ms_per_ray_vs_full.unwrap())),
+        "{md}"
+    );
     assert!(narrow.ms_dgi.is_some());
     // Every ROI pixel is traced every iteration; when that is at least twice the equal-time
     // full frame's samples (how many depends on the clock), the guided ROI must be the closer

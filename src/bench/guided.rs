@@ -84,9 +84,15 @@ pub struct GuidedBenchRow {
     /// DGI time of the frame that recomputed it (ms).
     pub ms_dgi: Option<f64>,
     pub ms_per_megasample: f64,
+    /// ms per megasample ÷ the full frame's (the target on a GPU: at most 1.5×).
+    pub ms_per_megasample_vs_full: f64,
     /// Rays traced per sample over the guided iterations (closest-hit and shadow rays), where
     /// the backend counts them: against the full frame's, whether the ROI's paths are longer.
     pub rays_per_sample: Option<f64>,
+    /// ms per ray traced ÷ the full frame's, where both count rays: the ms-per-megasample
+    /// ratio with the paths' lengths divided out — what the list's launch and its pixels'
+    /// coherence cost beyond the ROI's longer (or shorter) paths.
+    pub ms_per_ray_vs_full: Option<f64>,
     /// Full-frame ms per frame ÷ guided ms per iteration.
     pub speedup: f64,
     /// Total time of the guided iterations (ms); the full-frame render got the same time.
@@ -190,13 +196,13 @@ pub fn run(
         full.iterate(2)?;
         let timed = full.timed_iterations(cfg.full_frames.max(1))?;
         let ms_full = median(timed.ms.clone());
-        full_frame.push(FullFrameRow {
+        let full_row = FullFrameRow {
             scene: name.clone(),
             ms_per_frame: ms_full,
             ms_per_megasample: ms_full / megapixels,
             rays_per_sample: (timed.rays_per_iteration > 0.0)
                 .then(|| timed.rays_per_iteration / (megapixels * 1e6)),
-        });
+        };
         drop(full);
         progress(&format!("{name}: reference ({} spp)", cfg.reference_spp));
         let reference = paper::reference_image_wall(
@@ -263,6 +269,11 @@ pub fn run(
                 )?;
                 let (rg, mean_ref) = rmse(&guided_image, &reference, &mask);
                 let (rf, _) = rmse(&full_image, &reference, &mask);
+                let ms_per_megasample = ms_iter / (share * megapixels);
+                let vs_full = ms_per_megasample / full_row.ms_per_megasample;
+                let rays_per_sample = rays
+                    .filter(|_| pixels > 0)
+                    .map(|r| r as f64 / pixels as f64);
                 rows.push(GuidedBenchRow {
                     scene: name.clone(),
                     fov_deg: fov,
@@ -272,10 +283,12 @@ pub fn run(
                     ms_schedule: (!sched.is_empty()).then(|| median(sched)),
                     ms_trace: (!trace.is_empty()).then(|| median(trace)),
                     ms_dgi,
-                    ms_per_megasample: ms_iter / (share * megapixels),
-                    rays_per_sample: rays
-                        .filter(|_| pixels > 0)
-                        .map(|r| r as f64 / pixels as f64),
+                    ms_per_megasample,
+                    ms_per_megasample_vs_full: vs_full,
+                    rays_per_sample,
+                    ms_per_ray_vs_full: rays_per_sample
+                        .zip(full_row.rays_per_sample)
+                        .map(|(g, f)| vs_full * f / g),
                     speedup: ms_full / ms_iter,
                     guided_total_ms: total,
                     equal_time_full_spp: spp_eq,
@@ -288,6 +301,7 @@ pub fn run(
                 });
             }
         }
+        full_frame.push(full_row);
     }
     Ok(GuidedBenchReport {
         device: backend.describe(),
@@ -319,11 +333,12 @@ pub fn markdown(r: &GuidedBenchReport) -> String {
             rays(f.rays_per_sample)
         );
     }
-    s += "\n| scene | FOV | order | share sampled | ms/iteration | schedule ms | trace ms | DGI ms | ms/megasample | speed-up | equal-time full spp | ROI px | ROI rel. RMSE guided | ROI rel. RMSE full frame | rays/sample |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+    s += "\n| scene | FOV | order | share sampled | ms/iteration | schedule ms | trace ms | DGI ms | ms/megasample | ÷ full frame's | speed-up | equal-time full spp | ROI px | ROI rel. RMSE guided | ROI rel. RMSE full frame | rays/sample | ms per ray ÷ full frame's |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
     let o = |v: Option<f64>| v.map_or("–".into(), |v| format!("{v:.3}"));
+    let times = |v: Option<f64>| v.map_or("–".into(), |v| format!("{v:.2}×"));
     for row in &r.rows {
         s += &format!(
-            "| {} | {}° | {:?} | {:.2} % | {:.3} | {} | {} | {} | {:.2} | {:.2}× | {} | {} | {:.4} | {:.4} | {} |\n",
+            "| {} | {}° | {:?} | {:.2} % | {:.3} | {} | {} | {} | {:.2} | {:.2}× | {:.2}× | {} | {} | {:.4} | {:.4} | {} | {} |\n",
             row.scene,
             row.fov_deg,
             row.order,
@@ -333,14 +348,17 @@ pub fn markdown(r: &GuidedBenchReport) -> String {
             o(row.ms_trace),
             o(row.ms_dgi),
             row.ms_per_megasample,
+            row.ms_per_megasample_vs_full,
             row.speedup,
             row.equal_time_full_spp,
             row.roi_pixels,
             row.rel_rmse_roi_guided,
             row.rel_rmse_roi_full,
             rays(row.rays_per_sample),
+            times(row.ms_per_ray_vs_full),
         );
     }
+    s += "\n*÷ full frame's*: ms per megasample over the full frame's (the target on a GPU: at most 1.5×); *ms per ray ÷ full frame's*: the same with the rays each sample cast divided out — a ROI whose paths are longer costs more per sample but not per ray.\n";
     s += "\nThe paper (GTX 980, OptiX, Cornell box, 3840×2160): full frame 460 ms (55.46 ms/megasample); 10° 12.29 ms per iteration (37.43×); 60° 188 ms (2.44×).\n";
     s
 }
