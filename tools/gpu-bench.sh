@@ -16,13 +16,14 @@
 # (every log, table, JSON and plot). Copy the tables into BENCHMARKS.md with the date and the
 # adapter's name from the summary's first lines.
 #
-# Here, to check the script itself on lavapipe at tiny sizes (under a minute with a release
-# binary; tests/gpu_bench_script.rs runs it with the test build):
+# Here, to check the script itself on lavapipe at tiny sizes (about two minutes, most of it
+# lavapipe compiling kernels; tests/gpu_bench_script.rs runs it with the test build):
 #   OUT=/tmp/gb bash tools/gpu-bench.sh smoke
 #
 # Settings (environment): RAYGUN_BIN (default .dev/raygun for run, target/release/raygun or
 # target/debug/raygun for smoke), GPU_BENCH_LIMIT_S (the whole run's budget: 420 for run, 200
-# for smoke: its groups take ~140 s on two busy cores, most of it lavapipe compiling kernels), GPU_BENCH_GROUPS (some groups only, by name, e.g. "adapter guided all" for a
+# for smoke, whose groups take ~140 s on two busy cores, most of it lavapipe compiling
+# kernels), GPU_BENCH_GROUPS (some groups only, by name, e.g. "adapter guided all" for a
 # rerun of what failed; default every group), OUT (where the results go; required).
 set -uo pipefail
 cd "$(dirname "$0")/.."
@@ -101,7 +102,7 @@ setup_device() {
 # takes what the others leave.
 BENCH_GROUPS=(adapter picture dgi schedule trace kernels kernels-guided guided native filter
   all-quick wall cluster sizes readback all)
-declare -A BUDGET=([adapter]=20 [picture]=40 [dgi]=60 [schedule]=30 [trace]=90 [kernels]=120
+declare -A BUDGET=([adapter]=20 [picture]=40 [dgi]=60 [schedule]=30 [trace]=90 [kernels]=150
   [kernels-guided]=90 [guided]=120 [native]=60 [filter]=45 [all-quick]=60 [wall]=60 [cluster]=60
   [sizes]=40 [readback]=30 [all]=300)
 declare -A SMOKE_BUDGET=([adapter]=10 [picture]=10 [dgi]=20 [schedule]=20 [trace]=20 [kernels]=60
@@ -114,6 +115,9 @@ KERNEL_VARIANTS+=,workgroup+unchecked,function+wg32,function+wg128,function+wg25
 KERNEL_VARIANTS+=,private+unchecked+wg32,workgroup+unchecked+wg32,workgroup+unchecked+wg128
 # Path regeneration in at most G workgroups: an H200 has 132 SMs, so 2 to 16 groups of 64 each.
 KERNEL_VARIANTS+=,private+regen264,private+regen528,private+regen1056,private+regen2112
+# The wavefront split: 2^18 paths a chunk (20 MiB of state: within the H200's 50 MB L2), 2^16,
+# 2^20, and with the workgroup stack.
+KERNEL_VARIANTS+=,private+split,private+split65536,private+split1048576,workgroup+unchecked+split
 # ... and those the `kernels-guided` group runs guided iterations with (the default first; a
 # regenerating variant regenerates the guided lists' paths too).
 GUIDED_KERNEL_VARIANTS="private function private+unchecked workgroup+unchecked+wg32"

@@ -382,9 +382,23 @@ fn path_start(pixel: u32, sample: u32, tile: u32) -> PathState {
     return PathState(o, 0u, d, 0.0, vec3<f32>(1.0), pixel, vec3<f32>(0.0), sample);
 }
 
+// The alpha-test seed of the path's next closest-hit ray (0 in scenes without cut-outs).
+fn closest_hit_seed(st: PathState) -> u32 {
+    if (params.features & FEAT_ALPHA) != 0u {
+        return seed_for(st.pixel, st.sample, st.depth, 0u);
+    }
+    return 0u;
+}
+
 // One vertex of the path `st`: its ray traced, emission gathered, the light sampled, the next
 // direction chosen. False when the path ends here (its radiance final).
 fn path_bounce(st: ptr<function, PathState>) -> bool {
+    ray_seed = closest_hit_seed(*st);
+    return path_shade(st, traverse((*st).o, (*st).d, T_FAR, false));
+}
+
+// `path_bounce` after its closest-hit ray: `hit` is where the path's ray meets the scene.
+fn path_shade(st: ptr<function, PathState>, hit: Hit) -> bool {
     var o = (*st).o;
     var d = (*st).d;
     var throughput = (*st).throughput;
@@ -395,11 +409,6 @@ fn path_bounce(st: ptr<function, PathState>) -> bool {
     let sample = (*st).sample;
     let alpha_scene = (params.features & FEAT_ALPHA) != 0u;
     let tri_select = 1.0 - params.env_select - params.punct_select;
-    ray_seed = 0u;
-    if alpha_scene {
-        ray_seed = seed_for(pixel, sample, depth, 0u);
-    }
-    let hit = traverse(o, d, T_FAR, false);
     if hit.prim == NO_HIT {
         let le = env_eval(d);
         var w = 1.0;
@@ -807,4 +816,102 @@ fn trace(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) 
     if li == 0u {
         atomicAdd(&stats[0], atomicLoad(&workgroup_rays));
     }
+}
+
+// The wavefront split (a `+split` variant, full frames only; src/trace/gpu.rs, `SplitRun`):
+// the same paths as `trace`, to the bit, in three kernels a bounce apart, so that the
+// traversal runs in a kernel of its own (few registers, many threads resident) and the
+// shading in another. A frame's jobs go in chunks of `split.jobs`; the chunk's paths wait in
+// `split_states` between kernels and its closest hits in `split_hits`. `split_start` starts
+// them, then `split_extend` (closest hits) and `split_shade` (the rest of `path_bounce`, shadow
+// rays included) alternate `params.max_depth` times; a path that ends is added to its slot at
+// once and marked dead.
+struct SplitParams {
+    first_job: u32, // the chunk's first full-frame job
+    jobs: u32,      // jobs in this chunk
+    groups_x: u32,  // the chunk's dispatch grid's width in workgroups
+    _pad: u32,
+}
+
+@group(2) @binding(0) var<storage, read_write> split_states: array<PathState>;
+@group(2) @binding(1) var<storage, read_write> split_hits: array<Hit>;
+@group(2) @binding(2) var<uniform> split: SplitParams;
+
+// A dead path's depth: past every maximum depth.
+const SPLIT_DEAD: u32 = 0xffffffffu;
+
+// This thread's path in the chunk (at or past `split.jobs`: none).
+fn split_index(wg: vec3<u32>, li: u32) -> u32 {
+    return (wg.y * split.groups_x + wg.x) * WORKGROUP + li;
+}
+
+// Adds this workgroup's rays to the frame's count (every thread reaches it: no early return).
+fn split_count_rays(li: u32) {
+    atomicAdd(&workgroup_rays, rays_traced);
+    workgroupBarrier();
+    if li == 0u {
+        atomicAdd(&stats[0], atomicLoad(&workgroup_rays));
+    }
+}
+
+// A path that ended: its estimate added to its slot, the state marked dead.
+fn split_finish(i: u32, st: PathState) {
+    accumulate(full_frame_slot(split.first_job + i), st.sample, path_result(st));
+    var dead = st;
+    dead.depth = SPLIT_DEAD;
+    split_states[i] = dead;
+}
+
+@compute @workgroup_size(WORKGROUP)
+fn split_start(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
+    let i = split_index(wg, li);
+    if i < split.jobs {
+        var st: PathState;
+        st.depth = SPLIT_DEAD;
+        // A full frame's job (NO_SLOT past the frame's padded end).
+        let j = job_of(split.first_job + i);
+        if j.x != NO_SLOT {
+            let tile = tile_of(j.y);
+            if tile != NO_TILE {
+                st = path_start(j.y, counts[j.x], tile);
+            }
+        }
+        split_states[i] = st;
+        if st.depth == 0u && params.max_depth == 0u {
+            split_finish(i, st);
+        }
+    }
+}
+
+@compute @workgroup_size(WORKGROUP)
+fn split_extend(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
+    trace_lane = li;
+    rays_traced = 0u;
+    let i = split_index(wg, li);
+    if i < split.jobs {
+        let st = split_states[i];
+        if st.depth < params.max_depth {
+            ray_seed = closest_hit_seed(st);
+            split_hits[i] = traverse(st.o, st.d, T_FAR, false);
+        }
+    }
+    split_count_rays(li);
+}
+
+@compute @workgroup_size(WORKGROUP)
+fn split_shade(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
+    trace_lane = li;
+    rays_traced = 0u;
+    let i = split_index(wg, li);
+    if i < split.jobs {
+        var st = split_states[i];
+        if st.depth < params.max_depth {
+            if path_shade(&st, split_hits[i]) && st.depth < params.max_depth {
+                split_states[i] = st;
+            } else {
+                split_finish(i, st);
+            }
+        }
+    }
+    split_count_rays(li);
 }

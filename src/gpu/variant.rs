@@ -48,6 +48,12 @@ pub struct TraceVariant {
     /// its next path as soon as its last one ends (path regeneration, Novák et al. 2010), so a
     /// group's threads stay busy while paths of different lengths finish.
     pub regen: u32,
+    /// Full frames in the wavefront split (0: off): three kernels a bounce apart — the paths'
+    /// start, their closest hits, the rest of each bounce — over chunks of this many paths
+    /// (80 bytes each on the GPU while the chunk is traced), so that the traversal runs in a
+    /// kernel of its own with few registers (Laine et al. 2013, "Megakernels considered
+    /// harmful"). Lists keep the one kernel. Not with [`Self::regen`].
+    pub split: u32,
 }
 
 impl Default for TraceVariant {
@@ -82,6 +88,20 @@ impl TraceVariant {
             unchecked,
             workgroup: DEFAULT_WORKGROUP,
             regen: 0,
+            split: 0,
+        }
+    }
+
+    /// Paths a chunk of the wavefront split has where `+split` names no number: 20 MiB of
+    /// path state, within a large GPU's L2 cache.
+    pub const SPLIT_CHUNK: u32 = 1 << 18;
+
+    /// This variant tracing full frames in the wavefront split, `paths` a chunk (0: off).
+    #[must_use]
+    pub const fn with_split(self, paths: u32) -> Self {
+        Self {
+            split: paths,
+            ..self
         }
     }
 
@@ -166,6 +186,11 @@ impl std::fmt::Display for TraceVariant {
         if self.regen != 0 {
             write!(f, "+regen{}", self.regen)?;
         }
+        match self.split {
+            0 => {}
+            Self::SPLIT_CHUNK => f.write_str("+split")?,
+            n => write!(f, "+split{n}")?,
+        }
         Ok(())
     }
 }
@@ -174,15 +199,18 @@ impl std::str::FromStr for TraceVariant {
     type Err = String;
 
     /// `function`, `private` or `workgroup` (the stack), then optionally `+unchecked`, `+wgN`
-    /// (N threads a workgroup: 32, 64, 128 or 256) and `+regenG` (paths regenerated
-    /// in launches of at most G workgroups, 1 to 65 535), e.g. `private+unchecked+wg32` or
-    /// `private+regen2048`.
+    /// (N threads a workgroup: 32, 64, 128 or 256), and `+regenG` (paths regenerated
+    /// in launches of at most G workgroups, 1 to 65 535) or `+split[N]` (full frames in the
+    /// wavefront split, N paths a chunk: a multiple of 64 up to 2²⁴, [`Self::SPLIT_CHUNK`]
+    /// without N), e.g. `private+unchecked+wg32`, `private+regen2048` or `workgroup+split`.
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         let bad = || {
             format!(
                 "unknown trace kernel {s:?}: expected function, private or workgroup, then \
-                 optionally +unchecked, +wgN (N = 32, 64, 128 or 256) and +regenG (G = 1 to \
-                 65535 workgroups), e.g. private+unchecked+wg32"
+                 optionally +unchecked, +wgN (N = 32, 64, 128 or 256), and +regenG (G = 1 to \
+                 65535 workgroups) or +split[N] (full frames in three kernels, N paths a chunk: \
+                 a multiple of 64 up to 16777216; 262144 without N), e.g. \
+                 private+unchecked+wg32"
             )
         };
         let number = |w: &str, prefix: &str| w.strip_prefix(prefix)?.parse::<u32>().ok();
@@ -208,9 +236,19 @@ impl std::str::FromStr for TraceVariant {
                     return Err(bad());
                 }
                 v.regen = g;
+            } else if let Some(n) = (w == "split").then_some(Self::SPLIT_CHUNK).or_else(|| {
+                number(w, "split").filter(|n| (64..=1 << 24).contains(n) && n % 64 == 0)
+            }) {
+                if v.split != 0 {
+                    return Err(bad());
+                }
+                v.split = n;
             } else {
                 return Err(bad());
             }
+        }
+        if v.split != 0 && v.regen != 0 {
+            return Err(bad());
         }
         Ok(v)
     }
@@ -242,6 +280,33 @@ mod tests {
             "private+regen512+wg32".parse(),
             Ok(TraceVariant::default().with_workgroup(32).with_regen(512))
         );
+        for n in [64, 4096, TraceVariant::SPLIT_CHUNK, 1 << 24] {
+            let v = TraceVariant::new(TraceStack::Workgroup, true).with_split(n);
+            assert_eq!(v.to_string().parse::<TraceVariant>(), Ok(v));
+        }
+        assert_eq!(
+            "private+split".parse(),
+            Ok(TraceVariant::default().with_split(1 << 18))
+        );
+        assert_eq!(
+            TraceVariant::default().with_split(1 << 18).to_string(),
+            "private+split"
+        );
+        assert_eq!(
+            TraceVariant::default().with_split(4096).to_string(),
+            "private+split4096"
+        );
+        for bad in [
+            "private+split0",
+            "private+split63",
+            "private+split100",
+            "private+split33554432",
+            "private+split+split",
+            "private+split+regen4",
+            "private+regen4+split64",
+        ] {
+            assert!(bad.parse::<TraceVariant>().is_err(), "{bad}");
+        }
         for bad in [
             "private+regen0",
             "private+regen65536",

@@ -220,6 +220,58 @@ pub fn kernel_source(variant: TraceVariant) -> std::borrow::Cow<'static, str> {
 pub struct TraceKernel {
     pipeline: wgpu::ComputePipeline,
     variant: TraceVariant,
+    /// The wavefront split's kernels, for a `+split` variant.
+    split: Option<SplitKernels>,
+}
+
+/// The wavefront split's three entry points (`split_start`, `split_extend`, `split_shade` in
+/// path.wgsl), sharing `trace`'s bind groups 0 and 1 (one explicit layout for all four).
+struct SplitKernels {
+    start: wgpu::ComputePipeline,
+    extend: wgpu::ComputePipeline,
+    shade: wgpu::ComputePipeline,
+    /// Bind group 2: a chunk's path states, closest hits and [`GpuSplitParams`].
+    chunk_layout: wgpu::BindGroupLayout,
+}
+
+/// Mirrors `SplitParams` in shaders/trace/path.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct GpuSplitParams {
+    pub first_job: u32,
+    pub jobs: u32,
+    pub groups_x: u32,
+    pub _pad: u32,
+}
+
+/// GPU bytes a path of the wavefront split holds while its chunk is traced: its state
+/// (`PathState`, 64) and its closest hit (`Hit`, 16).
+pub const SPLIT_PATH_BYTES: u64 = 80;
+
+/// A compute-stage bind group layout of `entries`: `(binding, type)`.
+fn bind_layout(
+    ctx: &GpuContext,
+    label: &str,
+    entries: &[(u32, wgpu::BufferBindingType)],
+) -> wgpu::BindGroupLayout {
+    let entries: Vec<_> = entries
+        .iter()
+        .map(|&(binding, ty)| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer {
+                ty,
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        })
+        .collect();
+    ctx.device
+        .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some(label),
+            entries: &entries,
+        })
 }
 
 impl TraceKernel {
@@ -246,8 +298,72 @@ impl TraceKernel {
         } else {
             ctx.shader_module(&label, &source)
         };
-        let pipeline = ctx.compute_pipeline_in(&module, &label, "trace");
-        Self { pipeline, variant }
+        if variant.split == 0 {
+            let pipeline = ctx.compute_pipeline_in(&module, &label, "trace");
+            return Self {
+                pipeline,
+                variant,
+                split: None,
+            };
+        }
+        // The split's kernels bind groups made for `trace`: one explicit layout for all
+        // (layouts derived from one pipeline serve that pipeline alone).
+        use wgpu::BufferBindingType as B;
+        let read = B::Storage { read_only: true };
+        let write = B::Storage { read_only: false };
+        let scene = bind_layout(
+            ctx,
+            "trace scene",
+            &[0, 1, 2, 3, 4, 5, 6, 7].map(|b| (b, read)),
+        );
+        let frame = bind_layout(
+            ctx,
+            "trace frame",
+            &[
+                (0, B::Uniform),
+                (1, write),
+                (2, write),
+                (3, read),
+                (4, read),
+                (5, write),
+                (6, read),
+            ],
+        );
+        let chunk_layout = bind_layout(
+            ctx,
+            "trace split chunk",
+            &[(0, write), (1, write), (2, B::Uniform)],
+        );
+        let make = |entry: &str, groups: &[Option<&wgpu::BindGroupLayout>]| {
+            let layout = ctx
+                .device
+                .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                    label: Some(&label),
+                    bind_group_layouts: groups,
+                    immediate_size: 0,
+                });
+            ctx.device
+                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some(&label),
+                    layout: Some(&layout),
+                    module: &module,
+                    entry_point: Some(entry),
+                    compilation_options: Default::default(),
+                    cache: None,
+                })
+        };
+        let three = [Some(&scene), Some(&frame), Some(&chunk_layout)];
+        let split = SplitKernels {
+            start: make("split_start", &three),
+            extend: make("split_extend", &three),
+            shade: make("split_shade", &three),
+            chunk_layout: chunk_layout.clone(),
+        };
+        Self {
+            pipeline: make("trace", &[Some(&scene), Some(&frame)]),
+            variant,
+            split: Some(split),
+        }
     }
 
     /// Threads per workgroup (what the scheduler's indirect dispatch arguments count in).
@@ -436,6 +552,98 @@ pub struct TraceRun {
     wall_table: wgpu::Buffer,
     /// The rows of the image this run's accumulation holds.
     band: Band,
+    /// A full frame's wavefront split, for a `+split` kernel.
+    split: Option<SplitRun>,
+}
+
+/// A full frame in the wavefront split: the kernels, and each chunk's bind group (its
+/// parameters over the path states and hits all chunks share, traced one after the other)
+/// and grid.
+struct SplitRun {
+    start: wgpu::ComputePipeline,
+    extend: wgpu::ComputePipeline,
+    shade: wgpu::ComputePipeline,
+    chunks: Vec<(wgpu::BindGroup, [u32; 2])>,
+    /// Bounces a chunk runs: the settings' maximum depth.
+    max_depth: std::cell::Cell<u32>,
+}
+
+impl SplitRun {
+    /// `jobs` full-frame jobs (threads of the one-kernel frame) in chunks of at most `chunk`
+    /// paths — fewer where one binding holds fewer path states.
+    fn new(
+        ctx: &GpuContext,
+        kernels: &SplitKernels,
+        variant: TraceVariant,
+        jobs: u32,
+        max_depth: u32,
+    ) -> Self {
+        let most = (ctx.max_binding() / 64).min(u64::from(u32::MAX)) as u32 / 64 * 64;
+        let chunk = variant
+            .split
+            .min(most)
+            .min(jobs.next_multiple_of(64))
+            .max(64);
+        let buffer = |label, bytes: u64| {
+            ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: bytes,
+                usage: wgpu::BufferUsages::STORAGE,
+                mapped_at_creation: false,
+            })
+        };
+        let states = buffer("trace split states", 64 * u64::from(chunk));
+        let hits = buffer("trace split hits", 16 * u64::from(chunk));
+        let chunks = (0..jobs)
+            .step_by(chunk as usize)
+            .map(|first_job| {
+                let n = chunk.min(jobs - first_job);
+                let groups = n.div_ceil(variant.workgroup);
+                let gx = groups.min(MAX_GROUPS_X);
+                let params = ctx
+                    .device
+                    .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                        label: Some("trace split chunk"),
+                        contents: bytemuck::bytes_of(&GpuSplitParams {
+                            first_job,
+                            jobs: n,
+                            groups_x: gx,
+                            _pad: 0,
+                        }),
+                        usage: wgpu::BufferUsages::UNIFORM,
+                    });
+                let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("trace split chunk"),
+                    layout: &kernels.chunk_layout,
+                    entries: &[entry(0, &states), entry(1, &hits), entry(2, &params)],
+                });
+                (bind, [gx, groups.div_ceil(gx)])
+            })
+            .collect();
+        Self {
+            start: kernels.start.clone(),
+            extend: kernels.extend.clone(),
+            shade: kernels.shade.clone(),
+            chunks,
+            max_depth: std::cell::Cell::new(max_depth),
+        }
+    }
+
+    /// Each chunk in turn: its paths started, then closest hits and shading alternating, a
+    /// bounce each, in a pass whose bind groups 0 and 1 are set.
+    fn record(&self, pass: &mut wgpu::ComputePass<'_>) {
+        for (bind, [gx, gy]) in &self.chunks {
+            pass.set_bind_group(2, bind, &[]);
+            pass.set_pipeline(&self.start);
+            pass.dispatch_workgroups(*gx, *gy, 1);
+            for _ in 0..self.max_depth.get() {
+                pass.set_pipeline(&self.extend);
+                pass.dispatch_workgroups(*gx, *gy, 1);
+                pass.set_pipeline(&self.shade);
+                pass.dispatch_workgroups(*gx, *gy, 1);
+            }
+        }
+    }
 }
 
 impl TraceRun {
@@ -527,8 +735,19 @@ impl TraceRun {
                 entry(6, &wall_buf),
             ],
         });
-        let (_, groups, _) = full_frame_launch(settings.width, band.rows, kernel.variant);
+        let (threads, groups, _) = full_frame_launch(settings.width, band.rows, kernel.variant);
+        let split = match (&kernel.split, schedule) {
+            (Some(k), None) => Some(SplitRun::new(
+                ctx,
+                k,
+                kernel.variant,
+                threads,
+                settings.max_depth,
+            )),
+            _ => None,
+        };
         Self {
+            split,
             pipeline: kernel.pipeline.clone(),
             params,
             bind,
@@ -571,6 +790,9 @@ impl TraceRun {
         );
         ctx.queue
             .write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
+        if let Some(split) = &self.split {
+            split.max_depth.set(settings.max_depth);
+        }
     }
 
     /// Records one iteration (one path per pixel, or per listed pixel).
@@ -598,9 +820,10 @@ impl TraceRun {
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &scene.bind, &[]);
         pass.set_bind_group(1, &self.bind, &[]);
-        match &self.args {
-            Some(args) => pass.dispatch_workgroups_indirect(args, 0),
-            None => pass.dispatch_workgroups(self.groups[0], self.groups[1], 1),
+        match (&self.args, &self.split) {
+            (Some(args), _) => pass.dispatch_workgroups_indirect(args, 0),
+            (None, Some(split)) => split.record(&mut pass),
+            (None, None) => pass.dispatch_workgroups(self.groups[0], self.groups[1], 1),
         }
     }
 }
@@ -1136,6 +1359,17 @@ mod tests {
             struct_size(&module, "Node"),
             std::mem::size_of::<obvhs::cwbvh::node::CwBvhNode>()
         );
+        assert_same_layout(
+            &module,
+            "SplitParams",
+            &crate::rust_layout!(GpuSplitParams; first_job, jobs, groups_x, _pad),
+        );
+        // The split's buffers: a path's state and its closest hit.
+        assert_eq!(
+            (struct_size(&module, "PathState") + struct_size(&module, "Hit")) as u64,
+            SPLIT_PATH_BYTES
+        );
+        assert_eq!(struct_size(&module, "PathState"), 64);
     }
 
     #[test]

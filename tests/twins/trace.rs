@@ -271,6 +271,15 @@ fn every_trace_kernel_variant_renders_the_default_kernels_bits() {
             .with_workgroup(32)
             .with_regen(2),
     );
+    // Full frames in the wavefront split: chunks of 64 paths (fifteen for 960 pixels), and one
+    // chunk; lists and a rank's samples in its `trace` kernel, bound through its explicit
+    // layout.
+    variants.push(TraceVariant::default().with_split(64));
+    variants.push(
+        TraceVariant::new(TraceStack::Workgroup, true)
+            .with_workgroup(32)
+            .with_split(TraceVariant::SPLIT_CHUNK),
+    );
     for v in &variants {
         let vctx = ctx.with_trace_variant(*v).unwrap();
         assert_eq!(vctx.trace_variant(), *v);
