@@ -638,8 +638,9 @@ pub struct TraceBenchArgs {
     /// where the traversal stack lives (`private`, as written; `function`, zeroed at every
     /// ray; `workgroup` memory), then optionally `+unchecked` (without wgpu's run-time
     /// checks), `+wgN` (N = 32, 64, 128 or 256 threads a workgroup; 64 otherwise) and
-    /// `+regenG` (paths regenerated in launches of at most G workgroups), e.g.
-    /// `function,private+unchecked+wg32,private+regen1056`. Same pictures, different code;
+    /// `+regenG` (paths regenerated in launches of at most G workgroups) or `+split[N]` (full
+    /// frames in the wavefront split, N paths a chunk), e.g.
+    /// `function,private+unchecked+wg32,private+regen1056,private+split`. Same pictures, different code;
     /// variants the adapter cannot run are named and left out. Default: the one
     /// `RAYGUN_TRACE_KERNEL` names, else `private`.
     #[arg(long, value_name = "VARIANT,…", value_delimiter = ',')]
