@@ -822,27 +822,46 @@ fn trace(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) 
 // the same paths as `trace`, to the bit, in three kernels a bounce apart, so that the
 // traversal runs in a kernel of its own (few registers, many threads resident) and the
 // shading in another. A frame's jobs go in chunks of `split.jobs`; the chunk's paths wait in
-// `split_states` between kernels and its closest hits in `split_hits`. `split_start` starts
+// `split_states` between kernels and their closest hits in `split_hits`. `split_start` starts
 // them, then `split_extend` (closest hits) and `split_shade` (the rest of `path_bounce`, shadow
-// rays included) alternate `params.max_depth` times; a path that ends is added to its slot at
-// once and marked dead.
+// rays included) alternate `params.max_depth` times. A path that ends is added to its slot at
+// once; one that goes on is queued for the next bounce (its index appended to a queue, a
+// workgroup's together), so that each bounce's threads are the live paths, packed, and the
+// threads past the queue's length end at once. The queues' order is the atomics' and changes
+// nothing: each path is its own.
 struct SplitParams {
     first_job: u32, // the chunk's first full-frame job
     jobs: u32,      // jobs in this chunk
     groups_x: u32,  // the chunk's dispatch grid's width in workgroups
-    _pad: u32,
+    // Which bounce: 0 the first (the chunk's paths in order, live ones to queue 1), 1 from
+    // queue 1 to queue 0, 2 from queue 0 to queue 1.
+    phase: u32,
 }
 
 @group(2) @binding(0) var<storage, read_write> split_states: array<PathState>;
 @group(2) @binding(1) var<storage, read_write> split_hits: array<Hit>;
 @group(2) @binding(2) var<uniform> split: SplitParams;
+// Two queues of path indices, `split.jobs` apart, and their lengths.
+@group(2) @binding(3) var<storage, read_write> split_queues: array<u32>;
+@group(2) @binding(4) var<storage, read_write> split_lengths: array<atomic<u32>, 2>;
 
-// A dead path's depth: past every maximum depth.
+// A path that did not start (padding, or a pixel no wall tile shows): past every depth.
 const SPLIT_DEAD: u32 = 0xffffffffu;
 
-// This thread's path in the chunk (at or past `split.jobs`: none).
-fn split_index(wg: vec3<u32>, li: u32) -> u32 {
-    return (wg.y * split.groups_x + wg.x) * WORKGROUP + li;
+// This thread's path in the chunk for this bounce, or SPLIT_DEAD where it has none.
+fn split_path(wg: vec3<u32>, li: u32) -> u32 {
+    let k = (wg.y * split.groups_x + wg.x) * WORKGROUP + li;
+    if split.phase == 0u {
+        if k < split.jobs && split_states[k].depth < params.max_depth {
+            return k;
+        }
+        return SPLIT_DEAD;
+    }
+    let queue = 2u - split.phase;
+    if k < atomicLoad(&split_lengths[queue]) {
+        return split_queues[queue * split.jobs + k];
+    }
+    return SPLIT_DEAD;
 }
 
 // Adds this workgroup's rays to the frame's count (every thread reaches it: no early return).
@@ -854,17 +873,18 @@ fn split_count_rays(li: u32) {
     }
 }
 
-// A path that ended: its estimate added to its slot, the state marked dead.
+// A path that ended: its estimate added to its slot.
 fn split_finish(i: u32, st: PathState) {
     accumulate(full_frame_slot(split.first_job + i), st.sample, path_result(st));
-    var dead = st;
-    dead.depth = SPLIT_DEAD;
-    split_states[i] = dead;
 }
 
 @compute @workgroup_size(WORKGROUP)
 fn split_start(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
-    let i = split_index(wg, li);
+    let i = (wg.y * split.groups_x + wg.x) * WORKGROUP + li;
+    if i == 0u {
+        // The first bounce's queue, filled by its shading.
+        atomicStore(&split_lengths[1], 0u);
+    }
     if i < split.jobs {
         var st: PathState;
         st.depth = SPLIT_DEAD;
@@ -887,31 +907,49 @@ fn split_start(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_i
 fn split_extend(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
     trace_lane = li;
     rays_traced = 0u;
-    let i = split_index(wg, li);
-    if i < split.jobs {
+    if split.phase != 0u && wg.x == 0u && wg.y == 0u && li == 0u {
+        // The queue this bounce's shading fills (read last by the bounce before).
+        atomicStore(&split_lengths[split.phase - 1u], 0u);
+    }
+    let i = split_path(wg, li);
+    if i != SPLIT_DEAD {
         let st = split_states[i];
-        if st.depth < params.max_depth {
-            ray_seed = closest_hit_seed(st);
-            split_hits[i] = traverse(st.o, st.d, T_FAR, false);
-        }
+        ray_seed = closest_hit_seed(st);
+        split_hits[i] = traverse(st.o, st.d, T_FAR, false);
     }
     split_count_rays(li);
 }
+
+// The workgroup's paths that go on: how many (each takes the next place) and where in the
+// next queue they start.
+var<workgroup> split_going_on: atomic<u32>;
+var<workgroup> split_queue_base: u32;
 
 @compute @workgroup_size(WORKGROUP)
 fn split_shade(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
     trace_lane = li;
     rays_traced = 0u;
-    let i = split_index(wg, li);
-    if i < split.jobs {
+    let to = select(split.phase - 1u, 1u, split.phase == 0u);
+    let i = split_path(wg, li);
+    // This path's place among its workgroup's that go on (SPLIT_DEAD: it ends or has none).
+    var place = SPLIT_DEAD;
+    if i != SPLIT_DEAD {
         var st = split_states[i];
-        if st.depth < params.max_depth {
-            if path_shade(&st, split_hits[i]) && st.depth < params.max_depth {
-                split_states[i] = st;
-            } else {
-                split_finish(i, st);
-            }
+        if path_shade(&st, split_hits[i]) && st.depth < params.max_depth {
+            split_states[i] = st;
+            place = atomicAdd(&split_going_on, 1u);
+        } else {
+            split_finish(i, st);
         }
+    }
+    // One reservation a workgroup in the next queue: its paths stay together there.
+    workgroupBarrier();
+    if li == 0u {
+        split_queue_base = atomicAdd(&split_lengths[to], atomicLoad(&split_going_on));
+    }
+    workgroupBarrier();
+    if place != SPLIT_DEAD {
+        split_queues[to * split.jobs + split_queue_base + place] = i;
     }
     split_count_rays(li);
 }

@@ -50,7 +50,7 @@ pub struct TraceVariant {
     pub regen: u32,
     /// Full frames in the wavefront split (0: off): three kernels a bounce apart — the paths'
     /// start, their closest hits, the rest of each bounce — over chunks of this many paths
-    /// (80 bytes each on the GPU while the chunk is traced), so that the traversal runs in a
+    /// (88 bytes each on the GPU while the chunk is traced), so that the traversal runs in a
     /// kernel of its own with few registers (Laine et al. 2013, "Megakernels considered
     /// harmful"). Lists keep the one kernel. Not with [`Self::regen`].
     pub split: u32,

@@ -230,7 +230,8 @@ struct SplitKernels {
     start: wgpu::ComputePipeline,
     extend: wgpu::ComputePipeline,
     shade: wgpu::ComputePipeline,
-    /// Bind group 2: a chunk's path states, closest hits and [`GpuSplitParams`].
+    /// Bind group 2: a chunk's path states, closest hits, [`GpuSplitParams`], and its two
+    /// queues of live paths with their lengths.
     chunk_layout: wgpu::BindGroupLayout,
 }
 
@@ -241,12 +242,14 @@ pub struct GpuSplitParams {
     pub first_job: u32,
     pub jobs: u32,
     pub groups_x: u32,
-    pub _pad: u32,
+    /// 0: the first bounce (the chunk's paths, the live ones queued in queue 1); 1: queue 1
+    /// to queue 0; 2: queue 0 to queue 1.
+    pub phase: u32,
 }
 
 /// GPU bytes a path of the wavefront split holds while its chunk is traced: its state
-/// (`PathState`, 64) and its closest hit (`Hit`, 16).
-pub const SPLIT_PATH_BYTES: u64 = 80;
+/// (`PathState`, 64), its closest hit (`Hit`, 16) and its place in the two queues (4 each).
+pub const SPLIT_PATH_BYTES: u64 = 88;
 
 /// A compute-stage bind group layout of `entries`: `(binding, type)`.
 fn bind_layout(
@@ -332,7 +335,13 @@ impl TraceKernel {
         let chunk_layout = bind_layout(
             ctx,
             "trace split chunk",
-            &[(0, write), (1, write), (2, B::Uniform)],
+            &[
+                (0, write),
+                (1, write),
+                (2, B::Uniform),
+                (3, write),
+                (4, write),
+            ],
         );
         let make = |entry: &str, groups: &[Option<&wgpu::BindGroupLayout>]| {
             let layout = ctx
@@ -556,14 +565,14 @@ pub struct TraceRun {
     split: Option<SplitRun>,
 }
 
-/// A full frame in the wavefront split: the kernels, and each chunk's bind group (its
-/// parameters over the path states and hits all chunks share, traced one after the other)
-/// and grid.
+/// A full frame in the wavefront split: the kernels, and each chunk's bind groups (one a
+/// phase: its parameters over the path states, hits and queues all chunks share, traced one
+/// after the other) and grid.
 struct SplitRun {
     start: wgpu::ComputePipeline,
     extend: wgpu::ComputePipeline,
     shade: wgpu::ComputePipeline,
-    chunks: Vec<(wgpu::BindGroup, [u32; 2])>,
+    chunks: Vec<([wgpu::BindGroup; 3], [u32; 2])>,
     /// Bounces a chunk runs: the settings' maximum depth.
     max_depth: std::cell::Cell<u32>,
 }
@@ -594,30 +603,42 @@ impl SplitRun {
         };
         let states = buffer("trace split states", 64 * u64::from(chunk));
         let hits = buffer("trace split hits", 16 * u64::from(chunk));
+        let queues = buffer("trace split queues", 8 * u64::from(chunk));
+        let lengths = buffer("trace split queue lengths", 8);
         let chunks = (0..jobs)
             .step_by(chunk as usize)
             .map(|first_job| {
                 let n = chunk.min(jobs - first_job);
                 let groups = n.div_ceil(variant.workgroup);
                 let gx = groups.min(MAX_GROUPS_X);
-                let params = ctx
-                    .device
-                    .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                let phase = |phase: u32| {
+                    let params = ctx
+                        .device
+                        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                            label: Some("trace split chunk"),
+                            contents: bytemuck::bytes_of(&GpuSplitParams {
+                                first_job,
+                                // The queues are `jobs` apart: the chunk's size, the last
+                                // chunk's too.
+                                jobs: n,
+                                groups_x: gx,
+                                phase,
+                            }),
+                            usage: wgpu::BufferUsages::UNIFORM,
+                        });
+                    ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
                         label: Some("trace split chunk"),
-                        contents: bytemuck::bytes_of(&GpuSplitParams {
-                            first_job,
-                            jobs: n,
-                            groups_x: gx,
-                            _pad: 0,
-                        }),
-                        usage: wgpu::BufferUsages::UNIFORM,
-                    });
-                let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("trace split chunk"),
-                    layout: &kernels.chunk_layout,
-                    entries: &[entry(0, &states), entry(1, &hits), entry(2, &params)],
-                });
-                (bind, [gx, groups.div_ceil(gx)])
+                        layout: &kernels.chunk_layout,
+                        entries: &[
+                            entry(0, &states),
+                            entry(1, &hits),
+                            entry(2, &params),
+                            entry(3, &queues),
+                            entry(4, &lengths),
+                        ],
+                    })
+                };
+                ([phase(0), phase(1), phase(2)], [gx, groups.div_ceil(gx)])
             })
             .collect();
         Self {
@@ -630,13 +651,20 @@ impl SplitRun {
     }
 
     /// Each chunk in turn: its paths started, then closest hits and shading alternating, a
-    /// bounce each, in a pass whose bind groups 0 and 1 are set.
+    /// bounce each (the first over the chunk's paths, then from one queue of live paths into
+    /// the other and back), in a pass whose bind groups 0 and 1 are set.
     fn record(&self, pass: &mut wgpu::ComputePass<'_>) {
-        for (bind, [gx, gy]) in &self.chunks {
-            pass.set_bind_group(2, bind, &[]);
+        for (phases, [gx, gy]) in &self.chunks {
+            pass.set_bind_group(2, &phases[0], &[]);
             pass.set_pipeline(&self.start);
             pass.dispatch_workgroups(*gx, *gy, 1);
-            for _ in 0..self.max_depth.get() {
+            for bounce in 0..self.max_depth.get() {
+                let phase = match bounce {
+                    0 => 0,
+                    b if b % 2 == 1 => 1,
+                    _ => 2,
+                };
+                pass.set_bind_group(2, &phases[phase], &[]);
                 pass.set_pipeline(&self.extend);
                 pass.dispatch_workgroups(*gx, *gy, 1);
                 pass.set_pipeline(&self.shade);
@@ -1362,11 +1390,11 @@ mod tests {
         assert_same_layout(
             &module,
             "SplitParams",
-            &crate::rust_layout!(GpuSplitParams; first_job, jobs, groups_x, _pad),
+            &crate::rust_layout!(GpuSplitParams; first_job, jobs, groups_x, phase),
         );
-        // The split's buffers: a path's state and its closest hit.
+        // The split's buffers: a path's state, its closest hit and its two queue entries.
         assert_eq!(
-            (struct_size(&module, "PathState") + struct_size(&module, "Hit")) as u64,
+            (struct_size(&module, "PathState") + struct_size(&module, "Hit") + 8) as u64,
             SPLIT_PATH_BYTES
         );
         assert_eq!(struct_size(&module, "PathState"), 64);
