@@ -309,8 +309,8 @@ impl TraceKernel {
                 split: None,
             };
         }
-        // The split's kernels bind groups made for `trace`: one explicit layout for all
-        // (layouts derived from one pipeline serve that pipeline alone).
+        // The split's kernels take the bind groups made for `trace`: one explicit layout for
+        // all four (a layout derived from one pipeline serves that pipeline alone).
         use wgpu::BufferBindingType as B;
         let read = B::Storage { read_only: true };
         let write = B::Storage { read_only: false };
