@@ -399,8 +399,7 @@ fn path_bounce(st: ptr<function, PathState>) -> bool {
 
 // `path_bounce` after its closest-hit ray: `hit` is where the path's ray meets the scene.
 fn path_shade(st: ptr<function, PathState>, hit: Hit) -> bool {
-    var o = (*st).o;
-    var d = (*st).d;
+    let d = (*st).d;
     var throughput = (*st).throughput;
     var radiance = (*st).radiance;
     var prev_pdf = (*st).prev_pdf;
@@ -633,13 +632,11 @@ fn path_shade(st: ptr<function, PathState>, hit: Hit) -> bool {
         throughput /= q;
     }
     if side > 0.0 {
-        o = po;
+        (*st).o = po;
     } else {
-        o = offset_ray(p, -ng);
+        (*st).o = offset_ray(p, -ng);
     }
-    d = wi;
-    (*st).o = o;
-    (*st).d = d;
+    (*st).d = wi;
     (*st).throughput = throughput;
     (*st).radiance = radiance;
     (*st).prev_pdf = prev_pdf;
