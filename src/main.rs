@@ -93,6 +93,12 @@ fn main() {
         }
     }
     let cli = Cli::parse();
+    // Which walks the CPU twin takes is read once, deep in the traversal: refuse a bad
+    // choice here, before any work.
+    if let Err(e) = raygun::trace::bvh::CpuPackets::from_env() {
+        eprintln!("raygun: error: {e}");
+        std::process::exit(1);
+    }
     let runtime_dir = quiet_xdg_runtime_dir();
     let result = match &cli.command {
         Command::Demo(args) => cli::demo::run(args),

@@ -51,6 +51,20 @@ pub struct SceneBvh {
 }
 
 /// A closest hit.
+/// How the CPU twin walks the rays of neighbouring paths ([`SceneBvh::closest_hits16`],
+/// [`SceneBvh::occluded16`]): each alone, or as Embree's hybrid packets of eight (AVX2) or
+/// sixteen (AVX-512) rays — the same hits to the bit. The widest the processor runs unless
+/// `RAYGUN_CPU_PACKETS` says otherwise ([`CpuPackets::from_env`]), to compare them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum CpuPackets {
+    /// One ray at a time (`RAYGUN_CPU_PACKETS=0`).
+    One,
+    /// Packets of eight in AVX2 lanes (`8`).
+    Eight,
+    /// Packets of sixteen in AVX-512 lanes (`16`).
+    Sixteen,
+}
+
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TraceHit {
     pub t: f32,
@@ -249,9 +263,9 @@ impl SceneBvh {
         self.cpu().closest_hits8(origins, dirs, active)
     }
 
-    /// Whether [`Self::closest_hits16`] walks its rays as packets here (the processor has
-    /// AVX-512 F and DQ, the scene no alpha-tested triangles, and `RAYGUN_CPU_PACKETS` is not
-    /// `0`); otherwise it walks them one at a time, as [`Self::closest_hit`].
+    /// Whether [`Self::closest_hits16`] walks its rays as packets here ([`CpuPackets::current`]
+    /// is not one ray at a time, and the scene has no alpha-tested triangles); otherwise it
+    /// walks them one at a time, as [`Self::closest_hit`].
     #[must_use]
     pub fn packets(&self) -> bool {
         self.cpu().packets()
@@ -261,8 +275,10 @@ impl SceneBvh {
     /// others get `None`): [`Self::closest_hit`]'s hits to the bit. Where the processor has
     /// AVX-512, the rays are walked together as long as more than seven of them enter a node,
     /// then each alone (Embree's hybrid traversal, `bvh/cpu/hybrid.rs`): for rays that start
-    /// near each other, such as a bounce's from neighbouring pixels. Elsewhere, and for scenes
-    /// with alpha-tested triangles, one ray at a time.
+    /// near each other, such as a bounce's from neighbouring pixels; with AVX2 alone, as two
+    /// packets of eight (together while more than three enter a node). With
+    /// `RAYGUN_CPU_PACKETS=0` ([`CpuPackets`]), and for scenes with alpha-tested triangles, one
+    /// ray at a time.
     #[must_use]
     pub fn closest_hits16(
         &self,

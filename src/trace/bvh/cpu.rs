@@ -28,7 +28,7 @@ use glam::Vec3;
 use obvhs::{BvhBuildParams, bvh2::Bvh2, triangle::Triangle as ObvhsTriangle};
 use wide::{f32x8, u32x8};
 
-use super::{NODE_EPSILON, PRIM_ALPHA, PRIM_CULL, TraceHit, intersect_triangle_sided};
+use super::{CpuPackets, NODE_EPSILON, PRIM_ALPHA, PRIM_CULL, TraceHit, intersect_triangle_sided};
 use crate::trace::lanes::V3;
 
 #[cfg(target_arch = "x86_64")]
@@ -603,13 +603,108 @@ const LEAF_REF: u32 = 1 << 31;
 /// levels) allocate theirs.
 const INLINE_STACK: usize = 128;
 
-/// Whether the sixteen-ray walks ([`CpuTree::closest_hits16`], [`CpuTree::occluded16`]) may
-/// walk hybrid packets: the processor has AVX-512 F and DQ, and `RAYGUN_CPU_PACKETS` is not `0`
-/// (which keeps the one-ray walks, to compare the two).
-#[cfg(target_arch = "x86_64")]
-static HYBRID: std::sync::LazyLock<bool> = std::sync::LazyLock::new(|| {
-    hybrid::available() && std::env::var_os("RAYGUN_CPU_PACKETS").is_none_or(|v| v != "0")
-});
+/// How the sixteen-ray walks ([`CpuTree::closest_hits16`], [`CpuTree::occluded16`]) walk, once
+/// a process: `RAYGUN_CPU_PACKETS` ([`CpuPackets::from_env`]; `raygun` refuses a bad value at
+/// start), else the widest this processor runs.
+static PACKETS: std::sync::LazyLock<CpuPackets> =
+    std::sync::LazyLock::new(|| CpuPackets::from_env().unwrap_or_else(|_| CpuPackets::widest()));
+
+#[cfg(test)]
+thread_local! {
+    /// This thread's walks in a test ([`CpuPackets::during`]).
+    static CHOSEN: std::cell::Cell<Option<CpuPackets>> = const { std::cell::Cell::new(None) };
+}
+
+impl CpuPackets {
+    /// The widest packets this processor and build run: sixteen rays where the processor has
+    /// AVX-512 F and DQ, else eight where the build targets AVX2 and FMA (every x86-64 build
+    /// by default), else one ray at a time.
+    #[must_use]
+    pub fn widest() -> Self {
+        #[cfg(target_arch = "x86_64")]
+        if hybrid::available() {
+            return Self::Sixteen;
+        }
+        if cfg!(all(target_feature = "avx2", target_feature = "fma")) {
+            Self::Eight
+        } else {
+            Self::One
+        }
+    }
+
+    /// The walks `value` names: `0` one ray at a time, `8` packets of eight (AVX2), `16`
+    /// packets of sixteen (AVX-512); an error says why where this processor or build cannot.
+    pub fn parse(value: &str) -> Result<Self, String> {
+        let want = match value.trim() {
+            "0" => return Ok(Self::One),
+            "8" => Self::Eight,
+            "16" => Self::Sixteen,
+            _ => {
+                return Err(
+                    "expected 0 (one ray at a time), 8 (packets of eight, AVX2) or 16 (packets \
+                     of sixteen, AVX-512)"
+                        .to_owned(),
+                );
+            }
+        };
+        match (want, Self::widest()) {
+            (Self::Eight, Self::One) => {
+                Err("packets of eight need a build for AVX2 and FMA (.cargo/config.toml)".into())
+            }
+            (Self::Sixteen, Self::One | Self::Eight) => {
+                Err("packets of sixteen need a processor with AVX-512 F and DQ".into())
+            }
+            _ => Ok(want),
+        }
+    }
+
+    /// `RAYGUN_CPU_PACKETS` ([`Self::parse`]; unset: [`Self::widest`]), the error naming the
+    /// variable and its value.
+    pub fn from_env() -> Result<Self, String> {
+        match std::env::var("RAYGUN_CPU_PACKETS") {
+            Ok(v) => Self::parse(&v).map_err(|why| format!("RAYGUN_CPU_PACKETS={v:?}: {why}")),
+            Err(std::env::VarError::NotPresent) => Ok(Self::widest()),
+            Err(std::env::VarError::NotUnicode(v)) => {
+                Err(format!("RAYGUN_CPU_PACKETS={v:?}: not UTF-8"))
+            }
+        }
+    }
+
+    /// The walks this process takes (in tests, this thread's: `CpuPackets::during`).
+    #[must_use]
+    pub fn current() -> Self {
+        #[cfg(test)]
+        if let Some(walks) = CHOSEN.get() {
+            return walks;
+        }
+        *PACKETS
+    }
+
+    /// `f` with this thread's walks `self` instead of the process's, for tests of every width
+    /// on one processor; panics where the processor cannot run `self`.
+    #[cfg(test)]
+    pub(crate) fn during<R>(self, f: impl FnOnce() -> R) -> R {
+        assert!(
+            self <= Self::widest(),
+            "{self:?} on a processor that runs up to {:?}",
+            Self::widest()
+        );
+        let before = CHOSEN.replace(Some(self));
+        let out = f();
+        CHOSEN.set(before);
+        out
+    }
+
+    /// In words, for a report's hardware line.
+    #[must_use]
+    pub fn describe(self) -> &'static str {
+        match self {
+            Self::One => "rays one at a time",
+            Self::Eight => "rays in packets of 8 (AVX2)",
+            Self::Sixteen => "rays in packets of 16 (AVX-512)",
+        }
+    }
+}
 
 /// `f` with a traversal stack of at least `size` entries, uninitialised: the traversals write
 /// an entry before they read it.
@@ -1006,37 +1101,56 @@ impl CpuTree {
         });
     }
 
-    /// Whether the sixteen-ray walks use packets: a tree with nodes, no alpha-tested
-    /// primitives and a stack within [`INLINE_STACK`], on a processor with AVX-512 F and DQ,
-    /// and `RAYGUN_CPU_PACKETS` not `0`.
+    /// Which packets the sixteen-ray walks use: [`CpuPackets::current`] for a tree with nodes,
+    /// no alpha-tested primitives and a stack within [`INLINE_STACK`], else none.
+    pub(super) fn packet_walks(&self) -> CpuPackets {
+        if self.nodes.is_empty() || self.lanes.alpha || self.stack_size > INLINE_STACK {
+            CpuPackets::One
+        } else {
+            CpuPackets::current()
+        }
+    }
+
+    /// Whether the sixteen-ray walks use packets ([`Self::packet_walks`]).
     pub(super) fn packets(&self) -> bool {
-        #[cfg(target_arch = "x86_64")]
-        return !self.nodes.is_empty()
-            && !self.lanes.alpha
-            && self.stack_size <= INLINE_STACK
-            && *HYBRID;
-        #[cfg(not(target_arch = "x86_64"))]
-        false
+        self.packet_walks() != CpuPackets::One
     }
 
     /// The closest hits of sixteen rays (`0 < t < ∞`) for the lanes set in `active` (the
-    /// others get `None`): `closest_hit`'s hits to the bit. Where the processor has AVX-512
-    /// (and the scene no alpha-tested triangles), walked as a hybrid packet (`hybrid.rs`:
-    /// together while more than [`hybrid::SWITCH`] rays enter a node, then one at a time);
-    /// elsewhere one ray at a time.
+    /// others get `None`): `closest_hit`'s hits to the bit. Walked as [`Self::packet_walks`]
+    /// says: one hybrid packet of sixteen (`hybrid.rs`: together while more than
+    /// [`hybrid::SWITCH`] rays enter a node, then one at a time), two of eight (AVX2, switching
+    /// at [`hybrid::SWITCH8`]), or one ray at a time.
     pub(super) fn closest_hits16(
         &self,
         origins: &[Vec3; 16],
         dirs: &[Vec3; 16],
         active: u16,
     ) -> [Option<TraceHit>; 16] {
-        #[cfg(target_arch = "x86_64")]
-        if self.packets() {
-            // SAFETY: `packets` checks that the processor has AVX-512 F and DQ, the tree no
-            // alpha-tested primitives and a stack bound within `INLINE_STACK`.
-            return unsafe { self.hybrid16(origins, dirs, active, hybrid::SWITCH) };
+        match self.packet_walks() {
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: `packet_walks` takes sixteen only where the processor has AVX-512 F and
+            // DQ ([`CpuPackets::widest`]), and packets only for a tree with no alpha-tested
+            // primitives and a stack bound within `INLINE_STACK`.
+            CpuPackets::Sixteen => unsafe { self.hybrid16(origins, dirs, active, hybrid::SWITCH) },
+            #[cfg(all(
+                target_arch = "x86_64",
+                target_feature = "avx2",
+                target_feature = "fma"
+            ))]
+            CpuPackets::Eight => {
+                let mut out = [None; 16];
+                for half in [0..8, 8..16] {
+                    let on = u32::from(active) >> half.start & 0xff;
+                    if on != 0 {
+                        let (o, d) = (&origins[half.clone()], &dirs[half.clone()]);
+                        self.hybrid8(o, d, on, hybrid::SWITCH8, &mut out[half]);
+                    }
+                }
+                out
+            }
+            _ => self.closest_hits16_alone(origins, dirs, active),
         }
-        self.closest_hits16_alone(origins, dirs, active)
     }
 
     /// [`Self::closest_hits16`] one ray at a time (without packets).
@@ -1065,12 +1179,33 @@ impl CpuTree {
         tmax: &[f32; 16],
         active: u16,
     ) -> u16 {
-        #[cfg(target_arch = "x86_64")]
-        if self.packets() {
+        match self.packet_walks() {
+            #[cfg(target_arch = "x86_64")]
             // SAFETY: as in `closest_hits16`.
-            return unsafe { self.hybrid_occluded16(origins, dirs, tmax, active, hybrid::SWITCH) };
+            CpuPackets::Sixteen => unsafe {
+                self.hybrid_occluded16(origins, dirs, tmax, active, hybrid::SWITCH)
+            },
+            #[cfg(all(
+                target_arch = "x86_64",
+                target_feature = "avx2",
+                target_feature = "fma"
+            ))]
+            CpuPackets::Eight => {
+                let mut blocked = 0;
+                for half in [0..8, 8..16] {
+                    let on = u32::from(active) >> half.start & 0xff;
+                    if on != 0 {
+                        let (o, d) = (&origins[half.clone()], &dirs[half.clone()]);
+                        let mut t = [0f32; 16];
+                        t[..8].copy_from_slice(&tmax[half.clone()]);
+                        let b = self.hybrid_occluded8(o, d, &t, on, hybrid::SWITCH8);
+                        blocked |= (b << half.start) as u16;
+                    }
+                }
+                blocked
+            }
+            _ => self.occluded16_alone(origins, dirs, tmax, active),
         }
-        self.occluded16_alone(origins, dirs, tmax, active)
     }
 
     /// [`Self::occluded16`] one ray at a time (without packets).
@@ -1400,6 +1535,39 @@ mod tests {
     use super::super::obvhs_triangles;
     use super::super::tests::{brute, random_triangles, uniforms};
     use super::*;
+
+    /// `RAYGUN_CPU_PACKETS`' values: 0, 8 and 16 (with surrounding blanks) where this
+    /// processor runs them, sixteen refused without AVX-512, anything else refused with the
+    /// values it takes; the widest is sixteen exactly where the processor has AVX-512 F and DQ
+    /// (and eight in this AVX2 build otherwise); a test's own walks stay on its thread.
+    #[test]
+    fn packet_widths_parse_and_are_checked_against_the_processor() {
+        let eight = cfg!(all(target_feature = "avx2", target_feature = "fma"));
+        #[cfg(target_arch = "x86_64")]
+        let sixteen = hybrid::available();
+        #[cfg(not(target_arch = "x86_64"))]
+        let sixteen = false;
+        assert_eq!(CpuPackets::parse("0"), Ok(CpuPackets::One));
+        assert_eq!(CpuPackets::parse(" 8\n").is_ok(), eight);
+        assert_eq!(CpuPackets::parse("16").is_ok(), sixteen);
+        let widest = match (sixteen, eight) {
+            (true, _) => CpuPackets::Sixteen,
+            (false, true) => CpuPackets::Eight,
+            _ => CpuPackets::One,
+        };
+        assert_eq!(CpuPackets::widest(), widest);
+        for bad in ["", "1", "32", "eight", "8,16", "-8"] {
+            let e = CpuPackets::parse(bad).unwrap_err();
+            assert!(e.contains("expected 0"), "{bad:?}: {e}");
+        }
+        let outside = CpuPackets::current();
+        CpuPackets::One.during(|| {
+            assert_eq!(CpuPackets::current(), CpuPackets::One);
+            CpuPackets::widest().during(|| assert_eq!(CpuPackets::current(), widest));
+            assert_eq!(CpuPackets::current(), CpuPackets::One);
+        });
+        assert_eq!(CpuPackets::current(), outside);
+    }
 
     /// The slab test in lanes gives the scalar test's mask and entry distances to the bit,
     /// on every node of a real tree and rays from everywhere (inside boxes, grazing, axis

@@ -4,10 +4,11 @@
 //! (tests below and in `tests/twins/trace.rs`), only faster (BENCHMARKS.md, the CPU twin
 //! against Mitsuba).
 //!
-//! A vertex of the batch: every live path's ray is traced (where the processor has AVX-512,
-//! sixteen neighbouring paths' rays at a time as hybrid packets, `bvh/cpu/hybrid.rs`, past the
-//! camera those of one direction octant together, [`by_octant`]; elsewhere a pinhole's camera
-//! rays eight at a time, the others one at a time); the paths that leave the scene take the
+//! A vertex of the batch: every live path's ray is traced (sixteen neighbouring paths' rays at
+//! a time as hybrid packets — one of sixteen where the processor has AVX-512, two of eight with
+//! AVX2, `bvh/cpu/hybrid.rs` — past the camera those of one direction octant together,
+//! [`by_octant`]; with `RAYGUN_CPU_PACKETS=0`, a pinhole's camera rays eight at a time, the
+//! others one at a time); the paths that leave the scene take the
 //! environment, one at a time as `trace_path` does; the others are shaded in
 //! groups of eight: geometry, emission with its MIS weight, the BSDF, next-event estimation
 //! (with packets, the shadow rays queued and traced sixteen at a time once every group is
@@ -168,8 +169,9 @@ fn batches<const FULL: bool>(
                 }
             } else if packets {
                 // Sixteen neighbouring paths' rays at a time: they leave from nearby points
-                // (hybrid packets where the processor has AVX-512); past the camera, those of
-                // one direction octant together (they cross the boxes' planes in one order).
+                // (hybrid packets of sixteen or, with AVX2 alone, of eight); past the camera,
+                // those of one direction octant together (they cross the boxes' planes in one
+                // order).
                 let mut sorted = [0u8; BATCH];
                 let order = if depth == 0 {
                     &live[..n_live]
@@ -849,6 +851,7 @@ fn shade8<const FULL: bool>(
 mod tests {
     use super::*;
     use crate::scene::Scene;
+    use crate::trace::bvh::CpuPackets;
 
     /// The octant order is a permutation of its items, grouped by their direction's octant
     /// (x's sign the lowest bit, z's the highest), each octant's in their order (a stable
@@ -907,20 +910,24 @@ mod tests {
             let n = width * height;
             let pixels: Vec<u32> = (0..n + 100).map(|i| (i * 7919) % n).collect();
             let samples: Vec<u32> = (0..n + 100).map(|i| i % 5).collect();
-            let mut out = vec![None; pixels.len()];
-            trace_batch(&sc, &s, None, &pixels, &samples, &mut out);
-            let mut lit = 0;
-            for (i, (&p, &k)) in pixels.iter().zip(&samples).enumerate() {
-                let want = trace_counted_with(&sc, &s, None, p, k).unwrap();
-                let got = out[i].unwrap();
-                assert_eq!(
-                    (got.0.to_array().map(f32::to_bits), got.1),
-                    (want.0.to_array().map(f32::to_bits), want.1),
-                    "builtin:{name} pixel {p} sample {k}: {got:?} against {want:?}"
-                );
-                lit += usize::from(got.0 != Vec3::ZERO);
+            // Every walk this processor runs: one ray at a time, packets of eight, of sixteen.
+            let walks = [CpuPackets::One, CpuPackets::Eight, CpuPackets::Sixteen];
+            for walks in walks.into_iter().filter(|&w| w <= CpuPackets::widest()) {
+                let mut out = vec![None; pixels.len()];
+                walks.during(|| trace_batch(&sc, &s, None, &pixels, &samples, &mut out));
+                let mut lit = 0;
+                for (i, (&p, &k)) in pixels.iter().zip(&samples).enumerate() {
+                    let want = trace_counted_with(&sc, &s, None, p, k).unwrap();
+                    let got = out[i].unwrap();
+                    assert_eq!(
+                        (got.0.to_array().map(f32::to_bits), got.1),
+                        (want.0.to_array().map(f32::to_bits), want.1),
+                        "builtin:{name}, {walks:?}: pixel {p} sample {k}: {got:?} against {want:?}"
+                    );
+                    lit += usize::from(got.0 != Vec3::ZERO);
+                }
+                assert!(lit > pixels.len() / 4, "builtin:{name}: {lit} lit samples");
             }
-            assert!(lit > pixels.len() / 4, "builtin:{name}: {lit} lit samples");
         }
     }
 }

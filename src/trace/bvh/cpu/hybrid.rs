@@ -1,97 +1,108 @@
-//! Sixteen rays walked together while enough of them go the same way, in AVX-512 lanes:
-//! Embree's hybrid traversal (`BVHNIntersectorKHybrid<8, 16>`, the walk Mitsuba's
-//! `llvm_ad_rgb` takes on a processor with AVX-512), on the CPU tree, for closest hits and for
-//! shadow rays.
+//! Rays walked together while enough of them go the same way — sixteen in AVX-512 lanes, or
+//! eight in AVX2's: Embree's hybrid traversal (`BVHNIntersectorKHybrid<8, 16>`, the walk
+//! Mitsuba's `llvm_ad_rgb` takes on a processor with AVX-512; `<8, 8>` on one with AVX2), on
+//! the CPU tree, for closest hits and for shadow rays. The walks are written once over the
+//! lanes ([`lanes::Lanes`]).
 //!
 //! A node popped for the packet is tested against all its rays that still enter it, child by
-//! child, a ray per lane (one child's box against sixteen rays is one set of vector
+//! child, a ray per lane (one child's box against the packet's rays is one set of vector
 //! operations, where the one-ray walk spends one on a node's eight boxes for one ray); a leaf's
-//! triangles likewise, one triangle against sixteen rays. Once a node is entered by
-//! [`SWITCH`] rays or fewer, each of them finishes the subtree alone with the one-ray walk
-//! ([`CpuTree::walk_closest`], [`CpuTree::walk_any`]), a closest hit from its closest hit so
-//! far. The results are the one-ray walks' to the bit: the same triangle arithmetic lane by
-//! lane (no fused operations: glam's cross and dot products, as
+//! triangles likewise, one triangle against the packet. Once a node is entered by [`SWITCH`]
+//! rays or fewer (sixteen lanes; [`SWITCH8`] of eight), each of them finishes the subtree
+//! alone with the one-ray walk ([`CpuTree::walk_closest`], [`CpuTree::walk_any`]), a closest
+//! hit from its closest hit so far. The results are the one-ray walks' to the bit: the same
+//! triangle arithmetic lane by lane (no fused operations: glam's cross and dot products, as
 //! [`super::intersect_triangle_sided`] computes them), and the same rule for exact ties
 //! ([`super::nearer`]), which makes a closest hit independent of the order in which a walk
 //! meets the triangles.
 //!
 //! Where it pays: rays that start near each other — a bounce's or a shadow ray's from
 //! neighbouring pixels — share the top of the tree, which a packet visits once (BENCHMARKS.md).
-//! Compiled for AVX-512 F and DQ and run only where the processor has them ([`available`]);
-//! elsewhere the rays take the one-ray walks.
+//! The sixteen-ray walks are compiled for AVX-512 F and DQ and run only where the processor has
+//! them ([`available`]); the eight-ray walks need only what the whole build targets (AVX2 and
+//! FMA). `CpuTree::packet_walks` says which a process takes.
 
-use std::arch::x86_64::{
-    __m512, __m512i, __mmask16, _CMP_EQ_OQ, _CMP_GE_OQ, _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ,
-    _CMP_NEQ_OQ, _MM_CMPINT_NE, _mm512_abs_ps, _mm512_add_epi32, _mm512_add_ps, _mm512_and_ps,
-    _mm512_castps_si512, _mm512_castsi512_ps, _mm512_cmp_epu32_mask, _mm512_cmp_ps_mask,
-    _mm512_cmpgt_epu32_mask, _mm512_div_ps, _mm512_fmsub_ps, _mm512_loadu_ps, _mm512_loadu_si512,
-    _mm512_mask_blend_epi32, _mm512_mask_blend_ps, _mm512_mask_reduce_min_ps, _mm512_max_ps,
-    _mm512_min_ps, _mm512_mul_ps, _mm512_or_ps, _mm512_set1_epi32, _mm512_set1_ps,
-    _mm512_setzero_ps, _mm512_storeu_ps, _mm512_storeu_si512, _mm512_sub_ps, _mm512_xor_ps,
-};
+use std::arch::x86_64::{_CMP_EQ_OQ, _CMP_GE_OQ, _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_NEQ_OQ};
 use std::mem::MaybeUninit;
 
 use glam::Vec3;
 
+#[cfg(all(target_feature = "avx2", target_feature = "fma"))]
+use self::lanes::Avx2;
+use self::lanes::{Avx512, Lanes};
 use super::{CpuNode, CpuTree, INLINE_STACK, NODE_EPSILON, NodeRay, PRIM_CULL, TraceHit};
 
-/// A node entered by this many of a packet's rays or fewer is walked by each of them alone:
-/// below it, testing a child's box for the packet costs more than the rays' own walks.
-/// Embree's hybrid switches at 7 of 16 as well (10 measured the same here: BENCHMARKS.md).
+mod lanes;
+
+/// A node entered by this many of a sixteen-ray packet's rays or fewer is walked by each of
+/// them alone: below it, testing a child's box for the packet costs more than the rays' own
+/// walks. Embree's hybrid switches at 7 of 16 as well (10 measured the same here:
+/// BENCHMARKS.md).
 pub(crate) const SWITCH: u32 = 7;
 
-/// Whether this processor runs the packets (AVX-512 F and DQ).
+/// [`SWITCH`] for the eight-ray packets of AVX2: 4 of 8 (2 and 3 measured slower on the small
+/// city's bounces, 5 and 6 the same: BENCHMARKS.md).
+pub(crate) const SWITCH8: u32 = 4;
+
+/// Whether this processor runs the sixteen-ray packets (AVX-512 F and DQ).
 pub(crate) fn available() -> bool {
     std::is_x86_feature_detected!("avx512f") && std::is_x86_feature_detected!("avx512dq")
 }
 
-/// Sixteen rays in lanes, and each one's own for the walks alone.
-struct Rays {
-    o: [__m512; 3],
-    d: [__m512; 3],
+/// A packet's rays in lanes, and each one's own for the walks alone.
+struct Rays<L: Lanes> {
+    o: [L::F; 3],
+    d: [L::F; 3],
     /// obvhs' guarded reciprocal of the direction, and `origin · inv` (rounded on its own).
-    inv: [__m512; 3],
-    oi: [__m512; 3],
-    /// Lane i: whether ray i's direction is negative on the axis (its near plane is the max).
-    neg: [__mmask16; 3],
+    inv: [L::F; 3],
+    oi: [L::F; 3],
+    /// The lanes whose direction is negative on the axis (their near plane is the max).
+    neg: [L::M; 3],
     /// `inv` and `oi` by lane, for a ray's walk alone ([`Self::alone`]).
     each: [[f32; 16]; 6],
 }
 
-impl Rays {
-    #[inline]
-    #[target_feature(enable = "avx512f,avx512dq")]
-    fn new(origins: &[Vec3; 16], dirs: &[Vec3; 16]) -> Self {
+impl<L: Lanes> Rays<L> {
+    /// The rays `origins[i] + t·dirs[i]`, `L::WIDTH` of them.
+    #[inline(always)]
+    fn new(l: L, origins: &[Vec3], dirs: &[Vec3]) -> Self {
+        debug_assert!(origins.len() == L::WIDTH && dirs.len() == L::WIDTH);
         let mut rows = [[0f32; 16]; 6];
-        for i in 0..16 {
+        for i in 0..L::WIDTH {
             for axis in 0..3 {
                 rows[axis][i] = origins[i][axis];
                 rows[3 + axis][i] = dirs[i][axis];
             }
         }
-        // SAFETY: reads the local rows of 16.
-        let row = |k: usize| unsafe { _mm512_loadu_ps(rows[k].as_ptr()) };
+        let row = |k: usize| l.load(&rows[k]);
         let (o, d) = ([row(0), row(1), row(2)], [row(3), row(4), row(5)]);
-        // `safe_inverse`: ±1/ε (exact: ε is a power of two) within ε of zero, else 1/x.
-        let sign = _mm512_set1_ps(-0.0);
-        let inv = d.map(|d| {
-            let eps = _mm512_set1_ps(f32::EPSILON);
-            let tiny = _mm512_cmp_ps_mask::<_CMP_LE_OQ>(_mm512_abs_ps(d), eps);
-            let guarded = _mm512_or_ps(_mm512_and_ps(d, sign), _mm512_set1_ps(1.0 / f32::EPSILON));
-            _mm512_mask_blend_ps(tiny, _mm512_div_ps(_mm512_set1_ps(1.0), d), guarded)
-        });
-        let oi = [0, 1, 2].map(|axis| _mm512_mul_ps(o[axis], inv[axis]));
+        // `safe_inverse`: ±1/ε (exact: ε is a power of two) within ε of zero, else 1/x. (No
+        // `array::map` here or below: its closures are functions of their own, compiled without
+        // the caller's AVX-512, and were not inlined — measured 20 % slower.)
+        let sign = l.splat(-0.0);
+        let safe_inverse = |d: L::F| {
+            let tiny = l.cmp::<_CMP_LE_OQ>(l.abs(d), l.splat(f32::EPSILON));
+            let guarded = l.or(l.and(d, sign), l.splat(1.0 / f32::EPSILON));
+            l.blend(tiny, l.div(l.splat(1.0), d), guarded)
+        };
+        let inv = [safe_inverse(d[0]), safe_inverse(d[1]), safe_inverse(d[2])];
+        let oi = [
+            l.mul(o[0], inv[0]),
+            l.mul(o[1], inv[1]),
+            l.mul(o[2], inv[2]),
+        ];
         let mut each = [[0f32; 16]; 6];
-        for (k, v) in inv.into_iter().chain(oi).enumerate() {
-            // SAFETY: writes the local row of 16.
-            unsafe { _mm512_storeu_ps(each[k].as_mut_ptr(), v) };
+        for k in 0..3 {
+            l.store(inv[k], &mut each[k]);
+            l.store(oi[k], &mut each[3 + k]);
         }
+        let negative = |inv: L::F| l.cmp::<_CMP_LT_OQ>(inv, l.splat(0.0));
         Self {
             o,
             d,
             inv,
             oi,
-            neg: inv.map(|inv| _mm512_cmp_ps_mask::<_CMP_LT_OQ>(inv, _mm512_setzero_ps())),
+            neg: [negative(inv[0]), negative(inv[1]), negative(inv[2])],
             each,
         }
     }
@@ -99,8 +110,7 @@ impl Rays {
     /// Ray `i`'s [`NodeRay`] (the same numbers), for its walk alone.
     #[inline(always)]
     fn alone(&self, i: usize) -> NodeRay {
-        let e = &self.each;
-        NodeRay::from_inverse([e[0][i], e[1][i], e[2][i]], [e[3][i], e[4][i], e[5][i]])
+        alone(&self.each, i)
     }
 
     /// Every slot's box of `node` against the rays `rays` (no branch between them, so that the
@@ -108,70 +118,106 @@ impl Rays {
     /// farther than `bound` — the one-ray walk's slab test per lane: each ray's near and far
     /// planes by its direction's signs, one fused multiply-subtract a plane, [`NODE_EPSILON`]
     /// as the near bound; an empty slot's box is entered by no ray.
-    ///
-    /// # Safety
-    /// The processor must have AVX-512 F (inlined into the packets' walks, which check).
     #[inline(always)]
-    unsafe fn enter8(
-        &self,
-        node: &CpuNode,
-        rays: __mmask16,
-        bound: __m512,
-    ) -> ([__m512; 8], [u16; 8]) {
-        // SAFETY: the caller's promise (AVX-512 F); everything else is register arithmetic.
-        unsafe {
-            let mut nears = [_mm512_setzero_ps(); 8];
-            let mut hits = [0u16; 8];
-            for c in 0..8 {
-                let plane = |axis: usize| {
-                    let t = |row: usize| {
-                        _mm512_fmsub_ps(
-                            _mm512_set1_ps(node.bounds[2 * axis + row][c]),
-                            self.inv[axis],
-                            self.oi[axis],
-                        )
-                    };
-                    let (lo, hi) = (t(0), t(1));
-                    (
-                        _mm512_mask_blend_ps(self.neg[axis], lo, hi),
-                        _mm512_mask_blend_ps(self.neg[axis], hi, lo),
+    fn enter8(&self, l: L, node: &CpuNode, rays: u32, bound: L::F) -> ([L::F; 8], [u32; 8]) {
+        let mut nears = [l.splat(0.0); 8];
+        let mut hits = [0u32; 8];
+        for c in 0..8 {
+            let plane = |axis: usize| {
+                let t = |row: usize| {
+                    l.fmsub(
+                        l.splat(node.bounds[2 * axis + row][c]),
+                        self.inv[axis],
+                        self.oi[axis],
                     )
                 };
-                let (x, y, z) = (plane(0), plane(1), plane(2));
-                let (max, min) = (_mm512_max_ps, _mm512_min_ps);
-                let near = max(max(x.0, y.0), max(z.0, _mm512_set1_ps(NODE_EPSILON)));
-                let far = min(min(x.1, y.1), min(z.1, bound));
-                nears[c] = near;
-                hits[c] = _mm512_cmp_ps_mask::<_CMP_LE_OQ>(near, far) & rays;
-            }
-            (nears, hits)
+                let (lo, hi) = (t(0), t(1));
+                (
+                    l.blend(self.neg[axis], lo, hi),
+                    l.blend(self.neg[axis], hi, lo),
+                )
+            };
+            let (x, y, z) = (plane(0), plane(1), plane(2));
+            let near = l.max(l.max(x.0, y.0), l.max(z.0, l.splat(NODE_EPSILON)));
+            let far = l.min(l.min(x.1, y.1), l.min(z.1, bound));
+            nears[c] = near;
+            hits[c] = l.bits(l.cmp::<_CMP_LE_OQ>(near, far)) & rays;
         }
+        (nears, hits)
     }
+}
+
+/// Lane `i`'s [`NodeRay`] from the packet's reciprocal directions and `origin · inv` by lane.
+#[inline(always)]
+fn alone(each: &[[f32; 16]; 6], i: usize) -> NodeRay {
+    NodeRay::from_inverse(
+        [each[0][i], each[1][i], each[2][i]],
+        [each[3][i], each[4][i], each[5][i]],
+    )
 }
 
 /// The slots of eight whose rays are not none.
 #[inline(always)]
-fn entered(hits: &[u16; 8]) -> u32 {
+fn entered(hits: &[u32; 8]) -> u32 {
     (0..8).fold(0u32, |m, c| m | (u32::from(hits[c] != 0) << c))
 }
 
 /// The closest hits so far of a packet's rays: t (the nodes' bound: +∞ before a hit), u, v,
 /// the primitive (`u32::MAX`: none yet) and its triangle.
-struct Closest {
-    t: __m512,
-    u: __m512,
-    v: __m512,
-    prim: __m512i,
-    tri: __m512i,
+struct Closest<L: Lanes> {
+    t: L::F,
+    u: L::F,
+    v: L::F,
+    prim: L::I,
+    tri: L::I,
+}
+
+/// [`Closest`] lane by lane, for the rays' walks alone.
+struct ClosestLanes {
+    t: [f32; 16],
+    u: [f32; 16],
+    v: [f32; 16],
+    prim: [u32; 16],
+    tri: [u32; 16],
+}
+
+impl<L: Lanes> Closest<L> {
+    #[inline(always)]
+    fn lanes(&self, l: L) -> ClosestLanes {
+        let mut out = ClosestLanes {
+            t: [0.0; 16],
+            u: [0.0; 16],
+            v: [0.0; 16],
+            prim: [0; 16],
+            tri: [0; 16],
+        };
+        l.store(self.t, &mut out.t);
+        l.store(self.u, &mut out.u);
+        l.store(self.v, &mut out.v);
+        l.store_i(self.prim, &mut out.prim);
+        l.store_i(self.tri, &mut out.tri);
+        out
+    }
+
+    #[inline(always)]
+    fn from_lanes(l: L, c: &ClosestLanes) -> Self {
+        Self {
+            t: l.load(&c.t),
+            u: l.load(&c.u),
+            v: l.load(&c.v),
+            prim: l.load_i(&c.prim),
+            tri: l.load_i(&c.tri),
+        }
+    }
 }
 
 /// A closest-hit packet's stack entry: a node, the rays that enter it and their entry
 /// distances.
 #[derive(Clone, Copy)]
-struct Entry {
+struct Entry<F: Copy> {
     node: u32,
-    rays: __mmask16,
-    near: __m512,
+    rays: u32,
+    near: F,
 }
 
 impl CpuTree {
@@ -190,88 +236,28 @@ impl CpuTree {
         active: u16,
         switch: u32,
     ) -> [Option<TraceHit>; 16] {
-        let r = Rays::new(origins, dirs);
-        let mut best = Closest {
-            t: _mm512_set1_ps(f32::INFINITY),
-            u: _mm512_setzero_ps(),
-            v: _mm512_setzero_ps(),
-            prim: _mm512_set1_epi32(-1),
-            tri: _mm512_set1_epi32(0),
-        };
-        let mut stack = [MaybeUninit::<Entry>::uninit(); INLINE_STACK];
-        stack[0].write(Entry {
-            node: 0,
-            rays: active,
-            near: _mm512_set1_ps(f32::NEG_INFINITY),
-        });
-        let mut len = 1;
-        while len > 0 {
-            len -= 1;
-            // SAFETY: every entry below `len` was written by a push.
-            let e = unsafe { stack[len].assume_init() };
-            // The rays still to enter: their entry is not beyond their closest hit so far.
-            let rays = _mm512_cmp_ps_mask::<_CMP_LE_OQ>(e.near, best.t) & e.rays;
-            if rays == 0 {
-                continue;
-            }
-            if rays.count_ones() <= switch {
-                self.closest_alone(&mut best, e.node as usize, rays, &r, origins, dirs);
-                continue;
-            }
-            let node = &self.nodes[e.node as usize];
-            // SAFETY: this runs where AVX-512 F is (the function's features).
-            let (nears, hits) = unsafe { r.enter8(node, rays, best.t) };
-            let entered = entered(&hits);
-            let mut leaves = entered & !node.imask;
-            while leaves != 0 {
-                let c = leaves.trailing_zeros() as usize;
-                leaves &= leaves - 1;
-                let first = node.child[c];
-                for prim in first..first + u32::from(node.count[c]) {
-                    self.closest_packet(&mut best, &r, prim, hits[c]);
-                }
-            }
-            let mut inner = entered & node.imask;
-            let mut keys = [0u64; 8];
-            let mut n_inner = 0;
-            while inner != 0 {
-                let c = inner.trailing_zeros() as usize;
-                inner &= inner - 1;
-                // The nearest ray's entry (positive: the bits order as the values) over the slot.
-                let nearest = _mm512_mask_reduce_min_ps(hits[c], nears[c]);
-                keys[n_inner] = (u64::from(nearest.to_bits()) << 32) | c as u64;
-                n_inner += 1;
-            }
-            // The nearest (by its nearest ray) on top.
-            let keys = &mut keys[..n_inner];
-            super::sort_farthest_first(keys);
-            for &key in keys.iter() {
-                let c = key as u32 as usize;
-                stack[len].write(Entry {
-                    node: node.child[c],
-                    rays: hits[c],
-                    near: nears[c],
-                });
-                len += 1;
-            }
-        }
-        let (mut t, mut u, mut v, mut prim) = ([0f32; 16], [0f32; 16], [0f32; 16], [0u32; 16]);
-        // SAFETY: the stores write the local arrays of 16.
-        unsafe {
-            _mm512_storeu_ps(t.as_mut_ptr(), best.t);
-            _mm512_storeu_ps(u.as_mut_ptr(), best.u);
-            _mm512_storeu_ps(v.as_mut_ptr(), best.v);
-            _mm512_storeu_si512(prim.as_mut_ptr().cast(), best.prim);
-        }
-        std::array::from_fn(|i| {
-            (active & (1 << i) != 0 && prim[i] != u32::MAX).then(|| TraceHit {
-                t: t[i],
-                u: u[i],
-                v: v[i],
-                triangle: self.triangle(prim[i]),
-                prim: prim[i],
-            })
-        })
+        let mut out = [None; 16];
+        // SAFETY: the caller's promise.
+        let l = unsafe { Avx512::assume() };
+        self.packet_closest(l, origins, dirs, u32::from(active), switch, &mut out);
+        out
+    }
+
+    /// [`Self::hybrid16`] for eight rays in AVX2 lanes, on any processor this build runs on,
+    /// each hit into `out`. The tree must have no alpha-tested primitives and a stack bound
+    /// within [`INLINE_STACK`] (`CpuTree::packets`; checked in debug builds).
+    #[cfg(all(target_feature = "avx2", target_feature = "fma"))]
+    #[inline(never)] // Its stack of packet entries stays out of `closest_hits16`'s frame.
+    pub(super) fn hybrid8(
+        &self,
+        origins: &[Vec3],
+        dirs: &[Vec3],
+        active: u32,
+        switch: u32,
+        out: &mut [Option<TraceHit>],
+    ) {
+        debug_assert!(!self.lanes.alpha && self.stack_size <= INLINE_STACK);
+        self.packet_closest(Avx2::new(), origins, dirs, active, switch, out);
     }
 
     /// Whether something blocks each of sixteen shadow rays `origins[i] + t·dirs[i]`,
@@ -290,11 +276,132 @@ impl CpuTree {
         active: u16,
         switch: u32,
     ) -> u16 {
-        let r = Rays::new(origins, dirs);
-        // SAFETY: reads the array of 16.
-        let bound = unsafe { _mm512_loadu_ps(tmax.as_ptr()) };
-        let mut blocked: u16 = 0;
-        let mut stack = [MaybeUninit::<(u32, u16)>::uninit(); INLINE_STACK];
+        // SAFETY: the caller's promise.
+        let l = unsafe { Avx512::assume() };
+        self.packet_occluded(l, origins, dirs, tmax, u32::from(active), switch) as u16
+    }
+
+    /// [`Self::hybrid_occluded16`] for eight rays in AVX2 lanes (`tmax`: the first eight of
+    /// sixteen), as [`Self::hybrid8`].
+    #[cfg(all(target_feature = "avx2", target_feature = "fma"))]
+    #[inline(never)] // As `hybrid8`.
+    pub(super) fn hybrid_occluded8(
+        &self,
+        origins: &[Vec3],
+        dirs: &[Vec3],
+        tmax: &[f32; 16],
+        active: u32,
+        switch: u32,
+    ) -> u32 {
+        debug_assert!(!self.lanes.alpha && self.stack_size <= INLINE_STACK);
+        self.packet_occluded(Avx2::new(), origins, dirs, tmax, active, switch)
+    }
+
+    /// The hybrid walk for closest hits in `L`'s lanes: each of the `L::WIDTH` rays' hit into
+    /// `out`.
+    #[inline(always)]
+    fn packet_closest<L: Lanes>(
+        &self,
+        l: L,
+        origins: &[Vec3],
+        dirs: &[Vec3],
+        active: u32,
+        switch: u32,
+        out: &mut [Option<TraceHit>],
+    ) {
+        let r = Rays::new(l, origins, dirs);
+        let mut best = Closest::<L> {
+            t: l.splat(f32::INFINITY),
+            u: l.splat(0.0),
+            v: l.splat(0.0),
+            prim: l.splat_i(u32::MAX),
+            tri: l.splat_i(0),
+        };
+        let mut stack = [const { MaybeUninit::<Entry<L::F>>::uninit() }; INLINE_STACK];
+        stack[0].write(Entry {
+            node: 0,
+            rays: active,
+            near: l.splat(f32::NEG_INFINITY),
+        });
+        let mut len = 1;
+        while len > 0 {
+            len -= 1;
+            // SAFETY: every entry below `len` was written by a push.
+            let e = unsafe { stack[len].assume_init() };
+            // The rays still to enter: their entry is not beyond their closest hit so far.
+            let rays = l.bits(l.cmp::<_CMP_LE_OQ>(e.near, best.t)) & e.rays;
+            if rays == 0 {
+                continue;
+            }
+            if rays.count_ones() <= switch {
+                let mut lanes = best.lanes(l);
+                self.closest_alone(&mut lanes, e.node as usize, rays, &r.each, origins, dirs);
+                best = Closest::from_lanes(l, &lanes);
+                continue;
+            }
+            let node = &self.nodes[e.node as usize];
+            let (nears, hits) = r.enter8(l, node, rays, best.t);
+            let entered = entered(&hits);
+            let mut leaves = entered & !node.imask;
+            while leaves != 0 {
+                let c = leaves.trailing_zeros() as usize;
+                leaves &= leaves - 1;
+                let first = node.child[c];
+                for prim in first..first + u32::from(node.count[c]) {
+                    self.closest_packet(l, &mut best, &r, prim, hits[c]);
+                }
+            }
+            let mut inner = entered & node.imask;
+            let mut keys = [0u64; 8];
+            let mut n_inner = 0;
+            while inner != 0 {
+                let c = inner.trailing_zeros() as usize;
+                inner &= inner - 1;
+                // The nearest ray's entry (positive: the bits order as the values) over the slot.
+                let nearest = l.reduce_min(hits[c], nears[c]);
+                keys[n_inner] = (u64::from(nearest.to_bits()) << 32) | c as u64;
+                n_inner += 1;
+            }
+            // The nearest (by its nearest ray) on top.
+            let keys = &mut keys[..n_inner];
+            super::sort_farthest_first(keys);
+            for &key in keys.iter() {
+                let c = key as u32 as usize;
+                stack[len].write(Entry {
+                    node: node.child[c],
+                    rays: hits[c],
+                    near: nears[c],
+                });
+                len += 1;
+            }
+        }
+        let found = best.lanes(l);
+        for (i, out) in out.iter_mut().enumerate().take(L::WIDTH) {
+            *out = (active & (1 << i) != 0 && found.prim[i] != u32::MAX).then(|| TraceHit {
+                t: found.t[i],
+                u: found.u[i],
+                v: found.v[i],
+                triangle: found.tri[i],
+                prim: found.prim[i],
+            });
+        }
+    }
+
+    /// The hybrid walk for shadow rays in `L`'s lanes: a bit set per blocked ray.
+    #[inline(always)]
+    fn packet_occluded<L: Lanes>(
+        &self,
+        l: L,
+        origins: &[Vec3],
+        dirs: &[Vec3],
+        tmax: &[f32; 16],
+        active: u32,
+        switch: u32,
+    ) -> u32 {
+        let r = Rays::new(l, origins, dirs);
+        let bound = l.load(tmax);
+        let mut blocked = 0u32;
+        let mut stack = [MaybeUninit::<(u32, u32)>::uninit(); INLINE_STACK];
         stack[0].write((0, active));
         let mut len = 1;
         while len > 0 {
@@ -318,8 +425,7 @@ impl CpuTree {
                 continue;
             }
             let node = &self.nodes[index as usize];
-            // SAFETY: this runs where AVX-512 F is (the function's features).
-            let (_, hits) = unsafe { r.enter8(node, rays, bound) };
+            let (_, hits) = r.enter8(l, node, rays, bound);
             let entered = entered(&hits);
             let mut leaves = entered & !node.imask;
             while leaves != 0 {
@@ -331,12 +437,14 @@ impl CpuTree {
                     if want == 0 {
                         break;
                     }
-                    let (met, [den, _, _, tn]) = self.meets_packet(&r, prim, want);
-                    if met != 0 {
-                        let t = _mm512_mul_ps(tn, _mm512_div_ps(_mm512_set1_ps(1.0), den));
-                        blocked |= met
-                            & _mm512_cmp_ps_mask::<_CMP_GT_OQ>(t, _mm512_setzero_ps())
-                            & _mm512_cmp_ps_mask::<_CMP_LT_OQ>(t, bound);
+                    let (met, [den, _, _, tn]) = self.meets_packet(l, &r, prim, want);
+                    if l.bits(met) != 0 {
+                        let t = l.mul(tn, l.div(l.splat(1.0), den));
+                        let ahead = l.and_m(
+                            l.cmp::<_CMP_GT_OQ>(t, l.splat(0.0)),
+                            l.cmp::<_CMP_LT_OQ>(t, bound),
+                        );
+                        blocked |= l.bits(l.and_m(met, ahead));
                     }
                 }
             }
@@ -354,55 +462,41 @@ impl CpuTree {
         blocked & active
     }
 
-    /// The rays `rays` of the packet walk below `node` alone ([`CpuTree::walk_closest`]), each
-    /// from its closest hit so far, which they update.
-    #[target_feature(enable = "avx512f,avx512dq")]
+    /// The rays `rays` of a packet (their node rays in `each`) walk below `node` alone
+    /// ([`CpuTree::walk_closest`]), each from its closest hit so far in `best`, which they
+    /// update.
     fn closest_alone(
         &self,
-        best: &mut Closest,
+        best: &mut ClosestLanes,
         node: usize,
-        rays: __mmask16,
-        r: &Rays,
-        origins: &[Vec3; 16],
-        dirs: &[Vec3; 16],
+        rays: u32,
+        each: &[[f32; 16]; 6],
+        origins: &[Vec3],
+        dirs: &[Vec3],
     ) {
-        let (mut t, mut u, mut v, mut prim, mut tri) =
-            ([0f32; 16], [0f32; 16], [0f32; 16], [0u32; 16], [0u32; 16]);
-        // SAFETY: the loads and stores touch the local arrays of 16.
-        unsafe {
-            _mm512_storeu_ps(t.as_mut_ptr(), best.t);
-            _mm512_storeu_ps(u.as_mut_ptr(), best.u);
-            _mm512_storeu_ps(v.as_mut_ptr(), best.v);
-            _mm512_storeu_si512(prim.as_mut_ptr().cast(), best.prim);
-            _mm512_storeu_si512(tri.as_mut_ptr().cast(), best.tri);
-        }
         let mut m = rays;
         while m != 0 {
             let i = m.trailing_zeros() as usize;
             m &= m - 1;
-            let mut hit = (prim[i] != u32::MAX).then_some((t[i], u[i], v[i], prim[i]));
-            let (o, d) = (origins[i], dirs[i]);
+            let mut hit = (best.prim[i] != u32::MAX).then_some((
+                best.t[i],
+                best.u[i],
+                best.v[i],
+                best.prim[i],
+            ));
             self.walk_closest(
                 node,
-                &r.alone(i),
-                o,
-                d,
+                &alone(each, i),
+                origins[i],
+                dirs[i],
                 f32::INFINITY,
                 &mut hit,
                 &|_, _, _| true,
             );
             if let Some(h) = hit {
-                (t[i], u[i], v[i], prim[i]) = h;
-                tri[i] = self.triangle(h.3);
+                (best.t[i], best.u[i], best.v[i], best.prim[i]) = h;
+                best.tri[i] = self.triangle(h.3);
             }
-        }
-        // SAFETY: as above.
-        unsafe {
-            best.t = _mm512_loadu_ps(t.as_ptr());
-            best.u = _mm512_loadu_ps(u.as_ptr());
-            best.v = _mm512_loadu_ps(v.as_ptr());
-            best.prim = _mm512_loadu_si512(prim.as_ptr().cast());
-            best.tri = _mm512_loadu_si512(tri.as_ptr().cast());
         }
     }
 
@@ -410,16 +504,17 @@ impl CpuTree {
     /// rays `rays`, the same operations in the same order per lane: the rays whose line meets
     /// the triangle in front of the origin, and per lane den, e2·r, e1·r and c·n, from which t,
     /// u and v follow. No division.
-    #[inline]
-    #[target_feature(enable = "avx512f,avx512dq")]
-    fn meets_packet(&self, r: &Rays, prim: u32, rays: __mmask16) -> (__mmask16, [__m512; 4]) {
+    #[inline(always)]
+    fn meets_packet<L: Lanes>(&self, l: L, r: &Rays<L>, prim: u32, rays: u32) -> (L::M, [L::F; 4]) {
         let (v0, e1, e2) = self.prim(prim as usize);
         let cull = self.flags(prim as usize) & PRIM_CULL != 0;
         let n = e1.cross(e2);
-        let splat = |v: Vec3| v.to_array().map(|x| _mm512_set1_ps(x));
+        let splat = |v: Vec3| [l.splat(v.x), l.splat(v.y), l.splat(v.z)];
         let (n, e1, e2, v0) = (splat(n), splat(e1), splat(e2), splat(v0));
-        let (mul, sub, add) = (_mm512_mul_ps, _mm512_sub_ps, _mm512_add_ps);
-        let dot = |a: [__m512; 3], b: [__m512; 3]| {
+        let mul = |a: L::F, b: L::F| l.mul(a, b);
+        let sub = |a: L::F, b: L::F| l.sub(a, b);
+        let add = |a: L::F, b: L::F| l.add(a, b);
+        let dot = |a: [L::F; 3], b: [L::F; 3]| {
             add(add(mul(a[0], b[0]), mul(a[1], b[1])), mul(a[2], b[2]))
         };
         let d = r.d;
@@ -432,64 +527,76 @@ impl CpuTree {
         ];
         let den = dot(n, d);
         let (a, b, tn) = (dot(e2, cr), dot(e1, cr), dot(c, n));
-        let zero = _mm512_setzero_ps();
-        let sign = _mm512_set1_ps(-0.0);
-        let abs_den = _mm512_abs_ps(den);
-        let mut ok = _mm512_cmp_ps_mask::<_CMP_NEQ_OQ>(den, zero)
-            & _mm512_cmp_ps_mask::<_CMP_LT_OQ>(abs_den, _mm512_set1_ps(f32::INFINITY))
-            & rays;
+        let zero = l.splat(0.0);
+        let sign = l.splat(-0.0);
+        let abs_den = l.abs(den);
+        let mut ok = l.and_m(
+            l.and_m(
+                l.cmp::<_CMP_NEQ_OQ>(den, zero),
+                l.cmp::<_CMP_LT_OQ>(abs_den, l.splat(f32::INFINITY)),
+            ),
+            l.mask(rays),
+        );
         if cull {
-            ok &= !_mm512_cmp_ps_mask::<_CMP_GT_OQ>(den, zero);
+            ok = l.andnot_m(l.cmp::<_CMP_GT_OQ>(den, zero), ok);
         }
         // The numerators times den's sign (a sign flip, as the scalar test's).
-        let den_sign = _mm512_and_ps(den, sign);
-        let us = _mm512_xor_ps(a, den_sign);
-        let vs = _mm512_xor_ps(_mm512_xor_ps(b, sign), den_sign);
-        let ts = _mm512_xor_ps(tn, den_sign);
-        let met = ok
-            & _mm512_cmp_ps_mask::<_CMP_GE_OQ>(us, zero)
-            & _mm512_cmp_ps_mask::<_CMP_GE_OQ>(vs, zero)
-            & _mm512_cmp_ps_mask::<_CMP_LE_OQ>(add(us, vs), abs_den)
-            & _mm512_cmp_ps_mask::<_CMP_GT_OQ>(ts, zero);
-        (met, [den, a, b, tn])
+        let den_sign = l.and(den, sign);
+        let us = l.xor(a, den_sign);
+        let vs = l.xor(l.xor(b, sign), den_sign);
+        let ts = l.xor(tn, den_sign);
+        let inside = l.and_m(
+            l.and_m(l.cmp::<_CMP_GE_OQ>(us, zero), l.cmp::<_CMP_GE_OQ>(vs, zero)),
+            l.and_m(
+                l.cmp::<_CMP_LE_OQ>(add(us, vs), abs_den),
+                l.cmp::<_CMP_GT_OQ>(ts, zero),
+            ),
+        );
+        (l.and_m(ok, inside), [den, a, b, tn])
     }
 
     /// Primitive `prim` against the packet's rays `rays` ([`super::intersect_triangle_sided`]
     /// per lane), each hit kept in `best` where it is nearer ([`super::nearer`]).
-    #[inline]
-    #[target_feature(enable = "avx512f,avx512dq")]
-    fn closest_packet(&self, best: &mut Closest, r: &Rays, prim: u32, rays: __mmask16) {
-        let (met, [den, a, b, tn]) = self.meets_packet(r, prim, rays);
-        if met == 0 {
+    #[inline(always)]
+    fn closest_packet<L: Lanes>(
+        &self,
+        l: L,
+        best: &mut Closest<L>,
+        r: &Rays<L>,
+        prim: u32,
+        rays: u32,
+    ) {
+        let (met, [den, a, b, tn]) = self.meets_packet(l, r, prim, rays);
+        if l.bits(met) == 0 {
             return;
         }
-        let (zero, sign) = (_mm512_setzero_ps(), _mm512_set1_ps(-0.0));
-        let inv = _mm512_div_ps(_mm512_set1_ps(1.0), den);
-        let t = _mm512_mul_ps(tn, inv);
+        let zero = l.splat(0.0);
+        let inv = l.div(l.splat(1.0), den);
+        let t = l.mul(tn, inv);
         // The bound of a nearer hit: t itself included once there is a hit (the one-ray
         // walk's `bound`; +∞ before).
-        let found = _mm512_cmp_epu32_mask::<_MM_CMPINT_NE>(best.prim, _mm512_set1_epi32(-1));
-        let next_up = _mm512_castsi512_ps(_mm512_add_epi32(
-            _mm512_castps_si512(best.t),
-            _mm512_set1_epi32(1),
-        ));
-        let bound = _mm512_mask_blend_ps(found, _mm512_set1_ps(f32::INFINITY), next_up);
-        let hit = met
-            & _mm512_cmp_ps_mask::<_CMP_GT_OQ>(t, zero)
-            & _mm512_cmp_ps_mask::<_CMP_LT_OQ>(t, bound);
-        let tri = _mm512_set1_epi32(self.triangle(prim) as i32);
-        let tie = _mm512_cmpgt_epu32_mask(tri, best.tri) | !found;
-        let take = hit
-            & (_mm512_cmp_ps_mask::<_CMP_LT_OQ>(t, best.t)
-                | (_mm512_cmp_ps_mask::<_CMP_EQ_OQ>(t, best.t) & tie));
-        if take == 0 {
+        let none = l.eq_i(best.prim, l.splat_i(u32::MAX));
+        let next_up = l.as_f(l.add_i(l.as_i(best.t), l.splat_i(1)));
+        let bound = l.blend(none, next_up, l.splat(f32::INFINITY));
+        let hit = l.and_m(
+            met,
+            l.and_m(l.cmp::<_CMP_GT_OQ>(t, zero), l.cmp::<_CMP_LT_OQ>(t, bound)),
+        );
+        let tri = l.splat_i(self.triangle(prim));
+        let tie = l.or_m(l.gt_u(tri, best.tri), none);
+        let nearer = l.or_m(
+            l.cmp::<_CMP_LT_OQ>(t, best.t),
+            l.and_m(l.cmp::<_CMP_EQ_OQ>(t, best.t), tie),
+        );
+        let take = l.and_m(hit, nearer);
+        if l.bits(take) == 0 {
             return;
         }
-        best.t = _mm512_mask_blend_ps(take, best.t, t);
-        best.u = _mm512_mask_blend_ps(take, best.u, _mm512_mul_ps(a, inv));
-        best.v = _mm512_mask_blend_ps(take, best.v, _mm512_xor_ps(_mm512_mul_ps(b, inv), sign));
-        best.prim = _mm512_mask_blend_epi32(take, best.prim, _mm512_set1_epi32(prim as i32));
-        best.tri = _mm512_mask_blend_epi32(take, best.tri, tri);
+        best.t = l.blend(take, best.t, t);
+        best.u = l.blend(take, best.u, l.mul(a, inv));
+        best.v = l.blend(take, best.v, l.xor(l.mul(b, inv), l.splat(-0.0)));
+        best.prim = l.blend_i(take, best.prim, l.splat_i(prim));
+        best.tri = l.blend_i(take, best.tri, tri);
     }
 }
 
@@ -497,8 +604,8 @@ impl CpuTree {
 mod tests {
     use glam::Vec3;
 
-    use super::super::super::SceneBvh;
     use super::super::super::tests::{random_triangles, uniforms};
+    use super::super::super::{CpuPackets, SceneBvh};
     use super::*;
 
     /// The packets give each ray the one-ray walk's closest hit to the bit (t, u, v,
@@ -507,9 +614,10 @@ mod tests {
     /// root) — on rays from one point through a small window (a camera's, where the packet
     /// stays whole down to the leaves), from nearby points in all directions (a bounce's) and
     /// from everywhere, with lanes switched off; single-sided triangles seen from both sides;
-    /// triangles given twice, every hit on them an exact tie, which the higher one wins. On a
-    /// processor without AVX-512 the public walk (one ray at a time there) is checked alone; the
-    /// one-ray fallback is checked everywhere.
+    /// triangles given twice, every hit on them an exact tie, which the higher one wins. The
+    /// packets of eight (two to the sixteen rays) with the same three switches and through the
+    /// public walk; the sixteen-ray packets where the processor has AVX-512; the one-ray
+    /// fallback everywhere.
     #[test]
     fn packets_find_each_rays_hit() {
         let mut tris = random_triangles(1500, 5);
@@ -559,6 +667,19 @@ mod tests {
                     got.push(unsafe { tree.hybrid16(&origins, &dirs, active, switch) });
                 }
             }
+            #[cfg(all(target_feature = "avx2", target_feature = "fma"))]
+            got.push(CpuPackets::Eight.during(|| bvh.closest_hits16(&origins, &dirs, active)));
+            #[cfg(all(target_feature = "avx2", target_feature = "fma"))]
+            for switch in [0, SWITCH8, 8] {
+                // The sixteen rays as two packets of eight.
+                let mut out = [None; 16];
+                for half in [0..8, 8..16] {
+                    let on = u32::from(active) >> half.start & 0xff;
+                    let (o, d) = (&origins[half.clone()], &dirs[half.clone()]);
+                    tree.hybrid8(o, d, on, switch, &mut out[half]);
+                }
+                got.push(out);
+            }
             for (which, got) in got.iter().enumerate() {
                 for i in 0..16 {
                     assert_eq!(
@@ -582,11 +703,12 @@ mod tests {
         assert!(hits > 2000 && ties > 300, "{hits} hits, {ties} ties");
     }
 
-    /// The shadow-ray packets (and their one-ray fallback) answer as the one-ray walk does,
-    /// with the switch never, at 7 and always: rays from one point, from nearby points and from everywhere, each with its own
-    /// length — unbounded, ending just before its closest hit (not blocked, unless another
-    /// triangle is nearer), exactly there (not blocked by it: `t < tmax`), just beyond it, or
-    /// far short — and lanes switched off.
+    /// The shadow-ray packets of sixteen and of eight (and their one-ray fallback) answer as the
+    /// one-ray walk does, with the switch never, at [`SWITCH`] (or [`SWITCH8`]) and always: rays
+    /// from one point, from nearby points and from everywhere, each with its own length —
+    /// unbounded, ending just before its closest hit (not blocked, unless another triangle is
+    /// nearer), exactly there (not blocked by it: `t < tmax`), just beyond it, or far short —
+    /// and lanes switched off.
     #[test]
     fn shadow_packets_answer_as_one_ray() {
         let tris = random_triangles(1500, 9);
@@ -641,6 +763,22 @@ mod tests {
                             .hybrid_occluded16(&origins, &dirs, &tmax, active, switch)
                     });
                 }
+            }
+            #[cfg(all(target_feature = "avx2", target_feature = "fma"))]
+            got.push(CpuPackets::Eight.during(|| bvh.occluded16(&origins, &dirs, &tmax, active)));
+            #[cfg(all(target_feature = "avx2", target_feature = "fma"))]
+            for switch in [0, SWITCH8, 8] {
+                // The sixteen rays as two packets of eight.
+                let mut blocked = 0u16;
+                for half in [0..8, 8..16] {
+                    let on = u32::from(active) >> half.start & 0xff;
+                    let (o, d) = (&origins[half.clone()], &dirs[half.clone()]);
+                    let mut t = [0f32; 16];
+                    t[..8].copy_from_slice(&tmax[half.clone()]);
+                    let b = bvh.cpu().hybrid_occluded8(o, d, &t, on, switch);
+                    blocked |= (b << half.start) as u16;
+                }
+                got.push(blocked);
             }
             for (which, got) in got.iter().enumerate() {
                 assert_eq!(
