@@ -3,13 +3,14 @@
 //! sixteen at a time as hybrid packets), the bounces' and the shadow rays' (one at a time, and
 //! sixteen at a time) — recorded once from the scene (default `builtin:city-small`, the peer
 //! benchmark's small city), a bounce at a time in pixel order as the renderer's batches trace
-//! them, and replayed `ROUNDS` times (default 9). The sixteen-ray rows are hybrid packets where
-//! the processor has AVX-512 (else one ray at a time); the "by octant" rows group each 256 rays
-//! by their direction's octant first, as the batches do past the camera (the recorded shadow
-//! rays are cosine-distributed about the normal, not aimed at a light). Without the shading
-//! around them, a change to the walk shows in a second with less of the noise of a whole
-//! render: the minimum over the rounds is the figure to compare; the median says how noisy the
-//! machine was.
+//! them, and replayed `ROUNDS` times (default 9). The sixteen-ray rows are hybrid packets:
+//! sixteen rays where the processor has AVX-512, else two packets of eight (AVX2);
+//! `RAYGUN_CPU_PACKETS=0`, `8` or `16` chooses (the header says which ran). The "by octant" rows
+//! group each 256 rays by their direction's octant first, as the batches do past the camera (the
+//! recorded shadow rays are cosine-distributed about the normal, not aimed at a light). Without
+//! the shading around them, a change to the walk shows in a second with less of the noise of a
+//! whole render: the minimum over the rounds is the figure to compare; the median says how noisy
+//! the machine was.
 
 use std::hint::black_box;
 use std::time::Instant;
@@ -17,6 +18,7 @@ use std::time::Instant;
 use glam::Vec3;
 use raygun::random::{pcg4d, unit_f32};
 use raygun::scene::Scene;
+use raygun::trace::bvh::CpuPackets;
 use raygun::trace::camera::RenderCamera;
 use raygun::trace::pack::PackedScene;
 
@@ -103,6 +105,10 @@ fn main() {
         .filter(|a| a != "--bench")
         .collect();
     let name = args.first().map_or("builtin:city-small", String::as_str);
+    let walks = CpuPackets::from_env().unwrap_or_else(|e| {
+        eprintln!("traversal: {e}");
+        std::process::exit(2)
+    });
     let rounds = match args.get(1).map_or(Ok(9), |r| r.parse::<usize>()) {
         Ok(rounds) if rounds > 0 => rounds,
         _ => {
@@ -230,8 +236,9 @@ fn main() {
         ),
     ];
     println!(
-        "{name}: {} triangles, {rounds} rounds, one thread",
-        scene.triangles.len()
+        "{name}: {} triangles, {rounds} rounds, one thread, {}",
+        scene.triangles.len(),
+        walks.describe()
     );
     println!("| rays | count | hit | ns per ray, min | median |");
     println!("|---|---|---|---|---|");

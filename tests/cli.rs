@@ -376,3 +376,89 @@ fn trace_kernel_variants_are_timed_side_by_side_and_render_the_same_files() {
     let err = String::from_utf8_lossy(&bad.stderr);
     assert!(err.contains("RAYGUN_TRACE_KERNEL=\"stack\""), "{err}");
 }
+
+/// `RAYGUN_CPU_PACKETS` chooses how the CPU twin walks its rays — one at a time, packets of
+/// eight (AVX2) or of sixteen (where the processor has AVX-512) — and every choice renders the
+/// same file byte for byte; the benchmark's report names the walks it ran; a value that is
+/// not a choice, or one this processor cannot run, is refused naming the variable.
+#[test]
+fn cpu_packet_widths_render_the_same_files() {
+    let dir = support::tmp_dir("cpu-packets");
+    let run = |args: &[&str], packets: Option<&str>| {
+        let mut c = support::command(std::path::Path::new(support::ROOT), args);
+        if let Some(v) = packets {
+            c.env("RAYGUN_CPU_PACKETS", v);
+        }
+        c.output().unwrap()
+    };
+    let render = |name: &str, packets: Option<&str>| {
+        let out = dir.join(name);
+        let out_arg = out.to_str().unwrap().to_owned();
+        let o = run(
+            &[
+                "render",
+                "--scene",
+                "builtin:city-small",
+                "--guide",
+                "pose:0,0,1:0,0,-1:60",
+                "--backend",
+                "cpu",
+                "--size",
+                "96,54",
+                "--iterations",
+                "3",
+                "--out",
+                &out_arg,
+            ],
+            packets,
+        );
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        std::fs::read(&out).unwrap()
+    };
+    let one = render("one.exr", Some("0"));
+    assert!(render("eight.exr", Some("8")) == one, "packets of eight");
+    assert!(render("widest.exr", None) == one, "the widest packets");
+    let sixteen = std::arch::is_x86_feature_detected!("avx512f")
+        && std::arch::is_x86_feature_detected!("avx512dq");
+    let bench = |packets: &str| {
+        let o = run(
+            &[
+                "bench",
+                "trace",
+                "--backend",
+                "cpu",
+                "--scene",
+                "builtin:cornell",
+                "--size",
+                "16,9",
+                "--spp",
+                "1",
+                "--json",
+            ],
+            Some(packets),
+        );
+        (
+            o.status.success(),
+            String::from_utf8_lossy(&o.stdout).into_owned(),
+            String::from_utf8_lossy(&o.stderr).into_owned(),
+        )
+    };
+    let (ok, out, err) = bench("8");
+    assert!(ok, "{err}");
+    assert!(out.contains("rays in packets of 8 (AVX2)"), "{out}");
+    let (ok, out, err) = bench("16");
+    if sixteen {
+        assert!(ok, "{err}");
+        assert!(out.contains("rays in packets of 16 (AVX-512)"), "{out}");
+    } else {
+        assert!(!ok && err.contains("RAYGUN_CPU_PACKETS=\"16\""), "{err}");
+    }
+    for bad in ["32", "yes", ""] {
+        let (ok, _, err) = bench(bad);
+        assert!(!ok, "RAYGUN_CPU_PACKETS={bad:?} accepted");
+        assert!(
+            err.contains(&format!("RAYGUN_CPU_PACKETS={bad:?}")),
+            "{err}"
+        );
+    }
+}

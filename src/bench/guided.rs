@@ -304,7 +304,7 @@ pub fn run(
         full_frame.push(full_row);
     }
     Ok(GuidedBenchReport {
-        device: backend.describe(),
+        device: super::device(backend),
         config: cfg.clone(),
         full_frame,
         rows,

@@ -41,13 +41,29 @@ pub fn median(mut v: Vec<f64>) -> f64 {
     }
 }
 
-/// The CPU side of a benchmark's hardware line: "N threads (ARCH)".
+/// A benchmark's device line: the backend's ([`crate::gpu::Backend::describe`]), and for the
+/// CPU twins how they walk their rays ([`crate::trace::bvh::CpuPackets`]).
+#[must_use]
+pub fn device(backend: &crate::gpu::Backend) -> String {
+    match backend {
+        crate::gpu::Backend::Gpu(_) => backend.describe(),
+        crate::gpu::Backend::Cpu => format!(
+            "{}, {}",
+            backend.describe(),
+            crate::trace::bvh::CpuPackets::current().describe()
+        ),
+    }
+}
+
+/// The CPU side of a benchmark's hardware line: "N threads (ARCH, how the CPU twin walks its
+/// rays)".
 #[must_use]
 pub fn cpu_threads() -> String {
     format!(
-        "{} threads ({})",
+        "{} threads ({}, {})",
         rayon::current_num_threads(),
-        std::env::consts::ARCH
+        std::env::consts::ARCH,
+        crate::trace::bvh::CpuPackets::current().describe()
     )
 }
 

@@ -198,7 +198,7 @@ pub fn run(
     }
     let n = u64::from(w) * u64::from(h);
     Ok(PictureReport {
-        device: backend.describe(),
+        device: super::device(backend),
         scene: name.to_string(),
         size: cfg.size,
         fov_deg: cfg.fov_deg,

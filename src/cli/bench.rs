@@ -538,7 +538,7 @@ fn run_native_bench(args: &NativeBenchArgs) -> anyhow::Result<()> {
     let report =
         crate::bench::native::run(&backend, &display, &scenes, &cfg, wall.as_ref(), progress)?;
     bar.finish_and_clear();
-    let device = backend.describe();
+    let device = crate::bench::device(&backend);
     let text = if args.json {
         serde_json::to_string_pretty(&serde_json::json!({
             "device": device,
@@ -691,7 +691,7 @@ fn run_trace_bench(args: &TraceBenchArgs) -> anyhow::Result<()> {
     let rows =
         crate::bench::trace::run(&backend, &scenes, &cfg, wall.as_ref(), &kernels, progress)?;
     bar.finish_and_clear();
-    let device = backend.describe();
+    let device = crate::bench::device(&backend);
     let text = if args.json {
         serde_json::to_string_pretty(&serde_json::json!({
             "device": device,

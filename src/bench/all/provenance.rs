@@ -60,7 +60,7 @@ impl Header {
     pub fn now(backend: &Backend, scene: &str, display: &str) -> Self {
         Self {
             command: shell_join(std::env::args()),
-            device: backend.describe(),
+            device: crate::bench::device(backend),
             adapter: backend.adapter(),
             cpu: crate::bench::cpu_description(),
             commit: commit(),
