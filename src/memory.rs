@@ -127,6 +127,31 @@ impl Budget {
         self.device.iter().map(|(_, b)| b).sum()
     }
 
+    /// The budget with the GPU buffers of the trace kernel `variant` beyond the per-pixel
+    /// figures, on an adapter whose largest binding is `max_binding` bytes: the wavefront
+    /// split's path buffers ([`crate::trace::gpu::split_bytes`]), one set a band of the frame,
+    /// where the work traces full frames on the GPU (a guided render's iterations trace the
+    /// scheduler's lists, which keep the one kernel).
+    #[must_use]
+    pub fn with_trace_kernel(
+        mut self,
+        work: Work,
+        variant: crate::gpu::variant::TraceVariant,
+        max_binding: u64,
+    ) -> Self {
+        let full_frames = matches!(work, Work::FullFrame { gpu: true });
+        let [w, h] = self.size;
+        let bands = crate::gpu::Band::split(w, h, 16, max_binding).unwrap_or_default();
+        let split: u64 = bands
+            .iter()
+            .map(|b| crate::trace::gpu::split_bytes(variant, w, b.rows, max_binding))
+            .sum();
+        if full_frames && split > 0 {
+            self.device.push(("trace split paths", split));
+        }
+        self
+    }
+
     /// "accumulation 20 GB, DGI 4 GB, …" (largest first).
     #[must_use]
     pub fn breakdown(&self) -> String {
@@ -256,8 +281,67 @@ pub fn available_host_bytes() -> Option<u64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::gpu::variant::TraceVariant;
 
     const GB: u64 = 1 << 30;
+
+    /// The wavefront split's path buffers join the GPU's budget of full-frame renders on the GPU,
+    /// a set a band of the frame: 88 bytes a path of a chunk (2¹⁸ paths by default), of the
+    /// frame's threads (8 × 8 tiles) where the frame has fewer than a chunk, of what one
+    /// binding holds of path states where that is less; nothing for the default kernel, a
+    /// guided render (lists), the DGI or the CPU.
+    #[test]
+    fn the_split_kernels_paths_are_in_the_gpu_budget() {
+        let render = Work::Render {
+            gpu: true,
+            filter: FilterKind::Fast,
+        };
+        let kernel = |s: &str| s.parse::<TraceVariant>().unwrap();
+        let split = |b: &Budget| {
+            b.device
+                .iter()
+                .find(|(stage, _)| *stage == "trace split paths")
+                .map(|l| l.1)
+        };
+        let of = |work: Work, size: [u32; 2], variant: &str, binding: u64| {
+            Budget::of(work, size).with_trace_kernel(work, kernel(variant), binding)
+        };
+        let full = Work::FullFrame { gpu: true };
+        let uhd = of(full, [3840, 2160], "private+split", 2 * GB);
+        assert_eq!(split(&uhd), Some(88 << 18));
+        assert_eq!(
+            uhd.device_bytes(),
+            Budget::of(full, [3840, 2160]).device_bytes() + (88 << 18)
+        );
+        let small = of(full, [320, 180], "private+split1048576", 2 * GB);
+        assert_eq!(split(&small), Some(88 * 320 * 184));
+        // A binding of 1 MiB: 16 384 path states a chunk, and the frame in bands of rows.
+        let bands = crate::gpu::Band::split(3840, 2160, 16, 1 << 20)
+            .unwrap()
+            .len() as u64;
+        assert!(bands > 1);
+        let banded = of(full, [3840, 2160], "private+split", 1 << 20);
+        assert_eq!(split(&banded), Some(bands * 88 * 16_384));
+        for none in [
+            of(render, [3840, 2160], "private+split", 2 * GB),
+            of(full, [3840, 2160], "private", 2 * GB),
+            of(full, [3840, 2160], "private+regen528", 2 * GB),
+            of(
+                Work::Dgi { gpu: true },
+                [3840, 2160],
+                "private+split",
+                2 * GB,
+            ),
+            of(
+                Work::FullFrame { gpu: false },
+                [3840, 2160],
+                "private+split",
+                2 * GB,
+            ),
+        ] {
+            assert_eq!(split(&none), None, "{none:?}");
+        }
+    }
 
     #[test]
     fn a_size_beyond_the_machine_is_an_error_naming_size_and_bytes() {

@@ -251,6 +251,30 @@ pub struct GpuSplitParams {
 /// (`PathState`, 64), its closest hit (`Hit`, 16) and its place in the two queues (4 each).
 pub const SPLIT_PATH_BYTES: u64 = 88;
 
+/// The paths a chunk of `variant`'s wavefront split holds for a full frame of `jobs` threads:
+/// the variant's chunk, at most what one binding of `max_binding` bytes holds of path states
+/// (64 bytes each), at most the frame's jobs (rounded up to 64), at least 64.
+#[must_use]
+pub fn split_chunk(variant: TraceVariant, jobs: u32, max_binding: u64) -> u32 {
+    let most = (max_binding / 64).min(u64::from(u32::MAX)) as u32 / 64 * 64;
+    variant
+        .split
+        .min(most)
+        .min(jobs.next_multiple_of(64))
+        .max(64)
+}
+
+/// GPU bytes the wavefront split of `variant` holds for a full frame of `width × rows`
+/// ([`SPLIT_PATH_BYTES`] a path of a chunk, [`split_chunk`]); 0 for a kernel without it.
+#[must_use]
+pub fn split_bytes(variant: TraceVariant, width: u32, rows: u32, max_binding: u64) -> u64 {
+    if variant.split == 0 {
+        return 0;
+    }
+    let (jobs, _, _) = full_frame_launch(width, rows, variant);
+    SPLIT_PATH_BYTES * u64::from(split_chunk(variant, jobs, max_binding))
+}
+
 /// A compute-stage bind group layout of `entries`: `(binding, type)`.
 fn bind_layout(
     ctx: &GpuContext,
@@ -587,12 +611,7 @@ impl SplitRun {
         jobs: u32,
         max_depth: u32,
     ) -> Self {
-        let most = (ctx.max_binding() / 64).min(u64::from(u32::MAX)) as u32 / 64 * 64;
-        let chunk = variant
-            .split
-            .min(most)
-            .min(jobs.next_multiple_of(64))
-            .max(64);
+        let chunk = split_chunk(variant, jobs, ctx.max_binding());
         let buffer = |label, bytes: u64| {
             ctx.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
