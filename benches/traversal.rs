@@ -3,9 +3,9 @@
 //! sixteen at a time as hybrid packets), the bounces' and the shadow rays' (one at a time, and
 //! sixteen at a time) — recorded once from the scene (default `builtin:city-small`, the peer
 //! benchmark's small city), a bounce at a time in pixel order as the renderer's batches trace
-//! them, and replayed `ROUNDS` times (default 9). The sixteen-ray rows are hybrid packets:
-//! sixteen rays where the processor has AVX-512, else two packets of eight (AVX2);
-//! `RAYGUN_CPU_PACKETS=0`, `8` or `16` chooses (the header says which ran). The "by octant" rows
+//! them, and replayed `ROUNDS` times (default 9). The sixteen-ray rows are hybrid packets, in
+//! AVX-512 lanes where the processor has them, else in pairs of AVX2 registers;
+//! `RAYGUN_CPU_PACKETS=0`, `avx2` or `avx512` chooses (the header says which). The "by octant" rows
 //! group each 256 rays by their direction's octant first, as the batches do past the camera (the
 //! recorded shadow rays are cosine-distributed about the normal, not aimed at a light). Without
 //! the shading around them, a change to the walk shows in a second with less of the noise of a

@@ -52,17 +52,17 @@ pub struct SceneBvh {
 
 /// A closest hit.
 /// How the CPU twin walks the rays of neighbouring paths ([`SceneBvh::closest_hits16`],
-/// [`SceneBvh::occluded16`]): each alone, or as Embree's hybrid packets of eight (AVX2) or
-/// sixteen (AVX-512) rays — the same hits to the bit. The widest the processor runs unless
+/// [`SceneBvh::occluded16`]): each alone, or sixteen at a time as Embree's hybrid packets, in
+/// AVX2 or AVX-512 lanes — the same hits to the bit. The fastest the processor runs unless
 /// `RAYGUN_CPU_PACKETS` says otherwise ([`CpuPackets::from_env`]), to compare them.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 pub enum CpuPackets {
     /// One ray at a time (`RAYGUN_CPU_PACKETS=0`).
     One,
-    /// Packets of eight in AVX2 lanes (`8`).
-    Eight,
-    /// Packets of sixteen in AVX-512 lanes (`16`).
-    Sixteen,
+    /// Packets of sixteen in pairs of AVX2 registers (`avx2`).
+    Avx2,
+    /// Packets of sixteen in AVX-512 lanes (`avx512`).
+    Avx512,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -275,10 +275,9 @@ impl SceneBvh {
     /// others get `None`): [`Self::closest_hit`]'s hits to the bit. Where the processor has
     /// AVX-512, the rays are walked together as long as more than seven of them enter a node,
     /// then each alone (Embree's hybrid traversal, `bvh/cpu/hybrid.rs`): for rays that start
-    /// near each other, such as a bounce's from neighbouring pixels; with AVX2 alone, as two
-    /// packets of eight (together while more than three enter a node). With
-    /// `RAYGUN_CPU_PACKETS=0` ([`CpuPackets`]), and for scenes with alpha-tested triangles, one
-    /// ray at a time.
+    /// near each other, such as a bounce's from neighbouring pixels; with AVX2 alone, the same
+    /// packets in pairs of AVX2 registers. With `RAYGUN_CPU_PACKETS=0` ([`CpuPackets`]), and for
+    /// scenes with alpha-tested triangles, one ray at a time.
     #[must_use]
     pub fn closest_hits16(
         &self,

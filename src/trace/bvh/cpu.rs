@@ -616,43 +616,43 @@ thread_local! {
 }
 
 impl CpuPackets {
-    /// The widest packets this processor and build run: sixteen rays where the processor has
-    /// AVX-512 F and DQ, else eight where the build targets AVX2 and FMA (every x86-64 build
-    /// by default), else one ray at a time.
+    /// The fastest walks this processor and build run: packets in AVX-512 where the processor
+    /// has AVX-512 F and DQ, else in AVX2 where the build targets AVX2 and FMA (every x86-64
+    /// build by default), else one ray at a time.
     #[must_use]
     pub fn widest() -> Self {
         #[cfg(target_arch = "x86_64")]
         if hybrid::available() {
-            return Self::Sixteen;
+            return Self::Avx512;
         }
         if cfg!(all(target_feature = "avx2", target_feature = "fma")) {
-            Self::Eight
+            Self::Avx2
         } else {
             Self::One
         }
     }
 
-    /// The walks `value` names: `0` one ray at a time, `8` packets of eight (AVX2), `16`
-    /// packets of sixteen (AVX-512); an error says why where this processor or build cannot.
+    /// The walks `value` names: `0` one ray at a time, `avx2` or `avx512` packets in those
+    /// lanes; an error says why where this processor or build cannot.
     pub fn parse(value: &str) -> Result<Self, String> {
         let want = match value.trim() {
             "0" => return Ok(Self::One),
-            "8" => Self::Eight,
-            "16" => Self::Sixteen,
+            "avx2" => Self::Avx2,
+            "avx512" => Self::Avx512,
             _ => {
                 return Err(
-                    "expected 0 (one ray at a time), 8 (packets of eight, AVX2) or 16 (packets \
-                     of sixteen, AVX-512)"
+                    "expected 0 (one ray at a time), avx2 or avx512 (packets of sixteen \
+                            rays in those lanes)"
                         .to_owned(),
                 );
             }
         };
         match (want, Self::widest()) {
-            (Self::Eight, Self::One) => {
-                Err("packets of eight need a build for AVX2 and FMA (.cargo/config.toml)".into())
+            (Self::Avx2, Self::One) => {
+                Err("AVX2 packets need a build for AVX2 and FMA (.cargo/config.toml)".into())
             }
-            (Self::Sixteen, Self::One | Self::Eight) => {
-                Err("packets of sixteen need a processor with AVX-512 F and DQ".into())
+            (Self::Avx512, Self::One | Self::Avx2) => {
+                Err("AVX-512 packets need a processor with AVX-512 F and DQ".into())
             }
             _ => Ok(want),
         }
@@ -700,8 +700,8 @@ impl CpuPackets {
     pub fn describe(self) -> &'static str {
         match self {
             Self::One => "rays one at a time",
-            Self::Eight => "rays in packets of 8 (AVX2)",
-            Self::Sixteen => "rays in packets of 16 (AVX-512)",
+            Self::Avx2 => "rays in packets of 16 (AVX2)",
+            Self::Avx512 => "rays in packets of 16 (AVX-512)",
         }
     }
 }
@@ -1118,9 +1118,8 @@ impl CpuTree {
 
     /// The closest hits of sixteen rays (`0 < t < ∞`) for the lanes set in `active` (the
     /// others get `None`): `closest_hit`'s hits to the bit. Walked as [`Self::packet_walks`]
-    /// says: one hybrid packet of sixteen (`hybrid.rs`: together while more than
-    /// [`hybrid::SWITCH`] rays enter a node, then one at a time), two of eight (AVX2, switching
-    /// at [`hybrid::SWITCH8`]), or one ray at a time.
+    /// says: a hybrid packet (`hybrid.rs`: together while more than [`hybrid::SWITCH`] rays
+    /// enter a node, then one at a time) in AVX-512 or AVX2 lanes, or one ray at a time.
     pub(super) fn closest_hits16(
         &self,
         origins: &[Vec3; 16],
@@ -1129,26 +1128,16 @@ impl CpuTree {
     ) -> [Option<TraceHit>; 16] {
         match self.packet_walks() {
             #[cfg(target_arch = "x86_64")]
-            // SAFETY: `packet_walks` takes sixteen only where the processor has AVX-512 F and
+            // SAFETY: `packet_walks` takes AVX-512 only where the processor has AVX-512 F and
             // DQ ([`CpuPackets::widest`]), and packets only for a tree with no alpha-tested
             // primitives and a stack bound within `INLINE_STACK`.
-            CpuPackets::Sixteen => unsafe { self.hybrid16(origins, dirs, active, hybrid::SWITCH) },
+            CpuPackets::Avx512 => unsafe { self.hybrid16(origins, dirs, active, hybrid::SWITCH) },
             #[cfg(all(
                 target_arch = "x86_64",
                 target_feature = "avx2",
                 target_feature = "fma"
             ))]
-            CpuPackets::Eight => {
-                let mut out = [None; 16];
-                for half in [0..8, 8..16] {
-                    let on = u32::from(active) >> half.start & 0xff;
-                    if on != 0 {
-                        let (o, d) = (&origins[half.clone()], &dirs[half.clone()]);
-                        self.hybrid8(o, d, on, hybrid::SWITCH8, &mut out[half]);
-                    }
-                }
-                out
-            }
+            CpuPackets::Avx2 => self.hybrid16_avx2(origins, dirs, active, hybrid::SWITCH),
             _ => self.closest_hits16_alone(origins, dirs, active),
         }
     }
@@ -1182,7 +1171,7 @@ impl CpuTree {
         match self.packet_walks() {
             #[cfg(target_arch = "x86_64")]
             // SAFETY: as in `closest_hits16`.
-            CpuPackets::Sixteen => unsafe {
+            CpuPackets::Avx512 => unsafe {
                 self.hybrid_occluded16(origins, dirs, tmax, active, hybrid::SWITCH)
             },
             #[cfg(all(
@@ -1190,19 +1179,8 @@ impl CpuTree {
                 target_feature = "avx2",
                 target_feature = "fma"
             ))]
-            CpuPackets::Eight => {
-                let mut blocked = 0;
-                for half in [0..8, 8..16] {
-                    let on = u32::from(active) >> half.start & 0xff;
-                    if on != 0 {
-                        let (o, d) = (&origins[half.clone()], &dirs[half.clone()]);
-                        let mut t = [0f32; 16];
-                        t[..8].copy_from_slice(&tmax[half.clone()]);
-                        let b = self.hybrid_occluded8(o, d, &t, on, hybrid::SWITCH8);
-                        blocked |= (b << half.start) as u16;
-                    }
-                }
-                blocked
+            CpuPackets::Avx2 => {
+                self.hybrid_occluded16_avx2(origins, dirs, tmax, active, hybrid::SWITCH)
             }
             _ => self.occluded16_alone(origins, dirs, tmax, active),
         }
@@ -1536,27 +1514,27 @@ mod tests {
     use super::super::tests::{brute, random_triangles, uniforms};
     use super::*;
 
-    /// `RAYGUN_CPU_PACKETS`' values: 0, 8 and 16 (with surrounding blanks) where this
-    /// processor runs them, sixteen refused without AVX-512, anything else refused with the
-    /// values it takes; the widest is sixteen exactly where the processor has AVX-512 F and DQ
-    /// (and eight in this AVX2 build otherwise); a test's own walks stay on its thread.
+    /// `RAYGUN_CPU_PACKETS`' values: 0, avx2 and avx512 (with surrounding blanks) where this
+    /// processor runs them, avx512 refused without AVX-512, anything else refused with the
+    /// values it takes; the fastest is AVX-512 exactly where the processor has AVX-512 F and DQ
+    /// (and AVX2 in this AVX2 build otherwise); a test's own walks stay on its thread.
     #[test]
     fn packet_widths_parse_and_are_checked_against_the_processor() {
-        let eight = cfg!(all(target_feature = "avx2", target_feature = "fma"));
+        let avx2 = cfg!(all(target_feature = "avx2", target_feature = "fma"));
         #[cfg(target_arch = "x86_64")]
-        let sixteen = hybrid::available();
+        let avx512 = hybrid::available();
         #[cfg(not(target_arch = "x86_64"))]
-        let sixteen = false;
+        let avx512 = false;
         assert_eq!(CpuPackets::parse("0"), Ok(CpuPackets::One));
-        assert_eq!(CpuPackets::parse(" 8\n").is_ok(), eight);
-        assert_eq!(CpuPackets::parse("16").is_ok(), sixteen);
-        let widest = match (sixteen, eight) {
-            (true, _) => CpuPackets::Sixteen,
-            (false, true) => CpuPackets::Eight,
+        assert_eq!(CpuPackets::parse(" avx2\n").is_ok(), avx2);
+        assert_eq!(CpuPackets::parse("avx512").is_ok(), avx512);
+        let widest = match (avx512, avx2) {
+            (true, _) => CpuPackets::Avx512,
+            (false, true) => CpuPackets::Avx2,
             _ => CpuPackets::One,
         };
         assert_eq!(CpuPackets::widest(), widest);
-        for bad in ["", "1", "32", "eight", "8,16", "-8"] {
+        for bad in ["", "1", "8", "16", "AVX2", "avx", "avx2,avx512"] {
             let e = CpuPackets::parse(bad).unwrap_err();
             assert!(e.contains("expected 0"), "{bad:?}: {e}");
         }

@@ -5,8 +5,8 @@
 //! against Mitsuba).
 //!
 //! A vertex of the batch: every live path's ray is traced (sixteen neighbouring paths' rays at
-//! a time as hybrid packets — one of sixteen where the processor has AVX-512, two of eight with
-//! AVX2, `bvh/cpu/hybrid.rs` — past the camera those of one direction octant together,
+//! a time as hybrid packets, in AVX-512 lanes where the processor has them, else in pairs of
+//! AVX2 registers, `bvh/cpu/hybrid.rs` — past the camera those of one direction octant together,
 //! [`by_octant`]; with `RAYGUN_CPU_PACKETS=0`, a pinhole's camera rays eight at a time, the
 //! others one at a time); the paths that leave the scene take the
 //! environment, one at a time as `trace_path` does; the others are shaded in
@@ -169,7 +169,7 @@ fn batches<const FULL: bool>(
                 }
             } else if packets {
                 // Sixteen neighbouring paths' rays at a time: they leave from nearby points
-                // (hybrid packets of sixteen or, with AVX2 alone, of eight); past the camera,
+                // (hybrid packets, in AVX-512 or AVX2 lanes); past the camera,
                 // those of one direction octant together (they cross the boxes' planes in one
                 // order).
                 let mut sorted = [0u8; BATCH];
@@ -910,8 +910,8 @@ mod tests {
             let n = width * height;
             let pixels: Vec<u32> = (0..n + 100).map(|i| (i * 7919) % n).collect();
             let samples: Vec<u32> = (0..n + 100).map(|i| i % 5).collect();
-            // Every walk this processor runs: one ray at a time, packets of eight, of sixteen.
-            let walks = [CpuPackets::One, CpuPackets::Eight, CpuPackets::Sixteen];
+            // Every walk this processor runs: one ray at a time, packets in AVX2, in AVX-512.
+            let walks = [CpuPackets::One, CpuPackets::Avx2, CpuPackets::Avx512];
             for walks in walks.into_iter().filter(|&w| w <= CpuPackets::widest()) {
                 let mut out = vec![None; pixels.len()];
                 walks.during(|| trace_batch(&sc, &s, None, &pixels, &samples, &mut out));

@@ -1,26 +1,26 @@
-//! Rays walked together while enough of them go the same way — sixteen in AVX-512 lanes, or
-//! eight in AVX2's: Embree's hybrid traversal (`BVHNIntersectorKHybrid<8, 16>`, the walk
-//! Mitsuba's `llvm_ad_rgb` takes on a processor with AVX-512; `<8, 8>` on one with AVX2), on
-//! the CPU tree, for closest hits and for shadow rays. The walks are written once over the
-//! lanes ([`lanes::Lanes`]).
+//! Sixteen rays walked together while enough of them go the same way, in AVX-512 lanes or in
+//! pairs of AVX2 registers: Embree's hybrid traversal (`BVHNIntersectorKHybrid<8, 16>`, the
+//! walk Mitsuba's `llvm_ad_rgb` takes on a processor with AVX-512), on the CPU tree, for
+//! closest hits and for shadow rays. The walks are written once over the lanes
+//! ([`lanes::Lanes`]).
 //!
 //! A node popped for the packet is tested against all its rays that still enter it, child by
-//! child, a ray per lane (one child's box against the packet's rays is one set of vector
-//! operations, where the one-ray walk spends one on a node's eight boxes for one ray); a leaf's
-//! triangles likewise, one triangle against the packet. Once a node is entered by [`SWITCH`]
-//! rays or fewer (sixteen lanes; [`SWITCH8`] of eight), each of them finishes the subtree
-//! alone with the one-ray walk ([`CpuTree::walk_closest`], [`CpuTree::walk_any`]), a closest
-//! hit from its closest hit so far. The results are the one-ray walks' to the bit: the same
-//! triangle arithmetic lane by lane (no fused operations: glam's cross and dot products, as
+//! child, a ray per lane (one child's box against sixteen rays is one set of vector
+//! operations, two in AVX2, where the one-ray walk spends one on a node's eight boxes for one
+//! ray); a leaf's triangles likewise, one triangle against sixteen rays. Once a node is entered
+//! by [`SWITCH`] rays or fewer, each of them finishes the subtree alone with the one-ray walk
+//! ([`CpuTree::walk_closest`], [`CpuTree::walk_any`]), a closest hit from its closest hit so
+//! far. The results are the one-ray walks' to the bit: the same triangle arithmetic lane by
+//! lane (no fused operations: glam's cross and dot products, as
 //! [`super::intersect_triangle_sided`] computes them), and the same rule for exact ties
 //! ([`super::nearer`]), which makes a closest hit independent of the order in which a walk
 //! meets the triangles.
 //!
 //! Where it pays: rays that start near each other — a bounce's or a shadow ray's from
 //! neighbouring pixels — share the top of the tree, which a packet visits once (BENCHMARKS.md).
-//! The sixteen-ray walks are compiled for AVX-512 F and DQ and run only where the processor has
-//! them ([`available`]); the eight-ray walks need only what the whole build targets (AVX2 and
-//! FMA). `CpuTree::packet_walks` says which a process takes.
+//! The AVX-512 walks are compiled for AVX-512 F and DQ and run only where the processor has
+//! them ([`available`]); the AVX2 walks need only what the whole build targets (AVX2 and FMA).
+//! `CpuTree::packet_walks` says which a process takes.
 
 use std::arch::x86_64::{_CMP_EQ_OQ, _CMP_GE_OQ, _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_NEQ_OQ};
 use std::mem::MaybeUninit;
@@ -28,21 +28,17 @@ use std::mem::MaybeUninit;
 use glam::Vec3;
 
 #[cfg(all(target_feature = "avx2", target_feature = "fma"))]
-use self::lanes::Avx2;
+use self::lanes::Avx2Pair;
 use self::lanes::{Avx512, Lanes};
 use super::{CpuNode, CpuTree, INLINE_STACK, NODE_EPSILON, NodeRay, PRIM_CULL, TraceHit};
 
 mod lanes;
 
-/// A node entered by this many of a sixteen-ray packet's rays or fewer is walked by each of
-/// them alone: below it, testing a child's box for the packet costs more than the rays' own
-/// walks. Embree's hybrid switches at 7 of 16 as well (10 measured the same here:
-/// BENCHMARKS.md).
+/// A node entered by this many of a packet's sixteen rays or fewer is walked by each of them
+/// alone: below it, testing a child's box for the packet costs more than the rays' own walks.
+/// Embree's hybrid switches at 7 of 16 as well (10 measured the same here, in AVX-512, and 5
+/// and 10 the same in AVX2: BENCHMARKS.md).
 pub(crate) const SWITCH: u32 = 7;
-
-/// [`SWITCH`] for the eight-ray packets of AVX2: 4 of 8 (2 and 3 measured slower on the small
-/// city's bounces, 5 and 6 the same: BENCHMARKS.md).
-pub(crate) const SWITCH8: u32 = 4;
 
 /// Whether this processor runs the sixteen-ray packets (AVX-512 F and DQ).
 pub(crate) fn available() -> bool {
@@ -243,21 +239,22 @@ impl CpuTree {
         out
     }
 
-    /// [`Self::hybrid16`] for eight rays in AVX2 lanes, on any processor this build runs on,
-    /// each hit into `out`. The tree must have no alpha-tested primitives and a stack bound
-    /// within [`INLINE_STACK`] (`CpuTree::packets`; checked in debug builds).
+    /// [`Self::hybrid16`] in pairs of AVX2 registers, on any processor this build runs on. The
+    /// tree must have no alpha-tested primitives and a stack bound within [`INLINE_STACK`]
+    /// (`CpuTree::packets`; checked in debug builds).
     #[cfg(all(target_feature = "avx2", target_feature = "fma"))]
-    #[inline(never)] // Its stack of packet entries stays out of `closest_hits16`'s frame.
-    pub(super) fn hybrid8(
+    pub(super) fn hybrid16_avx2(
         &self,
-        origins: &[Vec3],
-        dirs: &[Vec3],
-        active: u32,
+        origins: &[Vec3; 16],
+        dirs: &[Vec3; 16],
+        active: u16,
         switch: u32,
-        out: &mut [Option<TraceHit>],
-    ) {
+    ) -> [Option<TraceHit>; 16] {
         debug_assert!(!self.lanes.alpha && self.stack_size <= INLINE_STACK);
-        self.packet_closest(Avx2::new(), origins, dirs, active, switch, out);
+        let mut out = [None; 16];
+        let l = Avx2Pair::new();
+        self.packet_closest(l, origins, dirs, u32::from(active), switch, &mut out);
+        out
     }
 
     /// Whether something blocks each of sixteen shadow rays `origins[i] + t·dirs[i]`,
@@ -281,20 +278,19 @@ impl CpuTree {
         self.packet_occluded(l, origins, dirs, tmax, u32::from(active), switch) as u16
     }
 
-    /// [`Self::hybrid_occluded16`] for eight rays in AVX2 lanes (`tmax`: the first eight of
-    /// sixteen), as [`Self::hybrid8`].
+    /// [`Self::hybrid_occluded16`] in pairs of AVX2 registers, as [`Self::hybrid16_avx2`].
     #[cfg(all(target_feature = "avx2", target_feature = "fma"))]
-    #[inline(never)] // As `hybrid8`.
-    pub(super) fn hybrid_occluded8(
+    pub(super) fn hybrid_occluded16_avx2(
         &self,
-        origins: &[Vec3],
-        dirs: &[Vec3],
+        origins: &[Vec3; 16],
+        dirs: &[Vec3; 16],
         tmax: &[f32; 16],
-        active: u32,
+        active: u16,
         switch: u32,
-    ) -> u32 {
+    ) -> u16 {
         debug_assert!(!self.lanes.alpha && self.stack_size <= INLINE_STACK);
-        self.packet_occluded(Avx2::new(), origins, dirs, tmax, active, switch)
+        let l = Avx2Pair::new();
+        self.packet_occluded(l, origins, dirs, tmax, u32::from(active), switch) as u16
     }
 
     /// The hybrid walk for closest hits in `L`'s lanes: each of the `L::WIDTH` rays' hit into
@@ -615,9 +611,8 @@ mod tests {
     /// stays whole down to the leaves), from nearby points in all directions (a bounce's) and
     /// from everywhere, with lanes switched off; single-sided triangles seen from both sides;
     /// triangles given twice, every hit on them an exact tie, which the higher one wins. The
-    /// packets of eight (two to the sixteen rays) with the same three switches and through the
-    /// public walk; the sixteen-ray packets where the processor has AVX-512; the one-ray
-    /// fallback everywhere.
+    /// AVX2 packets directly and through the public walk, the AVX-512 ones where the processor
+    /// has AVX-512, the one-ray fallback everywhere.
     #[test]
     fn packets_find_each_rays_hit() {
         let mut tris = random_triangles(1500, 5);
@@ -668,17 +663,11 @@ mod tests {
                 }
             }
             #[cfg(all(target_feature = "avx2", target_feature = "fma"))]
-            got.push(CpuPackets::Eight.during(|| bvh.closest_hits16(&origins, &dirs, active)));
-            #[cfg(all(target_feature = "avx2", target_feature = "fma"))]
-            for switch in [0, SWITCH8, 8] {
-                // The sixteen rays as two packets of eight.
-                let mut out = [None; 16];
-                for half in [0..8, 8..16] {
-                    let on = u32::from(active) >> half.start & 0xff;
-                    let (o, d) = (&origins[half.clone()], &dirs[half.clone()]);
-                    tree.hybrid8(o, d, on, switch, &mut out[half]);
+            {
+                got.push(CpuPackets::Avx2.during(|| bvh.closest_hits16(&origins, &dirs, active)));
+                for switch in [0, SWITCH, 16] {
+                    got.push(tree.hybrid16_avx2(&origins, &dirs, active, switch));
                 }
-                got.push(out);
             }
             for (which, got) in got.iter().enumerate() {
                 for i in 0..16 {
@@ -703,8 +692,8 @@ mod tests {
         assert!(hits > 2000 && ties > 300, "{hits} hits, {ties} ties");
     }
 
-    /// The shadow-ray packets of sixteen and of eight (and their one-ray fallback) answer as the
-    /// one-ray walk does, with the switch never, at [`SWITCH`] (or [`SWITCH8`]) and always: rays
+    /// The shadow-ray packets in AVX-512 and in AVX2 (and their one-ray fallback) answer as the
+    /// one-ray walk does, with the switch never, at [`SWITCH`] and always: rays
     /// from one point, from nearby points and from everywhere, each with its own length —
     /// unbounded, ending just before its closest hit (not blocked, unless another triangle is
     /// nearer), exactly there (not blocked by it: `t < tmax`), just beyond it, or far short —
@@ -765,20 +754,14 @@ mod tests {
                 }
             }
             #[cfg(all(target_feature = "avx2", target_feature = "fma"))]
-            got.push(CpuPackets::Eight.during(|| bvh.occluded16(&origins, &dirs, &tmax, active)));
-            #[cfg(all(target_feature = "avx2", target_feature = "fma"))]
-            for switch in [0, SWITCH8, 8] {
-                // The sixteen rays as two packets of eight.
-                let mut blocked = 0u16;
-                for half in [0..8, 8..16] {
-                    let on = u32::from(active) >> half.start & 0xff;
-                    let (o, d) = (&origins[half.clone()], &dirs[half.clone()]);
-                    let mut t = [0f32; 16];
-                    t[..8].copy_from_slice(&tmax[half.clone()]);
-                    let b = bvh.cpu().hybrid_occluded8(o, d, &t, on, switch);
-                    blocked |= (b << half.start) as u16;
+            {
+                got.push(
+                    CpuPackets::Avx2.during(|| bvh.occluded16(&origins, &dirs, &tmax, active)),
+                );
+                for switch in [0, SWITCH, 16] {
+                    let tree = bvh.cpu();
+                    got.push(tree.hybrid_occluded16_avx2(&origins, &dirs, &tmax, active, switch));
                 }
-                got.push(blocked);
             }
             for (which, got) in got.iter().enumerate() {
                 assert_eq!(

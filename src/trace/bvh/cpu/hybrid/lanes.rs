@@ -1,11 +1,13 @@
 //! The vector lanes a hybrid packet walks in ([`Lanes`]): sixteen rays in AVX-512 with mask
-//! registers ([`Avx512`]), or eight in AVX2 with masks held as all-ones lanes ([`Avx2`]). The
-//! walks in `hybrid.rs` are written once over the trait; each implementation is the same
-//! IEEE operation lane by lane (a `maxps` / `minps` for [`Lanes::max`] / [`Lanes::min`], one
-//! rounding for [`Lanes::fmsub`]), so both widths find the one-ray walks' hits to the bit.
+//! registers ([`Avx512`]), or in pairs of AVX2 registers ([`Avx2Pair`], over the eight lanes
+//! of [`Avx2`], with masks held as all-ones lanes). The walks in `hybrid.rs` are written once
+//! over the trait; each implementation is the same IEEE operation lane by lane (a `maxps` /
+//! `minps` for [`Lanes::max`] / [`Lanes::min`], one rounding for [`Lanes::fmsub`]), so every
+//! width finds the one-ray walks' hits to the bit.
 //!
 //! A value of a `Lanes` type is the proof that the processor has its instructions: [`Avx512`]
-//! is made only by an `unsafe` promise, [`Avx2`] only in a build that targets AVX2 and FMA.
+//! is made only by an `unsafe` promise, [`Avx2`] and [`Avx2Pair`] only in a build that targets
+//! AVX2 and FMA.
 //! The methods are `#[inline(always)]` so that they compile into the walks, which the caller
 //! compiles for those instructions.
 
@@ -63,7 +65,7 @@ pub(super) trait Lanes: Copy {
     fn xor(self, a: Self::F, b: Self::F) -> Self::F;
 
     /// The lanes where `a` and `b` compare as predicate `P` says (`_CMP_*`: the same
-    /// predicates for both widths).
+    /// predicates for every lane type).
     fn cmp<const P: i32>(self, a: Self::F, b: Self::F) -> Self::M;
     fn eq_i(self, a: Self::I, b: Self::I) -> Self::M;
     /// `a > b` as unsigned integers.
@@ -419,13 +421,190 @@ impl Lanes for Avx2 {
     }
 }
 
+/// Sixteen lanes as two AVX2 registers each: the sixteen-ray walks on a processor without
+/// AVX-512 (every operation twice; masks as all-ones lanes). Measured against two packets of
+/// eight: ×0.97 a whole render's time (BENCHMARKS.md) — the packet's decisions are made once
+/// for sixteen rays, though its rays no longer fit the sixteen registers.
+#[cfg(all(target_feature = "avx2", target_feature = "fma"))]
+#[derive(Clone, Copy)]
+pub(super) struct Avx2Pair(Avx2);
+
+#[cfg(all(target_feature = "avx2", target_feature = "fma"))]
+impl Avx2Pair {
+    #[inline(always)]
+    pub(super) fn new() -> Self {
+        Self(Avx2::new())
+    }
+}
+
+/// An [`Avx2`] operation on both halves.
+#[cfg(all(target_feature = "avx2", target_feature = "fma"))]
+macro_rules! both {
+    ($l:expr, $op:ident, $($a:expr),+) => {
+        [$l.$op($($a[0]),+), $l.$op($($a[1]),+)]
+    };
+}
+
+#[cfg(all(target_feature = "avx2", target_feature = "fma"))]
+impl Lanes for Avx2Pair {
+    const WIDTH: usize = 16;
+    type F = [__m256; 2];
+    type I = [__m256i; 2];
+    type M = [__m256; 2];
+
+    #[inline(always)]
+    fn splat(self, x: f32) -> Self::F {
+        let v = self.0.splat(x);
+        [v, v]
+    }
+    #[inline(always)]
+    fn splat_i(self, x: u32) -> Self::I {
+        let v = self.0.splat_i(x);
+        [v, v]
+    }
+    #[inline(always)]
+    fn load(self, x: &[f32; 16]) -> Self::F {
+        let p = x.as_ptr();
+        avx2!([_mm256_loadu_ps(p), _mm256_loadu_ps(p.add(8))])
+    }
+    #[inline(always)]
+    fn store(self, v: Self::F, out: &mut [f32; 16]) {
+        let p = out.as_mut_ptr();
+        avx2!({
+            _mm256_storeu_ps(p, v[0]);
+            _mm256_storeu_ps(p.add(8), v[1]);
+        })
+    }
+    #[inline(always)]
+    fn load_i(self, x: &[u32; 16]) -> Self::I {
+        let p = x.as_ptr();
+        avx2!([
+            _mm256_loadu_si256(p.cast()),
+            _mm256_loadu_si256(p.add(8).cast())
+        ])
+    }
+    #[inline(always)]
+    fn store_i(self, v: Self::I, out: &mut [u32; 16]) {
+        let p = out.as_mut_ptr();
+        avx2!({
+            _mm256_storeu_si256(p.cast(), v[0]);
+            _mm256_storeu_si256(p.add(8).cast(), v[1]);
+        })
+    }
+    #[inline(always)]
+    fn add(self, a: Self::F, b: Self::F) -> Self::F {
+        both!(self.0, add, a, b)
+    }
+    #[inline(always)]
+    fn sub(self, a: Self::F, b: Self::F) -> Self::F {
+        both!(self.0, sub, a, b)
+    }
+    #[inline(always)]
+    fn mul(self, a: Self::F, b: Self::F) -> Self::F {
+        both!(self.0, mul, a, b)
+    }
+    #[inline(always)]
+    fn div(self, a: Self::F, b: Self::F) -> Self::F {
+        both!(self.0, div, a, b)
+    }
+    #[inline(always)]
+    fn fmsub(self, a: Self::F, b: Self::F, c: Self::F) -> Self::F {
+        both!(self.0, fmsub, a, b, c)
+    }
+    #[inline(always)]
+    fn max(self, a: Self::F, b: Self::F) -> Self::F {
+        both!(self.0, max, a, b)
+    }
+    #[inline(always)]
+    fn min(self, a: Self::F, b: Self::F) -> Self::F {
+        both!(self.0, min, a, b)
+    }
+    #[inline(always)]
+    fn abs(self, a: Self::F) -> Self::F {
+        both!(self.0, abs, a)
+    }
+    #[inline(always)]
+    fn and(self, a: Self::F, b: Self::F) -> Self::F {
+        both!(self.0, and, a, b)
+    }
+    #[inline(always)]
+    fn or(self, a: Self::F, b: Self::F) -> Self::F {
+        both!(self.0, or, a, b)
+    }
+    #[inline(always)]
+    fn xor(self, a: Self::F, b: Self::F) -> Self::F {
+        both!(self.0, xor, a, b)
+    }
+    #[inline(always)]
+    fn cmp<const P: i32>(self, a: Self::F, b: Self::F) -> Self::M {
+        [self.0.cmp::<P>(a[0], b[0]), self.0.cmp::<P>(a[1], b[1])]
+    }
+    #[inline(always)]
+    fn eq_i(self, a: Self::I, b: Self::I) -> Self::M {
+        both!(self.0, eq_i, a, b)
+    }
+    #[inline(always)]
+    fn gt_u(self, a: Self::I, b: Self::I) -> Self::M {
+        both!(self.0, gt_u, a, b)
+    }
+    #[inline(always)]
+    fn add_i(self, a: Self::I, b: Self::I) -> Self::I {
+        both!(self.0, add_i, a, b)
+    }
+    #[inline(always)]
+    fn as_i(self, v: Self::F) -> Self::I {
+        both!(self.0, as_i, v)
+    }
+    #[inline(always)]
+    fn as_f(self, v: Self::I) -> Self::F {
+        both!(self.0, as_f, v)
+    }
+    #[inline(always)]
+    fn and_m(self, a: Self::M, b: Self::M) -> Self::M {
+        both!(self.0, and_m, a, b)
+    }
+    #[inline(always)]
+    fn or_m(self, a: Self::M, b: Self::M) -> Self::M {
+        both!(self.0, or_m, a, b)
+    }
+    #[inline(always)]
+    fn andnot_m(self, a: Self::M, b: Self::M) -> Self::M {
+        both!(self.0, andnot_m, a, b)
+    }
+    #[inline(always)]
+    fn bits(self, m: Self::M) -> u32 {
+        self.0.bits(m[0]) | self.0.bits(m[1]) << 8
+    }
+    #[inline(always)]
+    fn mask(self, bits: u32) -> Self::M {
+        [self.0.mask(bits & 0xff), self.0.mask(bits >> 8 & 0xff)]
+    }
+    #[inline(always)]
+    fn blend(self, m: Self::M, a: Self::F, b: Self::F) -> Self::F {
+        both!(self.0, blend, m, a, b)
+    }
+    #[inline(always)]
+    fn blend_i(self, m: Self::M, a: Self::I, b: Self::I) -> Self::I {
+        both!(self.0, blend_i, m, a, b)
+    }
+    #[inline(always)]
+    fn reduce_min(self, bits: u32, v: Self::F) -> f32 {
+        let inf = self.0.splat(f32::INFINITY);
+        let m = self.mask(bits);
+        let lo = self.0.blend(m[0], inf, v[0]);
+        let hi = self.0.blend(m[1], inf, v[1]);
+        self.0.reduce_min(0xff, self.0.min(lo, hi))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    /// Each operation of both widths, lane by lane, against the scalar operation it stands
-    /// for, on values that include ±0, ±∞, NaN, subnormals and the ends of the integers; masks
-    /// through `bits` and `mask` both ways.
+    /// Each operation of every lane type (eight AVX2 lanes, sixteen in AVX2 pairs, sixteen in
+    /// AVX-512), lane by lane, against the scalar operation it stands for, on values that
+    /// include ±0, ±∞, NaN, subnormals and the ends of the integers; masks through `bits` and
+    /// `mask` both ways.
     #[test]
     fn lanes_are_the_scalar_operations() {
         let specials = [
@@ -469,6 +648,8 @@ mod tests {
             let bits = next() & 0xffff;
             #[cfg(all(target_feature = "avx2", target_feature = "fma"))]
             check(Avx2::new(), &a, &b, &c, &ia, &ib, bits & 0xff, round);
+            #[cfg(all(target_feature = "avx2", target_feature = "fma"))]
+            check(Avx2Pair::new(), &a, &b, &c, &ia, &ib, bits, round);
             if super::super::available() {
                 // SAFETY: the processor has AVX-512 F and DQ (`available`).
                 check(
