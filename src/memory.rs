@@ -139,16 +139,16 @@ impl Budget {
         variant: crate::gpu::variant::TraceVariant,
         max_binding: u64,
     ) -> Self {
-        let full_frames = matches!(work, Work::FullFrame { gpu: true });
+        if !matches!(work, Work::FullFrame { gpu: true }) || variant.split == 0 {
+            return self;
+        }
         let [w, h] = self.size;
         let bands = crate::gpu::Band::split(w, h, 16, max_binding).unwrap_or_default();
-        let split: u64 = bands
+        let split = bands
             .iter()
             .map(|b| crate::trace::gpu::split_bytes(variant, w, b.rows, max_binding))
             .sum();
-        if full_frames && split > 0 {
-            self.device.push(("trace split paths", split));
-        }
+        self.device.push(("trace split paths", split));
         self
     }
 

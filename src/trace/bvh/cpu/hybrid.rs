@@ -54,17 +54,17 @@ struct Rays<L: Lanes> {
     oi: [L::F; 3],
     /// The lanes whose direction is negative on the axis (their near plane is the max).
     neg: [L::M; 3],
-    /// `inv` and `oi` by lane, for a ray's walk alone ([`Self::alone`]).
+    /// `inv` and `oi` by lane, for a ray's walk alone ([`alone`]).
     each: [[f32; 16]; 6],
 }
 
 impl<L: Lanes> Rays<L> {
-    /// The rays `origins[i] + t·dirs[i]`, `L::WIDTH` of them.
+    /// The rays `origins[i] + t·dirs[i]`, in lanes of sixteen.
     #[inline(always)]
-    fn new(l: L, origins: &[Vec3], dirs: &[Vec3]) -> Self {
-        debug_assert!(origins.len() == L::WIDTH && dirs.len() == L::WIDTH);
+    fn new(l: L, origins: &[Vec3; 16], dirs: &[Vec3; 16]) -> Self {
+        const { assert!(L::WIDTH == 16, "the walks take sixteen rays") };
         let mut rows = [[0f32; 16]; 6];
-        for i in 0..L::WIDTH {
+        for i in 0..16 {
             for axis in 0..3 {
                 rows[axis][i] = origins[i][axis];
                 rows[3 + axis][i] = dirs[i][axis];
@@ -101,12 +101,6 @@ impl<L: Lanes> Rays<L> {
             neg: [negative(inv[0]), negative(inv[1]), negative(inv[2])],
             each,
         }
-    }
-
-    /// Ray `i`'s [`NodeRay`] (the same numbers), for its walk alone.
-    #[inline(always)]
-    fn alone(&self, i: usize) -> NodeRay {
-        alone(&self.each, i)
     }
 
     /// Every slot's box of `node` against the rays `rays` (no branch between them, so that the
@@ -232,11 +226,9 @@ impl CpuTree {
         active: u16,
         switch: u32,
     ) -> [Option<TraceHit>; 16] {
-        let mut out = [None; 16];
         // SAFETY: the caller's promise.
         let l = unsafe { Avx512::assume() };
-        self.packet_closest(l, origins, dirs, u32::from(active), switch, &mut out);
-        out
+        self.packet_closest(l, origins, dirs, u32::from(active), switch)
     }
 
     /// [`Self::hybrid16`] in pairs of AVX2 registers, on any processor this build runs on. The
@@ -251,10 +243,7 @@ impl CpuTree {
         switch: u32,
     ) -> [Option<TraceHit>; 16] {
         debug_assert!(!self.lanes.alpha && self.stack_size <= INLINE_STACK);
-        let mut out = [None; 16];
-        let l = Avx2Pair::new();
-        self.packet_closest(l, origins, dirs, u32::from(active), switch, &mut out);
-        out
+        self.packet_closest(Avx2Pair::new(), origins, dirs, u32::from(active), switch)
     }
 
     /// Whether something blocks each of sixteen shadow rays `origins[i] + t·dirs[i]`,
@@ -293,18 +282,16 @@ impl CpuTree {
         self.packet_occluded(l, origins, dirs, tmax, u32::from(active), switch) as u16
     }
 
-    /// The hybrid walk for closest hits in `L`'s lanes: each of the `L::WIDTH` rays' hit into
-    /// `out`.
+    /// The hybrid walk for closest hits in `L`'s lanes: each ray's hit.
     #[inline(always)]
     fn packet_closest<L: Lanes>(
         &self,
         l: L,
-        origins: &[Vec3],
-        dirs: &[Vec3],
+        origins: &[Vec3; 16],
+        dirs: &[Vec3; 16],
         active: u32,
         switch: u32,
-        out: &mut [Option<TraceHit>],
-    ) {
+    ) -> [Option<TraceHit>; 16] {
         let r = Rays::new(l, origins, dirs);
         let mut best = Closest::<L> {
             t: l.splat(f32::INFINITY),
@@ -372,15 +359,15 @@ impl CpuTree {
             }
         }
         let found = best.lanes(l);
-        for (i, out) in out.iter_mut().enumerate().take(L::WIDTH) {
-            *out = (active & (1 << i) != 0 && found.prim[i] != u32::MAX).then(|| TraceHit {
+        std::array::from_fn(|i| {
+            (active & (1 << i) != 0 && found.prim[i] != u32::MAX).then(|| TraceHit {
                 t: found.t[i],
                 u: found.u[i],
                 v: found.v[i],
                 triangle: found.tri[i],
                 prim: found.prim[i],
-            });
-        }
+            })
+        })
     }
 
     /// The hybrid walk for shadow rays in `L`'s lanes: a bit set per blocked ray.
@@ -388,8 +375,8 @@ impl CpuTree {
     fn packet_occluded<L: Lanes>(
         &self,
         l: L,
-        origins: &[Vec3],
-        dirs: &[Vec3],
+        origins: &[Vec3; 16],
+        dirs: &[Vec3; 16],
         tmax: &[f32; 16],
         active: u32,
         switch: u32,
@@ -414,7 +401,14 @@ impl CpuTree {
                     let i = m.trailing_zeros() as usize;
                     m &= m - 1;
                     let (o, d) = (origins[i], dirs[i]);
-                    if self.walk_any(index as usize, &r.alone(i), o, d, tmax[i], &|_, _, _| true) {
+                    if self.walk_any(
+                        index as usize,
+                        &alone(&r.each, i),
+                        o,
+                        d,
+                        tmax[i],
+                        &|_, _, _| true,
+                    ) {
                         blocked |= 1 << i;
                     }
                 }
@@ -467,8 +461,8 @@ impl CpuTree {
         node: usize,
         rays: u32,
         each: &[[f32; 16]; 6],
-        origins: &[Vec3],
-        dirs: &[Vec3],
+        origins: &[Vec3; 16],
+        dirs: &[Vec3; 16],
     ) {
         let mut m = rays;
         while m != 0 {

@@ -269,6 +269,19 @@ macro_rules! avx2 {
 }
 
 #[cfg(all(target_feature = "avx2", target_feature = "fma"))]
+impl Avx2 {
+    /// The least of all eight lanes (none NaN).
+    #[inline(always)]
+    fn min_of(self, v: __m256) -> f32 {
+        avx2!({
+            let m = _mm_min_ps(_mm256_castps256_ps128(v), _mm256_extractf128_ps::<1>(v));
+            let m = _mm_min_ps(m, _mm_movehl_ps(m, m));
+            _mm_cvtss_f32(_mm_min_ss(m, _mm_shuffle_ps::<1>(m, m)))
+        })
+    }
+}
+
+#[cfg(all(target_feature = "avx2", target_feature = "fma"))]
 impl Lanes for Avx2 {
     const WIDTH: usize = 8;
     type F = __m256;
@@ -412,12 +425,7 @@ impl Lanes for Avx2 {
     }
     #[inline(always)]
     fn reduce_min(self, bits: u32, v: __m256) -> f32 {
-        avx2!({
-            let v = _mm256_blendv_ps(_mm256_set1_ps(f32::INFINITY), v, self.mask(bits));
-            let m = _mm_min_ps(_mm256_castps256_ps128(v), _mm256_extractf128_ps::<1>(v));
-            let m = _mm_min_ps(m, _mm_movehl_ps(m, m));
-            _mm_cvtss_f32(_mm_min_ss(m, _mm_shuffle_ps::<1>(m, m)))
-        })
+        self.min_of(self.blend(self.mask(bits), self.splat(f32::INFINITY), v))
     }
 }
 
@@ -593,7 +601,7 @@ impl Lanes for Avx2Pair {
         let m = self.mask(bits);
         let lo = self.0.blend(m[0], inf, v[0]);
         let hi = self.0.blend(m[1], inf, v[1]);
-        self.0.reduce_min(0xff, self.0.min(lo, hi))
+        self.0.min_of(self.0.min(lo, hi))
     }
 }
 
