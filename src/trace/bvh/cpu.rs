@@ -21,9 +21,6 @@
 use std::mem::MaybeUninit;
 use std::time::Duration;
 
-#[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
-use std::arch::x86_64::__m256;
-
 use glam::Vec3;
 use obvhs::{BvhBuildParams, bvh2::Bvh2, triangle::Triangle as ObvhsTriangle};
 use wide::{f32x8, u32x8};
@@ -648,6 +645,11 @@ impl CpuPackets {
             }
         };
         match (want, Self::widest()) {
+            _ if !cfg!(target_arch = "x86_64") => Err(format!(
+                "packets of sixteen rays are walked in x86-64 lanes; this build is for {}: \
+                 use 0",
+                std::env::consts::ARCH
+            )),
             (Self::Avx2, Self::One) => {
                 Err("AVX2 packets need a build for AVX2 and FMA (.cargo/config.toml)".into())
             }
@@ -742,84 +744,65 @@ fn sort_farthest_first(entries: &mut [u64]) {
         entries[j] = e;
     }
 }
-#[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
 impl PrimLanes {
+    /// Lanes `first..first + 8` of array `k < ARRAYS`, where `first + 8 ≤ stride` (which
+    /// [`Self::meets8`] asserts once for its thirteen loads).
+    #[inline(always)]
+    fn load(&self, k: usize, first: usize) -> f32x8 {
+        debug_assert!(k < ARRAYS && first + 8 <= self.stride);
+        // SAFETY: `data[k·stride + first .. k·stride + first + 8]` lies inside array k
+        // (`first + 8 ≤ stride`) and so inside `data` (`ARRAYS · stride` long, k < `ARRAYS`);
+        // an unaligned read of eight `f32`s. Unchecked because the thirteen bounds checks cost
+        // ×1.03 on the small city's whole render (BENCHMARKS.md).
+        unsafe {
+            let at = self.data.as_ptr().add(k * self.stride + first);
+            f32x8::new(at.cast::<[f32; 8]>().read_unaligned())
+        }
+    }
+
     /// [`intersect_triangle_sided`]'s first decision on the eight primitives `first..first +
     /// 8` at once, the same operations in the same order per lane (no FMA: glam's cross and
     /// dot products, so each lane's numbers are the scalar test's to the bit): the mask of the
     /// lanes whose triangle the ray's line meets in front of the origin, and per lane den,
     /// e2·r, e1·r and c·n, from which t, u, v follow ([`Self::test8`]). No division: the
-    /// decision is made on the numerators.
+    /// decision is made on the numerators. One AVX instruction an operation on x86-64, two
+    /// NEON ones on AArch64 (`wide`); why it pays: BENCHMARKS.md (the per-triangle test was
+    /// the largest part of traversal).
     #[inline(always)]
-    fn meets8(&self, first: usize, o: Vec3, d: Vec3) -> (u32, [__m256; 4]) {
-        use std::arch::x86_64::{
-            _CMP_GE_OQ, _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_NEQ_OQ, _mm256_add_ps,
-            _mm256_and_ps, _mm256_andnot_ps, _mm256_cmp_ps, _mm256_loadu_ps, _mm256_movemask_ps,
-            _mm256_mul_ps, _mm256_set1_ps, _mm256_setzero_ps, _mm256_sub_ps, _mm256_xor_ps,
-        };
+    fn meets8(&self, first: usize, o: Vec3, d: Vec3) -> (u32, [f32x8; 4]) {
         assert!(first + 8 <= self.stride, "lanes past the padding");
-        // SAFETY: AVX and AVX2 are enabled for the whole build (the `cfg`); the loads read
-        // `data[k·stride + first .. k·stride + first + 8]`, inside array k (`first + 8 ≤
-        // stride`, asserted above) and so inside `data` (`ARRAYS · stride` long, k <
-        // `ARRAYS`). Why it pays: BENCHMARKS.md (the per-triangle test was the largest part
-        // of traversal).
-        unsafe {
-            let ld = |k: usize| _mm256_loadu_ps(self.data.as_ptr().add(k * self.stride + first));
-            let mul = |a: __m256, b: __m256| _mm256_mul_ps(a, b);
-            let sub = |a: __m256, b: __m256| _mm256_sub_ps(a, b);
-            let add = |a: __m256, b: __m256| _mm256_add_ps(a, b);
-            // glam's dot: (x·x' + y·y') + z·z'
-            let dot = |a: [__m256; 3], b: [__m256; 3]| {
-                add(add(mul(a[0], b[0]), mul(a[1], b[1])), mul(a[2], b[2]))
-            };
-            let zero = _mm256_setzero_ps();
-            let sign = _mm256_set1_ps(-0.0);
-            let d = [
-                _mm256_set1_ps(d.x),
-                _mm256_set1_ps(d.y),
-                _mm256_set1_ps(d.z),
-            ];
-            let c = [
-                sub(ld(0), _mm256_set1_ps(o.x)),
-                sub(ld(1), _mm256_set1_ps(o.y)),
-                sub(ld(2), _mm256_set1_ps(o.z)),
-            ];
-            let n = [ld(10), ld(11), ld(12)];
-            // r = c × d (glam's cross: y·z' − y'·z, z·x' − z'·x, x·y' − x'·y)
-            let r = [
-                sub(mul(c[1], d[2]), mul(d[1], c[2])),
-                sub(mul(c[2], d[0]), mul(d[2], c[0])),
-                sub(mul(c[0], d[1]), mul(d[0], c[1])),
-            ];
-            let den = dot(n, d);
-            let a = dot([ld(6), ld(7), ld(8)], r);
-            let b = dot([ld(3), ld(4), ld(5)], r);
-            let tn = dot(c, n);
-            let den_sign = _mm256_and_ps(den, sign);
-            let abs_den = _mm256_andnot_ps(sign, den);
-            let us = _mm256_xor_ps(a, den_sign);
-            let vs = _mm256_xor_ps(b, _mm256_xor_ps(den_sign, sign));
-            let ts = _mm256_xor_ps(tn, den_sign);
-            let finite = _mm256_cmp_ps::<_CMP_LT_OQ>(abs_den, _mm256_set1_ps(f32::INFINITY));
-            let nonzero = _mm256_cmp_ps::<_CMP_NEQ_OQ>(den, zero);
-            let culled = _mm256_and_ps(
-                _mm256_cmp_ps::<_CMP_NEQ_OQ>(ld(9), zero),
-                _mm256_cmp_ps::<_CMP_GT_OQ>(den, zero),
-            );
-            let ok = _mm256_andnot_ps(culled, _mm256_and_ps(finite, nonzero));
-            let inside = _mm256_and_ps(
-                _mm256_and_ps(
-                    _mm256_cmp_ps::<_CMP_GE_OQ>(us, zero),
-                    _mm256_cmp_ps::<_CMP_GE_OQ>(vs, zero),
-                ),
-                _mm256_and_ps(
-                    _mm256_cmp_ps::<_CMP_LE_OQ>(add(us, vs), abs_den),
-                    _mm256_cmp_ps::<_CMP_GT_OQ>(ts, zero),
-                ),
-            );
-            let mask = _mm256_movemask_ps(_mm256_and_ps(ok, inside)) as u32;
-            (mask, [den, a, b, tn])
-        }
+        let ld = |k: usize| self.load(k, first);
+        // glam's dot: (x·x' + y·y') + z·z'
+        let dot = |a: [f32x8; 3], b: [f32x8; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+        let zero = f32x8::ZERO;
+        let sign = f32x8::splat(-0.0);
+        let d = [d.x, d.y, d.z].map(f32x8::splat);
+        let c = [ld(0) - o.x, ld(1) - o.y, ld(2) - o.z];
+        let n = [ld(10), ld(11), ld(12)];
+        // r = c × d (glam's cross: y·z' − y'·z, z·x' − z'·x, x·y' − x'·y)
+        let r = [
+            c[1] * d[2] - d[1] * c[2],
+            c[2] * d[0] - d[2] * c[0],
+            c[0] * d[1] - d[0] * c[1],
+        ];
+        let den = dot(n, d);
+        let a = dot([ld(6), ld(7), ld(8)], r);
+        let b = dot([ld(3), ld(4), ld(5)], r);
+        let tn = dot(c, n);
+        let den_sign = den & sign;
+        let abs_den = den.abs();
+        let us = a ^ den_sign;
+        let vs = b ^ den_sign ^ sign;
+        let ts = tn ^ den_sign;
+        // Ordered comparisons: a NaN lane is never met (`finite` is false for a NaN `den`,
+        // so `nonzero`'s unordered `!=` cannot let one through).
+        let finite = abs_den.simd_lt(f32x8::splat(f32::INFINITY));
+        let nonzero = den.simd_ne(zero);
+        let culled = ld(9).simd_ne(zero) & den.simd_gt(zero);
+        let ok = finite & nonzero & !culled;
+        let inside =
+            us.simd_ge(zero) & vs.simd_ge(zero) & (us + vs).simd_le(abs_den) & ts.simd_gt(zero);
+        ((ok & inside).to_bitmask(), [den, a, b, tn])
     }
 
     /// [`intersect_triangle_sided`] on the eight primitives `first..first + 8` at once (to
@@ -834,31 +817,20 @@ impl PrimLanes {
         d: Vec3,
         tmax: f32,
     ) -> (u32, [f32; 8], [f32; 8], [f32; 8]) {
-        use std::arch::x86_64::{
-            _CMP_GT_OQ, _CMP_LT_OQ, _mm256_and_ps, _mm256_cmp_ps, _mm256_div_ps,
-            _mm256_movemask_ps, _mm256_mul_ps, _mm256_set1_ps, _mm256_setzero_ps, _mm256_storeu_ps,
-            _mm256_xor_ps,
-        };
         let (met, [den, a, b, tn]) = self.meets8(first, o, d);
-        let (mut tt, mut uu, mut vv) = ([0f32; 8], [0f32; 8], [0f32; 8]);
         if met == 0 {
-            return (0, tt, uu, vv);
+            return (0, [0.0; 8], [0.0; 8], [0.0; 8]);
         }
-        // SAFETY: AVX is enabled for the whole build (the `cfg`); the stores write the three
-        // local arrays of 8.
-        let below = unsafe {
-            let inv = _mm256_div_ps(_mm256_set1_ps(1.0), den);
-            let t = _mm256_mul_ps(tn, inv);
-            _mm256_storeu_ps(tt.as_mut_ptr(), t);
-            _mm256_storeu_ps(uu.as_mut_ptr(), _mm256_mul_ps(a, inv));
-            let v = _mm256_xor_ps(_mm256_mul_ps(b, inv), _mm256_set1_ps(-0.0));
-            _mm256_storeu_ps(vv.as_mut_ptr(), v);
-            _mm256_movemask_ps(_mm256_and_ps(
-                _mm256_cmp_ps::<_CMP_GT_OQ>(t, _mm256_setzero_ps()),
-                _mm256_cmp_ps::<_CMP_LT_OQ>(t, _mm256_set1_ps(tmax)),
-            )) as u32
-        };
-        (met & below, tt, uu, vv)
+        let inv = f32x8::ONE / den;
+        let t = tn * inv;
+        let below = t.simd_gt(f32x8::ZERO) & t.simd_lt(f32x8::splat(tmax));
+        let v = -(b * inv);
+        (
+            met & below.to_bitmask(),
+            t.to_array(),
+            (a * inv).to_array(),
+            v.to_array(),
+        )
     }
 
     /// The primitives `first..first + count` (a leaf) hit with `0 < t < tmax`, each kept in
@@ -1451,7 +1423,6 @@ impl CpuTree {
         best: &mut Option<(f32, f32, f32, u32)>,
         covered: &impl Fn(u32, f32, f32) -> bool,
     ) -> bool {
-        #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
         if !self.lanes.alpha {
             return self.lanes.closest(first, count, origin, dir, tmax, best);
         }
@@ -1479,7 +1450,6 @@ impl CpuTree {
         tmax: f32,
         covered: &impl Fn(u32, f32, f32) -> bool,
     ) -> bool {
-        #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
         if !self.lanes.alpha {
             return self.lanes.any(first, count, origin, dir, tmax);
         }
@@ -1534,6 +1504,10 @@ mod tests {
             _ => CpuPackets::One,
         };
         assert_eq!(CpuPackets::widest(), widest);
+        if !cfg!(target_arch = "x86_64") {
+            let e = CpuPackets::parse("avx2").unwrap_err();
+            assert!(e.contains(std::env::consts::ARCH), "{e}");
+        }
         for bad in ["", "1", "8", "16", "AVX2", "avx", "avx2,avx512"] {
             let e = CpuPackets::parse(bad).unwrap_err();
             assert!(e.contains("expected 0"), "{bad:?}: {e}");
