@@ -415,9 +415,9 @@ fn cpu_packet_widths_render_the_same_files() {
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         std::fs::read(&out).unwrap()
     };
-    // The x86-64 build is for AVX2 (.cargo/config.toml); other processors walk one ray at a
-    // time and refuse both packet widths.
-    let avx2 = cfg!(target_arch = "x86_64");
+    // The packets in AVX2 where the build targets AVX2 and FMA (x86-64's, .cargo/config.toml),
+    // as `CpuPackets::widest` decides; elsewhere one ray at a time, both widths refused.
+    let avx2 = cfg!(all(target_feature = "avx2", target_feature = "fma"));
     #[cfg(target_arch = "x86_64")]
     let avx512 = std::arch::is_x86_feature_detected!("avx512f")
         && std::arch::is_x86_feature_detected!("avx512dq");
