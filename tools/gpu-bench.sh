@@ -118,10 +118,13 @@ KERNEL_VARIANTS+=,private+regen264,private+regen528,private+regen1056,private+re
 # The wavefront split: 2^18 paths a chunk (20 MiB of state: within the H200's 50 MB L2), 2^16,
 # 2^20, and with the workgroup stack.
 KERNEL_VARIANTS+=,private+split,private+split65536,private+split1048576,workgroup+unchecked+split
+# Triangle tests postponed by subgroup vote (32-lane subgroups on NVIDIA): at 20 % (Ylitie et
+# al.'s), 10 and 35, and with the split's traversal kernel.
+KERNEL_VARIANTS+=,private+vote,private+vote10,private+vote35,private+split+vote
 # ... and those the `kernels-guided` group runs guided iterations with (the default first; a
 # regenerating variant regenerates the guided lists' paths too).
 GUIDED_KERNEL_VARIANTS="private function private+unchecked workgroup+unchecked+wg32"
-GUIDED_KERNEL_VARIANTS+=" private+regen528 private+regen2112"
+GUIDED_KERNEL_VARIANTS+=" private+regen528 private+regen2112 private+vote"
 
 # One group's command line (printed, then run by `bash -c` in `run_groups`).
 group_command() {
@@ -286,7 +289,7 @@ main() {
       # One of each kind (one over lavapipe's workgroup memory: named, not run). Few, as
       # lavapipe compiles each new kernel in about 20 s; the regeneration's cap is not in the
       # kernel, so the guided run reuses the regenerating kernel compiled before it.
-      KERNEL_VARIANTS=private,workgroup+unchecked+wg32,private+regen264,workgroup+unchecked+wg128
+      KERNEL_VARIANTS=private,workgroup+unchecked+wg32,private+regen264,workgroup+unchecked+wg128,private+vote
       GUIDED_KERNEL_VARIANTS="private+regen4"
       declare -gA BUDGETS
       for g in "${BENCH_GROUPS[@]}"; do BUDGETS[$g]=${SMOKE_BUDGET[$g]}; done

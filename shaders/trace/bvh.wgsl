@@ -1,6 +1,6 @@
 // CWBVH traversal (Ylitie, Karras, Laine 2017), ported from obvhs' `traverse!` macro and
-// `CwBvhNode::intersect_ray`; the CPU twin uses obvhs itself (src/trace/bvh.rs). Node layout:
-// see src/trace/bvh.rs.
+// `CwBvhNode::intersect_ray`; the CPU twin walks a tree of its own over the same triangles and
+// finds the same hits (src/trace/bvh/cpu.rs). Node layout: see src/trace/bvh.rs.
 
 struct Node {
     n0: vec4<u32>, // p.xyz (f32 bits), e[0..3] | imask << 24
@@ -27,6 +27,21 @@ const STACK_SIZE: u32 = 32u;
 // src/trace/gpu.rs compiles variants with it in `traverse` or in workgroup memory
 // (`TraceStack`); all find the same hits.
 var<private> stack: array<vec2<u32>, STACK_SIZE>;
+
+// Triangle postponing (Ylitie, Karras, Laine 2017, §4), the `+vote` variants' (src/trace/gpu.rs
+// sets the percentage P; 0 here: off): a lane whose triangles few of its subgroup's lanes are
+// testing with it — fewer than P % of those still traversing — keeps them aside and walks on
+// into its next node, so that the subgroup's lanes run node tests together instead of waiting
+// on each other's triangle loops. Kept in one slot a lane (the stack's use stays the default's),
+// they are tested before the lane's next pop. Only the order of the tests changes; the closest
+// hit does not depend on it (the tie rule in `traverse`).
+const POSTPONE: u32 = 0u;
+
+// How many of the subgroup's lanes that call this together pass `yes`: a subgroup ballot in the
+// `+vote` variants (the only ones that need subgroups), never called in the others.
+fn lanes_voting(yes: bool) -> u32 {
+    return u32(yes);
+}
 
 @group(0) @binding(0) var<storage, read> nodes: array<Node>;
 @group(0) @binding(1) var<storage, read> prims: array<vec4<f32>>;
@@ -123,9 +138,15 @@ fn intersect_triangle(o: vec3<f32>, d: vec3<f32>, v0: vec3<f32>, e1: vec3<f32>, 
     return miss;
 }
 
-// Closest hit (any_hit = false) or the first hit found (any_hit = true, shadow rays).
+// Closest hit (any_hit = false) or the first hit found (any_hit = true, shadow rays). Of hits
+// at the same t the one on the higher triangle is the closest (the CPU twin's rule,
+// bvh/cpu.rs `nearer`), so the hit does not depend on the order the triangles are tested in.
 fn traverse(o: vec3<f32>, d: vec3<f32>, tmax_in: f32, any_hit: bool) -> Hit {
     var hit = Hit(tmax_in, 0.0, 0.0, NO_HIT);
+    // The triangle of `hit`, and the bound a test needs to find a hit as near: t itself
+    // included (the tests keep t < bound), within the ray's own tmax.
+    var hit_triangle = 0u;
+    var bound = tmax_in;
     rays_traced += 1u;
     if params.node_count == 0u {
         return hit;
@@ -135,8 +156,22 @@ fn traverse(o: vec3<f32>, d: vec3<f32>, tmax_in: f32, any_hit: bool) -> Hit {
     var sp = 0u;
     var current = vec2<u32>(0u, 0x80000000u);
     var prim_group = vec2<u32>(0u, 0u);
+    var postponed = vec2<u32>(0u, 0u);
     loop {
+        var traversing = 0u;
+        if POSTPONE != 0u {
+            traversing = lanes_voting(true);
+        }
         while prim_group.y != 0u {
+            if POSTPONE != 0u {
+                let testing = lanes_voting(true);
+                if testing * 100u < traversing * POSTPONE && postponed.y == 0u
+                    && (current.y & 0xff000000u) != 0u {
+                    postponed = prim_group;
+                    prim_group.y = 0u;
+                    break;
+                }
+            }
             let local = firstLeadingBit(prim_group.y);
             prim_group.y &= ~(1u << local);
             let pid = prim_group.x + local;
@@ -144,12 +179,19 @@ fn traverse(o: vec3<f32>, d: vec3<f32>, tmax_in: f32, any_hit: bool) -> Hit {
             let c = prims[3u * pid + 2u];
             // Flags as a small float (src/trace/bvh.rs): 1 single-sided, 2 alpha-tested.
             let flags = u32(c.w);
-            var r = intersect_triangle(o, d, a.xyz, prims[3u * pid + 1u].xyz, c.xyz, hit.t, (flags & 1u) != 0u);
-            if r.x > 0.0 && (flags & 2u) != 0u && !alpha_covered(bitcast<u32>(a.w), r.y, r.z) {
+            var r = intersect_triangle(o, d, a.xyz, prims[3u * pid + 1u].xyz, c.xyz, bound, (flags & 1u) != 0u);
+            let triangle = bitcast<u32>(a.w);
+            if r.x > 0.0 && r.x == hit.t && triangle <= hit_triangle {
+                r.x = -1.0;
+            }
+            if r.x > 0.0 && (flags & 2u) != 0u && !alpha_covered(triangle, r.y, r.z) {
                 r.x = -1.0;
             }
             if r.x > 0.0 {
                 hit = Hit(r.x, r.y, r.z, pid);
+                hit_triangle = triangle;
+                // The next float up: r.x is positive and finite.
+                bound = min(bitcast<f32>(bitcast<u32>(r.x) + 1u), tmax_in);
                 if any_hit {
                     return hit;
                 }
@@ -174,6 +216,11 @@ fn traverse(o: vec3<f32>, d: vec3<f32>, tmax_in: f32, any_hit: bool) -> Hit {
             current = vec2<u32>(0u, 0u);
         }
         if prim_group.y == 0u && (current.y & 0xff000000u) == 0u {
+            if POSTPONE != 0u && postponed.y != 0u {
+                prim_group = postponed;
+                postponed.y = 0u;
+                continue;
+            }
             if sp == 0u {
                 break;
             }

@@ -639,8 +639,9 @@ pub struct TraceBenchArgs {
     /// ray; `workgroup` memory), then optionally `+unchecked` (without wgpu's run-time
     /// checks), `+wgN` (N = 32, 64, 128 or 256 threads a workgroup; 64 otherwise) and
     /// `+regenG` (paths regenerated in launches of at most G workgroups) or `+split[N]` (full
-    /// frames in the wavefront split, N paths a chunk), e.g.
-    /// `function,private+unchecked+wg32,private+regen1056,private+split`. Same pictures, different code;
+    /// frames in the wavefront split, N paths a chunk), and `+vote[P]` (triangle tests
+    /// postponed by subgroup vote at P %, 20 otherwise), e.g.
+    /// `function,private+unchecked+wg32,private+regen1056,private+split,private+vote`. Same pictures, different code;
     /// variants the adapter cannot run are named and left out. Default: the one
     /// `RAYGUN_TRACE_KERNEL` names, else `private`.
     #[arg(long, value_name = "VARIANT,…", value_delimiter = ',')]
@@ -674,7 +675,7 @@ fn run_trace_bench(args: &TraceBenchArgs) -> anyhow::Result<()> {
     let mut refused = Vec::new();
     for &v in &args.trace_kernel {
         match &backend {
-            Backend::Gpu(ctx) => match v.check(&ctx.limits) {
+            Backend::Gpu(ctx) => match v.check(&ctx.limits, ctx.device.features()) {
                 Ok(()) => kernels.push(v),
                 Err(e) => refused.push(e.to_string()),
             },

@@ -330,8 +330,8 @@ impl GpuContext {
     /// (DESIGN.md §11), and this exercises that split on an adapter whose own limit is large.
     ///
     /// `RAYGUN_TRACE_KERNEL=VARIANT` compiles the trace kernel as another variant of the same
-    /// function ([`variant::TraceVariant`]: `function`, `private` or `workgroup`, each
-    /// optionally `+unchecked`), for timing them on a GPU.
+    /// function ([`variant::TraceVariant`]: `function`, `private` or `workgroup`, then the
+    /// options its `FromStr` names), for timing them on a GPU.
     pub fn new() -> Result<Self, GpuError> {
         let cap = match std::env::var("RAYGUN_MAX_BINDING") {
             Ok(v) => Some(
@@ -397,6 +397,9 @@ impl GpuContext {
         if timestamps {
             features |= wgpu::Features::TIMESTAMP_QUERY;
         }
+        // Subgroup operations where the adapter has them: the trace kernel's `+vote` variants
+        // use them (the default kernels do not).
+        features |= supported & wgpu::Features::SUBGROUP;
         // Ask for everything the adapter offers: big images need big storage bindings
         // (3840×2160 RGBA f32 is 133 MB, over lavapipe's 128 MiB binding limit but far under
         // an H100's 2 GiB), and stages check the limits they need themselves.
@@ -440,7 +443,7 @@ impl GpuContext {
     /// This context (the same device, queue and kept buffers) with the trace kernel compiled
     /// as `variant`; an error naming the variant where the adapter's limits do not allow it.
     pub fn with_trace_variant(&self, variant: variant::TraceVariant) -> Result<Self, GpuError> {
-        variant.check(&self.limits)?;
+        variant.check(&self.limits, self.device.features())?;
         Ok(Self {
             trace_variant: variant,
             ..self.clone()

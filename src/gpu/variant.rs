@@ -54,6 +54,13 @@ pub struct TraceVariant {
     /// kernel of its own with few registers (Laine et al. 2013, "Megakernels considered
     /// harmful"). Lists keep the one kernel. Not with [`Self::regen`].
     pub split: u32,
+    /// Triangle postponing by subgroup vote at this percentage (0: off; 1 to 100): a lane
+    /// whose leaf's triangles fewer than this share of its subgroup's traversing lanes are
+    /// testing with it walks on into its next node and tests them before its next pop
+    /// (Ylitie, Karras and Laine 2017, §4, who found 20 % best on their GPUs), so that a
+    /// subgroup's lanes spend less time waiting on each other's triangle loops. Needs the
+    /// adapter's subgroup operations (`wgpu::Features::SUBGROUP`).
+    pub vote: u32,
 }
 
 impl Default for TraceVariant {
@@ -89,6 +96,19 @@ impl TraceVariant {
             workgroup: DEFAULT_WORKGROUP,
             regen: 0,
             split: 0,
+            vote: 0,
+        }
+    }
+
+    /// The percentage `+vote` means without a number: Ylitie, Karras and Laine's.
+    pub const VOTE_PERCENT: u32 = 20;
+
+    /// This variant postponing triangle tests by subgroup vote at `percent` (0: off).
+    #[must_use]
+    pub const fn with_vote(self, percent: u32) -> Self {
+        Self {
+            vote: percent,
+            ..self
         }
     }
 
@@ -133,8 +153,9 @@ impl TraceVariant {
         }
     }
 
-    /// Whether `limits` allow this variant: its workgroup's threads and memory.
-    pub fn check(self, limits: &wgpu::Limits) -> Result<(), GpuError> {
+    /// Whether a device of `limits` and `features` can run this variant: its workgroup's
+    /// threads and memory, and the subgroup operations a `+vote` variant needs.
+    pub fn check(self, limits: &wgpu::Limits, features: wgpu::Features) -> Result<(), GpuError> {
         let refuse = |why: String| {
             Err(GpuError::TraceVariant {
                 variant: self.to_string(),
@@ -158,6 +179,9 @@ impl TraceVariant {
                     .max_compute_invocations_per_workgroup
                     .min(limits.max_compute_workgroup_size_x)
             ));
+        }
+        if self.vote != 0 && !features.contains(wgpu::Features::SUBGROUP) {
+            return refuse("votes with subgroup operations; this adapter has none".into());
         }
         let needs = self.workgroup_bytes();
         if needs > limits.max_compute_workgroup_storage_size {
@@ -191,6 +215,11 @@ impl std::fmt::Display for TraceVariant {
             Self::SPLIT_CHUNK => f.write_str("+split")?,
             n => write!(f, "+split{n}")?,
         }
+        match self.vote {
+            0 => {}
+            Self::VOTE_PERCENT => f.write_str("+vote")?,
+            p => write!(f, "+vote{p}")?,
+        }
         Ok(())
     }
 }
@@ -202,14 +231,17 @@ impl std::str::FromStr for TraceVariant {
     /// (N threads a workgroup: 32, 64, 128 or 256), and `+regenG` (paths regenerated
     /// in launches of at most G workgroups, 1 to 65 535) or `+split[N]` (full frames in the
     /// wavefront split, N paths a chunk: a multiple of 64 up to 2²⁴, [`Self::SPLIT_CHUNK`]
-    /// without N), e.g. `private+unchecked+wg32`, `private+regen2048` or `workgroup+split`.
+    /// without N), and `+vote[P]` (triangle tests postponed by subgroup vote at P %, 1 to 100,
+    /// [`Self::VOTE_PERCENT`] without P), e.g. `private+unchecked+wg32`, `private+regen2048`,
+    /// `workgroup+split` or `private+vote`.
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         let bad = || {
             format!(
                 "unknown trace kernel {s:?}: expected function, private or workgroup, then \
                  optionally +unchecked, +wgN (N = 32, 64, 128 or 256), and +regenG (G = 1 to \
                  65535 workgroups) or +split[N] (full frames in three kernels, N paths a chunk: \
-                 a multiple of 64 up to 16777216; 262144 without N), e.g. \
+                 a multiple of 64 up to 16777216; 262144 without N), and +vote[P] (triangle \
+                 tests postponed by subgroup vote at P = 1 to 100 %; 20 without P), e.g. \
                  private+unchecked+wg32"
             )
         };
@@ -243,6 +275,14 @@ impl std::str::FromStr for TraceVariant {
                     return Err(bad());
                 }
                 v.split = n;
+            } else if let Some(p) = (w == "vote")
+                .then_some(Self::VOTE_PERCENT)
+                .or_else(|| number(w, "vote").filter(|p| (1..=100).contains(p)))
+            {
+                if v.vote != 0 {
+                    return Err(bad());
+                }
+                v.vote = p;
             } else {
                 return Err(bad());
             }
@@ -268,10 +308,13 @@ mod tests {
             for unchecked in [false, true] {
                 for n in TraceVariant::WORKGROUPS {
                     for g in [0, 1, 2048, 65_535] {
-                        let v = TraceVariant::new(stack, unchecked)
-                            .with_workgroup(n)
-                            .with_regen(g);
-                        assert_eq!(v.to_string().parse::<TraceVariant>(), Ok(v));
+                        for p in [0, 1, TraceVariant::VOTE_PERCENT, 35, 100] {
+                            let v = TraceVariant::new(stack, unchecked)
+                                .with_workgroup(n)
+                                .with_regen(g)
+                                .with_vote(p);
+                            assert_eq!(v.to_string().parse::<TraceVariant>(), Ok(v));
+                        }
                     }
                 }
             }
@@ -304,6 +347,29 @@ mod tests {
             "private+split+split",
             "private+split+regen4",
             "private+regen4+split64",
+        ] {
+            assert!(bad.parse::<TraceVariant>().is_err(), "{bad}");
+        }
+        assert_eq!(
+            "private+vote".parse(),
+            Ok(TraceVariant::default().with_vote(20))
+        );
+        assert_eq!(
+            TraceVariant::default().with_vote(20).to_string(),
+            "private+vote"
+        );
+        assert_eq!(
+            "workgroup+vote35+split".parse(),
+            Ok(TraceVariant::new(TraceStack::Workgroup, false)
+                .with_split(TraceVariant::SPLIT_CHUNK)
+                .with_vote(35))
+        );
+        for bad in [
+            "private+vote0",
+            "private+vote101",
+            "private+vote+vote",
+            "private+vote20+vote",
+            "private+votes",
         ] {
             assert!(bad.parse::<TraceVariant>().is_err(), "{bad}");
         }
@@ -350,11 +416,11 @@ mod tests {
             ..wgpu::Limits::default()
         };
         for v in TraceVariant::ALL {
-            v.check(&limits).unwrap();
+            v.check(&limits, wgpu::Features::empty()).unwrap();
         }
         limits.max_compute_workgroup_storage_size -= 1;
         let err = TraceVariant::new(TraceStack::Workgroup, false)
-            .check(&limits)
+            .check(&limits, wgpu::Features::empty())
             .unwrap_err()
             .to_string();
         assert!(
@@ -362,12 +428,15 @@ mod tests {
             "{err}"
         );
         TraceVariant::new(TraceStack::Private, true)
-            .check(&limits)
+            .check(&limits, wgpu::Features::empty())
             .unwrap();
         // The workgroup stack grows with the workgroup: 64 KiB at 256 threads.
         limits.max_compute_workgroup_storage_size = 49_152;
         let big = TraceVariant::new(TraceStack::Workgroup, true).with_workgroup(256);
-        let err = big.check(&limits).unwrap_err().to_string();
+        let err = big
+            .check(&limits, wgpu::Features::empty())
+            .unwrap_err()
+            .to_string();
         assert!(
             err.contains("workgroup+unchecked+wg256") && err.contains("65540"),
             "{err}"
@@ -375,16 +444,27 @@ mod tests {
         limits.max_compute_invocations_per_workgroup = 128;
         let err = TraceVariant::default()
             .with_workgroup(256)
-            .check(&limits)
+            .check(&limits, wgpu::Features::empty())
             .unwrap_err()
             .to_string();
         assert!(
             err.contains("256 threads") && err.contains("allows 128"),
             "{err}"
         );
+        // A vote needs the adapter's subgroup operations.
+        let vote = TraceVariant::default().with_vote(20);
+        let err = vote
+            .check(&limits, wgpu::Features::empty())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("private+vote") && err.contains("subgroup"),
+            "{err}"
+        );
+        vote.check(&limits, wgpu::Features::SUBGROUP).unwrap();
         let odd = TraceVariant::default().with_workgroup(48);
         assert!(
-            odd.check(&limits)
+            odd.check(&limits, wgpu::Features::empty())
                 .unwrap_err()
                 .to_string()
                 .contains("[32, 64, 128, 256]")

@@ -8,15 +8,32 @@ use wgpu::naga;
 /// Parses and validates `source`; panics with naga's diagnostic, naming `name`, if it fails.
 /// Returns the module for further checks.
 pub fn validated(name: &str, source: &str) -> naga::Module {
+    validated_with(name, source, false)
+}
+
+/// [`validated`], allowing subgroup operations in compute shaders where `subgroups` (what a
+/// device with `wgpu::Features::SUBGROUP` accepts); without it they fail validation.
+pub fn validated_with(name: &str, source: &str, subgroups: bool) -> naga::Module {
+    use naga::valid::{Capabilities, ShaderStages, SubgroupOperationSet, Validator};
     let module = naga::front::wgsl::parse_str(source).unwrap_or_else(|e| {
         panic!("{name} does not parse: {}", e.emit_to_string(source));
     });
-    naga::valid::Validator::new(
+    let mut validator = Validator::new(
         naga::valid::ValidationFlags::all(),
-        naga::valid::Capabilities::empty(),
-    )
-    .validate(&module)
-    .unwrap_or_else(|e| panic!("{name} does not validate: {}", e.emit_to_string(source)));
+        if subgroups {
+            Capabilities::SUBGROUP
+        } else {
+            Capabilities::empty()
+        },
+    );
+    if subgroups {
+        validator
+            .subgroup_stages(ShaderStages::COMPUTE)
+            .subgroup_operations(SubgroupOperationSet::all());
+    }
+    validator
+        .validate(&module)
+        .unwrap_or_else(|e| panic!("{name} does not validate: {}", e.emit_to_string(source)));
     module
 }
 

@@ -167,7 +167,8 @@ impl GpuTraceParams {
 }
 
 /// The kernel's source for `variant`: `TRACE_WGSL` with the stack's declaration and accesses
-/// moved and the workgroup's size set.
+/// moved, the workgroup's size set, and for a `+vote` variant the triangle postponing's
+/// percentage set and its lane count a subgroup ballot.
 #[must_use]
 pub fn kernel_source(variant: TraceVariant) -> std::borrow::Cow<'static, str> {
     const MODULE: &str = "var<private> stack: array<vec2<u32>, STACK_SIZE>;\n";
@@ -177,6 +178,11 @@ pub fn kernel_source(variant: TraceVariant) -> std::borrow::Cow<'static, str> {
     const POP: &str = "current = stack[sp];";
     const SIZE: &str = "const WORKGROUP: u32 = 64u;";
     const REGENERATE: &str = "const REGENERATE: bool = false;";
+    const POSTPONE: &str = "const POSTPONE: u32 = 0u;";
+    const LANES: &str = "fn lanes_voting(yes: bool) -> u32 {\n    return u32(yes);\n}";
+    const BALLOT: &str = "fn lanes_voting(yes: bool) -> u32 {\n    let b = subgroupBallot(yes);\n    \
+                          return countOneBits(b.x) + countOneBits(b.y) + countOneBits(b.z) + \
+                          countOneBits(b.w);\n}";
     let once = |s: &str, from: &str, to: &str| {
         assert_eq!(
             s.matches(from).count(),
@@ -192,6 +198,11 @@ pub fn kernel_source(variant: TraceVariant) -> std::borrow::Cow<'static, str> {
     }
     if variant.regen != 0 {
         s = once(&s, REGENERATE, "const REGENERATE: bool = true;").into();
+    }
+    if variant.vote != 0 {
+        let percent = format!("const POSTPONE: u32 = {}u;", variant.vote);
+        s = once(&s, POSTPONE, &percent).into();
+        s = once(&s, LANES, BALLOT).into();
     }
     match variant.stack {
         TraceStack::Private => s,
@@ -1388,7 +1399,7 @@ impl OwnedSums {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::gpu::wgsl::{assert_same_layout, struct_size, validated};
+    use crate::gpu::wgsl::{assert_same_layout, struct_size, validated, validated_with};
 
     #[test]
     fn kernel_validates_and_params_match_their_rust_twin() {
@@ -1433,8 +1444,9 @@ mod tests {
         assert!(ACCUM_WGSL.contains(lum) && TRACE_WGSL.contains(lum));
     }
 
-    /// The variants the tests compile and render: every stack and checks choice, and every
-    /// workgroup size with the stack as written and in workgroup memory.
+    /// The variants the tests compile and render: every stack and checks choice, every
+    /// workgroup size with the stack as written and in workgroup memory, and the vote with
+    /// each stack.
     pub(crate) fn tested_variants() -> Vec<TraceVariant> {
         let mut v = TraceVariant::ALL.to_vec();
         for n in TraceVariant::WORKGROUPS {
@@ -1443,6 +1455,13 @@ mod tests {
                 v.push(TraceVariant::new(TraceStack::Workgroup, true).with_workgroup(n));
             }
         }
+        v.push(TraceVariant::default().with_vote(TraceVariant::VOTE_PERCENT));
+        v.push(TraceVariant::new(TraceStack::Workgroup, true).with_vote(100));
+        v.push(
+            TraceVariant::new(TraceStack::Function, false)
+                .with_workgroup(32)
+                .with_vote(1),
+        );
         v
     }
 
@@ -1459,7 +1478,10 @@ mod tests {
         let mut sources = std::collections::HashSet::new();
         for v in tested_variants() {
             let source = kernel_source(v);
-            let module = validated(&format!("path.wgsl ({v})"), &source);
+            // Only a vote uses subgroup operations: every other variant runs without them.
+            let voting = v.vote != 0;
+            assert_eq!(source.contains("subgroupBallot"), voting, "{v}");
+            let module = validated_with(&format!("path.wgsl ({v})"), &source, voting);
             let entry = module
                 .entry_points
                 .iter()
@@ -1478,8 +1500,8 @@ mod tests {
             assert_eq!(v.to_string().parse::<TraceVariant>(), Ok(v));
         }
         // The checks are a compile option, not a source change: 3 stacks at the default size,
-        // 2 at each of the 3 others.
-        assert_eq!(sources.len(), 3 + 2 * 3);
+        // 2 at each of the 3 others, and 3 votes.
+        assert_eq!(sources.len(), 3 + 2 * 3 + 3);
     }
 
     #[test]

@@ -101,6 +101,61 @@ fn gpu_and_cpu_agree_on_the_textured_city_under_an_environment_map() {
 
 /// The paper's scene itself: the generated Cornell box (open front, environment light) and its
 /// ceiling-light variant converge to the same image on both backends.
+/// Of hits at the same distance the GPU reports the one on the higher triangle, as the CPU
+/// twin does: random triangles each given twice, every copy's hit an exact tie — the first
+/// copies glowing red, the second green, neither reflecting — show green wherever they are
+/// seen, in the default kernel and in one whose vote reorders the triangle tests.
+#[test]
+fn ties_go_to_the_higher_triangle_on_the_gpu_as_on_the_cpu() {
+    use crate::scenes::{camera, flat, lambert};
+    use raygun::trace::gpu::TraceVariant;
+    let mut seed = 0x9e37_79b9_u32;
+    let mut r = move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 17;
+        seed ^= seed << 5;
+        seed as f32 / u32::MAX as f32
+    };
+    let mut tris = Vec::new();
+    for _ in 0..600 {
+        let c = Vec3::new(r() * 2.0 - 1.0, r() * 2.0 - 1.0, r() * 2.0 - 1.0);
+        let mut corner = || c + (Vec3::new(r(), r(), r()) - 0.5) * 0.6;
+        tris.push(flat([corner(), corner(), corner()], 0));
+    }
+    let copies: Vec<_> = tris
+        .iter()
+        .map(|t| raygun::scene::Triangle { material: 1, ..*t })
+        .collect();
+    tris.extend(copies);
+    let scene = Scene {
+        triangles: tris,
+        materials: vec![
+            lambert(0.0, Vec3::new(1.0, 0.0, 0.0)),
+            lambert(0.0, Vec3::new(0.0, 1.0, 0.0)),
+        ],
+        cameras: vec![camera(Vec3::new(0.0, 0.0, 4.0), Vec3::ZERO, 40.0)],
+        environment: Environment::Constant(Vec3::ZERO),
+        ..Default::default()
+    };
+    let ctx = GpuContext::for_tests();
+    let s = settings(&scene, 48, 48, 3, 1);
+    let cpu = render_on_cpu(&scene, &s, 2);
+    let cpu_red = cpu.sum.iter().filter(|p| p[0] != 0.0).count();
+    assert_eq!(cpu_red, 0, "the CPU twin reports the lower triangle");
+    let vote = TraceVariant::default().with_vote(100);
+    for c in [ctx.clone(), ctx.with_trace_variant(vote).unwrap()] {
+        let gpu = render_gpu(&c, &scene, &s, 2);
+        let red = gpu.sum.iter().filter(|p| p[0] != 0.0).count();
+        let green = gpu.sum.iter().filter(|p| p[1] > 0.0).count();
+        let v = c.trace_variant();
+        assert_eq!(red, 0, "{v}: pixels where a tie went to the lower triangle");
+        assert!(
+            green > 48 * 48 / 2,
+            "{v}: only {green} pixels see the triangles"
+        );
+    }
+}
+
 #[test]
 fn gpu_and_cpu_agree_on_the_cornell_box() {
     let ctx = GpuContext::for_tests();
@@ -147,7 +202,7 @@ fn gpu_and_cpu_twin_agree_on_a_scene_with_every_feature() {
 }
 
 /// Every variant of the trace kernel (where its traversal stack lives, wgpu's run-time checks
-/// on or off, its workgroup's size, paths regenerated) is the same function: the same
+/// on or off, its workgroup's size, paths regenerated, triangle tests postponed by vote) is the same function: the same
 /// accumulation to the bit as the default kernel — full frames and a scheduler's list — on the
 /// small city (a tree deep enough that walks push and pop), the Cornell box with its ceiling
 /// light and the scene with every feature (alpha-tested shadow rays, glass, punctual lights);
@@ -280,6 +335,17 @@ fn every_trace_kernel_variant_renders_the_default_kernels_bits() {
             .with_workgroup(32)
             .with_split(TraceVariant::SPLIT_CHUNK),
     );
+    // Triangle tests postponed by subgroup vote (lavapipe's subgroups are 8 lanes): at the
+    // default 20 %, and at 100 % — whenever any traversing lane is not testing triangles —
+    // with the workgroup stack, regenerated paths and the split's kernels.
+    variants.push(TraceVariant::default().with_vote(TraceVariant::VOTE_PERCENT));
+    variants.push(
+        TraceVariant::new(TraceStack::Workgroup, true)
+            .with_workgroup(32)
+            .with_vote(100),
+    );
+    variants.push(TraceVariant::default().with_regen(1).with_vote(100));
+    variants.push(TraceVariant::default().with_split(64).with_vote(100));
     for v in &variants {
         let vctx = ctx.with_trace_variant(*v).unwrap();
         assert_eq!(vctx.trace_variant(), *v);
