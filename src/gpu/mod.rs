@@ -212,7 +212,15 @@ pub struct GpuContext {
     /// The trace kernel's variant ([`variant::TraceVariant`]): the default unless
     /// `RAYGUN_TRACE_KERNEL` or [`Self::with_trace_variant`] chose another.
     trace_variant: variant::TraceVariant,
+    /// What [`Self::kept`] made for this device, by type and key (clones share it).
+    kept: std::sync::Arc<std::sync::Mutex<KeptMap>>,
 }
+
+/// [`GpuContext::kept`]'s values: one per type and key.
+type KeptMap = std::collections::HashMap<
+    (std::any::TypeId, String),
+    std::sync::Arc<dyn std::any::Any + Send + Sync>,
+>;
 
 /// The most bytes of read-back staging buffers a context keeps for reuse (a 3840×2160
 /// picture's accumulation, counts, DGI and filtered image are 366 MB; a larger read-back
@@ -431,6 +439,7 @@ impl GpuContext {
             supported,
             staging: std::sync::Arc::default(),
             trace_variant: variant::TraceVariant::default(),
+            kept: std::sync::Arc::default(),
         })
     }
 
@@ -448,6 +457,33 @@ impl GpuContext {
             trace_variant: variant,
             ..self.clone()
         })
+    }
+
+    /// The value `make` gives for `key`, made once for this device and handed out again to
+    /// every later call with the same type and key on this context or its clones: compiled
+    /// pipelines, which every renderer needs and whose creation costs a driver far more than a
+    /// frame (a report makes dozens of renderers). `make` runs without the map locked, so it may
+    /// use the context; where two threads make the same value at once, the first one kept wins.
+    pub fn kept<T: Clone + Send + Sync + 'static>(&self, key: &str, make: impl FnOnce() -> T) -> T {
+        let id = (std::any::TypeId::of::<T>(), key.to_string());
+        let lock = || {
+            self.kept
+                .lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner)
+        };
+        let found = lock().get(&id).cloned();
+        let value = match found {
+            Some(v) => v,
+            None => {
+                let made: std::sync::Arc<dyn std::any::Any + Send + Sync> =
+                    std::sync::Arc::new(make());
+                lock().entry(id).or_insert(made).clone()
+            }
+        };
+        value
+            .downcast_ref::<T>()
+            .expect("kept values are stored under their own type")
+            .clone()
     }
 
     /// For tests: the context, or a panic that says how to get an adapter. A GPU test never
@@ -808,6 +844,39 @@ mod tests {
         assert!(adapter_rank(D::DiscreteGpu, B::Vulkan) < adapter_rank(D::DiscreteGpu, B::Gl));
         assert!(adapter_rank(D::DiscreteGpu, B::Gl) < adapter_rank(D::IntegratedGpu, B::Vulkan));
         assert!(adapter_rank(D::VirtualGpu, B::Vulkan) < adapter_rank(D::Cpu, B::Vulkan));
+    }
+
+    /// A kept value is made once a device, type and key: later calls, on the context and its
+    /// clones (another trace variant included), get it without making it again; another key
+    /// or type is made anew, and a new device keeps its own.
+    #[test]
+    fn kept_values_are_made_once_a_device_type_and_key() {
+        let ctx = GpuContext::for_tests();
+        let made = std::cell::Cell::new(0);
+        let make = |v: u32| {
+            made.set(made.get() + 1);
+            v
+        };
+        assert_eq!(ctx.kept("a", || make(1)), 1);
+        assert_eq!(ctx.kept("a", || make(2)), 1);
+        let clone = ctx
+            .with_trace_variant(variant::TraceVariant::default().with_workgroup(32))
+            .unwrap();
+        assert_eq!(clone.kept("a", || make(3)), 1);
+        assert_eq!(made.get(), 1);
+        assert_eq!(ctx.kept("b", || make(4)), 4);
+        assert_eq!(
+            ctx.kept("a", || make(5) as u64),
+            5,
+            "another type, another value"
+        );
+        assert_eq!(made.get(), 3);
+        let other = GpuContext::with_max_binding(1 << 20).unwrap();
+        assert_eq!(
+            other.kept("a", || make(6)),
+            6,
+            "another device keeps its own"
+        );
     }
 
     /// Read-backs through kept staging buffers return exactly the source's bytes: a smaller

@@ -228,6 +228,7 @@ pub fn kernel_source(variant: TraceVariant) -> std::borrow::Cow<'static, str> {
 }
 
 /// The compiled kernel.
+#[derive(Clone)]
 pub struct TraceKernel {
     pipeline: wgpu::ComputePipeline,
     variant: TraceVariant,
@@ -237,6 +238,7 @@ pub struct TraceKernel {
 
 /// The wavefront split's three entry points (`split_start`, `split_extend`, `split_shade` in
 /// path.wgsl), sharing `trace`'s bind groups 0 and 1 (one explicit layout for all four).
+#[derive(Clone)]
 struct SplitKernels {
     start: wgpu::ComputePipeline,
     extend: wgpu::ComputePipeline,
@@ -313,10 +315,19 @@ fn bind_layout(
 }
 
 impl TraceKernel {
-    /// The kernel in the variant `ctx` was made with ([`GpuContext::trace_variant`]).
+    /// The kernel in the variant `ctx` was made with ([`GpuContext::trace_variant`]),
+    /// compiled once a device and variant ([`GpuContext::kept`]): every renderer needs it, and
+    /// a driver takes longer to create its pipeline than to run many frames.
     #[must_use]
     pub fn new(ctx: &GpuContext) -> Self {
         let variant = ctx.trace_variant();
+        ctx.kept(&format!("trace kernel {variant}"), || {
+            Self::compile(ctx, variant)
+        })
+    }
+
+    /// The kernel compiled as `variant`.
+    fn compile(ctx: &GpuContext, variant: TraceVariant) -> Self {
         let label = format!("trace/path ({variant})");
         let source = kernel_source(variant);
         let module = if variant.unchecked {
