@@ -55,6 +55,19 @@ fn num(v: &serde_json::Value) -> f64 {
 #[test]
 fn bench_all_quick_writes_a_consistent_report() {
     let dir = out_dir();
+    // No report of no iterations or references: refused before anything runs, naming the flag.
+    for flag in ["--iterations", "--reference-spp"] {
+        let o = Command::new(env!("CARGO_BIN_EXE_raygun"))
+            .args(["bench", "all", "--quick", flag, "0"])
+            .arg("--out")
+            .arg(&dir)
+            .output()
+            .unwrap();
+        assert!(!o.status.success());
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains(flag) && err.contains("0"), "{err}");
+        assert!(!dir.join("report.md").exists());
+    }
     let status = Command::new(env!("CARGO_BIN_EXE_raygun"))
         .current_dir(env!("CARGO_MANIFEST_DIR"))
         .args([
@@ -65,6 +78,10 @@ fn bench_all_quick_writes_a_consistent_report() {
             "128,72",
             "--backend",
             "cpu",
+            "--iterations",
+            "64",
+            "--reference-spp",
+            "512",
         ])
         .arg("--out")
         .arg(&dir)
@@ -100,7 +117,9 @@ fn bench_all_quick_writes_a_consistent_report() {
     // Enough to rerun it: the command line, the build, the processor; no adapter on the CPU.
     let command = header["command"].as_str().unwrap();
     assert!(
-        command.contains("bench all --quick --size 128,72 --backend cpu --out"),
+        command.contains(
+            "bench all --quick --size 128,72 --backend cpu --iterations 64 --reference-spp 512 --out"
+        ),
         "{command}"
     );
     assert!(md.contains(&format!("- Command: `{command}`")));
@@ -111,6 +130,9 @@ fn bench_all_quick_writes_a_consistent_report() {
     assert!(md.contains(header["cpu"].as_str().unwrap()));
     assert_eq!(json["config"]["size"], serde_json::json!([128, 72]));
     assert_eq!(json["config"]["quick"], true);
+    // The mode's iterations and reference overridden.
+    assert_eq!(json["config"]["iterations"], 64);
+    assert_eq!(json["config"]["reference_spp"], 512);
     assert!(md.contains("128×72"));
     for section in [
         "## The paper's table beside ours",
@@ -139,11 +161,7 @@ fn bench_all_quick_writes_a_consistent_report() {
         let label = format!("{fov}");
         let guided = cv["guided"].as_array().unwrap();
         let full = cv["full_frame"].as_array().unwrap();
-        assert_eq!(
-            guided.len(),
-            128 / 8,
-            "{fov}°: one point every 8 iterations"
-        );
+        assert_eq!(guided.len(), 64 / 8, "{fov}°: one point every 8 iterations");
         assert!(full.len() >= 2);
         // Time accumulates; the full-frame render ran at least as long as the guided one.
         for c in [guided, full] {

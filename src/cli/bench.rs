@@ -213,6 +213,14 @@ pub struct AllBenchArgs {
     pub display: String,
     #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
     pub backend: BackendChoice,
+    /// Guided iterations of the guided benchmark and of each convergence curve, overriding
+    /// the mode's (quick 128, full 100): fewer for a report that must fit a short run.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    pub iterations: Option<u32>,
+    /// Samples per pixel of the converged references the errors are measured against,
+    /// overriding the mode's (1024).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    pub reference_spp: Option<u32>,
 }
 
 fn run_all_bench(args: &AllBenchArgs) -> anyhow::Result<()> {
@@ -220,7 +228,9 @@ fn run_all_bench(args: &AllBenchArgs) -> anyhow::Result<()> {
     let display = DisplayModel::open(&args.display)?.0;
     let scene = crate::cli::scene::load_scene(&args.scene, None)?;
     let name = args.scene.trim_start_matches("builtin:");
-    let cfg = crate::bench::all::AllConfig::new(args.quick, args.size);
+    let mut cfg = crate::bench::all::AllConfig::new(args.quick, args.size);
+    cfg.iterations = args.iterations.unwrap_or(cfg.iterations);
+    cfg.reference_spp = args.reference_spp.unwrap_or(cfg.reference_spp);
     let steps = crate::bench::all::progress_steps(&cfg, name, matches!(backend, Backend::Gpu(_)));
     let (bar, progress) = bench_progress(false, steps);
     let report = crate::bench::all::run(
