@@ -16,14 +16,15 @@
 # (every log, table, JSON and plot). Copy the tables into BENCHMARKS.md with the date and the
 # adapter's name from the summary's first lines.
 #
-# Here, to check the script itself on lavapipe at tiny sizes (about two minutes, most of it
-# lavapipe compiling kernels; tests/gpu_bench_script.rs runs it with the test build):
+# Here, to check the script itself on lavapipe at tiny sizes (about 40 s with the release
+# build once Mesa's shader cache holds the kernels; the first run compiles them, which takes
+# lavapipe minutes and its groups' budgets then stop some; tests/gpu_bench_script.rs runs it
+# with the test build):
 #   OUT=/tmp/gb bash tools/gpu-bench.sh smoke
 #
 # Settings (environment): RAYGUN_BIN (default .dev/raygun for run, target/release/raygun or
 # target/debug/raygun for smoke), GPU_BENCH_LIMIT_S (the whole run's budget: 420 for run, 200
-# for smoke, whose groups take ~140 s on two busy cores, most of it lavapipe compiling
-# kernels), GPU_BENCH_GROUPS (some groups only, by name, e.g. "adapter guided all" for a
+# for smoke), GPU_BENCH_GROUPS (some groups only, by name, e.g. "adapter guided all" for a
 # rerun of what failed; default every group), OUT (where the results go; required).
 set -uo pipefail
 cd "$(dirname "$0")/.."
@@ -140,8 +141,9 @@ group_command() {
       # stack lives, wgpu's run-time checks on or off, the workgroup's size. Same pictures,
       # different code; the table's last column is each one's time over the default's.
       if "$BIN" bench trace --help 2>/dev/null | grep -q -- '--trace-kernel'; then
-        # A scene a run, so that a stopped group still leaves the Cornell box's table.
-        echo "$BIN bench trace --backend gpu --size $s --scene builtin:cornell --spp $SPP --trace-kernel $KERNEL_VARIANTS --out $d/kernels.md && $BIN bench trace --backend gpu --size $s --scene $CITY --spp $SPP --trace-kernel $KERNEL_VARIANTS --out $d/kernels-city.md"
+        # A scene a run, the city first (the H200's largest kernel miss), so that a group
+        # stopped by its budget still leaves the city's table.
+        echo "$BIN bench trace --backend gpu --size $s --scene $CITY --spp $SPP --trace-kernel $KERNEL_VARIANTS --out $d/kernels-city.md && $BIN bench trace --backend gpu --size $s --scene builtin:cornell --spp $SPP --trace-kernel $KERNEL_VARIANTS --out $d/kernels.md"
       fi
       ;;
     kernels-guided)
