@@ -125,6 +125,11 @@ pub enum GpuError {
     BadTraceKernel { value: String, why: String },
     #[error("trace kernel {variant}: {why}")]
     TraceVariant { variant: String, why: String },
+    #[error(
+        "the scene's BVH needs {needs} entries on the trace kernel's traversal stack, which \
+         holds {holds}: render it with --backend cpu"
+    )]
+    TraceStack { needs: u32, holds: u32 },
     #[error("GPU buffer read-back failed: {0}")]
     Map(#[from] wgpu::BufferAsyncError),
     #[error("GPU poll failed: {0}")]

@@ -69,9 +69,11 @@ impl Default for TraceVariant {
     }
 }
 
-/// Bytes of one thread's traversal stack (`STACK_SIZE` = 32 entries of `vec2<u32>` in
-/// `shaders/trace/bvh.wgsl`).
-pub const STACK_BYTES: u32 = 32 * 8;
+/// Entries of the trace kernel's traversal stack (`STACK_SIZE` in `shaders/trace/bvh.wgsl`).
+pub const STACK_ENTRIES: u32 = 32;
+
+/// Bytes of one thread's traversal stack ([`STACK_ENTRIES`] of `vec2<u32>`).
+pub const STACK_BYTES: u32 = STACK_ENTRIES * 8;
 
 impl TraceVariant {
     /// The workgroup sizes a variant may have.

@@ -29,7 +29,6 @@
 //! triangles are contiguous in memory.
 
 use std::sync::OnceLock;
-use std::time::Duration;
 
 use glam::Vec3;
 use obvhs::{BvhBuildParams, cwbvh::CwBvh, triangle::Triangle as ObvhsTriangle};
@@ -182,11 +181,7 @@ impl SceneBvh {
             };
         }
         let tris = obvhs_triangles(triangles);
-        let cwbvh = obvhs::cwbvh::builder::build_cwbvh_from_tris(
-            &tris,
-            BvhBuildParams::slow_build(),
-            &mut Duration::default(),
-        );
+        let cwbvh = cwbvh_of(&tris);
         let mut prims = Vec::with_capacity(cwbvh.primitive_indices.len() * 3);
         for &orig in &cwbvh.primitive_indices {
             let t = &triangles[orig as usize];
@@ -201,6 +196,29 @@ impl SceneBvh {
             prims,
             cpu: OnceLock::new(),
         }
+    }
+
+    /// The most entries the GPU kernel's walk can hold on its stack in this tree: on its way
+    /// down it pushes one (the children still to visit) at a node where it entered two or more
+    /// inner children, so no more than the most such nodes above any node. A disc of 200 000
+    /// slivers, 202 levels deep, needs 24; the kernel's stack holds 32.
+    #[must_use]
+    pub fn stack_entries(&self) -> u32 {
+        let nodes = &self.cwbvh.nodes;
+        if nodes.is_empty() {
+            return 0;
+        }
+        let (mut most, mut todo) = (0u32, vec![(0usize, 0u32)]);
+        while let Some((n, above)) = todo.pop() {
+            most = most.max(above);
+            let node = &nodes[n];
+            let inner = node.imask.count_ones();
+            let below = above + u32::from(inner >= 2);
+            for k in 0..inner as usize {
+                todo.push((node.child_base_idx as usize + k, below));
+            }
+        }
+        most
     }
 
     /// The CPU's tree, built on first use.
@@ -320,6 +338,52 @@ impl SceneBvh {
     ) -> bool {
         self.cpu().occluded_filtered(origin, dir, tmax, covered)
     }
+}
+
+/// The GPU's tree over `tris`: obvhs' `build_cwbvh_from_tris` with its `slow_build` preset —
+/// spatial pre-splits, PLOC, reinsertion, collapsed into eight-wide nodes of up to three
+/// triangles a leaf — step for step (the same tree), without its debug builds' validation.
+/// That asserts the tree is under 32 levels deep — obvhs' own traversal pushes every level —
+/// where raygun's kernel pushes only where it enters two inner children
+/// ([`SceneBvh::stack_entries`]), and real meshes are deeper: a disc of 10 000 slivers about a
+/// centre, as CAD tessellates a fine circle, is 32 levels, 20 000 are 48, so a debug build
+/// panicked on loading them. The tests check this tree's hits against brute force, and the
+/// tree against obvhs' own build.
+fn cwbvh_of(tris: &[ObvhsTriangle]) -> CwBvh {
+    let config = BvhBuildParams::slow_build();
+    let (mut largest_half_area, mut avg_area) = (0.0f32, 0.0f32);
+    let mut aabbs: Vec<_> = tris
+        .iter()
+        .map(|t| {
+            let aabb = t.aabb();
+            let half_area = aabb.half_area();
+            largest_half_area = half_area.max(largest_half_area);
+            avg_area += half_area;
+            aabb
+        })
+        .collect();
+    let mut indices: Vec<u32> = (0..tris.len() as u32).collect();
+    avg_area /= tris.len() as f32;
+    obvhs::splits::split_aabbs_preset(&mut aabbs, &mut indices, tris, avg_area, largest_half_area);
+    let mut bvh2 = obvhs::ploc::PlocBuilder::with_capacity(aabbs.len()).build(
+        config.ploc_search_distance,
+        &aabbs,
+        indices,
+        config.sort_precision,
+        config.search_depth_threshold,
+    );
+    bvh2.uses_spatial_splits = config.pre_split;
+    obvhs::bvh2::reinsertion::ReinsertionOptimizer::default().run(
+        &mut bvh2,
+        config.reinsertion_batch_ratio,
+        None,
+    );
+    obvhs::cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh(
+        &bvh2,
+        config.max_prims_per_leaf.clamp(1, 3),
+        true,
+        false,
+    )
 }
 
 /// `triangles` as obvhs' triangles.
@@ -512,6 +576,95 @@ mod tests {
             }
         }
         assert!(hits > 1000 && ties > 150, "{hits} hits, {ties} ties");
+    }
+
+    /// The GPU's tree is obvhs' own `slow_build`, node for node and primitive for primitive.
+    #[test]
+    fn the_gpu_tree_is_obvhs_own_build() {
+        let tris = random_triangles(1500, 5);
+        let ours = SceneBvh::build(&tris, &vec![0.0; tris.len()]).cwbvh;
+        let theirs = obvhs::cwbvh::builder::build_cwbvh_from_tris(
+            &obvhs_triangles(&tris),
+            BvhBuildParams::slow_build(),
+            &mut std::time::Duration::default(),
+        );
+        let bytes = |n: &[obvhs::cwbvh::node::CwBvhNode]| bytemuck::cast_slice::<_, u8>(n).to_vec();
+        assert!(bytes(&ours.nodes) == bytes(&theirs.nodes));
+        assert_eq!(ours.primitive_indices, theirs.primitive_indices);
+    }
+
+    /// A disc of thin slivers about its centre, as CAD tessellates a fine circle.
+    pub(crate) fn fan(n: usize) -> Vec<[Vec3; 3]> {
+        let at = |i: usize| {
+            let a = i as f32 / n as f32 * std::f32::consts::TAU;
+            Vec3::new(a.cos(), a.sin(), 0.0) * 100.0
+        };
+        (0..n).map(|i| [Vec3::ZERO, at(i), at(i + 1)]).collect()
+    }
+
+    /// A tree deeper than obvhs' own traversal allows (its debug builds asserted under 32
+    /// levels): it builds, says how deep its GPU walks push, and finds every hit.
+    #[test]
+    fn a_fan_of_slivers_builds_a_deep_tree_that_finds_every_hit() {
+        let tris = fan(20_000);
+        let bvh = SceneBvh::build(&tris, &vec![0.0; tris.len()]);
+        let mut levels = 0;
+        let mut todo = vec![(0usize, 1)];
+        while let Some((n, level)) = todo.pop() {
+            levels = levels.max(level);
+            let node = &bvh.cwbvh.nodes[n];
+            for k in 0..node.imask.count_ones() as usize {
+                todo.push((node.child_base_idx as usize + k, level + 1));
+            }
+        }
+        assert!(
+            levels > 40,
+            "the test needs a tree over 32 levels deep ({levels})"
+        );
+        // Its walks push far fewer entries than it has levels.
+        let entries = bvh.stack_entries();
+        assert!((1..=24).contains(&entries), "{entries} entries");
+        let mut r = uniforms(23);
+        let mut hits = 0;
+        for _ in 0..300 {
+            let o = Vec3::new(r() * 220.0 - 110.0, r() * 220.0 - 110.0, 5.0);
+            let d = Vec3::new(r() - 0.5, r() - 0.5, -4.0).normalize();
+            let want = brute(&tris, o, d);
+            let got = bvh.closest_hit(o, d, f32::INFINITY);
+            assert_eq!(got.map(|h| (h.t, h.triangle)), want, "ray {o} {d}");
+            hits += usize::from(want.is_some());
+        }
+        assert!(hits > 100, "the test must exercise hits ({hits})");
+    }
+
+    /// A spine of `k` nodes, each but the last with two inner children — the next spine node
+    /// and a childless node: a walk down it pushes at every spine node but the last.
+    fn spine(k: usize) -> Vec<obvhs::cwbvh::node::CwBvhNode> {
+        use obvhs::cwbvh::node::CwBvhNode;
+        let mut nodes = vec![CwBvhNode::default(); 2 * k - 1];
+        for j in 0..k - 1 {
+            nodes[2 * j].imask = 0b11;
+            // A childless node, then the next spine node.
+            nodes[2 * j].child_base_idx = 2 * j as u32 + 1;
+        }
+        nodes
+    }
+
+    #[test]
+    fn stack_entries_count_the_branching_nodes_above_the_deepest() {
+        let mut bvh = SceneBvh::build(&random_triangles(10, 1), &[0.0; 10]);
+        for k in [1, 2, 5, 40] {
+            bvh.cwbvh.nodes = spine(k);
+            assert_eq!(bvh.stack_entries(), k as u32 - 1, "a spine of {k}");
+        }
+        // One child a level pushes nothing, however deep.
+        bvh.cwbvh.nodes = vec![obvhs::cwbvh::node::CwBvhNode::default(); 50];
+        for j in 0..49 {
+            bvh.cwbvh.nodes[j].imask = 0b1;
+            bvh.cwbvh.nodes[j].child_base_idx = j as u32 + 1;
+        }
+        assert_eq!(bvh.stack_entries(), 0);
+        assert_eq!(SceneBvh::build(&[], &[]).stack_entries(), 0);
     }
 
     #[test]

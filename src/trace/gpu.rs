@@ -11,7 +11,7 @@ use super::accum::Accumulation;
 use super::pack::PackedScene;
 use super::path::TraceSettings;
 use super::wall::WallCamera;
-pub use crate::gpu::variant::{TraceStack, TraceVariant};
+pub use crate::gpu::variant::{STACK_ENTRIES, TraceStack, TraceVariant};
 use crate::gpu::{Band, GpuContext, GpuError, PassTimer};
 
 /// The kernel source (WGSL has no includes).
@@ -480,12 +480,21 @@ pub struct GpuScene {
 }
 
 impl GpuScene {
-    /// Uploads `scene`; fails with a clear error when an array exceeds the adapter's limits.
+    /// Uploads `scene`; fails with a clear error when an array exceeds the adapter's limits or
+    /// the scene's tree needs more than the kernel's traversal stack holds.
     pub fn upload(
         ctx: &GpuContext,
         kernel: &TraceKernel,
         scene: &PackedScene,
     ) -> Result<Self, GpuError> {
+        // A walk whose stack is full drops what it would push: that geometry would be missed.
+        let needs = scene.bvh.stack_entries();
+        if needs > STACK_ENTRIES {
+            return Err(GpuError::TraceStack {
+                needs,
+                holds: STACK_ENTRIES,
+            });
+        }
         let nodes: &[u8] = if scene.bvh.cwbvh.nodes.is_empty() {
             &[0u8; 80]
         } else {
@@ -1479,7 +1488,7 @@ mod tests {
     #[test]
     fn every_trace_kernel_variant_validates_and_names_itself() {
         // The workgroup stack's size is the kernel's stack and workgroup.
-        assert!(TRACE_WGSL.contains("const STACK_SIZE: u32 = 32u;"));
+        assert!(TRACE_WGSL.contains(&format!("const STACK_SIZE: u32 = {STACK_ENTRIES}u;")));
         assert!(TRACE_WGSL.contains(&format!("const WORKGROUP: u32 = {WORKGROUP}u;")));
         assert!(TRACE_WGSL.contains("@workgroup_size(WORKGROUP)"));
         assert_eq!(

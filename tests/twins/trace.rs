@@ -156,6 +156,72 @@ fn ties_go_to_the_higher_triangle_on_the_gpu_as_on_the_cpu() {
     }
 }
 
+/// A tree deeper than obvhs' own traversal allows (a disc of 20 000 slivers, as CAD
+/// tessellates a fine circle: 48 levels, where obvhs asserts under 32 in debug builds, which
+/// panicked on loading it): it loads, its walks need fewer entries than the kernel's stack
+/// holds, and the GPU sees every sliver the CPU twin sees; a tree whose walks could need more
+/// is refused by name.
+#[test]
+fn a_tree_deeper_than_obvhs_traversal_allows_is_traced_whole() {
+    use crate::scenes::{camera, flat, lambert};
+    let n = 20_000;
+    let at = |i: usize| {
+        let a = i as f32 / n as f32 * std::f32::consts::TAU;
+        Vec3::new(a.cos(), a.sin(), 0.0) * 100.0
+    };
+    let scene = Scene {
+        triangles: (0..n)
+            .map(|i| flat([Vec3::ZERO, at(i), at(i + 1)], 0))
+            .collect(),
+        materials: vec![lambert(0.0, Vec3::ONE)],
+        cameras: vec![camera(Vec3::new(30.0, 10.0, 260.0), Vec3::ZERO, 50.0)],
+        environment: Environment::Constant(Vec3::ZERO),
+        ..Default::default()
+    };
+    let needs = PackedScene::new(&scene).bvh.stack_entries();
+    assert!(
+        needs <= raygun::trace::gpu::STACK_ENTRIES,
+        "{needs} entries"
+    );
+    let ctx = GpuContext::for_tests();
+    let s = settings(&scene, 48, 48, 9, 1);
+    let cpu = render_on_cpu(&scene, &s, 1);
+    let gpu = render_gpu(&ctx, &scene, &s, 1);
+    let lit = |a: &raygun::trace::accum::Accumulation| -> Vec<bool> {
+        a.sum.iter().map(|p| p[1] > 0.0).collect()
+    };
+    let (seen, want) = (lit(&gpu), lit(&cpu));
+    assert!(
+        want.iter().filter(|&&l| l).count() > 48 * 48 / 2,
+        "the disc fills the view"
+    );
+    let missed = seen.iter().zip(&want).filter(|(g, c)| **c && !**g).count();
+    assert_eq!(
+        missed, 0,
+        "pixels where the GPU missed the disc the CPU twin sees"
+    );
+    // A tree whose walks could push more than the stack holds is refused, not traced with
+    // pushes dropped: a spine of 34 nodes, each but the last with two inner children.
+    use obvhs::cwbvh::node::CwBvhNode;
+    use raygun::trace::gpu::{GpuScene, STACK_ENTRIES, TraceKernel};
+    let mut packed = PackedScene::new(&scene);
+    let k = STACK_ENTRIES as usize + 2;
+    packed.bvh.cwbvh.nodes = vec![CwBvhNode::default(); 2 * k - 1];
+    for j in 0..k - 1 {
+        packed.bvh.cwbvh.nodes[2 * j].imask = 0b11;
+        packed.bvh.cwbvh.nodes[2 * j].child_base_idx = 2 * j as u32 + 1;
+    }
+    assert_eq!(packed.bvh.stack_entries(), STACK_ENTRIES + 1);
+    let err = GpuScene::upload(&ctx, &TraceKernel::new(&ctx), &packed)
+        .err()
+        .expect("refused")
+        .to_string();
+    assert!(
+        err.contains("needs 33 entries") && err.contains("holds 32"),
+        "{err}"
+    );
+}
+
 #[test]
 fn gpu_and_cpu_agree_on_the_cornell_box() {
     let ctx = GpuContext::for_tests();
