@@ -466,11 +466,11 @@ fn check_stages(md: &str, json: &serde_json::Value) -> Vec<serde_json::Value> {
     rows
 }
 
-/// Two targets, their figures taken from the convergence and per-stage sections, not judged on
-/// the CPU twins.
+/// Three targets, their figures taken from the convergence and per-stage sections (the
+/// iteration on the stages' own times and on the wall clock), not judged on the CPU twins.
 fn check_targets(md: &str, json: &serde_json::Value, stages: &[serde_json::Value]) {
     let t = json["targets"].as_array().unwrap();
-    assert_eq!(t.len(), 2);
+    assert_eq!(t.len(), 3);
     let cv10 = json["convergence"]
         .as_array()
         .unwrap()
@@ -484,6 +484,11 @@ fn check_targets(md: &str, json: &serde_json::Value, stages: &[serde_json::Value
     };
     assert_eq!(&t[0]["measured"], speedup);
     assert_eq!(t[1]["measured"], stages[0]["target_iteration_ms"]);
+    // On the CPU twins the window's picture is the host's: the 10° row's wall clock.
+    assert_eq!(stages[0]["picture"], "host");
+    assert_eq!(num(&stages[0]["fov_deg"]), 10.0);
+    assert_eq!(t[2]["measured"], stages[0]["iteration_ms_median"]);
+    assert!(t[2]["note"].as_str().unwrap().contains("host picture row"));
     for row in t {
         assert_eq!(row["status"], "not_measured");
         assert!(
@@ -495,8 +500,9 @@ fn check_targets(md: &str, json: &serde_json::Value, stages: &[serde_json::Value
     }
     let section = md.split("## Targets").nth(1).unwrap();
     let section = section.split("\n## ").next().unwrap();
-    assert_eq!(section.matches("| not measured |").count(), 2);
+    assert_eq!(section.matches("| not measured |").count(), 3);
     assert!(section.contains(&format!("{:.3} ms", num(&t[1]["measured"]))));
+    assert!(section.contains(&format!("{:.3} ms", num(&t[2]["measured"]))));
 }
 
 /// The WGSL solver through the benchmark's GPU wrapper (lavapipe in CI): every case it runs

@@ -85,6 +85,18 @@ pub enum PicturePath {
     Texture,
 }
 
+impl PicturePath {
+    /// The way's name in the tables: host, GPU or texture.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            PicturePath::Host => "host",
+            PicturePath::Gpu => "GPU",
+            PicturePath::Texture => "texture",
+        }
+    }
+}
+
 /// Measures `iterations` guided iterations of `scene` in the paper's setup (viewer at
 /// (0, 0, 1) m pointing at the wall centre, square cone of `fov` degrees) with the ROI set on
 /// the first, filtering with `filter` and converting for display with `exposure` every one,
@@ -247,11 +259,7 @@ pub fn markdown(rows: &[StageRow], device: &str) -> String {
             r.target_iteration_ms,
             r.readback_ms,
             r.filter_transfer_ms,
-            match r.picture {
-                PicturePath::Host => "host",
-                PicturePath::Gpu => "GPU",
-                PicturePath::Texture => "texture",
-            },
+            r.picture.name(),
         );
     }
     s

@@ -3,6 +3,7 @@
 use serde::Serialize;
 
 use super::AllReport;
+use super::stages::PicturePath;
 
 /// The paper's image size, at which its figures were measured.
 pub const PAPER_SIZE: [u32; 2] = [3840, 2160];
@@ -201,8 +202,19 @@ pub fn target_rows(r: &AllReport, datacenter: Option<String>) -> Vec<TargetRow> 
         (TargetStatus::NotMeasured, Some(w)) => format!("; not judged: {w}"),
         _ => String::new(),
     };
+    // The same iteration on the wall clock, as the window runs it: the 10° row of the way the
+    // picture reaches the window (a texture on the GPU where measured, else read back, else
+    // the host's), whole iterations waited for.
+    let window = [PicturePath::Texture, PicturePath::Gpu, PicturePath::Host]
+        .into_iter()
+        .find_map(|p| {
+            r.stages
+                .iter()
+                .find(|s| s.fov_deg == 10.0 && s.picture == p)
+        });
     let s1 = judge(speedup, &|v| v >= 30.0);
     let s2 = judge(iteration, &|v| v <= 8.0);
+    let s3 = judge(window.map(|s| s.iteration_ms_median), &|v| v <= 8.0);
     vec![
         TargetRow {
             target: "guided reaches the ROI target RMSE (1 % of the reference mean) ≥ 30× sooner than full frame at 10° FOV".into(),
@@ -217,11 +229,30 @@ pub fn target_rows(r: &AllReport, datacenter: Option<String>) -> Vec<TargetRow> 
             unit: "ms".into(),
             status: s2,
             note: format!(
-                "the per-stage table's target iteration (the iteration with an ROI change) at {}×{}{}",
+                "the per-stage table's target iteration (the iteration with an ROI change: the \
+                 stages' own times, the GPU's clock where it has timestamps) at {}×{}{}",
                 size[0],
                 size[1],
                 reason(&s2)
             ),
+        },
+        TargetRow {
+            target: "3840×2160 guided iterations at 10° FOV on the wall clock, as the window runs them (frame, fast filter, display, picture to the window), median ≤ 8 ms (≥ 120 iterations/s)".into(),
+            measured: window.map(|s| s.iteration_ms_median),
+            unit: "ms".into(),
+            status: s3,
+            note: match window {
+                Some(w) => format!(
+                    "median wall clock of whole iterations at 10° (the ROI set on the first: \
+                     the median's have no DGI), the per-stage table's {} picture row, at \
+                     {}×{}{}",
+                    w.picture.name(),
+                    size[0],
+                    size[1],
+                    reason(&s3)
+                ),
+                None => "10° not among the FOVs".to_string(),
+            },
         },
     ]
 }
