@@ -234,7 +234,9 @@ struct FrameInProgress {
 /// A progressive render, full frame or steered by an ROI on a display wall: the one object
 /// every command, the viewer and the benchmarks drive.
 pub struct Renderer<'a> {
-    pub packed: PackedScene,
+    /// The packed scene and its BVH, shared with the renderers rebuilt from this one
+    /// ([`Self::rebuilt_guided`]).
+    pub packed: std::sync::Arc<PackedScene>,
     pub settings: TraceSettings,
     /// Seconds spent building the BVH and packing the scene.
     pub build_seconds: f64,
@@ -308,6 +310,34 @@ impl<'a> Renderer<'a> {
         Self::new(backend, scene, settings, Some(guidance), wall)
     }
 
+    /// A guided renderer of this one's scene with other settings, guide or wall camera
+    /// ([`Self::guided_wall`]'s arguments less the scene), starting from nothing: the scene
+    /// is not packed and its BVH not built again (the viewer's rebuild when its settings
+    /// change or a reset is asked for: seconds for a large scene).
+    pub fn rebuilt_guided(
+        &self,
+        settings: TraceSettings,
+        display: &DisplayModel,
+        config: GuideConfig,
+        wall: Option<WallCamera>,
+    ) -> Result<Renderer<'a>, FrameError> {
+        crate::schedule::validate_p_min(config.p_min)?;
+        let guidance = Guidance {
+            config,
+            surface: Surface::from_model(display),
+            pitch_m: display.pitch_m(),
+            roi: None,
+        };
+        Renderer::with_packed(
+            self.backend,
+            std::sync::Arc::clone(&self.packed),
+            self.build_seconds,
+            settings,
+            Some(guidance),
+            wall,
+        )
+    }
+
     /// Packs the scene, builds its BVH and prepares every stage (on the GPU: uploads and
     /// clears).
     fn new(
@@ -317,17 +347,36 @@ impl<'a> Renderer<'a> {
         guidance: Option<Guidance>,
         wall: Option<WallCamera>,
     ) -> Result<Self, FrameError> {
-        if let Some(wc) = &wall
-            && [wc.width, wc.height] != [settings.width, settings.height]
-        {
-            return Err(FrameError::WallSize {
-                wall: [wc.width, wc.height],
-                image: [settings.width, settings.height],
-            });
-        }
+        Self::check_wall(&settings, wall.as_ref())?;
         let t0 = Instant::now();
-        let packed = PackedScene::new(scene);
+        let packed = std::sync::Arc::new(PackedScene::new(scene));
         let build_seconds = t0.elapsed().as_secs_f64();
+        Self::with_packed(backend, packed, build_seconds, settings, guidance, wall)
+    }
+
+    /// A wall camera's image must be the render's.
+    fn check_wall(settings: &TraceSettings, wall: Option<&WallCamera>) -> Result<(), FrameError> {
+        match wall {
+            Some(wc) if [wc.width, wc.height] != [settings.width, settings.height] => {
+                Err(FrameError::WallSize {
+                    wall: [wc.width, wc.height],
+                    image: [settings.width, settings.height],
+                })
+            }
+            _ => Ok(()),
+        }
+    }
+
+    /// Prepares every stage for the packed scene `packed` (on the GPU: uploads and clears).
+    fn with_packed(
+        backend: &'a Backend,
+        packed: std::sync::Arc<PackedScene>,
+        build_seconds: f64,
+        settings: TraceSettings,
+        guidance: Option<Guidance>,
+        wall: Option<WallCamera>,
+    ) -> Result<Self, FrameError> {
+        Self::check_wall(&settings, wall.as_ref())?;
         let (w, h) = (settings.width, settings.height);
         let n = w as usize * h as usize;
         let engine = match backend {

@@ -236,7 +236,6 @@ impl Engine<'_> {
 /// The renderer kept in step with a [`ViewerState`].
 pub struct ViewerCore<'a> {
     backend: &'a Backend,
-    scene: &'a Scene,
     pub model: &'a DisplayModel,
     base: TraceSettings,
     pub state: ViewerState,
@@ -326,7 +325,6 @@ impl<'a> ViewerCore<'a> {
         let renderer = Renderer::guided_wall(backend, scene, settings, model, config, wall)?;
         Ok(Self::with_engine(
             backend,
-            scene,
             model,
             base,
             state,
@@ -355,7 +353,6 @@ impl<'a> ViewerCore<'a> {
         }
         Ok(Self::with_engine(
             backend,
-            scene,
             model,
             base,
             state,
@@ -365,7 +362,6 @@ impl<'a> ViewerCore<'a> {
 
     fn with_engine(
         backend: &'a Backend,
-        scene: &'a Scene,
         model: &'a DisplayModel,
         base: TraceSettings,
         state: ViewerState,
@@ -378,7 +374,6 @@ impl<'a> ViewerCore<'a> {
         };
         Self {
             backend,
-            scene,
             model,
             base,
             built,
@@ -444,14 +439,7 @@ impl<'a> ViewerCore<'a> {
                         ..self.base
                     };
                     let wall = r.wall().cloned();
-                    **r = Renderer::guided_wall(
-                        self.backend,
-                        self.scene,
-                        settings,
-                        self.model,
-                        config,
-                        wall,
-                    )?;
+                    **r = r.rebuilt_guided(settings, self.model, config, wall)?;
                 }
                 Engine::Cluster(v) => {
                     v.send(ViewStep::Rebuild { config, max_depth })?;
