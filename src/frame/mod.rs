@@ -165,6 +165,19 @@ struct Guidance {
     roi: Option<Roi>,
 }
 
+impl Guidance {
+    /// `config` (its p_min checked) on `display`'s surface, no ROI yet.
+    fn new(display: &DisplayModel, config: GuideConfig) -> Result<Self, FrameError> {
+        crate::schedule::validate_p_min(config.p_min)?;
+        Ok(Self {
+            config,
+            surface: Surface::from_model(display),
+            pitch_m: display.pitch_m(),
+            roi: None,
+        })
+    }
+}
+
 /// A new DGI for the next frame to install.
 enum PendingDgi {
     Run(DgiRun),
@@ -300,13 +313,7 @@ impl<'a> Renderer<'a> {
         config: GuideConfig,
         wall: Option<WallCamera>,
     ) -> Result<Self, FrameError> {
-        crate::schedule::validate_p_min(config.p_min)?;
-        let guidance = Guidance {
-            config,
-            surface: Surface::from_model(display),
-            pitch_m: display.pitch_m(),
-            roi: None,
-        };
+        let guidance = Guidance::new(display, config)?;
         Self::new(backend, scene, settings, Some(guidance), wall)
     }
 
@@ -321,13 +328,8 @@ impl<'a> Renderer<'a> {
         config: GuideConfig,
         wall: Option<WallCamera>,
     ) -> Result<Renderer<'a>, FrameError> {
-        crate::schedule::validate_p_min(config.p_min)?;
-        let guidance = Guidance {
-            config,
-            surface: Surface::from_model(display),
-            pitch_m: display.pitch_m(),
-            roi: None,
-        };
+        Self::check_wall(&settings, wall.as_ref())?;
+        let guidance = Guidance::new(display, config)?;
         Renderer::with_packed(
             self.backend,
             std::sync::Arc::clone(&self.packed),
@@ -367,7 +369,8 @@ impl<'a> Renderer<'a> {
         }
     }
 
-    /// Prepares every stage for the packed scene `packed` (on the GPU: uploads and clears).
+    /// Prepares every stage for the packed scene `packed` (on the GPU: uploads and clears);
+    /// the callers have checked the wall camera ([`Self::check_wall`]).
     fn with_packed(
         backend: &'a Backend,
         packed: std::sync::Arc<PackedScene>,
@@ -376,7 +379,6 @@ impl<'a> Renderer<'a> {
         guidance: Option<Guidance>,
         wall: Option<WallCamera>,
     ) -> Result<Self, FrameError> {
-        Self::check_wall(&settings, wall.as_ref())?;
         let (w, h) = (settings.width, settings.height);
         let n = w as usize * h as usize;
         let engine = match backend {
