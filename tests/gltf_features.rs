@@ -451,3 +451,152 @@ fn a_clear_coat_on_black_reflects_its_fresnel_share_of_the_sky() {
         }
     }
 }
+
+/// The extensions' textures multiply their factors: a quad whose 2 × 1 texture is full (255)
+/// on its left half and empty (0) on its right renders, pixel for pixel and to the bit, the
+/// left half of the quad with the factor alone and the right half of the quad with the factor
+/// times zero — for transmissionTexture (R), specularTexture (A), specularColorTexture (RGB;
+/// read linear here, so that 255 is exactly 1: the loader marks it sRGB,
+/// tests/scene_loading.rs), clearcoatTexture (R) and clearcoatRoughnessTexture (G; zero
+/// roughness is the smallest α), on both backends. Every material here takes the extensions'
+/// BSDF (ior 1.6), so the references run the same code as the textured quad. The CPU twin to
+/// the bit; the GPU within 1e-5 (WGSL lets a division, and so the texel's 255 / 255, be off by
+/// 2.5 ulp; lavapipe's is exact).
+#[test]
+fn the_extensions_textures_multiply_their_factors() {
+    type Apply = fn(&mut MaterialExt, &mut Material, bool);
+    let with_texture: [(&str, [u8; 4], Apply); 5] = [
+        ("transmission", [0, 0, 0, 0], |e, _, t| {
+            if t {
+                e.transmission_texture = tex_ref(0);
+            }
+            e.transmission = 0.9;
+        }),
+        ("specular", [255, 255, 255, 0], |e, m, t| {
+            if t {
+                e.specular_texture = tex_ref(0);
+            }
+            m.specular = 0.7;
+        }),
+        ("specular colour", [255, 0, 255, 255], |e, _, t| {
+            if t {
+                e.specular_color_texture = tex_ref(0);
+            }
+            e.specular_color = Vec3::new(0.9, 0.5, 0.2);
+        }),
+        ("clear coat", [0, 255, 255, 255], |e, _, t| {
+            if t {
+                e.clearcoat_texture = tex_ref(0);
+            }
+            e.clearcoat = 0.8;
+        }),
+        ("coat roughness", [255, 0, 255, 255], |e, _, t| {
+            if t {
+                e.clearcoat_roughness_texture = tex_ref(0);
+            }
+            e.clearcoat = 1.0;
+            e.clearcoat_roughness = 0.6;
+        }),
+    ];
+    let mut tris = rect(-1.0, -1.0, 1.0, 1.0, 0.0, 0);
+    for t in &mut tris {
+        for (uv, p) in t.uv.iter_mut().zip(t.p) {
+            uv.x = (p.x + 1.0) / 2.0;
+        }
+    }
+    let scene_of = |m: Material, e: MaterialExt, empty: [u8; 4]| Scene {
+        triangles: tris.clone(),
+        materials: vec![m],
+        material_ext: vec![e],
+        textures: vec![texture("half", 2, 1, vec![[255; 4], empty], false)],
+        orthographic_cameras: vec![ortho(Vec3::new(0.0, 0.0, 2.0), 1.0)],
+        environment: Environment::Constant(Vec3::new(1.0, 0.9, 0.8)),
+        ..Default::default()
+    };
+    let base = || {
+        (
+            material(Vec3::new(0.5, 0.6, 0.7), 0.0, 0.4, 1.0, Vec3::ZERO),
+            MaterialExt {
+                ior: 1.6,
+                ..Default::default()
+            },
+        )
+    };
+    for (name, empty, apply) in with_texture {
+        // The textured quad; the factor alone; the factor × 0 (the empty texel, as a factor).
+        let (mut m, mut e) = base();
+        apply(&mut e, &mut m, true);
+        let textured = scene_of(m, e, empty);
+        let (mut m, mut e) = base();
+        apply(&mut e, &mut m, false);
+        let full = scene_of(m.clone(), e, empty);
+        let (zm, ze) = match name {
+            "transmission" => (
+                m,
+                MaterialExt {
+                    transmission: 0.0,
+                    ..e
+                },
+            ),
+            "specular" => (Material { specular: 0.0, ..m }, e),
+            "specular colour" => (
+                m,
+                MaterialExt {
+                    specular_color: Vec3::new(0.9, 0.0, 0.2),
+                    ..e
+                },
+            ),
+            "clear coat" => (
+                m,
+                MaterialExt {
+                    clearcoat: 0.0,
+                    ..e
+                },
+            ),
+            _ => (
+                m,
+                MaterialExt {
+                    clearcoat_roughness: 0.0,
+                    ..e
+                },
+            ),
+        };
+        let zero = scene_of(zm, ze, empty);
+        let s = settings(&textured, 16, 16, 3, 3);
+        let ctx = GpuContext::for_tests();
+        let renders = |sc: &Scene| {
+            [
+                (render_on_cpu(sc, &s, 4), "CPU"),
+                (render_gpu(&ctx, sc, &s, 4), "GPU"),
+            ]
+        };
+        let (t, f, z) = (renders(&textured), renders(&full), renders(&zero));
+        for k in 0..2 {
+            let label = t[k].1;
+            let mut differ = 0;
+            for y in 0..16 {
+                for x in 0..16 {
+                    let i = y * 16 + x;
+                    let want = if x < 8 {
+                        f[k].0.mean(i)
+                    } else {
+                        z[k].0.mean(i)
+                    };
+                    let got = t[k].0.mean(i);
+                    let tolerance = if k == 0 {
+                        0.0
+                    } else {
+                        1e-5 * want.max_element().max(1.0)
+                    };
+                    assert!(
+                        (got - want).abs().max_element() <= tolerance,
+                        "{name}, {label}: pixel ({x}, {y}) = {got}, want {want}"
+                    );
+                    differ += usize::from(f[k].0.mean(i) != z[k].0.mean(i));
+                }
+            }
+            // The two references differ: the test sees which half took which.
+            assert!(differ > 200, "{name}, {label}: only {differ} pixels differ");
+        }
+    }
+}

@@ -809,10 +809,14 @@ fn material_textures_vertex_colours_lights_and_cameras_load_as_the_file_says() {
                       "offset": [0.5, 0.25], "rotation": 0.5, "scale": [2.0, 3.0], "texCoord": 1 } } } } },
             { "name": "glass", "alphaMode": "BLEND",
               "extensions": {
-                  "KHR_materials_transmission": { "transmissionFactor": 0.9 },
+                  "KHR_materials_transmission": { "transmissionFactor": 0.9, "transmissionTexture": { "index": 0 } },
                   "KHR_materials_ior": { "ior": 1.7 },
-                  "KHR_materials_clearcoat": { "clearcoatFactor": 0.6, "clearcoatRoughnessFactor": 0.2 },
-                  "KHR_materials_specular": { "specularColorFactor": [1.0, 0.5, 0.25] } } },
+                  "KHR_materials_clearcoat": { "clearcoatFactor": 0.6, "clearcoatRoughnessFactor": 0.2,
+                      "clearcoatTexture": { "index": 0, "texCoord": 1 },
+                      "clearcoatRoughnessTexture": { "index": 0, "extensions": { "KHR_texture_transform": {
+                          "offset": [0.25, 0.0], "texCoord": 1 } } } },
+                  "KHR_materials_specular": { "specularColorFactor": [1.0, 0.5, 0.25],
+                      "specularTexture": { "index": 0 }, "specularColorTexture": { "index": 0 } } } },
         ],
         "meshes": [{ "primitives": [
             { "attributes": { "POSITION": pos, "NORMAL": nor, "TEXCOORD_0": uv0, "TEXCOORD_1": uv1, "COLOR_0": rgb }, "material": 0 },
@@ -897,6 +901,22 @@ fn material_textures_vertex_colours_lights_and_cameras_load_as_the_file_says() {
     assert_eq!((glass.transmission, glass.ior), (0.9, 1.7));
     assert_eq!((glass.clearcoat, glass.clearcoat_roughness), (0.6, 0.2));
     assert_eq!(glass.specular_color, Vec3::new(1.0, 0.5, 0.25));
+    // The extensions' textures: data copies, but the specular colour (sRGB), with their UVs.
+    let data_index = maps.normal_texture.unwrap().texture;
+    let colour_index = scene.materials[0].base_color_texture.unwrap();
+    for (t, want) in [
+        (glass.transmission_texture, data_index),
+        (glass.specular_texture, data_index),
+        (glass.specular_color_texture, colour_index),
+        (glass.clearcoat_texture, data_index),
+        (glass.clearcoat_roughness_texture, data_index),
+    ] {
+        assert_eq!(t.unwrap().texture, want);
+    }
+    assert_eq!(glass.clearcoat_texture.unwrap().uv.tex_coord, 1);
+    let rough = glass.clearcoat_roughness_texture.unwrap().uv;
+    assert_eq!(rough.tex_coord, 1);
+    assert_eq!(rough.transform.offset, Vec2::new(0.25, 0.0));
 }
 
 /// Quantized geometry (KHR_mesh_quantization: normalized i16 positions under a node scale)
@@ -958,6 +978,38 @@ fn errors_name_the_file_and_the_element() {
         e,
         "test.gltf: mesh 0 primitive 0: POSITION accessor 9 does not exist"
     );
+
+    // An extension's texture reference (JSON to the gltf crate, so not validated by it) that
+    // names no texture, or a texCoord that is no set.
+    for (info, problem) in [
+        (
+            json!({ "index": 3 }),
+            "clearcoatTexture: index 3 names no texture (the file has 0)",
+        ),
+        (
+            json!({ "texCoord": 0 }),
+            "clearcoatTexture: index missing names no texture (the file has 0)",
+        ),
+        (
+            json!({ "index": -1 }),
+            "clearcoatTexture: index -1 names no texture (the file has 0)",
+        ),
+    ] {
+        let mut d = Doc::default();
+        let pos = d.floats(&TRI, "VEC3");
+        let bytes = d.finish(json!({
+            "extensionsUsed": ["KHR_materials_clearcoat"],
+            "materials": [{ "name": "Paint", "extensions": { "KHR_materials_clearcoat": {
+                "clearcoatFactor": 1.0, "clearcoatTexture": info } } }],
+            "meshes": [{ "primitives": [{ "attributes": { "POSITION": pos }, "material": 0 }] }],
+            "nodes": [{ "mesh": 0 }],
+            "scenes": [{ "nodes": [0] }],
+        }));
+        assert_eq!(
+            err(&bytes),
+            format!("test.gltf: material 'Paint': {problem}")
+        );
+    }
 
     // glTF 2.0 §5.18: an image is a uri or a bufferView with a mimeType.
     let e = err(br#"{"asset":{"version":"2.0"},"images":[{"name":"Label"}]}"#);

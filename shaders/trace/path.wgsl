@@ -41,7 +41,7 @@ struct Params {
 }
 
 // Layout constants: src/trace/pack.rs (module doc).
-const MATERIAL_STRIDE: u32 = 13u;
+const MATERIAL_STRIDE: u32 = 23u;
 const EXTRAS_STRIDE: u32 = 8u;
 const MAT_BASE_TEX: u32 = 2u;
 const MAT_MR_TEX: u32 = 4u;
@@ -50,6 +50,7 @@ const MAT_EMISSIVE_TEX: u32 = 16u;
 const MAT_MASK: u32 = 32u;
 const MAT_BLEND: u32 = 64u;
 const MAT_EXT_BSDF: u32 = 128u;
+const MAT_EXT_TEX: u32 = 256u;
 const FEAT_EXTRAS: u32 = 1u;
 const FEAT_ALPHA: u32 = 2u;
 const LIGHT_SPOT: u32 = 1u;
@@ -231,6 +232,45 @@ fn emission_at(mb: u32, flags: u32, tri: u32, u: f32, v: f32) -> vec3<f32> {
         e *= slot(mb, 3u, tri, u, v).xyz;
     }
     return e;
+}
+
+// Whether the material's texture slot k holds a texture.
+fn textured(mb: u32, k: u32) -> bool {
+    return bitcast<u32>(materials[mb + 5u + 2u * k].w) != NO_TEXTURE;
+}
+
+// The extensions' BSDF over the core one: each factor times its texture where the material has
+// one (CPU twin: path::ext_bsdf).
+fn ext_bsdf(mb: u32, flags: u32, core_in: Bsdf, front: bool, tri: u32, u: f32, v: f32) -> BsdfExt {
+    let m3 = materials[mb + 3u];
+    let m4 = materials[mb + 4u];
+    let ior = m4.x;
+    let f0 = (ior - 1.0) / (ior + 1.0);
+    var core = core_in;
+    var specular_color = m3.xyz;
+    var transmission = m3.w;
+    var clearcoat = m4.y;
+    var clearcoat_alpha = m4.z;
+    if (flags & MAT_EXT_TEX) != 0u {
+        if textured(mb, 4u) {
+            transmission *= slot(mb, 4u, tri, u, v).x;
+        }
+        if textured(mb, 5u) {
+            core.specular *= slot(mb, 5u, tri, u, v).w;
+        }
+        if textured(mb, 6u) {
+            specular_color *= slot(mb, 6u, tri, u, v).xyz;
+        }
+        if textured(mb, 7u) {
+            clearcoat *= slot(mb, 7u, tri, u, v).x;
+        }
+        if textured(mb, 8u) {
+            let g = slot(mb, 8u, tri, u, v).y;
+            clearcoat_alpha = max(clearcoat_alpha * g * g, MIN_ALPHA);
+        }
+    }
+    return BsdfExt(core, specular_color, f0 * f0, select(1.0 / ior, ior, front), transmission,
+        clearcoat, clearcoat_alpha);
 }
 
 fn normal_mapped(mb: u32, tri: u32, u: f32, v: f32, ns: vec3<f32>) -> vec3<f32> {
@@ -475,11 +515,7 @@ fn path_shade(st: ptr<function, PathState>, hit: Hit) -> bool {
     let has_ext = (flags & MAT_EXT_BSDF) != 0u;
     var ext = BsdfExt(bsdf, vec3<f32>(1.0), 0.04, 1.5, 0.0, 0.0, 0.1);
     if has_ext {
-        let m3 = materials[mb + 3u];
-        let m4 = materials[mb + 4u];
-        let ior = m4.x;
-        let f0 = (ior - 1.0) / (ior + 1.0);
-        ext = BsdfExt(bsdf, m3.xyz, f0 * f0, select(1.0 / ior, ior, front), m3.w, m4.y, m4.z);
+        ext = ext_bsdf(mb, flags, bsdf, front, tri, hit.u, hit.v);
     }
     let transmits = has_ext && ext_transmits(ext);
     let r1 = rand4(pixel, sample, 1u + 2u * depth);

@@ -736,6 +736,51 @@ impl Loader<'_> {
         Ok(texture.map(|texture| TextureRef { texture, uv }))
     }
 
+    /// A texture reference an extension gives as JSON (`{"index", "texCoord", "extensions":
+    /// {"KHR_texture_transform"}}`: the gltf crate has no typed form for it), read as data.
+    /// None where `info` is absent or the texture cannot be used (reported); an index that
+    /// names no texture is an error naming the material and the key.
+    fn json_texture_ref(
+        &mut self,
+        element: &str,
+        what: &str,
+        info: Option<&serde_json::Value>,
+    ) -> Result<Option<TextureRef>, SceneError> {
+        let Some(info) = info else {
+            return Ok(None);
+        };
+        let count = self.doc.textures().len();
+        let index = info.get("index").and_then(serde_json::Value::as_u64);
+        let Some(tex) = index.and_then(|i| self.doc.textures().nth(usize::try_from(i).ok()?))
+        else {
+            let index = info
+                .get("index")
+                .map_or("missing".into(), ToString::to_string);
+            return Err(self.element_error(
+                element.to_string(),
+                format!("{what}: index {index} names no texture (the file has {count})"),
+            ));
+        };
+        let tex_coord = match info.get("texCoord") {
+            None => 0,
+            Some(v) => match v.as_u64() {
+                Some(c) => c.min(u64::from(u32::MAX)) as u32,
+                None => {
+                    return Err(self.element_error(
+                        element.to_string(),
+                        format!("{what}: texCoord {v} is not a number ≥ 0"),
+                    ));
+                }
+            },
+        };
+        let uv = texture_transform(
+            info.get("extensions")
+                .and_then(|e| e.get("KHR_texture_transform")),
+            tex_coord,
+        );
+        self.texture_ref(element, what, &tex, uv, false)
+    }
+
     fn convert_material(
         &mut self,
         m: &gltf::Material,
@@ -790,16 +835,17 @@ impl Loader<'_> {
                 "clearcoatRoughnessFactor",
                 get("clearcoatRoughnessFactor").unwrap_or(0.0) as f32,
             )?;
-            for t in [
-                "clearcoatTexture",
+            ext.clearcoat_texture =
+                self.json_texture_ref(&element, "clearcoatTexture", c.get("clearcoatTexture"))?;
+            ext.clearcoat_roughness_texture = self.json_texture_ref(
+                &element,
                 "clearcoatRoughnessTexture",
-                "clearcoatNormalTexture",
-            ] {
-                if c.get(t).is_some() {
-                    r.unsupported(format!(
-                        "KHR_materials_clearcoat {t} ({element}; the factor is used)"
-                    ));
-                }
+                c.get("clearcoatRoughnessTexture"),
+            )?;
+            if c.get("clearcoatNormalTexture").is_some() {
+                self.report.unsupported(format!(
+                    "KHR_materials_clearcoat clearcoatNormalTexture ({element}; the coat takes the shading normal)"
+                ));
             }
         }
         if let Some(t) = m.transmission() {
@@ -808,10 +854,14 @@ impl Loader<'_> {
                 "transmissionFactor",
                 t.transmission_factor(),
             )?;
-            if t.transmission_texture().is_some() {
-                self.report.unsupported(format!(
-                    "KHR_materials_transmission transmissionTexture ({element}; the factor is used)"
-                ));
+            if let Some(info) = t.transmission_texture() {
+                ext.transmission_texture = self.texture_ref(
+                    &element,
+                    "transmissionTexture",
+                    &info.texture(),
+                    info_uv(&info),
+                    false,
+                )?;
             }
         }
         if let Some(ior) = m.ior() {
@@ -901,7 +951,7 @@ impl Loader<'_> {
             None => None,
         };
         // KHR_materials_specular: the factor scales the dielectric Fresnel term, the colour
-        // tints its F0 (the tracer's BSDF); its textures are not modelled.
+        // tints its F0 (the tracer's BSDF); its textures multiply them (A and RGB).
         let mut specular = 1.0;
         if let Some(sp) = m.specular() {
             let f = sp.specular_factor();
@@ -916,9 +966,23 @@ impl Loader<'_> {
             } else {
                 Vec3::ONE
             };
-            if sp.specular_texture().is_some() || sp.specular_color_texture().is_some() {
-                self.report
-                    .unsupported(format!("KHR_materials_specular textures ({element})"));
+            if let Some(info) = sp.specular_texture() {
+                ext.specular_texture = self.texture_ref(
+                    &element,
+                    "specularTexture",
+                    &info.texture(),
+                    info_uv(&info),
+                    false,
+                )?;
+            }
+            if let Some(info) = sp.specular_color_texture() {
+                ext.specular_color_texture = self.texture_ref(
+                    &element,
+                    "specularColorTexture",
+                    &info.texture(),
+                    info_uv(&info),
+                    true,
+                )?;
             }
         }
         let emission = if m.emissive_texture().is_some() && ext.emissive_texture.is_none() {

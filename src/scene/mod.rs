@@ -209,6 +209,29 @@ pub struct MaterialExt {
     /// KHR_materials_clearcoat: the coat's strength and perceptual roughness.
     pub clearcoat: f32,
     pub clearcoat_roughness: f32,
+    /// The extensions' textures, each multiplying its factor where the material has one
+    /// (linear data unless said): transmissionTexture's R, specularTexture's A,
+    /// specularColorTexture's RGB (sRGB), clearcoatTexture's R, clearcoatRoughnessTexture's G.
+    pub transmission_texture: Option<TextureRef>,
+    pub specular_texture: Option<TextureRef>,
+    pub specular_color_texture: Option<TextureRef>,
+    pub clearcoat_texture: Option<TextureRef>,
+    pub clearcoat_roughness_texture: Option<TextureRef>,
+}
+
+impl MaterialExt {
+    /// The extensions' textures in the order of their slots in the packed material
+    /// (`trace::pack`): transmission, specular, specular colour, clear coat, coat roughness.
+    #[must_use]
+    pub fn extension_textures(&self) -> [Option<TextureRef>; 5] {
+        [
+            self.transmission_texture,
+            self.specular_texture,
+            self.specular_color_texture,
+            self.clearcoat_texture,
+            self.clearcoat_roughness_texture,
+        ]
+    }
 }
 
 impl Default for MaterialExt {
@@ -225,6 +248,11 @@ impl Default for MaterialExt {
             specular_color: Vec3::ONE,
             clearcoat: 0.0,
             clearcoat_roughness: 0.0,
+            transmission_texture: None,
+            specular_texture: None,
+            specular_color_texture: None,
+            clearcoat_texture: None,
+            clearcoat_roughness_texture: None,
         }
     }
 }

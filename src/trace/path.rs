@@ -30,8 +30,8 @@ use super::accum::{Accumulation, accumulate};
 use super::camera::RenderCamera;
 use super::pack::{
     EXTRAS_STRIDE, FEAT_ALPHA, FEAT_EXTRAS, LIGHT_DIRECTIONAL, LIGHT_SPOT, MAT_BASE_TEX, MAT_BLEND,
-    MAT_EMISSIVE_TEX, MAT_EXT_BSDF, MAT_MASK, MAT_MR_TEX, MAT_NORMAL_TEX, MATERIAL_STRIDE,
-    MIN_ALPHA, PackedScene,
+    MAT_EMISSIVE_TEX, MAT_EXT_BSDF, MAT_EXT_TEX, MAT_MASK, MAT_MR_TEX, MAT_NORMAL_TEX,
+    MATERIAL_STRIDE, MIN_ALPHA, NO_TEXTURE, PackedScene,
 };
 use super::shading::{
     Bsdf, BsdfExt, basis, direction_to_equirect, equirect_to_direction, offset_ray, srgb_to_linear,
@@ -285,6 +285,58 @@ fn emission_at(sc: &PackedScene, mb: usize, flags: u32, sp: SurfacePoint) -> Vec
         e *= slot(sc, mb, 3, sp).truncate();
     }
     e
+}
+
+/// The extensions' BSDF of material `mb` (with `flags`) over its core BSDF `core` at `sp`, hit
+/// from the front or not (KHR_materials_transmission, _ior, _specular, _clearcoat): each
+/// factor times its texture where the material has one — transmission × R, specular × A,
+/// specular colour × RGB, coat × R, coat roughness × G (α = max(α · G², [`MIN_ALPHA`]), as the
+/// metallic-roughness map's). The twin of `ext_bsdf` in path.wgsl.
+#[inline(never)]
+fn ext_bsdf(
+    sc: &PackedScene,
+    mb: usize,
+    flags: u32,
+    mut core: Bsdf,
+    front: bool,
+    sp: SurfacePoint,
+) -> BsdfExt {
+    let (m3, m4) = (sc.materials[mb + 3], sc.materials[mb + 4]);
+    let ior = m4[0];
+    let f0 = (ior - 1.0) / (ior + 1.0);
+    let mut specular_color = v3(m3);
+    let mut transmission = m3[3];
+    let (mut clearcoat, mut clearcoat_alpha) = (m4[1], m4[2]);
+    if flags & MAT_EXT_TEX != 0 {
+        // Slots 4..9 (after base colour, metallic-roughness, normal and emissive); a slot
+        // without a texture leaves its factor.
+        let textured = |k: usize| sc.materials[mb + 5 + 2 * k][3].to_bits() != NO_TEXTURE;
+        if textured(4) {
+            transmission *= slot(sc, mb, 4, sp).x;
+        }
+        if textured(5) {
+            core.specular *= slot(sc, mb, 5, sp).w;
+        }
+        if textured(6) {
+            specular_color *= slot(sc, mb, 6, sp).truncate();
+        }
+        if textured(7) {
+            clearcoat *= slot(sc, mb, 7, sp).x;
+        }
+        if textured(8) {
+            let g = slot(sc, mb, 8, sp).y;
+            clearcoat_alpha = (clearcoat_alpha * g * g).max(MIN_ALPHA);
+        }
+    }
+    BsdfExt {
+        core,
+        specular_color,
+        f0: f0 * f0,
+        eta: if front { ior } else { 1.0 / ior },
+        transmission,
+        clearcoat,
+        clearcoat_alpha,
+    }
 }
 
 /// Next-event estimation of one punctual light (`u` the selection number): direction,
@@ -586,20 +638,8 @@ fn trace_path<const FULL: bool>(
             alpha,
             specular: m2[2],
         };
-        let ext = (FULL && flags & MAT_EXT_BSDF != 0).then(|| {
-            let (m3, m4) = (sc.materials[mb + 3], sc.materials[mb + 4]);
-            let ior = m4[0];
-            let f0 = (ior - 1.0) / (ior + 1.0);
-            BsdfExt {
-                core: bsdf,
-                specular_color: v3(m3),
-                f0: f0 * f0,
-                eta: if front { ior } else { 1.0 / ior },
-                transmission: m3[3],
-                clearcoat: m4[1],
-                clearcoat_alpha: m4[2],
-            }
-        });
+        let ext =
+            (FULL && flags & MAT_EXT_BSDF != 0).then(|| ext_bsdf(sc, mb, flags, bsdf, front, sp));
         let transmits = ext.is_some_and(|e| e.transmits());
         // The core BSDF's lobe probability, shared by its two evaluations and its sample.
         let ps = if ext.is_none() {

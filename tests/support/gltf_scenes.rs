@@ -93,8 +93,9 @@ pub fn ortho(position: Vec3, ymag: f32) -> OrthographicCamera {
 
 /// One scene with every one of these features: textures with transforms, wrap modes and both
 /// filters, TEXCOORD_1, vertex colours, a normal map, a metallic-roughness map, an emissive
-/// texture, MASK and BLEND, rough and smooth glass, clear coat, specular colour, point, spot
-/// and directional lights and an environment.
+/// texture, MASK and BLEND, rough and smooth glass, clear coat, specular colour, the
+/// extensions' textures (transmission, specular, specular colour, coat, coat roughness), point,
+/// spot and directional lights and an environment.
 pub fn everything() -> Scene {
     let mut tris = Vec::new();
     tris.extend(rect(-2.0, -2.0, 2.0, 2.0, -1.0, 0)); // back wall: textured, vertex colours
@@ -227,6 +228,9 @@ pub fn everything() -> Scene {
             metallic_roughness_texture: tex_ref(2),
             clearcoat: 0.8,
             clearcoat_roughness: 0.1,
+            // The coat's strength from the bumps' red, its roughness from the MR map's green.
+            clearcoat_texture: transformed(1, 1),
+            clearcoat_roughness_texture: tex_ref(2),
             ..Default::default()
         },
         MaterialExt {
@@ -250,6 +254,11 @@ pub fn everything() -> Scene {
             transmission: 0.9,
             ior: 1.6,
             specular_color: Vec3::new(1.0, 0.7, 0.4),
+            // Transmission × the bumps' red, specular × the checker's alpha, the specular
+            // colour × the glow's RGB (sRGB).
+            transmission_texture: transformed(1, 0),
+            specular_texture: transformed(0, 0),
+            specular_color_texture: tex_ref(3),
             ..Default::default()
         },
     ];

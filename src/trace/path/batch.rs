@@ -567,28 +567,21 @@ fn shade8<const FULL: bool>(
     } else {
         std::array::from_fn(|i| {
             (ext_lanes & (1 << i) != 0).then(|| {
-                let mb = g.mb[i];
-                let (m3, m4) = (sc.materials[mb + 3], sc.materials[mb + 4]);
-                let ior = m4[0];
-                let f0 = (ior - 1.0) / (ior + 1.0);
-                BsdfExt {
-                    core: Bsdf {
-                        base: Vec3::new(g.base[0][i], g.base[1][i], g.base[2][i]),
-                        metallic: g.m2[0][i],
-                        alpha: g.m2[1][i],
-                        specular: g.m2[2][i],
-                    },
-                    specular_color: v3(m3),
-                    f0: f0 * f0,
-                    eta: if front_bits & (1 << i) != 0 {
-                        ior
-                    } else {
-                        1.0 / ior
-                    },
-                    transmission: m3[3],
-                    clearcoat: m4[1],
-                    clearcoat_alpha: m4[2],
-                }
+                let core = Bsdf {
+                    base: Vec3::new(g.base[0][i], g.base[1][i], g.base[2][i]),
+                    metallic: g.m2[0][i],
+                    alpha: g.m2[1][i],
+                    specular: g.m2[2][i],
+                };
+                let sp = g.sp[i].expect("a shaded lane holds its hit");
+                ext_bsdf(
+                    sc,
+                    g.mb[i],
+                    g.flags[i],
+                    core,
+                    front_bits & (1 << i) != 0,
+                    sp,
+                )
             })
         })
     };
