@@ -600,3 +600,90 @@ fn the_extensions_textures_multiply_their_factors() {
         }
     }
 }
+
+/// The clear coat's own normal (KHR_materials_clearcoat): on a black base that reflects
+/// nothing, under a point light at the pinhole, the coat's highlight sits under the camera
+/// when only the base has a normal map tilting it by 10° towards +x — the base's map does not
+/// bend the coat — and at x = −c·tan 10° when the coat's own normal map tilts it so.
+#[test]
+fn the_coat_takes_its_own_normal_map_and_not_the_bases() {
+    let tilt = 10f32.to_radians();
+    let texel = |v: f32| ((v + 1.0) * 0.5 * 255.0).round() as u8;
+    let (sin, cos) = tilt.sin_cos();
+    let c = 2.0f32;
+    let scene = |base_map: bool, coat_map: bool| {
+        let tris = rect(-2.0, -2.0, 2.0, 2.0, 0.0, 0);
+        let n = tris.len();
+        Scene {
+            triangles: tris,
+            materials: vec![material(Vec3::ZERO, 0.0, 1.0, 0.0, Vec3::ZERO)],
+            material_ext: vec![MaterialExt {
+                normal_texture: if base_map { tex_ref(0) } else { None },
+                clearcoat: 1.0,
+                clearcoat_roughness: 0.3,
+                clearcoat_normal_texture: if coat_map { tex_ref(0) } else { None },
+                ..Default::default()
+            }],
+            vertex_extras: vec![
+                VertexExtras {
+                    tangent: [Vec4::new(1.0, 0.0, 0.0, 1.0); 3],
+                    ..Default::default()
+                };
+                n
+            ],
+            textures: vec![texture(
+                "tilt",
+                1,
+                1,
+                vec![[texel(sin), texel(0.0), texel(cos), 255]],
+                false,
+            )],
+            cameras: vec![Camera {
+                name: "top".into(),
+                position: Vec3::new(0.0, 0.0, c),
+                forward: Vec3::NEG_Z,
+                up: Vec3::Y,
+                yfov: 60f32.to_radians(),
+            }],
+            lights: vec![PunctualLight {
+                name: "flash".into(),
+                kind: LightKind::Point,
+                position: Vec3::new(0.0, 0.0, c),
+                direction: Vec3::NEG_Z,
+                intensity: Vec3::ONE,
+            }],
+            environment: Environment::Constant(Vec3::ZERO),
+            ..Default::default()
+        }
+    };
+    let w = 64u32;
+    let half_width = c * 30f32.to_radians().tan();
+    let column_of = |x: f32| (x / half_width + 1.0) * 0.5 * w as f32;
+    let (straight, tilted) = (column_of(0.0), column_of(-c * tilt.tan()));
+    for (base_map, coat_map, want) in [
+        (true, false, straight),
+        (false, true, tilted),
+        (true, true, tilted),
+    ] {
+        let sc = scene(base_map, coat_map);
+        let s = settings(&sc, w, w, 2, 1);
+        for (acc, label) in both(&sc, &s, 8) {
+            let row = w as usize / 2;
+            let brightest = (0..w as usize)
+                .max_by(|&a, &b| {
+                    luminance(acc.mean(row * w as usize + a))
+                        .total_cmp(&luminance(acc.mean(row * w as usize + b)))
+                })
+                .unwrap();
+            let got = brightest as f32 + 0.5;
+            assert!(
+                luminance(acc.mean(row * w as usize + brightest)) > 0.0,
+                "{label}: no highlight"
+            );
+            assert!(
+                (got - want).abs() <= 1.5,
+                "{label}, base map {base_map}, coat map {coat_map}: highlight at column {got}, predicted {want}"
+            );
+        }
+    }
+}

@@ -814,7 +814,8 @@ fn material_textures_vertex_colours_lights_and_cameras_load_as_the_file_says() {
                   "KHR_materials_clearcoat": { "clearcoatFactor": 0.6, "clearcoatRoughnessFactor": 0.2,
                       "clearcoatTexture": { "index": 0, "texCoord": 1 },
                       "clearcoatRoughnessTexture": { "index": 0, "extensions": { "KHR_texture_transform": {
-                          "offset": [0.25, 0.0], "texCoord": 1 } } } },
+                          "offset": [0.25, 0.0], "texCoord": 1 } } },
+                      "clearcoatNormalTexture": { "index": 0, "scale": 0.75 } },
                   "KHR_materials_specular": { "specularColorFactor": [1.0, 0.5, 0.25],
                       "specularTexture": { "index": 0 }, "specularColorTexture": { "index": 0 } } } },
         ],
@@ -910,6 +911,7 @@ fn material_textures_vertex_colours_lights_and_cameras_load_as_the_file_says() {
         (glass.specular_color_texture, colour_index),
         (glass.clearcoat_texture, data_index),
         (glass.clearcoat_roughness_texture, data_index),
+        (glass.clearcoat_normal_texture, data_index),
     ] {
         assert_eq!(t.unwrap().texture, want);
     }
@@ -917,6 +919,7 @@ fn material_textures_vertex_colours_lights_and_cameras_load_as_the_file_says() {
     let rough = glass.clearcoat_roughness_texture.unwrap().uv;
     assert_eq!(rough.tex_coord, 1);
     assert_eq!(rough.transform.offset, Vec2::new(0.25, 0.0));
+    assert_eq!(glass.clearcoat_normal_scale, 0.75);
 }
 
 /// Quantized geometry (KHR_mesh_quantization: normalized i16 positions under a node scale)

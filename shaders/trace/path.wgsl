@@ -41,7 +41,7 @@ struct Params {
 }
 
 // Layout constants: src/trace/pack.rs (module doc).
-const MATERIAL_STRIDE: u32 = 23u;
+const MATERIAL_STRIDE: u32 = 26u;
 const EXTRAS_STRIDE: u32 = 8u;
 const MAT_BASE_TEX: u32 = 2u;
 const MAT_MR_TEX: u32 = 4u;
@@ -241,7 +241,7 @@ fn textured(mb: u32, k: u32) -> bool {
 
 // The extensions' BSDF over the core one: each factor times its texture where the material has
 // one (CPU twin: path::ext_bsdf).
-fn ext_bsdf(mb: u32, flags: u32, core_in: Bsdf, front: bool, tri: u32, u: f32, v: f32) -> BsdfExt {
+fn ext_bsdf(mb: u32, flags: u32, core_in: Bsdf, front: bool, tri: u32, u: f32, v: f32, ns: vec3<f32>, ng: vec3<f32>) -> BsdfExt {
     let m3 = materials[mb + 3u];
     let m4 = materials[mb + 4u];
     let ior = m4.x;
@@ -251,6 +251,7 @@ fn ext_bsdf(mb: u32, flags: u32, core_in: Bsdf, front: bool, tri: u32, u: f32, v
     var transmission = m3.w;
     var clearcoat = m4.y;
     var clearcoat_alpha = m4.z;
+    var coat_normal = ns;
     if (flags & MAT_EXT_TEX) != 0u {
         if textured(mb, 4u) {
             transmission *= slot(mb, 4u, tri, u, v).x;
@@ -268,14 +269,24 @@ fn ext_bsdf(mb: u32, flags: u32, core_in: Bsdf, front: bool, tri: u32, u: f32, v
             let g = slot(mb, 8u, tri, u, v).y;
             clearcoat_alpha = max(clearcoat_alpha * g * g, MIN_ALPHA);
         }
+        if textured(mb, 9u) {
+            coat_normal = normal_mapped_by(mb, 9u, materials[mb + 25u].x, tri, u, v, ns);
+        }
+    }
+    if dot(coat_normal, ng) < 0.0 {
+        coat_normal = -coat_normal;
     }
     return BsdfExt(core, specular_color, f0 * f0, select(1.0 / ior, ior, front), transmission,
-        clearcoat, clearcoat_alpha);
+        clearcoat, clearcoat_alpha, coat_normal);
 }
 
 fn normal_mapped(mb: u32, tri: u32, u: f32, v: f32, ns: vec3<f32>) -> vec3<f32> {
-    let tn = slot(mb, 2u, tri, u, v).xyz * 2.0 - vec3<f32>(1.0);
-    let scale = materials[mb + 4u].w;
+    return normal_mapped_by(mb, 2u, materials[mb + 4u].w, tri, u, v, ns);
+}
+
+// normal_mapped by the normal map in texture slot k with `scale`.
+fn normal_mapped_by(mb: u32, k: u32, scale: f32, tri: u32, u: f32, v: f32, ns: vec3<f32>) -> vec3<f32> {
+    let tn = slot(mb, k, tri, u, v).xyz * 2.0 - vec3<f32>(1.0);
     let e = params.extras_offset + EXTRAS_STRIDE * tri;
     let t4 = lerp4(shade[e + 5u], shade[e + 6u], shade[e + 7u], u, v);
     var t = t4.xyz - ns * dot(ns, t4.xyz);
@@ -478,6 +489,7 @@ fn path_shade(st: ptr<function, PathState>, hit: Hit) -> bool {
     if !is_finite3(ns) {
         ns = ng;
     }
+    let ns_interpolated = ns;
     let mb = MATERIAL_STRIDE * bitcast<u32>(s3.w);
     let m1 = materials[mb + 1u];
     let m2 = materials[mb + 2u];
@@ -513,9 +525,9 @@ fn path_shade(st: ptr<function, PathState>, hit: Hit) -> bool {
     }
     let bsdf = Bsdf(base.xyz, metallic, alpha, m2.z);
     let has_ext = (flags & MAT_EXT_BSDF) != 0u;
-    var ext = BsdfExt(bsdf, vec3<f32>(1.0), 0.04, 1.5, 0.0, 0.0, 0.1);
+    var ext = BsdfExt(bsdf, vec3<f32>(1.0), 0.04, 1.5, 0.0, 0.0, 0.1, ns);
     if has_ext {
-        ext = ext_bsdf(mb, flags, bsdf, front, tri, hit.u, hit.v);
+        ext = ext_bsdf(mb, flags, bsdf, front, tri, hit.u, hit.v, ns_interpolated, ng);
     }
     let transmits = has_ext && ext_transmits(ext);
     let r1 = rand4(pixel, sample, 1u + 2u * depth);

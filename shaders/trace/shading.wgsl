@@ -128,6 +128,8 @@ struct BsdfExt {
     transmission: f32,
     clearcoat: f32,
     clearcoat_alpha: f32,
+    // The coat's own shading normal, on the viewer's side.
+    coat_normal: vec3<f32>,
 }
 
 fn ggx_d(noh: f32, a2: f32) -> f32 {
@@ -184,17 +186,17 @@ fn ext_fresnel(e: BsdfExt, c: f32) -> ExtFresnel {
     return ExtFresnel(fd, mix(fd, fm, b.metallic));
 }
 
-fn ext_coat(e: BsdfExt, cos_o: f32) -> f32 {
-    if e.clearcoat > 0.0 {
-        return e.clearcoat * (0.04 + 0.96 * pow5(max(1.0 - cos_o, 0.0)));
+fn ext_coat(e: BsdfExt, cos_oc: f32) -> f32 {
+    if e.clearcoat > 0.0 && cos_oc > 0.0 {
+        return e.clearcoat * (0.04 + 0.96 * pow5(max(1.0 - cos_oc, 0.0)));
     }
     return 0.0;
 }
 
-fn ext_lobes(e: BsdfExt, cos_o: f32) -> vec4<f32> {
+fn ext_lobes(e: BsdfExt, cos_o: f32, cos_oc: f32) -> vec4<f32> {
     let b = e.core;
     let fr = ext_fresnel(e, cos_o);
-    let coat = ext_coat(e, cos_o);
+    let coat = ext_coat(e, cos_oc);
     let ws = lum(fr.f) * (1.0 - coat);
     let rest = lum(b.base) * (1.0 - b.metallic) * (1.0 - max3(fr.fd)) * (1.0 - coat);
     let wd = rest * (1.0 - e.transmission);
@@ -213,8 +215,10 @@ fn ext_eval(e: BsdfExt, n: vec3<f32>, wo: vec3<f32>, wi: vec3<f32>) -> vec4<f32>
     if cos_o <= 0.0 || cos_i == 0.0 {
         return vec4<f32>(0.0);
     }
-    let p = ext_lobes(e, cos_o);
-    let coat = ext_coat(e, cos_o);
+    let cn = e.coat_normal;
+    let cos_oc = dot(cn, wo);
+    let p = ext_lobes(e, cos_o, cos_oc);
+    let coat = ext_coat(e, cos_oc);
     let a2 = b.alpha * b.alpha;
     if cos_i > 0.0 {
         let h = normalize(wo + wi);
@@ -227,15 +231,22 @@ fn ext_eval(e: BsdfExt, n: vec3<f32>, wo: vec3<f32>, wi: vec3<f32>) -> vec4<f32>
         var value = (spec + diff) * (1.0 - coat);
         var pdf = p.x * d * noh / (4.0 * voh) + p.y * cos_i / PI;
         if coat > 0.0 {
-            let c2 = e.clearcoat_alpha * e.clearcoat_alpha;
-            let dc = ggx_d(noh, c2);
-            value += vec3<f32>(coat * dc * ggx_vis(cos_i, cos_o, c2));
-            pdf += p.w * dc * noh / (4.0 * voh);
+            let c = ext_coat_term(e, coat, p.w, cos_oc, wi, h, voh);
+            value += vec3<f32>(c.x);
+            pdf += c.y;
         }
         return vec4<f32>(value, pdf);
     }
+    // Below the base's normal: the coat's reflection where its own normal bends it there, and
+    // the base's transmission.
+    let bent = any(cn != n);
+    var c = vec2<f32>(0.0);
+    if coat > 0.0 && bent {
+        let hr = normalize(wo + wi);
+        c = ext_coat_term(e, coat, p.w, cos_oc, wi, hr, max(dot(wo, hr), 1e-7));
+    }
     if !ext_transmits(e) {
-        return vec4<f32>(0.0);
+        return vec4<f32>(vec3<f32>(c.x), c.y);
     }
     let eta = e.eta;
     var h = -normalize(wo + wi * eta);
@@ -246,7 +257,7 @@ fn ext_eval(e: BsdfExt, n: vec3<f32>, wo: vec3<f32>, wi: vec3<f32>) -> vec4<f32>
     let wih = dot(wi, h);
     let denom = woh + eta * wih;
     if !(woh > 0.0 && wih < 0.0) || abs(denom) < 1e-7 || !all(abs(h) <= vec3<f32>(T_FAR)) {
-        return vec4<f32>(0.0);
+        return vec4<f32>(vec3<f32>(c.x), c.y);
     }
     let noh = dot(n, h);
     let fr = ext_fresnel(e, woh);
@@ -255,12 +266,29 @@ fn ext_eval(e: BsdfExt, n: vec3<f32>, wo: vec3<f32>, wi: vec3<f32>) -> vec4<f32>
     let jac = eta * eta * -wih / (denom * denom);
     let btdf = woh * d * g * jac / (cos_o * -cos_i);
     let value = b.base * ((1.0 - b.metallic) * (1.0 - max3(fr.fd)) * e.transmission * btdf * (1.0 - coat));
+    if bent {
+        return vec4<f32>(value + vec3<f32>(c.x), p.z * d * noh * jac + c.y);
+    }
     return vec4<f32>(value, p.z * d * noh * jac);
+}
+
+// The coat's reflection about its own normal for `wi` above the coat: its value and its pdf
+// (CPU twin: the closure `coat_term` in BsdfExt::eval).
+fn ext_coat_term(e: BsdfExt, coat: f32, p3: f32, cos_oc: f32, wi: vec3<f32>, h: vec3<f32>, voh: f32) -> vec2<f32> {
+    let cn = e.coat_normal;
+    let cos_ic = dot(cn, wi);
+    if coat > 0.0 && cos_ic > 0.0 {
+        let c2 = e.clearcoat_alpha * e.clearcoat_alpha;
+        let noh = max(dot(cn, h), 0.0);
+        let dc = ggx_d(noh, c2);
+        return vec2<f32>(coat * dc * ggx_vis(cos_ic, cos_oc, c2), p3 * dc * noh / (4.0 * voh));
+    }
+    return vec2<f32>(0.0);
 }
 
 fn ext_sample(e: BsdfExt, n: vec3<f32>, wo: vec3<f32>, u_lobe: f32, u: f32, v: f32) -> vec3<f32> {
     let tb = basis_t(n);
-    let p = ext_lobes(e, dot(n, wo));
+    let p = ext_lobes(e, dot(n, wo), dot(e.coat_normal, wo));
     if u_lobe < p.x {
         let h = ggx_half(tb, n, e.core.alpha, u, v);
         return 2.0 * dot(wo, h) * h - wo;
@@ -277,6 +305,11 @@ fn ext_sample(e: BsdfExt, n: vec3<f32>, wo: vec3<f32>, u_lobe: f32, u: f32, v: f
         }
         return -r * wo + (r * c - sqrt(k)) * h;
     }
-    let h = ggx_half(tb, n, e.clearcoat_alpha, u, v);
+    let cn = e.coat_normal;
+    var tbc = tb;
+    if any(cn != n) {
+        tbc = basis_t(cn);
+    }
+    let h = ggx_half(tbc, cn, e.clearcoat_alpha, u, v);
     return 2.0 * dot(wo, h) * h - wo;
 }

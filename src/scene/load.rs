@@ -702,7 +702,11 @@ impl Loader<'_> {
         };
         let c = Converted {
             index: self.scene.materials.len() as u32,
-            normal_uv: ext.normal_texture.map(|t| t.uv.tex_coord),
+            // Tangents for the base's normal map, else for the coat's (on its set).
+            normal_uv: ext
+                .normal_texture
+                .or(ext.clearcoat_normal_texture)
+                .map(|t| t.uv.tex_coord),
         };
         self.scene.materials.push(converted);
         self.material_ext.push(ext);
@@ -842,11 +846,22 @@ impl Loader<'_> {
                 "clearcoatRoughnessTexture",
                 c.get("clearcoatRoughnessTexture"),
             )?;
-            if c.get("clearcoatNormalTexture").is_some() {
-                self.report.unsupported(format!(
-                    "KHR_materials_clearcoat clearcoatNormalTexture ({element}; the coat takes the shading normal)"
-                ));
-            }
+            let normal = c.get("clearcoatNormalTexture");
+            ext.clearcoat_normal_texture =
+                self.json_texture_ref(&element, "clearcoatNormalTexture", normal)?;
+            let scale = normal.and_then(|n| n.get("scale"));
+            ext.clearcoat_normal_scale = match scale {
+                None => 1.0,
+                Some(v) => match v.as_f64().map(|s| s as f32).filter(|s| s.is_finite()) {
+                    Some(s) => s,
+                    None => {
+                        return Err(self.element_error(
+                            element,
+                            format!("clearcoatNormalTexture: scale {v} is not a finite number"),
+                        ));
+                    }
+                },
+            };
         }
         if let Some(t) = m.transmission() {
             ext.transmission = factor(

@@ -217,19 +217,26 @@ pub struct MaterialExt {
     pub specular_color_texture: Option<TextureRef>,
     pub clearcoat_texture: Option<TextureRef>,
     pub clearcoat_roughness_texture: Option<TextureRef>,
+    /// The coat's own tangent-space normal map (linear; needs [`VertexExtras::tangent`]) and
+    /// its scale. Without it the coat takes the interpolated normal: the base's normal map
+    /// does not bend the coat (KHR_materials_clearcoat).
+    pub clearcoat_normal_texture: Option<TextureRef>,
+    pub clearcoat_normal_scale: f32,
 }
 
 impl MaterialExt {
     /// The extensions' textures in the order of their slots in the packed material
-    /// (`trace::pack`): transmission, specular, specular colour, clear coat, coat roughness.
+    /// (`trace::pack`): transmission, specular, specular colour, clear coat, coat roughness,
+    /// coat normal.
     #[must_use]
-    pub fn extension_textures(&self) -> [Option<TextureRef>; 5] {
+    pub fn extension_textures(&self) -> [Option<TextureRef>; 6] {
         [
             self.transmission_texture,
             self.specular_texture,
             self.specular_color_texture,
             self.clearcoat_texture,
             self.clearcoat_roughness_texture,
+            self.clearcoat_normal_texture,
         ]
     }
 }
@@ -253,6 +260,8 @@ impl Default for MaterialExt {
             specular_color_texture: None,
             clearcoat_texture: None,
             clearcoat_roughness_texture: None,
+            clearcoat_normal_texture: None,
+            clearcoat_normal_scale: 1.0,
         }
     }
 }

@@ -291,8 +291,11 @@ fn emission_at(sc: &PackedScene, mb: usize, flags: u32, sp: SurfacePoint) -> Vec
 /// from the front or not (KHR_materials_transmission, _ior, _specular, _clearcoat): each
 /// factor times its texture where the material has one — transmission × R, specular × A,
 /// specular colour × RGB, coat × R, coat roughness × G (α = max(α · G², [`MIN_ALPHA`]), as the
-/// metallic-roughness map's). The twin of `ext_bsdf` in path.wgsl.
+/// metallic-roughness map's), and the coat's normal: `ns`, the interpolated normal before any
+/// normal map, bent by the coat's own normal map where it has one, on `ng`'s side (the
+/// geometric normal towards the viewer). The twin of `ext_bsdf` in path.wgsl.
 #[inline(never)]
+#[allow(clippy::too_many_arguments)]
 fn ext_bsdf(
     sc: &PackedScene,
     mb: usize,
@@ -300,6 +303,8 @@ fn ext_bsdf(
     mut core: Bsdf,
     front: bool,
     sp: SurfacePoint,
+    ns: Vec3,
+    ng: Vec3,
 ) -> BsdfExt {
     let (m3, m4) = (sc.materials[mb + 3], sc.materials[mb + 4]);
     let ior = m4[0];
@@ -307,6 +312,7 @@ fn ext_bsdf(
     let mut specular_color = v3(m3);
     let mut transmission = m3[3];
     let (mut clearcoat, mut clearcoat_alpha) = (m4[1], m4[2]);
+    let mut coat_normal = ns;
     if flags & MAT_EXT_TEX != 0 {
         // Slots 4..9 (after base colour, metallic-roughness, normal and emissive); a slot
         // without a texture leaves its factor.
@@ -327,6 +333,12 @@ fn ext_bsdf(
             let g = slot(sc, mb, 8, sp).y;
             clearcoat_alpha = (clearcoat_alpha * g * g).max(MIN_ALPHA);
         }
+        if textured(9) {
+            coat_normal = normal_mapped_by(sc, mb, 9, sc.materials[mb + 25][0], sp, ns);
+        }
+    }
+    if coat_normal.dot(ng) < 0.0 {
+        coat_normal = -coat_normal;
     }
     BsdfExt {
         core,
@@ -336,6 +348,7 @@ fn ext_bsdf(
         transmission,
         clearcoat,
         clearcoat_alpha,
+        coat_normal,
     }
 }
 
@@ -370,8 +383,19 @@ fn sample_punctual(sc: &PackedScene, po: Vec3, u: f32) -> (Vec3, Vec3, f32, f32,
 /// tangent (sign in w) and `ns` (before any flip to the viewer's side).
 #[inline(never)]
 fn normal_mapped(sc: &PackedScene, mb: usize, sp: SurfacePoint, ns: Vec3) -> Vec3 {
-    let tn = slot(sc, mb, 2, sp).truncate() * 2.0 - Vec3::ONE;
-    let scale = sc.materials[mb + 4][3];
+    normal_mapped_by(sc, mb, 2, sc.materials[mb + 4][3], sp, ns)
+}
+
+/// [`normal_mapped`] by the normal map in texture slot `k` with `scale`.
+fn normal_mapped_by(
+    sc: &PackedScene,
+    mb: usize,
+    k: usize,
+    scale: f32,
+    sp: SurfacePoint,
+    ns: Vec3,
+) -> Vec3 {
+    let tn = slot(sc, mb, k, sp).truncate() * 2.0 - Vec3::ONE;
     let e = (sc.extras_offset + EXTRAS_STRIDE as u32 * sp.tri) as usize;
     let t4 = sp.lerp4(sc.shade[e + 5], sc.shade[e + 6], sc.shade[e + 7]);
     let mut t = t4.truncate() - ns * ns.dot(t4.truncate());
@@ -609,6 +633,7 @@ fn trace_path<const FULL: bool>(
         if !front {
             ng = -ng;
         }
+        let ns_interpolated = ns;
         if FULL && flags & MAT_NORMAL_TEX != 0 {
             ns = normal_mapped(sc, mb, sp, ns);
         }
@@ -638,8 +663,8 @@ fn trace_path<const FULL: bool>(
             alpha,
             specular: m2[2],
         };
-        let ext =
-            (FULL && flags & MAT_EXT_BSDF != 0).then(|| ext_bsdf(sc, mb, flags, bsdf, front, sp));
+        let ext = (FULL && flags & MAT_EXT_BSDF != 0)
+            .then(|| ext_bsdf(sc, mb, flags, bsdf, front, sp, ns_interpolated, ng));
         let transmits = ext.is_some_and(|e| e.transmits());
         // The core BSDF's lobe probability, shared by its two evaluations and its sample.
         let ps = if ext.is_none() {

@@ -153,6 +153,10 @@ pub struct BsdfExt {
     pub transmission: f32,
     pub clearcoat: f32,
     pub clearcoat_alpha: f32,
+    /// The coat's own shading normal, on the viewer's side: the interpolated normal, or its
+    /// own normal map's (KHR_materials_clearcoat: the base's normal map does not bend the
+    /// coat). The base's normal where neither differs.
+    pub coat_normal: Vec3,
 }
 
 /// x⁵ as WGSL's `pow5` computes it.
@@ -329,21 +333,23 @@ impl BsdfExt {
         (fd, mix3(fd, fm, b.metallic))
     }
 
-    /// The coat's weight cc · F_c(n·v).
-    fn coat(&self, cos_o: f32) -> f32 {
-        if self.clearcoat > 0.0 {
-            self.clearcoat * (0.04 + 0.96 * pow5((1.0 - cos_o).max(0.0)))
+    /// The coat's weight cc · F_c(n_c·v); none where the coat's normal faces away from the
+    /// view.
+    fn coat(&self, cos_oc: f32) -> f32 {
+        if self.clearcoat > 0.0 && cos_oc > 0.0 {
+            self.clearcoat * (0.04 + 0.96 * pow5((1.0 - cos_oc).max(0.0)))
         } else {
             0.0
         }
     }
 
-    /// Lobe sampling probabilities (specular, diffuse, transmission, coat) at `cos_o`.
+    /// Lobe sampling probabilities (specular, diffuse, transmission, coat) at `cos_o` (the
+    /// view's cosine to the shading normal) and `cos_oc` (to the coat's normal).
     #[must_use]
-    pub fn lobes(&self, cos_o: f32) -> [f32; 4] {
+    pub fn lobes(&self, cos_o: f32, cos_oc: f32) -> [f32; 4] {
         let b = &self.core;
         let (fd, f) = self.fresnel(cos_o);
-        let coat = self.coat(cos_o);
+        let coat = self.coat(cos_oc);
         let ws = lum(f) * (1.0 - coat);
         let rest = lum(b.base) * (1.0 - b.metallic) * (1.0 - max3(fd)) * (1.0 - coat);
         let wd = rest * (1.0 - self.transmission);
@@ -369,9 +375,27 @@ impl BsdfExt {
         if cos_o <= 0.0 || cos_i == 0.0 {
             return (Vec3::ZERO, 0.0);
         }
-        let p = self.lobes(cos_o);
-        let coat = self.coat(cos_o);
+        let cn = self.coat_normal;
+        let cos_oc = cn.dot(wo);
+        let p = self.lobes(cos_o, cos_oc);
+        let coat = self.coat(cos_oc);
         let a2 = b.alpha * b.alpha;
+        // The coat's reflection about its own normal, for `wi` above the coat (where the coat's
+        // normal is the base's, exactly the base's reflection half vector and cosines).
+        let coat_term = |h: Vec3, voh: f32| {
+            let cos_ic = cn.dot(wi);
+            if coat > 0.0 && cos_ic > 0.0 {
+                let c2 = self.clearcoat_alpha * self.clearcoat_alpha;
+                let noh = cn.dot(h).max(0.0);
+                let dc = ggx_d(noh, c2);
+                (
+                    coat * dc * ggx_vis(cos_ic, cos_oc, c2),
+                    p[3] * dc * noh / (4.0 * voh),
+                )
+            } else {
+                (0.0, 0.0)
+            }
+        };
         if cos_i > 0.0 {
             let h = (wo + wi).normalize();
             let noh = n.dot(h).max(0.0);
@@ -384,15 +408,22 @@ impl BsdfExt {
             let mut value = (spec + diff) * (1.0 - coat);
             let mut pdf = p[0] * d * noh / (4.0 * voh) + p[1] * cos_i / PI;
             if coat > 0.0 {
-                let c2 = self.clearcoat_alpha * self.clearcoat_alpha;
-                let dc = ggx_d(noh, c2);
-                value += Vec3::splat(coat * dc * ggx_vis(cos_i, cos_o, c2));
-                pdf += p[3] * dc * noh / (4.0 * voh);
+                let (cv, cp) = coat_term(h, voh);
+                value += Vec3::splat(cv);
+                pdf += cp;
             }
             return (value, pdf);
         }
+        // Below the base's normal: the coat's reflection where its own normal bends it there
+        // (its lobe samples such directions), and the base's transmission.
+        let (cv, cp) = if coat > 0.0 && cn != n {
+            let h = (wo + wi).normalize();
+            coat_term(h, wo.dot(h).max(1e-7))
+        } else {
+            (0.0, 0.0)
+        };
         if !self.transmits() {
-            return (Vec3::ZERO, 0.0);
+            return (Vec3::splat(cv), cp);
         }
         let eta = self.eta;
         let mut h = -(wo + wi * eta).normalize();
@@ -402,7 +433,7 @@ impl BsdfExt {
         let (woh, wih) = (wo.dot(h), wi.dot(h));
         let denom = woh + eta * wih;
         if !(woh > 0.0 && wih < 0.0) || denom.abs() < 1e-7 || !h.is_finite() {
-            return (Vec3::ZERO, 0.0);
+            return (Vec3::splat(cv), cp);
         }
         let noh = n.dot(h);
         let (fd, _) = self.fresnel(woh);
@@ -412,6 +443,9 @@ impl BsdfExt {
         let core = woh * d * g * jac / (cos_o * -cos_i);
         let value = b.base
             * ((1.0 - b.metallic) * (1.0 - max3(fd)) * self.transmission * core * (1.0 - coat));
+        if cn != n {
+            return (value + Vec3::splat(cv), p[2] * d * noh * jac + cp);
+        }
         (value, p[2] * d * noh * jac)
     }
 
@@ -422,7 +456,7 @@ impl BsdfExt {
     #[inline(never)]
     pub fn sample(&self, n: Vec3, wo: Vec3, u_lobe: f32, u: f32, v: f32) -> Vec3 {
         let (t, b) = basis(n);
-        let p = self.lobes(n.dot(wo));
+        let p = self.lobes(n.dot(wo), self.coat_normal.dot(wo));
         if u_lobe < p[0] {
             let h = ggx_half(t, b, n, self.core.alpha, u, v);
             2.0 * wo.dot(h) * h - wo
@@ -439,7 +473,9 @@ impl BsdfExt {
             }
             -r * wo + (r * c - k.sqrt()) * h
         } else {
-            let h = ggx_half(t, b, n, self.clearcoat_alpha, u, v);
+            let cn = self.coat_normal;
+            let (tc, bc) = if cn == n { (t, b) } else { basis(cn) };
+            let h = ggx_half(tc, bc, cn, self.clearcoat_alpha, u, v);
             2.0 * wo.dot(h) * h - wo
         }
     }
@@ -596,6 +632,7 @@ mod ext_tests {
             transmission: 1.0,
             clearcoat: 0.0,
             clearcoat_alpha: 0.1,
+            coat_normal: Vec3::Z,
         }
     }
 
@@ -668,7 +705,7 @@ mod ext_tests {
         let c = 50f32.to_radians().cos();
         let (fd, _) = bsdf.fresnel(c);
         assert_eq!(fd, Vec3::ONE);
-        let p = bsdf.lobes(c);
+        let p = bsdf.lobes(c, c);
         assert_eq!(p[2], 0.0, "no transmission sampled: {p:?}");
     }
 }

@@ -94,8 +94,8 @@ pub fn ortho(position: Vec3, ymag: f32) -> OrthographicCamera {
 /// One scene with every one of these features: textures with transforms, wrap modes and both
 /// filters, TEXCOORD_1, vertex colours, a normal map, a metallic-roughness map, an emissive
 /// texture, MASK and BLEND, rough and smooth glass, clear coat, specular colour, the
-/// extensions' textures (transmission, specular, specular colour, coat, coat roughness), point,
-/// spot and directional lights and an environment.
+/// extensions' textures (transmission, specular, specular colour, coat, coat roughness, coat
+/// normal), point, spot and directional lights and an environment.
 pub fn everything() -> Scene {
     let mut tris = Vec::new();
     tris.extend(rect(-2.0, -2.0, 2.0, 2.0, -1.0, 0)); // back wall: textured, vertex colours
@@ -231,6 +231,9 @@ pub fn everything() -> Scene {
             // The coat's strength from the bumps' red, its roughness from the MR map's green.
             clearcoat_texture: transformed(1, 1),
             clearcoat_roughness_texture: tex_ref(2),
+            // Its own normal map: the bumps again, on the other set, at another scale.
+            clearcoat_normal_texture: transformed(1, 1),
+            clearcoat_normal_scale: 0.6,
             ..Default::default()
         },
         MaterialExt {

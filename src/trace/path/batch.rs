@@ -519,6 +519,7 @@ fn shade8<const FULL: bool>(
     let b0 = f32x8::ONE - u - v;
     let mut ns = (v8(&g.n[0]) * b0 + v8(&g.n[1]) * u + v8(&g.n[2]) * v).normalize();
     ns = V3::select(ns.is_finite(), ns, ng);
+    let ns_interpolated = ns.lanes();
     let d = v8(&g.d);
     let wo = -d;
     let cos_hit = ng.dot(d).abs();
@@ -573,15 +574,10 @@ fn shade8<const FULL: bool>(
                     alpha: g.m2[1][i],
                     specular: g.m2[2][i],
                 };
-                let sp = g.sp[i].expect("a shaded lane holds its hit");
-                ext_bsdf(
-                    sc,
-                    g.mb[i],
-                    g.flags[i],
-                    core,
-                    front_bits & (1 << i) != 0,
-                    sp,
-                )
+                let front = front_bits & (1 << i) != 0;
+                let ng = Vec3::new(ng.x.to_array()[i], ng.y.to_array()[i], ng.z.to_array()[i]);
+                let (mb, flags) = (g.mb[i], g.flags[i]);
+                ext_bsdf(sc, mb, flags, core, front, sp[i], ns_interpolated[i], ng)
             })
         })
     };
