@@ -305,81 +305,103 @@ fn a_punctual_light_gives_inverse_square_irradiance_on_a_diffuse_plane() {
     }
 }
 
+/// The highlight scenes' height of the pinhole above the plane, their image width and the
+/// normal maps' tilt (towards +x).
+const FLASH_HEIGHT: f32 = 2.0;
+const FLASH_WIDTH: u32 = 64;
+const FLASH_TILT_DEG: f32 = 10.0;
+
+/// A 4 m square in the plane z = 0 of material `m` (with `ext`) under a pinhole
+/// [`FLASH_HEIGHT`] above its centre looking down (60° field of view) and a point light at the
+/// pinhole; tangents along +x, and texture 0 a normal-map texel that tilts a normal by
+/// [`FLASH_TILT_DEG`] towards +x.
+fn flash_scene(m: Material, ext: MaterialExt) -> Scene {
+    let texel = |v: f32| ((v + 1.0) * 0.5 * 255.0).round() as u8;
+    let (sin, cos) = FLASH_TILT_DEG.to_radians().sin_cos();
+    let c = FLASH_HEIGHT;
+    let tris = rect(-2.0, -2.0, 2.0, 2.0, 0.0, 0);
+    let n = tris.len();
+    Scene {
+        triangles: tris,
+        materials: vec![m],
+        material_ext: vec![ext],
+        vertex_extras: vec![
+            VertexExtras {
+                tangent: [Vec4::new(1.0, 0.0, 0.0, 1.0); 3],
+                ..Default::default()
+            };
+            n
+        ],
+        textures: vec![texture(
+            "tilt",
+            1,
+            1,
+            vec![[texel(sin), texel(0.0), texel(cos), 255]],
+            false,
+        )],
+        cameras: vec![Camera {
+            name: "top".into(),
+            position: Vec3::new(0.0, 0.0, c),
+            forward: Vec3::NEG_Z,
+            up: Vec3::Y,
+            yfov: 60f32.to_radians(),
+        }],
+        lights: vec![PunctualLight {
+            name: "flash".into(),
+            kind: LightKind::Point,
+            position: Vec3::new(0.0, 0.0, c),
+            direction: Vec3::NEG_Z,
+            intensity: Vec3::ONE,
+        }],
+        environment: Environment::Constant(Vec3::ZERO),
+        ..Default::default()
+    }
+}
+
+/// Where a [`flash_scene`]'s highlight should be: the column of the plane's x = 0 (`tilted`
+/// false: under the camera) or of x = −c·tan(tilt) (where a normal tilted by the maps points at
+/// the camera).
+fn flash_column(tilted: bool) -> f32 {
+    let c = FLASH_HEIGHT;
+    let x = if tilted {
+        -c * FLASH_TILT_DEG.to_radians().tan()
+    } else {
+        0.0
+    };
+    let half_width = c * 30f32.to_radians().tan();
+    (x / half_width + 1.0) * 0.5 * FLASH_WIDTH as f32
+}
+
+/// Renders a [`flash_scene`] on both backends and checks that the middle row's brightest pixel
+/// is lit and within 1.5 columns of `want`.
+fn assert_flash_highlight(scene: &Scene, want: f32, what: &str) {
+    let w = FLASH_WIDTH as usize;
+    let s = settings(scene, FLASH_WIDTH, FLASH_WIDTH, 2, 1);
+    for (acc, label) in both(scene, &s, 8) {
+        let row = w / 2;
+        let at = |x: usize| luminance(acc.mean(row * w + x));
+        let brightest = (0..w).max_by(|&a, &b| at(a).total_cmp(&at(b))).unwrap();
+        assert!(at(brightest) > 0.0, "{label}, {what}: no highlight");
+        let got = brightest as f32 + 0.5;
+        assert!(
+            (got - want).abs() <= 1.5,
+            "{label}, {what}: highlight at column {got}, predicted {want}"
+        );
+    }
+}
+
 /// A glossy metal plane whose normal map tilts every shading normal by 10° towards +x, lit
 /// by a point light at the pinhole: the highlight sits where the tilted normal points at the
 /// camera, x = −c·tan 10° (c the camera's height), not under the camera.
 #[test]
 fn a_normal_map_that_tilts_the_normal_moves_the_highlight_to_the_predicted_pixel() {
-    let tilt = 10f32.to_radians();
-    let texel = |v: f32| ((v + 1.0) * 0.5 * 255.0).round() as u8;
-    let (sin, cos) = tilt.sin_cos();
-    let c = 2.0f32;
-    let scene = |mapped: bool| {
-        let tris = rect(-2.0, -2.0, 2.0, 2.0, 0.0, 0);
-        let n = tris.len();
-        Scene {
-            triangles: tris,
-            materials: vec![material(Vec3::ONE, 1.0, 0.1, 1.0, Vec3::ZERO)],
-            material_ext: if mapped {
-                vec![MaterialExt {
-                    normal_texture: tex_ref(0),
-                    ..Default::default()
-                }]
-            } else {
-                Vec::new()
-            },
-            vertex_extras: vec![
-                VertexExtras {
-                    tangent: [Vec4::new(1.0, 0.0, 0.0, 1.0); 3],
-                    ..Default::default()
-                };
-                n
-            ],
-            textures: vec![texture(
-                "tilt",
-                1,
-                1,
-                vec![[texel(sin), texel(0.0), texel(cos), 255]],
-                false,
-            )],
-            cameras: vec![Camera {
-                name: "top".into(),
-                position: Vec3::new(0.0, 0.0, c),
-                forward: Vec3::NEG_Z,
-                up: Vec3::Y,
-                yfov: 60f32.to_radians(),
-            }],
-            lights: vec![PunctualLight {
-                name: "flash".into(),
-                kind: LightKind::Point,
-                position: Vec3::new(0.0, 0.0, c),
-                direction: Vec3::NEG_Z,
-                intensity: Vec3::ONE,
-            }],
-            environment: Environment::Constant(Vec3::ZERO),
+    for mapped in [false, true] {
+        let ext = MaterialExt {
+            normal_texture: if mapped { tex_ref(0) } else { None },
             ..Default::default()
-        }
-    };
-    let w = 64u32;
-    let half_width = c * 30f32.to_radians().tan();
-    let column_of = |x: f32| (x / half_width + 1.0) * 0.5 * w as f32;
-    for (mapped, want) in [(false, column_of(0.0)), (true, column_of(-c * tilt.tan()))] {
-        let sc = scene(mapped);
-        let s = settings(&sc, w, w, 2, 1);
-        for (acc, label) in both(&sc, &s, 8) {
-            let row = w as usize / 2;
-            let brightest = (0..w as usize)
-                .max_by(|&a, &b| {
-                    luminance(acc.mean(row * w as usize + a))
-                        .total_cmp(&luminance(acc.mean(row * w as usize + b)))
-                })
-                .unwrap();
-            let got = brightest as f32 + 0.5;
-            assert!(
-                (got - want).abs() <= 1.5,
-                "{label}, mapped {mapped}: highlight at column {got}, predicted {want}"
-            );
-        }
+        };
+        let scene = flash_scene(material(Vec3::ONE, 1.0, 0.1, 1.0, Vec3::ZERO), ext);
+        assert_flash_highlight(&scene, flash_column(mapped), &format!("mapped {mapped}"));
     }
 }
 
@@ -607,83 +629,16 @@ fn the_extensions_textures_multiply_their_factors() {
 /// bend the coat — and at x = −c·tan 10° when the coat's own normal map tilts it so.
 #[test]
 fn the_coat_takes_its_own_normal_map_and_not_the_bases() {
-    let tilt = 10f32.to_radians();
-    let texel = |v: f32| ((v + 1.0) * 0.5 * 255.0).round() as u8;
-    let (sin, cos) = tilt.sin_cos();
-    let c = 2.0f32;
-    let scene = |base_map: bool, coat_map: bool| {
-        let tris = rect(-2.0, -2.0, 2.0, 2.0, 0.0, 0);
-        let n = tris.len();
-        Scene {
-            triangles: tris,
-            materials: vec![material(Vec3::ZERO, 0.0, 1.0, 0.0, Vec3::ZERO)],
-            material_ext: vec![MaterialExt {
-                normal_texture: if base_map { tex_ref(0) } else { None },
-                clearcoat: 1.0,
-                clearcoat_roughness: 0.3,
-                clearcoat_normal_texture: if coat_map { tex_ref(0) } else { None },
-                ..Default::default()
-            }],
-            vertex_extras: vec![
-                VertexExtras {
-                    tangent: [Vec4::new(1.0, 0.0, 0.0, 1.0); 3],
-                    ..Default::default()
-                };
-                n
-            ],
-            textures: vec![texture(
-                "tilt",
-                1,
-                1,
-                vec![[texel(sin), texel(0.0), texel(cos), 255]],
-                false,
-            )],
-            cameras: vec![Camera {
-                name: "top".into(),
-                position: Vec3::new(0.0, 0.0, c),
-                forward: Vec3::NEG_Z,
-                up: Vec3::Y,
-                yfov: 60f32.to_radians(),
-            }],
-            lights: vec![PunctualLight {
-                name: "flash".into(),
-                kind: LightKind::Point,
-                position: Vec3::new(0.0, 0.0, c),
-                direction: Vec3::NEG_Z,
-                intensity: Vec3::ONE,
-            }],
-            environment: Environment::Constant(Vec3::ZERO),
+    for (base_map, coat_map) in [(true, false), (false, true), (true, true)] {
+        let ext = MaterialExt {
+            normal_texture: if base_map { tex_ref(0) } else { None },
+            clearcoat: 1.0,
+            clearcoat_roughness: 0.3,
+            clearcoat_normal_texture: if coat_map { tex_ref(0) } else { None },
             ..Default::default()
-        }
-    };
-    let w = 64u32;
-    let half_width = c * 30f32.to_radians().tan();
-    let column_of = |x: f32| (x / half_width + 1.0) * 0.5 * w as f32;
-    let (straight, tilted) = (column_of(0.0), column_of(-c * tilt.tan()));
-    for (base_map, coat_map, want) in [
-        (true, false, straight),
-        (false, true, tilted),
-        (true, true, tilted),
-    ] {
-        let sc = scene(base_map, coat_map);
-        let s = settings(&sc, w, w, 2, 1);
-        for (acc, label) in both(&sc, &s, 8) {
-            let row = w as usize / 2;
-            let brightest = (0..w as usize)
-                .max_by(|&a, &b| {
-                    luminance(acc.mean(row * w as usize + a))
-                        .total_cmp(&luminance(acc.mean(row * w as usize + b)))
-                })
-                .unwrap();
-            let got = brightest as f32 + 0.5;
-            assert!(
-                luminance(acc.mean(row * w as usize + brightest)) > 0.0,
-                "{label}: no highlight"
-            );
-            assert!(
-                (got - want).abs() <= 1.5,
-                "{label}, base map {base_map}, coat map {coat_map}: highlight at column {got}, predicted {want}"
-            );
-        }
+        };
+        let scene = flash_scene(material(Vec3::ZERO, 0.0, 1.0, 0.0, Vec3::ZERO), ext);
+        let what = format!("base map {base_map}, coat map {coat_map}");
+        assert_flash_highlight(&scene, flash_column(coat_map), &what);
     }
 }

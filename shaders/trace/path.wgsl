@@ -42,6 +42,7 @@ struct Params {
 
 // Layout constants: src/trace/pack.rs (module doc).
 const MATERIAL_STRIDE: u32 = 26u;
+const MATERIAL_COAT_ROW: u32 = 25u;
 const EXTRAS_STRIDE: u32 = 8u;
 const MAT_BASE_TEX: u32 = 2u;
 const MAT_MR_TEX: u32 = 4u;
@@ -270,7 +271,7 @@ fn ext_bsdf(mb: u32, flags: u32, core_in: Bsdf, front: bool, tri: u32, u: f32, v
             clearcoat_alpha = max(clearcoat_alpha * g * g, MIN_ALPHA);
         }
         if textured(mb, 9u) {
-            coat_normal = normal_mapped_by(mb, 9u, materials[mb + 25u].x, tri, u, v, ns);
+            coat_normal = normal_mapped_by(mb, 9u, materials[mb + MATERIAL_COAT_ROW].x, tri, u, v, ns);
         }
     }
     if dot(coat_normal, ng) < 0.0 {

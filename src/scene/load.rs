@@ -740,6 +740,20 @@ impl Loader<'_> {
         Ok(texture.map(|texture| TextureRef { texture, uv }))
     }
 
+    /// [`Self::texture_ref`] for a glTF texture info, where there is one.
+    fn info_ref(
+        &mut self,
+        element: &str,
+        what: &str,
+        info: Option<gltf::texture::Info>,
+        srgb: bool,
+    ) -> Result<Option<TextureRef>, SceneError> {
+        match info {
+            Some(info) => self.texture_ref(element, what, &info.texture(), info_uv(&info), srgb),
+            None => Ok(None),
+        }
+    }
+
     /// A texture reference an extension gives as JSON (`{"index", "texCoord", "extensions":
     /// {"KHR_texture_transform"}}`: the gltf crate has no typed form for it), read as data.
     /// None where `info` is absent or the texture cannot be used (reported); an index that
@@ -869,15 +883,12 @@ impl Loader<'_> {
                 "transmissionFactor",
                 t.transmission_factor(),
             )?;
-            if let Some(info) = t.transmission_texture() {
-                ext.transmission_texture = self.texture_ref(
-                    &element,
-                    "transmissionTexture",
-                    &info.texture(),
-                    info_uv(&info),
-                    false,
-                )?;
-            }
+            ext.transmission_texture = self.info_ref(
+                &element,
+                "transmissionTexture",
+                t.transmission_texture(),
+                false,
+            )?;
         }
         if let Some(ior) = m.ior() {
             // glTF: ior ≥ 1, or 0 for "reflects like a metal" (F0 = 1); raygun needs a
@@ -940,15 +951,12 @@ impl Loader<'_> {
                 ));
             }
         }
-        if let Some(t) = pbr.metallic_roughness_texture() {
-            ext.metallic_roughness_texture = self.texture_ref(
-                &element,
-                "metallicRoughnessTexture",
-                &t.texture(),
-                info_uv(&t),
-                false,
-            )?;
-        }
+        ext.metallic_roughness_texture = self.info_ref(
+            &element,
+            "metallicRoughnessTexture",
+            pbr.metallic_roughness_texture(),
+            false,
+        )?;
         let base_color_texture = match pbr.base_color_texture() {
             Some(info) => {
                 let r = self.texture_ref(
@@ -981,24 +989,14 @@ impl Loader<'_> {
             } else {
                 Vec3::ONE
             };
-            if let Some(info) = sp.specular_texture() {
-                ext.specular_texture = self.texture_ref(
-                    &element,
-                    "specularTexture",
-                    &info.texture(),
-                    info_uv(&info),
-                    false,
-                )?;
-            }
-            if let Some(info) = sp.specular_color_texture() {
-                ext.specular_color_texture = self.texture_ref(
-                    &element,
-                    "specularColorTexture",
-                    &info.texture(),
-                    info_uv(&info),
-                    true,
-                )?;
-            }
+            ext.specular_texture =
+                self.info_ref(&element, "specularTexture", sp.specular_texture(), false)?;
+            ext.specular_color_texture = self.info_ref(
+                &element,
+                "specularColorTexture",
+                sp.specular_color_texture(),
+                true,
+            )?;
         }
         let emission = if m.emissive_texture().is_some() && ext.emissive_texture.is_none() {
             Vec3::ZERO

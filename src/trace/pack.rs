@@ -35,6 +35,9 @@ pub const MIN_ALPHA: f32 = 1e-3;
 pub const NO_TEXTURE: u32 = u32::MAX;
 /// vec4s per material (`MATERIAL_STRIDE` in path.wgsl).
 pub const MATERIAL_STRIDE: usize = 26;
+/// The material's vec4 after its texture slots: `[coat normal scale, 0, 0, 0]`
+/// (`MATERIAL_COAT_ROW` in path.wgsl).
+pub const MATERIAL_COAT_ROW: usize = 25;
 /// vec4s of vertex extras per triangle.
 pub const EXTRAS_STRIDE: usize = 8;
 
@@ -286,6 +289,7 @@ impl PackedScene {
             for t in ext.extension_textures() {
                 slot(&mut materials, t);
             }
+            debug_assert_eq!(materials.len() % MATERIAL_STRIDE, MATERIAL_COAT_ROW);
             materials.push([ext.clearcoat_normal_scale, 0.0, 0.0, 0.0]);
         }
 

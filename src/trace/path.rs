@@ -31,7 +31,7 @@ use super::camera::RenderCamera;
 use super::pack::{
     EXTRAS_STRIDE, FEAT_ALPHA, FEAT_EXTRAS, LIGHT_DIRECTIONAL, LIGHT_SPOT, MAT_BASE_TEX, MAT_BLEND,
     MAT_EMISSIVE_TEX, MAT_EXT_BSDF, MAT_EXT_TEX, MAT_MASK, MAT_MR_TEX, MAT_NORMAL_TEX,
-    MATERIAL_STRIDE, MIN_ALPHA, NO_TEXTURE, PackedScene,
+    MATERIAL_COAT_ROW, MATERIAL_STRIDE, MIN_ALPHA, NO_TEXTURE, PackedScene,
 };
 use super::shading::{
     Bsdf, BsdfExt, basis, direction_to_equirect, equirect_to_direction, offset_ray, srgb_to_linear,
@@ -334,7 +334,8 @@ fn ext_bsdf(
             clearcoat_alpha = (clearcoat_alpha * g * g).max(MIN_ALPHA);
         }
         if textured(9) {
-            coat_normal = normal_mapped_by(sc, mb, 9, sc.materials[mb + 25][0], sp, ns);
+            coat_normal =
+                normal_mapped_by(sc, mb, 9, sc.materials[mb + MATERIAL_COAT_ROW][0], sp, ns);
         }
     }
     if coat_normal.dot(ng) < 0.0 {

@@ -519,7 +519,7 @@ fn shade8<const FULL: bool>(
     let b0 = f32x8::ONE - u - v;
     let mut ns = (v8(&g.n[0]) * b0 + v8(&g.n[1]) * u + v8(&g.n[2]) * v).normalize();
     ns = V3::select(ns.is_finite(), ns, ng);
-    let ns_interpolated = ns.lanes();
+    let ns_interpolated = ns;
     let d = v8(&g.d);
     let wo = -d;
     let cos_hit = ng.dot(d).abs();
@@ -575,9 +575,11 @@ fn shade8<const FULL: bool>(
                     specular: g.m2[2][i],
                 };
                 let front = front_bits & (1 << i) != 0;
-                let ng = Vec3::new(ng.x.to_array()[i], ng.y.to_array()[i], ng.z.to_array()[i]);
+                let lane =
+                    |v: V3| Vec3::new(v.x.to_array()[i], v.y.to_array()[i], v.z.to_array()[i]);
+                let (n, ng) = (lane(ns_interpolated), lane(ng));
                 let (mb, flags) = (g.mb[i], g.flags[i]);
-                ext_bsdf(sc, mb, flags, core, front, sp[i], ns_interpolated[i], ng)
+                ext_bsdf(sc, mb, flags, core, front, sp[i], n, ng)
             })
         })
     };
