@@ -983,60 +983,58 @@ fn errors_name_the_file_and_the_element() {
     );
 
     // An extension's texture reference (JSON to the gltf crate, so not validated by it) that
-    // names no texture, a texCoord that is no set, a normal map's scale that is no number.
-    for (key, info, problem) in [
+    // names no texture, a texCoord that is no set, a normal map's scale that is no number; in
+    // a file with one texture or none.
+    let cases = [
         (
+            1,
             "clearcoatTexture",
             json!({ "index": 0, "texCoord": "one" }),
             "clearcoatTexture: texCoord \"one\" is not a number ≥ 0",
         ),
         (
+            1,
             "clearcoatNormalTexture",
             json!({ "index": 0, "scale": [1.0] }),
             "clearcoatNormalTexture: scale [1.0] is not a finite number",
         ),
-    ] {
+        (
+            0,
+            "clearcoatTexture",
+            json!({ "index": 3 }),
+            "clearcoatTexture: index 3 names no texture (the file has 0)",
+        ),
+        (
+            0,
+            "clearcoatTexture",
+            json!({ "texCoord": 0 }),
+            "clearcoatTexture: index missing names no texture (the file has 0)",
+        ),
+        (
+            0,
+            "clearcoatTexture",
+            json!({ "index": -1 }),
+            "clearcoatTexture: index -1 names no texture (the file has 0)",
+        ),
+    ];
+    for (textures, key, info, problem) in cases {
         let mut d = Doc::default();
         let pos = d.floats(&TRI, "VEC3");
         let png = format!(
             "data:image/png;base64,{}",
             base64::encode(png_bytes(&image::DynamicImage::new_rgba8(1, 1)))
         );
+        let (images, texture_list) = if textures == 1 {
+            (json!([{ "uri": png }]), json!([{ "source": 0 }]))
+        } else {
+            (json!([]), json!([]))
+        };
         let bytes = d.finish(json!({
             "extensionsUsed": ["KHR_materials_clearcoat"],
-            "images": [{ "uri": png }],
-            "textures": [{ "source": 0 }],
+            "images": images,
+            "textures": texture_list,
             "materials": [{ "name": "Paint", "extensions": { "KHR_materials_clearcoat": {
                 "clearcoatFactor": 1.0, key: info } } }],
-            "meshes": [{ "primitives": [{ "attributes": { "POSITION": pos }, "material": 0 }] }],
-            "nodes": [{ "mesh": 0 }],
-            "scenes": [{ "nodes": [0] }],
-        }));
-        assert_eq!(
-            err(&bytes),
-            format!("test.gltf: material 'Paint': {problem}")
-        );
-    }
-    for (info, problem) in [
-        (
-            json!({ "index": 3 }),
-            "clearcoatTexture: index 3 names no texture (the file has 0)",
-        ),
-        (
-            json!({ "texCoord": 0 }),
-            "clearcoatTexture: index missing names no texture (the file has 0)",
-        ),
-        (
-            json!({ "index": -1 }),
-            "clearcoatTexture: index -1 names no texture (the file has 0)",
-        ),
-    ] {
-        let mut d = Doc::default();
-        let pos = d.floats(&TRI, "VEC3");
-        let bytes = d.finish(json!({
-            "extensionsUsed": ["KHR_materials_clearcoat"],
-            "materials": [{ "name": "Paint", "extensions": { "KHR_materials_clearcoat": {
-                "clearcoatFactor": 1.0, "clearcoatTexture": info } } }],
             "meshes": [{ "primitives": [{ "attributes": { "POSITION": pos }, "material": 0 }] }],
             "nodes": [{ "mesh": 0 }],
             "scenes": [{ "nodes": [0] }],
