@@ -158,44 +158,50 @@ fn an_alpha_masked_quad_in_front_of_an_emitter_lets_exactly_the_unmasked_area_th
 /// world: at normal incidence each face transmits 1 − F0 with F0 = ((ior − 1)/(ior + 1))²,
 /// so the lamp is seen through it at (1 − F0)² (paths of three vertices: no light bouncing
 /// inside the slab yet).
+/// A smooth glass slab (4 × 4 m, 0.2 m thick, z from −0.2 to 0; a closed box with outward
+/// faces) of index `ior` and KHR_materials_volume absorption σ, over a white emitter of
+/// radiance 1 at z = −1, seen straight on by an orthographic camera; nothing else lights it.
+fn slab_scene(ior: f32, absorption: Vec3) -> Scene {
+    let mut tris = Vec::new();
+    let (lo, hi) = (Vec3::new(-2.0, -2.0, -0.2), Vec3::new(2.0, 2.0, 0.0));
+    let c =
+        |x: usize, y: usize, z: usize| Vec3::new([lo.x, hi.x][x], [lo.y, hi.y][y], [lo.z, hi.z][z]);
+    let quads = [
+        [c(0, 0, 0), c(0, 1, 0), c(1, 1, 0), c(1, 0, 0)],
+        [c(0, 0, 1), c(1, 0, 1), c(1, 1, 1), c(0, 1, 1)],
+        [c(0, 0, 0), c(0, 0, 1), c(0, 1, 1), c(0, 1, 0)],
+        [c(1, 0, 0), c(1, 1, 0), c(1, 1, 1), c(1, 0, 1)],
+        [c(0, 0, 0), c(1, 0, 0), c(1, 0, 1), c(0, 0, 1)],
+        [c(0, 1, 0), c(0, 1, 1), c(1, 1, 1), c(1, 1, 0)],
+    ];
+    for q in quads {
+        // Outward faces (counter-clockwise seen from outside).
+        tris.push(flat([q[0], q[1], q[2]], [Vec2::ZERO; 3], 0));
+        tris.push(flat([q[0], q[2], q[3]], [Vec2::ZERO; 3], 0));
+    }
+    tris.extend(rect(-3.0, -3.0, 3.0, 3.0, -1.0, 1));
+    Scene {
+        triangles: tris,
+        materials: vec![
+            material(Vec3::ONE, 0.0, 0.0, 1.0, Vec3::ZERO),
+            material(Vec3::ZERO, 0.0, 1.0, 0.0, Vec3::ONE),
+        ],
+        material_ext: vec![MaterialExt {
+            transmission: 1.0,
+            ior,
+            absorption,
+            ..Default::default()
+        }],
+        orthographic_cameras: vec![ortho(Vec3::new(0.0, 0.0, 1.0), 0.5)],
+        environment: Environment::Constant(Vec3::ZERO),
+        ..Default::default()
+    }
+}
+
 #[test]
 fn a_smooth_glass_slab_transmits_one_minus_f_squared() {
     for ior in [1.5f32, 2.0] {
-        let mut tris = Vec::new();
-        // The slab: 4 × 4 m, 0.2 m thick, z from −0.2 to 0.
-        let (lo, hi) = (Vec3::new(-2.0, -2.0, -0.2), Vec3::new(2.0, 2.0, 0.0));
-        let c = |x: usize, y: usize, z: usize| {
-            Vec3::new([lo.x, hi.x][x], [lo.y, hi.y][y], [lo.z, hi.z][z])
-        };
-        let quads = [
-            [c(0, 0, 0), c(0, 1, 0), c(1, 1, 0), c(1, 0, 0)],
-            [c(0, 0, 1), c(1, 0, 1), c(1, 1, 1), c(0, 1, 1)],
-            [c(0, 0, 0), c(0, 0, 1), c(0, 1, 1), c(0, 1, 0)],
-            [c(1, 0, 0), c(1, 1, 0), c(1, 1, 1), c(1, 0, 1)],
-            [c(0, 0, 0), c(1, 0, 0), c(1, 0, 1), c(0, 0, 1)],
-            [c(0, 1, 0), c(0, 1, 1), c(1, 1, 1), c(1, 1, 0)],
-        ];
-        for q in quads {
-            // Outward faces (counter-clockwise seen from outside).
-            tris.push(flat([q[0], q[1], q[2]], [Vec2::ZERO; 3], 0));
-            tris.push(flat([q[0], q[2], q[3]], [Vec2::ZERO; 3], 0));
-        }
-        tris.extend(rect(-3.0, -3.0, 3.0, 3.0, -1.0, 1));
-        let scene = Scene {
-            triangles: tris,
-            materials: vec![
-                material(Vec3::ONE, 0.0, 0.0, 1.0, Vec3::ZERO),
-                material(Vec3::ZERO, 0.0, 1.0, 0.0, Vec3::ONE),
-            ],
-            material_ext: vec![MaterialExt {
-                transmission: 1.0,
-                ior,
-                ..Default::default()
-            }],
-            orthographic_cameras: vec![ortho(Vec3::new(0.0, 0.0, 1.0), 0.5)],
-            environment: Environment::Constant(Vec3::ZERO),
-            ..Default::default()
-        };
+        let scene = slab_scene(ior, Vec3::ZERO);
         let f0 = ((ior - 1.0) / (ior + 1.0)).powi(2);
         let expected = f64::from((1.0 - f0) * (1.0 - f0));
         let s = settings(&scene, 8, 8, 5, 3);
@@ -218,6 +224,46 @@ fn a_smooth_glass_slab_transmits_one_minus_f_squared() {
             // Power: one interface's worth (1 − F0 alone) is told apart.
             assert!(z_of(&acc, &all, f64::from(1.0 - f0)).abs() > 5.0);
         }
+    }
+}
+
+/// The slab filled with an absorbing medium (KHR_materials_volume): each crossing of its
+/// thickness d keeps τ = exp(−σd) per channel, and the light reflected back and forth inside
+/// crosses it again, so the slab transmits (1 − R)² τ / (1 − R² τ²) (the geometric series of
+/// internal reflections, R = F0 at normal incidence). Here attenuationColor (0.25, 0.6, 0.9) at
+/// attenuationDistance d, so τ is that colour.
+#[test]
+fn an_absorbing_glass_slab_transmits_its_attenuation_colour() {
+    let (ior, d) = (1.5f32, 0.2f32);
+    let colour = Vec3::new(0.25, 0.6, 0.9);
+    let sigma = Vec3::new(-colour.x.ln(), -colour.y.ln(), -colour.z.ln()) / d;
+    let scene = slab_scene(ior, sigma);
+    let r = ((ior - 1.0) / (ior + 1.0)).powi(2);
+    let through = |tau: f32| (1.0 - r).powi(2) * tau / (1.0 - r * r * tau * tau);
+    let want = Vec3::new(through(colour.x), through(colour.y), through(colour.z));
+    let clear = through(1.0);
+    let s = settings(&scene, 8, 8, 7, 8);
+    let all: Vec<usize> = (0..64).collect();
+    for (acc, label) in both(&scene, &s, 256) {
+        let z = z_of(&acc, &all, f64::from(luminance(want)));
+        assert!(z.abs() < 5.0, "{label}: z = {z} against {want}");
+        let mean = all.iter().map(|&i| acc.mean(i)).sum::<Vec3>() / 64.0;
+        assert!(
+            (mean - want).abs().max_element() < 0.01,
+            "{label}: {mean} vs {want}"
+        );
+        // Power: the clear slab's transmission, and one crossing's absorption counted twice,
+        // are told apart.
+        assert!(z_of(&acc, &all, f64::from(clear)).abs() > 5.0, "{label}");
+        let twice = Vec3::new(
+            through(colour.x * colour.x),
+            through(colour.y * colour.y),
+            through(colour.z * colour.z),
+        );
+        assert!(
+            z_of(&acc, &all, f64::from(luminance(twice))).abs() > 5.0,
+            "{label}"
+        );
     }
 }
 

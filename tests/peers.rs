@@ -12,6 +12,7 @@
 
 use std::path::Path;
 
+use glam::Vec3;
 use raygun::frame::Renderer;
 use raygun::gpu::{Backend, GpuContext};
 use raygun::scene::{Environment, Scene};
@@ -52,6 +53,16 @@ fn comparable_references() -> Vec<Reference> {
 
 /// Per region: the mean RGB over `renders` independent renders and its standard error.
 fn raygun_regions(backend: &Backend, r: &Reference, spp: u32) -> Vec<([f64; 3], [f64; 3])> {
+    raygun_regions_edited(backend, r, spp, |_| {})
+}
+
+/// [`raygun_regions`] of the reference's scene changed by `edit` first.
+fn raygun_regions_edited(
+    backend: &Backend,
+    r: &Reference,
+    spp: u32,
+    edit: impl Fn(&mut Scene),
+) -> Vec<([f64; 3], [f64; 3])> {
     let j = &r.json;
     let mut scene = Scene::open(
         Path::new(ROOT)
@@ -67,6 +78,7 @@ fn raygun_regions(backend: &Backend, r: &Reference, spp: u32) -> Vec<([f64; 3], 
         Path::new(ROOT).join(env).display().to_string()
     };
     scene.environment = Environment::parse(&env).unwrap();
+    edit(&mut scene);
     let (w, h) = (
         j["size"][0].as_u64().unwrap() as u32,
         j["size"][1].as_u64().unwrap() as u32,
@@ -221,4 +233,24 @@ fn a_light_that_emits_from_both_faces_fails_against_the_one_sided_reference() {
     // raygun on the two-sided scene, judged against the one-sided reference.
     let got = raygun_regions(&Backend::Cpu, two_sided, 64);
     assert!(compare(one_sided, &got, "two-sided raygun").is_err());
+}
+
+/// The comparison has power for absorbing media too: the coloured glass spheres rendered clear
+/// (their KHR_materials_volume dropped) are told apart from Mitsuba's absorbing ones.
+#[test]
+fn clear_glass_fails_against_the_coloured_glass_reference() {
+    let refs = comparable_references();
+    let coloured = refs.iter().find(|r| r.name == "coloured-glass").unwrap();
+    let got = raygun_regions_edited(&Backend::Cpu, coloured, 64, |scene| {
+        assert!(
+            scene
+                .material_ext
+                .iter()
+                .any(|e| e.absorption != Vec3::ZERO)
+        );
+        for e in &mut scene.material_ext {
+            e.absorption = Vec3::ZERO;
+        }
+    });
+    assert!(compare(coloured, &got, "clear glass").is_err());
 }

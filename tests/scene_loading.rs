@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 
 use glam::{Vec2, Vec3};
 use raygun::scene::generate::{self, CORNELL_CAMERA_POSITION, CityParams, cornell_camera_yfov};
-use raygun::scene::{MAX_COORDINATE, Scene, SceneError, Triangle};
+use raygun::scene::{MAX_ABSORPTION, MAX_COORDINATE, Scene, SceneError, Triangle};
 use serde_json::{Value, json};
 
 /// Positions and directions written by the generator pass through f32 TRS transforms.
@@ -696,6 +696,106 @@ fn emission_is_factor_times_strength_and_factors_are_checked() {
     );
 }
 
+/// KHR_materials_volume: a medium of attenuationColor c at attenuationDistance d absorbs
+/// σ = −ln(c)/d per unit length; a thin-walled material (thicknessFactor 0, the default) and a
+/// clear medium absorb nothing; bad values are clamped and said, or refused by name.
+#[test]
+fn a_volume_absorbs_as_its_attenuation_says_and_bad_ones_are_named() {
+    let png = format!(
+        "data:image/png;base64,{}",
+        base64::encode(png_bytes(&image::DynamicImage::new_rgba8(1, 1)))
+    );
+    let bytes = |volume: Value| {
+        let mut d = Doc::default();
+        let p = d.floats(&TRI, "VEC3");
+        d.finish(json!({
+            "extensionsUsed": ["KHR_materials_transmission", "KHR_materials_volume"],
+            "images": [{ "uri": png }],
+            "textures": [{ "source": 0 }],
+            "materials": [{ "name": "amber", "extensions": {
+                "KHR_materials_transmission": { "transmissionFactor": 1.0 },
+                "KHR_materials_volume": volume } }],
+            "meshes": [{ "primitives": [{ "attributes": { "POSITION": p }, "material": 0 }] }],
+            "nodes": [{ "mesh": 0 }],
+            "scenes": [{ "nodes": [0] }],
+        }))
+    };
+    let s = load(&bytes(json!({
+        "thicknessFactor": 0.5, "attenuationDistance": 2.0, "attenuationColor": [0.5, 0.25, 1.0],
+    })))
+    .unwrap();
+    let want = Vec3::new(2f32.ln() / 2.0, 4f32.ln() / 2.0, 0.0);
+    let got = s.material_ext(0).absorption;
+    assert!((got - want).abs().max_element() < 1e-6, "{got} vs {want}");
+    assert!(s.unsupported.is_empty() && s.notes.is_empty(), "{s:?}");
+    // Thin-walled (the default thickness) with an attenuation: none, and said.
+    let s = load(&bytes(
+        json!({ "attenuationDistance": 2.0, "attenuationColor": [0.5, 0.5, 0.5] }),
+    ))
+    .unwrap();
+    assert_eq!(s.material_ext(0).absorption, Vec3::ZERO);
+    assert!(
+        s.notes
+            .iter()
+            .any(|n| n.starts_with("material 'amber'") && n.contains("thin-walled")),
+        "{:?}",
+        s.notes
+    );
+    // A clear medium (no attenuation given): none, nothing said; a thickness map is not used.
+    let s = load(&bytes(
+        json!({ "thicknessFactor": 1.0, "thicknessTexture": { "index": 0 } }),
+    ))
+    .unwrap();
+    assert_eq!(s.material_ext(0).absorption, Vec3::ZERO);
+    assert_eq!(s.notes.len(), 1, "{:?}", s.notes);
+    assert!(s.notes[0].starts_with("thicknessTexture (material 'amber') not used"));
+    // A black channel absorbs everything, capped to stay finite; colours beyond [0, 1] are
+    // clamped and said.
+    let s = load(&bytes(json!({
+        "thicknessFactor": 1.0, "attenuationDistance": 1.0, "attenuationColor": [0.0, 1.5, -0.5],
+    })))
+    .unwrap();
+    assert_eq!(
+        s.material_ext(0).absorption,
+        Vec3::new(MAX_ABSORPTION, 0.0, MAX_ABSORPTION)
+    );
+    assert!(
+        s.warnings.iter().any(|w| w
+            .starts_with("material 'amber': KHR_materials_volume attenuationColor")
+            && w.contains("clamped")),
+        "{:?}",
+        s.warnings
+    );
+    // A thickness map that names no texture (validated by the gltf crate, with its path).
+    let e = err(&bytes(
+        json!({ "thicknessFactor": 1.0, "thicknessTexture": { "index": 5 } }),
+    ));
+    assert!(
+        e.starts_with("test.gltf: invalid glTF: materials[0]")
+            && e.ends_with("thicknessTexture.index: Index out of bounds"),
+        "{e}"
+    );
+    for (volume, problem) in [
+        (
+            json!({ "thicknessFactor": 1.0, "attenuationDistance": 0.0 }),
+            "attenuationDistance 0 is not a number > 0",
+        ),
+        (
+            json!({ "thicknessFactor": 1.0, "attenuationDistance": -2.0 }),
+            "attenuationDistance -2 is not a number > 0",
+        ),
+        (
+            json!({ "thicknessFactor": -1.0 }),
+            "thicknessFactor -1 is not a finite number ≥ 0",
+        ),
+    ] {
+        assert_eq!(
+            err(&bytes(volume)),
+            format!("test.gltf: material 'amber': KHR_materials_volume: {problem}")
+        );
+    }
+}
+
 // ---------------------------------------------------------------------------------------------
 // Unsupported features
 
@@ -711,13 +811,12 @@ fn every_unsupported_feature_is_named_once() {
     );
     let tri = |material: usize| json!({ "attributes": { "POSITION": pos }, "material": material });
     let bytes = d.finish(json!({
-        "extensionsUsed": ["KHR_lights_punctual", "KHR_texture_transform", "KHR_materials_sheen", "KHR_materials_volume"],
+        "extensionsUsed": ["KHR_lights_punctual", "KHR_texture_transform", "KHR_materials_sheen", "KHR_materials_anisotropy"],
         "images": [{ "uri": png }],
         "textures": [{ "name": "t", "source": 0 }],
         "materials": [
             { "name": "full",
               "occlusionTexture": { "index": 0 },
-              "extensions": { "KHR_materials_volume": { "thicknessFactor": 0.1 } },
               "pbrMetallicRoughness": {
                   "baseColorTexture": { "index": 0, "texCoord": 2 } } },
         ],
@@ -738,8 +837,7 @@ fn every_unsupported_feature_is_named_once() {
     let scene = load(&bytes).unwrap();
     let expected = [
         "KHR_materials_sheen",
-        "KHR_materials_volume (material 'full'",
-        "KHR_materials_volume",
+        "KHR_materials_anisotropy",
         "animation 'wave'",
         "primitive mode LINES (mesh 'wire')",
         "morph targets (mesh 'morph')",

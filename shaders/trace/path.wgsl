@@ -52,6 +52,7 @@ const MAT_MASK: u32 = 32u;
 const MAT_BLEND: u32 = 64u;
 const MAT_EXT_BSDF: u32 = 128u;
 const MAT_EXT_TEX: u32 = 256u;
+const MAT_VOLUME: u32 = 512u;
 const FEAT_EXTRAS: u32 = 1u;
 const FEAT_ALPHA: u32 = 2u;
 const LIGHT_SPOT: u32 = 1u;
@@ -500,6 +501,10 @@ fn path_shade(st: ptr<function, PathState>, hit: Hit) -> bool {
     let front = dot(ng, wo) >= 0.0;
     if !front {
         ng = -ng;
+        // Leaving an absorbing medium (KHR_materials_volume): exp(−σt) of the light is left.
+        if (flags & MAT_VOLUME) != 0u {
+            throughput *= exp(-materials[mb + MATERIAL_COAT_ROW].yzw * hit.t);
+        }
     }
     if (flags & MAT_NORMAL_TEX) != 0u {
         ns = normal_mapped(mb, tri, hit.u, hit.v, ns);

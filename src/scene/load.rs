@@ -39,6 +39,11 @@ use super::{
 /// Triangles beyond it are dropped and reported in [`Scene::warnings`].
 pub const MAX_COORDINATE: f32 = 1.0e9;
 
+/// The largest absorption coefficient a material gets (per unit length): a black
+/// attenuationColor or a vanishing attenuationDistance is capped here, where light is gone
+/// after 10⁻²⁰ of a unit, instead of reaching the shaders as infinity.
+pub const MAX_ABSORPTION: f32 = 1.0e22;
+
 /// glTF extensions the loader implements; every other one in `extensionsUsed` is reported, and
 /// one in `extensionsRequired` is an error. KHR_mesh_quantization needs nothing beyond the
 /// core accessor reads (normalized and integer attributes are read as glTF defines them).
@@ -48,6 +53,7 @@ pub const SUPPORTED_EXTENSIONS: &[&str] = &[
     "KHR_materials_transmission",
     "KHR_materials_ior",
     "KHR_materials_clearcoat",
+    "KHR_materials_volume",
     "KHR_texture_transform",
     "KHR_lights_punctual",
     "KHR_mesh_quantization",
@@ -304,6 +310,66 @@ impl Loader<'_> {
             element,
             problem: problem.into(),
         }
+    }
+
+    /// KHR_materials_volume's absorption coefficient (`MaterialExt::absorption`): the medium
+    /// behind a surface of thickness > 0 absorbs −ln(attenuationColor) / attenuationDistance per
+    /// unit length; a thin-walled one (thicknessFactor 0, the default) bounds no medium. The
+    /// thickness itself is for renderers that cannot trace the mesh: a path tracer measures the
+    /// distance a ray travels inside, so thicknessTexture is noted and not used.
+    fn absorption(
+        &mut self,
+        element: &str,
+        v: &gltf::material::Volume<'_>,
+    ) -> Result<Vec3, SceneError> {
+        let problem = |what: String| {
+            self.element_error(element.to_string(), format!("KHR_materials_volume: {what}"))
+        };
+        let thickness = v.thickness_factor();
+        if !(thickness.is_finite() && thickness >= 0.0) {
+            return Err(problem(format!(
+                "thicknessFactor {thickness} is not a finite number ≥ 0"
+            )));
+        }
+        let distance = v.attenuation_distance();
+        if !(distance > 0.0) {
+            return Err(problem(format!(
+                "attenuationDistance {distance} is not a number > 0"
+            )));
+        }
+        // (JSON numbers beyond f32's range are refused by the parser, so these are finite.)
+        let given = v.attenuation_color();
+        let color = given.map(|c| c.clamp(0.0, 1.0));
+        if color != given {
+            self.report.warn(format!(
+                "{element}: KHR_materials_volume attenuationColor {given:?} clamped to [0, 1]"
+            ));
+        }
+        if v.thickness_texture().is_some() {
+            self.report.note(format!(
+                "thicknessTexture ({element}) not used: the path tracer measures the distance \
+                 light travels inside the mesh"
+            ));
+        }
+        let absorbs = distance < f32::INFINITY && color.iter().any(|&c| c < 1.0);
+        if thickness == 0.0 {
+            if absorbs {
+                self.report.note(format!(
+                    "{element}: KHR_materials_volume with thicknessFactor 0 is thin-walled: \
+                     its attenuation does not apply"
+                ));
+            }
+            return Ok(Vec3::ZERO);
+        }
+        // σ = −ln(c)/d per channel; a black channel absorbs everything within any length
+        // (capped to stay finite for the shaders: exp(−σt) is 0 for every t a hit can have).
+        Ok(Vec3::from(color.map(|c| {
+            if c >= 1.0 || distance == f32::INFINITY {
+                0.0
+            } else {
+                (-c.ln() / distance).min(MAX_ABSORPTION)
+            }
+        })))
     }
 
     fn run(&mut self) -> Result<(), SceneError> {
@@ -901,10 +967,8 @@ impl Loader<'_> {
                 1.5
             };
         }
-        if m.extension_value("KHR_materials_volume").is_some() {
-            self.report.unsupported(format!(
-                "KHR_materials_volume ({element}; the surface refracts as the boundary of a clear solid)"
-            ));
+        if let Some(v) = m.volume() {
+            ext.absorption = self.absorption(&element, &v)?;
         }
         let strength = m.emissive_strength().unwrap_or(1.0);
         if !(strength >= 0.0 && strength.is_finite()) {

@@ -30,7 +30,7 @@ mod resources;
 use glam::{Vec2, Vec3, Vec4};
 
 pub use environment::EnvironmentError;
-pub use load::{MAX_COORDINATE, SUPPORTED_EXTENSIONS};
+pub use load::{MAX_ABSORPTION, MAX_COORDINATE, SUPPORTED_EXTENSIONS};
 pub use report::SceneError;
 
 /// One triangle in world space.
@@ -222,6 +222,12 @@ pub struct MaterialExt {
     /// does not bend the coat (KHR_materials_clearcoat).
     pub clearcoat_normal_texture: Option<TextureRef>,
     pub clearcoat_normal_scale: f32,
+    /// KHR_materials_volume: the absorption coefficient σ of the medium inside the closed mesh
+    /// this material bounds, per unit of scene length and RGB channel, −ln(attenuationColor) /
+    /// attenuationDistance — light that crosses a length x of it keeps exp(−σx) (Beer–Lambert).
+    /// Zero without the extension, for a thin-walled material (thicknessFactor 0) and for a
+    /// clear medium.
+    pub absorption: Vec3,
 }
 
 impl MaterialExt {
@@ -262,6 +268,7 @@ impl Default for MaterialExt {
             clearcoat_roughness_texture: None,
             clearcoat_normal_texture: None,
             clearcoat_normal_scale: 1.0,
+            absorption: Vec3::ZERO,
         }
     }
 }

@@ -7,7 +7,7 @@
 //! | `prims` | BVH primitive | 3 × vec4: `[v0, bits(triangle)]`, `[e1, light density]`, `[e2, flags]` (flags: [`PRIM_CULL`] single-sided and opaque, [`PRIM_ALPHA`] alpha-tested; as a float) |
 //! | `shade` | triangle | 4 × vec4: `[n0, uv0.x]`, `[n1, uv0.y]`, `[n2, uv1.x]`, `[uv1.y, uv2, bits(material)]` |
 //! | `shade` from `extras_offset` | triangle, only with [`FEAT_EXTRAS`] | 8 × vec4: `[colour0 rgba]`, `[colour1]`, `[colour2]`, `[uv1₀, uv1₁]`, `[uv1₂, 0, 0]`, `[tangent0 xyz, sign]`, `[tangent1]`, `[tangent2]` (the TEXCOORD_1 set, tangents for normal maps) |
-//! | `materials` | material | [`MATERIAL_STRIDE`] × vec4: `[base colour rgba]`, `[emission, flags]`, `[metallic, α, specular, alpha cutoff]`, `[specular colour, transmission]`, `[ior, clearcoat, clearcoat α, normal scale]`, then ten texture slots (base colour, metallic-roughness, normal, emissive, then the extensions': transmission, specular, specular colour, clear coat, coat roughness, coat normal) of 2 × vec4 `[uv row 0, bits(texture or !0)]`, `[uv row 1, bits(texCoord set)]`, then `[coat normal scale, 0, 0, 0]` |
+//! | `materials` | material | [`MATERIAL_STRIDE`] × vec4: `[base colour rgba]`, `[emission, flags]`, `[metallic, α, specular, alpha cutoff]`, `[specular colour, transmission]`, `[ior, clearcoat, clearcoat α, normal scale]`, then ten texture slots (base colour, metallic-roughness, normal, emissive, then the extensions': transmission, specular, specular colour, clear coat, coat roughness, coat normal) of 2 × vec4 `[uv row 0, bits(texture or !0)]`, `[uv row 1, bits(texCoord set)]`, then `[coat normal scale, absorption σ rgb]` |
 //! | `texels` | texture | header `[offset, width, height, sampler]` per texture (sampler: wrap S in bits 0–1, wrap T in 2–3 — 0 repeat, 1 clamp, 2 mirror — bit 4 nearest, bit 5 sRGB), then RGBA8 words |
 //! | `lights` | emissive triangle | 3 × vec4: `[v0, bits(triangle)]`, `[e1, 1 if double-sided]`, `[e2, 0]` |
 //! | `lights` from `3 × light_count` | punctual light | 3 × vec4: `[position, or the unit direction towards a directional light, kind (0 point, 1 spot, 2 directional)]`, `[intensity rgb, cos outer cone]`, `[unit spot axis, cos inner cone]` |
@@ -17,8 +17,8 @@
 //! Material flags (`materials[26m + 1].w`, a small float): [`MAT_DOUBLE_SIDED`], one bit per
 //! core texture slot in use ([`MAT_BASE_TEX`] …), [`MAT_MASK`] / [`MAT_BLEND`] for the alpha
 //! mode, [`MAT_EXT_BSDF`] when the material needs the glass / clear-coat / specular-colour
-//! terms and [`MAT_EXT_TEX`] when one of the extensions' slots holds a texture (each slot's
-//! texture word then says which). The tracer reads a slot, the extras or the extended BSDF only where its flag is set,
+//! terms, [`MAT_EXT_TEX`] when one of the extensions' slots holds a texture (each slot's
+//! texture word then says which) and [`MAT_VOLUME`] when the medium it bounds absorbs. The tracer reads a slot, the extras or the extended BSDF only where its flag is set,
 //! so a scene without them pays two bit tests per hit ("model only what a scene needs").
 //!
 //! Empty arrays get one zeroed element: a GPU binding cannot be empty.
@@ -35,7 +35,7 @@ pub const MIN_ALPHA: f32 = 1e-3;
 pub const NO_TEXTURE: u32 = u32::MAX;
 /// vec4s per material (`MATERIAL_STRIDE` in path.wgsl).
 pub const MATERIAL_STRIDE: usize = 26;
-/// The material's vec4 after its texture slots: `[coat normal scale, 0, 0, 0]`
+/// The material's vec4 after its texture slots: `[coat normal scale, absorption σ rgb]`
 /// (`MATERIAL_COAT_ROW` in path.wgsl).
 pub const MATERIAL_COAT_ROW: usize = 25;
 /// vec4s of vertex extras per triangle.
@@ -51,6 +51,9 @@ pub const MAT_MASK: u32 = 32;
 pub const MAT_BLEND: u32 = 64;
 pub const MAT_EXT_BSDF: u32 = 128;
 pub const MAT_EXT_TEX: u32 = 256;
+/// KHR_materials_volume: a ray that meets this material from behind has crossed its medium and
+/// loses exp(−σt) of its throughput ([`crate::scene::MaterialExt::absorption`]).
+pub const MAT_VOLUME: u32 = 512;
 
 /// Scene features (the `features` parameter): vertex extras are packed; some primitive is
 /// alpha-tested (rays then carry a seed for stochastic coverage).
@@ -90,8 +93,9 @@ pub struct PackedScene {
     pub extras_offset: u32,
     pub triangle_count: usize,
     /// Nothing beyond the core glTF material: no alpha tests, vertex extras, punctual lights,
-    /// normal or metallic-roughness maps or extension BSDFs, so the CPU twin traces with its
-    /// plain instantiation, from which those branches are compiled out (DESIGN.md §9).
+    /// normal or metallic-roughness maps, extension BSDFs or absorbing media, so the CPU twin
+    /// traces with its plain instantiation, from which those branches are compiled out
+    /// (DESIGN.md §9).
     pub plain: bool,
 }
 
@@ -201,8 +205,9 @@ impl PackedScene {
                 let ext = scene.material_ext(t.material);
                 let mut f = 0;
                 // A transmitting surface bounds a volume: a ray inside must be able to leave,
-                // so glass is never culled.
-                if !m.double_sided && ext.transmission == 0.0 {
+                // so glass is never culled (nor, as KHR_materials_volume says, a medium's
+                // boundary).
+                if !m.double_sided && ext.transmission == 0.0 && ext.absorption == Vec3::ZERO {
                     f |= PRIM_CULL;
                 }
                 if ext.alpha != AlphaMode::Opaque {
@@ -265,6 +270,7 @@ impl PackedScene {
                     MAT_EXT_BSDF,
                 ),
                 (ext_textures, MAT_EXT_TEX),
+                (ext.absorption != Vec3::ZERO, MAT_VOLUME),
             ] {
                 if on {
                     flags |= bit;
@@ -290,7 +296,8 @@ impl PackedScene {
                 slot(&mut materials, t);
             }
             debug_assert_eq!(materials.len() % MATERIAL_STRIDE, MATERIAL_COAT_ROW);
-            materials.push([ext.clearcoat_normal_scale, 0.0, 0.0, 0.0]);
+            let a = ext.absorption;
+            materials.push([ext.clearcoat_normal_scale, a.x, a.y, a.z]);
         }
 
         let mut texels = Vec::new();
@@ -404,7 +411,8 @@ impl PackedScene {
 
     /// Whether [`Self::plain`] holds: see there.
     fn needs_only_the_core(&self) -> bool {
-        const FULL_ONLY: u32 = MAT_MR_TEX | MAT_NORMAL_TEX | MAT_MASK | MAT_BLEND | MAT_EXT_BSDF;
+        const FULL_ONLY: u32 =
+            MAT_MR_TEX | MAT_NORMAL_TEX | MAT_MASK | MAT_BLEND | MAT_EXT_BSDF | MAT_VOLUME;
         self.features == 0
             && self.punctual_count == 0
             && self

@@ -30,7 +30,7 @@ use super::accum::{Accumulation, accumulate};
 use super::camera::RenderCamera;
 use super::pack::{
     EXTRAS_STRIDE, FEAT_ALPHA, FEAT_EXTRAS, LIGHT_DIRECTIONAL, LIGHT_SPOT, MAT_BASE_TEX, MAT_BLEND,
-    MAT_EMISSIVE_TEX, MAT_EXT_BSDF, MAT_EXT_TEX, MAT_MASK, MAT_MR_TEX, MAT_NORMAL_TEX,
+    MAT_EMISSIVE_TEX, MAT_EXT_BSDF, MAT_EXT_TEX, MAT_MASK, MAT_MR_TEX, MAT_NORMAL_TEX, MAT_VOLUME,
     MATERIAL_COAT_ROW, MATERIAL_STRIDE, MIN_ALPHA, NO_TEXTURE, PackedScene,
 };
 use super::shading::{
@@ -380,6 +380,16 @@ fn sample_punctual(sc: &PackedScene, po: Vec3, u: f32) -> (Vec3, Vec3, f32, f32,
     (wi, le, pdf, dist * (1.0 - 1e-4), true)
 }
 
+/// What is left of light that crossed a length `t` of the medium inside material `mb`'s
+/// surface (KHR_materials_volume, Beer–Lambert): exp(−σt) per channel. A ray that meets a
+/// [`MAT_VOLUME`] surface from behind has just crossed it; the medium is that of the closed
+/// mesh the surface bounds (media do not nest).
+#[inline]
+fn absorbed(sc: &PackedScene, mb: usize, t: f32) -> Vec3 {
+    let s = sc.materials[mb + MATERIAL_COAT_ROW];
+    Vec3::new((-s[1] * t).exp(), (-s[2] * t).exp(), (-s[3] * t).exp())
+}
+
 /// The normal-mapped shading normal: the slot-2 texel in the frame of the interpolated
 /// tangent (sign in w) and `ns` (before any flip to the viewer's side).
 #[inline(never)]
@@ -566,7 +576,7 @@ fn trace(
 /// The path from primary ray `(o, d)` of `pixel`'s sample `sample`: radiance and rays traced.
 /// `FULL`: the scene may use every material feature; `false` only for a
 /// [`PackedScene::plain`] scene, where the alpha tests, normal and metallic-roughness maps,
-/// extension BSDFs and punctual lights it lacks are not even tested for.
+/// extension BSDFs, absorbing media and punctual lights it lacks are not even tested for.
 fn trace_path<const FULL: bool>(
     sc: &PackedScene,
     s: &TraceSettings,
@@ -633,6 +643,9 @@ fn trace_path<const FULL: bool>(
         let front = ng.dot(wo) >= 0.0;
         if !front {
             ng = -ng;
+            if FULL && flags & MAT_VOLUME != 0 {
+                throughput *= absorbed(sc, mb, hit.t);
+            }
         }
         let ns_interpolated = ns;
         if FULL && flags & MAT_NORMAL_TEX != 0 {

@@ -93,7 +93,8 @@ pub fn ortho(position: Vec3, ymag: f32) -> OrthographicCamera {
 
 /// One scene with every one of these features: textures with transforms, wrap modes and both
 /// filters, TEXCOORD_1, vertex colours, a normal map, a metallic-roughness map, an emissive
-/// texture, MASK and BLEND, rough and smooth glass, clear coat, specular colour, the
+/// texture, MASK and BLEND, rough and smooth glass (the rough one absorbing behind it), clear
+/// coat, specular colour, the
 /// extensions' textures (transmission, specular, specular colour, coat, coat roughness, coat
 /// normal), point, spot and directional lights and an environment.
 pub fn everything() -> Scene {
@@ -251,6 +252,9 @@ pub fn everything() -> Scene {
         MaterialExt {
             transmission: 1.0,
             ior: 1.45,
+            // A medium behind it (KHR_materials_volume): rays that meet it from behind are
+            // attenuated by the length they travelled.
+            absorption: Vec3::new(0.8, 0.3, 1.5),
             ..Default::default()
         },
         MaterialExt {

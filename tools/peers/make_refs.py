@@ -73,6 +73,7 @@ def build_scene_files() -> None:
     scenes.glossy_scene(os.path.join(SCN, "glossy.glb"))
     scenes.envmap_scene(os.path.join(SCN, "envmap.glb"))
     scenes.glass_scene(os.path.join(SCN, "glass.glb"))
+    scenes.glass_scene(os.path.join(SCN, "coloured-glass.glb"), coloured=True)
     scenes.lights_scene(os.path.join(SCN, "lights.glb"))
     exr.write_rgb(os.path.join(SCN, "sky.exr"), scenes.sky_map())
 
@@ -140,6 +141,15 @@ SUITE = {
              "rarer side; equal at normal incidence and under total internal reflection), "
              "raygun's smooth glass is GGX at alpha 1e-3, no eta^2 radiance scaling (cancels "
              "for light entering and leaving the spheres)."),
+    "coloured-glass": dict(
+        scene="tests/data/peers/scenes/coloured-glass.glb", env="1,1,1", spp=512,
+        tolerance={"image": 0.02, "region": 0.03}, regions="glass",
+        note="The glass scene with both spheres filled with absorbing media "
+             "(KHR_materials_volume, thicknessFactor 1): amber (attenuationColor 0.9, 0.5, 0.1 "
+             "at 0.5 m) in the smooth one, blue-green (0.2, 0.6, 0.8 at 0.7 m) in the rough one. "
+             "Mitsuba: the same interfaces with an interior homogeneous medium of sigma_t = "
+             "-ln(colour) / distance and albedo 0 (absorption only), rendered by volpath. Model "
+             "differences as for glass."),
     "lights": dict(
         scene="tests/data/peers/scenes/lights.glb", env="0,0,0", spp=512,
         tolerance=LAMBERT_TOL,

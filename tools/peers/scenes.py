@@ -95,6 +95,9 @@ class Material:
     double_sided: bool = False
     transmission: float = 0.0  # KHR_materials_transmission
     ior: float = 1.5  # KHR_materials_ior
+    # KHR_materials_volume: sigma = -ln(attenuationColor) / attenuationDistance per unit length
+    # (zero for a thin-walled material, thicknessFactor 0), as src/scene/load.rs computes it.
+    absorption: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
 
 @dataclass
@@ -200,7 +203,19 @@ def _material(g: glb.Gltf, index: int | None, textures: dict) -> Material:
         double_sided=bool(m.get("doubleSided", False)),
         transmission=clamp(ext.get("KHR_materials_transmission", {}).get("transmissionFactor", 0.0)),
         ior=float(ext.get("KHR_materials_ior", {}).get("ior", 1.5)),
+        absorption=_absorption(ext.get("KHR_materials_volume")),
     )
+
+
+def _absorption(volume: dict | None) -> np.ndarray:
+    if not volume or volume.get("thicknessFactor", 0.0) <= 0.0:
+        return np.zeros(3)
+    dist = float(volume.get("attenuationDistance", math.inf))
+    colour = np.clip(np.array(volume.get("attenuationColor", [1.0, 1.0, 1.0]), float), 0, 1)
+    if not math.isfinite(dist):
+        return np.zeros(3)
+    with np.errstate(divide="ignore"):
+        return np.minimum(-np.log(colour) / dist, 1e22)
 
 
 def load(path: str) -> Scene:
@@ -419,7 +434,11 @@ def material_model(mat: Material, model: str = "native") -> str:
         return "gltf plugin (raygun's BSDF formulas, exact)"
     if mat.transmission >= 1.0 and mat.metallic <= 0:
         kind = "dielectric" if mat.roughness <= 0 else "roughdielectric ggx"
-        return f"{kind} ior {mat.ior} (exact Fresnel vs Schlick on the rarer side)"
+        medium = ""
+        if np.any(mat.absorption > 0):
+            sigma = ", ".join(f"{v:.4g}" for v in mat.absorption)
+            medium = f", interior homogeneous medium sigma_t ({sigma}) albedo 0 (exact)"
+        return f"{kind} ior {mat.ior} (exact Fresnel vs Schlick on the rarer side){medium}"
     if mat.metallic <= 0 and mat.specular <= 0:
         return "diffuse (exact)"
     if mat.metallic >= 1:
@@ -562,8 +581,11 @@ def mitsuba_dict(
     lo, hi = scene.bounds()
     gap = EMITTER_GAP * float(np.linalg.norm(hi - lo))
     d: dict = {"type": "scene"}
+    # An absorbing medium needs Mitsuba's volumetric path tracer (its `path` ignores media);
+    # without scattering it is `path` with exp(-sigma t) over each segment inside.
+    media = any(np.any(m.absorption > 0) for m in scene.materials)
     d["integrator"] = integrator or {
-        "type": "path",
+        "type": "volpath" if media else "path",
         "max_depth": int(max_depth) + 1,
         "rr_depth": 4,
         "hide_emitters": False,
@@ -603,6 +625,14 @@ def mitsuba_dict(
             props["bsdf"] = mi.load_dict(bsdf_dict(mat, model))
             if emissive:
                 props["emitter"] = mi.load_dict({"type": "area", "radiance": _rgb(mat.emission)})
+            if np.any(mat.absorption > 0):
+                # The medium inside the closed mesh: absorbing only (albedo 0), so Mitsuba's
+                # volpath attenuates by exp(-sigma t) over the length travelled inside.
+                # (Its RGB coefficients must lie in [0, 1]: the largest is the scale.)
+                top = float(mat.absorption.max())
+                props["interior"] = mi.load_dict({
+                    "type": "homogeneous", "sigma_t": _rgb(mat.absorption / top), "scale": top,
+                    "albedo": {"type": "rgb", "value": [0.0, 0.0, 0.0]}})
             d[f"shape_{i}_{j}"] = _mesh(mi, f"{pr.name}", pr, props)
     for k, light in enumerate(scene.lights):
         if light.kind == "point":
@@ -816,18 +846,28 @@ def envmap_scene(path: str) -> None:
                                          "target": [0.0, 0.45, 0.0], "yfov": 0.75})
 
 
-def glass(name, roughness, ior=1.5) -> dict:
+def glass(name, roughness, ior=1.5, attenuation=None) -> dict:
+    """Glass; `attenuation` = (attenuationColor, attenuationDistance) fills it with an
+    absorbing medium (KHR_materials_volume, thicknessFactor 1)."""
+    ext = {"KHR_materials_transmission": {"transmissionFactor": 1.0},
+           "KHR_materials_ior": {"ior": float(ior)}}
+    if attenuation is not None:
+        colour, distance = attenuation
+        ext["KHR_materials_volume"] = {"thicknessFactor": 1.0,
+                                       "attenuationColor": [float(c) for c in colour],
+                                       "attenuationDistance": float(distance)}
     return {"name": name, "doubleSided": True,
             "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0,
                                      "roughnessFactor": float(roughness)},
-            "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1.0},
-                           "KHR_materials_ior": {"ior": float(ior)}}}
+            "extensions": ext}
 
 
-def glass_scene(path: str) -> None:
+def glass_scene(path: str, coloured: bool = False) -> None:
     """A smooth (dielectric) and a rough (roughness 0.3, alpha 0.09) glass sphere, ior 1.5,
     radius 0.35 m, on a two-coloured Lambert floor under the white sky: the floor's halves
-    are seen refracted through them."""
+    are seen refracted through them. `coloured`: both filled with absorbing media
+    (KHR_materials_volume) - amber (attenuationColor 0.9, 0.5, 0.1 at 0.5 m) in the smooth
+    one, blue-green (0.2, 0.6, 0.8 at 0.7 m) in the rough one."""
     objs = [dict(name="floor red", material=0,
                  **quad([[-3, 0, 3], [0, 0, 3], [0, 0, -3], [-3, 0, -3]])),
             dict(name="floor blue", material=1,
@@ -837,7 +877,8 @@ def glass_scene(path: str) -> None:
         objs.append({"name": f"sphere {i}", "positions": p, "normals": n, "faces": f,
                      "material": i + 2})
     mats = [lambert("red", [0.7, 0.2, 0.15]), lambert("blue", [0.15, 0.3, 0.7]),
-            glass("smooth glass", 0.0), glass("rough glass", 0.3)]
+            glass("smooth glass", 0.0, attenuation=((0.9, 0.5, 0.1), 0.5) if coloured else None),
+            glass("rough glass", 0.3, attenuation=((0.2, 0.6, 0.8), 0.7) if coloured else None)]
     write_objects_glb(path, objs, mats, {"name": "front", "position": [0.0, 0.7, 2.2],
                                          "target": [0.0, 0.3, 0.0], "yfov": 0.6})
 

@@ -540,7 +540,20 @@ fn shade8<const FULL: bool>(
     }
     ns = V3::select(ns.dot(ng).simd_lt(f32x8::ZERO), -ns, ns);
 
-    let throughput = v8(&g.throughput);
+    let mut throughput = v8(&g.throughput);
+    // The lanes that leave an absorbing medium (`trace_path`'s `absorbed`, lane by lane).
+    let volume_lanes = if FULL {
+        has(MAT_VOLUME) & !front.to_bitmask()
+    } else {
+        0
+    };
+    if volume_lanes != 0 {
+        let mut lanes = throughput.lanes();
+        for i in (0..8).filter(|&i| volume_lanes & (1 << i) != 0) {
+            lanes[i] *= absorbed(sc, g.mb[i], g.t[i]);
+        }
+        throughput = V3::from_lanes(&lanes);
+    }
     let mut radiance = v8(&g.radiance);
     let prev_pdf = f8(g.prev_pdf);
     let emission = v8(&g.emission);
