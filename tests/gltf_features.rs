@@ -267,6 +267,61 @@ fn an_absorbing_glass_slab_transmits_its_attenuation_colour() {
     }
 }
 
+/// A white sheen (KHR_materials_sheen) over a black base, under a white sky, seen at an angle
+/// θ: the plane reflects the sheen's directional albedo E(cos θ) — its integral over the
+/// hemisphere, which raygun tabulates (`SHEEN_ALBEDO`; here at table nodes, where the table is
+/// that integral to 0.5 %) — on both backends; the two angles are told apart.
+#[test]
+fn a_white_sheen_over_black_reflects_its_directional_albedo() {
+    use raygun::trace::shading::{SHEEN_ALBEDO, SHEEN_MIN_ROUGHNESS, sheen_albedo};
+    let r = SHEEN_MIN_ROUGHNESS + (1.0 - SHEEN_MIN_ROUGHNESS) * 12.0 / 31.0;
+    let cosines = [19.0f32 / 63.0, 50.0 / 63.0];
+    let e = cosines.map(|c| sheen_albedo(&SHEEN_ALBEDO, c, r));
+    for (k, cos) in cosines.into_iter().enumerate() {
+        // The plane z = 0 turned about x by θ: its normal (0, −sin θ, cos θ) meets the view
+        // (+z, the orthographic camera looking down −z) at cos θ.
+        let sin = (1.0 - cos * cos).sqrt();
+        let turn = |p: Vec3| Vec3::new(p.x, p.y * cos, p.y * sin);
+        let mut tris = rect(-2.0, -2.0, 2.0, 2.0, 0.0, 0);
+        for t in &mut tris {
+            *t = flat(t.p.map(turn), t.uv, 0);
+        }
+        let scene = Scene {
+            triangles: tris,
+            materials: vec![material(Vec3::ZERO, 0.0, 1.0, 0.0, Vec3::ZERO)],
+            material_ext: vec![MaterialExt {
+                sheen_color: Vec3::ONE,
+                sheen_roughness: r,
+                ..Default::default()
+            }],
+            orthographic_cameras: vec![ortho(Vec3::new(0.0, 0.0, 3.0), 0.5)],
+            environment: Environment::Constant(Vec3::ONE),
+            ..Default::default()
+        };
+        let s = settings(&scene, 8, 8, 9, 3);
+        let all: Vec<usize> = (0..64).collect();
+        for (acc, label) in both(&scene, &s, 256) {
+            let want = f64::from(e[k]);
+            let z = z_of(&acc, &all, want);
+            let mean = all
+                .iter()
+                .map(|&i| f64::from(luminance(acc.mean(i))))
+                .sum::<f64>()
+                / 64.0;
+            assert!(
+                z.abs() < 5.0 || (mean - want).abs() < 0.005 * want,
+                "{label}, cos θ {cos}: {mean} (z = {z}) against E = {want}"
+            );
+            assert!(
+                (mean - want).abs() < 0.03 * want,
+                "{label}, cos θ {cos}: {mean} vs {want}"
+            );
+            // Power: the other angle's albedo is told apart.
+            assert!(z_of(&acc, &all, f64::from(e[1 - k])).abs() > 5.0, "{label}");
+        }
+    }
+}
+
 /// A point light of intensity I at height h over a Lambertian floor of albedo ρ: the floor's
 /// radiance at distance d from the light is ρ/π · I h / d³ (inverse square × cosine); a spot
 /// light equals it inside its inner cone and is dark outside its outer cone; a directional
@@ -525,15 +580,16 @@ fn a_clear_coat_on_black_reflects_its_fresnel_share_of_the_sky() {
 /// left half of the quad with the factor alone and the right half of the quad with the factor
 /// times zero — for transmissionTexture (R), specularTexture (A), specularColorTexture (RGB;
 /// read linear here, so that 255 is exactly 1: the loader marks it sRGB,
-/// tests/scene_loading.rs), clearcoatTexture (R) and clearcoatRoughnessTexture (G; zero
-/// roughness is the smallest α), on both backends. Every material here takes the extensions'
+/// tests/scene_loading.rs), clearcoatTexture (R), clearcoatRoughnessTexture (G; zero
+/// roughness is the smallest α), sheenColorTexture (RGB, likewise read linear) and
+/// sheenRoughnessTexture (A; zero is the sheen's smallest roughness), on both backends. Every material here takes the extensions'
 /// BSDF (ior 1.6), so the references run the same code as the textured quad. The CPU twin to
 /// the bit; the GPU within 1e-5 (WGSL lets a division, and so the texel's 255 / 255, be off by
 /// 2.5 ulp; lavapipe's is exact).
 #[test]
 fn the_extensions_textures_multiply_their_factors() {
     type Apply = fn(&mut MaterialExt, &mut Material, bool);
-    let with_texture: [(&str, [u8; 4], Apply); 5] = [
+    let with_texture: [(&str, [u8; 4], Apply); 7] = [
         ("transmission", [0, 0, 0, 0], |e, _, t| {
             if t {
                 e.transmission_texture = tex_ref(0);
@@ -564,6 +620,20 @@ fn the_extensions_textures_multiply_their_factors() {
             }
             e.clearcoat = 1.0;
             e.clearcoat_roughness = 0.6;
+        }),
+        ("sheen colour", [255, 0, 255, 255], |e, _, t| {
+            if t {
+                e.sheen_color_texture = tex_ref(0);
+            }
+            e.sheen_color = Vec3::new(0.9, 0.5, 0.2);
+            e.sheen_roughness = 0.5;
+        }),
+        ("sheen roughness", [255, 255, 255, 0], |e, _, t| {
+            if t {
+                e.sheen_roughness_texture = tex_ref(0);
+            }
+            e.sheen_color = Vec3::ONE;
+            e.sheen_roughness = 0.8;
         }),
     ];
     let mut tris = rect(-1.0, -1.0, 1.0, 1.0, 0.0, 0);
@@ -618,6 +688,20 @@ fn the_extensions_textures_multiply_their_factors() {
                 m,
                 MaterialExt {
                     clearcoat: 0.0,
+                    ..e
+                },
+            ),
+            "sheen colour" => (
+                m,
+                MaterialExt {
+                    sheen_color: Vec3::new(0.9, 0.0, 0.2),
+                    ..e
+                },
+            ),
+            "sheen roughness" => (
+                m,
+                MaterialExt {
+                    sheen_roughness: 0.0,
                     ..e
                 },
             ),

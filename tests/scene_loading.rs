@@ -796,6 +796,103 @@ fn a_volume_absorbs_as_its_attenuation_says_and_bad_ones_are_named() {
     }
 }
 
+/// KHR_materials_sheen: colour and roughness factors, the colour texture in sRGB and the
+/// roughness texture linear (one image may serve both); out-of-range factors clamped and said;
+/// malformed ones refused naming the material.
+#[test]
+fn a_sheen_loads_as_the_file_says_and_bad_ones_are_named() {
+    let png = format!(
+        "data:image/png;base64,{}",
+        base64::encode(png_bytes(&image::DynamicImage::new_rgba8(1, 1)))
+    );
+    let bytes = |sheen: Value| {
+        let mut d = Doc::default();
+        let p = d.floats(&TRI, "VEC3");
+        d.finish(json!({
+            "extensionsUsed": ["KHR_materials_sheen"],
+            "images": [{ "uri": png }],
+            "textures": [{ "source": 0 }],
+            "materials": [{ "name": "velvet", "extensions": { "KHR_materials_sheen": sheen } }],
+            "meshes": [{ "primitives": [{ "attributes": { "POSITION": p }, "material": 0 }] }],
+            "nodes": [{ "mesh": 0 }],
+            "scenes": [{ "nodes": [0] }],
+        }))
+    };
+    let s = load(&bytes(json!({
+        "sheenColorFactor": [0.9, 0.5, 0.25], "sheenRoughnessFactor": 0.75,
+        "sheenColorTexture": { "index": 0 },
+        "sheenRoughnessTexture": { "index": 0, "texCoord": 1 },
+    })))
+    .unwrap();
+    let e = s.material_ext(0);
+    assert_eq!(
+        (e.sheen_color, e.sheen_roughness),
+        (Vec3::new(0.9, 0.5, 0.25), 0.75)
+    );
+    let (colour, rough) = (
+        e.sheen_color_texture.unwrap(),
+        e.sheen_roughness_texture.unwrap(),
+    );
+    assert_eq!((colour.uv.tex_coord, rough.uv.tex_coord), (0, 1));
+    assert!(
+        s.textures[colour.texture as usize].srgb,
+        "sheen colour is sRGB"
+    );
+    assert!(
+        !s.textures[rough.texture as usize].srgb,
+        "sheen roughness is linear data"
+    );
+    assert!(s.unsupported.is_empty(), "{:?}", s.unsupported);
+    // Defaults: no sheen.
+    let e = load(&bytes(json!({}))).unwrap().material_ext(0);
+    assert_eq!((e.sheen_color, e.sheen_roughness), (Vec3::ZERO, 0.0));
+    // Out of range: clamped and said.
+    let s = load(&bytes(
+        json!({ "sheenColorFactor": [2.0, 0.5, 0.5], "sheenRoughnessFactor": -1.0 }),
+    ))
+    .unwrap();
+    let e = s.material_ext(0);
+    assert_eq!(
+        (e.sheen_color, e.sheen_roughness),
+        (Vec3::new(1.0, 0.5, 0.5), 0.0)
+    );
+    for what in [
+        "sheenColorFactor 2 clamped",
+        "sheenRoughnessFactor -1 clamped",
+    ] {
+        assert!(
+            s.warnings
+                .iter()
+                .any(|w| w == &format!("material 'velvet': {what} to [0, 1]")),
+            "{what}: {:?}",
+            s.warnings
+        );
+    }
+    for (sheen, problem) in [
+        (
+            json!({ "sheenColorFactor": [1.0, 1.0] }),
+            "sheenColorFactor [1.0,1.0] is not three numbers",
+        ),
+        (
+            json!({ "sheenColorFactor": "red" }),
+            "sheenColorFactor \"red\" is not three numbers",
+        ),
+        (
+            json!({ "sheenRoughnessFactor": [0.5] }),
+            "sheenRoughnessFactor [0.5] is not a number",
+        ),
+        (
+            json!({ "sheenColorTexture": { "index": 3 } }),
+            "sheenColorTexture: index 3 names no texture (the file has 1)",
+        ),
+    ] {
+        assert_eq!(
+            err(&bytes(sheen)),
+            format!("test.gltf: material 'velvet': {problem}")
+        );
+    }
+}
+
 // ---------------------------------------------------------------------------------------------
 // Unsupported features
 
@@ -811,7 +908,7 @@ fn every_unsupported_feature_is_named_once() {
     );
     let tri = |material: usize| json!({ "attributes": { "POSITION": pos }, "material": material });
     let bytes = d.finish(json!({
-        "extensionsUsed": ["KHR_lights_punctual", "KHR_texture_transform", "KHR_materials_sheen", "KHR_materials_anisotropy"],
+        "extensionsUsed": ["KHR_lights_punctual", "KHR_texture_transform", "KHR_materials_iridescence", "KHR_materials_anisotropy"],
         "images": [{ "uri": png }],
         "textures": [{ "name": "t", "source": 0 }],
         "materials": [
@@ -836,7 +933,7 @@ fn every_unsupported_feature_is_named_once() {
     }));
     let scene = load(&bytes).unwrap();
     let expected = [
-        "KHR_materials_sheen",
+        "KHR_materials_iridescence",
         "KHR_materials_anisotropy",
         "animation 'wave'",
         "primitive mode LINES (mesh 'wire')",

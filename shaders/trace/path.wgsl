@@ -41,8 +41,15 @@ struct Params {
 }
 
 // Layout constants: src/trace/pack.rs (module doc).
-const MATERIAL_STRIDE: u32 = 26u;
-const MATERIAL_COAT_ROW: u32 = 25u;
+const MATERIAL_STRIDE: u32 = 31u;
+const MATERIAL_COAT_ROW: u32 = 29u;
+const MATERIAL_SHEEN_ROW: u32 = 30u;
+// The sheen's albedo table after the materials: SHEEN_COLUMNS × SHEEN_ROWS entries in
+// SHEEN_TABLE_ROWS vec4s.
+const SHEEN_COLUMNS: u32 = 64u;
+const SHEEN_ROWS: u32 = 32u;
+const SHEEN_TABLE_ROWS: u32 = 512u;
+const SHEEN_MIN_ROUGHNESS: f32 = 0.07;
 const EXTRAS_STRIDE: u32 = 8u;
 const MAT_BASE_TEX: u32 = 2u;
 const MAT_MR_TEX: u32 = 4u;
@@ -254,6 +261,9 @@ fn ext_bsdf(mb: u32, flags: u32, core_in: Bsdf, front: bool, tri: u32, u: f32, v
     var clearcoat = m4.y;
     var clearcoat_alpha = m4.z;
     var coat_normal = ns;
+    let sh = materials[mb + MATERIAL_SHEEN_ROW];
+    var sheen = sh.xyz;
+    var sheen_roughness = sh.w;
     if (flags & MAT_EXT_TEX) != 0u {
         if textured(mb, 4u) {
             transmission *= slot(mb, 4u, tri, u, v).x;
@@ -274,12 +284,18 @@ fn ext_bsdf(mb: u32, flags: u32, core_in: Bsdf, front: bool, tri: u32, u: f32, v
         if textured(mb, 9u) {
             coat_normal = normal_mapped_by(mb, 9u, materials[mb + MATERIAL_COAT_ROW].x, tri, u, v, ns);
         }
+        if textured(mb, 10u) {
+            sheen *= slot(mb, 10u, tri, u, v).xyz;
+        }
+        if textured(mb, 11u) {
+            sheen_roughness *= slot(mb, 11u, tri, u, v).w;
+        }
     }
     if dot(coat_normal, ng) < 0.0 {
         coat_normal = -coat_normal;
     }
     return BsdfExt(core, specular_color, f0 * f0, select(1.0 / ior, ior, front), transmission,
-        clearcoat, clearcoat_alpha, coat_normal);
+        clearcoat, clearcoat_alpha, coat_normal, sheen, max(sheen_roughness, SHEEN_MIN_ROUGHNESS));
 }
 
 fn normal_mapped(mb: u32, tri: u32, u: f32, v: f32, ns: vec3<f32>) -> vec3<f32> {
@@ -531,7 +547,7 @@ fn path_shade(st: ptr<function, PathState>, hit: Hit) -> bool {
     }
     let bsdf = Bsdf(base.xyz, metallic, alpha, m2.z);
     let has_ext = (flags & MAT_EXT_BSDF) != 0u;
-    var ext = BsdfExt(bsdf, vec3<f32>(1.0), 0.04, 1.5, 0.0, 0.0, 0.1, ns);
+    var ext = BsdfExt(bsdf, vec3<f32>(1.0), 0.04, 1.5, 0.0, 0.0, 0.1, ns, vec3<f32>(0.0), 1.0);
     if has_ext {
         ext = ext_bsdf(mb, flags, bsdf, front, tri, hit.u, hit.v, ns_interpolated, ng);
     }

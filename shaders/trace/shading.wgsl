@@ -130,6 +130,70 @@ struct BsdfExt {
     clearcoat_alpha: f32,
     // The coat's own shading normal, on the viewer's side.
     coat_normal: vec3<f32>,
+    // KHR_materials_sheen's colour (zero: none) and perceptual roughness (≥ SHEEN_MIN_ROUGHNESS).
+    sheen: vec3<f32>,
+    sheen_roughness: f32,
+}
+
+// The sheen's fitted Λ (KHR_materials_sheen's `l` and `lambda_sheen`; CPU twin: sheen_lambda).
+fn sheen_l(x: f32, alpha: f32) -> f32 {
+    let t = (1.0 - alpha) * (1.0 - alpha);
+    let a = mix(21.5473, 25.3245, t);
+    let b = mix(3.82987, 3.32435, t);
+    let c = mix(0.19823, 0.16801, t);
+    let d = mix(-1.97760, -1.27393, t);
+    let e = mix(-4.32054, -4.85967, t);
+    return a / (1.0 + b * pow(x, c)) + d * x + e;
+}
+
+fn sheen_lambda(c: f32, alpha: f32) -> f32 {
+    if c < 0.5 {
+        return exp(sheen_l(c, alpha));
+    }
+    return exp(2.0 * sheen_l(0.5, alpha) - sheen_l(1.0 - c, alpha));
+}
+
+// The Charlie sheen BRDF at colour 1: D(n·h) · G / (4 cos_i cos_o), α = r².
+fn sheen_brdf(noh: f32, cos_i: f32, cos_o: f32, r: f32) -> f32 {
+    let alpha = r * r;
+    let inv = 1.0 / alpha;
+    let sin2 = max(1.0 - noh * noh, 0.0);
+    let d = (2.0 + inv) * pow(sin2, 0.5 * inv) / (2.0 * PI);
+    let g = 1.0 / (1.0 + sheen_lambda(cos_o, alpha) + sheen_lambda(cos_i, alpha));
+    return d * g / (4.0 * cos_i * cos_o);
+}
+
+// The sheen's directional albedo E(cos, r), bilinear in the table after the materials
+// (src/trace/pack.rs; CPU twin: shading::sheen_albedo).
+fn sheen_table(k: u32) -> f32 {
+    let base = arrayLength(&materials) - SHEEN_TABLE_ROWS;
+    return materials[base + k / 4u][k % 4u];
+}
+
+fn sheen_albedo(cos: f32, r: f32) -> f32 {
+    let last_x = f32(SHEEN_COLUMNS - 1u);
+    let last_y = f32(SHEEN_ROWS - 1u);
+    let x = clamp(cos, 0.0, 1.0) * last_x;
+    let y = clamp((r - SHEEN_MIN_ROUGHNESS) / (1.0 - SHEEN_MIN_ROUGHNESS), 0.0, 1.0) * last_y;
+    let x0 = min(floor(x), last_x - 1.0);
+    let y0 = min(floor(y), last_y - 1.0);
+    let fx = x - x0;
+    let fy = y - y0;
+    let k = u32(y0) * SHEEN_COLUMNS + u32(x0);
+    let a = sheen_table(k);
+    let b = sheen_table(k + 1u);
+    let c = sheen_table(k + SHEEN_COLUMNS);
+    let d = sheen_table(k + SHEEN_COLUMNS + 1u);
+    let top = a + (b - a) * fx;
+    let bottom = c + (d - c) * fx;
+    return top + (bottom - top) * fy;
+}
+
+fn ext_sheen_e(e: BsdfExt, cos: f32) -> f32 {
+    if all(e.sheen == vec3<f32>(0.0)) {
+        return 0.0;
+    }
+    return sheen_albedo(cos, e.sheen_roughness);
 }
 
 fn ggx_d(noh: f32, a2: f32) -> f32 {
@@ -193,19 +257,28 @@ fn ext_coat(e: BsdfExt, cos_oc: f32) -> f32 {
     return 0.0;
 }
 
-fn ext_lobes(e: BsdfExt, cos_o: f32, cos_oc: f32) -> vec4<f32> {
+// Lobe probabilities: specular, diffuse, transmission, coat in `p`, the sheen's apart.
+struct ExtLobes {
+    p: vec4<f32>,
+    sheen: f32,
+}
+
+fn ext_lobes(e: BsdfExt, cos_o: f32, cos_oc: f32) -> ExtLobes {
     let b = e.core;
     let fr = ext_fresnel(e, cos_o);
     let coat = ext_coat(e, cos_oc);
-    let ws = lum(fr.f) * (1.0 - coat);
-    let rest = lum(b.base) * (1.0 - b.metallic) * (1.0 - max3(fr.fd)) * (1.0 - coat);
+    let e_o = ext_sheen_e(e, cos_o);
+    let under = 1.0 - max3(e.sheen) * e_o;
+    let ws = lum(fr.f) * (1.0 - coat) * under;
+    let rest = lum(b.base) * (1.0 - b.metallic) * (1.0 - max3(fr.fd)) * (1.0 - coat) * under;
     let wd = rest * (1.0 - e.transmission);
     let wt = rest * e.transmission;
-    let total = ws + wd + wt + coat;
+    let wsh = lum(e.sheen) * e_o * (1.0 - coat);
+    let total = ws + wd + wt + coat + wsh;
     if total > 0.0 {
-        return vec4<f32>(ws / total, wd / total, wt / total, coat / total);
+        return ExtLobes(vec4<f32>(ws / total, wd / total, wt / total, coat / total), wsh / total);
     }
-    return vec4<f32>(0.5, 0.5, 0.0, 0.0);
+    return ExtLobes(vec4<f32>(0.5, 0.5, 0.0, 0.0), 0.0);
 }
 
 fn ext_eval(e: BsdfExt, n: vec3<f32>, wo: vec3<f32>, wi: vec3<f32>) -> vec4<f32> {
@@ -217,9 +290,11 @@ fn ext_eval(e: BsdfExt, n: vec3<f32>, wo: vec3<f32>, wi: vec3<f32>) -> vec4<f32>
     }
     let cn = e.coat_normal;
     let cos_oc = dot(cn, wo);
-    let p = ext_lobes(e, cos_o, cos_oc);
+    let lobes = ext_lobes(e, cos_o, cos_oc);
+    let p = lobes.p;
     let coat = ext_coat(e, cos_oc);
     let a2 = b.alpha * b.alpha;
+    let sheened = any(e.sheen != vec3<f32>(0.0));
     if cos_i > 0.0 {
         let h = normalize(wo + wi);
         let noh = max(dot(n, h), 0.0);
@@ -230,6 +305,14 @@ fn ext_eval(e: BsdfExt, n: vec3<f32>, wo: vec3<f32>, wi: vec3<f32>) -> vec4<f32>
         let diff = b.base * ((1.0 - b.metallic) * (1.0 - max3(fr.fd)) * (1.0 - e.transmission) / PI);
         var value = (spec + diff) * (1.0 - coat);
         var pdf = p.x * d * noh / (4.0 * voh) + p.y * cos_i / PI;
+        if sheened {
+            // The sheen over the base, the base scaled by its albedo-scaling term.
+            let s = max3(e.sheen);
+            let scale = min(1.0 - s * ext_sheen_e(e, cos_o), 1.0 - s * ext_sheen_e(e, cos_i));
+            let sheen = e.sheen * sheen_brdf(noh, cos_i, cos_o, e.sheen_roughness);
+            value = (sheen + (spec + diff) * scale) * (1.0 - coat);
+            pdf += lobes.sheen * (0.5 / PI);
+        }
         if coat > 0.0 {
             let c = ext_coat_term(e, coat, p.w, cos_oc, wi, h, voh);
             value += vec3<f32>(c.x);
@@ -265,7 +348,10 @@ fn ext_eval(e: BsdfExt, n: vec3<f32>, wo: vec3<f32>, wi: vec3<f32>) -> vec4<f32>
     let g = ggx_g1(cos_o, a2) * ggx_g1(-cos_i, a2);
     let jac = eta * eta * -wih / (denom * denom);
     let btdf = woh * d * g * jac / (cos_o * -cos_i);
-    let value = b.base * ((1.0 - b.metallic) * (1.0 - max3(fr.fd)) * e.transmission * btdf * (1.0 - coat));
+    var value = b.base * ((1.0 - b.metallic) * (1.0 - max3(fr.fd)) * e.transmission * btdf * (1.0 - coat));
+    if sheened {
+        value *= 1.0 - max3(e.sheen) * ext_sheen_e(e, cos_o);
+    }
     if bent {
         return vec4<f32>(value + vec3<f32>(c.x), p.z * d * noh * jac + c.y);
     }
@@ -288,7 +374,8 @@ fn ext_coat_term(e: BsdfExt, coat: f32, p3: f32, cos_oc: f32, wi: vec3<f32>, h: 
 
 fn ext_sample(e: BsdfExt, n: vec3<f32>, wo: vec3<f32>, u_lobe: f32, u: f32, v: f32) -> vec3<f32> {
     let tb = basis_t(n);
-    let p = ext_lobes(e, dot(n, wo), dot(e.coat_normal, wo));
+    let lobes = ext_lobes(e, dot(n, wo), dot(e.coat_normal, wo));
+    let p = lobes.p;
     if u_lobe < p.x {
         let h = ggx_half(tb, n, e.core.alpha, u, v);
         return 2.0 * dot(wo, h) * h - wo;
@@ -304,6 +391,10 @@ fn ext_sample(e: BsdfExt, n: vec3<f32>, wo: vec3<f32>, u_lobe: f32, u: f32, v: f
             return vec3<f32>(0.0);
         }
         return -r * wo + (r * c - sqrt(k)) * h;
+    } else if lobes.sheen > 0.0 && u_lobe >= p.x + p.y + p.z + p.w {
+        // The sheen: uniform over the hemisphere (its value peaks at grazing angles).
+        let l = uniform_sphere(0.5 * u, v);
+        return tb[0] * l.x + tb[1] * l.y + n * l.z;
     }
     let cn = e.coat_normal;
     var tbc = tb;

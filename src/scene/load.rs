@@ -54,6 +54,7 @@ pub const SUPPORTED_EXTENSIONS: &[&str] = &[
     "KHR_materials_ior",
     "KHR_materials_clearcoat",
     "KHR_materials_volume",
+    "KHR_materials_sheen",
     "KHR_texture_transform",
     "KHR_lights_punctual",
     "KHR_mesh_quantization",
@@ -821,14 +822,16 @@ impl Loader<'_> {
     }
 
     /// A texture reference an extension gives as JSON (`{"index", "texCoord", "extensions":
-    /// {"KHR_texture_transform"}}`: the gltf crate has no typed form for it), read as data.
-    /// None where `info` is absent or the texture cannot be used (reported); an index that
-    /// names no texture is an error naming the material and the key.
+    /// {"KHR_texture_transform"}}`: the gltf crate has no typed form for it), read as data
+    /// (colour data in sRGB where `srgb`). None where `info` is absent or the texture cannot be
+    /// used (reported); an index that names no texture is an error naming the material and the
+    /// key.
     fn json_texture_ref(
         &mut self,
         element: &str,
         what: &str,
         info: Option<&serde_json::Value>,
+        srgb: bool,
     ) -> Result<Option<TextureRef>, SceneError> {
         let Some(info) = info else {
             return Ok(None);
@@ -862,7 +865,7 @@ impl Loader<'_> {
                 .and_then(|e| e.get("KHR_texture_transform")),
             tex_coord,
         );
-        self.texture_ref(element, what, &tex, uv, false)
+        self.texture_ref(element, what, &tex, uv, srgb)
     }
 
     fn convert_material(
@@ -919,16 +922,21 @@ impl Loader<'_> {
                 "clearcoatRoughnessFactor",
                 get("clearcoatRoughnessFactor").unwrap_or(0.0) as f32,
             )?;
-            ext.clearcoat_texture =
-                self.json_texture_ref(&element, "clearcoatTexture", c.get("clearcoatTexture"))?;
+            ext.clearcoat_texture = self.json_texture_ref(
+                &element,
+                "clearcoatTexture",
+                c.get("clearcoatTexture"),
+                false,
+            )?;
             ext.clearcoat_roughness_texture = self.json_texture_ref(
                 &element,
                 "clearcoatRoughnessTexture",
                 c.get("clearcoatRoughnessTexture"),
+                false,
             )?;
             let normal = c.get("clearcoatNormalTexture");
             ext.clearcoat_normal_texture =
-                self.json_texture_ref(&element, "clearcoatNormalTexture", normal)?;
+                self.json_texture_ref(&element, "clearcoatNormalTexture", normal, false)?;
             let scale = normal.and_then(|n| n.get("scale"));
             ext.clearcoat_normal_scale = match scale {
                 None => 1.0,
@@ -942,6 +950,54 @@ impl Loader<'_> {
                     }
                 },
             };
+        }
+        if let Some(sh) = m.extension_value("KHR_materials_sheen") {
+            // (JSON to the gltf crate, as the clear coat is.)
+            let colour = match sh.get("sheenColorFactor") {
+                None => Some([0.0; 3]),
+                Some(v) => v.as_array().filter(|a| a.len() == 3).and_then(|a| {
+                    let c: Option<Vec<f64>> = a.iter().map(serde_json::Value::as_f64).collect();
+                    c.map(|c| [c[0], c[1], c[2]])
+                }),
+            };
+            let Some(colour) = colour else {
+                let v = &sh["sheenColorFactor"];
+                return Err(self.element_error(
+                    element,
+                    format!("sheenColorFactor {v} is not three numbers"),
+                ));
+            };
+            let roughness = match sh.get("sheenRoughnessFactor") {
+                None => 0.0,
+                Some(v) => match v.as_f64() {
+                    Some(r) => r,
+                    None => {
+                        return Err(self.element_error(
+                            element,
+                            format!("sheenRoughnessFactor {v} is not a number"),
+                        ));
+                    }
+                },
+            };
+            let r = &mut self.report;
+            ext.sheen_color = Vec3::new(
+                factor(r, "sheenColorFactor", colour[0] as f32)?,
+                factor(r, "sheenColorFactor", colour[1] as f32)?,
+                factor(r, "sheenColorFactor", colour[2] as f32)?,
+            );
+            ext.sheen_roughness = factor(r, "sheenRoughnessFactor", roughness as f32)?;
+            ext.sheen_color_texture = self.json_texture_ref(
+                &element,
+                "sheenColorTexture",
+                sh.get("sheenColorTexture"),
+                true,
+            )?;
+            ext.sheen_roughness_texture = self.json_texture_ref(
+                &element,
+                "sheenRoughnessTexture",
+                sh.get("sheenRoughnessTexture"),
+                false,
+            )?;
         }
         if let Some(t) = m.transmission() {
             ext.transmission = factor(

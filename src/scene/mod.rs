@@ -228,14 +228,22 @@ pub struct MaterialExt {
     /// Zero without the extension, for a thin-walled material (thicknessFactor 0) and for a
     /// clear medium.
     pub absorption: Vec3,
+    /// KHR_materials_sheen (fabrics, velvet): the sheen's colour (linear; zero: no sheen) and
+    /// perceptual roughness, beneath the clear coat and over the base.
+    pub sheen_color: Vec3,
+    pub sheen_roughness: f32,
+    /// sheenColorTexture's RGB (sRGB) and sheenRoughnessTexture's A (linear), each multiplying
+    /// its factor.
+    pub sheen_color_texture: Option<TextureRef>,
+    pub sheen_roughness_texture: Option<TextureRef>,
 }
 
 impl MaterialExt {
     /// The extensions' textures in the order of their slots in the packed material
     /// (`trace::pack`): transmission, specular, specular colour, clear coat, coat roughness,
-    /// coat normal.
+    /// coat normal, sheen colour, sheen roughness.
     #[must_use]
-    pub fn extension_textures(&self) -> [Option<TextureRef>; 6] {
+    pub fn extension_textures(&self) -> [Option<TextureRef>; 8] {
         [
             self.transmission_texture,
             self.specular_texture,
@@ -243,6 +251,8 @@ impl MaterialExt {
             self.clearcoat_texture,
             self.clearcoat_roughness_texture,
             self.clearcoat_normal_texture,
+            self.sheen_color_texture,
+            self.sheen_roughness_texture,
         ]
     }
 }
@@ -269,6 +279,10 @@ impl Default for MaterialExt {
             clearcoat_normal_texture: None,
             clearcoat_normal_scale: 1.0,
             absorption: Vec3::ZERO,
+            sheen_color: Vec3::ZERO,
+            sheen_roughness: 0.0,
+            sheen_color_texture: None,
+            sheen_roughness_texture: None,
         }
     }
 }

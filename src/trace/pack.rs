@@ -7,7 +7,7 @@
 //! | `prims` | BVH primitive | 3 × vec4: `[v0, bits(triangle)]`, `[e1, light density]`, `[e2, flags]` (flags: [`PRIM_CULL`] single-sided and opaque, [`PRIM_ALPHA`] alpha-tested; as a float) |
 //! | `shade` | triangle | 4 × vec4: `[n0, uv0.x]`, `[n1, uv0.y]`, `[n2, uv1.x]`, `[uv1.y, uv2, bits(material)]` |
 //! | `shade` from `extras_offset` | triangle, only with [`FEAT_EXTRAS`] | 8 × vec4: `[colour0 rgba]`, `[colour1]`, `[colour2]`, `[uv1₀, uv1₁]`, `[uv1₂, 0, 0]`, `[tangent0 xyz, sign]`, `[tangent1]`, `[tangent2]` (the TEXCOORD_1 set, tangents for normal maps) |
-//! | `materials` | material | [`MATERIAL_STRIDE`] × vec4: `[base colour rgba]`, `[emission, flags]`, `[metallic, α, specular, alpha cutoff]`, `[specular colour, transmission]`, `[ior, clearcoat, clearcoat α, normal scale]`, then ten texture slots (base colour, metallic-roughness, normal, emissive, then the extensions': transmission, specular, specular colour, clear coat, coat roughness, coat normal) of 2 × vec4 `[uv row 0, bits(texture or !0)]`, `[uv row 1, bits(texCoord set)]`, then `[coat normal scale, absorption σ rgb]` |
+//! | `materials` | material | [`MATERIAL_STRIDE`] × vec4: `[base colour rgba]`, `[emission, flags]`, `[metallic, α, specular, alpha cutoff]`, `[specular colour, transmission]`, `[ior, clearcoat, clearcoat α, normal scale]`, then twelve texture slots (base colour, metallic-roughness, normal, emissive, then the extensions': transmission, specular, specular colour, clear coat, coat roughness, coat normal, sheen colour, sheen roughness) of 2 × vec4 `[uv row 0, bits(texture or !0)]`, `[uv row 1, bits(texCoord set)]`, then `[coat normal scale, absorption σ rgb]`, `[sheen colour, sheen roughness]`; after the last material, where one has a sheen, the sheen's albedo table ([`SHEEN_TABLE_ROWS`] vec4s of [`SHEEN_ALBEDO`]) |
 //! | `texels` | texture | header `[offset, width, height, sampler]` per texture (sampler: wrap S in bits 0–1, wrap T in 2–3 — 0 repeat, 1 clamp, 2 mirror — bit 4 nearest, bit 5 sRGB), then RGBA8 words |
 //! | `lights` | emissive triangle | 3 × vec4: `[v0, bits(triangle)]`, `[e1, 1 if double-sided]`, `[e2, 0]` |
 //! | `lights` from `3 × light_count` | punctual light | 3 × vec4: `[position, or the unit direction towards a directional light, kind (0 point, 1 spot, 2 directional)]`, `[intensity rgb, cos outer cone]`, `[unit spot axis, cos inner cone]` |
@@ -27,6 +27,7 @@ use glam::{Vec3, Vec4};
 
 use super::accum::luminance;
 use super::bvh::{PRIM_ALPHA, PRIM_CULL, SceneBvh};
+use super::shading::{SHEEN_ALBEDO, SHEEN_COLUMNS, SHEEN_ROWS};
 use crate::scene::{AlphaMode, Environment, LightKind, Scene, TextureRef, Wrap};
 
 /// GGX α never goes below this: a perfect mirror has a Dirac BSDF that MIS cannot weigh.
@@ -34,10 +35,15 @@ pub const MIN_ALPHA: f32 = 1e-3;
 /// `texture` word of a material without a texture.
 pub const NO_TEXTURE: u32 = u32::MAX;
 /// vec4s per material (`MATERIAL_STRIDE` in path.wgsl).
-pub const MATERIAL_STRIDE: usize = 26;
+pub const MATERIAL_STRIDE: usize = 31;
 /// The material's vec4 after its texture slots: `[coat normal scale, absorption σ rgb]`
 /// (`MATERIAL_COAT_ROW` in path.wgsl).
-pub const MATERIAL_COAT_ROW: usize = 25;
+pub const MATERIAL_COAT_ROW: usize = 29;
+/// The material's last vec4: `[sheen colour, sheen roughness]` (`MATERIAL_SHEEN_ROW` in
+/// path.wgsl).
+pub const MATERIAL_SHEEN_ROW: usize = 30;
+/// vec4s of the sheen's albedo table after the materials (`SHEEN_TABLE_ROWS` in path.wgsl).
+pub const SHEEN_TABLE_ROWS: usize = SHEEN_COLUMNS * SHEEN_ROWS / 4;
 /// vec4s of vertex extras per triangle.
 pub const EXTRAS_STRIDE: usize = 8;
 
@@ -266,6 +272,7 @@ impl PackedScene {
                         || ext.clearcoat > 0.0
                         || ext.specular_color != Vec3::ONE
                         || ext.ior != 1.5
+                        || ext.sheen_color != Vec3::ZERO
                         || ext_textures,
                     MAT_EXT_BSDF,
                 ),
@@ -298,6 +305,8 @@ impl PackedScene {
             debug_assert_eq!(materials.len() % MATERIAL_STRIDE, MATERIAL_COAT_ROW);
             let a = ext.absorption;
             materials.push([ext.clearcoat_normal_scale, a.x, a.y, a.z]);
+            let sh = ext.sheen_color;
+            materials.push([sh.x, sh.y, sh.z, ext.sheen_roughness]);
         }
 
         let mut texels = Vec::new();
@@ -405,6 +414,17 @@ impl PackedScene {
             plain: false,
         };
         packed.plain = packed.needs_only_the_core();
+        // The sheen's albedo table, for the GPU (the CPU twin reads `SHEEN_ALBEDO` itself).
+        if scene
+            .material_ext
+            .iter()
+            .any(|e| e.sheen_color != Vec3::ZERO)
+        {
+            let table = SHEEN_ALBEDO.chunks_exact(4);
+            packed
+                .materials
+                .extend(table.map(|e| [e[0], e[1], e[2], e[3]]));
+        }
         packed.pad_empty();
         packed
     }

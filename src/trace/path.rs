@@ -31,11 +31,11 @@ use super::camera::RenderCamera;
 use super::pack::{
     EXTRAS_STRIDE, FEAT_ALPHA, FEAT_EXTRAS, LIGHT_DIRECTIONAL, LIGHT_SPOT, MAT_BASE_TEX, MAT_BLEND,
     MAT_EMISSIVE_TEX, MAT_EXT_BSDF, MAT_EXT_TEX, MAT_MASK, MAT_MR_TEX, MAT_NORMAL_TEX, MAT_VOLUME,
-    MATERIAL_COAT_ROW, MATERIAL_STRIDE, MIN_ALPHA, NO_TEXTURE, PackedScene,
+    MATERIAL_COAT_ROW, MATERIAL_SHEEN_ROW, MATERIAL_STRIDE, MIN_ALPHA, NO_TEXTURE, PackedScene,
 };
 use super::shading::{
-    Bsdf, BsdfExt, basis, direction_to_equirect, equirect_to_direction, offset_ray, srgb_to_linear,
-    uniform_sphere,
+    Bsdf, BsdfExt, SHEEN_MIN_ROUGHNESS, basis, direction_to_equirect, equirect_to_direction,
+    offset_ray, srgb_to_linear, uniform_sphere,
 };
 use super::wall::WallCamera;
 use crate::random::{pcg4d, stream, unit_f32};
@@ -313,8 +313,10 @@ fn ext_bsdf(
     let mut transmission = m3[3];
     let (mut clearcoat, mut clearcoat_alpha) = (m4[1], m4[2]);
     let mut coat_normal = ns;
+    let sh = sc.materials[mb + MATERIAL_SHEEN_ROW];
+    let (mut sheen, mut sheen_roughness) = (v3(sh), sh[3]);
     if flags & MAT_EXT_TEX != 0 {
-        // Slots 4..9 (after base colour, metallic-roughness, normal and emissive); a slot
+        // Slots 4..11 (after base colour, metallic-roughness, normal and emissive); a slot
         // without a texture leaves its factor.
         let textured = |k: usize| sc.materials[mb + 5 + 2 * k][3].to_bits() != NO_TEXTURE;
         if textured(4) {
@@ -337,6 +339,12 @@ fn ext_bsdf(
             coat_normal =
                 normal_mapped_by(sc, mb, 9, sc.materials[mb + MATERIAL_COAT_ROW][0], sp, ns);
         }
+        if textured(10) {
+            sheen *= slot(sc, mb, 10, sp).truncate();
+        }
+        if textured(11) {
+            sheen_roughness *= slot(sc, mb, 11, sp).w;
+        }
     }
     if coat_normal.dot(ng) < 0.0 {
         coat_normal = -coat_normal;
@@ -350,6 +358,8 @@ fn ext_bsdf(
         clearcoat,
         clearcoat_alpha,
         coat_normal,
+        sheen,
+        sheen_roughness: sheen_roughness.max(SHEEN_MIN_ROUGHNESS),
     }
 }
 

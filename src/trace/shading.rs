@@ -19,9 +19,15 @@
 //! is exact; tinted by the base colour; radiance is not scaled by η², which cancels for light
 //! that enters and leaves a closed object), and KHR_materials_clearcoat as a GGX layer over
 //! everything, weighted by cc · F_c(n·v) with F_c Schlick at F0 = 0.04 (the specification's
-//! `fresnel_coat`). Lobes: specular reflection, diffuse, transmission, coat.
+//! `fresnel_coat`), and KHR_materials_sheen beneath the coat: the specification's Charlie
+//! sheen (Conty Estevez and Kulla 2017: the exponentiated-sine distribution at α = r², their
+//! fitted visibility) over the base scaled by its albedo-scaling term min(1 − max(sheen)·E(v),
+//! 1 − max(sheen)·E(l)), E the sheen's directional albedo ([`SHEEN_ALBEDO`]); the base's
+//! transmission by 1 − max(sheen)·E(v). Lobes: specular reflection, diffuse, transmission,
+//! coat, sheen (sampled uniformly over the hemisphere: its peak is at grazing angles).
 
 use std::f32::consts::PI;
+use std::sync::LazyLock;
 
 use glam::Vec3;
 
@@ -157,6 +163,123 @@ pub struct BsdfExt {
     /// own normal map's (KHR_materials_clearcoat: the base's normal map does not bend the
     /// coat). The base's normal where neither differs.
     pub coat_normal: Vec3,
+    /// KHR_materials_sheen's colour (zero: no sheen) and perceptual roughness r (at least
+    /// [`SHEEN_MIN_ROUGHNESS`]).
+    pub sheen: Vec3,
+    pub sheen_roughness: f32,
+}
+
+/// The sheen's perceptual roughness never goes below this: Charlie's distribution sharpens
+/// without bound towards r = 0 (α = r² = 0.0049 here, a peak about 4° wide at grazing).
+pub const SHEEN_MIN_ROUGHNESS: f32 = 0.07;
+
+/// Columns (cos θ from 0 to 1) and rows (r from [`SHEEN_MIN_ROUGHNESS`] to 1) of
+/// [`SHEEN_ALBEDO`].
+pub const SHEEN_COLUMNS: usize = 64;
+pub const SHEEN_ROWS: usize = 32;
+
+/// The Charlie sheen's directional albedo E(cos θ, r) = ∫ f_sheen cos θᵢ dωᵢ at sheen colour 1,
+/// for cos θ = i/63 (column i) and perceptual roughness r from [`SHEEN_MIN_ROUGHNESS`] (row 0)
+/// to 1 (row 31) in equal steps, at most 1: the same sheen functions integrated in f64 over the
+/// half vectors (the specification points to a published table of the same function; this one
+/// is computed so that both backends read one set of numbers — the GPU gets a copy after the
+/// materials, `trace::pack`). Looked up bilinearly by [`sheen_albedo`]; made on first use, on
+/// all cores.
+pub static SHEEN_ALBEDO: LazyLock<Vec<f32>> = LazyLock::new(|| {
+    use rayon::prelude::*;
+    let (columns, rows) = (SHEEN_COLUMNS, SHEEN_ROWS);
+    let r_min = f64::from(SHEEN_MIN_ROUGHNESS);
+    (0..rows * columns)
+        .into_par_iter()
+        .map(|k| {
+            let (i, j) = (k % columns, k / columns);
+            let r = r_min + (1.0 - r_min) * j as f64 / (rows - 1) as f64;
+            // At cos θ = 0 the albedo near it (the integrand divides by cos θ). The fitted
+            // visibility lets the smoothest sheens reflect more than they receive at the most
+            // grazing views (E up to 2.9 at cos θ = 10⁻³, above 1 below cos θ ≈ 0.05 for
+            // r ≤ 0.07): E is capped at 1 there, so that the base beneath keeps a share ≥ 0.
+            let c = (i as f64 / (columns - 1) as f64).max(1e-3);
+            (sheen_albedo_f64(c, r * r) as f32).min(1.0)
+        })
+        .collect()
+});
+
+/// E(cos_o) at α by the midpoint rule over the half vectors h (θ_h 512 steps, φ_h over half
+/// the circle, 64 steps, doubled by symmetry): ∫ D(h) G(o, i) (o·h) / cos_o dω_h, i = o
+/// reflected about h, over the h whose i is above the surface.
+fn sheen_albedo_f64(cos_o: f64, alpha: f64) -> f64 {
+    use std::f64::consts::PI;
+    let (steps_t, steps_p) = (512, 64);
+    let o = [(1.0 - cos_o * cos_o).sqrt(), 0.0, cos_o];
+    let (dt, dp) = (0.5 * PI / f64::from(steps_t), PI / f64::from(steps_p));
+    // Λ in f32, as the renderers evaluate it (the rest in f64).
+    let lambda = |c: f64| f64::from(sheen_lambda(c as f32, alpha as f32));
+    let lambda_o = lambda(cos_o);
+    let mut sum = 0.0;
+    for a in 0..steps_t {
+        let th = (f64::from(a) + 0.5) * dt;
+        let (st, ct) = th.sin_cos();
+        let d = (2.0 + 1.0 / alpha) * (st * st).powf(0.5 / alpha) / (2.0 * PI);
+        for b in 0..steps_p {
+            let ph = (f64::from(b) + 0.5) * dp;
+            let h = [st * ph.cos(), st * ph.sin(), ct];
+            let oh = o[0] * h[0] + o[2] * h[2];
+            let cos_i = 2.0 * oh * h[2] - o[2];
+            if oh <= 0.0 || cos_i <= 0.0 {
+                continue;
+            }
+            let g = 1.0 / (1.0 + lambda_o + lambda(cos_i));
+            sum += d * g * oh / cos_o * st;
+        }
+    }
+    2.0 * sum * dt * dp
+}
+
+/// The specification's fitted Λ of the Charlie sheen (its `l` and `lambda_sheen`; as
+/// `sheen_lambda` in WGSL).
+fn sheen_lambda(c: f32, alpha: f32) -> f32 {
+    let l = |x: f32| {
+        let t = (1.0 - alpha) * (1.0 - alpha);
+        let mix = |a: f32, b: f32| a + (b - a) * t;
+        let (a, b, cc) = (
+            mix(21.5473, 25.3245),
+            mix(3.82987, 3.32435),
+            mix(0.19823, 0.16801),
+        );
+        let (d, e) = (mix(-1.97760, -1.27393), mix(-4.32054, -4.85967));
+        a / (1.0 + b * x.powf(cc)) + d * x + e
+    };
+    if c < 0.5 {
+        l(c).exp()
+    } else {
+        (2.0 * l(0.5) - l(1.0 - c)).exp()
+    }
+}
+
+/// The Charlie sheen BRDF at colour 1: D(n·h) · G / (4 cos_i cos_o), α = r².
+fn sheen_brdf(noh: f32, cos_i: f32, cos_o: f32, r: f32) -> f32 {
+    let alpha = r * r;
+    let inv = 1.0 / alpha;
+    let sin2 = (1.0 - noh * noh).max(0.0);
+    let d = (2.0 + inv) * sin2.powf(0.5 * inv) / (2.0 * PI);
+    let g = 1.0 / (1.0 + sheen_lambda(cos_o, alpha) + sheen_lambda(cos_i, alpha));
+    d * g / (4.0 * cos_i * cos_o)
+}
+
+/// E(cos θ, r) from `table` ([`SHEEN_ALBEDO`]'s layout), bilinear (as `sheen_albedo` in WGSL).
+#[must_use]
+pub fn sheen_albedo(table: &[f32], cos: f32, r: f32) -> f32 {
+    let (last_x, last_y) = ((SHEEN_COLUMNS - 1) as f32, (SHEEN_ROWS - 1) as f32);
+    let x = cos.clamp(0.0, 1.0) * last_x;
+    let y = ((r - SHEEN_MIN_ROUGHNESS) / (1.0 - SHEEN_MIN_ROUGHNESS)).clamp(0.0, 1.0) * last_y;
+    let (x0, y0) = (x.floor().min(last_x - 1.0), y.floor().min(last_y - 1.0));
+    let (fx, fy) = (x - x0, y - y0);
+    let k = y0 as usize * SHEEN_COLUMNS + x0 as usize;
+    let (a, b) = (table[k], table[k + 1]);
+    let (c, d) = (table[k + SHEEN_COLUMNS], table[k + SHEEN_COLUMNS + 1]);
+    let top = a + (b - a) * fx;
+    let bottom = c + (d - c) * fx;
+    top + (bottom - top) * fy
 }
 
 /// x⁵ as WGSL's `pow5` computes it.
@@ -343,22 +466,42 @@ impl BsdfExt {
         }
     }
 
-    /// Lobe sampling probabilities (specular, diffuse, transmission, coat) at `cos_o` (the
-    /// view's cosine to the shading normal) and `cos_oc` (to the coat's normal).
+    /// The sheen's directional albedo E at `cos` (0 without a sheen).
+    fn sheen_e(&self, cos: f32) -> f32 {
+        if self.sheen == Vec3::ZERO {
+            0.0
+        } else {
+            sheen_albedo(&SHEEN_ALBEDO, cos, self.sheen_roughness)
+        }
+    }
+
+    /// Lobe sampling probabilities (specular, diffuse, transmission, coat, sheen) at `cos_o`
+    /// (the view's cosine to the shading normal) and `cos_oc` (to the coat's normal). Without
+    /// a sheen, the same numbers to the bit as without its term.
     #[must_use]
-    pub fn lobes(&self, cos_o: f32, cos_oc: f32) -> [f32; 4] {
+    pub fn lobes(&self, cos_o: f32, cos_oc: f32) -> [f32; 5] {
         let b = &self.core;
         let (fd, f) = self.fresnel(cos_o);
         let coat = self.coat(cos_oc);
-        let ws = lum(f) * (1.0 - coat);
-        let rest = lum(b.base) * (1.0 - b.metallic) * (1.0 - max3(fd)) * (1.0 - coat);
+        let e_o = self.sheen_e(cos_o);
+        // The base's share beneath the sheen (its albedo scaling towards the view).
+        let under = 1.0 - max3(self.sheen) * e_o;
+        let ws = lum(f) * (1.0 - coat) * under;
+        let rest = lum(b.base) * (1.0 - b.metallic) * (1.0 - max3(fd)) * (1.0 - coat) * under;
         let wd = rest * (1.0 - self.transmission);
         let wt = rest * self.transmission;
-        let total = ws + wd + wt + coat;
+        let wsh = lum(self.sheen) * e_o * (1.0 - coat);
+        let total = ws + wd + wt + coat + wsh;
         if total > 0.0 {
-            [ws / total, wd / total, wt / total, coat / total]
+            [
+                ws / total,
+                wd / total,
+                wt / total,
+                coat / total,
+                wsh / total,
+            ]
         } else {
-            [0.5, 0.5, 0.0, 0.0]
+            [0.5, 0.5, 0.0, 0.0, 0.0]
         }
     }
 
@@ -407,6 +550,14 @@ impl BsdfExt {
                 b.base * ((1.0 - b.metallic) * (1.0 - max3(fd)) * (1.0 - self.transmission) / PI);
             let mut value = (spec + diff) * (1.0 - coat);
             let mut pdf = p[0] * d * noh / (4.0 * voh) + p[1] * cos_i / PI;
+            if self.sheen != Vec3::ZERO {
+                // The sheen over the base, the base scaled by its albedo-scaling term.
+                let s = max3(self.sheen);
+                let scale = (1.0 - s * self.sheen_e(cos_o)).min(1.0 - s * self.sheen_e(cos_i));
+                let sheen = self.sheen * sheen_brdf(noh, cos_i, cos_o, self.sheen_roughness);
+                value = (sheen + (spec + diff) * scale) * (1.0 - coat);
+                pdf += p[4] * (0.5 / PI);
+            }
             if coat > 0.0 {
                 let (cv, cp) = coat_term(h, voh);
                 value += Vec3::splat(cv);
@@ -441,8 +592,11 @@ impl BsdfExt {
         let g = ggx_g1(cos_o, a2) * ggx_g1(-cos_i, a2);
         let jac = eta * eta * -wih / (denom * denom);
         let core = woh * d * g * jac / (cos_o * -cos_i);
-        let value = b.base
+        let mut value = b.base
             * ((1.0 - b.metallic) * (1.0 - max3(fd)) * self.transmission * core * (1.0 - coat));
+        if self.sheen != Vec3::ZERO {
+            value *= 1.0 - max3(self.sheen) * self.sheen_e(cos_o);
+        }
         if cn != n {
             return (value + Vec3::splat(cv), p[2] * d * noh * jac + cp);
         }
@@ -472,6 +626,10 @@ impl BsdfExt {
                 return Vec3::ZERO;
             }
             -r * wo + (r * c - k.sqrt()) * h
+        } else if p[4] > 0.0 && u_lobe >= p[0] + p[1] + p[2] + p[3] {
+            // The sheen: uniform over the hemisphere (its value peaks at grazing angles).
+            let l = uniform_sphere(0.5 * u, v);
+            t * l.x + b * l.y + n * l.z
         } else {
             let cn = self.coat_normal;
             let (tc, bc) = if cn == n { (t, b) } else { basis(cn) };
@@ -633,6 +791,104 @@ mod ext_tests {
             clearcoat: 0.0,
             clearcoat_alpha: 0.1,
             coat_normal: Vec3::Z,
+            sheen: Vec3::ZERO,
+            sheen_roughness: 1.0,
+        }
+    }
+
+    /// A sheen of colour 1 and roughness `r` over `base` (Lambertian: specular 0).
+    fn velvet(base: f32, r: f32) -> BsdfExt {
+        BsdfExt {
+            core: Bsdf {
+                base: Vec3::splat(base),
+                metallic: 0.0,
+                alpha: 1.0,
+                specular: 0.0,
+            },
+            transmission: 0.0,
+            eta: 1.5,
+            sheen: Vec3::ONE,
+            sheen_roughness: r,
+            ..glass(1.0, 1.5)
+        }
+    }
+
+    /// Sampled estimates of ∫ f cos θᵢ dωᵢ (value / pdf over the BSDF's own samples, and the
+    /// same integrand over uniform hemisphere directions) and of E[1/pdf], with the standard
+    /// error of the first.
+    fn albedo(e: &BsdfExt, wo: Vec3, m: u32, seed: u32) -> (f64, f64, f64, f64) {
+        let n = Vec3::Z;
+        let (mut sum, mut sum2, mut uniform, mut inv_pdf) = (0f64, 0f64, 0f64, 0f64);
+        for i in 0..m {
+            let r = crate::random::pcg4d([i, seed, 7, 9]);
+            let u = r.map(crate::random::unit_f32);
+            let wi = e.sample(n, wo, u[0], u[1], u[2]);
+            let (f, pdf) = e.eval(n, wo, wi);
+            if pdf > 0.0 && wi.z > 0.0 {
+                let x = f64::from(f.x * wi.z / pdf);
+                sum += x;
+                sum2 += x * x;
+                inv_pdf += f64::from(1.0 / pdf);
+            }
+            let l = uniform_sphere(0.5 * u[3], u[1]);
+            uniform += f64::from(e.eval(n, wo, l).0.x * l.z) * 2.0 * std::f64::consts::PI;
+        }
+        let mean = sum / f64::from(m);
+        let se = ((sum2 / f64::from(m) - mean * mean) / f64::from(m)).sqrt();
+        (mean, se, uniform / f64::from(m), inv_pdf / f64::from(m))
+    }
+
+    /// The sheen's albedo table is the integral of the f32 BRDF both backends evaluate: over a
+    /// black base the BSDF reflects E(cos θ) — estimated from its own samples (so its pdf is
+    /// the sampler's too) and from uniform directions — at every roughness and angle tried;
+    /// and E stays within [0, 1].
+    #[test]
+    fn a_sheen_over_black_reflects_its_tabulated_albedo() {
+        assert!(SHEEN_ALBEDO.iter().all(|&e| (0.0..=1.0).contains(&e)));
+        // Rows 0, 9, 20, 31 and columns 10, 32, 57 (table nodes: no interpolation), then
+        // points between nodes, where the bilinear lookup's error is allowed 4 %.
+        let node = |j: u32| SHEEN_MIN_ROUGHNESS + (1.0 - SHEEN_MIN_ROUGHNESS) * j as f32 / 31.0;
+        let nodes = [0, 9, 20, 31].map(|j| (node(j), [10.0f32, 32.0, 57.0].map(|i| i / 63.0)));
+        let between = [0.3f32, 0.65].map(|r| (r, [0.15f32, 0.5, 0.9]));
+        for (k, (r, cosines)) in nodes.into_iter().chain(between).enumerate() {
+            for cos in cosines {
+                let wo = Vec3::new((1.0 - cos * cos).sqrt(), 0.0, cos);
+                let e = velvet(0.0, r);
+                let want = f64::from(sheen_albedo(&SHEEN_ALBEDO, cos, r));
+                let (got, se, uniform, support) = albedo(&e, wo, 200_000, 3);
+                let model = if k < 4 { 0.005 } else { 0.04 };
+                let tol = 4.0 * se + model * want + 1e-3;
+                assert!(
+                    (got - want).abs() < tol,
+                    "r {r}, cos {cos}: {got} ± {se} vs {want}"
+                );
+                assert!(
+                    (uniform - got).abs() < 0.03 * got + 2e-3,
+                    "uniform: {uniform} vs {got}"
+                );
+                // The sheen's lobe covers the hemisphere: E[1/pdf] = 2π.
+                let tau = 2.0 * std::f64::consts::PI;
+                assert!((support - tau).abs() < 0.02 * tau, "support {support}");
+            }
+        }
+        // Power: at the smooth end the sheen reflects more at grazing views than head-on.
+        let e = |cos| sheen_albedo(&SHEEN_ALBEDO, cos, SHEEN_MIN_ROUGHNESS);
+        assert!(e(0.1) > 2.0 * e(0.9), "{} {}", e(0.1), e(0.9));
+    }
+
+    /// The albedo-scaling layering conserves energy: a white sheen over a white Lambertian base
+    /// reflects at most everything (the base loses what the sheen takes), and more than the
+    /// sheen alone.
+    #[test]
+    fn a_sheen_over_white_reflects_at_most_everything() {
+        for r in [SHEEN_MIN_ROUGHNESS, 0.5, 1.0] {
+            for cos in [0.2f32, 0.7] {
+                let wo = Vec3::new((1.0 - cos * cos).sqrt(), 0.0, cos);
+                let (got, se, _, _) = albedo(&velvet(1.0, r), wo, 100_000, 5);
+                assert!(got <= 1.0 + 4.0 * se, "r {r}, cos {cos}: {got} ± {se}");
+                let alone = f64::from(sheen_albedo(&SHEEN_ALBEDO, cos, r));
+                assert!(got > alone + 0.3, "r {r}, cos {cos}: {got} vs {alone}");
+            }
         }
     }
 

@@ -94,9 +94,9 @@ pub fn ortho(position: Vec3, ymag: f32) -> OrthographicCamera {
 /// One scene with every one of these features: textures with transforms, wrap modes and both
 /// filters, TEXCOORD_1, vertex colours, a normal map, a metallic-roughness map, an emissive
 /// texture, MASK and BLEND, rough and smooth glass (the rough one absorbing behind it), clear
-/// coat, specular colour, the
+/// coat over a sheen, specular colour, the
 /// extensions' textures (transmission, specular, specular colour, coat, coat roughness, coat
-/// normal), point, spot and directional lights and an environment.
+/// normal, sheen colour, sheen roughness), point, spot and directional lights and an environment.
 pub fn everything() -> Scene {
     let mut tris = Vec::new();
     tris.extend(rect(-2.0, -2.0, 2.0, 2.0, -1.0, 0)); // back wall: textured, vertex colours
@@ -235,6 +235,12 @@ pub fn everything() -> Scene {
             // Its own normal map: the bumps again, on the other set, at another scale.
             clearcoat_normal_texture: transformed(1, 1),
             clearcoat_normal_scale: 0.6,
+            // A sheen beneath the coat: its colour × the glow's RGB (sRGB), its roughness × the
+            // checker's alpha.
+            sheen_color: Vec3::new(0.9, 0.6, 0.3),
+            sheen_roughness: 0.5,
+            sheen_color_texture: tex_ref(3),
+            sheen_roughness_texture: transformed(0, 1),
             ..Default::default()
         },
         MaterialExt {
