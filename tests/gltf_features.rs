@@ -154,10 +154,6 @@ fn an_alpha_masked_quad_in_front_of_an_emitter_lets_exactly_the_unmasked_area_th
     }
 }
 
-/// A smooth glass slab (a closed box) between the camera and a lamp of radiance 1 in a black
-/// world: at normal incidence each face transmits 1 − F0 with F0 = ((ior − 1)/(ior + 1))²,
-/// so the lamp is seen through it at (1 − F0)² (paths of three vertices: no light bouncing
-/// inside the slab yet).
 /// A smooth glass slab (4 × 4 m, 0.2 m thick, z from −0.2 to 0; a closed box with outward
 /// faces) of index `ior` and KHR_materials_volume absorption σ, over a white emitter of
 /// radiance 1 at z = −1, seen straight on by an orthographic camera; nothing else lights it.
@@ -198,6 +194,10 @@ fn slab_scene(ior: f32, absorption: Vec3) -> Scene {
     }
 }
 
+/// A smooth glass slab (a closed box) between the camera and a lamp of radiance 1 in a black
+/// world: at normal incidence each face transmits 1 − F0 with F0 = ((ior − 1)/(ior + 1))²,
+/// so the lamp is seen through it at (1 − F0)² (paths of three vertices: no light bouncing
+/// inside the slab yet).
 #[test]
 fn a_smooth_glass_slab_transmits_one_minus_f_squared() {
     for ior in [1.5f32, 2.0] {

@@ -696,29 +696,39 @@ fn emission_is_factor_times_strength_and_factors_are_checked() {
     );
 }
 
+/// A one-triangle file with `material` (its extensions listed as used) and one texture, a
+/// 1 × 1 PNG, for the material to name.
+fn material_with(material: Value) -> Vec<u8> {
+    let png = format!(
+        "data:image/png;base64,{}",
+        base64::encode(png_bytes(&image::DynamicImage::new_rgba8(1, 1)))
+    );
+    let used: Vec<&String> = material["extensions"]
+        .as_object()
+        .map(|e| e.keys().collect())
+        .unwrap_or_default();
+    let mut d = Doc::default();
+    let p = d.floats(&TRI, "VEC3");
+    d.finish(json!({
+        "extensionsUsed": used,
+        "images": [{ "uri": png }],
+        "textures": [{ "source": 0 }],
+        "materials": [material],
+        "meshes": [{ "primitives": [{ "attributes": { "POSITION": p }, "material": 0 }] }],
+        "nodes": [{ "mesh": 0 }],
+        "scenes": [{ "nodes": [0] }],
+    }))
+}
+
 /// KHR_materials_volume: a medium of attenuationColor c at attenuationDistance d absorbs
 /// σ = −ln(c)/d per unit length; a thin-walled material (thicknessFactor 0, the default) and a
 /// clear medium absorb nothing; bad values are clamped and said, or refused by name.
 #[test]
 fn a_volume_absorbs_as_its_attenuation_says_and_bad_ones_are_named() {
-    let png = format!(
-        "data:image/png;base64,{}",
-        base64::encode(png_bytes(&image::DynamicImage::new_rgba8(1, 1)))
-    );
     let bytes = |volume: Value| {
-        let mut d = Doc::default();
-        let p = d.floats(&TRI, "VEC3");
-        d.finish(json!({
-            "extensionsUsed": ["KHR_materials_transmission", "KHR_materials_volume"],
-            "images": [{ "uri": png }],
-            "textures": [{ "source": 0 }],
-            "materials": [{ "name": "amber", "extensions": {
-                "KHR_materials_transmission": { "transmissionFactor": 1.0 },
-                "KHR_materials_volume": volume } }],
-            "meshes": [{ "primitives": [{ "attributes": { "POSITION": p }, "material": 0 }] }],
-            "nodes": [{ "mesh": 0 }],
-            "scenes": [{ "nodes": [0] }],
-        }))
+        material_with(json!({ "name": "amber", "extensions": {
+            "KHR_materials_transmission": { "transmissionFactor": 1.0 },
+            "KHR_materials_volume": volume } }))
     };
     let s = load(&bytes(json!({
         "thicknessFactor": 0.5, "attenuationDistance": 2.0, "attenuationColor": [0.5, 0.25, 1.0],
@@ -801,22 +811,8 @@ fn a_volume_absorbs_as_its_attenuation_says_and_bad_ones_are_named() {
 /// malformed ones refused naming the material.
 #[test]
 fn a_sheen_loads_as_the_file_says_and_bad_ones_are_named() {
-    let png = format!(
-        "data:image/png;base64,{}",
-        base64::encode(png_bytes(&image::DynamicImage::new_rgba8(1, 1)))
-    );
     let bytes = |sheen: Value| {
-        let mut d = Doc::default();
-        let p = d.floats(&TRI, "VEC3");
-        d.finish(json!({
-            "extensionsUsed": ["KHR_materials_sheen"],
-            "images": [{ "uri": png }],
-            "textures": [{ "source": 0 }],
-            "materials": [{ "name": "velvet", "extensions": { "KHR_materials_sheen": sheen } }],
-            "meshes": [{ "primitives": [{ "attributes": { "POSITION": p }, "material": 0 }] }],
-            "nodes": [{ "mesh": 0 }],
-            "scenes": [{ "nodes": [0] }],
-        }))
+        material_with(json!({ "name": "velvet", "extensions": { "KHR_materials_sheen": sheen } }))
     };
     let s = load(&bytes(json!({
         "sheenColorFactor": [0.9, 0.5, 0.25], "sheenRoughnessFactor": 0.75,

@@ -14,7 +14,7 @@
 //! | `dist` | — | light CDF (L + 1), environment row CDF (H + 1), per-row column CDFs (H × (W + 1)) |
 //! | `env` | environment texel | `[rgb, pdf over the unit square]` |
 //!
-//! Material flags (`materials[26m + 1].w`, a small float): [`MAT_DOUBLE_SIDED`], one bit per
+//! Material flags (`materials[31m + 1].w`, a small float): [`MAT_DOUBLE_SIDED`], one bit per
 //! core texture slot in use ([`MAT_BASE_TEX`] …), [`MAT_MASK`] / [`MAT_BLEND`] for the alpha
 //! mode, [`MAT_EXT_BSDF`] when the material needs the glass / clear-coat / specular-colour
 //! terms, [`MAT_EXT_TEX`] when one of the extensions' slots holds a texture (each slot's

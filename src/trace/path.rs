@@ -1038,6 +1038,20 @@ mod tests {
             !PackedScene::new(&masked).plain,
             "alpha masks are not plain"
         );
+        // An absorbing medium alone (no glass: a camera inside it) needs the full
+        // instantiation too.
+        let mut medium = base.clone();
+        medium.material_ext = vec![
+            crate::scene::MaterialExt {
+                absorption: Vec3::ONE,
+                ..Default::default()
+            };
+            medium.materials.len()
+        ];
+        assert!(
+            !PackedScene::new(&medium).plain,
+            "absorbing media are not plain"
+        );
         let mut lamp = base;
         lamp.lights.push(crate::scene::PunctualLight {
             name: "lamp".into(),
