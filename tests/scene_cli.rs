@@ -63,6 +63,32 @@ fn scene_info_prints_counts_bounds_cameras_and_problems() {
         "{text}"
     );
 
+    // What the loader understood of the materials, by feature, with the materials' names.
+    let glass = "tests/data/peers/scenes/coloured-glass.glb";
+    let o = raygun(&["scene", "info", glass, "--json"]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let both = serde_json::json!(["smooth glass", "rough glass"]);
+    assert_eq!(v["material_features"]["volume"], both);
+    assert_eq!(v["material_features"]["transmission"], both);
+    assert_eq!(
+        v["material_features"]["specular"],
+        serde_json::json!(["red", "blue"])
+    );
+    assert_eq!(v["material_features"].as_object().unwrap().len(), 3, "{v}");
+    let text = String::from_utf8(raygun(&["scene", "info", glass]).stdout).unwrap();
+    assert!(
+        text.contains("\nvolume: 'smooth glass', 'rough glass'\n"),
+        "{text}"
+    );
+    // Long lists are cut after four names.
+    let coats = "tests/data/gltf-samples/ClearCoatTest/ClearCoatTest.gltf";
+    let text = String::from_utf8(raygun(&["scene", "info", coats]).stdout).unwrap();
+    let first = "'Simple_Coated', 'Partial_Coated', 'RoughVariations_Coated', 'BaseNorm_Coated'";
+    assert!(
+        text.contains(&format!("\nclearcoat: {first} and 2 more\n")),
+        "{text}"
+    );
+
     let o = raygun(&["scene", "info", "tests/data/scenes/missing.glb"]);
     assert_eq!(o.status.code(), Some(1));
     let e = String::from_utf8_lossy(&o.stderr);

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use serde_json::{Value, json};
 
 use crate::scene::generate::{self, CityParams, Generated};
-use crate::scene::{Environment, Scene};
+use crate::scene::{AlphaMode, Environment, Material, MaterialExt, Scene};
 
 #[derive(Clone, Debug, clap::Subcommand)]
 pub enum SceneCommand {
@@ -15,7 +15,8 @@ pub enum SceneCommand {
     CornellLight(GenerateArgs),
     /// Write the procedural city (about 350 000 triangles at the default size).
     City(CityArgs),
-    /// Summarise a scene: counts, bounds, cameras, unsupported features and warnings.
+    /// Summarise a scene: counts, bounds, cameras, the material features understood (by
+    /// material), unsupported features and warnings.
     Info(InfoArgs),
 }
 
@@ -120,10 +121,52 @@ pub fn info(name: &str, scene: &Scene) -> Value {
             "intensity": v3(l.intensity),
         })).collect::<Vec<_>>(),
         "bounds": scene.bounds().map(|b| json!({ "min": v3(b.min), "max": v3(b.max) })),
+        "material_features": material_features(scene)
+            .into_iter()
+            .map(|(feature, names)| (feature.to_string(), json!(names)))
+            .collect::<serde_json::Map<_, _>>(),
         "unsupported": scene.unsupported,
         "warnings": scene.warnings,
         "notes": scene.notes,
     })
+}
+
+/// The material features the loader understood, each with the names of the materials that use
+/// it (what a user checks an export against): only those some material uses.
+fn material_features(scene: &Scene) -> Vec<(&'static str, Vec<&str>)> {
+    type Uses = fn(&Material, &MaterialExt) -> bool;
+    let features: [(&str, Uses); 12] = [
+        ("emission", |m, _| m.emission != glam::Vec3::ZERO),
+        ("base colour texture", |m, _| m.base_color_texture.is_some()),
+        ("metallic-roughness texture", |_, e| {
+            e.metallic_roughness_texture.is_some()
+        }),
+        ("normal map", |_, e| e.normal_texture.is_some()),
+        ("alpha mask", |_, e| matches!(e.alpha, AlphaMode::Mask(_))),
+        ("alpha blend", |_, e| e.alpha == AlphaMode::Blend),
+        ("specular", |m, e| {
+            m.specular != 1.0
+                || e.specular_color != glam::Vec3::ONE
+                || e.specular_texture.is_some()
+                || e.specular_color_texture.is_some()
+        }),
+        ("ior", |_, e| e.ior != 1.5),
+        ("transmission", |_, e| e.transmission > 0.0),
+        ("volume", |_, e| e.absorption != glam::Vec3::ZERO),
+        ("clearcoat", |_, e| e.clearcoat > 0.0),
+        ("sheen", |_, e| e.sheen_color != glam::Vec3::ZERO),
+    ];
+    features
+        .into_iter()
+        .filter_map(|(feature, uses)| {
+            let names: Vec<&str> = (0u32..)
+                .zip(&scene.materials)
+                .filter(|&(i, m)| uses(m, &scene.material_ext(i)))
+                .map(|(_, m)| m.name.as_str())
+                .collect();
+            (!names.is_empty()).then_some((feature, names))
+        })
+        .collect()
 }
 
 fn info_text(s: &Value) -> String {
@@ -165,6 +208,19 @@ fn info_text(s: &Value) -> String {
             l["position"],
             l["intensity"]
         );
+    }
+    for (feature, names) in s["material_features"].as_object().into_iter().flatten() {
+        let names: Vec<String> = names
+            .as_array()
+            .into_iter()
+            .flatten()
+            .map(|n| format!("'{}'", n.as_str().unwrap_or("")))
+            .collect();
+        let shown = match names.len() {
+            0..=4 => names.join(", "),
+            n => format!("{} and {} more", names[..4].join(", "), n - 4),
+        };
+        out += &format!("{feature}: {shown}\n");
     }
     for (key, title) in [
         ("unsupported", "unsupported"),
