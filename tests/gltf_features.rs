@@ -507,6 +507,60 @@ fn a_normal_map_that_tilts_the_normal_moves_the_highlight_to_the_predicted_pixel
 }
 
 /// An orthographic camera: a 1 m square covers the same pixels from 2 m and from 20 m.
+/// KHR_materials_anisotropy: a brushed metal under the flash (point light at the pinhole) has
+/// a highlight stretched along the brushing direction — its spread along the image's x is more
+/// than twice that along y with the direction at 0°, the other way round at 90° (rotation or the
+/// texture's direction), and round when isotropic — on both backends.
+#[test]
+fn a_brushed_metal_stretches_its_highlight_along_the_brushing() {
+    let w = FLASH_WIDTH as usize;
+    // (anisotropy rotation, texture direction texel (RG) or none, expected spread x / y)
+    let cases: [(f32, Option<[u8; 4]>, &str); 4] = [
+        (0.0, None, "along x"),
+        (std::f32::consts::FRAC_PI_2, None, "along y"),
+        (0.0, Some([128, 255, 255, 255]), "along y"),
+        (0.0, Some([128, 128, 0, 255]), "round"),
+    ];
+    for (rotation, texel, want) in cases {
+        let m = material(Vec3::ONE, 1.0, 0.25, 1.0, Vec3::ZERO);
+        let ext = MaterialExt {
+            anisotropy_strength: 0.8,
+            anisotropy_rotation: rotation,
+            anisotropy_texture: texel.and(tex_ref(0)),
+            ..Default::default()
+        };
+        let mut scene = flash_scene(m, ext);
+        if let Some(t) = texel {
+            scene.textures = vec![texture("direction", 1, 1, vec![t], false)];
+        }
+        let s = settings(&scene, FLASH_WIDTH, FLASH_WIDTH, 2, 1);
+        for (acc, label) in both(&scene, &s, 4) {
+            let (mut sum, mut mx, mut my) = (0f64, 0f64, 0f64);
+            let c = w as f64 / 2.0;
+            for y in 0..w {
+                for x in 0..w {
+                    let l = f64::from(luminance(acc.mean(y * w + x)));
+                    let (dx, dy) = (x as f64 + 0.5 - c, y as f64 + 0.5 - c);
+                    sum += l;
+                    mx += l * dx * dx;
+                    my += l * dy * dy;
+                }
+            }
+            assert!(sum > 0.0, "{label}, {want}: no highlight");
+            let ratio = mx / my;
+            let ok = match want {
+                "along x" => ratio > 2.0,
+                "along y" => ratio < 0.5,
+                _ => (ratio - 1.0).abs() < 0.1,
+            };
+            assert!(
+                ok,
+                "{label}, rotation {rotation}, texel {texel:?}: x / y spread {ratio}, want {want}"
+            );
+        }
+    }
+}
+
 #[test]
 fn an_orthographic_camera_projects_in_parallel() {
     for distance in [2.0f32, 20.0] {

@@ -889,6 +889,77 @@ fn a_sheen_loads_as_the_file_says_and_bad_ones_are_named() {
     }
 }
 
+/// KHR_materials_anisotropy: strength (clamped to [0, 1] and said), rotation, the texture
+/// (linear); the material's primitives get tangents (from TEXCOORD_0 where the file has none);
+/// malformed values refused naming the material.
+#[test]
+fn an_anisotropy_loads_as_the_file_says_with_tangents() {
+    let bytes = |anisotropy: Value| {
+        material_with(json!({ "name": "brushed", "extensions": {
+            "KHR_materials_anisotropy": anisotropy } }))
+    };
+    let s = load(&bytes(json!({
+        "anisotropyStrength": 0.6, "anisotropyRotation": 1.25,
+        "anisotropyTexture": { "index": 0, "texCoord": 1 },
+    })))
+    .unwrap();
+    let e = s.material_ext(0);
+    assert_eq!((e.anisotropy_strength, e.anisotropy_rotation), (0.6, 1.25));
+    let t = e.anisotropy_texture.unwrap();
+    assert_eq!(t.uv.tex_coord, 1);
+    assert!(
+        !s.textures[t.texture as usize].srgb,
+        "a direction is linear data"
+    );
+    assert!(s.unsupported.is_empty(), "{:?}", s.unsupported);
+    let s = load(&bytes(json!({ "anisotropyStrength": 2.0 }))).unwrap();
+    assert_eq!(s.material_ext(0).anisotropy_strength, 1.0);
+    assert!(
+        s.warnings
+            .iter()
+            .any(|w| w == "material 'brushed': anisotropyStrength 2 clamped to [0, 1]"),
+        "{:?}",
+        s.warnings
+    );
+    assert_eq!(s.vertex_extras.len(), 1, "the triangle has extras");
+    // Without a texture or TANGENT: tangents from TEXCOORD_0 (u along +x here).
+    let mut d = Doc::default();
+    let p = d.floats(&TRI, "VEC3");
+    let uv = d.floats(&[0.0, 0.0, 1.0, 0.0, 0.0, 1.0], "VEC2");
+    let s = load(&d.finish(json!({
+        "extensionsUsed": ["KHR_materials_anisotropy"],
+        "materials": [{ "extensions": { "KHR_materials_anisotropy": { "anisotropyStrength": 1.0 } } }],
+        "meshes": [{ "primitives": [{ "attributes": { "POSITION": p, "TEXCOORD_0": uv }, "material": 0 }] }],
+        "nodes": [{ "mesh": 0 }],
+        "scenes": [{ "nodes": [0] }],
+    })))
+    .unwrap();
+    for t in s.vertex_extras[0].tangent {
+        assert!((t.truncate() - Vec3::X).length() < 1e-6, "{t}");
+    }
+    // No anisotropy: no tangents.
+    assert!(load(&bytes(json!({}))).unwrap().vertex_extras.is_empty());
+    for (anisotropy, problem) in [
+        (
+            json!({ "anisotropyStrength": "strong" }),
+            "anisotropyStrength \"strong\" is not a number",
+        ),
+        (
+            json!({ "anisotropyRotation": [1.0] }),
+            "anisotropyRotation [1.0] is not a number",
+        ),
+        (
+            json!({ "anisotropyTexture": { "index": 2 } }),
+            "anisotropyTexture: index 2 names no texture (the file has 1)",
+        ),
+    ] {
+        assert_eq!(
+            err(&bytes(anisotropy)),
+            format!("test.gltf: material 'brushed': {problem}")
+        );
+    }
+}
+
 // ---------------------------------------------------------------------------------------------
 // Unsupported features
 
@@ -904,7 +975,7 @@ fn every_unsupported_feature_is_named_once() {
     );
     let tri = |material: usize| json!({ "attributes": { "POSITION": pos }, "material": material });
     let bytes = d.finish(json!({
-        "extensionsUsed": ["KHR_lights_punctual", "KHR_texture_transform", "KHR_materials_iridescence", "KHR_materials_anisotropy"],
+        "extensionsUsed": ["KHR_lights_punctual", "KHR_texture_transform", "KHR_materials_iridescence", "KHR_materials_dispersion"],
         "images": [{ "uri": png }],
         "textures": [{ "name": "t", "source": 0 }],
         "materials": [
@@ -930,7 +1001,7 @@ fn every_unsupported_feature_is_named_once() {
     let scene = load(&bytes).unwrap();
     let expected = [
         "KHR_materials_iridescence",
-        "KHR_materials_anisotropy",
+        "KHR_materials_dispersion",
         "animation 'wave'",
         "primitive mode LINES (mesh 'wire')",
         "morph targets (mesh 'morph')",

@@ -41,9 +41,10 @@ struct Params {
 }
 
 // Layout constants: src/trace/pack.rs (module doc).
-const MATERIAL_STRIDE: u32 = 31u;
-const MATERIAL_COAT_ROW: u32 = 29u;
-const MATERIAL_SHEEN_ROW: u32 = 30u;
+const MATERIAL_STRIDE: u32 = 34u;
+const MATERIAL_COAT_ROW: u32 = 31u;
+const MATERIAL_SHEEN_ROW: u32 = 32u;
+const MATERIAL_ANISO_ROW: u32 = 33u;
 // The sheen's albedo table after the materials: SHEEN_COLUMNS × SHEEN_ROWS entries in
 // SHEEN_TABLE_ROWS vec4s.
 const SHEEN_COLUMNS: u32 = 64u;
@@ -264,6 +265,10 @@ fn ext_bsdf(mb: u32, flags: u32, core_in: Bsdf, front: bool, tri: u32, u: f32, v
     let sh = materials[mb + MATERIAL_SHEEN_ROW];
     var sheen = sh.xyz;
     var sheen_roughness = sh.w;
+    // The anisotropy's strength and its direction in the tangent frame.
+    let an = materials[mb + MATERIAL_ANISO_ROW];
+    var strength = an.x;
+    var dir = an.yz;
     if (flags & MAT_EXT_TEX) != 0u {
         if textured(mb, 4u) {
             transmission *= slot(mb, 4u, tri, u, v).x;
@@ -290,12 +295,26 @@ fn ext_bsdf(mb: u32, flags: u32, core_in: Bsdf, front: bool, tri: u32, u: f32, v
         if textured(mb, 11u) {
             sheen_roughness *= slot(mb, 11u, tri, u, v).w;
         }
+        if textured(mb, 12u) {
+            let a = slot(mb, 12u, tri, u, v);
+            let d = vec2<f32>(a.x * 2.0 - 1.0, a.y * 2.0 - 1.0);
+            dir = vec2<f32>(d.x * dir.x - d.y * dir.y, d.x * dir.y + d.y * dir.x);
+            strength *= a.z;
+        }
+    }
+    var aniso_dir = vec3<f32>(0.0);
+    var alpha_t = core.alpha;
+    if strength > 0.0 {
+        let tb = tangent_frame(tri, u, v, ns);
+        aniso_dir = tb[0] * dir.x + tb[1] * dir.y;
+        alpha_t = core.alpha + (1.0 - core.alpha) * (strength * strength);
     }
     if dot(coat_normal, ng) < 0.0 {
         coat_normal = -coat_normal;
     }
     return BsdfExt(core, specular_color, f0 * f0, select(1.0 / ior, ior, front), transmission,
-        clearcoat, clearcoat_alpha, coat_normal, sheen, max(sheen_roughness, SHEEN_MIN_ROUGHNESS));
+        clearcoat, clearcoat_alpha, coat_normal, sheen, max(sheen_roughness, SHEEN_MIN_ROUGHNESS),
+        aniso_dir, alpha_t);
 }
 
 fn normal_mapped(mb: u32, tri: u32, u: f32, v: f32, ns: vec3<f32>) -> vec3<f32> {
@@ -305,6 +324,17 @@ fn normal_mapped(mb: u32, tri: u32, u: f32, v: f32, ns: vec3<f32>) -> vec3<f32> 
 // normal_mapped by the normal map in texture slot k with `scale`.
 fn normal_mapped_by(mb: u32, k: u32, scale: f32, tri: u32, u: f32, v: f32, ns: vec3<f32>) -> vec3<f32> {
     let tn = slot(mb, k, tri, u, v).xyz * 2.0 - vec3<f32>(1.0);
+    let tb = tangent_frame(tri, u, v, ns);
+    let m = normalize(tb[0] * (tn.x * scale) + tb[1] * (tn.y * scale) + ns * tn.z);
+    if is_finite3(m) {
+        return m;
+    }
+    return ns;
+}
+
+// The interpolated tangent frame about `ns`: the unit tangent orthogonal to it and the
+// bitangent with its sign (CPU twin: path::tangent_frame).
+fn tangent_frame(tri: u32, u: f32, v: f32, ns: vec3<f32>) -> mat2x3<f32> {
     let e = params.extras_offset + EXTRAS_STRIDE * tri;
     let t4 = lerp4(shade[e + 5u], shade[e + 6u], shade[e + 7u], u, v);
     var t = t4.xyz - ns * dot(ns, t4.xyz);
@@ -312,12 +342,7 @@ fn normal_mapped_by(mb: u32, k: u32, scale: f32, tri: u32, u: f32, v: f32, ns: v
         t = basis_t(ns)[0];
     }
     t = normalize(t);
-    let b = cross(ns, t) * select(1.0, -1.0, t4.w < 0.0);
-    let m = normalize(t * (tn.x * scale) + b * (tn.y * scale) + ns * tn.z);
-    if is_finite3(m) {
-        return m;
-    }
-    return ns;
+    return mat2x3<f32>(t, cross(ns, t) * select(1.0, -1.0, t4.w < 0.0));
 }
 
 // Radiance in .xyz, sampling density in .w.
@@ -547,7 +572,8 @@ fn path_shade(st: ptr<function, PathState>, hit: Hit) -> bool {
     }
     let bsdf = Bsdf(base.xyz, metallic, alpha, m2.z);
     let has_ext = (flags & MAT_EXT_BSDF) != 0u;
-    var ext = BsdfExt(bsdf, vec3<f32>(1.0), 0.04, 1.5, 0.0, 0.0, 0.1, ns, vec3<f32>(0.0), 1.0);
+    var ext = BsdfExt(bsdf, vec3<f32>(1.0), 0.04, 1.5, 0.0, 0.0, 0.1, ns, vec3<f32>(0.0), 1.0,
+        vec3<f32>(0.0), bsdf.alpha);
     if has_ext {
         ext = ext_bsdf(mb, flags, bsdf, front, tri, hit.u, hit.v, ns_interpolated, ng);
     }

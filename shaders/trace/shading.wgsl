@@ -133,6 +133,59 @@ struct BsdfExt {
     // KHR_materials_sheen's colour (zero: none) and perceptual roughness (≥ SHEEN_MIN_ROUGHNESS).
     sheen: vec3<f32>,
     sheen_roughness: f32,
+    // KHR_materials_anisotropy: the direction (zero: isotropic) along which α is alpha_t.
+    aniso_dir: vec3<f32>,
+    alpha_t: f32,
+}
+
+// The anisotropic frame about n (CPU twin: shading::aniso_frame): tangent, bitangent, and
+// (α along, α across, 1 where anisotropic else 0) in `a`.
+struct Aniso {
+    t: vec3<f32>,
+    b: vec3<f32>,
+    a: vec3<f32>,
+}
+
+fn aniso_frame(e: BsdfExt, n: vec3<f32>) -> Aniso {
+    if all(e.aniso_dir == vec3<f32>(0.0)) {
+        return Aniso(vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0));
+    }
+    let t = e.aniso_dir - n * dot(n, e.aniso_dir);
+    if !(dot(t, t) > 1e-12) {
+        return Aniso(vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0));
+    }
+    let tt = normalize(t);
+    return Aniso(tt, cross(n, tt), vec3<f32>(e.alpha_t, e.core.alpha, 1.0));
+}
+
+fn aniso_d(f: Aniso, n: vec3<f32>, h: vec3<f32>) -> f32 {
+    let x = dot(f.t, h) / f.a.x;
+    let y = dot(f.b, h) / f.a.y;
+    let z = dot(n, h);
+    let d = x * x + y * y + z * z;
+    return 1.0 / (PI * f.a.x * f.a.y * d * d);
+}
+
+fn aniso_root(f: Aniso, n: vec3<f32>, w: vec3<f32>) -> f32 {
+    let x = f.a.x * dot(f.t, w);
+    let y = f.a.y * dot(f.b, w);
+    let z = dot(n, w);
+    return sqrt(x * x + y * y + z * z);
+}
+
+fn aniso_vis(f: Aniso, n: vec3<f32>, wi: vec3<f32>, wo: vec3<f32>) -> f32 {
+    return 0.5 / (dot(n, wo) * aniso_root(f, n, wi) + dot(n, wi) * aniso_root(f, n, wo));
+}
+
+fn aniso_g1(f: Aniso, n: vec3<f32>, w: vec3<f32>) -> f32 {
+    let c = abs(dot(n, w));
+    return 2.0 * c / (c + aniso_root(f, n, w));
+}
+
+fn aniso_half(f: Aniso, n: vec3<f32>, u: f32, v: f32) -> vec3<f32> {
+    let s = sqrt(u);
+    let phi = 2.0 * PI * v;
+    return normalize(f.t * (f.a.x * s * cos(phi)) + f.b * (f.a.y * s * sin(phi)) + n * sqrt(max(1.0 - u, 0.0)));
 }
 
 // The sheen's fitted Λ (KHR_materials_sheen's `l` and `lambda_sheen`; CPU twin: sheen_lambda).
@@ -295,13 +348,22 @@ fn ext_eval(e: BsdfExt, n: vec3<f32>, wo: vec3<f32>, wi: vec3<f32>) -> vec4<f32>
     let coat = ext_coat(e, cos_oc);
     let a2 = b.alpha * b.alpha;
     let sheened = any(e.sheen != vec3<f32>(0.0));
+    let an = aniso_frame(e, n);
     if cos_i > 0.0 {
         let h = normalize(wo + wi);
         let noh = max(dot(n, h), 0.0);
         let voh = max(dot(wo, h), 1e-7);
         let fr = ext_fresnel(e, voh);
-        let d = ggx_d(noh, a2);
-        let spec = fr.f * (d * ggx_vis(cos_i, cos_o, a2));
+        var d = 0.0;
+        var vis = 0.0;
+        if an.a.z > 0.0 {
+            d = aniso_d(an, n, h);
+            vis = aniso_vis(an, n, wi, wo);
+        } else {
+            d = ggx_d(noh, a2);
+            vis = ggx_vis(cos_i, cos_o, a2);
+        }
+        let spec = fr.f * (d * vis);
         let diff = b.base * ((1.0 - b.metallic) * (1.0 - max3(fr.fd)) * (1.0 - e.transmission) / PI);
         var value = (spec + diff) * (1.0 - coat);
         var pdf = p.x * d * noh / (4.0 * voh) + p.y * cos_i / PI;
@@ -344,8 +406,15 @@ fn ext_eval(e: BsdfExt, n: vec3<f32>, wo: vec3<f32>, wi: vec3<f32>) -> vec4<f32>
     }
     let noh = dot(n, h);
     let fr = ext_fresnel(e, woh);
-    let d = ggx_d(noh, a2);
-    let g = ggx_g1(cos_o, a2) * ggx_g1(-cos_i, a2);
+    var d = 0.0;
+    var g = 0.0;
+    if an.a.z > 0.0 {
+        d = aniso_d(an, n, h);
+        g = aniso_g1(an, n, wo) * aniso_g1(an, n, wi);
+    } else {
+        d = ggx_d(noh, a2);
+        g = ggx_g1(cos_o, a2) * ggx_g1(-cos_i, a2);
+    }
     let jac = eta * eta * -wih / (denom * denom);
     let btdf = woh * d * g * jac / (cos_o * -cos_i);
     var value = b.base * ((1.0 - b.metallic) * (1.0 - max3(fr.fd)) * e.transmission * btdf * (1.0 - coat));
@@ -376,14 +445,21 @@ fn ext_sample(e: BsdfExt, n: vec3<f32>, wo: vec3<f32>, u_lobe: f32, u: f32, v: f
     let tb = basis_t(n);
     let lobes = ext_lobes(e, dot(n, wo), dot(e.coat_normal, wo));
     let p = lobes.p;
+    let an = aniso_frame(e, n);
     if u_lobe < p.x {
-        let h = ggx_half(tb, n, e.core.alpha, u, v);
+        var h = ggx_half(tb, n, e.core.alpha, u, v);
+        if an.a.z > 0.0 {
+            h = aniso_half(an, n, u, v);
+        }
         return 2.0 * dot(wo, h) * h - wo;
     } else if u_lobe < p.x + p.y {
         let l = cosine_hemisphere(u, v);
         return tb[0] * l.x + tb[1] * l.y + n * l.z;
     } else if u_lobe < p.x + p.y + p.z {
-        let h = ggx_half(tb, n, e.core.alpha, u, v);
+        var h = ggx_half(tb, n, e.core.alpha, u, v);
+        if an.a.z > 0.0 {
+            h = aniso_half(an, n, u, v);
+        }
         let c = dot(wo, h);
         let r = 1.0 / e.eta;
         let k = 1.0 - r * r * (1.0 - c * c);

@@ -55,6 +55,7 @@ pub const SUPPORTED_EXTENSIONS: &[&str] = &[
     "KHR_materials_clearcoat",
     "KHR_materials_volume",
     "KHR_materials_sheen",
+    "KHR_materials_anisotropy",
     "KHR_texture_transform",
     "KHR_lights_punctual",
     "KHR_mesh_quantization",
@@ -769,11 +770,14 @@ impl Loader<'_> {
         };
         let c = Converted {
             index: self.scene.materials.len() as u32,
-            // Tangents for the base's normal map, else for the coat's (on its set).
+            // Tangents for the base's normal map, else for the coat's, else for the anisotropy
+            // texture's (on its set), else TEXCOORD_0's for an anisotropy without one.
             normal_uv: ext
                 .normal_texture
                 .or(ext.clearcoat_normal_texture)
-                .map(|t| t.uv.tex_coord),
+                .or(ext.anisotropy_texture)
+                .map(|t| t.uv.tex_coord)
+                .or((ext.anisotropy_strength > 0.0).then_some(0)),
         };
         self.scene.materials.push(converted);
         self.material_ext.push(ext);
@@ -996,6 +1000,32 @@ impl Loader<'_> {
                 &element,
                 "sheenRoughnessTexture",
                 sh.get("sheenRoughnessTexture"),
+                false,
+            )?;
+        }
+        if let Some(an) = m.extension_value("KHR_materials_anisotropy") {
+            // (JSON to the gltf crate, as the clear coat is.)
+            let number = |key: &str, default: f64| match an.get(key) {
+                None => Ok(default),
+                Some(v) => v.as_f64().ok_or_else(|| {
+                    self.element_error(element.clone(), format!("{key} {v} is not a number"))
+                }),
+            };
+            let strength = number("anisotropyStrength", 0.0)?;
+            let rotation = number("anisotropyRotation", 0.0)? as f32;
+            if !rotation.is_finite() {
+                return Err(self.element_error(
+                    element,
+                    format!("anisotropyRotation {rotation} is not finite"),
+                ));
+            }
+            ext.anisotropy_strength =
+                factor(&mut self.report, "anisotropyStrength", strength as f32)?;
+            ext.anisotropy_rotation = rotation;
+            ext.anisotropy_texture = self.json_texture_ref(
+                &element,
+                "anisotropyTexture",
+                an.get("anisotropyTexture"),
                 false,
             )?;
         }

@@ -236,14 +236,22 @@ pub struct MaterialExt {
     /// its factor.
     pub sheen_color_texture: Option<TextureRef>,
     pub sheen_roughness_texture: Option<TextureRef>,
+    /// KHR_materials_anisotropy (brushed metal): the strength (0: isotropic) and the rotation
+    /// (radians, counter-clockwise from the tangent) of the direction along which the
+    /// roughness grows to mix(α, 1, strength²); the texture's RG is a direction in the tangent
+    /// frame (linear, [−1, 1]) rotated likewise, its B multiplies the strength. Needs
+    /// [`VertexExtras::tangent`].
+    pub anisotropy_strength: f32,
+    pub anisotropy_rotation: f32,
+    pub anisotropy_texture: Option<TextureRef>,
 }
 
 impl MaterialExt {
     /// The extensions' textures in the order of their slots in the packed material
     /// (`trace::pack`): transmission, specular, specular colour, clear coat, coat roughness,
-    /// coat normal, sheen colour, sheen roughness.
+    /// coat normal, sheen colour, sheen roughness, anisotropy.
     #[must_use]
-    pub fn extension_textures(&self) -> [Option<TextureRef>; 8] {
+    pub fn extension_textures(&self) -> [Option<TextureRef>; 9] {
         [
             self.transmission_texture,
             self.specular_texture,
@@ -253,6 +261,7 @@ impl MaterialExt {
             self.clearcoat_normal_texture,
             self.sheen_color_texture,
             self.sheen_roughness_texture,
+            self.anisotropy_texture,
         ]
     }
 }
@@ -283,6 +292,9 @@ impl Default for MaterialExt {
             sheen_roughness: 0.0,
             sheen_color_texture: None,
             sheen_roughness_texture: None,
+            anisotropy_strength: 0.0,
+            anisotropy_rotation: 0.0,
+            anisotropy_texture: None,
         }
     }
 }

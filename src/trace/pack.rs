@@ -7,14 +7,14 @@
 //! | `prims` | BVH primitive | 3 × vec4: `[v0, bits(triangle)]`, `[e1, light density]`, `[e2, flags]` (flags: [`PRIM_CULL`] single-sided and opaque, [`PRIM_ALPHA`] alpha-tested; as a float) |
 //! | `shade` | triangle | 4 × vec4: `[n0, uv0.x]`, `[n1, uv0.y]`, `[n2, uv1.x]`, `[uv1.y, uv2, bits(material)]` |
 //! | `shade` from `extras_offset` | triangle, only with [`FEAT_EXTRAS`] | 8 × vec4: `[colour0 rgba]`, `[colour1]`, `[colour2]`, `[uv1₀, uv1₁]`, `[uv1₂, 0, 0]`, `[tangent0 xyz, sign]`, `[tangent1]`, `[tangent2]` (the TEXCOORD_1 set, tangents for normal maps) |
-//! | `materials` | material | [`MATERIAL_STRIDE`] × vec4: `[base colour rgba]`, `[emission, flags]`, `[metallic, α, specular, alpha cutoff]`, `[specular colour, transmission]`, `[ior, clearcoat, clearcoat α, normal scale]`, then twelve texture slots (base colour, metallic-roughness, normal, emissive, then the extensions': transmission, specular, specular colour, clear coat, coat roughness, coat normal, sheen colour, sheen roughness) of 2 × vec4 `[uv row 0, bits(texture or !0)]`, `[uv row 1, bits(texCoord set)]`, then `[coat normal scale, absorption σ rgb]`, `[sheen colour, sheen roughness]`; after the last material, where one has a sheen, the sheen's albedo table ([`SHEEN_TABLE_ROWS`] vec4s of [`SHEEN_ALBEDO`]) |
+//! | `materials` | material | [`MATERIAL_STRIDE`] × vec4: `[base colour rgba]`, `[emission, flags]`, `[metallic, α, specular, alpha cutoff]`, `[specular colour, transmission]`, `[ior, clearcoat, clearcoat α, normal scale]`, then thirteen texture slots (base colour, metallic-roughness, normal, emissive, then the extensions': transmission, specular, specular colour, clear coat, coat roughness, coat normal, sheen colour, sheen roughness, anisotropy) of 2 × vec4 `[uv row 0, bits(texture or !0)]`, `[uv row 1, bits(texCoord set)]`, then `[coat normal scale, absorption σ rgb]`, `[sheen colour, sheen roughness]`, `[anisotropy strength, cos rotation, sin rotation, 0]`; after the last material, where one has a sheen, the sheen's albedo table ([`SHEEN_TABLE_ROWS`] vec4s of [`SHEEN_ALBEDO`]) |
 //! | `texels` | texture | header `[offset, width, height, sampler]` per texture (sampler: wrap S in bits 0–1, wrap T in 2–3 — 0 repeat, 1 clamp, 2 mirror — bit 4 nearest, bit 5 sRGB), then RGBA8 words |
 //! | `lights` | emissive triangle | 3 × vec4: `[v0, bits(triangle)]`, `[e1, 1 if double-sided]`, `[e2, 0]` |
 //! | `lights` from `3 × light_count` | punctual light | 3 × vec4: `[position, or the unit direction towards a directional light, kind (0 point, 1 spot, 2 directional)]`, `[intensity rgb, cos outer cone]`, `[unit spot axis, cos inner cone]` |
 //! | `dist` | — | light CDF (L + 1), environment row CDF (H + 1), per-row column CDFs (H × (W + 1)) |
 //! | `env` | environment texel | `[rgb, pdf over the unit square]` |
 //!
-//! Material flags (`materials[31m + 1].w`, a small float): [`MAT_DOUBLE_SIDED`], one bit per
+//! Material flags (`materials[34m + 1].w`, a small float): [`MAT_DOUBLE_SIDED`], one bit per
 //! core texture slot in use ([`MAT_BASE_TEX`] …), [`MAT_MASK`] / [`MAT_BLEND`] for the alpha
 //! mode, [`MAT_EXT_BSDF`] when the material needs the glass / clear-coat / specular-colour
 //! terms, [`MAT_EXT_TEX`] when one of the extensions' slots holds a texture (each slot's
@@ -35,13 +35,15 @@ pub const MIN_ALPHA: f32 = 1e-3;
 /// `texture` word of a material without a texture.
 pub const NO_TEXTURE: u32 = u32::MAX;
 /// vec4s per material (`MATERIAL_STRIDE` in path.wgsl).
-pub const MATERIAL_STRIDE: usize = 31;
+pub const MATERIAL_STRIDE: usize = 34;
 /// The material's vec4 after its texture slots: `[coat normal scale, absorption σ rgb]`
 /// (`MATERIAL_COAT_ROW` in path.wgsl).
-pub const MATERIAL_COAT_ROW: usize = 29;
-/// The material's last vec4: `[sheen colour, sheen roughness]` (`MATERIAL_SHEEN_ROW` in
-/// path.wgsl).
-pub const MATERIAL_SHEEN_ROW: usize = 30;
+pub const MATERIAL_COAT_ROW: usize = 31;
+/// `[sheen colour, sheen roughness]` (`MATERIAL_SHEEN_ROW` in path.wgsl).
+pub const MATERIAL_SHEEN_ROW: usize = 32;
+/// The material's last vec4: `[anisotropy strength, cos rotation, sin rotation, 0]`
+/// (`MATERIAL_ANISO_ROW` in path.wgsl).
+pub const MATERIAL_ANISO_ROW: usize = 33;
 /// vec4s of the sheen's albedo table after the materials (`SHEEN_TABLE_ROWS` in path.wgsl).
 pub const SHEEN_TABLE_ROWS: usize = SHEEN_COLUMNS * SHEEN_ROWS / 4;
 /// vec4s of vertex extras per triangle.
@@ -273,6 +275,7 @@ impl PackedScene {
                         || ext.specular_color != Vec3::ONE
                         || ext.ior != 1.5
                         || ext.sheen_color != Vec3::ZERO
+                        || ext.anisotropy_strength > 0.0
                         || ext_textures,
                     MAT_EXT_BSDF,
                 ),
@@ -307,6 +310,8 @@ impl PackedScene {
             materials.push([ext.clearcoat_normal_scale, a.x, a.y, a.z]);
             let sh = ext.sheen_color;
             materials.push([sh.x, sh.y, sh.z, ext.sheen_roughness]);
+            let (sin, cos) = ext.anisotropy_rotation.sin_cos();
+            materials.push([ext.anisotropy_strength, cos, sin, 0.0]);
         }
 
         let mut texels = Vec::new();

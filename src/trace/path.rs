@@ -31,7 +31,8 @@ use super::camera::RenderCamera;
 use super::pack::{
     EXTRAS_STRIDE, FEAT_ALPHA, FEAT_EXTRAS, LIGHT_DIRECTIONAL, LIGHT_SPOT, MAT_BASE_TEX, MAT_BLEND,
     MAT_EMISSIVE_TEX, MAT_EXT_BSDF, MAT_EXT_TEX, MAT_MASK, MAT_MR_TEX, MAT_NORMAL_TEX, MAT_VOLUME,
-    MATERIAL_COAT_ROW, MATERIAL_SHEEN_ROW, MATERIAL_STRIDE, MIN_ALPHA, NO_TEXTURE, PackedScene,
+    MATERIAL_ANISO_ROW, MATERIAL_COAT_ROW, MATERIAL_SHEEN_ROW, MATERIAL_STRIDE, MIN_ALPHA,
+    NO_TEXTURE, PackedScene,
 };
 use super::shading::{
     Bsdf, BsdfExt, SHEEN_MIN_ROUGHNESS, basis, direction_to_equirect, equirect_to_direction,
@@ -315,6 +316,10 @@ fn ext_bsdf(
     let mut coat_normal = ns;
     let sh = sc.materials[mb + MATERIAL_SHEEN_ROW];
     let (mut sheen, mut sheen_roughness) = (v3(sh), sh[3]);
+    // The anisotropy's strength and its direction in the tangent frame (cos, sin of the
+    // rotation, or the texture's direction rotated by it).
+    let an = sc.materials[mb + MATERIAL_ANISO_ROW];
+    let (mut strength, mut dir) = (an[0], Vec2::new(an[1], an[2]));
     if flags & MAT_EXT_TEX != 0 {
         // Slots 4..11 (after base colour, metallic-roughness, normal and emissive); a slot
         // without a texture leaves its factor.
@@ -345,6 +350,18 @@ fn ext_bsdf(
         if textured(11) {
             sheen_roughness *= slot(sc, mb, 11, sp).w;
         }
+        if textured(12) {
+            let a = slot(sc, mb, 12, sp);
+            let d = Vec2::new(a.x * 2.0 - 1.0, a.y * 2.0 - 1.0);
+            dir = Vec2::new(d.x * dir.x - d.y * dir.y, d.x * dir.y + d.y * dir.x);
+            strength *= a.z;
+        }
+    }
+    let (mut aniso_dir, mut alpha_t) = (Vec3::ZERO, core.alpha);
+    if strength > 0.0 {
+        let (t, b) = tangent_frame(sc, sp, ns);
+        aniso_dir = t * dir.x + b * dir.y;
+        alpha_t = core.alpha + (1.0 - core.alpha) * (strength * strength);
     }
     if coat_normal.dot(ng) < 0.0 {
         coat_normal = -coat_normal;
@@ -360,6 +377,8 @@ fn ext_bsdf(
         coat_normal,
         sheen,
         sheen_roughness: sheen_roughness.max(SHEEN_MIN_ROUGHNESS),
+        aniso_dir,
+        alpha_t,
     }
 }
 
@@ -417,6 +436,14 @@ fn normal_mapped_by(
     ns: Vec3,
 ) -> Vec3 {
     let tn = slot(sc, mb, k, sp).truncate() * 2.0 - Vec3::ONE;
+    let (t, b) = tangent_frame(sc, sp, ns);
+    let m = (t * (tn.x * scale) + b * (tn.y * scale) + ns * tn.z).normalize();
+    if m.is_finite() { m } else { ns }
+}
+
+/// The interpolated tangent frame at `sp` about `ns` (before any flip to the viewer's side):
+/// the unit tangent orthogonal to `ns` and the bitangent with its sign.
+fn tangent_frame(sc: &PackedScene, sp: SurfacePoint, ns: Vec3) -> (Vec3, Vec3) {
     let e = (sc.extras_offset + EXTRAS_STRIDE as u32 * sp.tri) as usize;
     let t4 = sp.lerp4(sc.shade[e + 5], sc.shade[e + 6], sc.shade[e + 7]);
     let mut t = t4.truncate() - ns * ns.dot(t4.truncate());
@@ -424,9 +451,7 @@ fn normal_mapped_by(
         t = basis(ns).0;
     }
     let t = t.normalize();
-    let b = ns.cross(t) * if t4.w < 0.0 { -1.0 } else { 1.0 };
-    let m = (t * (tn.x * scale) + b * (tn.y * scale) + ns * tn.z).normalize();
-    if m.is_finite() { m } else { ns }
+    (t, ns.cross(t) * if t4.w < 0.0 { -1.0 } else { 1.0 })
 }
 
 /// Environment radiance arriving along `-d` (i.e. seen looking along `d`) and the density

@@ -93,10 +93,11 @@ pub fn ortho(position: Vec3, ymag: f32) -> OrthographicCamera {
 
 /// One scene with every one of these features: textures with transforms, wrap modes and both
 /// filters, TEXCOORD_1, vertex colours, a normal map, a metallic-roughness map, an emissive
-/// texture, MASK and BLEND, rough and smooth glass (the rough one absorbing behind it), clear
-/// coat over a sheen, specular colour, the
+/// texture, MASK and BLEND, rough and smooth glass (the rough one brushed and absorbing behind
+/// it), a brushed metal with a clear coat over a sheen, specular colour, the
 /// extensions' textures (transmission, specular, specular colour, coat, coat roughness, coat
-/// normal, sheen colour, sheen roughness), point, spot and directional lights and an environment.
+/// normal, sheen colour, sheen roughness, anisotropy), point, spot and directional lights and an
+/// environment.
 pub fn everything() -> Scene {
     let mut tris = Vec::new();
     tris.extend(rect(-2.0, -2.0, 2.0, 2.0, -1.0, 0)); // back wall: textured, vertex colours
@@ -241,6 +242,10 @@ pub fn everything() -> Scene {
             sheen_roughness: 0.5,
             sheen_color_texture: tex_ref(3),
             sheen_roughness_texture: transformed(0, 1),
+            // Brushed: the direction rotated by 0.6 rad and by the bumps' RG, its strength × B.
+            anisotropy_strength: 0.7,
+            anisotropy_rotation: 0.6,
+            anisotropy_texture: transformed(1, 0),
             ..Default::default()
         },
         MaterialExt {
@@ -259,8 +264,9 @@ pub fn everything() -> Scene {
             transmission: 1.0,
             ior: 1.45,
             // A medium behind it (KHR_materials_volume): rays that meet it from behind are
-            // attenuated by the length they travelled.
+            // attenuated by the length they travelled. Brushed (anisotropic refraction).
             absorption: Vec3::new(0.8, 0.3, 1.5),
+            anisotropy_strength: 0.5,
             ..Default::default()
         },
         MaterialExt {
