@@ -333,8 +333,13 @@ fn normal_mapped_by(mb: u32, k: u32, scale: f32, tri: u32, u: f32, v: f32, ns: v
 }
 
 // The interpolated tangent frame about `ns`: the unit tangent orthogonal to it and the
-// bitangent with its sign (CPU twin: path::tangent_frame).
+// bitangent with its sign; a frame of its own about `ns` where the scene has no tangents (CPU
+// twin: path::tangent_frame).
 fn tangent_frame(tri: u32, u: f32, v: f32, ns: vec3<f32>) -> mat2x3<f32> {
+    if (params.features & FEAT_EXTRAS) == 0u {
+        let t = basis_t(ns)[0];
+        return mat2x3<f32>(t, cross(ns, t));
+    }
     let e = params.extras_offset + EXTRAS_STRIDE * tri;
     let t4 = lerp4(shade[e + 5u], shade[e + 6u], shade[e + 7u], u, v);
     var t = t4.xyz - ns * dot(ns, t4.xyz);

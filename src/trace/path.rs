@@ -442,8 +442,13 @@ fn normal_mapped_by(
 }
 
 /// The interpolated tangent frame at `sp` about `ns` (before any flip to the viewer's side):
-/// the unit tangent orthogonal to `ns` and the bitangent with its sign.
+/// the unit tangent orthogonal to `ns` and the bitangent with its sign; a frame of its own
+/// about `ns` where the scene has no tangents (no vertex extras: a scene built without them).
 fn tangent_frame(sc: &PackedScene, sp: SurfacePoint, ns: Vec3) -> (Vec3, Vec3) {
+    if sc.features & FEAT_EXTRAS == 0 {
+        let t = basis(ns).0;
+        return (t, ns.cross(t));
+    }
     let e = (sc.extras_offset + EXTRAS_STRIDE as u32 * sp.tri) as usize;
     let t4 = sp.lerp4(sc.shade[e + 5], sc.shade[e + 6], sc.shade[e + 7]);
     let mut t = t4.truncate() - ns * ns.dot(t4.truncate());
