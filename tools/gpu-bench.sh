@@ -23,7 +23,7 @@
 #   OUT=/tmp/gb bash tools/gpu-bench.sh smoke
 #
 # Settings (environment): RAYGUN_BIN (default .dev/raygun for run, target/release/raygun or
-# target/debug/raygun for smoke), GPU_BENCH_LIMIT_S (the whole run's budget: 420 for run, 200
+# target/debug/raygun for smoke), GPU_BENCH_LIMIT_S (the whole run's budget: 420 for run, 300
 # for smoke), GPU_BENCH_GROUPS (some groups only, by name, e.g. "adapter guided all" for a
 # rerun of what failed; default every group), OUT (where the results go; required).
 set -uo pipefail
@@ -106,7 +106,9 @@ BENCH_GROUPS=(adapter picture dgi schedule trace kernels kernels-guided guided n
 declare -A BUDGET=([adapter]=20 [picture]=40 [dgi]=60 [schedule]=30 [trace]=90 [kernels]=150
   [kernels-guided]=90 [guided]=120 [native]=60 [filter]=45 [all-quick]=60 [wall]=60 [cluster]=60
   [sizes]=40 [readback]=30 [all]=300)
-declare -A SMOKE_BUDGET=([adapter]=10 [picture]=10 [dgi]=20 [schedule]=20 [trace]=20 [kernels]=60
+# Smoke: kernels' 150 s is lavapipe compiling four trace kernels with an empty shader cache
+# (119 s measured on a 2-vCPU Intel Xeon with the glTF extensions' BSDF in the kernel, 2026-12-05).
+declare -A SMOKE_BUDGET=([adapter]=10 [picture]=10 [dgi]=20 [schedule]=20 [trace]=20 [kernels]=150
   [kernels-guided]=40 [guided]=40 [native]=20 [filter]=30 [all-quick]=60 [wall]=20 [cluster]=20
   [sizes]=20 [readback]=10 [all]=60)
 
@@ -282,7 +284,7 @@ main() {
       if [ -n "${RAYGUN_BIN:-}" ]; then BIN="$RAYGUN_BIN"
       elif [ -x target/release/raygun ]; then BIN=target/release/raygun
       else BIN=target/debug/raygun; fi
-      LIMIT="${GPU_BENCH_LIMIT_S:-200}"
+      LIMIT="${GPU_BENCH_LIMIT_S:-300}"
       SIZE=32,18 REPS=1 SPP=1 ITERATIONS=2 REFERENCE_SPP=2 CITY=builtin:city-small
       ALL_QUICK_SIZE="--size 16,9 --scene builtin:cornell" ALL_SIZE="--size 24,12 --scene builtin:cornell"
       WALL_SIZE=64,26 NATIVE_ITERATIONS=2 NATIVE_DISPLAY=tiny
