@@ -314,6 +314,23 @@ impl Loader<'_> {
         }
     }
 
+    /// Number `key` of an extension given as JSON (`default` where absent); anything else is
+    /// an error naming the material and the key.
+    fn json_number(
+        &self,
+        element: &str,
+        ext: &serde_json::Value,
+        key: &str,
+        default: f64,
+    ) -> Result<f64, SceneError> {
+        match ext.get(key) {
+            None => Ok(default),
+            Some(v) => v.as_f64().ok_or_else(|| {
+                self.element_error(element.to_string(), format!("{key} {v} is not a number"))
+            }),
+        }
+    }
+
     /// KHR_materials_volume's absorption coefficient (`MaterialExt::absorption`): the medium
     /// behind a surface of thickness > 0 absorbs −ln(attenuationColor) / attenuationDistance per
     /// unit length; a thin-walled one (thicknessFactor 0, the default) bounds no medium. The
@@ -971,18 +988,7 @@ impl Loader<'_> {
                     format!("sheenColorFactor {v} is not three numbers"),
                 ));
             };
-            let roughness = match sh.get("sheenRoughnessFactor") {
-                None => 0.0,
-                Some(v) => match v.as_f64() {
-                    Some(r) => r,
-                    None => {
-                        return Err(self.element_error(
-                            element,
-                            format!("sheenRoughnessFactor {v} is not a number"),
-                        ));
-                    }
-                },
-            };
+            let roughness = self.json_number(&element, sh, "sheenRoughnessFactor", 0.0)?;
             let r = &mut self.report;
             ext.sheen_color = Vec3::new(
                 factor(r, "sheenColorFactor", colour[0] as f32)?,
@@ -1005,14 +1011,8 @@ impl Loader<'_> {
         }
         if let Some(an) = m.extension_value("KHR_materials_anisotropy") {
             // (JSON to the gltf crate, as the clear coat is.)
-            let number = |key: &str, default: f64| match an.get(key) {
-                None => Ok(default),
-                Some(v) => v.as_f64().ok_or_else(|| {
-                    self.element_error(element.clone(), format!("{key} {v} is not a number"))
-                }),
-            };
-            let strength = number("anisotropyStrength", 0.0)?;
-            let rotation = number("anisotropyRotation", 0.0)? as f32;
+            let strength = self.json_number(&element, an, "anisotropyStrength", 0.0)?;
+            let rotation = self.json_number(&element, an, "anisotropyRotation", 0.0)? as f32;
             if !rotation.is_finite() {
                 return Err(self.element_error(
                     element,
