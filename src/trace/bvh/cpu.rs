@@ -962,130 +962,134 @@ impl CpuTree {
         // The nodes' bound: the closest hit's t once there is one (a node entered exactly there
         // is still visited: it may hold an equally near hit on a higher triangle).
         let mut tmax = best.map_or(tmax, |b| b.0);
-        with_stack(self.stack_size, |stack| {
-            let (mut index, mut len) = (root, 0);
-            loop {
-                let node = &self.nodes[index];
-                let (hit, entry) = node_hits(node, ray, tmax);
-                let mut leaves = hit & !node.imask;
-                let mut inner = hit & node.imask;
-                // Leaves entered beyond the nearest inner child wait on the stack with the
-                // inner children: a hit in that child may make them needless.
-                let mut deferred = 0;
-                if inner != 0 && leaves != 0 {
-                    let mut near = f32::INFINITY;
-                    let mut m = inner;
-                    while m != 0 {
-                        near = near.min(entry[m.trailing_zeros() as usize]);
-                        m &= m - 1;
+        // The stack on this thread's own, or allocated for deeper trees; not through
+        // `with_stack`'s closure, which the compiler kept as a function of its own reading the
+        // ray, the bound and the node's index through memory (measured on an Intel Xeon: ×0.98
+        // on the small city and the Cornell boxes, BENCHMARKS.md).
+        // The stack as in `walk_closest`.
+        let mut local = [MaybeUninit::<u64>::uninit(); INLINE_STACK];
+        let mut heap;
+        let stack: &mut [MaybeUninit<u64>] = if self.stack_size <= INLINE_STACK {
+            &mut local
+        } else {
+            heap = vec![MaybeUninit::uninit(); self.stack_size];
+            &mut heap
+        };
+        let (mut index, mut len) = (root, 0);
+        loop {
+            let node = &self.nodes[index];
+            let (hit, entry) = node_hits(node, ray, tmax);
+            let mut leaves = hit & !node.imask;
+            let mut inner = hit & node.imask;
+            // Leaves entered beyond the nearest inner child wait on the stack with the
+            // inner children: a hit in that child may make them needless.
+            let mut deferred = 0;
+            if inner != 0 && leaves != 0 {
+                let mut near = f32::INFINITY;
+                let mut m = inner;
+                while m != 0 {
+                    near = near.min(entry[m.trailing_zeros() as usize]);
+                    m &= m - 1;
+                }
+                let mut m = leaves;
+                while m != 0 {
+                    let c = m.trailing_zeros() as usize;
+                    m &= m - 1;
+                    if entry[c] > near {
+                        deferred |= 1 << c;
                     }
-                    let mut m = leaves;
-                    while m != 0 {
-                        let c = m.trailing_zeros() as usize;
-                        m &= m - 1;
-                        if entry[c] > near {
-                            deferred |= 1 << c;
-                        }
-                    }
-                    leaves &= !deferred;
                 }
-                let mut changed = false;
-                while leaves != 0 {
-                    let c = leaves.trailing_zeros() as usize;
-                    leaves &= leaves - 1;
-                    changed |= self.leaf_closest(
-                        node.child[c],
-                        u32::from(node.count[c]),
-                        origin,
-                        dir,
-                        ray_tmax,
-                        best,
-                        covered,
-                    );
+                leaves &= !deferred;
+            }
+            let mut changed = false;
+            while leaves != 0 {
+                let c = leaves.trailing_zeros() as usize;
+                leaves &= leaves - 1;
+                changed |= self.leaf_closest(
+                    node.child[c],
+                    u32::from(node.count[c]),
+                    origin,
+                    dir,
+                    ray_tmax,
+                    best,
+                    covered,
+                );
+            }
+            if changed && let Some(b) = *best {
+                tmax = b.0;
+                inner = entered_by(inner, &entry, tmax);
+                deferred = entered_by(deferred, &entry, tmax);
+            }
+            if deferred != 0 {
+                let first = len;
+                let mut m = inner | deferred;
+                while m != 0 {
+                    let c = m.trailing_zeros() as usize;
+                    m &= m - 1;
+                    let r = if inner & (1 << c) != 0 {
+                        node.child[c]
+                    } else {
+                        LEAF_REF | ((index as u32) << 3) | c as u32
+                    };
+                    stack[len].write(stack_entry(entry[c], r));
+                    len += 1;
                 }
-                if changed && let Some(b) = *best {
-                    tmax = b.0;
-                    inner = entered_by(inner, &entry, tmax);
-                    deferred = entered_by(deferred, &entry, tmax);
+                // SAFETY: entries first..len were written just above.
+                sort_farthest_first(unsafe { written(&mut stack[first..len]) });
+                inner = 0;
+            }
+            match inner.count_ones() {
+                0 => {}
+                1 => {
+                    index = node.child[inner.trailing_zeros() as usize] as usize;
+                    continue;
                 }
-                if deferred != 0 {
+                2 => {
+                    let a = inner.trailing_zeros() as usize;
+                    let b = (inner & (inner - 1)).trailing_zeros() as usize;
+                    let (near, far) = if entry[b] < entry[a] { (b, a) } else { (a, b) };
+                    stack[len].write(stack_entry(entry[far], node.child[far]));
+                    len += 1;
+                    index = node.child[near] as usize;
+                    continue;
+                }
+                _ => {
                     let first = len;
-                    let mut m = inner | deferred;
-                    while m != 0 {
-                        let c = m.trailing_zeros() as usize;
-                        m &= m - 1;
-                        let r = if inner & (1 << c) != 0 {
-                            node.child[c]
-                        } else {
-                            LEAF_REF | ((index as u32) << 3) | c as u32
-                        };
-                        stack[len].write(stack_entry(entry[c], r));
+                    while inner != 0 {
+                        let c = inner.trailing_zeros() as usize;
+                        inner &= inner - 1;
+                        stack[len].write(stack_entry(entry[c], node.child[c]));
                         len += 1;
                     }
-                    // SAFETY: entries first..len were written just above.
+                    // The nearest on top. SAFETY: entries first..len were written just above.
                     sort_farthest_first(unsafe { written(&mut stack[first..len]) });
-                    inner = 0;
                 }
-                match inner.count_ones() {
-                    0 => {}
-                    1 => {
-                        index = node.child[inner.trailing_zeros() as usize] as usize;
-                        continue;
-                    }
-                    2 => {
-                        let a = inner.trailing_zeros() as usize;
-                        let b = (inner & (inner - 1)).trailing_zeros() as usize;
-                        let (near, far) = if entry[b] < entry[a] { (b, a) } else { (a, b) };
-                        stack[len].write(stack_entry(entry[far], node.child[far]));
-                        len += 1;
-                        index = node.child[near] as usize;
-                        continue;
-                    }
-                    _ => {
-                        let first = len;
-                        while inner != 0 {
-                            let c = inner.trailing_zeros() as usize;
-                            inner &= inner - 1;
-                            stack[len].write(stack_entry(entry[c], node.child[c]));
-                            len += 1;
-                        }
-                        // The nearest on top. SAFETY: entries first..len were written just above.
-                        sort_farthest_first(unsafe { written(&mut stack[first..len]) });
-                    }
+            }
+            loop {
+                if len == 0 {
+                    return;
                 }
-                loop {
-                    if len == 0 {
-                        return;
+                len -= 1;
+                // SAFETY: every entry below `len` was written by a push.
+                let e = unsafe { stack[len].assume_init() };
+                if f32::from_bits((e >> 32) as u32) <= tmax {
+                    let r = e as u32;
+                    if r & LEAF_REF == 0 {
+                        index = r as usize;
+                        break;
                     }
-                    len -= 1;
-                    // SAFETY: every entry below `len` was written by a push.
-                    let e = unsafe { stack[len].assume_init() };
-                    if f32::from_bits((e >> 32) as u32) <= tmax {
-                        let r = e as u32;
-                        if r & LEAF_REF == 0 {
-                            index = r as usize;
-                            break;
-                        }
-                        // A deferred leaf: its triangles, and the bound tightened by a hit.
-                        let node = &self.nodes[((r & !LEAF_REF) >> 3) as usize];
-                        let c = (r & 7) as usize;
-                        let count = u32::from(node.count[c]);
-                        if self.leaf_closest(
-                            node.child[c],
-                            count,
-                            origin,
-                            dir,
-                            ray_tmax,
-                            best,
-                            covered,
-                        ) && let Some(b) = *best
-                        {
-                            tmax = b.0;
-                        }
+                    // A deferred leaf: its triangles, and the bound tightened by a hit.
+                    let node = &self.nodes[((r & !LEAF_REF) >> 3) as usize];
+                    let c = (r & 7) as usize;
+                    let count = u32::from(node.count[c]);
+                    if self.leaf_closest(node.child[c], count, origin, dir, ray_tmax, best, covered)
+                        && let Some(b) = *best
+                    {
+                        tmax = b.0;
                     }
                 }
             }
-        });
+        }
     }
 
     /// Which packets the sixteen-ray walks use: [`CpuPackets::current`] for a tree with nodes,
@@ -1388,40 +1392,46 @@ impl CpuTree {
         tmax: f32,
         covered: &impl Fn(u32, f32, f32) -> bool,
     ) -> bool {
-        with_stack(self.stack_size, |stack| {
-            let (mut index, mut len) = (root, 0);
-            loop {
-                let node = &self.nodes[index];
-                let (hit, _) = node_hits(node, ray, tmax);
-                let mut leaves = hit & !node.imask;
-                while leaves != 0 {
-                    let c = leaves.trailing_zeros() as usize;
-                    leaves &= leaves - 1;
-                    let (first, count) = (node.child[c], u32::from(node.count[c]));
-                    if self.leaf_any(first, count, origin, dir, tmax, covered) {
-                        return true;
-                    }
+        let mut local = [MaybeUninit::<u64>::uninit(); INLINE_STACK];
+        let mut heap;
+        let stack: &mut [MaybeUninit<u64>] = if self.stack_size <= INLINE_STACK {
+            &mut local
+        } else {
+            heap = vec![MaybeUninit::uninit(); self.stack_size];
+            &mut heap
+        };
+        let (mut index, mut len) = (root, 0);
+        loop {
+            let node = &self.nodes[index];
+            let (hit, _) = node_hits(node, ray, tmax);
+            let mut leaves = hit & !node.imask;
+            while leaves != 0 {
+                let c = leaves.trailing_zeros() as usize;
+                leaves &= leaves - 1;
+                let (first, count) = (node.child[c], u32::from(node.count[c]));
+                if self.leaf_any(first, count, origin, dir, tmax, covered) {
+                    return true;
                 }
-                let mut inner = hit & node.imask;
-                if inner != 0 {
-                    index = node.child[inner.trailing_zeros() as usize] as usize;
-                    inner &= inner - 1;
-                    while inner != 0 {
-                        let c = inner.trailing_zeros() as usize;
-                        inner &= inner - 1;
-                        stack[len].write(u64::from(node.child[c]));
-                        len += 1;
-                    }
-                    continue;
-                }
-                if len == 0 {
-                    return false;
-                }
-                len -= 1;
-                // SAFETY: every entry below `len` was written by a push.
-                index = unsafe { stack[len].assume_init() } as usize;
             }
-        })
+            let mut inner = hit & node.imask;
+            if inner != 0 {
+                index = node.child[inner.trailing_zeros() as usize] as usize;
+                inner &= inner - 1;
+                while inner != 0 {
+                    let c = inner.trailing_zeros() as usize;
+                    inner &= inner - 1;
+                    stack[len].write(u64::from(node.child[c]));
+                    len += 1;
+                }
+                continue;
+            }
+            if len == 0 {
+                return false;
+            }
+            len -= 1;
+            // SAFETY: every entry below `len` was written by a push.
+            index = unsafe { stack[len].assume_init() } as usize;
+        }
     }
 
     /// The leaf `first..first + count`'s hits kept in `best` ([`PrimLanes::closest`]), with
