@@ -6,8 +6,9 @@
 //! them, and replayed `ROUNDS` times (default 9). The sixteen-ray rows are hybrid packets, in
 //! AVX-512 lanes where the processor has them, else in pairs of AVX2 registers;
 //! `RAYGUN_CPU_PACKETS=0`, `avx2` or `avx512` chooses (the header says which). The "by octant" rows
-//! group each 256 rays by their direction's octant first, as the batches do past the camera (the
-//! recorded shadow rays are cosine-distributed about the normal, not aimed at a light). Without
+//! group each 4096 rays (a batch's paths) by their direction's octant first, as the batches do
+//! past the camera (the recorded shadow rays are cosine-distributed about the normal, not aimed
+//! at a light). Without
 //! the shading around them, a change to the walk shows in a second with less of the noise of a
 //! whole render: the minimum over the rounds is the figure to compare; the median says how noisy
 //! the machine was.
@@ -152,12 +153,12 @@ fn main() {
             })
             .sum()
     };
-    // Rays as the batches trace them past the camera: each batch's (256 paths') by the octant
-    // of their direction, stable.
+    // Rays as the batches trace them past the camera: each batch's (4096 paths', the
+    // renderer's `BATCH`) by the octant of their direction, stable.
     let by_octant = |rays: &[(Vec3, Vec3)]| -> Vec<(Vec3, Vec3)> {
         let octant =
             |d: Vec3| u8::from(d.x < 0.0) | u8::from(d.y < 0.0) << 1 | u8::from(d.z < 0.0) << 2;
-        rays.chunks(256)
+        rays.chunks(4096)
             .flat_map(|batch| {
                 let mut batch = batch.to_vec();
                 batch.sort_by_key(|&(_, d)| octant(d));

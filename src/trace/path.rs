@@ -585,12 +585,15 @@ fn traced(
     pixels: &[u32],
     counts: &[u32],
 ) -> Vec<Option<(Vec3, u32)>> {
-    /// Pixels per task: two batches, so that a task's start costs little and a short list
-    /// still spreads over the cores.
-    const TASK: usize = 2 * batch::BATCH;
+    // Pixels per task: a batch, or less where that leaves fewer than four tasks a core (a
+    // short list still spreads over the cores; every path's result is the same in any batch).
+    let task = pixels
+        .len()
+        .div_ceil(4 * rayon::current_num_threads())
+        .clamp(256, batch::BATCH);
     let mut out = vec![None; pixels.len()];
-    out.par_chunks_mut(TASK)
-        .zip(pixels.par_chunks(TASK).zip(counts.par_chunks(TASK)))
+    out.par_chunks_mut(task)
+        .zip(pixels.par_chunks(task).zip(counts.par_chunks(task)))
         .for_each(|(out, (pixels, counts))| batch::trace_batch(sc, s, wall, pixels, counts, out));
     out
 }
@@ -884,15 +887,18 @@ pub fn render_cpu_with(
 ) -> u64 {
     match list {
         None => {
-            let w = s.width as usize;
+            // Bands of whole rows, as many as fill a batch: its paths' rays, grouped by
+            // direction octant past the camera, then fill their packets (BENCHMARKS.md).
+            let band = s.width as usize * (batch::BATCH / s.width as usize).max(1);
             accum
                 .sum
-                .par_chunks_mut(w)
-                .zip(accum.count.par_chunks_mut(w))
+                .par_chunks_mut(band)
+                .zip(accum.count.par_chunks_mut(band))
                 .enumerate()
-                .map(|(y, (sums, counts))| {
-                    let pixels: Vec<u32> = (0..w).map(|x| (y * w + x) as u32).collect();
-                    let mut out = vec![None; w];
+                .map(|(b, (sums, counts))| {
+                    let first = b * band;
+                    let pixels: Vec<u32> = (first..first + sums.len()).map(|p| p as u32).collect();
+                    let mut out = vec![None; sums.len()];
                     batch::trace_batch(sc, s, wall, &pixels, counts, &mut out);
                     let mut rays = 0u64;
                     for (x, out) in out.into_iter().enumerate() {

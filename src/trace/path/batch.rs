@@ -26,11 +26,17 @@ use super::*;
 use crate::trace::bvh::TraceHit;
 use crate::trace::lanes::{self, V3};
 
-/// The paths advanced together: enough that a vertex's survivors still fill groups of eight
-/// after Russian roulette has thinned them, few enough that their state (20 kB) stays in the
-/// cache; at most 256, the paths' indices being bytes. Measured against 64: ×0.91–1.04 per
-/// sample in three runs (BENCHMARKS.md).
-pub(super) const BATCH: usize = 256;
+/// The paths advanced together: enough that a vertex's survivors, sorted into eight direction
+/// octants after Russian roulette has thinned them, still fill packets of sixteen rays and
+/// groups of eight, few enough that their state (about 450 kB: paths, hits, the shadow queue)
+/// stays in a core's second-level cache. Measured on an Intel Xeon against 256 paths: small
+/// city ×0.94–0.96 per sample, Cornell boxes unchanged (against 64, earlier: ×0.91–1.04;
+/// BENCHMARKS.md). The paths' indices are 16-bit.
+pub(super) const BATCH: usize = 4096;
+const _: () = assert!(BATCH <= 1 << 16, "a path's index is an Idx");
+
+/// A path's index in its batch.
+type Idx = u16;
 
 /// One path's state between vertices.
 #[derive(Clone, Copy)]
@@ -43,6 +49,63 @@ struct Path {
     radiance: Vec3,
     prev_pdf: f32,
     rays: u32,
+}
+
+impl Path {
+    /// A path before its first vertex (its pixel, sample and ray still to be set).
+    const START: Self = Self {
+        pixel: 0,
+        sample: 0,
+        o: Vec3::ZERO,
+        d: Vec3::ZERO,
+        throughput: Vec3::ONE,
+        radiance: Vec3::ZERO,
+        prev_pdf: 0.0,
+        rays: 0,
+    };
+}
+
+/// A batch's arrays, on the heap (at [`BATCH`] paths they are too large for a thread's
+/// stack), made once a thread ([`WORK`]) and used by each of its batches in turn.
+struct Work {
+    paths: Box<[Path; BATCH]>,
+    hits: Box<[Option<TraceHit>; BATCH]>,
+    live: Box<[Idx; BATCH]>,
+    shade: Box<[Idx; BATCH]>,
+    sorted: Box<[Idx; BATCH]>,
+    shadows: ShadowRays,
+}
+
+/// Every index of a batch, in order.
+static EVERY: [Idx; BATCH] = {
+    let mut every = [0; BATCH];
+    let mut k = 0;
+    while k < BATCH {
+        every[k] = k as Idx;
+        k += 1;
+    }
+    every
+};
+
+/// `BATCH` copies of `value`, allocated on the heap directly.
+fn boxed<T: Clone>(value: T) -> Box<[T; BATCH]> {
+    vec![value; BATCH]
+        .into_boxed_slice()
+        .try_into()
+        .unwrap_or_else(|_| unreachable!("a vector of BATCH values"))
+}
+
+impl Work {
+    fn new() -> Self {
+        Self {
+            paths: boxed(Path::START),
+            hits: boxed(None),
+            live: boxed(0),
+            shade: boxed(0),
+            sorted: boxed(0),
+            shadows: ShadowRays::new(),
+        }
+    }
 }
 
 /// Traces sample `samples[i]` of pixel `pixels[i]` for every `i`, through `wall`'s primary rays
@@ -73,27 +136,57 @@ fn batches<const FULL: bool>(
     samples: &[u32],
     out: &mut [Option<(Vec3, u32)>],
 ) {
+    // This thread's arrays (a fresh set if they are in use further up its stack).
+    WORK.with(|cell| match cell.try_borrow_mut() {
+        Ok(mut work) => batches_in::<FULL>(
+            work.get_or_insert_with(Work::new),
+            sc,
+            s,
+            wall,
+            pixels,
+            samples,
+            out,
+        ),
+        Err(_) => batches_in::<FULL>(&mut Work::new(), sc, s, wall, pixels, samples, out),
+    });
+}
+
+thread_local! {
+    /// A thread's batch arrays, made on its first batch and kept: made a call at a time, their
+    /// half a megabyte was allocated, faulted in and filled again for every band of rows
+    /// (measured ×1.09–1.14 per sample on the Cornell boxes).
+    static WORK: std::cell::RefCell<Option<Work>> = const { std::cell::RefCell::new(None) };
+}
+
+/// [`batches`] in the arrays `work`.
+fn batches_in<const FULL: bool>(
+    work: &mut Work,
+    sc: &PackedScene,
+    s: &TraceSettings,
+    wall: Option<&WallCamera>,
+    pixels: &[u32],
+    samples: &[u32],
+    out: &mut [Option<(Vec3, u32)>],
+) {
     let alpha_scene = FULL && sc.features & FEAT_ALPHA != 0;
     let packets = sc.bvh.packets();
+    let Work {
+        paths,
+        hits,
+        live,
+        shade,
+        sorted,
+        shadows,
+    } = work;
+    let (paths, hits, live) = (&mut **paths, &mut **hits, &mut **live);
     // With packets, a vertex's shadow rays wait until every group is shaded and go sixteen at
     // a time (neighbouring paths' shadow rays leave from nearby points).
-    let mut shadows = (packets && !alpha_scene).then(ShadowRays::new);
+    let mut shadows = (packets && !alpha_scene).then_some(shadows);
     for ((pixels, samples), out) in pixels
         .chunks(BATCH)
         .zip(samples.chunks(BATCH))
         .zip(out.chunks_mut(BATCH))
     {
-        let mut paths = [Path {
-            pixel: 0,
-            sample: 0,
-            o: Vec3::ZERO,
-            d: Vec3::ZERO,
-            throughput: Vec3::ONE,
-            radiance: Vec3::ZERO,
-            prev_pdf: 0.0,
-            rays: 0,
-        }; BATCH];
-        let mut live = [0u8; BATCH];
         let mut n_live = 0;
         if wall.is_none() && s.camera.ortho_half_y == 0.0 {
             // A pinhole's rays, eight at a time.
@@ -111,10 +204,10 @@ fn batches<const FULL: bool>(
                         sample,
                         o: s.camera.position,
                         d: rays[i],
-                        ..paths[k]
+                        ..Path::START
                     };
                     out[k] = Some((Vec3::ZERO, 0));
-                    live[n_live] = k as u8;
+                    live[n_live] = k as Idx;
                     n_live += 1;
                 }
             }
@@ -140,15 +233,14 @@ fn batches<const FULL: bool>(
                         sample,
                         o,
                         d,
-                        ..paths[k]
+                        ..Path::START
                     };
                     out[k] = Some((Vec3::ZERO, 0));
-                    live[n_live] = k as u8;
+                    live[n_live] = k as Idx;
                     n_live += 1;
                 }
             }
         }
-        let mut hits = [None; BATCH];
         for depth in 0..s.max_depth {
             if n_live == 0 {
                 break;
@@ -172,11 +264,10 @@ fn batches<const FULL: bool>(
                 // (hybrid packets, in AVX-512 or AVX2 lanes); past the camera,
                 // those of one direction octant together (they cross the boxes' planes in one
                 // order).
-                let mut sorted = [0u8; BATCH];
                 let order = if depth == 0 {
                     &live[..n_live]
                 } else {
-                    by_octant(&live[..n_live], |k| paths[k as usize].d, &mut sorted)
+                    by_octant(&live[..n_live], |k| paths[k as usize].d, sorted)
                 };
                 for group in order.chunks(16) {
                     let lane = |i: usize| &paths[group[i.min(group.len() - 1)] as usize];
@@ -206,7 +297,6 @@ fn batches<const FULL: bool>(
                     hits[k as usize] = sc.bvh.closest_hit(path.o, path.d, f32::INFINITY);
                 }
             }
-            let mut shade = [0u8; BATCH];
             let mut n_shade = 0;
             for &k in &live[..n_live] {
                 let path = &mut paths[k as usize];
@@ -231,22 +321,22 @@ fn batches<const FULL: bool>(
             let groups = shade[..n_shade].chunks(8);
             for (group, next) in groups.clone().zip(groups.skip(1).map(Some).chain([None])) {
                 if let Some(next) = next {
-                    prefetch_rows(sc, &hits, next);
+                    prefetch_rows(sc, hits, next);
                 }
                 shade8::<FULL>(
                     sc,
                     s,
                     depth,
                     group,
-                    &hits,
-                    &mut paths,
-                    &mut live,
+                    hits,
+                    paths,
+                    live,
                     &mut n_live,
                     shadows.as_deref_mut(),
                 );
             }
             if let Some(shadows) = &mut shadows {
-                shadows.trace(sc, &mut paths);
+                shadows.trace(sc, paths);
             }
         }
         for (k, out) in out.iter_mut().enumerate() {
@@ -270,29 +360,29 @@ fn batches<const FULL: bool>(
 /// casts one shadow ray a vertex, so each path's sums are the same, in the same order,
 /// whatever order the rays are traced in (by octant, [`by_octant`]).
 struct ShadowRays {
-    path: [u8; BATCH],
-    origin: [Vec3; BATCH],
-    dir: [Vec3; BATCH],
-    tmax: [f32; BATCH],
-    contrib: [Vec3; BATCH],
+    path: Box<[Idx; BATCH]>,
+    origin: Box<[Vec3; BATCH]>,
+    dir: Box<[Vec3; BATCH]>,
+    tmax: Box<[f32; BATCH]>,
+    contrib: Box<[Vec3; BATCH]>,
     len: usize,
 }
 
 impl ShadowRays {
-    fn new() -> Box<Self> {
-        Box::new(Self {
-            path: [0; BATCH],
-            origin: [Vec3::ZERO; BATCH],
-            dir: [Vec3::ZERO; BATCH],
-            tmax: [0.0; BATCH],
-            contrib: [Vec3::ZERO; BATCH],
+    fn new() -> Self {
+        Self {
+            path: boxed(0),
+            origin: boxed(Vec3::ZERO),
+            dir: boxed(Vec3::ZERO),
+            tmax: boxed(0.0),
+            contrib: boxed(Vec3::ZERO),
             len: 0,
-        })
+        }
     }
 
     /// Queues path `path`'s shadow ray (a path casts at most one a vertex).
     #[inline(always)]
-    fn push(&mut self, path: u8, origin: Vec3, dir: Vec3, tmax: f32, contrib: Vec3) {
+    fn push(&mut self, path: Idx, origin: Vec3, dir: Vec3, tmax: f32, contrib: Vec3) {
         let k = self.len;
         (self.path[k], self.origin[k], self.dir[k]) = (path, origin, dir);
         (self.tmax[k], self.contrib[k]) = (tmax, contrib);
@@ -303,9 +393,8 @@ impl ShadowRays {
     /// and empties the queue.
     fn trace(&mut self, sc: &PackedScene, paths: &mut [Path; BATCH]) {
         // Those of one direction octant together, as the bounces.
-        let queued: [u8; BATCH] = std::array::from_fn(|k| k as u8);
-        let mut sorted = [0u8; BATCH];
-        let order = by_octant(&queued[..self.len], |k| self.dir[k as usize], &mut sorted);
+        let mut sorted = [0 as Idx; BATCH];
+        let order = by_octant(&EVERY[..self.len], |k| self.dir[k as usize], &mut sorted);
         for start in (0..self.len).step_by(16) {
             let n = (self.len - start).min(16);
             let at = |i: usize| order[start + i.min(n - 1)] as usize;
@@ -325,8 +414,8 @@ impl ShadowRays {
 /// `items` in the order of their direction's octant (`dir`; which of x, y and z are below
 /// zero), each octant's in their order in `items` (a counting sort), written into `out`.
 #[inline(always)]
-fn by_octant<'a>(items: &[u8], dir: impl Fn(u8) -> Vec3, out: &'a mut [u8; BATCH]) -> &'a [u8] {
-    let octant = |k: u8| {
+fn by_octant<'a>(items: &[Idx], dir: impl Fn(Idx) -> Vec3, out: &'a mut [Idx; BATCH]) -> &'a [Idx] {
+    let octant = |k: Idx| {
         let d = dir(k);
         usize::from(d.x < 0.0) | usize::from(d.y < 0.0) << 1 | usize::from(d.z < 0.0) << 2
     };
@@ -350,7 +439,7 @@ fn by_octant<'a>(items: &[u8], dir: impl Fn(u8) -> Vec3, out: &'a mut [u8; BATCH
 /// they are scattered over the scene's arrays, and their first touch was the shading's largest
 /// stall (BENCHMARKS.md). A hint only: nothing is read, so results cannot change.
 #[inline(always)]
-fn prefetch_rows(sc: &PackedScene, hits: &[Option<TraceHit>; BATCH], group: &[u8]) {
+fn prefetch_rows(sc: &PackedScene, hits: &[Option<TraceHit>; BATCH], group: &[Idx]) {
     #[cfg(not(target_arch = "x86_64"))]
     let _ = (sc, hits, group);
     #[cfg(target_arch = "x86_64")]
@@ -457,10 +546,10 @@ fn shade8<const FULL: bool>(
     sc: &PackedScene,
     s: &TraceSettings,
     depth: u32,
-    group: &[u8],
+    group: &[Idx],
     hits: &[Option<TraceHit>; BATCH],
     paths: &mut [Path; BATCH],
-    live: &mut [u8; BATCH],
+    live: &mut [Idx; BATCH],
     n_live: &mut usize,
     mut shadows: Option<&mut ShadowRays>,
 ) {
@@ -862,7 +951,7 @@ mod tests {
     /// sort's); a zero component, of either sign, counts as not negative.
     #[test]
     fn by_octant_groups_in_order() {
-        let dirs: Vec<Vec3> = (0..200u32)
+        let dirs: Vec<Vec3> = (0..3000u32)
             .map(|k| {
                 let c = |shift: u32| match k.wrapping_mul(2_654_435_761) >> shift & 3 {
                     0 => -1.0,
@@ -873,10 +962,10 @@ mod tests {
                 Vec3::new(c(3), c(9), c(17))
             })
             .collect();
-        let items: Vec<u8> = (0..200).map(|k| (199 - k) as u8).collect();
-        let mut out = [0u8; BATCH];
+        let items: Vec<Idx> = (0..3000).map(|k| (2999 - k) as Idx).collect();
+        let mut out = [0 as Idx; BATCH];
         let order = by_octant(&items, |k| dirs[k as usize], &mut out);
-        let octant = |k: u8| {
+        let octant = |k: Idx| {
             let d = dirs[k as usize];
             (d.x < 0.0) as u8 | ((d.y < 0.0) as u8) << 1 | ((d.z < 0.0) as u8) << 2
         };
@@ -901,7 +990,13 @@ mod tests {
             let scene = Scene::builtin(name).unwrap();
             let sc = PackedScene::new(&scene);
             assert!(sc.plain, "builtin:{name}");
-            let (width, height) = (40, 24);
+            // The first case over a batch's paths, so that a second batch starts from fresh
+            // paths in the same arrays.
+            let (width, height) = if (name, max_depth) == ("cornell-light", 8) {
+                (80, 52)
+            } else {
+                (40, 24)
+            };
             let camera = RenderCamera::choose(&scene, None, width, height).unwrap();
             let s = TraceSettings {
                 width,
@@ -913,6 +1008,7 @@ mod tests {
             // Pixels in an order that is not the image's, some twice with other samples.
             let n = width * height;
             let pixels: Vec<u32> = (0..n + 100).map(|i| (i * 7919) % n).collect();
+            assert!(width != 80 || pixels.len() > BATCH, "two batches");
             let samples: Vec<u32> = (0..n + 100).map(|i| i % 5).collect();
             // Every walk this processor runs: one ray at a time, packets in AVX2, in AVX-512.
             let walks = [CpuPackets::One, CpuPackets::Avx2, CpuPackets::Avx512];
