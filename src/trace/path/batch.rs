@@ -30,7 +30,7 @@ use crate::trace::lanes::{self, V3};
 /// octants after Russian roulette has thinned them, still fill packets of sixteen rays and
 /// groups of eight, few enough that their state (about 450 kB: paths, hits, the shadow queue)
 /// stays in a core's second-level cache. Measured on an Intel Xeon against 256 paths: small
-/// city ×0.94–0.96 per sample, Cornell boxes unchanged (against 64, earlier: ×0.91–1.04;
+/// city ×0.945 per sample, Cornell boxes ×0.96–0.97 (against 64, earlier: ×0.91–1.04;
 /// BENCHMARKS.md). The paths' indices are 16-bit.
 pub(super) const BATCH: usize = 4096;
 const _: () = assert!(BATCH <= 1 << 16, "a path's index is an Idx");
