@@ -734,6 +734,25 @@ fn with_stack<R>(size: usize, f: impl FnOnce(&mut [MaybeUninit<u64>]) -> R) -> R
     }
 }
 
+/// A one-ray walk's traversal stack of at least `size` entries, uninitialised: `local` (on the
+/// walk's own stack) where it is large enough, else `heap` grown to `size`. The walks set it up
+/// with this, not through [`with_stack`]'s closure, which the compiler kept as a function of its
+/// own that read the ray, the bound and the node's index through memory on every node
+/// (measured on an Intel Xeon: ×0.98 on the small city and the Cornell boxes, BENCHMARKS.md).
+#[inline(always)]
+fn traversal_stack<'a>(
+    size: usize,
+    local: &'a mut [MaybeUninit<u64>; INLINE_STACK],
+    heap: &'a mut Vec<MaybeUninit<u64>>,
+) -> &'a mut [MaybeUninit<u64>] {
+    if size <= INLINE_STACK {
+        local
+    } else {
+        heap.resize(size, MaybeUninit::uninit());
+        heap
+    }
+}
+
 /// `entries` as the values they hold.
 ///
 /// # Safety
@@ -962,19 +981,8 @@ impl CpuTree {
         // The nodes' bound: the closest hit's t once there is one (a node entered exactly there
         // is still visited: it may hold an equally near hit on a higher triangle).
         let mut tmax = best.map_or(tmax, |b| b.0);
-        // The stack on this thread's own, or allocated for deeper trees; not through
-        // `with_stack`'s closure, which the compiler kept as a function of its own reading the
-        // ray, the bound and the node's index through memory (measured on an Intel Xeon: ×0.98
-        // on the small city and the Cornell boxes, BENCHMARKS.md).
-        // The stack as in `walk_closest`.
-        let mut local = [MaybeUninit::<u64>::uninit(); INLINE_STACK];
-        let mut heap;
-        let stack: &mut [MaybeUninit<u64>] = if self.stack_size <= INLINE_STACK {
-            &mut local
-        } else {
-            heap = vec![MaybeUninit::uninit(); self.stack_size];
-            &mut heap
-        };
+        let (mut local, mut heap) = ([MaybeUninit::uninit(); INLINE_STACK], Vec::new());
+        let stack = traversal_stack(self.stack_size, &mut local, &mut heap);
         let (mut index, mut len) = (root, 0);
         loop {
             let node = &self.nodes[index];
@@ -1392,14 +1400,8 @@ impl CpuTree {
         tmax: f32,
         covered: &impl Fn(u32, f32, f32) -> bool,
     ) -> bool {
-        let mut local = [MaybeUninit::<u64>::uninit(); INLINE_STACK];
-        let mut heap;
-        let stack: &mut [MaybeUninit<u64>] = if self.stack_size <= INLINE_STACK {
-            &mut local
-        } else {
-            heap = vec![MaybeUninit::uninit(); self.stack_size];
-            &mut heap
-        };
+        let (mut local, mut heap) = ([MaybeUninit::uninit(); INLINE_STACK], Vec::new());
+        let stack = traversal_stack(self.stack_size, &mut local, &mut heap);
         let (mut index, mut len) = (root, 0);
         loop {
             let node = &self.nodes[index];
