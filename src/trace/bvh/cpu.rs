@@ -723,22 +723,12 @@ impl CpuPackets {
     }
 }
 
-/// `f` with a traversal stack of at least `size` entries, uninitialised: the traversals write
-/// an entry before they read it.
-#[inline(always)]
-fn with_stack<R>(size: usize, f: impl FnOnce(&mut [MaybeUninit<u64>]) -> R) -> R {
-    if size <= INLINE_STACK {
-        f(&mut [MaybeUninit::uninit(); INLINE_STACK])
-    } else {
-        f(&mut vec![MaybeUninit::uninit(); size])
-    }
-}
-
-/// A one-ray walk's traversal stack of at least `size` entries, uninitialised: `local` (on the
-/// walk's own stack) where it is large enough, else `heap` grown to `size`. The walks set it up
-/// with this, not through [`with_stack`]'s closure, which the compiler kept as a function of its
-/// own that read the ray, the bound and the node's index through memory on every node
-/// (measured on an Intel Xeon: ×0.98 on the small city and the Cornell boxes, BENCHMARKS.md).
+/// A walk's traversal stack of at least `size` entries, uninitialised (the walks write an entry
+/// before they read it): `local` (on the walk's own stack) where it is large enough, else `heap`
+/// grown to `size`. The walks set it up with this, not through a closure handed the stack, which
+/// the compiler kept as a function of its own that read the ray, the bound and the node's index
+/// through memory on every node (measured on an Intel Xeon: ×0.98 on the small city and the
+/// Cornell boxes, BENCHMARKS.md).
 #[inline(always)]
 fn traversal_stack<'a>(
     size: usize,
@@ -1249,78 +1239,78 @@ impl CpuTree {
         let mut best_prim = u32x8::splat(u32::MAX);
         let mut best_tri = u32x8::ZERO;
         let eps = f32x8::splat(NODE_EPSILON);
-        with_stack(self.stack_size, |stack| {
-            stack[0].write(u64::from(active & 0xff) << 32);
-            let mut len = 1;
-            while len > 0 {
-                len -= 1;
-                // SAFETY: every entry below `len` was written by a push.
-                let e = unsafe { stack[len].assume_init() };
-                let (node, rays) = (&self.nodes[e as u32 as usize], (e >> 32) as u32);
-                let mut children = [(0f32, 0u32, 0u32); 8];
-                let mut n_inner = 0;
-                for c in 0..8 {
-                    let inner = node.imask & (1 << c) != 0;
-                    if !inner && node.count[c] == 0 {
-                        continue;
-                    }
-                    let t = |row: usize, axis: usize, inv: f32x8, oi: f32x8| {
-                        f32x8::splat(node.bounds[2 * axis + row][c]).mul_sub(inv, oi)
-                    };
-                    let (x0, x1) = (t(0, 0, inv.x, oi.x), t(1, 0, inv.x, oi.x));
-                    let (y0, y1) = (t(0, 1, inv.y, oi.y), t(1, 1, inv.y, oi.y));
-                    let (z0, z1) = (t(0, 2, inv.z, oi.z), t(1, 2, inv.z, oi.z));
-                    let t_near = x0
-                        .fast_min(x1)
-                        .fast_max(y0.fast_min(y1))
-                        .fast_max(z0.fast_min(z1).fast_max(eps));
-                    let t_far = x0
-                        .fast_max(x1)
-                        .fast_min(y0.fast_max(y1))
-                        .fast_min(z0.fast_max(z1).fast_min(best_t));
-                    let hit = t_near.simd_le(t_far).to_bitmask() & rays;
-                    if hit == 0 {
-                        continue;
-                    }
-                    if inner {
-                        let entry = t_near.to_array()[hit.trailing_zeros() as usize];
-                        children[n_inner] = (entry, node.child[c], hit);
-                        n_inner += 1;
-                        continue;
-                    }
-                    // The leaf's triangles against its rays.
-                    let want = lanes_of(hit);
-                    let first = node.child[c];
-                    for prim in first..first + u32::from(node.count[c]) {
-                        let found_u = best_prim.simd_ne(u32x8::splat(u32::MAX));
-                        let found: f32x8 = bytemuck::cast(found_u);
-                        let next_up: f32x8 =
-                            bytemuck::cast(bytemuck::cast::<_, u32x8>(best_t) + u32x8::ONE);
-                        let bound = found.select(next_up, f32x8::INFINITY);
-                        let (h, t, u, v) = self.test_rays(prim as usize, o, d, bound);
-                        let p = u32x8::splat(prim);
-                        let tri = u32x8::splat(self.lanes.triangle[prim as usize]);
-                        let tie: f32x8 = bytemuck::cast(tri.simd_gt(best_tri) | !found_u);
-                        let take = want & h & (t.simd_lt(best_t) | (t.simd_eq(best_t) & tie));
-                        if take.any() {
-                            best_t = take.select(t, best_t);
-                            best_u = take.select(u, best_u);
-                            best_v = take.select(v, best_v);
-                            let take: u32x8 = bytemuck::cast(take);
-                            best_prim = take.select(p, best_prim);
-                            best_tri = take.select(tri, best_tri);
-                        }
-                    }
+        let (mut local, mut heap) = ([MaybeUninit::uninit(); INLINE_STACK], Vec::new());
+        let stack = traversal_stack(self.stack_size, &mut local, &mut heap);
+        stack[0].write(u64::from(active & 0xff) << 32);
+        let mut len = 1;
+        while len > 0 {
+            len -= 1;
+            // SAFETY: every entry below `len` was written by a push.
+            let e = unsafe { stack[len].assume_init() };
+            let (node, rays) = (&self.nodes[e as u32 as usize], (e >> 32) as u32);
+            let mut children = [(0f32, 0u32, 0u32); 8];
+            let mut n_inner = 0;
+            for c in 0..8 {
+                let inner = node.imask & (1 << c) != 0;
+                if !inner && node.count[c] == 0 {
+                    continue;
                 }
-                // The inner children, the nearest on top.
-                let children = &mut children[..n_inner];
-                children.sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
-                for &(_, index, rays) in children.iter() {
-                    stack[len].write((u64::from(rays) << 32) | u64::from(index));
-                    len += 1;
+                let t = |row: usize, axis: usize, inv: f32x8, oi: f32x8| {
+                    f32x8::splat(node.bounds[2 * axis + row][c]).mul_sub(inv, oi)
+                };
+                let (x0, x1) = (t(0, 0, inv.x, oi.x), t(1, 0, inv.x, oi.x));
+                let (y0, y1) = (t(0, 1, inv.y, oi.y), t(1, 1, inv.y, oi.y));
+                let (z0, z1) = (t(0, 2, inv.z, oi.z), t(1, 2, inv.z, oi.z));
+                let t_near = x0
+                    .fast_min(x1)
+                    .fast_max(y0.fast_min(y1))
+                    .fast_max(z0.fast_min(z1).fast_max(eps));
+                let t_far = x0
+                    .fast_max(x1)
+                    .fast_min(y0.fast_max(y1))
+                    .fast_min(z0.fast_max(z1).fast_min(best_t));
+                let hit = t_near.simd_le(t_far).to_bitmask() & rays;
+                if hit == 0 {
+                    continue;
+                }
+                if inner {
+                    let entry = t_near.to_array()[hit.trailing_zeros() as usize];
+                    children[n_inner] = (entry, node.child[c], hit);
+                    n_inner += 1;
+                    continue;
+                }
+                // The leaf's triangles against its rays.
+                let want = lanes_of(hit);
+                let first = node.child[c];
+                for prim in first..first + u32::from(node.count[c]) {
+                    let found_u = best_prim.simd_ne(u32x8::splat(u32::MAX));
+                    let found: f32x8 = bytemuck::cast(found_u);
+                    let next_up: f32x8 =
+                        bytemuck::cast(bytemuck::cast::<_, u32x8>(best_t) + u32x8::ONE);
+                    let bound = found.select(next_up, f32x8::INFINITY);
+                    let (h, t, u, v) = self.test_rays(prim as usize, o, d, bound);
+                    let p = u32x8::splat(prim);
+                    let tri = u32x8::splat(self.lanes.triangle[prim as usize]);
+                    let tie: f32x8 = bytemuck::cast(tri.simd_gt(best_tri) | !found_u);
+                    let take = want & h & (t.simd_lt(best_t) | (t.simd_eq(best_t) & tie));
+                    if take.any() {
+                        best_t = take.select(t, best_t);
+                        best_u = take.select(u, best_u);
+                        best_v = take.select(v, best_v);
+                        let take: u32x8 = bytemuck::cast(take);
+                        best_prim = take.select(p, best_prim);
+                        best_tri = take.select(tri, best_tri);
+                    }
                 }
             }
-        });
+            // The inner children, the nearest on top.
+            let children = &mut children[..n_inner];
+            children.sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
+            for &(_, index, rays) in children.iter() {
+                stack[len].write((u64::from(rays) << 32) | u64::from(index));
+                len += 1;
+            }
+        }
         let (t, u, v, prim) = (
             best_t.to_array(),
             best_u.to_array(),
