@@ -1,6 +1,11 @@
-//! The shading functions of `shading.rs` (and the random numbers of `random.rs`) for eight
-//! paths at once: the CPU twin's integrator shades its paths in groups of eight AVX2 lanes
-//! (`path.rs`, [`super::path`]'s batches), the way Mitsuba's LLVM backend runs its wavefronts.
+//! The shading functions of `shading.rs` (and the random numbers of `random.rs`) for
+//! [`LANES`] paths at once: the CPU twin's integrator shades its paths in groups of sixteen
+//! lanes (`path.rs`, [`super::path`]'s batches), the way Mitsuba's LLVM backend runs its
+//! wavefronts. `wide`'s sixteen-lane types are a pair of AVX2 registers in this build (AVX-512 is
+//! not part of the x86-64 target raygun is built for): two independent operations each step,
+//! which the cores overlap. Measured on an Intel Xeon against groups of eight (two runs side by
+//! side): ms per sample ×0.975–0.977 on the small city, ×0.965–0.981 on the Cornell boxes
+//! (BENCHMARKS.md).
 //!
 //! Every function here is its scalar twin step for step: the same IEEE operations in the same
 //! order (no FMA in this build; branches become per-lane selects, both sides computed), so that
@@ -12,136 +17,28 @@
 use std::f32::consts::PI;
 
 use glam::Vec3;
-use wide::{f32x8, i32x8, u32x8};
+use wide::f32x8;
+
+/// The paths shaded at once, a lane each.
+pub const LANES: usize = 16;
+
+/// [`LANES`] lanes of `f32`, of `i32` and of `u32`.
+pub type F = wide::f32x16;
+pub type I = wide::i32x16;
+pub type U = wide::u32x16;
 
 use super::shading::{COS_POLY, SIN_POLY};
 
-/// Eight `Vec3`s, a lane each.
-#[derive(Clone, Copy, Debug)]
-pub struct V3 {
-    pub x: f32x8,
-    pub y: f32x8,
-    pub z: f32x8,
-}
-
-/// `if a > b { a } else { b }` per lane (glam's `max_element` and the x86 `maxps`).
-#[inline(always)]
-fn greater(a: f32x8, b: f32x8) -> f32x8 {
-    a.simd_gt(b).select(a, b)
-}
-
-impl V3 {
-    pub const ZERO: Self = Self {
-        x: f32x8::ZERO,
-        y: f32x8::ZERO,
-        z: f32x8::ZERO,
-    };
-
-    #[inline(always)]
-    #[must_use]
-    pub fn splat(v: Vec3) -> Self {
-        Self {
-            x: f32x8::splat(v.x),
-            y: f32x8::splat(v.y),
-            z: f32x8::splat(v.z),
-        }
-    }
-
-    /// The lanes from eight vectors.
-    #[inline(always)]
-    #[must_use]
-    pub fn from_lanes(v: &[Vec3; 8]) -> Self {
-        Self {
-            x: f32x8::from(v.map(|v| v.x)),
-            y: f32x8::from(v.map(|v| v.y)),
-            z: f32x8::from(v.map(|v| v.z)),
-        }
-    }
-
-    /// The eight vectors.
-    #[inline(always)]
-    #[must_use]
-    pub fn lanes(self) -> [Vec3; 8] {
-        let (x, y, z) = (self.x.to_array(), self.y.to_array(), self.z.to_array());
-        std::array::from_fn(|i| Vec3::new(x[i], y[i], z[i]))
-    }
-
-    #[inline(always)]
-    #[must_use]
-    pub fn dot(self, o: Self) -> f32x8 {
-        (self.x * o.x) + (self.y * o.y) + (self.z * o.z)
-    }
-
-    #[inline(always)]
-    #[must_use]
-    pub fn cross(self, o: Self) -> Self {
-        Self {
-            x: self.y * o.z - o.y * self.z,
-            y: self.z * o.x - o.z * self.x,
-            z: self.x * o.y - o.x * self.y,
-        }
-    }
-
-    #[inline(always)]
-    #[must_use]
-    pub fn length_squared(self) -> f32x8 {
-        self.dot(self)
-    }
-
-    #[inline(always)]
-    #[must_use]
-    pub fn length(self) -> f32x8 {
-        self.dot(self).sqrt()
-    }
-
-    /// glam's `normalize`: times `1 / length`.
-    #[inline(always)]
-    #[must_use]
-    pub fn normalize(self) -> Self {
-        self * (f32x8::ONE / self.length())
-    }
-
-    /// The lanes of `a` where `mask` is set, of `b` elsewhere.
-    #[inline(always)]
-    #[must_use]
-    pub fn select(mask: f32x8, a: Self, b: Self) -> Self {
-        Self {
-            x: mask.select(a.x, b.x),
-            y: mask.select(a.y, b.y),
-            z: mask.select(a.z, b.z),
-        }
-    }
-
-    /// glam's `is_finite`, as a lane mask.
-    #[inline(always)]
-    #[must_use]
-    pub fn is_finite(self) -> f32x8 {
-        self.x.is_finite() & self.y.is_finite() & self.z.is_finite()
-    }
-
-    /// Lanes where any component is not zero (glam's `v != Vec3::ZERO`; NaN is not zero).
-    #[inline(always)]
-    #[must_use]
-    pub fn nonzero(self) -> f32x8 {
-        self.x.simd_ne(f32x8::ZERO) | self.y.simd_ne(f32x8::ZERO) | self.z.simd_ne(f32x8::ZERO)
-    }
-
-    /// glam's `max_element`.
-    #[inline(always)]
-    #[must_use]
-    pub fn max_element(self) -> f32x8 {
-        greater(greater(self.x, self.y), self.z)
-    }
-}
-
+/// `$v`'s operator `$trait` (`$f`) with a right-hand side of type `$rhs`, component by
+/// component as glam's `Vec3` operators.
 macro_rules! v3_operator {
-    ($trait:ident, $f:ident, $rhs:ty, |$a:ident, $b:ident| $x:expr, $y:expr, $z:expr) => {
-        impl std::ops::$trait<$rhs> for V3 {
-            type Output = V3;
+    ($v:ident, $trait:ident, $f:ident, $rhs:ty, |$a:ident, $b:ident| $x:expr, $y:expr, $z:expr) => {
+        impl std::ops::$trait<$rhs> for $v {
+            type Output = $v;
             #[inline(always)]
-            fn $f(self, $b: $rhs) -> V3 {
+            fn $f(self, $b: $rhs) -> $v {
                 let $a = self;
-                V3 {
+                $v {
                     x: $x,
                     y: $y,
                     z: $z,
@@ -151,44 +48,175 @@ macro_rules! v3_operator {
     };
 }
 
-// Component by component, as glam's `Vec3` operators.
-v3_operator!(Add, add, V3, |a, b| a.x + b.x, a.y + b.y, a.z + b.z);
-v3_operator!(Sub, sub, V3, |a, b| a.x - b.x, a.y - b.y, a.z - b.z);
-v3_operator!(Mul, mul, V3, |a, b| a.x * b.x, a.y * b.y, a.z * b.z);
-v3_operator!(Mul, mul, f32x8, |a, s| a.x * s, a.y * s, a.z * s);
-v3_operator!(Div, div, f32x8, |a, s| a.x / s, a.y / s, a.z / s);
-
-impl std::ops::Neg for V3 {
-    type Output = V3;
-    #[inline(always)]
-    fn neg(self) -> V3 {
-        V3 {
-            x: -self.x,
-            y: -self.y,
-            z: -self.z,
+/// A type of `Vec3`s in lanes, `$n` lanes of `$f`: glam's arithmetic lane by lane (the same
+/// operations, so the same bits) and its operators.
+macro_rules! vec3_lanes {
+    ($(#[$doc:meta])* $v3:ident, $f:ident, $n:expr) => {
+        $(#[$doc])*
+        #[derive(Clone, Copy, Debug)]
+        pub struct $v3 {
+            pub x: $f,
+            pub y: $f,
+            pub z: $f,
         }
-    }
+
+        impl $v3 {
+            pub const ZERO: Self = Self {
+                x: $f::ZERO,
+                y: $f::ZERO,
+                z: $f::ZERO,
+            };
+
+            #[inline(always)]
+            #[must_use]
+            pub fn splat(v: Vec3) -> Self {
+                Self {
+                    x: $f::splat(v.x),
+                    y: $f::splat(v.y),
+                    z: $f::splat(v.z),
+                }
+            }
+
+            /// The lanes from a vector each.
+            #[inline(always)]
+            #[must_use]
+            pub fn from_lanes(v: &[Vec3; $n]) -> Self {
+                Self {
+                    x: $f::from(v.map(|v| v.x)),
+                    y: $f::from(v.map(|v| v.y)),
+                    z: $f::from(v.map(|v| v.z)),
+                }
+            }
+
+            /// The vectors, a lane each.
+            #[inline(always)]
+            #[must_use]
+            pub fn lanes(self) -> [Vec3; $n] {
+                let (x, y, z) = (self.x.to_array(), self.y.to_array(), self.z.to_array());
+                std::array::from_fn(|i| Vec3::new(x[i], y[i], z[i]))
+            }
+
+            #[inline(always)]
+            #[must_use]
+            pub fn dot(self, o: Self) -> $f {
+                (self.x * o.x) + (self.y * o.y) + (self.z * o.z)
+            }
+
+            #[inline(always)]
+            #[must_use]
+            pub fn cross(self, o: Self) -> Self {
+                Self {
+                    x: self.y * o.z - o.y * self.z,
+                    y: self.z * o.x - o.z * self.x,
+                    z: self.x * o.y - o.x * self.y,
+                }
+            }
+
+            #[inline(always)]
+            #[must_use]
+            pub fn length_squared(self) -> $f {
+                self.dot(self)
+            }
+
+            #[inline(always)]
+            #[must_use]
+            pub fn length(self) -> $f {
+                self.dot(self).sqrt()
+            }
+
+            /// glam's `normalize`: times `1 / length`.
+            #[inline(always)]
+            #[must_use]
+            pub fn normalize(self) -> Self {
+                self * ($f::ONE / self.length())
+            }
+
+            /// The lanes of `a` where `mask` is set, of `b` elsewhere.
+            #[inline(always)]
+            #[must_use]
+            pub fn select(mask: $f, a: Self, b: Self) -> Self {
+                Self {
+                    x: mask.select(a.x, b.x),
+                    y: mask.select(a.y, b.y),
+                    z: mask.select(a.z, b.z),
+                }
+            }
+
+            /// glam's `is_finite`, as a lane mask.
+            #[inline(always)]
+            #[must_use]
+            pub fn is_finite(self) -> $f {
+                self.x.is_finite() & self.y.is_finite() & self.z.is_finite()
+            }
+
+            /// Lanes where any component is not zero (glam's `v != Vec3::ZERO`; NaN is not zero).
+            #[inline(always)]
+            #[must_use]
+            pub fn nonzero(self) -> $f {
+                self.x.simd_ne($f::ZERO) | self.y.simd_ne($f::ZERO) | self.z.simd_ne($f::ZERO)
+            }
+
+            /// glam's `max_element`.
+            #[inline(always)]
+            #[must_use]
+            pub fn max_element(self) -> $f {
+                // `if a > b { a } else { b }` per lane (glam's `max_element` and the x86 `maxps`).
+                let greater = |a: $f, b: $f| a.simd_gt(b).select(a, b);
+                greater(greater(self.x, self.y), self.z)
+            }
+        }
+
+        v3_operator!($v3, Add, add, $v3, |a, b| a.x + b.x, a.y + b.y, a.z + b.z);
+        v3_operator!($v3, Sub, sub, $v3, |a, b| a.x - b.x, a.y - b.y, a.z - b.z);
+        v3_operator!($v3, Mul, mul, $v3, |a, b| a.x * b.x, a.y * b.y, a.z * b.z);
+        v3_operator!($v3, Mul, mul, $f, |a, s| a.x * s, a.y * s, a.z * s);
+        v3_operator!($v3, Div, div, $f, |a, s| a.x / s, a.y / s, a.z / s);
+
+        impl std::ops::Neg for $v3 {
+            type Output = $v3;
+            #[inline(always)]
+            fn neg(self) -> $v3 {
+                $v3 {
+                    x: -self.x,
+                    y: -self.y,
+                    z: -self.z,
+                }
+            }
+        }
+    };
 }
+
+vec3_lanes!(
+    /// [`LANES`] `Vec3`s, a lane each: the shading's.
+    V3,
+    F,
+    LANES
+);
+
+vec3_lanes!(
+    /// Eight `Vec3`s, a lane each: the rays of the CPU tree's eight-ray camera packets.
+    V3x8,
+    f32x8,
+    8
+);
 
 /// [`super::shading::sin_cos_turns`] in lanes.
 #[inline(always)]
 #[must_use]
-pub fn sin_cos_turns(v: f32x8) -> (f32x8, f32x8) {
-    let q = (v * f32x8::splat(4.0) + f32x8::splat(0.5)).floor();
-    let x = (v - q * f32x8::splat(0.25)) * f32x8::splat(2.0 * PI);
+pub fn sin_cos_turns(v: F) -> (F, F) {
+    let q = (v * F::splat(4.0) + F::splat(0.5)).floor();
+    let x = (v - q * F::splat(0.25)) * F::splat(2.0 * PI);
     let z = x * x;
-    let [s0, s1, s2] = SIN_POLY.map(f32x8::splat);
-    let [c0, c1, c2] = COS_POLY.map(f32x8::splat);
+    let [s0, s1, s2] = SIN_POLY.map(F::splat);
+    let [c0, c1, c2] = COS_POLY.map(F::splat);
     let s = x + x * z * (s0 + z * (s1 + z * s2));
-    let c = f32x8::ONE - f32x8::splat(0.5) * z + z * z * (c0 + z * (c1 + z * c2));
-    let quarter = q.trunc_int() & i32x8::splat(3);
-    let bit =
-        |b: i32| -> f32x8 { bytemuck::cast((quarter & i32x8::splat(b)).simd_ne(i32x8::ZERO)) };
+    let c = F::ONE - F::splat(0.5) * z + z * z * (c0 + z * (c1 + z * c2));
+    let quarter = q.trunc_int() & I::splat(3);
+    let bit = |b: i32| -> F { bytemuck::cast((quarter & I::splat(b)).simd_ne(I::ZERO)) };
     let swap = bit(1);
     let (s, c) = (swap.select(c, s), swap.select(s, c));
     let sin = bit(2).select(-s, s);
-    let one_or_two: f32x8 =
-        bytemuck::cast(quarter.simd_eq(i32x8::splat(1)) | quarter.simd_eq(i32x8::splat(2)));
+    let one_or_two: F = bytemuck::cast(quarter.simd_eq(I::splat(1)) | quarter.simd_eq(I::splat(2)));
     let cos = one_or_two.select(-c, c);
     (sin, cos)
 }
@@ -197,14 +225,12 @@ pub fn sin_cos_turns(v: f32x8) -> (f32x8, f32x8) {
 #[inline(always)]
 #[must_use]
 pub fn basis(n: V3) -> (V3, V3) {
-    let sign =
-        n.z.simd_ge(f32x8::ZERO)
-            .select(f32x8::ONE, f32x8::splat(-1.0));
-    let a = f32x8::splat(-1.0) / (sign + n.z);
+    let sign = n.z.simd_ge(F::ZERO).select(F::ONE, F::splat(-1.0));
+    let a = F::splat(-1.0) / (sign + n.z);
     let b = n.x * n.y * a;
     (
         V3 {
-            x: f32x8::ONE + sign * n.x * n.x * a,
+            x: F::ONE + sign * n.x * n.x * a,
             y: sign * b,
             z: -sign * n.x,
         },
@@ -220,13 +246,13 @@ pub fn basis(n: V3) -> (V3, V3) {
 #[inline(always)]
 #[must_use]
 pub fn offset_ray(p: V3, n: V3) -> V3 {
-    let one = |p: f32x8, n: f32x8| {
-        let of = (f32x8::splat(256.0) * n).trunc_int();
-        let of = p.simd_lt(f32x8::ZERO).select(-of, of);
-        let bits: i32x8 = bytemuck::cast(p);
-        let pi: f32x8 = bytemuck::cast(bits + of);
-        let near = p.abs().simd_lt(f32x8::splat(1.0 / 32.0));
-        near.select(p + f32x8::splat(1.0 / 65536.0) * n, pi)
+    let one = |p: F, n: F| {
+        let of = (F::splat(256.0) * n).trunc_int();
+        let of = p.simd_lt(F::ZERO).select(-of, of);
+        let bits: I = bytemuck::cast(p);
+        let pi: F = bytemuck::cast(bits + of);
+        let near = p.abs().simd_lt(F::splat(1.0 / 32.0));
+        near.select(p + F::splat(1.0 / 65536.0) * n, pi)
     };
     V3 {
         x: one(p.x, n.x),
@@ -238,22 +264,22 @@ pub fn offset_ray(p: V3, n: V3) -> V3 {
 /// [`super::shading::cosine_hemisphere`] in lanes.
 #[inline(always)]
 #[must_use]
-pub fn cosine_hemisphere(u: f32x8, v: f32x8) -> V3 {
+pub fn cosine_hemisphere(u: F, v: F) -> V3 {
     let r = u.sqrt();
     let (sin, cos) = sin_cos_turns(v);
     V3 {
         x: r * cos,
         y: r * sin,
-        z: (f32x8::ONE - u).max(f32x8::ZERO).sqrt(),
+        z: (F::ONE - u).max(F::ZERO).sqrt(),
     }
 }
 
 /// [`super::shading::uniform_sphere`] in lanes.
 #[inline(always)]
 #[must_use]
-pub fn uniform_sphere(u: f32x8, v: f32x8) -> V3 {
-    let z = f32x8::ONE - f32x8::splat(2.0) * u;
-    let r = (f32x8::ONE - z * z).max(f32x8::ZERO).sqrt();
+pub fn uniform_sphere(u: F, v: F) -> V3 {
+    let z = F::ONE - F::splat(2.0) * u;
+    let r = (F::ONE - z * z).max(F::ZERO).sqrt();
     let (sin, cos) = sin_cos_turns(v);
     V3 {
         x: r * cos,
@@ -265,8 +291,8 @@ pub fn uniform_sphere(u: f32x8, v: f32x8) -> V3 {
 /// [`crate::random::pcg4d`] in lanes.
 #[inline(always)]
 #[must_use]
-pub fn pcg4d(v: [u32x8; 4]) -> [u32x8; 4] {
-    let mut v = v.map(|x| x * u32x8::splat(1_664_525) + u32x8::splat(1_013_904_223));
+pub fn pcg4d(v: [U; 4]) -> [U; 4] {
+    let mut v = v.map(|x| x * U::splat(1_664_525) + U::splat(1_013_904_223));
     mix(&mut v);
     for x in &mut v {
         *x ^= *x >> 16;
@@ -276,7 +302,7 @@ pub fn pcg4d(v: [u32x8; 4]) -> [u32x8; 4] {
 }
 
 #[inline(always)]
-fn mix(v: &mut [u32x8; 4]) {
+fn mix(v: &mut [U; 4]) {
     v[0] += v[1] * v[3];
     v[1] += v[2] * v[0];
     v[2] += v[0] * v[1];
@@ -286,47 +312,45 @@ fn mix(v: &mut [u32x8; 4]) {
 /// [`crate::random::unit_f32`] in lanes.
 #[inline(always)]
 #[must_use]
-pub fn unit_f32(x: u32x8) -> f32x8 {
-    let top: i32x8 = bytemuck::cast(x >> 8);
-    f32x8::from_i32x8(top) * f32x8::splat(1.0 / 16_777_216.0)
+pub fn unit_f32(x: U) -> F {
+    let top: I = bytemuck::cast(x >> 8);
+    F::from_i32x16(top) * F::splat(1.0 / 16_777_216.0)
 }
 
 /// The power heuristic (β = 2) of `path.rs` in lanes.
 #[inline(always)]
 #[must_use]
-pub fn mis(a: f32x8, b: f32x8) -> f32x8 {
+pub fn mis(a: F, b: F) -> F {
     let (a2, b2) = (a * a, b * b);
-    (a2 + b2)
-        .simd_gt(f32x8::ZERO)
-        .select(a2 / (a2 + b2), f32x8::ZERO)
+    (a2 + b2).simd_gt(F::ZERO).select(a2 / (a2 + b2), F::ZERO)
 }
 
 /// [`super::shading::Bsdf`] in lanes.
 #[derive(Clone, Copy, Debug)]
 pub struct Bsdf {
     pub base: V3,
-    pub metallic: f32x8,
-    pub alpha: f32x8,
-    pub specular: f32x8,
+    pub metallic: F,
+    pub alpha: F,
+    pub specular: F,
 }
 
 #[inline(always)]
-fn pow5(x: f32x8) -> f32x8 {
+fn pow5(x: F) -> F {
     let x2 = x * x;
     x2 * x2 * x
 }
 
 #[inline(always)]
-fn lum(c: V3) -> f32x8 {
-    f32x8::splat(0.2126) * c.x + f32x8::splat(0.7152) * c.y + f32x8::splat(0.0722) * c.z
+fn lum(c: V3) -> F {
+    F::splat(0.2126) * c.x + F::splat(0.7152) * c.y + F::splat(0.0722) * c.z
 }
 
 impl Bsdf {
     #[inline(always)]
-    fn fresnel(&self, c: f32x8) -> (f32x8, V3) {
-        let k = pow5((f32x8::ONE - c).max(f32x8::ZERO));
+    fn fresnel(&self, c: F) -> (F, V3) {
+        let k = pow5((F::ONE - c).max(F::ZERO));
         let s = self.specular;
-        let fd = f32x8::splat(0.04) * s + (s - f32x8::splat(0.04) * s) * k;
+        let fd = F::splat(0.04) * s + (s - F::splat(0.04) * s) * k;
         let fm = self.base + (V3::splat(Vec3::ONE) - self.base) * k;
         let fdv = V3 {
             x: fd,
@@ -339,52 +363,51 @@ impl Bsdf {
     /// Lanes that are pure Lambertian with lobe probability `ps` 0 (`is_lambert`).
     #[inline(always)]
     #[must_use]
-    pub fn lambert(&self, ps: f32x8) -> f32x8 {
-        self.specular.simd_eq(f32x8::ZERO)
-            & self.metallic.simd_eq(f32x8::ZERO)
-            & ps.simd_eq(f32x8::ZERO)
+    pub fn lambert(&self, ps: F) -> F {
+        self.specular.simd_eq(F::ZERO)
+            & self.metallic.simd_eq(F::ZERO)
+            & ps.simd_eq(F::ZERO)
             & self.base.is_finite()
     }
 
     #[inline(always)]
     #[must_use]
-    pub fn specular_probability(&self, cos_o: f32x8) -> f32x8 {
+    pub fn specular_probability(&self, cos_o: F) -> F {
         let (fd, f) = self.fresnel(cos_o);
         let ws = lum(f);
-        let wd = lum(self.base) * (f32x8::ONE - self.metallic) * (f32x8::ONE - fd);
+        let wd = lum(self.base) * (F::ONE - self.metallic) * (F::ONE - fd);
         (ws + wd)
-            .simd_gt(f32x8::ZERO)
-            .select(ws / (ws + wd), f32x8::splat(0.5))
+            .simd_gt(F::ZERO)
+            .select(ws / (ws + wd), F::splat(0.5))
     }
 
     /// `Bsdf::eval_with`; the GGX terms only when some lane needs them.
     #[inline(always)]
     #[must_use]
-    pub fn eval_with(&self, ps: f32x8, n: V3, wo: V3, wi: V3) -> (V3, f32x8) {
+    pub fn eval_with(&self, ps: F, n: V3, wo: V3, wi: V3) -> (V3, F) {
         let cos_o = n.dot(wo);
         let cos_i = n.dot(wi);
-        let below = cos_o.simd_le(f32x8::ZERO) | cos_i.simd_le(f32x8::ZERO);
+        let below = cos_o.simd_le(F::ZERO) | cos_i.simd_le(F::ZERO);
         let lambert = self.lambert(ps);
-        let lambert_value = self.base * f32x8::splat(1.0 / PI);
-        let lambert_pdf = cos_i / f32x8::splat(PI);
+        let lambert_value = self.base * F::splat(1.0 / PI);
+        let lambert_pdf = cos_i / F::splat(PI);
         let (value, pdf) = if lambert.all() {
             (lambert_value, lambert_pdf)
         } else {
             let h = (wo + wi).normalize();
-            let noh = n.dot(h).max(f32x8::ZERO);
-            let voh = wo.dot(h).max(f32x8::splat(1e-7));
+            let noh = n.dot(h).max(F::ZERO);
+            let voh = wo.dot(h).max(F::splat(1e-7));
             let (fd, fresnel) = self.fresnel(voh);
             let a2 = self.alpha * self.alpha;
-            let one = f32x8::ONE;
+            let one = F::ONE;
             let dd = noh * noh * (a2 - one) + one;
-            let d = a2 / (f32x8::splat(PI) * dd * dd);
-            let vis = f32x8::splat(0.5)
+            let d = a2 / (F::splat(PI) * dd * dd);
+            let vis = F::splat(0.5)
                 / (cos_i * (cos_o * cos_o * (one - a2) + a2).sqrt()
                     + cos_o * (cos_i * cos_i * (one - a2) + a2).sqrt());
             let spec = fresnel * (d * vis);
-            let diff = self.base * ((one - self.metallic) * (one - fd) / f32x8::splat(PI));
-            let pdf =
-                ps * d * noh / (f32x8::splat(4.0) * voh) + (one - ps) * cos_i / f32x8::splat(PI);
+            let diff = self.base * ((one - self.metallic) * (one - fd) / F::splat(PI));
+            let pdf = ps * d * noh / (F::splat(4.0) * voh) + (one - ps) * cos_i / F::splat(PI);
             (
                 V3::select(lambert, lambert_value, diff + spec),
                 lambert.select(lambert_pdf, pdf),
@@ -392,14 +415,14 @@ impl Bsdf {
         };
         (
             V3::select(below, V3::ZERO, value),
-            below.select(f32x8::ZERO, pdf),
+            below.select(F::ZERO, pdf),
         )
     }
 
     /// `Bsdf::sample_with`; the GGX lobe only when some lane picks it.
     #[inline(always)]
     #[must_use]
-    pub fn sample_with(&self, ps: f32x8, n: V3, wo: V3, u_lobe: f32x8, u: f32x8, v: f32x8) -> V3 {
+    pub fn sample_with(&self, ps: F, n: V3, wo: V3, u_lobe: F, u: F, v: F) -> V3 {
         let (t, b) = basis(n);
         let l = cosine_hemisphere(u, v);
         let diffuse = t * l.x + b * l.y + n * l.z;
@@ -407,13 +430,13 @@ impl Bsdf {
         if !specular.any() {
             return diffuse;
         }
-        let one = f32x8::ONE;
+        let one = F::ONE;
         let a2 = self.alpha * self.alpha;
-        let cos_h = ((one - u) / (one + (a2 - one) * u)).max(f32x8::ZERO).sqrt();
-        let sin_h = (one - cos_h * cos_h).max(f32x8::ZERO).sqrt();
+        let cos_h = ((one - u) / (one + (a2 - one) * u)).max(F::ZERO).sqrt();
+        let sin_h = (one - cos_h * cos_h).max(F::ZERO).sqrt();
         let (sin, cos) = sin_cos_turns(v);
         let h = t * (sin_h * cos) + b * (sin_h * sin) + n * cos_h;
-        let reflected = h * (f32x8::splat(2.0) * wo.dot(h)) - wo;
+        let reflected = h * (F::splat(2.0) * wo.dot(h)) - wo;
         V3::select(specular, reflected, diffuse)
     }
 }
@@ -428,8 +451,8 @@ mod tests {
         v.to_array().map(f32::to_bits)
     }
 
-    /// Uniform numbers and unit vectors, eight lanes at a time.
-    fn numbers(seed: u32) -> impl FnMut() -> [f32; 8] {
+    /// Uniform numbers and unit vectors, [`LANES`] lanes at a time.
+    fn numbers(seed: u32) -> impl FnMut() -> [f32; LANES] {
         let mut k = 0u32;
         move || {
             k += 1;
@@ -437,7 +460,7 @@ mod tests {
         }
     }
 
-    fn unit(mut r: impl FnMut() -> [f32; 8]) -> [Vec3; 8] {
+    fn unit(mut r: impl FnMut() -> [f32; LANES]) -> [Vec3; LANES] {
         let (a, b) = (r(), r());
         std::array::from_fn(|i| shading::uniform_sphere(a[i], b[i]))
     }
@@ -448,9 +471,9 @@ mod tests {
         let mut r = numbers(1);
         for round in 0..2000 {
             let (u, v, w) = (r(), r(), r());
-            let (s, c) = sin_cos_turns(f32x8::from(v));
+            let (s, c) = sin_cos_turns(F::from(v));
             let (s, c) = (s.to_array(), c.to_array());
-            for i in 0..8 {
+            for i in 0..LANES {
                 let (ss, cc) = shading::sin_cos_turns(v[i]);
                 assert_eq!(
                     (s[i].to_bits(), c[i].to_bits()),
@@ -461,27 +484,27 @@ mod tests {
             }
             let n = unit(&mut r);
             let (t, b) = basis(V3::from_lanes(&n));
-            let p: [Vec3; 8] = std::array::from_fn(|i| {
+            let p: [Vec3; LANES] = std::array::from_fn(|i| {
                 (Vec3::new(u[i], v[i], w[i]) - 0.5) * if round % 2 == 0 { 0.01 } else { 300.0 }
             });
             let off = offset_ray(V3::from_lanes(&p), V3::from_lanes(&n)).lanes();
-            let hemi = cosine_hemisphere(f32x8::from(u), f32x8::from(v)).lanes();
-            let sphere = uniform_sphere(f32x8::from(u), f32x8::from(w)).lanes();
+            let hemi = cosine_hemisphere(F::from(u), F::from(v)).lanes();
+            let sphere = uniform_sphere(F::from(u), F::from(w)).lanes();
             let (t, b) = (t.lanes(), b.lanes());
-            for i in 0..8 {
+            for i in 0..LANES {
                 let (ts, bs) = shading::basis(n[i]);
                 assert_eq!((bits(t[i]), bits(b[i])), (bits(ts), bits(bs)));
                 assert_eq!(bits(off[i]), bits(shading::offset_ray(p[i], n[i])));
                 assert_eq!(bits(hemi[i]), bits(shading::cosine_hemisphere(u[i], v[i])));
                 assert_eq!(bits(sphere[i]), bits(shading::uniform_sphere(u[i], w[i])));
             }
-            let keys: [[u32; 8]; 4] = std::array::from_fn(|k| {
+            let keys: [[u32; LANES]; 4] = std::array::from_fn(|k| {
                 std::array::from_fn(|i| {
-                    (round * 8 + i as u32).wrapping_mul(2_654_435_761) ^ k as u32
+                    (round * LANES as u32 + i as u32).wrapping_mul(2_654_435_761) ^ k as u32
                 })
             });
-            let lanes = pcg4d(keys.map(u32x8::from)).map(|x| unit_f32(x).to_array());
-            for i in 0..8 {
+            let lanes = pcg4d(keys.map(U::from)).map(|x| unit_f32(x).to_array());
+            for i in 0..LANES {
                 let scalar = pcg4d_scalar(std::array::from_fn(|k| keys[k][i])).map(unit_scalar);
                 for k in 0..4 {
                     assert_eq!(lanes[k][i].to_bits(), scalar[k].to_bits());
@@ -499,7 +522,7 @@ mod tests {
         for round in 0..3000 {
             let (m, a, kind) = (r(), r(), r());
             let base = unit(&mut r).map(|v| v.abs());
-            let scalar: [shading::Bsdf; 8] = std::array::from_fn(|i| {
+            let scalar: [shading::Bsdf; LANES] = std::array::from_fn(|i| {
                 let k = if round % 3 == 0 {
                     0.1
                 } else if round % 3 == 1 {
@@ -522,9 +545,9 @@ mod tests {
             });
             let lanes = Bsdf {
                 base: V3::from_lanes(&scalar.map(|b| b.base)),
-                metallic: f32x8::from(scalar.map(|b| b.metallic)),
-                alpha: f32x8::from(scalar.map(|b| b.alpha)),
-                specular: f32x8::from(scalar.map(|b| b.specular)),
+                metallic: F::from(scalar.map(|b| b.metallic)),
+                alpha: F::from(scalar.map(|b| b.alpha)),
+                specular: F::from(scalar.map(|b| b.specular)),
             };
             let (n, wo, wi) = (unit(&mut r), unit(&mut r), unit(&mut r));
             let (nl, wol, wil) = (V3::from_lanes(&n), V3::from_lanes(&wo), V3::from_lanes(&wi));
@@ -532,17 +555,10 @@ mod tests {
             let (f, pdf) = lanes.eval_with(ps, nl, wol, wil);
             let (ul, uu, uv) = (r(), r(), r());
             let sampled = lanes
-                .sample_with(
-                    ps,
-                    nl,
-                    wol,
-                    f32x8::from(ul),
-                    f32x8::from(uu),
-                    f32x8::from(uv),
-                )
+                .sample_with(ps, nl, wol, F::from(ul), F::from(uu), F::from(uv))
                 .lanes();
             let (ps, f, pdf) = (ps.to_array(), f.lanes(), pdf.to_array());
-            for i in 0..8 {
+            for i in 0..LANES {
                 let b = &scalar[i];
                 let pss = b.specular_probability(n[i].dot(wo[i]));
                 assert_eq!(ps[i].to_bits(), pss.to_bits());

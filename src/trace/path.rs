@@ -16,7 +16,7 @@
 //! 2 + 2·depth serve the path vertex at `depth`.
 //!
 //! [`render_cpu_with`] and [`samples_cpu`] trace their pixels in batches of paths (`batch.rs`):
-//! the paths of a batch advance a vertex at a time and are shaded eight at once in AVX2 lanes
+//! the paths of a batch advance a vertex at a time and are shaded sixteen at once in lanes
 //! ([`crate::trace::lanes`]), the same function as `trace_path` path by path to the bit, every
 //! material feature included.
 

@@ -26,7 +26,7 @@ use obvhs::{BvhBuildParams, bvh2::Bvh2, triangle::Triangle as ObvhsTriangle};
 use wide::{f32x8, u32x8};
 
 use super::{CpuPackets, NODE_EPSILON, PRIM_ALPHA, PRIM_CULL, TraceHit, intersect_triangle_sided};
-use crate::trace::lanes::V3;
+use crate::trace::lanes::V3x8;
 
 #[cfg(target_arch = "x86_64")]
 mod hybrid;
@@ -1217,9 +1217,9 @@ impl CpuTree {
             }
             return out;
         }
-        let o = V3::from_lanes(origins);
-        let d = V3::from_lanes(dirs);
-        let inv = V3::from_lanes(&dirs.map(|d| {
+        let o = V3x8::from_lanes(origins);
+        let d = V3x8::from_lanes(dirs);
+        let inv = V3x8::from_lanes(&dirs.map(|d| {
             Vec3::new(
                 obvhs::ray::safe_inverse(d.x),
                 obvhs::ray::safe_inverse(d.y),
@@ -1335,11 +1335,17 @@ impl CpuTree {
     /// (the same operations, so the same t, u, v): the lanes hit with `0 < t < tmax`, and t,
     /// u, v.
     #[inline(always)]
-    fn test_rays(&self, prim: usize, o: V3, d: V3, tmax: f32x8) -> (f32x8, f32x8, f32x8, f32x8) {
+    fn test_rays(
+        &self,
+        prim: usize,
+        o: V3x8,
+        d: V3x8,
+        tmax: f32x8,
+    ) -> (f32x8, f32x8, f32x8, f32x8) {
         let (v0, e1, e2) = self.prim(prim);
         let cull = self.flags(prim) & PRIM_CULL != 0;
-        let (n, e1, e2) = (V3::splat(e1.cross(e2)), V3::splat(e1), V3::splat(e2));
-        let c = V3::splat(v0) - o;
+        let (n, e1, e2) = (V3x8::splat(e1.cross(e2)), V3x8::splat(e1), V3x8::splat(e2));
+        let c = V3x8::splat(v0) - o;
         let r = c.cross(d);
         let den = n.dot(d);
         let (a, b, tn) = (e2.dot(r), e1.dot(r), c.dot(n));

@@ -1,6 +1,6 @@
 //! The integrator on batches of paths: a wavefront of up to [`BATCH`] paths advanced one vertex
-//! at a time, each vertex's shading done for eight paths at once in AVX2 lanes
-//! ([`crate::trace::lanes`]) — the same function as [`trace_path`], path by path to the bit
+//! at a time, each vertex's shading done for sixteen paths at once in lanes
+//! ([`crate::trace::lanes`], a pair of AVX2 registers each) — the same function as [`trace_path`], path by path to the bit
 //! (tests below and in `tests/twins/trace.rs`), only faster (BENCHMARKS.md, the CPU twin
 //! against Mitsuba).
 //!
@@ -10,7 +10,7 @@
 //! [`by_octant`]; with `RAYGUN_CPU_PACKETS=0`, a pinhole's camera rays eight at a time, the
 //! others one at a time); the paths that leave the scene take the
 //! environment, one at a time as `trace_path` does; the others are shaded in
-//! groups of eight: geometry, emission with its MIS weight, the BSDF, next-event estimation
+//! groups of sixteen: geometry, emission with its MIS weight, the BSDF, next-event estimation
 //! (with packets, the shadow rays queued and traced sixteen at a time once every group is
 //! shaded, [`ShadowRays`]; elsewhere one at a time), the BSDF sample and Russian roulette. What
 //! reads per-triangle or per-texel data — emission and base colour with their textures, the
@@ -20,15 +20,13 @@
 //! `trace_path`, the batches come in two instantiations: the plain one for a
 //! [`PackedScene::plain`] scene, with those branches compiled out, and the full one.
 
-use wide::{f32x8, u32x8};
-
 use super::*;
 use crate::trace::bvh::TraceHit;
-use crate::trace::lanes::{self, V3};
+use crate::trace::lanes::{self, F, LANES, U, V3};
 
 /// The paths advanced together: enough that a vertex's survivors, sorted into eight direction
 /// octants after Russian roulette has thinned them, still fill packets of sixteen rays and
-/// groups of eight, few enough that their state (about 450 kB: paths, hits, the shadow queue)
+/// groups of sixteen, few enough that their state (about 450 kB: paths, hits, the shadow queue)
 /// stays in a core's second-level cache. Measured on an Intel Xeon against 256 paths: small
 /// city ×0.945 per sample, Cornell boxes ×0.96–0.97 (against 64, earlier: ×0.91–1.04;
 /// BENCHMARKS.md). The paths' indices are 16-bit.
@@ -189,16 +187,18 @@ fn batches_in<const FULL: bool>(
     {
         let mut n_live = 0;
         if wall.is_none() && s.camera.ortho_half_y == 0.0 {
-            // A pinhole's rays, eight at a time.
-            for (group, (pixels, samples)) in pixels.chunks(8).zip(samples.chunks(8)).enumerate() {
+            // A pinhole's rays, sixteen at a time.
+            for (group, (pixels, samples)) in
+                pixels.chunks(LANES).zip(samples.chunks(LANES)).enumerate()
+            {
                 let lane = |v: &[u32], i: usize| v[i.min(v.len() - 1)];
-                let rays = pinhole8(
+                let rays = pinhole(
                     s,
                     std::array::from_fn(|i| lane(pixels, i)),
                     std::array::from_fn(|i| lane(samples, i)),
                 );
                 for (i, (&pixel, &sample)) in pixels.iter().zip(samples).enumerate() {
-                    let k = 8 * group + i;
+                    let k = LANES * group + i;
                     paths[k] = Path {
                         pixel,
                         sample,
@@ -318,12 +318,12 @@ fn batches_in<const FULL: bool>(
                 }
             }
             n_live = 0;
-            let groups = shade[..n_shade].chunks(8);
+            let groups = shade[..n_shade].chunks(LANES);
             for (group, next) in groups.clone().zip(groups.skip(1).map(Some).chain([None])) {
                 if let Some(next) = next {
                     prefetch_rows(sc, hits, next);
                 }
-                shade8::<FULL>(
+                shade_lanes::<FULL>(
                     sc,
                     s,
                     depth,
@@ -461,80 +461,80 @@ fn prefetch_rows(sc: &PackedScene, hits: &[Option<TraceHit>; BATCH], group: &[Id
     }
 }
 
-/// The directions of a pinhole camera's primary rays for eight (pixel, sample) pairs:
+/// The directions of a pinhole camera's primary rays for [`LANES`] (pixel, sample) pairs:
 /// [`RenderCamera::ray`]'s, jitter included, in lanes (the same operations, so the same bits).
 #[inline(always)]
-fn pinhole8(s: &TraceSettings, pixel: [u32; 8], sample: [u32; 8]) -> [Vec3; 8] {
+fn pinhole(s: &TraceSettings, pixel: [u32; LANES], sample: [u32; LANES]) -> [Vec3; LANES] {
     let r = lanes::pcg4d([
-        u32x8::from(pixel),
-        u32x8::from(sample),
-        u32x8::splat(s.seed),
-        u32x8::splat(stream::TRACE),
+        U::from(pixel),
+        U::from(sample),
+        U::splat(s.seed),
+        U::splat(stream::TRACE),
     ])
     .map(lanes::unit_f32);
-    let x = f8(pixel.map(|p| (p % s.width) as f32)) + r[0];
-    let y = f8(pixel.map(|p| (p / s.width) as f32)) + r[1];
+    let x = fl(pixel.map(|p| (p % s.width) as f32)) + r[0];
+    let y = fl(pixel.map(|p| (p / s.width) as f32)) + r[1];
     let c = &s.camera;
-    let (w, h) = (f32x8::splat(s.width as f32), f32x8::splat(s.height as f32));
-    let (two, one, tan) = (f32x8::splat(2.0), f32x8::ONE, f32x8::splat(c.tan_half_y));
-    let sx = (two * x / w - one) * tan * f32x8::splat(c.aspect);
+    let (w, h) = (F::splat(s.width as f32), F::splat(s.height as f32));
+    let (two, one, tan) = (F::splat(2.0), F::ONE, F::splat(c.tan_half_y));
+    let sx = (two * x / w - one) * tan * F::splat(c.aspect);
     let sy = (one - two * y / h) * tan;
     (V3::splat(c.forward) + V3::splat(c.right) * sx + V3::splat(c.up) * sy)
         .normalize()
         .lanes()
 }
 
-/// `f32x8` of a lane's scalar.
+/// The lanes of a scalar each.
 #[inline(always)]
-fn f8(v: [f32; 8]) -> f32x8 {
-    f32x8::from(v)
+fn fl(v: [f32; LANES]) -> F {
+    F::from(v)
 }
 
-/// Eight `Vec3`s as lanes, from their components.
+/// `Vec3`s in lanes, from their components.
 #[inline(always)]
-fn v8(c: &[[f32; 8]; 3]) -> V3 {
+fn vl(c: &[[f32; LANES]; 3]) -> V3 {
     V3 {
-        x: f8(c[0]),
-        y: f8(c[1]),
-        z: f8(c[2]),
+        x: fl(c[0]),
+        y: fl(c[1]),
+        z: fl(c[2]),
     }
 }
 
 /// What a group's shading reads per lane (per path and per hit), gathered in one pass.
 #[derive(Default)]
 struct Lanes {
-    v0: [[f32; 8]; 3],
-    e1: [[f32; 8]; 3],
-    e2: [[f32; 8]; 3],
-    n: [[[f32; 8]; 3]; 3],
-    light_density: [f32; 8],
-    t: [f32; 8],
-    u: [f32; 8],
-    v: [f32; 8],
-    d: [[f32; 8]; 3],
-    throughput: [[f32; 8]; 3],
-    radiance: [[f32; 8]; 3],
-    emission: [[f32; 8]; 3],
-    base: [[f32; 8]; 3],
+    v0: [[f32; LANES]; 3],
+    e1: [[f32; LANES]; 3],
+    e2: [[f32; LANES]; 3],
+    n: [[[f32; LANES]; 3]; 3],
+    light_density: [f32; LANES],
+    t: [f32; LANES],
+    u: [f32; LANES],
+    v: [f32; LANES],
+    d: [[f32; LANES]; 3],
+    throughput: [[f32; LANES]; 3],
+    radiance: [[f32; LANES]; 3],
+    emission: [[f32; LANES]; 3],
+    base: [[f32; LANES]; 3],
     /// Metallic, alpha (the metallic-roughness map applied) and KHR_materials_specular.
-    m2: [[f32; 8]; 3],
-    prev_pdf: [f32; 8],
-    pixel: [u32; 8],
-    sample: [u32; 8],
+    m2: [[f32; LANES]; 3],
+    prev_pdf: [f32; LANES],
+    pixel: [u32; LANES],
+    sample: [u32; LANES],
     /// The material's base (vec4 index) and flags, and the hit as a surface point.
-    mb: [usize; 8],
-    flags: [u32; 8],
-    sp: [Option<SurfacePoint>; 8],
+    mb: [usize; LANES],
+    flags: [u32; LANES],
+    sp: [Option<SurfacePoint>; LANES],
 }
 
 /// The mask of lanes whose bit is set in `bits`.
 #[inline(always)]
-fn lanes_of(bits: u32) -> f32x8 {
-    let slot = u32x8::from([1, 2, 4, 8, 16, 32, 64, 128]);
-    bytemuck::cast((u32x8::splat(bits) & slot).simd_eq(slot))
+fn lanes_of(bits: u32) -> F {
+    let slot = U::from(std::array::from_fn::<u32, LANES, _>(|i| 1 << i));
+    bytemuck::cast((U::splat(bits) & slot).simd_eq(slot))
 }
 
-/// One vertex of the paths in `group` (one to eight, each with its hit in `hits`): the body of
+/// One vertex of the paths in `group` (one to [`LANES`], each with its hit in `hits`): the body of
 /// `trace_path::<FULL>`'s loop after the trace, in lanes. What only some materials or scenes
 /// have — normal maps, metallic-roughness maps, the extensions' BSDF (glass, coat), punctual
 /// lights, cut-out emitters, alpha-tested shadow rays — is `trace_path`'s own code, run for
@@ -542,7 +542,7 @@ fn lanes_of(bits: u32) -> f32x8 {
 /// and are never written back. The survivors are appended to `live`.
 #[allow(clippy::too_many_arguments)]
 #[inline(never)]
-fn shade8<const FULL: bool>(
+fn shade_lanes<const FULL: bool>(
     sc: &PackedScene,
     s: &TraceSettings,
     depth: u32,
@@ -557,7 +557,7 @@ fn shade8<const FULL: bool>(
     let tri_select = 1.0 - sc.env_select - sc.punct_select;
     let alpha_scene = FULL && sc.features & FEAT_ALPHA != 0;
     let mut g = Lanes::default();
-    for i in 0..8 {
+    for i in 0..LANES {
         let k = group[i.min(group.len() - 1)] as usize;
         let hit = hits[k].expect("a shaded path has a hit");
         let path = &paths[k];
@@ -600,36 +600,36 @@ fn shade8<const FULL: bool>(
         (g.mb[i], g.flags[i], g.sp[i]) = (mb, flags, Some(sp));
     }
     let sp = g.sp.map(|sp| sp.expect("every lane is gathered"));
-    let (v0, e1, e2) = (v8(&g.v0), v8(&g.e1), v8(&g.e2));
-    let light_density = f8(g.light_density);
-    let (t, u, v) = (f8(g.t), f8(g.u), f8(g.v));
+    let (v0, e1, e2) = (vl(&g.v0), vl(&g.e1), vl(&g.e2));
+    let light_density = fl(g.light_density);
+    let (t, u, v) = (fl(g.t), fl(g.u), fl(g.v));
     let mut ng = e1.cross(e2).normalize();
     let p = v0 + e1 * u + e2 * v;
-    let b0 = f32x8::ONE - u - v;
-    let mut ns = (v8(&g.n[0]) * b0 + v8(&g.n[1]) * u + v8(&g.n[2]) * v).normalize();
+    let b0 = F::ONE - u - v;
+    let mut ns = (vl(&g.n[0]) * b0 + vl(&g.n[1]) * u + vl(&g.n[2]) * v).normalize();
     ns = V3::select(ns.is_finite(), ns, ng);
     let ns_interpolated = ns;
-    let d = v8(&g.d);
+    let d = vl(&g.d);
     let wo = -d;
     let cos_hit = ng.dot(d).abs();
-    let front = ng.dot(wo).simd_ge(f32x8::ZERO);
+    let front = ng.dot(wo).simd_ge(F::ZERO);
     ng = V3::select(front, ng, -ng);
     let has = |flag: u32| {
-        (0..8)
+        (0..LANES)
             .filter(|&i| g.flags[i] & flag != 0)
             .fold(0u32, |m, i| m | 1 << i)
     };
     let normal_mapped_lanes = if FULL { has(MAT_NORMAL_TEX) } else { 0 };
     if normal_mapped_lanes != 0 {
         let mut n = ns.lanes();
-        for i in (0..8).filter(|&i| normal_mapped_lanes & (1 << i) != 0) {
+        for i in (0..LANES).filter(|&i| normal_mapped_lanes & (1 << i) != 0) {
             n[i] = normal_mapped(sc, g.mb[i], sp[i], n[i]);
         }
         ns = V3::from_lanes(&n);
     }
-    ns = V3::select(ns.dot(ng).simd_lt(f32x8::ZERO), -ns, ns);
+    ns = V3::select(ns.dot(ng).simd_lt(F::ZERO), -ns, ns);
 
-    let mut throughput = v8(&g.throughput);
+    let mut throughput = vl(&g.throughput);
     // The lanes that leave an absorbing medium (`trace_path`'s `absorbed`, lane by lane).
     let volume_lanes = if FULL {
         has(MAT_VOLUME) & !front.to_bitmask()
@@ -638,35 +638,35 @@ fn shade8<const FULL: bool>(
     };
     if volume_lanes != 0 {
         let mut lanes = throughput.lanes();
-        for i in (0..8).filter(|&i| volume_lanes & (1 << i) != 0) {
+        for i in (0..LANES).filter(|&i| volume_lanes & (1 << i) != 0) {
             lanes[i] *= absorbed(sc, g.mb[i], g.t[i]);
         }
         throughput = V3::from_lanes(&lanes);
     }
-    let mut radiance = v8(&g.radiance);
-    let prev_pdf = f8(g.prev_pdf);
-    let emission = v8(&g.emission);
+    let mut radiance = vl(&g.radiance);
+    let prev_pdf = fl(g.prev_pdf);
+    let emission = vl(&g.emission);
     let emits = emission.nonzero();
     if emits.any() {
-        let pdf_light = f32x8::splat(tri_select) * light_density * t * t / cos_hit;
+        let pdf_light = F::splat(tri_select) * light_density * t * t / cos_hit;
         let w = prev_pdf
-            .simd_eq(f32x8::ZERO)
-            .select(f32x8::ONE, lanes::mis(prev_pdf, pdf_light));
+            .simd_eq(F::ZERO)
+            .select(F::ONE, lanes::mis(prev_pdf, pdf_light));
         radiance = V3::select(emits, radiance + throughput * emission * w, radiance);
     }
     let bsdf = lanes::Bsdf {
-        base: v8(&g.base),
-        metallic: f8(g.m2[0]),
-        alpha: f8(g.m2[1]),
-        specular: f8(g.m2[2]),
+        base: vl(&g.base),
+        metallic: fl(g.m2[0]),
+        alpha: fl(g.m2[1]),
+        specular: fl(g.m2[2]),
     };
     // The extensions' BSDF, for the lanes whose material has one (`trace_path`'s `BsdfExt`).
     let ext_lanes = if FULL { has(MAT_EXT_BSDF) } else { 0 };
     let front_bits = front.to_bitmask();
-    // (Built only where some lane has one: eight calls returning a large `Option` cost the
+    // (Built only where some lane has one: a call per lane returning a large `Option` cost the
     // plain scenes' shading 2 % of their time for nothing.)
-    let ext: [Option<BsdfExt>; 8] = if ext_lanes == 0 {
-        [None; 8]
+    let ext: [Option<BsdfExt>; LANES] = if ext_lanes == 0 {
+        [None; LANES]
     } else {
         std::array::from_fn(|i| {
             (ext_lanes & (1 << i) != 0).then(|| {
@@ -685,13 +685,13 @@ fn shade8<const FULL: bool>(
             })
         })
     };
-    let transmits_bits = (0..8)
+    let transmits_bits = (0..LANES)
         .filter(|&i| ext[i].is_some_and(|e| e.transmits()))
         .fold(0u32, |m, i| m | 1 << i);
     let transmits = lanes_of(transmits_bits);
     // The core BSDF's lobe probability, shared by its two evaluations and its sample (0 where
     // the extensions' BSDF decides).
-    let ps = lanes_of(ext_lanes).select(f32x8::ZERO, bsdf.specular_probability(ns.dot(wo)));
+    let ps = lanes_of(ext_lanes).select(F::ZERO, bsdf.specular_probability(ns.dot(wo)));
     let (ns_l, wo_l) = (ns.lanes(), wo.lanes());
     let eval = |wi: V3| {
         let (f, pdf) = bsdf.eval_with(ps, ns, wo, wi);
@@ -699,19 +699,19 @@ fn shade8<const FULL: bool>(
             return (f, pdf);
         }
         let (mut f, mut pdf, wi) = (f.lanes(), pdf.to_array(), wi.lanes());
-        for i in 0..8 {
+        for i in 0..LANES {
             if let Some(e) = &ext[i] {
                 (f[i], pdf[i]) = e.eval(ns_l[i], wo_l[i], wi[i]);
             }
         }
-        (V3::from_lanes(&f), f8(pdf))
+        (V3::from_lanes(&f), fl(pdf))
     };
     let key = |dim: u32| {
         lanes::pcg4d([
-            u32x8::from(g.pixel),
-            u32x8::from(g.sample),
-            u32x8::splat(s.seed),
-            u32x8::splat(stream::TRACE.wrapping_add(dim)),
+            U::from(g.pixel),
+            U::from(g.sample),
+            U::splat(s.seed),
+            U::splat(stream::TRACE.wrapping_add(dim)),
         ])
         .map(lanes::unit_f32)
     };
@@ -727,14 +727,14 @@ fn shade8<const FULL: bool>(
 
     // Next-event estimation: the environment, a punctual light or one emissive triangle.
     let mut radiance = radiance.lanes();
-    let mut rays: [u32; 8] =
+    let mut rays: [u32; LANES] =
         std::array::from_fn(|i| paths[group[i.min(group.len() - 1)] as usize].rays);
     if sc.env_select > 0.0 || sc.light_count > 0 || (FULL && sc.punctual_count > 0) {
-        let to_env = r1[0].simd_lt(f32x8::splat(sc.env_select));
+        let to_env = r1[0].simd_lt(F::splat(sc.env_select));
         let (r1a, r1b, r1c) = (r1[0].to_array(), r1[1].to_array(), r1[2].to_array());
         let to_env_bits = to_env.to_bitmask();
         let punctual_bits = if FULL && sc.punctual_count > 0 {
-            (0..8)
+            (0..LANES)
                 .filter(|&i| {
                     to_env_bits & (1 << i) == 0 && r1a[i] < sc.env_select + sc.punct_select
                 })
@@ -744,15 +744,15 @@ fn shade8<const FULL: bool>(
         };
         // The environment's sample (direction, radiance, pdf).
         let (env_wi, env_le, env_pdf) = if to_env_bits == 0 {
-            (V3::ZERO, V3::ZERO, f32x8::ZERO)
+            (V3::ZERO, V3::ZERO, F::ZERO)
         } else if sc.env_size[0] == 0 {
             (
                 lanes::uniform_sphere(r1[1], r1[2]),
                 V3::splat(sc.env_constant),
-                f32x8::splat(1.0 / (4.0 * PI)),
+                F::splat(1.0 / (4.0 * PI)),
             )
         } else {
-            let env: [(Vec3, Vec3, f32); 8] = std::array::from_fn(|i| {
+            let env: [(Vec3, Vec3, f32); LANES] = std::array::from_fn(|i| {
                 if to_env_bits & (1 << i) != 0 {
                     sample_env(sc, r1b[i], r1c[i])
                 } else {
@@ -762,19 +762,19 @@ fn shade8<const FULL: bool>(
             (
                 V3::from_lanes(&env.map(|e| e.0)),
                 V3::from_lanes(&env.map(|e| e.1)),
-                f8(env.map(|e| e.2)),
+                fl(env.map(|e| e.2)),
             )
         };
-        let env_pdf = f32x8::splat(sc.env_select) * env_pdf;
+        let env_pdf = F::splat(sc.env_select) * env_pdf;
         // The emissive triangle's sample, for the lanes that pick one.
-        let (mut wi, mut le, mut pdf_l, mut tmax) = (env_wi, env_le, env_pdf, f32x8::INFINITY);
-        if to_env_bits | punctual_bits != 0xff && sc.light_count > 0 {
+        let (mut wi, mut le, mut pdf_l, mut tmax) = (env_wi, env_le, env_pdf, F::INFINITY);
+        if to_env_bits | punctual_bits != (1 << LANES) - 1 && sc.light_count > 0 {
             // The light's pick, point and emission per lane; its geometry in lanes.
-            let mut l = [[[0f32; 8]; 3]; 3];
+            let mut l = [[[0f32; LANES]; 3]; 3];
             let (mut a, mut b, mut two_sided, mut density) =
-                ([0f32; 8], [0f32; 8], [0f32; 8], [0f32; 8]);
-            let mut tri_le = [[0f32; 8]; 3];
-            for i in 0..8 {
+                ([0f32; LANES], [0f32; LANES], [0f32; LANES], [0f32; LANES]);
+            let mut tri_le = [[0f32; LANES]; 3];
+            for i in 0..LANES {
                 let u = ((r1a[i] - sc.env_select - sc.punct_select) / tri_select).min(0.99999994);
                 let k = sample_cdf(&sc.dist, 0, sc.light_count, u) as usize;
                 (a[i], b[i]) = (r1b[i], r1c[i]);
@@ -811,8 +811,8 @@ fn shade8<const FULL: bool>(
                     tri_le[c][i] = e[c];
                 }
             }
-            let (lv0, le1, le2) = (v8(&l[0]), v8(&l[1]), v8(&l[2]));
-            let (a, b) = (f8(a), f8(b));
+            let (lv0, le1, le2) = (vl(&l[0]), vl(&l[1]), vl(&l[2]));
+            let (a, b) = (fl(a), fl(b));
             let q = lv0 + le1 * a + le2 * b;
             let to = q - po;
             let dist2 = to.length_squared();
@@ -821,44 +821,44 @@ fn shade8<const FULL: bool>(
             let n_l = le1.cross(le2);
             let area2 = n_l.length();
             let facing = -n_l.dot(tri_wi) / area2;
-            let two_sided = f8(two_sided).simd_ne(f32x8::ZERO);
-            let cos_l = two_sided.select(facing.abs(), facing.max(f32x8::ZERO));
-            let (tri_le, density) = (v8(&tri_le), f8(density));
-            let tri_pdf = cos_l.simd_gt(f32x8::ZERO).select(
-                f32x8::splat(tri_select) * density / (f32x8::splat(0.5) * area2) * dist2 / cos_l,
-                f32x8::ZERO,
+            let two_sided = fl(two_sided).simd_ne(F::ZERO);
+            let cos_l = two_sided.select(facing.abs(), facing.max(F::ZERO));
+            let (tri_le, density) = (vl(&tri_le), fl(density));
+            let tri_pdf = cos_l.simd_gt(F::ZERO).select(
+                F::splat(tri_select) * density / (F::splat(0.5) * area2) * dist2 / cos_l,
+                F::ZERO,
             );
             wi = V3::select(to_env, wi, tri_wi);
             le = V3::select(to_env, le, tri_le);
             pdf_l = to_env.select(pdf_l, tri_pdf);
-            tmax = to_env.select(tmax, dist * f32x8::splat(1.0 - 1e-4));
+            tmax = to_env.select(tmax, dist * F::splat(1.0 - 1e-4));
         }
         // A punctual light's sample (a delta light), for the lanes that pick one.
         if punctual_bits != 0 {
             let (mut w, mut l, mut pdf, mut t) =
                 (wi.lanes(), le.lanes(), pdf_l.to_array(), tmax.to_array());
             let po = po.lanes();
-            for i in (0..8).filter(|&i| punctual_bits & (1 << i) != 0) {
+            for i in (0..LANES).filter(|&i| punctual_bits & (1 << i) != 0) {
                 (w[i], l[i], pdf[i], t[i], _) = sample_punctual(sc, po[i], r1a[i]);
             }
-            (wi, le, pdf_l, tmax) = (V3::from_lanes(&w), V3::from_lanes(&l), f8(pdf), f8(t));
+            (wi, le, pdf_l, tmax) = (V3::from_lanes(&w), V3::from_lanes(&l), fl(pdf), fl(t));
         }
         let side = wi.dot(ng);
-        let usable = pdf_l.simd_gt(f32x8::ZERO)
+        let usable = pdf_l.simd_gt(F::ZERO)
             & pdf_l.is_finite()
-            & (side.simd_gt(f32x8::ZERO) | (transmits & side.simd_lt(f32x8::ZERO)));
+            & (side.simd_gt(F::ZERO) | (transmits & side.simd_lt(F::ZERO)));
         if usable.any() {
             let (f, pdf_b) = eval(wi);
             // At the last vertex no BSDF ray follows to find this light, so its sample carries
             // the whole estimate; a delta light cannot be hit at all.
             let w = if depth + 1 == s.max_depth {
-                f32x8::ONE
+                F::ONE
             } else {
-                lanes_of(punctual_bits).select(f32x8::ONE, lanes::mis(pdf_l, pdf_b))
+                lanes_of(punctual_bits).select(F::ONE, lanes::mis(pdf_l, pdf_b))
             };
             let contrib = throughput * f * le * (ns.dot(wi).abs() / pdf_l) * w;
             let shadow = (usable & contrib.nonzero()).to_bitmask();
-            let from = V3::select(side.simd_gt(f32x8::ZERO), po, below);
+            let from = V3::select(side.simd_gt(F::ZERO), po, below);
             let (contrib, wi, from, tmax) =
                 (contrib.lanes(), wi.lanes(), from.lanes(), tmax.to_array());
             for i in 0..group.len() {
@@ -897,7 +897,7 @@ fn shade8<const FULL: bool>(
             r2[0].to_array(),
             r2[1].to_array(),
         );
-        for i in 0..8 {
+        for i in 0..LANES {
             if let Some(e) = &ext[i] {
                 w[i] = e.sample(ns_l[i], wo_l[i], u1[i], u2[i], u3[i]);
             }
@@ -907,13 +907,13 @@ fn shade8<const FULL: bool>(
     let side = wi.dot(ng);
     // Below the surface only through a transmitting one, and on the same side of the shading
     // normal as of the geometric one (no light leaks).
-    let above = side.simd_gt(f32x8::ZERO);
-    let mut go = above | (transmits & side.simd_lt(f32x8::ZERO) & ns.dot(wi).simd_lt(f32x8::ZERO));
+    let above = side.simd_gt(F::ZERO);
+    let mut go = above | (transmits & side.simd_lt(F::ZERO) & ns.dot(wi).simd_lt(F::ZERO));
     let (f, pdf) = eval(wi);
-    go &= pdf.simd_gt(f32x8::ZERO);
+    go &= pdf.simd_gt(F::ZERO);
     let mut throughput = throughput * (f * (ns.dot(wi).abs() / pdf));
     if depth >= 3 {
-        let q = throughput.max_element().min(f32x8::splat(0.95));
+        let q = throughput.max_element().min(F::splat(0.95));
         go &= !r2[2].simd_ge(q);
         throughput = throughput / q;
     }
