@@ -419,15 +419,18 @@ fn by_octant<'a>(items: &[Idx], dir: impl Fn(Idx) -> Vec3, out: &'a mut [Idx; BA
         let d = dir(k);
         usize::from(d.x < 0.0) | usize::from(d.y < 0.0) << 1 | usize::from(d.z < 0.0) << 2
     };
+    // Each item's octant, read once (the directions are scattered over the batch's paths).
+    let mut octants = [0u8; BATCH];
     let mut start = [0usize; 9];
-    for &k in items {
-        start[octant(k) + 1] += 1;
+    for (o, &k) in octants.iter_mut().zip(items) {
+        *o = octant(k) as u8;
+        start[usize::from(*o) + 1] += 1;
     }
     for o in 0..8 {
         start[o + 1] += start[o];
     }
-    for &k in items {
-        let o = octant(k);
+    for (&o, &k) in octants.iter().zip(items) {
+        let o = usize::from(o);
         out[start[o]] = k;
         start[o] += 1;
     }
