@@ -19,6 +19,8 @@ use std::f32::consts::PI;
 use glam::Vec3;
 use wide::f32x8;
 
+use super::shading::{COS_POLY, SIN_POLY};
+
 /// The paths shaded at once, a lane each.
 pub const LANES: usize = 16;
 
@@ -26,8 +28,6 @@ pub const LANES: usize = 16;
 pub type F = wide::f32x16;
 pub type I = wide::i32x16;
 pub type U = wide::u32x16;
-
-use super::shading::{COS_POLY, SIN_POLY};
 
 /// `$v`'s operator `$trait` (`$f`) with a right-hand side of type `$rhs`, component by
 /// component as glam's `Vec3` operators.

@@ -1,8 +1,8 @@
 //! The integrator on batches of paths: a wavefront of up to [`BATCH`] paths advanced one vertex
 //! at a time, each vertex's shading done for sixteen paths at once in lanes
-//! ([`crate::trace::lanes`], a pair of AVX2 registers each) — the same function as [`trace_path`], path by path to the bit
-//! (tests below and in `tests/twins/trace.rs`), only faster (BENCHMARKS.md, the CPU twin
-//! against Mitsuba).
+//! ([`crate::trace::lanes`], a pair of AVX2 registers each) — the same function as
+//! [`trace_path`], path by path to the bit (tests below and in `tests/twins/trace.rs`), only
+//! faster (BENCHMARKS.md, the CPU twin against Mitsuba).
 //!
 //! A vertex of the batch: every live path's ray is traced (sixteen neighbouring paths' rays at
 //! a time as hybrid packets, in AVX-512 lanes where the processor has them, else in pairs of
@@ -118,34 +118,18 @@ pub(super) fn trace_batch(
     out: &mut [Option<(Vec3, u32)>],
 ) {
     assert!(pixels.len() == samples.len() && pixels.len() == out.len());
-    if sc.plain {
-        batches::<false>(sc, s, wall, pixels, samples, out);
-    } else {
-        batches::<true>(sc, s, wall, pixels, samples, out);
-    }
-}
-
-/// [`trace_batch`] in `trace_path`'s instantiation `FULL`.
-fn batches<const FULL: bool>(
-    sc: &PackedScene,
-    s: &TraceSettings,
-    wall: Option<&WallCamera>,
-    pixels: &[u32],
-    samples: &[u32],
-    out: &mut [Option<(Vec3, u32)>],
-) {
     // This thread's arrays (a fresh set if they are in use further up its stack).
-    WORK.with(|cell| match cell.try_borrow_mut() {
-        Ok(mut work) => batches_in::<FULL>(
-            work.get_or_insert_with(Work::new),
-            sc,
-            s,
-            wall,
-            pixels,
-            samples,
-            out,
-        ),
-        Err(_) => batches_in::<FULL>(&mut Work::new(), sc, s, wall, pixels, samples, out),
+    WORK.with(|cell| {
+        let (mut kept, mut fresh) = (cell.try_borrow_mut(), None);
+        let work = match &mut kept {
+            Ok(kept) => kept.get_or_insert_with(Work::new),
+            Err(_) => fresh.insert(Work::new()),
+        };
+        if sc.plain {
+            batches::<false>(work, sc, s, wall, pixels, samples, out);
+        } else {
+            batches::<true>(work, sc, s, wall, pixels, samples, out);
+        }
     });
 }
 
@@ -156,8 +140,8 @@ thread_local! {
     static WORK: std::cell::RefCell<Option<Work>> = const { std::cell::RefCell::new(None) };
 }
 
-/// [`batches`] in the arrays `work`.
-fn batches_in<const FULL: bool>(
+/// [`trace_batch`] in `trace_path`'s instantiation `FULL`, in the arrays `work`.
+fn batches<const FULL: bool>(
     work: &mut Work,
     sc: &PackedScene,
     s: &TraceSettings,
@@ -336,7 +320,7 @@ fn batches_in<const FULL: bool>(
                 );
             }
             if let Some(shadows) = &mut shadows {
-                shadows.trace(sc, paths);
+                shadows.trace(sc, paths, sorted);
             }
         }
         for (k, out) in out.iter_mut().enumerate() {
@@ -390,11 +374,10 @@ impl ShadowRays {
     }
 
     /// Traces the queued rays, adds each unblocked ray's contribution to its path's radiance,
-    /// and empties the queue.
-    fn trace(&mut self, sc: &PackedScene, paths: &mut [Path; BATCH]) {
+    /// and empties the queue (`sorted`: room for their order).
+    fn trace(&mut self, sc: &PackedScene, paths: &mut [Path; BATCH], sorted: &mut [Idx; BATCH]) {
         // Those of one direction octant together, as the bounces.
-        let mut sorted = [0 as Idx; BATCH];
-        let order = by_octant(&EVERY[..self.len], |k| self.dir[k as usize], &mut sorted);
+        let order = by_octant(&EVERY[..self.len], |k| self.dir[k as usize], sorted);
         for start in (0..self.len).step_by(16) {
             let n = (self.len - start).min(16);
             let at = |i: usize| order[start + i.min(n - 1)] as usize;
