@@ -128,7 +128,7 @@ impl RenderCamera {
 
     /// The camera named `name` (perspective or orthographic), else the scene's first
     /// perspective camera, else its first orthographic one, else one that frames the scene's
-    /// bounds from +Z with a 45° vertical field of view.
+    /// bounds from +Z with a 45° vertical field of view ([`framing_camera`]).
     pub fn choose(
         scene: &Scene,
         name: Option<&str>,
@@ -168,7 +168,11 @@ impl RenderCamera {
         if let Some(c) = scene.orthographic_cameras.first() {
             return Self::orthographic(c, width, height);
         }
-        Self::new(&framing_camera(scene), width, height)
+        Self::new(
+            &framing_camera(scene, width as f32 / height as f32),
+            width,
+            height,
+        )
     }
 
     /// The primary ray (origin, unit direction) through image point (`x`, `y`) in pixels
@@ -194,9 +198,13 @@ impl RenderCamera {
     }
 }
 
-/// A camera looking along −Z at the centre of the scene's bounds, far enough to see all of it.
+/// A camera looking along −Z at the centre of the scene's bounds, with a 45° vertical field of
+/// view, as close as sees every corner of them in an image of `aspect` (width / height) with
+/// a tenth to spare: the bounds' larger side, as the image sees it, fills 1/1.1 of it (a
+/// viewer's "frame all"). The distance is the bounds' front face's, where they are widest in
+/// the image.
 #[must_use]
-pub fn framing_camera(scene: &Scene) -> Camera {
+pub fn framing_camera(scene: &Scene, aspect: f32) -> Camera {
     let yfov = 45f32.to_radians();
     let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
     for t in &scene.triangles {
@@ -205,16 +213,81 @@ pub fn framing_camera(scene: &Scene) -> Camera {
             hi = hi.max(p);
         }
     }
-    let (centre, radius) = if lo.x <= hi.x {
-        ((lo + hi) * 0.5, ((hi - lo).length() * 0.5).max(1e-3))
-    } else {
-        (Vec3::ZERO, 1.0)
-    };
+    if lo.x > hi.x {
+        (lo, hi) = (Vec3::splat(-1.0), Vec3::splat(1.0));
+    }
+    let (centre, half) = ((lo + hi) * 0.5, (hi - lo) * 0.5);
+    let tan_y = (0.5 * yfov).tan();
+    let tan_x = tan_y
+        * if aspect.is_finite() && aspect > 0.0 {
+            aspect
+        } else {
+            1.0
+        };
+    let distance = (half.x / tan_x).max(half.y / tan_y).max(1e-3) * 1.1;
     Camera {
         name: "framing".into(),
-        position: centre + Vec3::Z * (radius / (0.5 * yfov).tan() * 1.1 + radius),
+        position: Vec3::new(centre.x, centre.y, hi.z + distance),
         forward: Vec3::NEG_Z,
         up: Vec3::Y,
         yfov,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Without a camera, every corner of the scene's bounds is in the image, and the one
+    /// nearest its edge is near it (the framing is tight), for wide, square and tall images
+    /// and scenes wider or taller than the image.
+    #[test]
+    fn the_framing_camera_fits_the_bounds() {
+        for name in ["city-small", "cornell-light"] {
+            let mut scene = Scene::builtin(name).unwrap();
+            scene.cameras.clear();
+            scene.orthographic_cameras.clear();
+            let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+            for p in scene.triangles.iter().flat_map(|t| t.p) {
+                (lo, hi) = (lo.min(p), hi.max(p));
+            }
+            for (w, h) in [(1920, 1080), (64, 64), (300, 900)] {
+                let cam = RenderCamera::choose(&scene, None, w, h).unwrap();
+                assert_eq!(cam.forward, Vec3::NEG_Z);
+                let mut widest = 0f32;
+                for k in 0..8 {
+                    let pick = |bit: u32, a: f32, b: f32| if k & bit == 0 { a } else { b };
+                    let corner = Vec3::new(
+                        pick(1, lo.x, hi.x),
+                        pick(2, lo.y, hi.y),
+                        pick(4, lo.z, hi.z),
+                    );
+                    let v = corner - cam.position;
+                    let depth = v.dot(cam.forward);
+                    assert!(
+                        depth > 0.0,
+                        "{name} {w}x{h}: corner {corner} behind the camera"
+                    );
+                    let sx = v.dot(cam.right) / (depth * cam.tan_half_y * cam.aspect);
+                    let sy = v.dot(cam.up) / (depth * cam.tan_half_y);
+                    assert!(
+                        sx.abs() <= 1.0 && sy.abs() <= 1.0,
+                        "{name} {w}x{h}: {corner} out"
+                    );
+                    widest = widest.max(sx.abs()).max(sy.abs());
+                }
+                assert!(
+                    (0.85..=0.95).contains(&widest),
+                    "{name} {w}x{h}: the bounds reach {widest} of the half-image"
+                );
+            }
+        }
+    }
+
+    /// A scene without triangles still gets a camera (framing the unit box about the origin).
+    #[test]
+    fn an_empty_scene_gets_a_camera() {
+        let cam = RenderCamera::choose(&Scene::default(), None, 32, 16).unwrap();
+        assert!(cam.position.is_finite() && cam.position.z > 1.0);
     }
 }
