@@ -62,6 +62,18 @@ fn scene_info_prints_counts_bounds_cameras_and_problems() {
         text.contains("camera 'street'") && text.contains("camera 'aerial'"),
         "{text}"
     );
+    assert!(!text.contains("cameras: none"), "{text}");
+    // A file without a camera says what a render will see.
+    let o = raygun(&[
+        "scene",
+        "info",
+        "tests/data/gltf-samples/TextureCoordinateTest.gltf",
+    ]);
+    let text = String::from_utf8(o.stdout).unwrap();
+    assert!(
+        text.contains("cameras: none (renders frame the bounds from +Z"),
+        "{text}"
+    );
 
     // What the loader understood of the materials, by feature, with the materials' names.
     let glass = "tests/data/peers/scenes/coloured-glass.glb";

@@ -200,6 +200,11 @@ fn info_text(s: &Value) -> String {
             c["ymag"]
         );
     }
+    let none = |key: &str| s[key].as_array().is_none_or(Vec::is_empty);
+    if none("cameras") && none("orthographic_cameras") {
+        out += "cameras: none (renders frame the bounds from +Z; --look-from and --look-at \
+                choose a viewpoint)\n";
+    }
     for l in s["lights"].as_array().into_iter().flatten() {
         out += &format!(
             "light '{}': {} at {}, intensity {}\n",
