@@ -63,6 +63,9 @@ fn scene_info_prints_counts_bounds_cameras_and_problems() {
         "{text}"
     );
     assert!(!text.contains("cameras: none"), "{text}");
+    // Numbers as the f32 they are, not their f64 widening.
+    assert!(text.contains("bounds: [-170, 0, -170] .. [170, "), "{text}");
+    assert!(text.contains("position [3.5, 1.7, 117]"), "{text}");
     // A file without a camera says what a render will see.
     let o = raygun(&[
         "scene",

@@ -169,6 +169,24 @@ fn material_features(scene: &Scene) -> Vec<(&'static str, Vec<&str>)> {
         .collect()
 }
 
+/// A vector of the summary as the text prints it: each number as the `f32` it was (`-1.2`,
+/// not the `f64` widening's `-1.2000000476837158`).
+fn short(v: &Value) -> String {
+    match v.as_array() {
+        Some(xs) => {
+            let xs: Vec<String> = xs
+                .iter()
+                .map(|x| {
+                    x.as_f64()
+                        .map_or_else(|| x.to_string(), |x| (x as f32).to_string())
+                })
+                .collect();
+            format!("[{}]", xs.join(", "))
+        }
+        None => v.to_string(),
+    }
+}
+
 fn info_text(s: &Value) -> String {
     let mut out = format!(
         "{}: {} triangles ({} emissive), {} materials, {} textures\n",
@@ -179,15 +197,15 @@ fn info_text(s: &Value) -> String {
         s["textures"]
     );
     match s["bounds"].as_object() {
-        Some(b) => out += &format!("bounds: {} .. {}\n", b["min"], b["max"]),
+        Some(b) => out += &format!("bounds: {} .. {}\n", short(&b["min"]), short(&b["max"])),
         None => out += "bounds: none (no triangles)\n",
     }
     for c in s["cameras"].as_array().into_iter().flatten() {
         out += &format!(
             "camera '{}': position {}, forward {}, yfov {:.2}°\n",
             c["name"].as_str().unwrap_or(""),
-            c["position"],
-            c["forward"],
+            short(&c["position"]),
+            short(&c["forward"]),
             c["yfov_deg"].as_f64().unwrap_or(f64::NAN)
         );
     }
@@ -195,8 +213,8 @@ fn info_text(s: &Value) -> String {
         out += &format!(
             "camera '{}' (orthographic): position {}, forward {}, ymag {}\n",
             c["name"].as_str().unwrap_or(""),
-            c["position"],
-            c["forward"],
+            short(&c["position"]),
+            short(&c["forward"]),
             c["ymag"]
         );
     }
@@ -210,7 +228,7 @@ fn info_text(s: &Value) -> String {
             "light '{}': {} at {}, intensity {}\n",
             l["name"].as_str().unwrap_or(""),
             l["kind"].as_str().unwrap_or(""),
-            l["position"],
+            short(&l["position"]),
             l["intensity"]
         );
     }
