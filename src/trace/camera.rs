@@ -199,10 +199,10 @@ impl RenderCamera {
 }
 
 /// A camera looking along −Z at the centre of the scene's bounds, with a 45° vertical field of
-/// view, as close as sees every corner of them in an image of `aspect` (width / height) with
-/// a tenth to spare: the bounds' larger side, as the image sees it, fills 1/1.1 of it (a
-/// viewer's "frame all"). The distance is the bounds' front face's, where they are widest in
-/// the image.
+/// view, as near as it can be while every corner of the bounds is in an image of `aspect`
+/// (width / height), with a tenth to spare: the side of the bounds that fills more of the
+/// image fills 1/1.1 of it (a viewer's "frame all"). The distance is measured from the bounds'
+/// front face, which the image sees widest.
 #[must_use]
 pub fn framing_camera(scene: &Scene, aspect: f32) -> Camera {
     let yfov = 45f32.to_radians();
