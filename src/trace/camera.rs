@@ -206,16 +206,9 @@ impl RenderCamera {
 #[must_use]
 pub fn framing_camera(scene: &Scene, aspect: f32) -> Camera {
     let yfov = 45f32.to_radians();
-    let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
-    for t in &scene.triangles {
-        for p in t.p {
-            lo = lo.min(p);
-            hi = hi.max(p);
-        }
-    }
-    if lo.x > hi.x {
-        (lo, hi) = (Vec3::splat(-1.0), Vec3::splat(1.0));
-    }
+    let (lo, hi) = scene
+        .bounds()
+        .map_or((Vec3::splat(-1.0), Vec3::splat(1.0)), |b| (b.min, b.max));
     let (centre, half) = ((lo + hi) * 0.5, (hi - lo) * 0.5);
     let tan_y = (0.5 * yfov).tan();
     let tan_x = tan_y
@@ -247,10 +240,7 @@ mod tests {
             let mut scene = Scene::builtin(name).unwrap();
             scene.cameras.clear();
             scene.orthographic_cameras.clear();
-            let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
-            for p in scene.triangles.iter().flat_map(|t| t.p) {
-                (lo, hi) = (lo.min(p), hi.max(p));
-            }
+            let (lo, hi) = scene.bounds().map(|b| (b.min, b.max)).unwrap();
             for (w, h) in [(1920, 1080), (64, 64), (300, 900)] {
                 let cam = RenderCamera::choose(&scene, None, w, h).unwrap();
                 assert_eq!(cam.forward, Vec3::NEG_Z);
