@@ -267,6 +267,142 @@ fn an_absorbing_glass_slab_transmits_its_attenuation_colour() {
     }
 }
 
+/// (1 − F0)² of a smooth slab of index `n` at normal incidence, F0 = ((n − 1)/(n + 1))².
+fn through_slab(n: f32) -> f32 {
+    let f0 = ((n - 1.0) / (n + 1.0)).powi(2);
+    (1.0 - f0) * (1.0 - f0)
+}
+
+/// The dispersive slab (KHR_materials_dispersion, ior 2, dispersion 6 — Abbe number 3.3,
+/// exaggerated so that one face's Fresnel tells the channels apart) before the lamp: a path
+/// picks its channel at the front face and keeps it through the back, so each channel is
+/// transmitted (1 − F0)² with F0 from its own index of refraction, on both backends; red and
+/// blue are told apart from the undispersed slab's.
+#[test]
+fn a_dispersive_slab_transmits_each_channel_by_its_own_index() {
+    use raygun::trace::shading::dispersed_ior;
+    let (ior, dispersion) = (2.0f32, 6.0f32);
+    let mut scene = slab_scene(ior, Vec3::ZERO);
+    scene.material_ext[0].dispersion = dispersion;
+    let want = Vec3::from_array([0, 1, 2].map(|c| through_slab(dispersed_ior(ior, dispersion, c))));
+    let plain = through_slab(ior);
+    let (pixels, spp) = (32 * 32usize, 256u32);
+    let s = settings(&scene, 32, 32, 9, 3);
+    for (acc, label) in both(&scene, &s, spp) {
+        let mean = (0..pixels).map(|i| acc.mean(i)).sum::<Vec3>() / pixels as f32;
+        // A sample's channel is 0, or its path's weight (1 here: smooth faces) times 3 where it
+        // picked that channel: its variance is at most 3 × its mean.
+        let sigma = want.map(|w| (3.0 * w / (pixels * spp as usize) as f32).sqrt());
+        let z = (mean - want) / sigma;
+        assert!(
+            z.abs().max_element() < 5.0,
+            "{label}: {mean} vs {want} (z {z})"
+        );
+        for c in [0, 2] {
+            let z = (mean[c] - plain) / sigma[c];
+            assert!(
+                z.abs() > 5.0,
+                "{label}: channel {c} {} is the undispersed {plain}",
+                mean[c]
+            );
+        }
+    }
+}
+
+/// A slab 2 thick tilted 50° about y (its faces 12 wide), of index `ior` and `dispersion`,
+/// between an orthographic camera and a lamp that covers x > 0 behind it: the lamp's edge is
+/// seen shifted sideways by t·sin θ·(1 − cos θ / √(n² − sin² θ)), 1.00 at n = 2.
+fn tilted_slab_scene(ior: f32, dispersion: f32) -> Scene {
+    let turn = glam::Quat::from_rotation_y(50f32.to_radians());
+    let (lo, hi) = (Vec3::new(-6.0, -6.0, -1.0), Vec3::new(6.0, 6.0, 1.0));
+    let c = |x: usize, y: usize, z: usize| {
+        turn * Vec3::new([lo.x, hi.x][x], [lo.y, hi.y][y], [lo.z, hi.z][z])
+    };
+    let quads = [
+        [c(0, 0, 0), c(0, 1, 0), c(1, 1, 0), c(1, 0, 0)],
+        [c(0, 0, 1), c(1, 0, 1), c(1, 1, 1), c(0, 1, 1)],
+        [c(0, 0, 0), c(0, 0, 1), c(0, 1, 1), c(0, 1, 0)],
+        [c(1, 0, 0), c(1, 1, 0), c(1, 1, 1), c(1, 0, 1)],
+        [c(0, 0, 0), c(1, 0, 0), c(1, 0, 1), c(0, 0, 1)],
+        [c(0, 1, 0), c(0, 1, 1), c(1, 1, 1), c(1, 1, 0)],
+    ];
+    let mut tris = Vec::new();
+    for q in quads {
+        tris.push(flat([q[0], q[1], q[2]], [Vec2::ZERO; 3], 0));
+        tris.push(flat([q[0], q[2], q[3]], [Vec2::ZERO; 3], 0));
+    }
+    tris.extend(rect(0.0, -30.0, 30.0, 30.0, -9.0, 1));
+    Scene {
+        triangles: tris,
+        materials: vec![
+            material(Vec3::ONE, 0.0, 0.0, 1.0, Vec3::ZERO),
+            material(Vec3::ZERO, 0.0, 1.0, 0.0, Vec3::ONE),
+        ],
+        material_ext: vec![MaterialExt {
+            transmission: 1.0,
+            ior,
+            dispersion,
+            ..Default::default()
+        }],
+        // 96 × 64 pixels over x ∈ [−1.5, 1.5]: a column is 1/32 wide.
+        orthographic_cameras: vec![ortho(Vec3::new(0.0, 0.0, 9.0), 1.0)],
+        environment: Environment::Constant(Vec3::ZERO),
+        ..Default::default()
+    }
+}
+
+/// Each channel of the dispersive tilted slab is the undispersed slab of that channel's index
+/// of refraction — where the lamp's edge appears through it (the refraction) and how much
+/// gets through (the Fresnel terms) — column by column on both backends (the channel picked at
+/// the front face is kept through the back); the red and blue edges lie apart (1.5 columns),
+/// and the blue is told apart from the undispersed one's.
+#[test]
+fn a_dispersive_slab_shifts_each_channel_by_its_own_index() {
+    use raygun::trace::shading::dispersed_ior;
+    let (ior, dispersion, spp) = (2.0f32, 6.0f32, 64u32);
+    let (w, h) = (96usize, 64usize);
+    let columns = |acc: &Accumulation, c: usize| -> Vec<f32> {
+        (0..w)
+            .map(|x| (0..h).map(|y| acc.mean(y * w + x)[c]).sum::<f32>() / h as f32)
+            .collect()
+    };
+    let n = (h as u32 * spp) as f32;
+    let scene = tilted_slab_scene(ior, dispersion);
+    let s = settings(&scene, w as u32, h as u32, 13, 4);
+    let dispersed = both(&scene, &s, spp);
+    let mut plain = Vec::new();
+    for c in 0..3 {
+        let scene = tilted_slab_scene(dispersed_ior(ior, dispersion, c as u32), 0.0);
+        let s = settings(&scene, w as u32, h as u32, 17 + c as u32, 4);
+        plain.push(both(&scene, &s, spp));
+    }
+    // The largest |z| over the columns of channel c of `a` (a dispersive render when `three`:
+    // a channel is 0 or 3 × its weight) against channel c of the undispersed `b`.
+    let z_max = |a: &[f32], three: bool, b: &[f32]| {
+        a.iter()
+            .zip(b)
+            .map(|(&x, &y)| {
+                let var = (if three { 3.0 } else { 1.0 } * x + y) / n;
+                ((x - y) / var.sqrt().max(1e-6)).abs()
+            })
+            .fold(0.0f32, f32::max)
+    };
+    for (k, (acc, label)) in dispersed.iter().enumerate() {
+        for (c, plain) in plain.iter().enumerate() {
+            let (got, want) = (columns(acc, c), columns(&plain[k].0, c));
+            let z = z_max(&got, true, &want);
+            assert!(z < 5.0, "{label}, channel {c}: z {z}: {got:?} vs {want:?}");
+        }
+        // Power: blue is not the undispersed slab's blue, and red's edge is not blue's.
+        let blue = columns(acc, 2);
+        let z = z_max(&blue, true, &columns(&plain[1][k].0, 2));
+        assert!(z > 6.0, "{label}: blue is the undispersed slab's (z {z})");
+        let (red, blue) = (columns(&plain[0][k].0, 0), columns(&plain[2][k].0, 2));
+        let z = z_max(&red, false, &blue);
+        assert!(z > 10.0, "{label}: red and blue edges coincide (z {z})");
+    }
+}
+
 /// A white sheen (KHR_materials_sheen) over a black base, under a white sky, seen at an angle
 /// θ: the plane reflects the sheen's directional albedo E(cos θ) — its integral over the
 /// hemisphere, which raygun tabulates (`SHEEN_ALBEDO`; here at table nodes, where the table is

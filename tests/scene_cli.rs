@@ -158,3 +158,57 @@ fn render_takes_orthographic_cameras_and_look_from_viewpoints() {
         "{e}"
     );
 }
+
+/// `scene info` names the materials with a dispersion and an anisotropy, as the loader read
+/// them from a file (a dispersion on an opaque material is read as none, and said).
+#[test]
+fn scene_info_names_dispersive_and_brushed_materials() {
+    let positions: Vec<u8> = [0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0]
+        .iter()
+        .flat_map(|v| v.to_le_bytes())
+        .collect();
+    let buffer = base64::encode(&positions);
+    let triangle = |material: u32| serde_json::json!({ "attributes": { "POSITION": 0 }, "material": material });
+    let gltf = serde_json::json!({
+        "asset": { "version": "2.0" },
+        "extensionsUsed": ["KHR_materials_transmission", "KHR_materials_dispersion",
+            "KHR_materials_anisotropy"],
+        "buffers": [{ "byteLength": 36,
+            "uri": format!("data:application/octet-stream;base64,{buffer}") }],
+        "bufferViews": [{ "buffer": 0, "byteLength": 36 }],
+        "accessors": [{ "bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+            "min": [0.0, 0.0, 0.0], "max": [1.0, 1.0, 0.0] }],
+        "materials": [
+            { "name": "prism", "extensions": {
+                "KHR_materials_transmission": { "transmissionFactor": 1.0 },
+                "KHR_materials_dispersion": { "dispersion": 0.33 } } },
+            { "name": "brushed", "extensions": {
+                "KHR_materials_anisotropy": { "anisotropyStrength": 0.5 } } },
+            { "name": "painted", "extensions": {
+                "KHR_materials_dispersion": { "dispersion": 0.5 } } },
+        ],
+        "meshes": [{ "primitives": [triangle(0), triangle(1), triangle(2)] }],
+        "nodes": [{ "mesh": 0 }],
+        "scenes": [{ "nodes": [0] }],
+    });
+    let file = tmp_file("features.gltf");
+    std::fs::write(&file, gltf.to_string()).unwrap();
+    let path = file.to_str().unwrap();
+    let o = raygun(&["scene", "info", path, "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let features = &v["material_features"];
+    assert_eq!(features["dispersion"], serde_json::json!(["prism"]), "{v}");
+    assert_eq!(
+        features["anisotropy"],
+        serde_json::json!(["brushed"]),
+        "{v}"
+    );
+    assert_eq!(v["unsupported"], serde_json::json!([]), "{v}");
+    let text = String::from_utf8(raygun(&["scene", "info", path]).stdout).unwrap();
+    assert!(text.contains("\ndispersion: 'prism'\n"), "{text}");
+    assert!(
+        text.contains("'painted': KHR_materials_dispersion without transmission changes nothing"),
+        "{text}"
+    );
+}

@@ -960,6 +960,73 @@ fn an_anisotropy_loads_as_the_file_says_with_tangents() {
     }
 }
 
+/// KHR_materials_dispersion: the value (20 / Abbe number) on a transmitting material; on one
+/// that transmits nothing it changes nothing and is said; malformed values are refused naming
+/// the material.
+#[test]
+fn a_dispersion_loads_on_glass_and_is_said_to_do_nothing_elsewhere() {
+    let bytes = |transmission: f64, dispersion: Value| {
+        material_with(json!({ "name": "diamond", "extensions": {
+            "KHR_materials_transmission": { "transmissionFactor": transmission },
+            "KHR_materials_ior": { "ior": 2.42 },
+            "KHR_materials_volume": { "thicknessFactor": 1.0 },
+            "KHR_materials_dispersion": dispersion } }))
+    };
+    let s = load(&bytes(1.0, json!({ "dispersion": 0.36 }))).unwrap();
+    let e = s.material_ext(0);
+    assert_eq!((e.dispersion, e.ior, e.transmission), (0.36, 2.42, 1.0));
+    assert!(s.unsupported.is_empty(), "{:?}", s.unsupported);
+    assert!(
+        s.notes.iter().all(|n| !n.contains("dispersion")),
+        "{:?}",
+        s.notes
+    );
+    // Packed with its flag where it transmits; the default is none.
+    let packed = raygun::trace::pack::PackedScene::new(&s);
+    let flags = packed.materials[1][3] as u32;
+    assert_ne!(flags & raygun::trace::pack::MAT_DISPERSION, 0);
+    assert_eq!(
+        packed.materials[raygun::trace::pack::MATERIAL_ANISO_ROW][3],
+        0.36
+    );
+    assert_eq!(
+        load(&bytes(1.0, json!({})))
+            .unwrap()
+            .material_ext(0)
+            .dispersion,
+        0.0
+    );
+    // Opaque: nothing refracts, so nothing disperses (no noise for nothing), and it is said.
+    let s = load(&bytes(0.0, json!({ "dispersion": 0.5 }))).unwrap();
+    assert_eq!(s.material_ext(0).dispersion, 0.0);
+    assert!(
+        s.notes.iter().any(|n| n
+            == "material 'diamond': KHR_materials_dispersion without transmission changes \
+                nothing (only refracted light is dispersed)"),
+        "{:?}",
+        s.notes
+    );
+    for (dispersion, problem) in [
+        (
+            json!({ "dispersion": -0.1 }),
+            "KHR_materials_dispersion: dispersion -0.1 is not a finite number ≥ 0",
+        ),
+        (
+            json!({ "dispersion": 1e300 }),
+            "KHR_materials_dispersion: dispersion 1e300 is not a finite number ≥ 0",
+        ),
+        (
+            json!({ "dispersion": "strong" }),
+            "dispersion \"strong\" is not a number",
+        ),
+    ] {
+        assert_eq!(
+            err(&bytes(1.0, dispersion)),
+            format!("test.gltf: material 'diamond': {problem}")
+        );
+    }
+}
+
 // ---------------------------------------------------------------------------------------------
 // Unsupported features
 

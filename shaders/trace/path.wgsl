@@ -61,6 +61,9 @@ const MAT_BLEND: u32 = 64u;
 const MAT_EXT_BSDF: u32 = 128u;
 const MAT_EXT_TEX: u32 = 256u;
 const MAT_VOLUME: u32 = 512u;
+const MAT_DISPERSION: u32 = 1024u;
+// ext_bsdf's channel for a path that follows all three (CPU twin: path::ALL_CHANNELS).
+const ALL_CHANNELS: u32 = 3u;
 const FEAT_EXTRAS: u32 = 1u;
 const FEAT_ALPHA: u32 = 2u;
 const LIGHT_SPOT: u32 = 1u;
@@ -250,11 +253,17 @@ fn textured(mb: u32, k: u32) -> bool {
 }
 
 // The extensions' BSDF over the core one: each factor times its texture where the material has
-// one (CPU twin: path::ext_bsdf).
-fn ext_bsdf(mb: u32, flags: u32, core_in: Bsdf, front: bool, tri: u32, u: f32, v: f32, ns: vec3<f32>, ng: vec3<f32>) -> BsdfExt {
+// one; a dispersive one's index of refraction that of the path's `channel` unless it is
+// ALL_CHANNELS (CPU twin: path::ext_bsdf).
+fn ext_bsdf(mb: u32, flags: u32, core_in: Bsdf, front: bool, tri: u32, u: f32, v: f32, ns: vec3<f32>, ng: vec3<f32>, channel: u32) -> BsdfExt {
     let m3 = materials[mb + 3u];
     let m4 = materials[mb + 4u];
-    let ior = m4.x;
+    // The anisotropy's strength and its direction in the tangent frame, and the dispersion.
+    let an = materials[mb + MATERIAL_ANISO_ROW];
+    var ior = m4.x;
+    if channel != ALL_CHANNELS {
+        ior = dispersed_ior(m4.x, an.w, channel);
+    }
     let f0 = (ior - 1.0) / (ior + 1.0);
     var core = core_in;
     var specular_color = m3.xyz;
@@ -265,8 +274,6 @@ fn ext_bsdf(mb: u32, flags: u32, core_in: Bsdf, front: bool, tri: u32, u: f32, v
     let sh = materials[mb + MATERIAL_SHEEN_ROW];
     var sheen = sh.xyz;
     var sheen_roughness = sh.w;
-    // The anisotropy's strength and its direction in the tangent frame.
-    let an = materials[mb + MATERIAL_ANISO_ROW];
     var strength = an.x;
     var dir = an.yz;
     if (flags & MAT_EXT_TEX) != 0u {
@@ -576,15 +583,23 @@ fn path_shade(st: ptr<function, PathState>, hit: Hit) -> bool {
         metallic *= mr.z;
     }
     let bsdf = Bsdf(base.xyz, metallic, alpha, m2.z);
+    let r2 = rand4(pixel, sample, 2u + 2u * depth);
+    // A dispersive surface: the path follows one channel from here on (after this vertex's
+    // emission, before its light sample and BSDF, which refract by it).
+    var channel = ALL_CHANNELS;
+    if (flags & MAT_DISPERSION) != 0u {
+        let picked = pick_channel(throughput, r2.w);
+        channel = picked.channel;
+        throughput = picked.throughput;
+    }
     let has_ext = (flags & MAT_EXT_BSDF) != 0u;
     var ext = BsdfExt(bsdf, vec3<f32>(1.0), 0.04, 1.5, 0.0, 0.0, 0.1, ns, vec3<f32>(0.0), 1.0,
         vec3<f32>(0.0), bsdf.alpha);
     if has_ext {
-        ext = ext_bsdf(mb, flags, bsdf, front, tri, hit.u, hit.v, ns_interpolated, ng);
+        ext = ext_bsdf(mb, flags, bsdf, front, tri, hit.u, hit.v, ns_interpolated, ng, channel);
     }
     let transmits = has_ext && ext_transmits(ext);
     let r1 = rand4(pixel, sample, 1u + 2u * depth);
-    let r2 = rand4(pixel, sample, 2u + 2u * depth);
     let po = offset_ray(p, ng);
 
     if params.env_select > 0.0 || params.light_count > 0u || params.punctual_count > 0u {

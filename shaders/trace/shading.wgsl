@@ -274,6 +274,41 @@ fn max3(v: vec3<f32>) -> f32 {
     return max(max(v.x, v.y), v.z);
 }
 
+// KHR_materials_dispersion's wavelength term per channel, (523655/λ² − 1.5168) / 20, at the
+// Fraunhofer C, d and F lines (CPU twin: shading::DISPERSION_TERMS, the same literals).
+const DISPERSION_R: f32 = -0.0150474785;
+const DISPERSION_G: f32 = 0.0000021811952;
+const DISPERSION_B: f32 = 0.034952514;
+
+// The index of refraction in `channel` (0 red, 1 green, 2 blue) of a material of `ior` and
+// `dispersion` (20 / Abbe number), in [1, 10] (CPU twin: shading::dispersed_ior).
+fn dispersed_ior(ior: f32, dispersion: f32, channel: u32) -> f32 {
+    let terms = vec3<f32>(DISPERSION_R, DISPERSION_G, DISPERSION_B);
+    return clamp(ior + (ior - 1.0) * dispersion * terms[channel], 1.0, 10.0);
+}
+
+struct Picked {
+    channel: u32,
+    throughput: vec3<f32>,
+}
+
+// The colour channel a path follows from a dispersive surface on, picked in proportion to its
+// throughput, and the throughput from here on: that channel alone over its probability (CPU
+// twin: shading::pick_channel, which says why a path needs no state for it).
+fn pick_channel(t: vec3<f32>, u: f32) -> Picked {
+    let sum = t.x + t.y + t.z;
+    let x = u * sum;
+    var channel = 2u;
+    if x < t.x || (t.y == 0.0 && t.z == 0.0) {
+        channel = 0u;
+    } else if x < t.x + t.y || t.z == 0.0 {
+        channel = 1u;
+    }
+    var out = vec3<f32>(0.0);
+    out[channel] = sum;
+    return Picked(channel, out);
+}
+
 fn ext_transmits(e: BsdfExt) -> bool {
     return e.transmission > 0.0 && e.core.metallic < 1.0;
 }

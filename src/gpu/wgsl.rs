@@ -48,6 +48,21 @@ pub fn struct_size(module: &naga::Module, name: &str) -> usize {
     ty.inner.size(module.to_ctx()) as usize
 }
 
+/// The value of the scalar constant `name` declared in `module` (WGSL's `const`, folded by
+/// naga's constant evaluator); panics when there is none or it is not a literal.
+#[must_use]
+pub fn const_literal(module: &naga::Module, name: &str) -> naga::Literal {
+    let (_, c) = module
+        .constants
+        .iter()
+        .find(|(_, c)| c.name.as_deref() == Some(name))
+        .unwrap_or_else(|| panic!("no constant {name} in the module"));
+    match module.global_expressions[c.init] {
+        naga::Expression::Literal(l) => l,
+        ref other => panic!("constant {name} is not a literal: {other:?}"),
+    }
+}
+
 /// The members of the struct `name` in `module`: (name, byte offset), in declaration order, with
 /// the offsets naga's layouter gave them (WGSL's alignment rules).
 #[must_use]

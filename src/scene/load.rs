@@ -56,6 +56,7 @@ pub const SUPPORTED_EXTENSIONS: &[&str] = &[
     "KHR_materials_volume",
     "KHR_materials_sheen",
     "KHR_materials_anisotropy",
+    "KHR_materials_dispersion",
     "KHR_texture_transform",
     "KHR_lights_punctual",
     "KHR_mesh_quantization",
@@ -1055,6 +1056,30 @@ impl Loader<'_> {
         }
         if let Some(v) = m.volume() {
             ext.absorption = self.absorption(&element, &v)?;
+        }
+        if let Some(dp) = m.extension_value("KHR_materials_dispersion") {
+            // (JSON to the gltf crate, as the clear coat is.) raygun refracts every
+            // transmitting surface, with or without KHR_materials_volume, so the dispersion
+            // applies wherever light is transmitted.
+            let d = self.json_number(&element, dp, "dispersion", 0.0)? as f32;
+            if !(d.is_finite() && d >= 0.0) {
+                // (The file's own number: beyond f32's range it would read "inf".)
+                let given = &dp["dispersion"];
+                return Err(self.element_error(
+                    element,
+                    format!(
+                        "KHR_materials_dispersion: dispersion {given} is not a finite number ≥ 0"
+                    ),
+                ));
+            }
+            if d > 0.0 && ext.transmission == 0.0 {
+                self.report.note(format!(
+                    "{element}: KHR_materials_dispersion without transmission changes nothing \
+                     (only refracted light is dispersed)"
+                ));
+            } else {
+                ext.dispersion = d;
+            }
         }
         let strength = m.emissive_strength().unwrap_or(1.0);
         if !(strength >= 0.0 && strength.is_finite()) {

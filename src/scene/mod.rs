@@ -244,6 +244,10 @@ pub struct MaterialExt {
     pub anisotropy_strength: f32,
     pub anisotropy_rotation: f32,
     pub anisotropy_texture: Option<TextureRef>,
+    /// KHR_materials_dispersion: 20 / the Abbe number V_d of the medium behind a transmitting
+    /// surface (0: none; 1 is V_d = 20, the lowest of ordinary glass; diamond 0.36). Each
+    /// channel refracts with its own index of refraction ([`crate::trace::shading::dispersed_ior`]).
+    pub dispersion: f32,
 }
 
 impl MaterialExt {
@@ -295,6 +299,7 @@ impl Default for MaterialExt {
             anisotropy_strength: 0.0,
             anisotropy_rotation: 0.0,
             anisotropy_texture: None,
+            dispersion: 0.0,
         }
     }
 }

@@ -1450,6 +1450,32 @@ mod tests {
         assert_eq!(struct_size(&module, "PathState"), 64);
     }
 
+    /// The constants the kernel shares with the CPU twin by value: the dispersion's wavelength
+    /// terms to the bit, its material flag and the all-channels marker.
+    #[test]
+    fn the_kernels_dispersion_constants_are_the_twins() {
+        use crate::gpu::wgsl::const_literal;
+        use wgpu::naga::Literal;
+        let module = validated("path.wgsl", TRACE_WGSL);
+        for (name, want) in ["DISPERSION_R", "DISPERSION_G", "DISPERSION_B"]
+            .iter()
+            .zip(crate::trace::shading::DISPERSION_TERMS)
+        {
+            match const_literal(&module, name) {
+                Literal::F32(v) => assert_eq!(v.to_bits(), want.to_bits(), "{name}: {v} vs {want}"),
+                other => panic!("{name} is {other:?}"),
+            }
+        }
+        assert_eq!(
+            const_literal(&module, "MAT_DISPERSION"),
+            Literal::U32(crate::trace::pack::MAT_DISPERSION)
+        );
+        assert_eq!(
+            const_literal(&module, "ALL_CHANNELS"),
+            Literal::U32(crate::trace::path::ALL_CHANNELS)
+        );
+    }
+
     #[test]
     fn the_owned_sums_kernel_validates_and_matches_its_rust_twins() {
         let module = validated("accum.wgsl", ACCUM_WGSL);

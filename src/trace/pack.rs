@@ -7,7 +7,7 @@
 //! | `prims` | BVH primitive | 3 × vec4: `[v0, bits(triangle)]`, `[e1, light density]`, `[e2, flags]` (flags: [`PRIM_CULL`] single-sided and opaque, [`PRIM_ALPHA`] alpha-tested; as a float) |
 //! | `shade` | triangle | 4 × vec4: `[n0, uv0.x]`, `[n1, uv0.y]`, `[n2, uv1.x]`, `[uv1.y, uv2, bits(material)]` |
 //! | `shade` from `extras_offset` | triangle, only with [`FEAT_EXTRAS`] | 8 × vec4: `[colour0 rgba]`, `[colour1]`, `[colour2]`, `[uv1₀, uv1₁]`, `[uv1₂, 0, 0]`, `[tangent0 xyz, sign]`, `[tangent1]`, `[tangent2]` (the TEXCOORD_1 set, tangents for normal maps) |
-//! | `materials` | material | [`MATERIAL_STRIDE`] × vec4: `[base colour rgba]`, `[emission, flags]`, `[metallic, α, specular, alpha cutoff]`, `[specular colour, transmission]`, `[ior, clearcoat, clearcoat α, normal scale]`, then thirteen texture slots (base colour, metallic-roughness, normal, emissive, then the extensions': transmission, specular, specular colour, clear coat, coat roughness, coat normal, sheen colour, sheen roughness, anisotropy) of 2 × vec4 `[uv row 0, bits(texture or !0)]`, `[uv row 1, bits(texCoord set)]`, then `[coat normal scale, absorption σ rgb]`, `[sheen colour, sheen roughness]`, `[anisotropy strength, cos rotation, sin rotation, 0]`; after the last material, where one has a sheen, the sheen's albedo table ([`SHEEN_TABLE_ROWS`] vec4s of [`SHEEN_ALBEDO`]) |
+//! | `materials` | material | [`MATERIAL_STRIDE`] × vec4: `[base colour rgba]`, `[emission, flags]`, `[metallic, α, specular, alpha cutoff]`, `[specular colour, transmission]`, `[ior, clearcoat, clearcoat α, normal scale]`, then thirteen texture slots (base colour, metallic-roughness, normal, emissive, then the extensions': transmission, specular, specular colour, clear coat, coat roughness, coat normal, sheen colour, sheen roughness, anisotropy) of 2 × vec4 `[uv row 0, bits(texture or !0)]`, `[uv row 1, bits(texCoord set)]`, then `[coat normal scale, absorption σ rgb]`, `[sheen colour, sheen roughness]`, `[anisotropy strength, cos rotation, sin rotation, dispersion]`; after the last material, where one has a sheen, the sheen's albedo table ([`SHEEN_TABLE_ROWS`] vec4s of [`SHEEN_ALBEDO`]) |
 //! | `texels` | texture | header `[offset, width, height, sampler]` per texture (sampler: wrap S in bits 0–1, wrap T in 2–3 — 0 repeat, 1 clamp, 2 mirror — bit 4 nearest, bit 5 sRGB), then RGBA8 words |
 //! | `lights` | emissive triangle | 3 × vec4: `[v0, bits(triangle)]`, `[e1, 1 if double-sided]`, `[e2, 0]` |
 //! | `lights` from `3 × light_count` | punctual light | 3 × vec4: `[position, or the unit direction towards a directional light, kind (0 point, 1 spot, 2 directional)]`, `[intensity rgb, cos outer cone]`, `[unit spot axis, cos inner cone]` |
@@ -41,7 +41,7 @@ pub const MATERIAL_STRIDE: usize = 34;
 pub const MATERIAL_COAT_ROW: usize = 31;
 /// `[sheen colour, sheen roughness]` (`MATERIAL_SHEEN_ROW` in path.wgsl).
 pub const MATERIAL_SHEEN_ROW: usize = 32;
-/// The material's last vec4: `[anisotropy strength, cos rotation, sin rotation, 0]`
+/// The material's last vec4: `[anisotropy strength, cos rotation, sin rotation, dispersion]`
 /// (`MATERIAL_ANISO_ROW` in path.wgsl).
 pub const MATERIAL_ANISO_ROW: usize = 33;
 /// vec4s of the sheen's albedo table after the materials (`SHEEN_TABLE_ROWS` in path.wgsl).
@@ -62,6 +62,9 @@ pub const MAT_EXT_TEX: u32 = 256;
 /// KHR_materials_volume: a ray that meets this material from behind has crossed its medium and
 /// loses exp(−σt) of its throughput ([`crate::scene::MaterialExt::absorption`]).
 pub const MAT_VOLUME: u32 = 512;
+/// KHR_materials_dispersion: a path that meets this material follows one colour channel from
+/// here on, refracted by that channel's index ([`crate::trace::shading::pick_channel`]).
+pub const MAT_DISPERSION: u32 = 1024;
 
 /// Scene features (the `features` parameter): vertex extras are packed; some primitive is
 /// alpha-tested (rays then carry a seed for stochastic coverage).
@@ -281,6 +284,10 @@ impl PackedScene {
                 ),
                 (ext_textures, MAT_EXT_TEX),
                 (ext.absorption != Vec3::ZERO, MAT_VOLUME),
+                (
+                    ext.dispersion > 0.0 && ext.transmission > 0.0,
+                    MAT_DISPERSION,
+                ),
             ] {
                 if on {
                     flags |= bit;
@@ -311,7 +318,7 @@ impl PackedScene {
             let sh = ext.sheen_color;
             materials.push([sh.x, sh.y, sh.z, ext.sheen_roughness]);
             let (sin, cos) = ext.anisotropy_rotation.sin_cos();
-            materials.push([ext.anisotropy_strength, cos, sin, 0.0]);
+            materials.push([ext.anisotropy_strength, cos, sin, ext.dispersion]);
         }
 
         let mut texels = Vec::new();
@@ -436,8 +443,13 @@ impl PackedScene {
 
     /// Whether [`Self::plain`] holds: see there.
     fn needs_only_the_core(&self) -> bool {
-        const FULL_ONLY: u32 =
-            MAT_MR_TEX | MAT_NORMAL_TEX | MAT_MASK | MAT_BLEND | MAT_EXT_BSDF | MAT_VOLUME;
+        const FULL_ONLY: u32 = MAT_MR_TEX
+            | MAT_NORMAL_TEX
+            | MAT_MASK
+            | MAT_BLEND
+            | MAT_EXT_BSDF
+            | MAT_VOLUME
+            | MAT_DISPERSION;
         self.features == 0
             && self.punctual_count == 0
             && self

@@ -7,13 +7,18 @@
 //! against next-event estimation), one light sample (the environment, a punctual light — a
 //! delta light, weight 1 — or an emissive triangle, power heuristic), one BSDF sample (reflected, or refracted
 //! through glass), and Russian roulette from the fourth vertex on, up to `max_depth` vertices.
+//! At a dispersive surface (KHR_materials_dispersion) the path picks one colour channel in
+//! proportion to its throughput and carries that channel alone from there on, refracted by its
+//! own index (`shading::pick_channel`: a path already on one channel keeps it, so no state
+//! travels with the path).
 //! Alpha-masked and blended triangles are tested during traversal (`alpha_covered`); the
 //! features a scene lacks (pack.rs's flags) cost a bit test.
 //!
 //! Random numbers: `pcg4d([pixel, sample, seed, stream::TRACE + dim])` where `sample` is the
 //! pixel's sample count before this sample (so a pixel's sequence does not depend on which
 //! other pixels were sampled), dimension 0 is the pixel jitter and dimensions 1 + 2·depth and
-//! 2 + 2·depth serve the path vertex at `depth`.
+//! 2 + 2·depth serve the path vertex at `depth` (light selection and point, BSDF lobe and
+//! direction, Russian roulette, the dispersion's channel).
 //!
 //! [`render_cpu_with`] and [`samples_cpu`] trace their pixels in batches of paths (`batch.rs`):
 //! the paths of a batch advance a vertex at a time and are shaded sixteen at once in lanes
@@ -30,18 +35,22 @@ use super::accum::{Accumulation, accumulate};
 use super::camera::RenderCamera;
 use super::pack::{
     EXTRAS_STRIDE, FEAT_ALPHA, FEAT_EXTRAS, LIGHT_DIRECTIONAL, LIGHT_SPOT, MAT_BASE_TEX, MAT_BLEND,
-    MAT_EMISSIVE_TEX, MAT_EXT_BSDF, MAT_EXT_TEX, MAT_MASK, MAT_MR_TEX, MAT_NORMAL_TEX, MAT_VOLUME,
-    MATERIAL_ANISO_ROW, MATERIAL_COAT_ROW, MATERIAL_SHEEN_ROW, MATERIAL_STRIDE, MIN_ALPHA,
-    NO_TEXTURE, PackedScene,
+    MAT_DISPERSION, MAT_EMISSIVE_TEX, MAT_EXT_BSDF, MAT_EXT_TEX, MAT_MASK, MAT_MR_TEX,
+    MAT_NORMAL_TEX, MAT_VOLUME, MATERIAL_ANISO_ROW, MATERIAL_COAT_ROW, MATERIAL_SHEEN_ROW,
+    MATERIAL_STRIDE, MIN_ALPHA, NO_TEXTURE, PackedScene,
 };
 use super::shading::{
-    Bsdf, BsdfExt, SHEEN_MIN_ROUGHNESS, basis, direction_to_equirect, equirect_to_direction,
-    offset_ray, srgb_to_linear, uniform_sphere,
+    Bsdf, BsdfExt, SHEEN_MIN_ROUGHNESS, basis, direction_to_equirect, dispersed_ior,
+    equirect_to_direction, offset_ray, pick_channel, srgb_to_linear, uniform_sphere,
 };
 use super::wall::WallCamera;
 use crate::random::{pcg4d, stream, unit_f32};
 
 mod batch;
+
+/// `ext_bsdf`'s channel for a path that follows all three (no dispersive surface met yet, or
+/// none here).
+pub const ALL_CHANNELS: u32 = 3;
 
 /// What one iteration of the integrator needs besides the scene.
 #[derive(Clone, Copy, Debug)]
@@ -294,7 +303,9 @@ fn emission_at(sc: &PackedScene, mb: usize, flags: u32, sp: SurfacePoint) -> Vec
 /// specular colour × RGB, coat × R, coat roughness × G (α = max(α · G², [`MIN_ALPHA`]), as the
 /// metallic-roughness map's), and the coat's normal: `ns`, the interpolated normal before any
 /// normal map, bent by the coat's own normal map where it has one, on `ng`'s side (the
-/// geometric normal towards the viewer). The twin of `ext_bsdf` in path.wgsl.
+/// geometric normal towards the viewer). `channel` is the colour channel a path follows
+/// through a dispersive material (its index of refraction then that channel's), or
+/// [`ALL_CHANNELS`]. The twin of `ext_bsdf` in path.wgsl.
 #[inline(never)]
 #[allow(clippy::too_many_arguments)]
 fn ext_bsdf(
@@ -306,9 +317,17 @@ fn ext_bsdf(
     sp: SurfacePoint,
     ns: Vec3,
     ng: Vec3,
+    channel: u32,
 ) -> BsdfExt {
     let (m3, m4) = (sc.materials[mb + 3], sc.materials[mb + 4]);
-    let ior = m4[0];
+    // The anisotropy's strength and its direction in the tangent frame (cos, sin of the
+    // rotation, or the texture's direction rotated by it), and the dispersion.
+    let an = sc.materials[mb + MATERIAL_ANISO_ROW];
+    let ior = if channel == ALL_CHANNELS {
+        m4[0]
+    } else {
+        dispersed_ior(m4[0], an[3], channel)
+    };
     let f0 = (ior - 1.0) / (ior + 1.0);
     let mut specular_color = v3(m3);
     let mut transmission = m3[3];
@@ -316,9 +335,6 @@ fn ext_bsdf(
     let mut coat_normal = ns;
     let sh = sc.materials[mb + MATERIAL_SHEEN_ROW];
     let (mut sheen, mut sheen_roughness) = (v3(sh), sh[3]);
-    // The anisotropy's strength and its direction in the tangent frame (cos, sin of the
-    // rotation, or the texture's direction rotated by it).
-    let an = sc.materials[mb + MATERIAL_ANISO_ROW];
     let (mut strength, mut dir) = (an[0], Vec2::new(an[1], an[2]));
     if flags & MAT_EXT_TEX != 0 {
         // Slots 4..11 (after base colour, metallic-roughness, normal and emissive); a slot
@@ -720,8 +736,15 @@ fn trace_path<const FULL: bool>(
             alpha,
             specular: m2[2],
         };
+        let r2 = rand4(pixel, sample, s.seed, 2 + 2 * depth);
+        // A dispersive surface: the path follows one channel from here on (after this
+        // vertex's emission, before its light sample and BSDF, which refract by it).
+        let mut channel = ALL_CHANNELS;
+        if FULL && flags & MAT_DISPERSION != 0 {
+            (channel, throughput) = pick_channel(throughput, r2[3]);
+        }
         let ext = (FULL && flags & MAT_EXT_BSDF != 0)
-            .then(|| ext_bsdf(sc, mb, flags, bsdf, front, sp, ns_interpolated, ng));
+            .then(|| ext_bsdf(sc, mb, flags, bsdf, front, sp, ns_interpolated, ng, channel));
         let transmits = ext.is_some_and(|e| e.transmits());
         // The core BSDF's lobe probability, shared by its two evaluations and its sample.
         let ps = if ext.is_none() {
@@ -737,7 +760,6 @@ fn trace_path<const FULL: bool>(
             }
         };
         let r1 = rand4(pixel, sample, s.seed, 1 + 2 * depth);
-        let r2 = rand4(pixel, sample, s.seed, 2 + 2 * depth);
         let po = offset_ray(p, ng);
 
         // Next-event estimation: the environment, a punctual light or one emissive triangle.

@@ -26,7 +26,10 @@
 //! transmission by 1 − max(sheen)·E(v); and KHR_materials_anisotropy: the specular and
 //! transmission lobes' GGX anisotropic (Heitz 2014: α_t = mix(α, 1, strength²) along the
 //! brushing direction, α across it; the height-correlated visibility for reflection, separable
-//! Smith for refraction; half vectors sampled by D·cos θh through the slopes). Lobes: specular
+//! Smith for refraction; half vectors sampled by D·cos θh through the slopes), and
+//! KHR_materials_dispersion: a dispersive material's index of refraction per colour channel
+//! ([`dispersed_ior`]); the integrator makes a path that meets one follow a single channel
+//! ([`pick_channel`]) and builds the BSDF with that channel's index. Lobes: specular
 //! reflection, diffuse, transmission, coat, sheen (sampled uniformly over the hemisphere: its
 //! peak is at grazing angles).
 
@@ -479,6 +482,48 @@ fn ggx_half(t: Vec3, b: Vec3, n: Vec3, alpha: f32, u: f32, v: f32) -> Vec3 {
     let sin_h = (1.0 - cos_h * cos_h).max(0.0).sqrt();
     let (sin, cos) = sin_cos_turns(v);
     t * (sin_h * cos) + b * (sin_h * sin) + n * cos_h
+}
+
+/// KHR_materials_dispersion's wavelength term per channel, (523655/λ² − 1.5168) / 20, at the
+/// Fraunhofer lines the Abbe number is defined by: C (656.27 nm) for red, d (587.56 nm) for
+/// green and F (486.13 nm) for blue ([`dispersed_ior`]). The same literals as path.wgsl's
+/// `DISPERSION_*` (a test compares their bits).
+pub const DISPERSION_TERMS: [f32; 3] = [-0.015_047_478_5, 0.000_002_181_195_2, 0.034_952_514];
+
+/// The index of refraction in `channel` (0 red, 1 green, 2 blue) of a material whose ior at
+/// the d line is `ior` and whose KHR_materials_dispersion is `dispersion` (20 / its Abbe
+/// number V): the extension's two terms of Cauchy's equation,
+/// n(λ) = max(n_d + (n_d − 1)/V · (523655/λ² − 1.5168), 1), at most 10 as the loader's ior.
+#[inline]
+#[must_use]
+pub fn dispersed_ior(ior: f32, dispersion: f32, channel: u32) -> f32 {
+    let term = DISPERSION_TERMS[channel as usize];
+    (ior + (ior - 1.0) * dispersion * term).clamp(1.0, 10.0)
+}
+
+/// The colour channel a path follows from a dispersive surface on (0 red, 1 green, 2 blue),
+/// chosen with probability proportional to its `throughput` in that channel by `u` ∈ [0, 1),
+/// and the throughput from here on: that channel alone, divided by its probability (the sum of
+/// the three). Unbiased for each channel wherever it has throughput; a path that already
+/// follows one channel (the others zero) keeps it and its throughput exactly, so a path needs
+/// no state to stay on its wavelength through later dispersive surfaces, and one that has
+/// none in a channel never picks it. A throughput of zero picks red and stays zero.
+#[inline]
+#[must_use]
+pub fn pick_channel(throughput: Vec3, u: f32) -> (u32, Vec3) {
+    let t = throughput;
+    let sum = t.x + t.y + t.z;
+    let x = u * sum;
+    let channel = if x < t.x || (t.y == 0.0 && t.z == 0.0) {
+        0
+    } else if x < t.x + t.y || t.z == 0.0 {
+        1
+    } else {
+        2
+    };
+    let mut out = Vec3::ZERO;
+    out[channel] = sum;
+    (channel as u32, out)
 }
 
 #[inline]
@@ -1113,5 +1158,86 @@ mod ext_tests {
         assert_eq!(fd, Vec3::ONE);
         let p = bsdf.lobes(c, c);
         assert_eq!(p[2], 0.0, "no transmission sampled: {p:?}");
+    }
+
+    /// The wavelength terms are the extension's formula at the Fraunhofer lines, to the bit.
+    #[test]
+    fn dispersion_terms_are_the_formula_at_the_fraunhofer_lines() {
+        for (term, lambda) in DISPERSION_TERMS.iter().zip([656.27f64, 587.56, 486.13]) {
+            let want = ((523_655.0 / (lambda * lambda) - 1.5168) / 20.0) as f32;
+            assert_eq!(
+                term.to_bits(),
+                want.to_bits(),
+                "{lambda} nm: {term} vs {want}"
+            );
+        }
+    }
+
+    /// Blue's index exceeds red's by (n_d − 1)/V (the Abbe number's definition, to the
+    /// formula's rounding of its constants), green keeps n_d, and no index falls below 1.
+    #[test]
+    fn dispersed_iors_spread_by_the_abbe_number() {
+        for (ior, abbe) in [(1.5f32, 59.0f32), (2.42, 55.0), (1.58, 32.0), (2.6, 9.8)] {
+            let d = 20.0 / abbe;
+            let [r, g, b] = [0, 1, 2].map(|c| dispersed_ior(ior, d, c));
+            assert!(r < g && g < b, "ior {ior}: {r} {g} {b}");
+            let spread = (ior - 1.0) / abbe;
+            assert!(
+                ((b - r) / spread - 1.0).abs() < 1e-3,
+                "ior {ior}: {}",
+                b - r
+            );
+            assert!((g - ior).abs() < 1e-5, "ior {ior}: green {g}");
+        }
+        assert_eq!(dispersed_ior(1.5, 0.0, 0), 1.5);
+        assert_eq!([0, 1, 2].map(|c| dispersed_ior(1.0, 3.0, c)), [1.0; 3]);
+        assert_eq!(dispersed_ior(1.2, 100.0, 0), 1.0, "clamped at 1");
+        assert_eq!(dispersed_ior(9.0, 100.0, 2), 10.0, "clamped at 10");
+    }
+
+    /// The pick keeps every channel's expectation (over u ∈ [0, 1), by a fine midpoint rule),
+    /// never picks a channel without throughput, and leaves a one-channel throughput exactly.
+    #[test]
+    fn the_channel_pick_is_unbiased_and_keeps_a_picked_channel() {
+        let n = 1 << 16;
+        for t in [
+            Vec3::ONE,
+            Vec3::new(0.2, 0.7, 0.05),
+            Vec3::new(0.0, 0.3, 0.6),
+            Vec3::new(0.5, 0.0, 0.0),
+            Vec3::new(1e-30, 4.0, 0.0),
+        ] {
+            let mut mean = [0f64; 3];
+            for k in 0..n {
+                let u = (k as f32 + 0.5) / n as f32;
+                let (c, out) = pick_channel(t, u);
+                assert!(t[c as usize] > 0.0, "{t}: picked {c} at u = {u}");
+                for (m, o) in mean.iter_mut().zip(out.to_array()) {
+                    *m += f64::from(o) / f64::from(n);
+                }
+            }
+            for (c, m) in mean.iter().enumerate() {
+                let want = f64::from(t[c]);
+                assert!(
+                    (m - want).abs() <= 1e-4 * want.max(1e-3),
+                    "{t}: channel {c} {m}"
+                );
+            }
+            // The last u below 1: the top channel with throughput, never one without.
+            let (c, _) = pick_channel(t, 1.0 - f32::EPSILON / 2.0);
+            assert!(t[c as usize] > 0.0, "{t}: picked {c} at the top");
+        }
+        for c in 0..3 {
+            let mut t = Vec3::ZERO;
+            t[c] = 0.37;
+            for u in [0.0, 0.3, 0.999_999_9] {
+                let (picked, out) = pick_channel(t, u);
+                assert_eq!(
+                    (picked, out.to_array().map(f32::to_bits)),
+                    (c as u32, t.to_array().map(f32::to_bits))
+                );
+            }
+        }
+        assert_eq!(pick_channel(Vec3::ZERO, 0.5), (0, Vec3::ZERO));
     }
 }

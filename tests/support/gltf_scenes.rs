@@ -94,7 +94,7 @@ pub fn ortho(position: Vec3, ymag: f32) -> OrthographicCamera {
 /// One scene with every one of these features: textures with transforms, wrap modes and both
 /// filters, TEXCOORD_1, vertex colours, a normal map, a metallic-roughness map, an emissive
 /// texture, MASK and BLEND, rough and smooth glass (the rough one brushed and absorbing behind
-/// it), a brushed metal with a clear coat over a sheen, specular colour, the
+/// it, the smooth one dispersive), a brushed metal with a clear coat over a sheen, specular colour, the
 /// extensions' textures (transmission, specular, specular colour, coat, coat roughness, coat
 /// normal, sheen colour, sheen roughness, anisotropy), point, spot and directional lights and an
 /// environment.
@@ -278,6 +278,8 @@ pub fn everything() -> Scene {
             transmission_texture: transformed(1, 0),
             specular_texture: transformed(0, 0),
             specular_color_texture: tex_ref(3),
+            // Dispersive (KHR_materials_dispersion): a path through it follows one channel.
+            dispersion: 0.8,
             ..Default::default()
         },
     ];

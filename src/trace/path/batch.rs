@@ -646,6 +646,27 @@ fn shade_lanes<const FULL: bool>(
         alpha: fl(g.m2[1]),
         specular: fl(g.m2[2]),
     };
+    let key = |dim: u32| {
+        lanes::pcg4d([
+            U::from(g.pixel),
+            U::from(g.sample),
+            U::splat(s.seed),
+            U::splat(stream::TRACE.wrapping_add(dim)),
+        ])
+        .map(lanes::unit_f32)
+    };
+    let r2 = key(2 + 2 * depth);
+    // The lanes on a dispersive surface follow one channel from here on (`trace_path`'s
+    // `pick_channel`, lane by lane).
+    let dispersion_lanes = if FULL { has(MAT_DISPERSION) } else { 0 };
+    let mut channel = [ALL_CHANNELS; LANES];
+    if dispersion_lanes != 0 {
+        let (mut lanes, u) = (throughput.lanes(), r2[3].to_array());
+        for i in (0..LANES).filter(|&i| dispersion_lanes & (1 << i) != 0) {
+            (channel[i], lanes[i]) = pick_channel(lanes[i], u[i]);
+        }
+        throughput = V3::from_lanes(&lanes);
+    }
     // The extensions' BSDF, for the lanes whose material has one (`trace_path`'s `BsdfExt`).
     let ext_lanes = if FULL { has(MAT_EXT_BSDF) } else { 0 };
     let front_bits = front.to_bitmask();
@@ -667,7 +688,7 @@ fn shade_lanes<const FULL: bool>(
                     |v: V3| Vec3::new(v.x.to_array()[i], v.y.to_array()[i], v.z.to_array()[i]);
                 let (n, ng) = (lane(ns_interpolated), lane(ng));
                 let (mb, flags) = (g.mb[i], g.flags[i]);
-                ext_bsdf(sc, mb, flags, core, front, sp[i], n, ng)
+                ext_bsdf(sc, mb, flags, core, front, sp[i], n, ng, channel[i])
             })
         })
     };
@@ -692,17 +713,7 @@ fn shade_lanes<const FULL: bool>(
         }
         (V3::from_lanes(&f), fl(pdf))
     };
-    let key = |dim: u32| {
-        lanes::pcg4d([
-            U::from(g.pixel),
-            U::from(g.sample),
-            U::splat(s.seed),
-            U::splat(stream::TRACE.wrapping_add(dim)),
-        ])
-        .map(lanes::unit_f32)
-    };
     let r1 = key(1 + 2 * depth);
-    let r2 = key(2 + 2 * depth);
     let po = lanes::offset_ray(p, ng);
     // Below the surface (through glass): the origin offset the other way.
     let below = if transmits_bits != 0 {
