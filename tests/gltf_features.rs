@@ -403,6 +403,66 @@ fn a_dispersive_slab_shifts_each_channel_by_its_own_index() {
     }
 }
 
+/// A leaf (KHR_materials_diffuse_transmission, a double-sided plane with no specular
+/// reflection) before a lamp of radiance 1 that fills its far side, in a black world, seen from
+/// the near side: it shows dt × its transmission colour (the lamp's light, Lambertian through
+/// it), nothing of its base (nothing lights the near side), on both backends; without the
+/// extension it is black.
+#[test]
+fn a_backlit_leaf_shows_its_diffuse_transmission() {
+    let leaf = |dt: f32| {
+        let mut tris = rect(-50.0, -50.0, 50.0, 50.0, 0.0, 0);
+        tris.extend(rect(-500.0, -500.0, 500.0, 500.0, -0.05, 1));
+        Scene {
+            triangles: tris,
+            materials: vec![
+                material(Vec3::new(0.1, 0.9, 0.2), 0.0, 0.5, 0.0, Vec3::ZERO),
+                material(Vec3::ZERO, 0.0, 1.0, 0.0, Vec3::ONE),
+            ],
+            material_ext: vec![MaterialExt {
+                diffuse_transmission: dt,
+                diffuse_transmission_color: Vec3::new(0.9, 0.6, 0.1),
+                ..Default::default()
+            }],
+            orthographic_cameras: vec![ortho(Vec3::new(0.0, 0.0, 1.0), 0.5)],
+            environment: Environment::Constant(Vec3::ZERO),
+            ..Default::default()
+        }
+    };
+    // The lamp fills the far hemisphere but for the cosine-weighted share beyond its edge
+    // (tan θ = 500 / 0.05): 1 − 10⁻⁸.
+    let s = |scene: &Scene| settings(scene, 8, 8, 21, 3);
+    let all: Vec<usize> = (0..64).collect();
+    for dt in [0.4f32, 1.0] {
+        let scene = leaf(dt);
+        let want = Vec3::new(0.9, 0.6, 0.1) * dt;
+        for (acc, label) in both(&scene, &s(&scene), 256) {
+            let z = z_of(&acc, &all, f64::from(luminance(want)));
+            assert!(z.abs() < 5.0, "{label}, dt {dt}: z = {z} against {want}");
+            let mean = all.iter().map(|&i| acc.mean(i)).sum::<Vec3>() / 64.0;
+            assert!(
+                (mean - want).abs().max_element() < 0.02,
+                "{label}, dt {dt}: {mean} vs {want}"
+            );
+            // Power: the base's colour instead is told apart.
+            let base = Vec3::new(0.1, 0.9, 0.2) * dt;
+            assert!(
+                z_of(&acc, &all, f64::from(luminance(base))).abs() > 5.0,
+                "{label}"
+            );
+        }
+    }
+    let scene = leaf(0.0);
+    for (acc, label) in both(&scene, &s(&scene), 16) {
+        let mean = all.iter().map(|&i| acc.mean(i)).sum::<Vec3>() / 64.0;
+        assert_eq!(
+            mean,
+            Vec3::ZERO,
+            "{label}: an opaque leaf lets nothing through"
+        );
+    }
+}
+
 /// A white sheen (KHR_materials_sheen) over a black base, under a white sky, seen at an angle
 /// θ: the plane reflects the sheen's directional albedo E(cos θ) — its integral over the
 /// hemisphere, which raygun tabulates (`SHEEN_ALBEDO`; here at table nodes, where the table is

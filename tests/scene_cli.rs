@@ -159,10 +159,10 @@ fn render_takes_orthographic_cameras_and_look_from_viewpoints() {
     );
 }
 
-/// `scene info` names the materials with a dispersion and an anisotropy, as the loader read
-/// them from a file (a dispersion on an opaque material is read as none, and said).
+/// `scene info` names the materials with a dispersion, an anisotropy and a diffuse
+/// transmission, as the loader read them from a file (a dispersion on an opaque material is read as none, and said).
 #[test]
-fn scene_info_names_dispersive_and_brushed_materials() {
+fn scene_info_names_dispersive_brushed_and_translucent_materials() {
     let positions: Vec<u8> = [0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0]
         .iter()
         .flat_map(|v| v.to_le_bytes())
@@ -172,7 +172,7 @@ fn scene_info_names_dispersive_and_brushed_materials() {
     let gltf = serde_json::json!({
         "asset": { "version": "2.0" },
         "extensionsUsed": ["KHR_materials_transmission", "KHR_materials_dispersion",
-            "KHR_materials_anisotropy"],
+            "KHR_materials_anisotropy", "KHR_materials_diffuse_transmission"],
         "buffers": [{ "byteLength": 36,
             "uri": format!("data:application/octet-stream;base64,{buffer}") }],
         "bufferViews": [{ "buffer": 0, "byteLength": 36 }],
@@ -186,8 +186,10 @@ fn scene_info_names_dispersive_and_brushed_materials() {
                 "KHR_materials_anisotropy": { "anisotropyStrength": 0.5 } } },
             { "name": "painted", "extensions": {
                 "KHR_materials_dispersion": { "dispersion": 0.5 } } },
+            { "name": "leaf", "extensions": {
+                "KHR_materials_diffuse_transmission": { "diffuseTransmissionFactor": 0.5 } } },
         ],
-        "meshes": [{ "primitives": [triangle(0), triangle(1), triangle(2)] }],
+        "meshes": [{ "primitives": [triangle(0), triangle(1), triangle(2), triangle(3)] }],
         "nodes": [{ "mesh": 0 }],
         "scenes": [{ "nodes": [0] }],
     });
@@ -199,10 +201,10 @@ fn scene_info_names_dispersive_and_brushed_materials() {
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let features = &v["material_features"];
     assert_eq!(features["dispersion"], serde_json::json!(["prism"]), "{v}");
+    assert_eq!(features["anisotropy"], serde_json::json!(["brushed"]));
     assert_eq!(
-        features["anisotropy"],
-        serde_json::json!(["brushed"]),
-        "{v}"
+        features["diffuse transmission"],
+        serde_json::json!(["leaf"])
     );
     assert_eq!(v["unsupported"], serde_json::json!([]), "{v}");
     let text = String::from_utf8(raygun(&["scene", "info", path]).stdout).unwrap();

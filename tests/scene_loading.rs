@@ -1013,7 +1013,7 @@ fn a_dispersion_loads_on_glass_and_is_said_to_do_nothing_elsewhere() {
         ),
         (
             json!({ "dispersion": 1e300 }),
-            "KHR_materials_dispersion: dispersion 1e300 is not a finite number ≥ 0",
+            "KHR_materials_dispersion: dispersion 1e+300 is not a finite number ≥ 0",
         ),
         (
             json!({ "dispersion": "strong" }),
@@ -1023,6 +1023,89 @@ fn a_dispersion_loads_on_glass_and_is_said_to_do_nothing_elsewhere() {
         assert_eq!(
             err(&bytes(1.0, dispersion)),
             format!("test.gltf: material 'diamond': {problem}")
+        );
+    }
+}
+
+/// KHR_materials_diffuse_transmission: the factor and colour (clamped to [0, 1] and said), the
+/// strength texture linear and the colour texture sRGB; malformed values refused naming the
+/// material.
+#[test]
+fn a_diffuse_transmission_loads_as_the_file_says_and_bad_ones_are_named() {
+    let bytes = |dt: Value| {
+        material_with(json!({ "name": "leaf", "extensions": {
+            "KHR_materials_diffuse_transmission": dt } }))
+    };
+    let s = load(&bytes(json!({
+        "diffuseTransmissionFactor": 0.7, "diffuseTransmissionColorFactor": [0.9, 0.6, 0.1],
+        "diffuseTransmissionTexture": { "index": 0, "texCoord": 1 },
+        "diffuseTransmissionColorTexture": { "index": 0 },
+    })))
+    .unwrap();
+    let e = s.material_ext(0);
+    assert_eq!(
+        (e.diffuse_transmission, e.diffuse_transmission_color),
+        (0.7, Vec3::new(0.9, 0.6, 0.1))
+    );
+    let (strength, colour) = (
+        e.diffuse_transmission_texture.unwrap(),
+        e.diffuse_transmission_color_texture.unwrap(),
+    );
+    assert_eq!((strength.uv.tex_coord, colour.uv.tex_coord), (1, 0));
+    assert!(
+        !s.textures[strength.texture as usize].srgb,
+        "a strength is linear data"
+    );
+    assert!(s.textures[colour.texture as usize].srgb, "a colour is sRGB");
+    assert!(s.unsupported.is_empty(), "{:?}", s.unsupported);
+    let packed = raygun::trace::pack::PackedScene::new(&s);
+    assert_eq!(
+        packed.materials[raygun::trace::pack::MATERIAL_DIFFUSE_ROW],
+        [0.9, 0.6, 0.1, 0.7]
+    );
+    // Defaults: none, white.
+    let e = load(&bytes(json!({}))).unwrap().material_ext(0);
+    assert_eq!(
+        (e.diffuse_transmission, e.diffuse_transmission_color),
+        (0.0, Vec3::ONE)
+    );
+    let s = load(&bytes(json!({ "diffuseTransmissionFactor": 1.5,
+        "diffuseTransmissionColorFactor": [1.0, -0.5, 0.5] })))
+    .unwrap();
+    let e = s.material_ext(0);
+    assert_eq!(
+        (e.diffuse_transmission, e.diffuse_transmission_color),
+        (1.0, Vec3::new(1.0, 0.0, 0.5))
+    );
+    for what in [
+        "diffuseTransmissionFactor 1.5 clamped",
+        "diffuseTransmissionColorFactor -0.5 clamped",
+    ] {
+        assert!(
+            s.warnings
+                .iter()
+                .any(|w| w == &format!("material 'leaf': {what} to [0, 1]")),
+            "{what}: {:?}",
+            s.warnings
+        );
+    }
+    for (dt, problem) in [
+        (
+            json!({ "diffuseTransmissionFactor": "half" }),
+            "diffuseTransmissionFactor \"half\" is not a number",
+        ),
+        (
+            json!({ "diffuseTransmissionColorFactor": [1.0, 1.0] }),
+            "diffuseTransmissionColorFactor [1.0,1.0] is not three numbers",
+        ),
+        (
+            json!({ "diffuseTransmissionColorTexture": { "index": 4 } }),
+            "diffuseTransmissionColorTexture: index 4 names no texture (the file has 1)",
+        ),
+    ] {
+        assert_eq!(
+            err(&bytes(dt)),
+            format!("test.gltf: material 'leaf': {problem}")
         );
     }
 }
@@ -1042,7 +1125,7 @@ fn every_unsupported_feature_is_named_once() {
     );
     let tri = |material: usize| json!({ "attributes": { "POSITION": pos }, "material": material });
     let bytes = d.finish(json!({
-        "extensionsUsed": ["KHR_lights_punctual", "KHR_texture_transform", "KHR_materials_iridescence", "KHR_materials_dispersion"],
+        "extensionsUsed": ["KHR_lights_punctual", "KHR_texture_transform", "KHR_materials_iridescence", "KHR_materials_variants"],
         "images": [{ "uri": png }],
         "textures": [{ "name": "t", "source": 0 }],
         "materials": [
@@ -1068,7 +1151,7 @@ fn every_unsupported_feature_is_named_once() {
     let scene = load(&bytes).unwrap();
     let expected = [
         "KHR_materials_iridescence",
-        "KHR_materials_dispersion",
+        "KHR_materials_variants",
         "animation 'wave'",
         "primitive mode LINES (mesh 'wire')",
         "morph targets (mesh 'morph')",

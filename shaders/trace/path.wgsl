@@ -41,10 +41,11 @@ struct Params {
 }
 
 // Layout constants: src/trace/pack.rs (module doc).
-const MATERIAL_STRIDE: u32 = 34u;
-const MATERIAL_COAT_ROW: u32 = 31u;
-const MATERIAL_SHEEN_ROW: u32 = 32u;
-const MATERIAL_ANISO_ROW: u32 = 33u;
+const MATERIAL_STRIDE: u32 = 39u;
+const MATERIAL_COAT_ROW: u32 = 35u;
+const MATERIAL_SHEEN_ROW: u32 = 36u;
+const MATERIAL_ANISO_ROW: u32 = 37u;
+const MATERIAL_DIFFUSE_ROW: u32 = 38u;
 // The sheen's albedo table after the materials: SHEEN_COLUMNS × SHEEN_ROWS entries in
 // SHEEN_TABLE_ROWS vec4s.
 const SHEEN_COLUMNS: u32 = 64u;
@@ -276,6 +277,9 @@ fn ext_bsdf(mb: u32, flags: u32, core_in: Bsdf, front: bool, tri: u32, u: f32, v
     var sheen_roughness = sh.w;
     var strength = an.x;
     var dir = an.yz;
+    let dt = materials[mb + MATERIAL_DIFFUSE_ROW];
+    var diffuse_transmission = dt.w;
+    var diffuse_transmission_color = dt.xyz;
     if (flags & MAT_EXT_TEX) != 0u {
         if textured(mb, 4u) {
             transmission *= slot(mb, 4u, tri, u, v).x;
@@ -308,6 +312,12 @@ fn ext_bsdf(mb: u32, flags: u32, core_in: Bsdf, front: bool, tri: u32, u: f32, v
             dir = vec2<f32>(d.x * dir.x - d.y * dir.y, d.x * dir.y + d.y * dir.x);
             strength *= a.z;
         }
+        if textured(mb, 13u) {
+            diffuse_transmission *= slot(mb, 13u, tri, u, v).w;
+        }
+        if textured(mb, 14u) {
+            diffuse_transmission_color *= slot(mb, 14u, tri, u, v).xyz;
+        }
     }
     var aniso_dir = vec3<f32>(0.0);
     var alpha_t = core.alpha;
@@ -321,7 +331,7 @@ fn ext_bsdf(mb: u32, flags: u32, core_in: Bsdf, front: bool, tri: u32, u: f32, v
     }
     return BsdfExt(core, specular_color, f0 * f0, select(1.0 / ior, ior, front), transmission,
         clearcoat, clearcoat_alpha, coat_normal, sheen, max(sheen_roughness, SHEEN_MIN_ROUGHNESS),
-        aniso_dir, alpha_t);
+        aniso_dir, alpha_t, diffuse_transmission, diffuse_transmission_color);
 }
 
 fn normal_mapped(mb: u32, tri: u32, u: f32, v: f32, ns: vec3<f32>) -> vec3<f32> {
@@ -594,7 +604,7 @@ fn path_shade(st: ptr<function, PathState>, hit: Hit) -> bool {
     }
     let has_ext = (flags & MAT_EXT_BSDF) != 0u;
     var ext = BsdfExt(bsdf, vec3<f32>(1.0), 0.04, 1.5, 0.0, 0.0, 0.1, ns, vec3<f32>(0.0), 1.0,
-        vec3<f32>(0.0), bsdf.alpha);
+        vec3<f32>(0.0), bsdf.alpha, 0.0, vec3<f32>(1.0));
     if has_ext {
         ext = ext_bsdf(mb, flags, bsdf, front, tri, hit.u, hit.v, ns_interpolated, ng, channel);
     }

@@ -136,6 +136,9 @@ struct BsdfExt {
     // KHR_materials_anisotropy: the direction (zero: isotropic) along which α is alpha_t.
     aniso_dir: vec3<f32>,
     alpha_t: f32,
+    // KHR_materials_diffuse_transmission: the share of the diffuse base transmitted, its colour.
+    diffuse_transmission: f32,
+    diffuse_transmission_color: vec3<f32>,
 }
 
 // The anisotropic frame about n (CPU twin: shading::aniso_frame): tangent, bitangent, and
@@ -310,7 +313,7 @@ fn pick_channel(t: vec3<f32>, u: f32) -> Picked {
 }
 
 fn ext_transmits(e: BsdfExt) -> bool {
-    return e.transmission > 0.0 && e.core.metallic < 1.0;
+    return (e.transmission > 0.0 || e.diffuse_transmission > 0.0) && e.core.metallic < 1.0;
 }
 
 struct ExtFresnel {
@@ -345,10 +348,12 @@ fn ext_coat(e: BsdfExt, cos_oc: f32) -> f32 {
     return 0.0;
 }
 
-// Lobe probabilities: specular, diffuse, transmission, coat in `p`, the sheen's apart.
+// Lobe probabilities: specular, diffuse, transmission, coat in `p`, the sheen's and the
+// diffuse transmission's apart.
 struct ExtLobes {
     p: vec4<f32>,
     sheen: f32,
+    dt: f32,
 }
 
 fn ext_lobes(e: BsdfExt, cos_o: f32, cos_oc: f32) -> ExtLobes {
@@ -359,14 +364,18 @@ fn ext_lobes(e: BsdfExt, cos_o: f32, cos_oc: f32) -> ExtLobes {
     let under = 1.0 - max3(e.sheen) * e_o;
     let ws = lum(fr.f) * (1.0 - coat) * under;
     let rest = lum(b.base) * (1.0 - b.metallic) * (1.0 - max3(fr.fd)) * (1.0 - coat) * under;
-    let wd = rest * (1.0 - e.transmission);
+    let dt = e.diffuse_transmission;
+    let wd = rest * (1.0 - e.transmission) * (1.0 - dt);
     let wt = rest * e.transmission;
     let wsh = lum(e.sheen) * e_o * (1.0 - coat);
-    let total = ws + wd + wt + coat + wsh;
+    let wdt = lum(e.diffuse_transmission_color) * (1.0 - b.metallic) * (1.0 - max3(fr.fd))
+        * (1.0 - coat) * under * (1.0 - e.transmission) * dt;
+    let total = ws + wd + wt + coat + wsh + wdt;
     if total > 0.0 {
-        return ExtLobes(vec4<f32>(ws / total, wd / total, wt / total, coat / total), wsh / total);
+        return ExtLobes(vec4<f32>(ws / total, wd / total, wt / total, coat / total), wsh / total,
+            wdt / total);
     }
-    return ExtLobes(vec4<f32>(0.5, 0.5, 0.0, 0.0), 0.0);
+    return ExtLobes(vec4<f32>(0.5, 0.5, 0.0, 0.0), 0.0, 0.0);
 }
 
 fn ext_eval(e: BsdfExt, n: vec3<f32>, wo: vec3<f32>, wi: vec3<f32>) -> vec4<f32> {
@@ -399,7 +408,8 @@ fn ext_eval(e: BsdfExt, n: vec3<f32>, wo: vec3<f32>, wi: vec3<f32>) -> vec4<f32>
             vis = ggx_vis(cos_i, cos_o, a2);
         }
         let spec = fr.f * (d * vis);
-        let diff = b.base * ((1.0 - b.metallic) * (1.0 - max3(fr.fd)) * (1.0 - e.transmission) / PI);
+        let diff = b.base * ((1.0 - b.metallic) * (1.0 - max3(fr.fd)) * (1.0 - e.transmission)
+            * (1.0 - e.diffuse_transmission) / PI);
         var value = (spec + diff) * (1.0 - coat);
         var pdf = p.x * d * noh / (4.0 * voh) + p.y * cos_i / PI;
         if sheened {
@@ -428,6 +438,24 @@ fn ext_eval(e: BsdfExt, n: vec3<f32>, wo: vec3<f32>, wi: vec3<f32>) -> vec4<f32>
     if !ext_transmits(e) {
         return vec4<f32>(vec3<f32>(c.x), c.y);
     }
+    // The diffuse transmission: Lambertian through the surface, its share of the base (the
+    // Fresnel weight at the view, as its lobe's probability takes it).
+    var cv = vec3<f32>(c.x);
+    var cp = c.y;
+    let diffuse = e.diffuse_transmission > 0.0;
+    if diffuse {
+        let fo = ext_fresnel(e, cos_o);
+        var value = e.diffuse_transmission_color * ((1.0 - b.metallic) * (1.0 - max3(fo.fd))
+            * (1.0 - e.transmission) * e.diffuse_transmission * (1.0 - coat) / PI);
+        if sheened {
+            value *= 1.0 - max3(e.sheen) * ext_sheen_e(e, cos_o);
+        }
+        cv += value;
+        cp += lobes.dt * -cos_i / PI;
+    }
+    if e.transmission == 0.0 {
+        return vec4<f32>(cv, cp);
+    }
     let eta = e.eta;
     var h = -normalize(wo + wi * eta);
     if dot(n, h) < 0.0 {
@@ -437,7 +465,7 @@ fn ext_eval(e: BsdfExt, n: vec3<f32>, wo: vec3<f32>, wi: vec3<f32>) -> vec4<f32>
     let wih = dot(wi, h);
     let denom = woh + eta * wih;
     if !(woh > 0.0 && wih < 0.0) || abs(denom) < 1e-7 || !all(abs(h) <= vec3<f32>(T_FAR)) {
-        return vec4<f32>(vec3<f32>(c.x), c.y);
+        return vec4<f32>(cv, cp);
     }
     let noh = dot(n, h);
     let fr = ext_fresnel(e, woh);
@@ -456,8 +484,8 @@ fn ext_eval(e: BsdfExt, n: vec3<f32>, wo: vec3<f32>, wi: vec3<f32>) -> vec4<f32>
     if sheened {
         value *= 1.0 - max3(e.sheen) * ext_sheen_e(e, cos_o);
     }
-    if bent {
-        return vec4<f32>(value + vec3<f32>(c.x), p.z * d * noh * jac + c.y);
+    if bent || diffuse {
+        return vec4<f32>(value + cv, p.z * d * noh * jac + cp);
     }
     return vec4<f32>(value, p.z * d * noh * jac);
 }
@@ -502,6 +530,10 @@ fn ext_sample(e: BsdfExt, n: vec3<f32>, wo: vec3<f32>, u_lobe: f32, u: f32, v: f
             return vec3<f32>(0.0);
         }
         return -r * wo + (r * c - sqrt(k)) * h;
+    } else if lobes.dt > 0.0 && u_lobe >= p.x + p.y + p.z + p.w + lobes.sheen {
+        // The diffuse transmission: cosine-weighted about the other side.
+        let l = cosine_hemisphere(u, v);
+        return -(tb[0] * l.x + tb[1] * l.y + n * l.z);
     } else if lobes.sheen > 0.0 && u_lobe >= p.x + p.y + p.z + p.w {
         // The sheen: uniform over the hemisphere (its value peaks at grazing angles).
         let l = uniform_sphere(0.5 * u, v);

@@ -135,7 +135,7 @@ pub fn info(name: &str, scene: &Scene) -> Value {
 /// it (what a user checks an export against): only those some material uses.
 fn material_features(scene: &Scene) -> Vec<(&'static str, Vec<&str>)> {
     type Uses = fn(&Material, &MaterialExt) -> bool;
-    let features: [(&str, Uses); 14] = [
+    let features: [(&str, Uses); 15] = [
         ("emission", |m, _| m.emission != glam::Vec3::ZERO),
         ("base colour texture", |m, _| m.base_color_texture.is_some()),
         ("metallic-roughness texture", |_, e| {
@@ -157,6 +157,7 @@ fn material_features(scene: &Scene) -> Vec<(&'static str, Vec<&str>)> {
         ("sheen", |_, e| e.sheen_color != glam::Vec3::ZERO),
         ("anisotropy", |_, e| e.anisotropy_strength > 0.0),
         ("dispersion", |_, e| e.dispersion > 0.0),
+        ("diffuse transmission", |_, e| e.diffuse_transmission > 0.0),
     ];
     features
         .into_iter()

@@ -57,6 +57,7 @@ pub const SUPPORTED_EXTENSIONS: &[&str] = &[
     "KHR_materials_sheen",
     "KHR_materials_anisotropy",
     "KHR_materials_dispersion",
+    "KHR_materials_diffuse_transmission",
     "KHR_texture_transform",
     "KHR_lights_punctual",
     "KHR_mesh_quantization",
@@ -330,6 +331,30 @@ impl Loader<'_> {
                 self.element_error(element.to_string(), format!("{key} {v} is not a number"))
             }),
         }
+    }
+
+    /// Three numbers `key` of an extension given as JSON (`default` where absent); anything
+    /// else is an error naming the element.
+    fn json_rgb(
+        &self,
+        element: &str,
+        ext: &serde_json::Value,
+        key: &str,
+        default: [f64; 3],
+    ) -> Result<[f64; 3], SceneError> {
+        let Some(v) = ext.get(key) else {
+            return Ok(default);
+        };
+        let numbers: Option<Vec<f64>> = v
+            .as_array()
+            .filter(|a| a.len() == 3)
+            .and_then(|a| a.iter().map(serde_json::Value::as_f64).collect());
+        numbers.map(|c| [c[0], c[1], c[2]]).ok_or_else(|| {
+            self.element_error(
+                element.to_string(),
+                format!("{key} {v} is not three numbers"),
+            )
+        })
     }
 
     /// KHR_materials_volume's absorption coefficient (`MaterialExt::absorption`): the medium
@@ -975,20 +1000,7 @@ impl Loader<'_> {
         }
         if let Some(sh) = m.extension_value("KHR_materials_sheen") {
             // (JSON to the gltf crate, as the clear coat is.)
-            let colour = match sh.get("sheenColorFactor") {
-                None => Some([0.0; 3]),
-                Some(v) => v.as_array().filter(|a| a.len() == 3).and_then(|a| {
-                    let c: Option<Vec<f64>> = a.iter().map(serde_json::Value::as_f64).collect();
-                    c.map(|c| [c[0], c[1], c[2]])
-                }),
-            };
-            let Some(colour) = colour else {
-                let v = &sh["sheenColorFactor"];
-                return Err(self.element_error(
-                    element,
-                    format!("sheenColorFactor {v} is not three numbers"),
-                ));
-            };
+            let colour = self.json_rgb(&element, sh, "sheenColorFactor", [0.0; 3])?;
             let roughness = self.json_number(&element, sh, "sheenRoughnessFactor", 0.0)?;
             let r = &mut self.report;
             ext.sheen_color = Vec3::new(
@@ -1008,6 +1020,30 @@ impl Loader<'_> {
                 "sheenRoughnessTexture",
                 sh.get("sheenRoughnessTexture"),
                 false,
+            )?;
+        }
+        if let Some(dt) = m.extension_value("KHR_materials_diffuse_transmission") {
+            // (JSON to the gltf crate, as the clear coat is.)
+            let strength = self.json_number(&element, dt, "diffuseTransmissionFactor", 0.0)?;
+            let colour = self.json_rgb(&element, dt, "diffuseTransmissionColorFactor", [1.0; 3])?;
+            let r = &mut self.report;
+            ext.diffuse_transmission = factor(r, "diffuseTransmissionFactor", strength as f32)?;
+            ext.diffuse_transmission_color = Vec3::new(
+                factor(r, "diffuseTransmissionColorFactor", colour[0] as f32)?,
+                factor(r, "diffuseTransmissionColorFactor", colour[1] as f32)?,
+                factor(r, "diffuseTransmissionColorFactor", colour[2] as f32)?,
+            );
+            ext.diffuse_transmission_texture = self.json_texture_ref(
+                &element,
+                "diffuseTransmissionTexture",
+                dt.get("diffuseTransmissionTexture"),
+                false,
+            )?;
+            ext.diffuse_transmission_color_texture = self.json_texture_ref(
+                &element,
+                "diffuseTransmissionColorTexture",
+                dt.get("diffuseTransmissionColorTexture"),
+                true,
             )?;
         }
         if let Some(an) = m.extension_value("KHR_materials_anisotropy") {

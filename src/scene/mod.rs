@@ -248,14 +248,25 @@ pub struct MaterialExt {
     /// surface (0: none; 1 is V_d = 20, the lowest of ordinary glass; diamond 0.36). Each
     /// channel refracts with its own index of refraction ([`crate::trace::shading::dispersed_ior`]).
     pub dispersion: f32,
+    /// KHR_materials_diffuse_transmission (leaves, paper, lamp shades, curtains): the share of
+    /// the diffuse (non-specular) light that passes through the surface to its other side,
+    /// Lambertian, tinted by the colour (linear), instead of being reflected. Specular
+    /// transmission ([`Self::transmission`]) takes precedence where both are given.
+    pub diffuse_transmission: f32,
+    pub diffuse_transmission_color: Vec3,
+    /// diffuseTransmissionTexture's A (linear) and diffuseTransmissionColorTexture's RGB (sRGB),
+    /// each multiplying its factor.
+    pub diffuse_transmission_texture: Option<TextureRef>,
+    pub diffuse_transmission_color_texture: Option<TextureRef>,
 }
 
 impl MaterialExt {
     /// The extensions' textures in the order of their slots in the packed material
     /// (`trace::pack`): transmission, specular, specular colour, clear coat, coat roughness,
-    /// coat normal, sheen colour, sheen roughness, anisotropy.
+    /// coat normal, sheen colour, sheen roughness, anisotropy, diffuse transmission, diffuse
+    /// transmission colour.
     #[must_use]
-    pub fn extension_textures(&self) -> [Option<TextureRef>; 9] {
+    pub fn extension_textures(&self) -> [Option<TextureRef>; 11] {
         [
             self.transmission_texture,
             self.specular_texture,
@@ -266,6 +277,8 @@ impl MaterialExt {
             self.sheen_color_texture,
             self.sheen_roughness_texture,
             self.anisotropy_texture,
+            self.diffuse_transmission_texture,
+            self.diffuse_transmission_color_texture,
         ]
     }
 }
@@ -300,6 +313,10 @@ impl Default for MaterialExt {
             anisotropy_rotation: 0.0,
             anisotropy_texture: None,
             dispersion: 0.0,
+            diffuse_transmission: 0.0,
+            diffuse_transmission_color: Vec3::ONE,
+            diffuse_transmission_texture: None,
+            diffuse_transmission_color_texture: None,
         }
     }
 }

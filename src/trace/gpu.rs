@@ -1450,10 +1450,11 @@ mod tests {
         assert_eq!(struct_size(&module, "PathState"), 64);
     }
 
-    /// The constants the kernel shares with the CPU twin by value: the dispersion's wavelength
-    /// terms to the bit, its material flag and the all-channels marker.
+    /// The constants the kernel shares with the CPU twin by value: the packed material's
+    /// layout and flags, the dispersion's wavelength terms to the bit and the all-channels
+    /// marker.
     #[test]
-    fn the_kernels_dispersion_constants_are_the_twins() {
+    fn the_kernels_material_constants_are_the_twins() {
         use crate::gpu::wgsl::const_literal;
         use wgpu::naga::Literal;
         let module = validated("path.wgsl", TRACE_WGSL);
@@ -1466,10 +1467,31 @@ mod tests {
                 other => panic!("{name} is {other:?}"),
             }
         }
-        assert_eq!(
-            const_literal(&module, "MAT_DISPERSION"),
-            Literal::U32(crate::trace::pack::MAT_DISPERSION)
-        );
+        use crate::trace::pack as p;
+        let u32s = [
+            ("MATERIAL_STRIDE", p::MATERIAL_STRIDE as u32),
+            ("MATERIAL_COAT_ROW", p::MATERIAL_COAT_ROW as u32),
+            ("MATERIAL_SHEEN_ROW", p::MATERIAL_SHEEN_ROW as u32),
+            ("MATERIAL_ANISO_ROW", p::MATERIAL_ANISO_ROW as u32),
+            ("MATERIAL_DIFFUSE_ROW", p::MATERIAL_DIFFUSE_ROW as u32),
+            ("SHEEN_TABLE_ROWS", p::SHEEN_TABLE_ROWS as u32),
+            ("EXTRAS_STRIDE", p::EXTRAS_STRIDE as u32),
+            ("MAT_BASE_TEX", p::MAT_BASE_TEX),
+            ("MAT_MR_TEX", p::MAT_MR_TEX),
+            ("MAT_NORMAL_TEX", p::MAT_NORMAL_TEX),
+            ("MAT_EMISSIVE_TEX", p::MAT_EMISSIVE_TEX),
+            ("MAT_MASK", p::MAT_MASK),
+            ("MAT_BLEND", p::MAT_BLEND),
+            ("MAT_EXT_BSDF", p::MAT_EXT_BSDF),
+            ("MAT_EXT_TEX", p::MAT_EXT_TEX),
+            ("MAT_VOLUME", p::MAT_VOLUME),
+            ("MAT_DISPERSION", p::MAT_DISPERSION),
+            ("FEAT_EXTRAS", p::FEAT_EXTRAS),
+            ("FEAT_ALPHA", p::FEAT_ALPHA),
+        ];
+        for (name, want) in u32s {
+            assert_eq!(const_literal(&module, name), Literal::U32(want), "{name}");
+        }
         assert_eq!(
             const_literal(&module, "ALL_CHANNELS"),
             Literal::U32(crate::trace::path::ALL_CHANNELS)

@@ -7,7 +7,7 @@
 //! | `prims` | BVH primitive | 3 × vec4: `[v0, bits(triangle)]`, `[e1, light density]`, `[e2, flags]` (flags: [`PRIM_CULL`] single-sided and opaque, [`PRIM_ALPHA`] alpha-tested; as a float) |
 //! | `shade` | triangle | 4 × vec4: `[n0, uv0.x]`, `[n1, uv0.y]`, `[n2, uv1.x]`, `[uv1.y, uv2, bits(material)]` |
 //! | `shade` from `extras_offset` | triangle, only with [`FEAT_EXTRAS`] | 8 × vec4: `[colour0 rgba]`, `[colour1]`, `[colour2]`, `[uv1₀, uv1₁]`, `[uv1₂, 0, 0]`, `[tangent0 xyz, sign]`, `[tangent1]`, `[tangent2]` (the TEXCOORD_1 set, tangents for normal maps) |
-//! | `materials` | material | [`MATERIAL_STRIDE`] × vec4: `[base colour rgba]`, `[emission, flags]`, `[metallic, α, specular, alpha cutoff]`, `[specular colour, transmission]`, `[ior, clearcoat, clearcoat α, normal scale]`, then thirteen texture slots (base colour, metallic-roughness, normal, emissive, then the extensions': transmission, specular, specular colour, clear coat, coat roughness, coat normal, sheen colour, sheen roughness, anisotropy) of 2 × vec4 `[uv row 0, bits(texture or !0)]`, `[uv row 1, bits(texCoord set)]`, then `[coat normal scale, absorption σ rgb]`, `[sheen colour, sheen roughness]`, `[anisotropy strength, cos rotation, sin rotation, dispersion]`; after the last material, where one has a sheen, the sheen's albedo table ([`SHEEN_TABLE_ROWS`] vec4s of [`SHEEN_ALBEDO`]) |
+//! | `materials` | material | [`MATERIAL_STRIDE`] × vec4: `[base colour rgba]`, `[emission, flags]`, `[metallic, α, specular, alpha cutoff]`, `[specular colour, transmission]`, `[ior, clearcoat, clearcoat α, normal scale]`, then fifteen texture slots (base colour, metallic-roughness, normal, emissive, then the extensions': transmission, specular, specular colour, clear coat, coat roughness, coat normal, sheen colour, sheen roughness, anisotropy, diffuse transmission, diffuse transmission colour) of 2 × vec4 `[uv row 0, bits(texture or !0)]`, `[uv row 1, bits(texCoord set)]`, then `[coat normal scale, absorption σ rgb]`, `[sheen colour, sheen roughness]`, `[anisotropy strength, cos rotation, sin rotation, dispersion]`, `[diffuse transmission colour, diffuse transmission]`; after the last material, where one has a sheen, the sheen's albedo table ([`SHEEN_TABLE_ROWS`] vec4s of [`SHEEN_ALBEDO`]) |
 //! | `texels` | texture | header `[offset, width, height, sampler]` per texture (sampler: wrap S in bits 0–1, wrap T in 2–3 — 0 repeat, 1 clamp, 2 mirror — bit 4 nearest, bit 5 sRGB), then RGBA8 words |
 //! | `lights` | emissive triangle | 3 × vec4: `[v0, bits(triangle)]`, `[e1, 1 if double-sided]`, `[e2, 0]` |
 //! | `lights` from `3 × light_count` | punctual light | 3 × vec4: `[position, or the unit direction towards a directional light, kind (0 point, 1 spot, 2 directional)]`, `[intensity rgb, cos outer cone]`, `[unit spot axis, cos inner cone]` |
@@ -35,15 +35,18 @@ pub const MIN_ALPHA: f32 = 1e-3;
 /// `texture` word of a material without a texture.
 pub const NO_TEXTURE: u32 = u32::MAX;
 /// vec4s per material (`MATERIAL_STRIDE` in path.wgsl).
-pub const MATERIAL_STRIDE: usize = 34;
+pub const MATERIAL_STRIDE: usize = 39;
 /// The material's vec4 after its texture slots: `[coat normal scale, absorption σ rgb]`
 /// (`MATERIAL_COAT_ROW` in path.wgsl).
-pub const MATERIAL_COAT_ROW: usize = 31;
+pub const MATERIAL_COAT_ROW: usize = 35;
 /// `[sheen colour, sheen roughness]` (`MATERIAL_SHEEN_ROW` in path.wgsl).
-pub const MATERIAL_SHEEN_ROW: usize = 32;
-/// The material's last vec4: `[anisotropy strength, cos rotation, sin rotation, dispersion]`
-/// (`MATERIAL_ANISO_ROW` in path.wgsl).
-pub const MATERIAL_ANISO_ROW: usize = 33;
+pub const MATERIAL_SHEEN_ROW: usize = 36;
+/// `[anisotropy strength, cos rotation, sin rotation, dispersion]` (`MATERIAL_ANISO_ROW` in
+/// path.wgsl).
+pub const MATERIAL_ANISO_ROW: usize = 37;
+/// The material's last vec4: `[diffuse transmission colour, diffuse transmission]`
+/// (`MATERIAL_DIFFUSE_ROW` in path.wgsl).
+pub const MATERIAL_DIFFUSE_ROW: usize = 38;
 /// vec4s of the sheen's albedo table after the materials (`SHEEN_TABLE_ROWS` in path.wgsl).
 pub const SHEEN_TABLE_ROWS: usize = SHEEN_COLUMNS * SHEEN_ROWS / 4;
 /// vec4s of vertex extras per triangle.
@@ -279,6 +282,7 @@ impl PackedScene {
                         || ext.ior != 1.5
                         || ext.sheen_color != Vec3::ZERO
                         || ext.anisotropy_strength > 0.0
+                        || ext.diffuse_transmission > 0.0
                         || ext_textures,
                     MAT_EXT_BSDF,
                 ),
@@ -319,6 +323,8 @@ impl PackedScene {
             materials.push([sh.x, sh.y, sh.z, ext.sheen_roughness]);
             let (sin, cos) = ext.anisotropy_rotation.sin_cos();
             materials.push([ext.anisotropy_strength, cos, sin, ext.dispersion]);
+            let dt = ext.diffuse_transmission_color;
+            materials.push([dt.x, dt.y, dt.z, ext.diffuse_transmission]);
         }
 
         let mut texels = Vec::new();

@@ -36,8 +36,8 @@ use super::camera::RenderCamera;
 use super::pack::{
     EXTRAS_STRIDE, FEAT_ALPHA, FEAT_EXTRAS, LIGHT_DIRECTIONAL, LIGHT_SPOT, MAT_BASE_TEX, MAT_BLEND,
     MAT_DISPERSION, MAT_EMISSIVE_TEX, MAT_EXT_BSDF, MAT_EXT_TEX, MAT_MASK, MAT_MR_TEX,
-    MAT_NORMAL_TEX, MAT_VOLUME, MATERIAL_ANISO_ROW, MATERIAL_COAT_ROW, MATERIAL_SHEEN_ROW,
-    MATERIAL_STRIDE, MIN_ALPHA, NO_TEXTURE, PackedScene,
+    MAT_NORMAL_TEX, MAT_VOLUME, MATERIAL_ANISO_ROW, MATERIAL_COAT_ROW, MATERIAL_DIFFUSE_ROW,
+    MATERIAL_SHEEN_ROW, MATERIAL_STRIDE, MIN_ALPHA, NO_TEXTURE, PackedScene,
 };
 use super::shading::{
     Bsdf, BsdfExt, SHEEN_MIN_ROUGHNESS, basis, direction_to_equirect, dispersed_ior,
@@ -300,7 +300,8 @@ fn emission_at(sc: &PackedScene, mb: usize, flags: u32, sp: SurfacePoint) -> Vec
 /// The extensions' BSDF of material `mb` (with `flags`) over its core BSDF `core` at `sp`, hit
 /// from the front or not (KHR_materials_transmission, _ior, _specular, _clearcoat): each
 /// factor times its texture where the material has one — transmission × R, specular × A,
-/// specular colour × RGB, coat × R, coat roughness × G (α = max(α · G², [`MIN_ALPHA`]), as the
+/// specular colour × RGB, coat × R, coat roughness × G, diffuse transmission × A and its
+/// colour × RGB (α = max(α · G², [`MIN_ALPHA`]), as the
 /// metallic-roughness map's), and the coat's normal: `ns`, the interpolated normal before any
 /// normal map, bent by the coat's own normal map where it has one, on `ng`'s side (the
 /// geometric normal towards the viewer). `channel` is the colour channel a path follows
@@ -336,8 +337,10 @@ fn ext_bsdf(
     let sh = sc.materials[mb + MATERIAL_SHEEN_ROW];
     let (mut sheen, mut sheen_roughness) = (v3(sh), sh[3]);
     let (mut strength, mut dir) = (an[0], Vec2::new(an[1], an[2]));
+    let dt = sc.materials[mb + MATERIAL_DIFFUSE_ROW];
+    let (mut diffuse_transmission, mut diffuse_transmission_color) = (dt[3], v3(dt));
     if flags & MAT_EXT_TEX != 0 {
-        // Slots 4..11 (after base colour, metallic-roughness, normal and emissive); a slot
+        // Slots 4..14 (after base colour, metallic-roughness, normal and emissive); a slot
         // without a texture leaves its factor.
         let textured = |k: usize| sc.materials[mb + 5 + 2 * k][3].to_bits() != NO_TEXTURE;
         if textured(4) {
@@ -372,6 +375,12 @@ fn ext_bsdf(
             dir = Vec2::new(d.x * dir.x - d.y * dir.y, d.x * dir.y + d.y * dir.x);
             strength *= a.z;
         }
+        if textured(13) {
+            diffuse_transmission *= slot(sc, mb, 13, sp).w;
+        }
+        if textured(14) {
+            diffuse_transmission_color *= slot(sc, mb, 14, sp).truncate();
+        }
     }
     let (mut aniso_dir, mut alpha_t) = (Vec3::ZERO, core.alpha);
     if strength > 0.0 {
@@ -395,6 +404,8 @@ fn ext_bsdf(
         sheen_roughness: sheen_roughness.max(SHEEN_MIN_ROUGHNESS),
         aniso_dir,
         alpha_t,
+        diffuse_transmission,
+        diffuse_transmission_color,
     }
 }
 

@@ -29,9 +29,14 @@
 //! Smith for refraction; half vectors sampled by D·cos θh through the slopes), and
 //! KHR_materials_dispersion: a dispersive material's index of refraction per colour channel
 //! ([`dispersed_ior`]); the integrator makes a path that meets one follow a single channel
-//! ([`pick_channel`]) and builds the BSDF with that channel's index. Lobes: specular
-//! reflection, diffuse, transmission, coat, sheen (sampled uniformly over the hemisphere: its
-//! peak is at grazing angles).
+//! ([`pick_channel`]) and builds the BSDF with that channel's index; and
+//! KHR_materials_diffuse_transmission: a share dt of the diffuse base goes Lambertian to the
+//! far side, tinted by its colour (the specification's mix of diffuse BRDF and BTDF, under the
+//! same Fresnel weight — taken at the view for the transmitted part, as its lobe's
+//! probability is — and beneath specular transmission, which takes its place). Lobes:
+//! specular reflection, diffuse, transmission, coat, sheen (sampled uniformly over the
+//! hemisphere: its peak is at grazing angles), diffuse transmission (cosine-weighted about the
+//! far side).
 
 use std::f32::consts::PI;
 use std::sync::LazyLock;
@@ -179,6 +184,10 @@ pub struct BsdfExt {
     /// across it.
     pub aniso_dir: Vec3,
     pub alpha_t: f32,
+    /// KHR_materials_diffuse_transmission: the share of the diffuse base that is transmitted
+    /// (Lambertian, to the other side) instead of reflected, and its colour.
+    pub diffuse_transmission: f32,
+    pub diffuse_transmission_color: Vec3,
 }
 
 /// The anisotropic frame about `n`: (tangent along `dir`, bitangent, α along, α across), or
@@ -535,7 +544,7 @@ impl BsdfExt {
     /// Whether light passes through (the path may continue below the surface).
     #[must_use]
     pub fn transmits(&self) -> bool {
-        self.transmission > 0.0 && self.core.metallic < 1.0
+        (self.transmission > 0.0 || self.diffuse_transmission > 0.0) && self.core.metallic < 1.0
     }
 
     /// (dielectric Fresnel F_d, combined F) at microfacet cosine `c` on the view side; with
@@ -580,11 +589,12 @@ impl BsdfExt {
         }
     }
 
-    /// Lobe sampling probabilities (specular, diffuse, transmission, coat, sheen) at `cos_o`
-    /// (the view's cosine to the shading normal) and `cos_oc` (to the coat's normal). Without
-    /// a sheen, the same numbers to the bit as without its term.
+    /// Lobe sampling probabilities (specular, diffuse, transmission, coat, sheen, diffuse
+    /// transmission) at `cos_o` (the view's cosine to the shading normal) and `cos_oc` (to the
+    /// coat's normal). Without a sheen or a diffuse transmission, the same numbers to the bit
+    /// as without their terms.
     #[must_use]
-    pub fn lobes(&self, cos_o: f32, cos_oc: f32) -> [f32; 5] {
+    pub fn lobes(&self, cos_o: f32, cos_oc: f32) -> [f32; 6] {
         let b = &self.core;
         let (fd, f) = self.fresnel(cos_o);
         let coat = self.coat(cos_oc);
@@ -593,10 +603,18 @@ impl BsdfExt {
         let under = 1.0 - max3(self.sheen) * e_o;
         let ws = lum(f) * (1.0 - coat) * under;
         let rest = lum(b.base) * (1.0 - b.metallic) * (1.0 - max3(fd)) * (1.0 - coat) * under;
-        let wd = rest * (1.0 - self.transmission);
+        let dt = self.diffuse_transmission;
+        let wd = rest * (1.0 - self.transmission) * (1.0 - dt);
         let wt = rest * self.transmission;
         let wsh = lum(self.sheen) * e_o * (1.0 - coat);
-        let total = ws + wd + wt + coat + wsh;
+        let wdt = lum(self.diffuse_transmission_color)
+            * (1.0 - b.metallic)
+            * (1.0 - max3(fd))
+            * (1.0 - coat)
+            * under
+            * (1.0 - self.transmission)
+            * dt;
+        let total = ws + wd + wt + coat + wsh + wdt;
         if total > 0.0 {
             [
                 ws / total,
@@ -604,9 +622,10 @@ impl BsdfExt {
                 wt / total,
                 coat / total,
                 wsh / total,
+                wdt / total,
             ]
         } else {
-            [0.5, 0.5, 0.0, 0.0, 0.0]
+            [0.5, 0.5, 0.0, 0.0, 0.0, 0.0]
         }
     }
 
@@ -655,8 +674,12 @@ impl BsdfExt {
                 None => (ggx_d(noh, a2), ggx_vis(cos_i, cos_o, a2)),
             };
             let spec = f * (d * vis);
-            let diff =
-                b.base * ((1.0 - b.metallic) * (1.0 - max3(fd)) * (1.0 - self.transmission) / PI);
+            let diff = b.base
+                * ((1.0 - b.metallic)
+                    * (1.0 - max3(fd))
+                    * (1.0 - self.transmission)
+                    * (1.0 - self.diffuse_transmission)
+                    / PI);
             let mut value = (spec + diff) * (1.0 - coat);
             let mut pdf = p[0] * d * noh / (4.0 * voh) + p[1] * cos_i / PI;
             if self.sheen != Vec3::ZERO {
@@ -685,6 +708,27 @@ impl BsdfExt {
         if !self.transmits() {
             return (Vec3::splat(cv), cp);
         }
+        // The diffuse transmission: Lambertian through the surface, its share of the base
+        // (the Fresnel weight at the view, as its lobe's probability takes it).
+        let (mut cv, mut cp) = (Vec3::splat(cv), cp);
+        if self.diffuse_transmission > 0.0 {
+            let (fd, _) = self.fresnel(cos_o);
+            let mut value = self.diffuse_transmission_color
+                * ((1.0 - b.metallic)
+                    * (1.0 - max3(fd))
+                    * (1.0 - self.transmission)
+                    * self.diffuse_transmission
+                    * (1.0 - coat)
+                    / PI);
+            if self.sheen != Vec3::ZERO {
+                value *= 1.0 - max3(self.sheen) * self.sheen_e(cos_o);
+            }
+            cv += value;
+            cp += p[5] * -cos_i / PI;
+        }
+        if self.transmission == 0.0 {
+            return (cv, cp);
+        }
         let eta = self.eta;
         let mut h = -(wo + wi * eta).normalize();
         if n.dot(h) < 0.0 {
@@ -693,7 +737,7 @@ impl BsdfExt {
         let (woh, wih) = (wo.dot(h), wi.dot(h));
         let denom = woh + eta * wih;
         if !(woh > 0.0 && wih < 0.0) || denom.abs() < 1e-7 || !h.is_finite() {
-            return (Vec3::splat(cv), cp);
+            return (cv, cp);
         }
         let noh = n.dot(h);
         let (fd, _) = self.fresnel(woh);
@@ -708,8 +752,8 @@ impl BsdfExt {
         if self.sheen != Vec3::ZERO {
             value *= 1.0 - max3(self.sheen) * self.sheen_e(cos_o);
         }
-        if cn != n {
-            return (value + Vec3::splat(cv), p[2] * d * noh * jac + cp);
+        if cn != n || self.diffuse_transmission > 0.0 {
+            return (value + cv, p[2] * d * noh * jac + cp);
         }
         (value, p[2] * d * noh * jac)
     }
@@ -741,6 +785,10 @@ impl BsdfExt {
                 return Vec3::ZERO;
             }
             -r * wo + (r * c - k.sqrt()) * h
+        } else if p[5] > 0.0 && u_lobe >= p[0] + p[1] + p[2] + p[3] + p[4] {
+            // The diffuse transmission: cosine-weighted about the other side.
+            let l = cosine_hemisphere(u, v);
+            -(t * l.x + b * l.y + n * l.z)
         } else if p[4] > 0.0 && u_lobe >= p[0] + p[1] + p[2] + p[3] {
             // The sheen: uniform over the hemisphere (its value peaks at grazing angles).
             let l = uniform_sphere(0.5 * u, v);
@@ -910,6 +958,8 @@ mod ext_tests {
             sheen_roughness: 1.0,
             aniso_dir: Vec3::ZERO,
             alpha_t: alpha,
+            diffuse_transmission: 0.0,
+            diffuse_transmission_color: Vec3::ONE,
         }
     }
 
@@ -1239,5 +1289,74 @@ mod ext_tests {
             }
         }
         assert_eq!(pick_channel(Vec3::ZERO, 0.5), (0, Vec3::ZERO));
+    }
+
+    /// KHR_materials_diffuse_transmission: a white Lambertian base with no specular reflection
+    /// reflects (1 − dt)·base and transmits dt·colour, Lambertian on the far side: each
+    /// estimated from the BSDF's own samples (so its pdf is the sampler's) and from uniform
+    /// directions over the whole sphere; a plain diffuse base transmits nothing; specular
+    /// transmission takes the diffuse transmission's place where both are given.
+    #[test]
+    fn a_diffuse_transmission_reflects_and_transmits_its_shares() {
+        let n = Vec3::Z;
+        let leaf = |dt: f32, transmission: f32| BsdfExt {
+            core: Bsdf {
+                base: Vec3::new(0.9, 0.6, 0.3),
+                metallic: 0.0,
+                alpha: 0.5,
+                specular: 0.0,
+            },
+            transmission,
+            diffuse_transmission: dt,
+            diffuse_transmission_color: Vec3::new(0.2, 0.8, 0.4),
+            ..glass(0.5, 1.5)
+        };
+        // (reflected, transmitted) of channel `c` from the BSDF's samples; the whole sphere's
+        // integral from uniform directions.
+        let shares = |e: &BsdfExt, wo: Vec3, c: usize| {
+            let m = 200_000u32;
+            let (mut up, mut down, mut sphere) = (0f64, 0f64, 0f64);
+            for i in 0..m {
+                let u = crate::random::pcg4d([i, 5, 11, 13]).map(crate::random::unit_f32);
+                let wi = e.sample(n, wo, u[0], u[1], u[2]);
+                let (f, pdf) = e.eval(n, wo, wi);
+                if pdf > 0.0 {
+                    let x = f64::from(f[c] * wi.z.abs() / pdf);
+                    if wi.z > 0.0 { up += x } else { down += x }
+                }
+                let l = uniform_sphere(u[3], u[1]);
+                sphere += f64::from(e.eval(n, wo, l).0[c] * l.z.abs()) * 4.0 * std::f64::consts::PI;
+            }
+            let m = f64::from(m);
+            (up / m, down / m, sphere / m)
+        };
+        for wo in [Vec3::Z, Vec3::new(0.6, 0.0, 0.8)] {
+            for (dt, c) in [(0.0f32, 0), (0.4, 0), (0.4, 1), (1.0, 2)] {
+                let e = leaf(dt, 0.0);
+                let (up, down, sphere) = shares(&e, wo, c);
+                let want_up = f64::from((1.0 - dt) * e.core.base[c]);
+                let want_down = f64::from(dt * e.diffuse_transmission_color[c]);
+                assert!(
+                    (up - want_up).abs() < 0.01,
+                    "dt {dt}, {c}: up {up} vs {want_up}"
+                );
+                assert!(
+                    (down - want_down).abs() < 0.01,
+                    "dt {dt}, {c}: down {down} vs {want_down}"
+                );
+                assert!(
+                    (sphere - up - down).abs() < 0.02,
+                    "dt {dt}: sphere {sphere}"
+                );
+                assert_eq!(e.transmits(), dt > 0.0);
+            }
+        }
+        // With specular transmission as well, the diffuse transmission's share goes to it.
+        let both = leaf(1.0, 1.0);
+        assert_eq!(both.lobes(1.0, 1.0)[5], 0.0);
+        let (_, down, _) = shares(&both, Vec3::Z, 0);
+        assert!(down > 0.5 * f64::from(both.core.base.x), "{down}");
+        // Without it, the numbers are the ones before it existed: the sixth lobe is 0.
+        assert_eq!(leaf(0.0, 0.0).lobes(0.7, 0.7)[5], 0.0);
     }
 }

@@ -93,7 +93,7 @@ pub fn ortho(position: Vec3, ymag: f32) -> OrthographicCamera {
 
 /// One scene with every one of these features: textures with transforms, wrap modes and both
 /// filters, TEXCOORD_1, vertex colours, a normal map, a metallic-roughness map, an emissive
-/// texture, MASK and BLEND, rough and smooth glass (the rough one brushed and absorbing behind
+/// texture, MASK (a diffusely transmitting leaf) and BLEND, rough and smooth glass (the rough one brushed and absorbing behind
 /// it, the smooth one dispersive), a brushed metal with a clear coat over a sheen, specular colour, the
 /// extensions' textures (transmission, specular, specular colour, coat, coat roughness, coat
 /// normal, sheen colour, sheen roughness, anisotropy), point, spot and directional lights and an
@@ -254,6 +254,12 @@ pub fn everything() -> Scene {
         },
         MaterialExt {
             alpha: AlphaMode::Mask(0.5),
+            // A cut-out leaf (KHR_materials_diffuse_transmission): its strength × the bumps'
+            // alpha, its colour × the glow's RGB (sRGB).
+            diffuse_transmission: 0.6,
+            diffuse_transmission_color: Vec3::new(0.9, 0.5, 0.2),
+            diffuse_transmission_texture: transformed(1, 1),
+            diffuse_transmission_color_texture: tex_ref(3),
             ..Default::default()
         },
         MaterialExt {
