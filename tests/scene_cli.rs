@@ -160,7 +160,8 @@ fn render_takes_orthographic_cameras_and_look_from_viewpoints() {
 }
 
 /// `scene info` names the materials with a dispersion, an anisotropy and a diffuse
-/// transmission, as the loader read them from a file (a dispersion on an opaque material is read as none, and said).
+/// transmission, as the loader read them from a file (a dispersion on an opaque material is
+/// read as none, and said), and prints a light's intensity as the f32 it is.
 #[test]
 fn scene_info_names_dispersive_brushed_and_translucent_materials() {
     let positions: Vec<u8> = [0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0]
@@ -172,7 +173,8 @@ fn scene_info_names_dispersive_brushed_and_translucent_materials() {
     let gltf = serde_json::json!({
         "asset": { "version": "2.0" },
         "extensionsUsed": ["KHR_materials_transmission", "KHR_materials_dispersion",
-            "KHR_materials_anisotropy", "KHR_materials_diffuse_transmission"],
+            "KHR_materials_anisotropy", "KHR_materials_diffuse_transmission",
+            "KHR_lights_punctual"],
         "buffers": [{ "byteLength": 36,
             "uri": format!("data:application/octet-stream;base64,{buffer}") }],
         "bufferViews": [{ "buffer": 0, "byteLength": 36 }],
@@ -190,8 +192,11 @@ fn scene_info_names_dispersive_brushed_and_translucent_materials() {
                 "KHR_materials_diffuse_transmission": { "diffuseTransmissionFactor": 0.5 } } },
         ],
         "meshes": [{ "primitives": [triangle(0), triangle(1), triangle(2), triangle(3)] }],
-        "nodes": [{ "mesh": 0 }],
-        "scenes": [{ "nodes": [0] }],
+        "extensions": { "KHR_lights_punctual": { "lights": [
+            { "name": "warm", "type": "point", "color": [1.0, 0.9, 0.8] }] } },
+        "nodes": [{ "mesh": 0 },
+            { "extensions": { "KHR_lights_punctual": { "light": 0 } }, "translation": [0.0, 0.0, 2.0] }],
+        "scenes": [{ "nodes": [0, 1] }],
     });
     let file = tmp_file("features.gltf");
     std::fs::write(&file, gltf.to_string()).unwrap();
@@ -209,6 +214,11 @@ fn scene_info_names_dispersive_brushed_and_translucent_materials() {
     assert_eq!(v["unsupported"], serde_json::json!([]), "{v}");
     let text = String::from_utf8(raygun(&["scene", "info", path]).stdout).unwrap();
     assert!(text.contains("\ndispersion: 'prism'\n"), "{text}");
+    // A light's intensity as the f32 it is, as positions are.
+    assert!(
+        text.contains("light 'warm': Point at [0, 0, 2], intensity [1, 0.9, 0.8]\n"),
+        "{text}"
+    );
     assert!(
         text.contains("'painted': KHR_materials_dispersion without transmission changes nothing"),
         "{text}"

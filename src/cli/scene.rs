@@ -232,7 +232,7 @@ fn info_text(s: &Value) -> String {
             l["name"].as_str().unwrap_or(""),
             l["kind"].as_str().unwrap_or(""),
             short(&l["position"]),
-            l["intensity"]
+            short(&l["intensity"])
         );
     }
     for (feature, names) in s["material_features"].as_object().into_iter().flatten() {

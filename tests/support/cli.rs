@@ -69,11 +69,36 @@ impl Drop for TmpDir {
 }
 
 /// A path for a file named `name` in this test binary's folder (created; names must be unique
-/// among the tests of a binary).
+/// among the tests of a binary). The folder is removed when the binary exits with no test
+/// having failed; a failure leaves it for a look at its files.
 pub fn tmp_file(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("raygun-test-{}", std::process::id()));
+    static CLEAN_AT_EXIT: std::sync::Once = std::sync::Once::new();
+    CLEAN_AT_EXIT.call_once(|| {
+        let previous = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            A_TEST_FAILED.store(true, std::sync::atomic::Ordering::SeqCst);
+            previous(info);
+        }));
+        // SAFETY: registers a plain function, which only removes a folder, to run at exit.
+        unsafe { libc::atexit(remove_tmp_files) };
+    });
+    let d = tmp_files_dir();
     std::fs::create_dir_all(&d).unwrap();
     d.join(name)
+}
+
+/// [`tmp_file`]'s folder.
+fn tmp_files_dir() -> PathBuf {
+    std::env::temp_dir().join(format!("raygun-test-{}", std::process::id()))
+}
+
+/// Set by the panic hook [`tmp_file`] installs: some test of this binary failed.
+static A_TEST_FAILED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+extern "C" fn remove_tmp_files() {
+    if !A_TEST_FAILED.load(std::sync::atomic::Ordering::SeqCst) {
+        let _ = std::fs::remove_dir_all(tmp_files_dir());
+    }
 }
 
 pub fn stderr(o: &Output) -> String {
