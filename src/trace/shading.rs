@@ -607,13 +607,17 @@ impl BsdfExt {
         let wd = rest * (1.0 - self.transmission) * (1.0 - dt);
         let wt = rest * self.transmission;
         let wsh = lum(self.sheen) * e_o * (1.0 - coat);
-        let wdt = lum(self.diffuse_transmission_color)
-            * (1.0 - b.metallic)
-            * (1.0 - max3(fd))
-            * (1.0 - coat)
-            * under
-            * (1.0 - self.transmission)
-            * dt;
+        let wdt = if dt > 0.0 {
+            lum(self.diffuse_transmission_color)
+                * (1.0 - b.metallic)
+                * (1.0 - max3(fd))
+                * (1.0 - coat)
+                * under
+                * (1.0 - self.transmission)
+                * dt
+        } else {
+            0.0
+        };
         let total = ws + wd + wt + coat + wsh + wdt;
         if total > 0.0 {
             [
