@@ -154,14 +154,12 @@ fn an_alpha_masked_quad_in_front_of_an_emitter_lets_exactly_the_unmasked_area_th
     }
 }
 
-/// A smooth glass slab (4 × 4 m, 0.2 m thick, z from −0.2 to 0; a closed box with outward
-/// faces) of index `ior` and KHR_materials_volume absorption σ, over a white emitter of
-/// radiance 1 at z = −1, seen straight on by an orthographic camera; nothing else lights it.
-fn slab_scene(ior: f32, absorption: Vec3) -> Scene {
-    let mut tris = Vec::new();
-    let (lo, hi) = (Vec3::new(-2.0, -2.0, -0.2), Vec3::new(2.0, 2.0, 0.0));
-    let c =
-        |x: usize, y: usize, z: usize| Vec3::new([lo.x, hi.x][x], [lo.y, hi.y][y], [lo.z, hi.z][z]);
+/// The box from `lo` to `hi` turned by `turn` about the origin, of material 0, as a closed mesh
+/// with outward faces (counter-clockwise seen from outside).
+fn glass_box(lo: Vec3, hi: Vec3, turn: glam::Quat) -> Vec<Triangle> {
+    let c = |x: usize, y: usize, z: usize| {
+        turn * Vec3::new([lo.x, hi.x][x], [lo.y, hi.y][y], [lo.z, hi.z][z])
+    };
     let quads = [
         [c(0, 0, 0), c(0, 1, 0), c(1, 1, 0), c(1, 0, 0)],
         [c(0, 0, 1), c(1, 0, 1), c(1, 1, 1), c(0, 1, 1)],
@@ -170,11 +168,23 @@ fn slab_scene(ior: f32, absorption: Vec3) -> Scene {
         [c(0, 0, 0), c(1, 0, 0), c(1, 0, 1), c(0, 0, 1)],
         [c(0, 1, 0), c(0, 1, 1), c(1, 1, 1), c(1, 1, 0)],
     ];
-    for q in quads {
-        // Outward faces (counter-clockwise seen from outside).
-        tris.push(flat([q[0], q[1], q[2]], [Vec2::ZERO; 3], 0));
-        tris.push(flat([q[0], q[2], q[3]], [Vec2::ZERO; 3], 0));
-    }
+    quads
+        .iter()
+        .flat_map(|q| {
+            [
+                flat([q[0], q[1], q[2]], [Vec2::ZERO; 3], 0),
+                flat([q[0], q[2], q[3]], [Vec2::ZERO; 3], 0),
+            ]
+        })
+        .collect()
+}
+
+/// A smooth glass slab (4 × 4 m, 0.2 m thick, z from −0.2 to 0; a closed box with outward
+/// faces) of index `ior` and KHR_materials_volume absorption σ, over a white emitter of
+/// radiance 1 at z = −1, seen straight on by an orthographic camera; nothing else lights it.
+fn slab_scene(ior: f32, absorption: Vec3) -> Scene {
+    let (lo, hi) = (Vec3::new(-2.0, -2.0, -0.2), Vec3::new(2.0, 2.0, 0.0));
+    let mut tris = glass_box(lo, hi, glam::Quat::IDENTITY);
     tris.extend(rect(-3.0, -3.0, 3.0, 3.0, -1.0, 1));
     Scene {
         triangles: tris,
@@ -313,24 +323,8 @@ fn a_dispersive_slab_transmits_each_channel_by_its_own_index() {
 /// between an orthographic camera and a lamp that covers x > 0 behind it: the lamp's edge is
 /// seen shifted sideways by t·sin θ·(1 − cos θ / √(n² − sin² θ)), 1.00 at n = 2.
 fn tilted_slab_scene(ior: f32, dispersion: f32) -> Scene {
-    let turn = glam::Quat::from_rotation_y(50f32.to_radians());
     let (lo, hi) = (Vec3::new(-6.0, -6.0, -1.0), Vec3::new(6.0, 6.0, 1.0));
-    let c = |x: usize, y: usize, z: usize| {
-        turn * Vec3::new([lo.x, hi.x][x], [lo.y, hi.y][y], [lo.z, hi.z][z])
-    };
-    let quads = [
-        [c(0, 0, 0), c(0, 1, 0), c(1, 1, 0), c(1, 0, 0)],
-        [c(0, 0, 1), c(1, 0, 1), c(1, 1, 1), c(0, 1, 1)],
-        [c(0, 0, 0), c(0, 0, 1), c(0, 1, 1), c(0, 1, 0)],
-        [c(1, 0, 0), c(1, 1, 0), c(1, 1, 1), c(1, 0, 1)],
-        [c(0, 0, 0), c(1, 0, 0), c(1, 0, 1), c(0, 0, 1)],
-        [c(0, 1, 0), c(0, 1, 1), c(1, 1, 1), c(1, 1, 0)],
-    ];
-    let mut tris = Vec::new();
-    for q in quads {
-        tris.push(flat([q[0], q[1], q[2]], [Vec2::ZERO; 3], 0));
-        tris.push(flat([q[0], q[2], q[3]], [Vec2::ZERO; 3], 0));
-    }
+    let mut tris = glass_box(lo, hi, glam::Quat::from_rotation_y(50f32.to_radians()));
     tris.extend(rect(0.0, -30.0, 30.0, 30.0, -9.0, 1));
     Scene {
         triangles: tris,
