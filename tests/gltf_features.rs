@@ -186,8 +186,23 @@ fn slab_scene(ior: f32, absorption: Vec3) -> Scene {
     let (lo, hi) = (Vec3::new(-2.0, -2.0, -0.2), Vec3::new(2.0, 2.0, 0.0));
     let mut tris = glass_box(lo, hi, glam::Quat::IDENTITY);
     tris.extend(rect(-3.0, -3.0, 3.0, 3.0, -1.0, 1));
+    let glass = MaterialExt {
+        absorption,
+        ..MaterialExt::default()
+    };
+    glass_before_lamp(tris, ior, glass, ortho(Vec3::new(0.0, 0.0, 1.0), 0.5))
+}
+
+/// `triangles` (material 0: smooth white glass of index `ior` with the rest of `glass`;
+/// material 1: a lamp of radiance 1) seen by `camera` in a black world.
+fn glass_before_lamp(
+    triangles: Vec<Triangle>,
+    ior: f32,
+    glass: MaterialExt,
+    camera: raygun::scene::OrthographicCamera,
+) -> Scene {
     Scene {
-        triangles: tris,
+        triangles,
         materials: vec![
             material(Vec3::ONE, 0.0, 0.0, 1.0, Vec3::ZERO),
             material(Vec3::ZERO, 0.0, 1.0, 0.0, Vec3::ONE),
@@ -195,10 +210,9 @@ fn slab_scene(ior: f32, absorption: Vec3) -> Scene {
         material_ext: vec![MaterialExt {
             transmission: 1.0,
             ior,
-            absorption,
-            ..Default::default()
+            ..glass
         }],
-        orthographic_cameras: vec![ortho(Vec3::new(0.0, 0.0, 1.0), 0.5)],
+        orthographic_cameras: vec![camera],
         environment: Environment::Constant(Vec3::ZERO),
         ..Default::default()
     }
@@ -326,23 +340,12 @@ fn tilted_slab_scene(ior: f32, dispersion: f32) -> Scene {
     let (lo, hi) = (Vec3::new(-6.0, -6.0, -1.0), Vec3::new(6.0, 6.0, 1.0));
     let mut tris = glass_box(lo, hi, glam::Quat::from_rotation_y(50f32.to_radians()));
     tris.extend(rect(0.0, -30.0, 30.0, 30.0, -9.0, 1));
-    Scene {
-        triangles: tris,
-        materials: vec![
-            material(Vec3::ONE, 0.0, 0.0, 1.0, Vec3::ZERO),
-            material(Vec3::ZERO, 0.0, 1.0, 0.0, Vec3::ONE),
-        ],
-        material_ext: vec![MaterialExt {
-            transmission: 1.0,
-            ior,
-            dispersion,
-            ..Default::default()
-        }],
-        // 96 × 64 pixels over x ∈ [−1.5, 1.5]: a column is 1/32 wide.
-        orthographic_cameras: vec![ortho(Vec3::new(0.0, 0.0, 9.0), 1.0)],
-        environment: Environment::Constant(Vec3::ZERO),
-        ..Default::default()
-    }
+    let glass = MaterialExt {
+        dispersion,
+        ..MaterialExt::default()
+    };
+    // 96 × 64 pixels over x ∈ [−1.5, 1.5]: a column is 1/32 wide.
+    glass_before_lamp(tris, ior, glass, ortho(Vec3::new(0.0, 0.0, 9.0), 1.0))
 }
 
 /// Each channel of the dispersive tilted slab is the undispersed slab of that channel's index
