@@ -326,6 +326,8 @@ main() {
   mkdir -p "$out"
   WORK="$(mktemp -d)/gpu-bench"
   mkdir -p "$WORK"
+  # Everything worth keeping is packed into $out; the working folder goes with the script.
+  trap 'rm -rf "${WORK%/gpu-bench}"' EXIT
   local dmon=""
   if [ "$MODE" = run ]; then
     setup_device >"$WORK/setup.log" 2>&1

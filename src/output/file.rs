@@ -160,6 +160,7 @@ pub fn write_bytes(path: &Path, bytes: &[u8]) -> Result<(), FileError> {
 mod tests {
     use super::*;
 
+    /// A fresh folder for one test, which removes it when it passes.
     fn dir(name: &str) -> PathBuf {
         let d = std::env::temp_dir().join(format!("raygun-file-{}-{name}", std::process::id()));
         let _ = std::fs::remove_dir_all(&d);
@@ -194,6 +195,7 @@ mod tests {
         write_bytes(&path, b"new").unwrap();
         assert_eq!(std::fs::read(&path).unwrap(), b"new");
         assert_eq!(names(&d), ["r.png"]);
+        std::fs::remove_dir_all(&d).unwrap();
     }
 
     #[test]
@@ -236,5 +238,6 @@ mod tests {
         // The probes left nothing behind.
         assert_eq!(names(&d), ["file", "new"]);
         assert!(names(&d.join("new/deeper")).is_empty());
+        std::fs::remove_dir_all(&d).unwrap();
     }
 }
