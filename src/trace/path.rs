@@ -48,8 +48,9 @@ use crate::random::{pcg4d, stream, unit_f32};
 
 mod batch;
 
-/// `ext_bsdf`'s channel for a path that follows all three (no dispersive surface met yet, or
-/// none here).
+/// `ext_bsdf`'s channel at a surface that is not dispersive: the material's own index of
+/// refraction. (A path that follows one channel carries it in its throughput, where the others
+/// are zero, so nothing else needs to know.)
 pub const ALL_CHANNELS: u32 = 3;
 
 /// What one iteration of the integrator needs besides the scene.
@@ -298,13 +299,13 @@ fn emission_at(sc: &PackedScene, mb: usize, flags: u32, sp: SurfacePoint) -> Vec
 }
 
 /// The extensions' BSDF of material `mb` (with `flags`) over its core BSDF `core` at `sp`, hit
-/// from the front or not (KHR_materials_transmission, _ior, _specular, _clearcoat): each
-/// factor times its texture where the material has one — transmission × R, specular × A,
-/// specular colour × RGB, coat × R, coat roughness × G, diffuse transmission × A and its
-/// colour × RGB (α = max(α · G², [`MIN_ALPHA`]), as the
-/// metallic-roughness map's), and the coat's normal: `ns`, the interpolated normal before any
-/// normal map, bent by the coat's own normal map where it has one, on `ng`'s side (the
-/// geometric normal towards the viewer). `channel` is the colour channel a path follows
+/// from the front or not (KHR_materials_transmission, _ior, _specular, _clearcoat, _sheen,
+/// _anisotropy, _dispersion, _diffuse_transmission): each factor times its texture where the
+/// material has one — transmission × R, specular × A, specular colour × RGB, coat × R, coat
+/// roughness × G (α = max(α · G², [`MIN_ALPHA`]), as the metallic-roughness map's), diffuse
+/// transmission × A, its colour × RGB — and the coat's normal: `ns`, the interpolated normal
+/// before any normal map, bent by the coat's own normal map where it has one, on `ng`'s side
+/// (the geometric normal towards the viewer). `channel` is the colour channel a path follows
 /// through a dispersive material (its index of refraction then that channel's), or
 /// [`ALL_CHANNELS`]. The twin of `ext_bsdf` in path.wgsl.
 #[inline(never)]
