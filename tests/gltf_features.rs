@@ -39,6 +39,11 @@ fn z_of(acc: &Accumulation, pixels: &[usize], expected: f64) -> f64 {
     (m / n - expected) / (v.sqrt() / n).max(1e-12)
 }
 
+/// The mean colour of `pixels`.
+fn mean_rgb(acc: &Accumulation, pixels: &[usize]) -> Vec3 {
+    pixels.iter().map(|&i| acc.mean(i)).sum::<Vec3>() / pixels.len() as f32
+}
+
 /// An emissive texture whose left half is white and right half black, on a black-based quad
 /// (exporters write emissiveFactor 1 beside every emissive texture): the left half glows with
 /// exactly the factor's radiance, the right half is black, and only the left triangles are
@@ -271,7 +276,7 @@ fn an_absorbing_glass_slab_transmits_its_attenuation_colour() {
     for (acc, label) in both(&scene, &s, 256) {
         let z = z_of(&acc, &all, f64::from(luminance(want)));
         assert!(z.abs() < 5.0, "{label}: z = {z} against {want}");
-        let mean = all.iter().map(|&i| acc.mean(i)).sum::<Vec3>() / 64.0;
+        let mean = mean_rgb(&acc, &all);
         assert!(
             (mean - want).abs().max_element() < 0.01,
             "{label}: {mean} vs {want}"
@@ -313,7 +318,7 @@ fn a_dispersive_slab_transmits_each_channel_by_its_own_index() {
     let (pixels, spp) = (32 * 32usize, 256u32);
     let s = settings(&scene, 32, 32, 9, 3);
     for (acc, label) in both(&scene, &s, spp) {
-        let mean = (0..pixels).map(|i| acc.mean(i)).sum::<Vec3>() / pixels as f32;
+        let mean = mean_rgb(&acc, &(0..pixels).collect::<Vec<_>>());
         // A sample's channel is 0, or its path's weight (1 here: smooth faces) times 3 where it
         // picked that channel: its variance is at most 3 × its mean.
         let sigma = want.map(|w| (3.0 * w / (pixels * spp as usize) as f32).sqrt());
@@ -436,7 +441,7 @@ fn a_backlit_leaf_shows_its_diffuse_transmission() {
         for (acc, label) in both(&scene, &s(&scene), 256) {
             let z = z_of(&acc, &all, f64::from(luminance(want)));
             assert!(z.abs() < 5.0, "{label}, dt {dt}: z = {z} against {want}");
-            let mean = all.iter().map(|&i| acc.mean(i)).sum::<Vec3>() / 64.0;
+            let mean = mean_rgb(&acc, &all);
             assert!(
                 (mean - want).abs().max_element() < 0.02,
                 "{label}, dt {dt}: {mean} vs {want}"
@@ -451,7 +456,7 @@ fn a_backlit_leaf_shows_its_diffuse_transmission() {
     }
     let scene = leaf(0.0);
     for (acc, label) in both(&scene, &s(&scene), 16) {
-        let mean = all.iter().map(|&i| acc.mean(i)).sum::<Vec3>() / 64.0;
+        let mean = mean_rgb(&acc, &all);
         assert_eq!(
             mean,
             Vec3::ZERO,

@@ -63,7 +63,8 @@ const MAT_EXT_BSDF: u32 = 128u;
 const MAT_EXT_TEX: u32 = 256u;
 const MAT_VOLUME: u32 = 512u;
 const MAT_DISPERSION: u32 = 1024u;
-// ext_bsdf's channel for a path that follows all three (CPU twin: path::ALL_CHANNELS).
+// ext_bsdf's channel at a surface that is not dispersive: the material's own index of
+// refraction (CPU twin: path::ALL_CHANNELS).
 const ALL_CHANNELS: u32 = 3u;
 const FEAT_EXTRAS: u32 = 1u;
 const FEAT_ALPHA: u32 = 2u;

@@ -679,16 +679,9 @@ mod tests {
     #[test]
     fn kernel_constants_match_the_cpu_twin() {
         let m = validated("compact.wgsl", COMPACT_WGSL);
-        let constant = |name: &str| {
-            let (_, c) = m
-                .constants
-                .iter()
-                .find(|(_, c)| c.name.as_deref() == Some(name))
-                .unwrap_or_else(|| panic!("no constant {name}"));
-            match m.global_expressions[c.init] {
-                naga::Expression::Literal(naga::Literal::U32(v)) => v,
-                ref e => panic!("{name} is {e:?}, not a u32 literal"),
-            }
+        let constant = |name: &str| match crate::gpu::wgsl::const_literal(&m, name) {
+            naga::Literal::U32(v) => v,
+            l => panic!("{name} is {l:?}, not a u32 literal"),
         };
         assert_eq!(constant("STREAM_SCHEDULE"), crate::random::stream::SCHEDULE);
         assert_eq!(constant("TILE_EDGE"), super::super::TILE_EDGE);
