@@ -45,6 +45,7 @@ pub mod display;
 pub mod filter;
 pub mod frame;
 pub mod gpu;
+pub mod input;
 pub mod interaction;
 pub mod memory;
 pub mod messages;

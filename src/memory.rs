@@ -255,18 +255,7 @@ pub enum MemoryError {
     },
 }
 
-/// Bytes for people: "1.5 GB", "640 MB", "12 kB".
-#[must_use]
-pub fn bytes(b: u64) -> String {
-    let b = b as f64;
-    if b >= 1e9 {
-        format!("{:.1} GB", b / 1e9)
-    } else if b >= 1e6 {
-        format!("{:.0} MB", b / 1e6)
-    } else {
-        format!("{:.0} kB", b / 1e3)
-    }
-}
+pub use crate::messages::bytes;
 
 /// Memory available to this process now (Linux: `MemAvailable` of /proc/meminfo); `None` where
 /// that cannot be read.

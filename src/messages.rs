@@ -16,6 +16,22 @@ pub fn quote(text: &str) -> String {
     format!("{head:?}… ({n} characters)")
 }
 
+/// Bytes for people: "1.5 GB", "640 MB", "12 kB", "10 bytes".
+#[must_use]
+pub fn bytes(b: u64) -> String {
+    if b < 1000 {
+        return format!("{b} bytes");
+    }
+    let b = b as f64;
+    if b >= 1e9 {
+        format!("{:.1} GB", b / 1e9)
+    } else if b >= 1e6 {
+        format!("{:.0} MB", b / 1e6)
+    } else {
+        format!("{:.0} kB", b / 1e3)
+    }
+}
+
 /// A message from elsewhere (a parser's) cut to a few hundred characters: serde quotes the
 /// offending value whole, however long it is.
 #[must_use]

@@ -21,7 +21,7 @@ use std::path::{Path, PathBuf};
 
 /// The layers, lowest first, each with its top-level modules.
 const LAYERS: &[(&str, &[&str])] = &[
-    ("base", &["messages", "random", "gpu"]),
+    ("base", &["messages", "input", "random", "gpu"]),
     (
         "stages",
         &[

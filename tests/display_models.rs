@@ -561,9 +561,19 @@ fn expand_round_trips_through_the_loader() {
     ] {
         let model = load(file);
         let text = expand(&ExpandArgs {
-            file: model_path(file),
+            model: model_path(file).display().to_string(),
         })
         .unwrap();
+        // A built-in model's name gives the same text, from any folder.
+        let name = file.trim_end_matches(".json");
+        assert_eq!(
+            expand(&ExpandArgs {
+                model: name.to_owned()
+            })
+            .unwrap(),
+            text,
+            "{name}"
+        );
         let spec: DisplayModelSpec = serde_json::from_str(&text).unwrap();
         assert!(
             spec.generator.is_none() && spec.tiles.is_some(),
@@ -595,10 +605,21 @@ fn model_deserialises_through_validation() {
 #[test]
 fn expand_error_names_the_file() {
     let e = expand(&ExpandArgs {
-        file: PathBuf::from("/nonexistent/x.json"),
+        model: "/nonexistent/x.json".to_owned(),
     })
     .unwrap_err();
     assert!(format!("{e:#}").contains("/nonexistent/x.json"), "{e:#}");
+    // Bounded reads: a device is refused unread, naming what it is.
+    let e = expand(&ExpandArgs {
+        model: "/dev/zero".to_owned(),
+    })
+    .unwrap_err();
+    assert!(
+        format!("{e:#}").contains(
+            "/dev/zero: cannot read the display model: is a character device, not a file"
+        ),
+        "{e:#}"
+    );
 }
 
 /// Generator placement with a random centre, normal and up must give the default wall moved by

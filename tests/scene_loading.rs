@@ -613,6 +613,88 @@ fn undecodable_images_fall_back_to_the_factor_and_are_named() {
     );
 }
 
+/// A scene from anywhere reads only files in its own folder and below: absolute paths,
+/// `file:` URIs and `../` out of the folder are refused, naming the URI and the rule, unless
+/// the scene is trusted (`--trust-scene`). Devices are never read, trusted or not, and a
+/// buffer is read to its declared length only, which its file must have.
+#[test]
+fn a_scene_reads_only_files_in_its_own_folder() {
+    let root = tmp_dir("confined");
+    let folder = root.join("scene");
+    std::fs::create_dir_all(folder.join("bin")).unwrap();
+    // One triangle's positions (36 bytes), inside and outside the scene's folder.
+    let tri: Vec<u8> = [0f32, 0., 0., 1., 0., 0., 0., 1., 0.]
+        .iter()
+        .flat_map(|v| v.to_le_bytes())
+        .collect();
+    std::fs::write(folder.join("bin/tri.bin"), &tri).unwrap();
+    std::fs::write(root.join("outside.bin"), &tri).unwrap();
+    let gltf = folder.join("scene.gltf");
+    let write = |uri: &str, len: usize| {
+        let doc = json!({
+            "asset": { "version": "2.0" },
+            "buffers": [{ "byteLength": len, "uri": uri }],
+            "bufferViews": [{ "buffer": 0, "byteLength": 36 }],
+            "accessors": [{ "bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                            "min": [0, 0, 0], "max": [1, 1, 0] }],
+            "meshes": [{ "primitives": [{ "attributes": { "POSITION": 0 } }] }],
+            "nodes": [{ "mesh": 0 }],
+            "scenes": [{ "nodes": [0] }]
+        });
+        std::fs::write(&gltf, doc.to_string()).unwrap();
+    };
+    write("bin/tri.bin", 36);
+    assert_eq!(Scene::load(&gltf).unwrap().triangles.len(), 1);
+    let outside = root.join("outside.bin");
+    for uri in [
+        "../outside.bin".to_owned(),
+        outside.display().to_string(),
+        format!("file://{}", outside.display()),
+        "bin/../../outside.bin".to_owned(),
+    ] {
+        write(&uri, 36);
+        let e = Scene::load(&gltf).unwrap_err().to_string();
+        assert!(
+            e.contains(&format!("buffer 0: cannot read '{uri}'"))
+                && e.contains("outside the scene's folder")
+                && e.contains("--trust-scene"),
+            "{uri}: {e}"
+        );
+        let trusted = Scene::load_with(&gltf, raygun::scene::UriAccess::Anywhere).unwrap();
+        assert_eq!(trusted.triangles.len(), 1, "{uri}");
+    }
+    // /dev/zero once grew without bound: a device is refused unread.
+    write("/dev/zero", 36);
+    let e = Scene::load_with(&gltf, raygun::scene::UriAccess::Anywhere)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("character device, not a file"), "{e}");
+    // A byteLength beyond the file is refused before anything is allocated.
+    write("bin/tri.bin", 1 << 40);
+    let e = Scene::load(&gltf).unwrap_err().to_string();
+    assert!(
+        e.contains("has 36 bytes, fewer than the 1099511627776"),
+        "{e}"
+    );
+    // The scene file itself: a device is no scene.
+    let e = Scene::load("/dev/zero").unwrap_err();
+    assert!(
+        raygun::messages::chain(&e).contains("character device"),
+        "{}",
+        raygun::messages::chain(&e)
+    );
+    // The command line's switch.
+    write(&outside.display().to_string(), 36);
+    let info = |extra: &[&str]| {
+        let mut args = vec!["scene", "info", support::s(&gltf)];
+        args.extend_from_slice(extra);
+        support::raygun(&args)
+    };
+    support::fails_with(&info(&[]), &["outside the scene's folder", "--trust-scene"]);
+    let o = info(&["--trust-scene"]);
+    assert!(o.status.success(), "{}", support::stderr(&o));
+}
+
 #[test]
 fn missing_texture_and_buffer_files_are_errors_naming_the_uri() {
     let dir = tmp_dir("missing");

@@ -302,6 +302,78 @@ fn replay_needs_a_display_and_says_which_file_lacks_one() {
     );
 }
 
+/// What a replay reads is bounded: a device is refused unread, the header and every line are
+/// at most `MAX_LINE` bytes (an over-long record is skipped and counted, without being held),
+/// and a header whose `display` names no display model says so, naming the replay and the
+/// field.
+#[test]
+fn replay_reads_are_bounded_and_a_bad_header_display_is_named() {
+    use raygun::tracking::replay::MAX_LINE;
+    let dir = std::env::temp_dir().join(format!("raygun-bounded-replay-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let e = format!(
+        "{:#}",
+        run_replay(&args(Path::new("/dev/zero")), Vec::new()).unwrap_err()
+    );
+    assert!(
+        e.contains("/dev/zero: is a character device, not a file"),
+        "{e}"
+    );
+    // A header line longer than the limit is refused after MAX_LINE + 1 bytes.
+    let long = dir.join("long-header.jsonl");
+    let header = format!(
+        "{{\"raygun_replay\":1,\"description\":\"{}\"}}\n",
+        "x".repeat(MAX_LINE)
+    );
+    std::fs::write(&long, header).unwrap();
+    let e = format!("{:#}", run_replay(&args(&long), Vec::new()).unwrap_err());
+    assert!(
+        e.contains("long-header.jsonl: line 1 is not a replay header")
+            && e.contains(&format!("longer than {MAX_LINE} bytes")),
+        "{e}"
+    );
+    // An over-long record between good ones is skipped and counted; the rest plays.
+    let file = replay_dir().join("flystick-1-centre-sweeps.dtrack.jsonl");
+    let text = std::fs::read_to_string(&file).unwrap();
+    let mut lines: Vec<String> = text.lines().map(str::to_owned).collect();
+    lines.insert(
+        2,
+        format!("{{\"t\":0.0,\"dtrack\":\"{}\"}}", "y".repeat(3 * MAX_LINE)),
+    );
+    let padded = dir.join("tracking-replays").join("long-record.jsonl");
+    std::fs::create_dir_all(padded.parent().unwrap()).unwrap();
+    std::fs::write(&padded, lines.join("\n") + "\n").unwrap();
+    let mut out = Vec::new();
+    let problems = run_replay(&args(&padded), &mut out).unwrap();
+    assert_eq!(
+        problems.count("replay_line_too_long"),
+        1,
+        "{:?}",
+        problems.counts()
+    );
+    let expect = std::fs::read_to_string(golden_path(&file)).unwrap();
+    assert!(String::from_utf8(out).unwrap() == expect);
+    // The header's display names a file that is no display model.
+    let notes = dir.join("notes.txt");
+    std::fs::write(&notes, "not JSON").unwrap();
+    let named = dir.join("named.jsonl");
+    let header = serde_json::json!({ "raygun_replay": 1, "display": notes.display().to_string() });
+    std::fs::write(
+        &named,
+        format!("{header}\n{{\"t\":0.0,\"dtrack\":\"fr 1\"}}\n"),
+    )
+    .unwrap();
+    let e = format!("{:#}", run_replay(&args(&named), Vec::new()).unwrap_err());
+    assert!(
+        e.contains(&format!(
+            "named.jsonl: the header's field `display` names {:?}, which is not a display model",
+            notes.display().to_string()
+        )),
+        "{e}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 #[test]
 fn replay_applies_a_mapping_file() {
     // With no buttons mapped, the session can only change the FOV.

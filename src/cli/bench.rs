@@ -51,6 +51,8 @@ pub struct PictureArgs {
     /// Scene (a file or builtin:NAME).
     #[arg(long, value_name = "SCENE", default_value = "builtin:cornell")]
     pub scene: String,
+    #[command(flatten)]
+    pub access: crate::cli::scene::SceneAccess,
     /// Display model (the paper's setup: HORNET).
     #[arg(long, value_name = "MODEL", default_value = crate::display::DEFAULT_MODEL)]
     pub display: String,
@@ -93,7 +95,8 @@ fn run_picture(args: &PictureArgs) -> anyhow::Result<()> {
     }
     let ctx = crate::gpu::GpuContext::new()?;
     let backend = Backend::Gpu(Box::new(ctx));
-    let mut scenes = crate::cli::scene::load_scenes(std::slice::from_ref(&args.scene), None)?;
+    let mut scenes =
+        crate::cli::scene::load_scenes(std::slice::from_ref(&args.scene), None, args.access)?;
     let (name, scene) = scenes.remove(0);
     let cfg = crate::bench::picture::PictureConfig {
         size: args.size,
@@ -208,6 +211,8 @@ pub struct AllBenchArgs {
     /// Scene (file or builtin:NAME).
     #[arg(long, value_name = "SCENE", default_value = "builtin:cornell")]
     pub scene: String,
+    #[command(flatten)]
+    pub access: crate::cli::scene::SceneAccess,
     /// Display model (the paper's setup: HORNET).
     #[arg(long, value_name = "MODEL", default_value = crate::display::DEFAULT_MODEL)]
     pub display: String,
@@ -226,7 +231,7 @@ pub struct AllBenchArgs {
 fn run_all_bench(args: &AllBenchArgs) -> anyhow::Result<()> {
     let backend = Backend::select(args.backend)?;
     let display = DisplayModel::open(&args.display)?.0;
-    let scene = crate::cli::scene::load_scene(&args.scene, None)?;
+    let scene = crate::cli::scene::load_scene(&args.scene, None, args.access)?;
     let name = args.scene.trim_start_matches("builtin:");
     let mut cfg = crate::bench::all::AllConfig::new(args.quick, args.size);
     cfg.iterations = args.iterations.unwrap_or(cfg.iterations);
@@ -261,6 +266,8 @@ pub struct GuidedBenchArgs {
         default_value = "builtin:cornell,builtin:city"
     )]
     pub scene: Vec<String>,
+    #[command(flatten)]
+    pub access: crate::cli::scene::SceneAccess,
     /// Display model (the paper's setup: HORNET).
     #[arg(long, value_name = "MODEL", default_value = crate::display::DEFAULT_MODEL)]
     pub display: String,
@@ -390,7 +397,7 @@ fn cluster_bench(c: &mut Cluster, args: &GuidedBenchArgs) -> anyhow::Result<Opti
     let prepared = (|| -> anyhow::Result<_> {
         let display = DisplayModel::open(&args.display).context("--display")?.0;
         let size = crate::cli::args::resolve_size(args.size, &args.display)?;
-        let scene = crate::cli::scene::load_scene(&scene_name, args.env.as_deref())?;
+        let scene = crate::cli::scene::load_scene(&scene_name, args.env.as_deref(), args.access)?;
         let backend = Backend::select(args.backend)?;
         Ok((display, size, scene, backend))
     })();
@@ -486,6 +493,8 @@ pub struct NativeBenchArgs {
         default_value = "builtin:cornell"
     )]
     pub scene: Vec<String>,
+    #[command(flatten)]
+    pub access: crate::cli::scene::SceneAccess,
     /// Display model, rendered at its canvas's own pixel size.
     #[arg(long, value_name = "MODEL", default_value = crate::display::DEFAULT_MODEL)]
     pub display: String,
@@ -537,7 +546,7 @@ fn run_native_bench(args: &NativeBenchArgs) -> anyhow::Result<()> {
         );
     }
     let backend = Backend::select(args.backend)?;
-    let scenes = crate::cli::scene::load_scenes(&args.scene, args.env.as_deref())?;
+    let scenes = crate::cli::scene::load_scenes(&args.scene, args.env.as_deref(), args.access)?;
     let cfg = crate::bench::native::NativeBenchConfig {
         fovs_deg: args.fov.clone(),
         iterations: args.iterations.max(1),
@@ -574,7 +583,7 @@ fn run_guided_bench(args: &GuidedBenchArgs) -> anyhow::Result<()> {
     }
     let wall = crate::cli::wall::wall_spec(args.camera.as_deref(), &args.wall, Some(&display))?;
     let backend = Backend::select(args.backend)?;
-    let scenes = crate::cli::scene::load_scenes(&args.scene, args.env.as_deref())?;
+    let scenes = crate::cli::scene::load_scenes(&args.scene, args.env.as_deref(), args.access)?;
     let cfg = crate::bench::guided::GuidedBenchConfig {
         size: crate::cli::args::resolve_size(args.size, &args.display)?,
         fovs_deg: args.fov.clone(),
@@ -615,6 +624,8 @@ pub struct TraceBenchArgs {
         default_value = "builtin:cornell,builtin:city"
     )]
     pub scene: Vec<String>,
+    #[command(flatten)]
+    pub access: crate::cli::scene::SceneAccess,
     /// Image size.
     #[arg(long, value_name = "W,H", value_parser = crate::cli::args::parse_size, default_value = "3840,2160")]
     pub size: [u32; 2],
@@ -671,7 +682,7 @@ fn run_trace_bench(args: &TraceBenchArgs) -> anyhow::Result<()> {
     };
     let wall = crate::cli::wall::wall_spec(camera, &args.wall, model.as_ref())?;
     let backend = Backend::select(args.backend)?;
-    let scenes = crate::cli::scene::load_scenes(&args.scene, args.env.as_deref())?;
+    let scenes = crate::cli::scene::load_scenes(&args.scene, args.env.as_deref(), args.access)?;
     let cfg = crate::bench::trace::TraceBenchConfig {
         size: args.size,
         frames: args.spp.max(1),

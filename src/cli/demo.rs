@@ -148,7 +148,8 @@ pub fn run_headless(args: &DemoArgs) -> anyhow::Result<DemoOutput> {
     if args.tiles {
         crate::cli::render::warn_if_resampled(args.size, &model, "HORNET");
     }
-    let scene = crate::cli::scene::load_scene(SCENE, Some(ENV))?;
+    let scene =
+        crate::cli::scene::load_scene(SCENE, Some(ENV), crate::cli::scene::SceneAccess::default())?;
     let [w, h] = args.size;
     let camera = RenderCamera::choose(&scene, None, w, h).context("demo scene camera")?;
     let settings = TraceSettings {
@@ -372,6 +373,7 @@ fn report_text(
 pub fn view_args(args: &DemoArgs, display: &Path, replay: &Path) -> ViewArgs {
     ViewArgs {
         scene: SCENE.to_owned(),
+        access: crate::cli::scene::SceneAccess::default(),
         display: display.display().to_string(),
         size: args.size,
         env: Some(ENV.to_owned()),

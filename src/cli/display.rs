@@ -1,7 +1,5 @@
 //! `raygun pick` and `raygun display expand`: arguments and command logic.
 
-use std::path::PathBuf;
-
 use glam::{DVec2, DVec3};
 use serde_json::{Value, json};
 
@@ -28,9 +26,10 @@ pub struct PickArgs {
 /// `raygun display expand`: print a model's explicit form.
 #[derive(Clone, Debug, clap::Args)]
 pub struct ExpandArgs {
-    /// Display model file (explicit or generator form).
-    #[arg(value_name = "FILE")]
-    pub file: PathBuf,
+    /// Display model: a file (explicit or generator form), or a built-in model (hornet,
+    /// desktop-27in-4k, projection-4m-4k).
+    #[arg(value_name = "MODEL")]
+    pub model: String,
 }
 
 /// `raygun pick`: loads the model and reports the first hit as one JSON object (see
@@ -77,7 +76,7 @@ pub fn pick_on(
 /// loads back into the same model.
 pub fn expand(args: &ExpandArgs) -> anyhow::Result<String> {
     // The loader's errors already name the file, tile and field.
-    Ok(DisplayModel::load(&args.file)?.to_json_pretty())
+    Ok(DisplayModel::open(&args.model)?.0.to_json_pretty())
 }
 
 #[cfg(test)]

@@ -10,7 +10,7 @@
 //! digits).
 //!
 //! A bad query line (wrong field count, a field that is not a number, NaN or infinity, a negative
-//! semi-axis, bytes that are not UTF-8) writes `error: line N: <what>` to the error stream and
+//! semi-axis, bytes that are not UTF-8, a line longer than [`MAX_LINE`]) writes `error: line N: <what>` to the error stream and
 //! `nan,nan,nan` to the output. The placeholder keeps the k-th output line paired with the k-th
 //! query line, so a user who pastes the output next to the input, or feeds both to a CSV reader,
 //! never shifts rows after a typo; any CSV reader reads `nan` as a missing value. The remaining
@@ -56,7 +56,13 @@ pub enum LineError {
     },
     #[error("line is not valid UTF-8")]
     NotUtf8,
+    #[error("line is longer than {MAX_LINE} bytes")]
+    TooLong,
 }
+
+/// Longest query line read (four numbers take at most a few hundred bytes); the rest of a
+/// longer line is skipped and the line answered as an error.
+pub const MAX_LINE: usize = 4096;
 
 const FIELD_NAMES: [&str; 4] = ["a", "b", "x", "y"];
 
@@ -112,12 +118,13 @@ pub fn run(
     let mut buf = Vec::new();
     let mut line_no = 0usize;
     loop {
-        buf.clear();
-        if input.read_until(b'\n', &mut buf)? == 0 {
+        let line = crate::input::read_line(&mut input, &mut buf, MAX_LINE)?;
+        if line == crate::input::Line::End {
             break;
         }
         line_no += 1;
         let parsed = match std::str::from_utf8(&buf) {
+            _ if line == crate::input::Line::TooLong => Err(LineError::TooLong),
             Ok(text) => {
                 let text = text.trim();
                 if text.is_empty() || text.starts_with('#') {
@@ -271,5 +278,24 @@ mod tests {
         let (out, err, _) = run_str("1e300,1e300,0,3e300\n");
         assert_eq!(err, "");
         assert_eq!(out, "2e300,0,1e300\n");
+    }
+
+    #[test]
+    fn an_overlong_line_is_one_error_and_the_stream_goes_on() {
+        let long = "1".repeat(MAX_LINE * 3);
+        let input = format!("1,1,3,0\n{long}\n1,1,0,2\n");
+        let (out, err, stats) = run_str(&input);
+        assert_eq!(out, "2,1,0\nnan,nan,nan\n1,0,1\n");
+        assert_eq!(
+            err,
+            format!("error: line 2: line is longer than {MAX_LINE} bytes\n")
+        );
+        assert_eq!(
+            stats,
+            LineStats {
+                queries: 3,
+                errors: 1
+            }
+        );
     }
 }

@@ -85,6 +85,8 @@ pub struct FilterBenchArgs {
     /// guided iterations each) instead of synthetic renders.
     #[arg(long, value_name = "SCENE")]
     pub scene: Option<String>,
+    #[command(flatten)]
+    pub access: crate::cli::scene::SceneAccess,
     /// Samples per pixel of the full-frame reference of `--scene`.
     #[arg(long, value_name = "N", default_value_t = 256)]
     pub reference_spp: u32,
@@ -131,7 +133,7 @@ pub fn run_bench(args: &FilterBenchArgs) -> anyhow::Result<()> {
     let report = match &args.scene {
         None => bench::run(&surface, model.name(), &backend, &config, progress)?,
         Some(scene_arg) => {
-            let scene = crate::cli::scene::load_scene(scene_arg, None)?;
+            let scene = crate::cli::scene::load_scene(scene_arg, None, args.access)?;
             let name = scene_arg.trim_start_matches("builtin:");
             bench::run_with_inputs(
                 &surface,

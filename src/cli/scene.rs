@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use serde_json::{Value, json};
 
 use crate::scene::generate::{self, CityParams, Generated};
-use crate::scene::{AlphaMode, Environment, Material, MaterialExt, Scene};
+use crate::scene::{AlphaMode, Environment, Material, MaterialExt, Scene, UriAccess};
 
 #[derive(Clone, Debug, clap::Subcommand)]
 pub enum SceneCommand {
@@ -45,6 +45,8 @@ pub struct InfoArgs {
     /// A .gltf / .glb file, or builtin:NAME (cornell, cornell-light, city, city-small).
     #[arg(value_name = "SCENE")]
     pub scene: String,
+    #[command(flatten)]
+    pub access: crate::cli::scene::SceneAccess,
     /// Print one JSON object instead of text.
     #[arg(long)]
     pub json: bool,
@@ -63,7 +65,7 @@ pub fn run(cmd: &SceneCommand) -> anyhow::Result<String> {
             &a.out,
         ),
         SceneCommand::Info(a) => {
-            let scene = Scene::open(&a.scene)?;
+            let scene = Scene::open_with(&a.scene, a.access.uris())?;
             let summary = info(&a.scene, &scene);
             return Ok(if a.json {
                 summary.to_string()
@@ -260,10 +262,31 @@ fn info_text(s: &Value) -> String {
     out.trim_end().to_string()
 }
 
+/// `--trust-scene`: which files a scene's URIs may name.
+#[derive(Clone, Copy, Debug, Default, clap::Args)]
+pub struct SceneAccess {
+    /// Let the scene's buffer and image URIs name files outside the scene's own folder
+    /// (absolute paths, `file:` URIs, `../` out of it). Without it a scene reads only files in
+    /// its folder and below: for scenes you trust.
+    #[arg(long)]
+    pub trust_scene: bool,
+}
+
+impl SceneAccess {
+    #[must_use]
+    pub fn uris(self) -> UriAccess {
+        if self.trust_scene {
+            UriAccess::Anywhere
+        } else {
+            UriAccess::Confined
+        }
+    }
+}
+
 /// Loads the scene named by `--scene`, with `--env` applied and its unsupported features
 /// reported on standard error.
-pub fn load_scene(scene: &str, env: Option<&str>) -> anyhow::Result<Scene> {
-    let mut s = Scene::open(scene)?;
+pub fn load_scene(scene: &str, env: Option<&str>, access: SceneAccess) -> anyhow::Result<Scene> {
+    let mut s = Scene::open_with(scene, access.uris())?;
     if let Some(env) = env {
         s.environment = Environment::parse(env)?;
     }
@@ -274,13 +297,17 @@ pub fn load_scene(scene: &str, env: Option<&str>) -> anyhow::Result<Scene> {
 }
 
 /// Loads each of `scenes` with [`load_scene`], named by its argument without `builtin:`.
-pub fn load_scenes(scenes: &[String], env: Option<&str>) -> anyhow::Result<Vec<(String, Scene)>> {
+pub fn load_scenes(
+    scenes: &[String],
+    env: Option<&str>,
+    access: SceneAccess,
+) -> anyhow::Result<Vec<(String, Scene)>> {
     scenes
         .iter()
         .map(|s| {
             Ok((
                 s.trim_start_matches("builtin:").to_string(),
-                load_scene(s, env)?,
+                load_scene(s, env, access)?,
             ))
         })
         .collect()

@@ -41,6 +41,8 @@ pub struct ViewArgs {
         default_value = "builtin:cornell-light"
     )]
     pub scene: String,
+    #[command(flatten)]
+    pub access: crate::cli::scene::SceneAccess,
     /// Display model whose canvas the image covers: a file, or a built-in model (hornet,
     /// desktop-27in-4k, projection-4m-4k).
     #[arg(long, value_name = "MODEL", default_value = crate::display::DEFAULT_MODEL)]
@@ -352,7 +354,7 @@ fn setup(args: &ViewArgs, root: bool) -> anyhow::Result<Setup> {
         args.size,
         &backend,
     )?;
-    let scene = crate::cli::scene::load_scene(&args.scene, args.env.as_deref())?;
+    let scene = crate::cli::scene::load_scene(&args.scene, args.env.as_deref(), args.access)?;
     let [w, h] = args.size;
     let look = crate::cli::render::look_at(args.look_from, args.look_at, args.yfov);
     let name = args

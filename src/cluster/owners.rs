@@ -90,6 +90,9 @@ pub fn parse_tile_owners(text: &str, file: &Path) -> Result<Vec<OwnerLine>, Tile
     Ok(out)
 }
 
+/// The largest tile-owners file read: a line a tile, a few dozen bytes each.
+pub const MAX_OWNERS_BYTES: u64 = 1 << 20;
+
 /// The owner rank of each tile of a display model (the model's tile order).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct TileOwners {
@@ -168,12 +171,15 @@ impl TileOwners {
         })
     }
 
-    /// Reads and checks a tile-owners file.
+    /// Reads and checks a tile-owners file (at most [`MAX_OWNERS_BYTES`]).
     pub fn load(file: &Path, model: &DisplayModel, ranks: usize) -> Result<Self, TileOwnersError> {
-        let text = std::fs::read_to_string(file).map_err(|e| TileOwnersError::Read {
-            file: file.to_owned(),
-            reason: e.to_string(),
-        })?;
+        let text =
+            crate::input::read_text(file, MAX_OWNERS_BYTES, "a tile-owners file").map_err(|e| {
+                TileOwnersError::Read {
+                    file: file.to_owned(),
+                    reason: e.to_string(),
+                }
+            })?;
         Self::from_lines(&parse_tile_owners(&text, file)?, file, model, ranks)
     }
 

@@ -175,6 +175,10 @@ pub const BUILTIN_MODELS: [(&str, &str, &str); 3] = [
     ),
 ];
 
+/// The largest display-model file read: an explicit model takes about 600 bytes a tile, so
+/// this holds some 100 000 tiles.
+pub const MAX_MODEL_BYTES: u64 = 64 << 20;
+
 /// The display model commands use when none is given: the paper's HORNET wall.
 pub const DEFAULT_MODEL: &str = "hornet";
 
@@ -255,10 +259,12 @@ impl DisplayModel {
     pub fn load(path: impl AsRef<Path>) -> Result<Self, DisplayModelError> {
         let path = path.as_ref();
         let file = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|source| DisplayModelError::Io {
-            file: file.clone(),
-            source,
-        })?;
+        let text = crate::input::read_text(path, MAX_MODEL_BYTES, "a display model").map_err(
+            |source| DisplayModelError::Io {
+                file: file.clone(),
+                source,
+            },
+        )?;
         Self::from_json(&text, &file)
     }
 

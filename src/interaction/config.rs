@@ -143,13 +143,17 @@ pub enum ConfigError {
     Invalid { field: &'static str, reason: String },
 }
 
+/// The largest interaction mapping read: a few dozen fields take a few kilobytes.
+pub const MAX_CONFIG_BYTES: u64 = 1 << 20;
+
 impl InteractionConfig {
     /// Reads and validates a JSON mapping.
     pub fn load(path: &Path) -> Result<Self, ConfigError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
-            path: path.to_owned(),
-            source,
-        })?;
+        let text = crate::input::read_text(path, MAX_CONFIG_BYTES, "an interaction mapping")
+            .map_err(|source| ConfigError::Io {
+                path: path.to_owned(),
+                source,
+            })?;
         let mut c: Self = serde_json::from_str(&text).map_err(|e| ConfigError::Json {
             path: path.to_owned(),
             message: crate::messages::clip(&e.to_string()),

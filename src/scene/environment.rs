@@ -76,6 +76,9 @@ impl EnvironmentMap {
             file: file.clone(),
             reason,
         };
+        // A device or a pipe named `sky.hdr` is never decoded (the decoders would read it
+        // for ever); a regular file's size bounds the read, the texel limit the decode.
+        crate::input::open_regular(path).map_err(|e| read(e.to_string()))?;
         let ext = path
             .extension()
             .and_then(|e| e.to_str())

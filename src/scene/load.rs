@@ -24,7 +24,7 @@ use gltf::mesh::{Mode, Semantic};
 
 use super::accessor::{read_floats, read_indices};
 use super::report::{Report, SceneError, label};
-use super::resources::{Resources, check_glb_header, load_buffers};
+use super::resources::{Resources, UriAccess, check_glb_header, load_buffers};
 use super::{
     AlphaMode, Camera, Environment, LightKind, Material, MaterialExt, OrthographicCamera,
     PunctualLight, Scene, TextureRef, Triangle, UvMap, UvTransform, VertexExtras,
@@ -65,30 +65,50 @@ pub const SUPPORTED_EXTENSIONS: &[&str] = &[
     "KHR_texture_basisu",
 ];
 
+/// The largest scene file read: a GLB's length is a 32-bit number, so no binary glTF is larger,
+/// and a `.gltf` JSON of that size would hold nothing a tracer could bind.
+pub const MAX_SCENE_FILE_BYTES: u64 = u32::MAX as u64;
+
 impl Scene {
-    /// Loads a `.gltf` (with its external or data-URI resources) or `.glb` file.
+    /// Loads a `.gltf` (with its external or data-URI resources) or `.glb` file; its URIs may
+    /// name files in its own folder and below only ([`UriAccess::Confined`]).
     pub fn load(path: impl AsRef<Path>) -> Result<Self, SceneError> {
+        Self::load_with(path, UriAccess::Confined)
+    }
+
+    /// [`Scene::load`] with the files its URIs may name chosen by `access`.
+    pub fn load_with(path: impl AsRef<Path>, access: UriAccess) -> Result<Self, SceneError> {
         let path = path.as_ref();
         let file = path.display().to_string();
-        let bytes = std::fs::read(path).map_err(|source| SceneError::Read {
-            file: file.clone(),
-            source,
-        })?;
-        let base = path.parent().unwrap_or(Path::new("."));
-        load_bytes(&bytes, &file, Some(base))
+        let bytes = crate::input::read_file(path, MAX_SCENE_FILE_BYTES, "a glTF file").map_err(
+            |source| SceneError::Read {
+                file: file.clone(),
+                source,
+            },
+        )?;
+        let base = match path.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p,
+            _ => Path::new("."),
+        };
+        load_bytes(&bytes, &file, Some(base), access)
     }
 
     /// Loads glTF from memory (GLB, or JSON with data URIs only); `name` labels errors.
     /// External file references are an error: there is no directory to resolve them in.
     pub fn from_glb_bytes(bytes: &[u8], name: &str) -> Result<Self, SceneError> {
-        load_bytes(bytes, name, None)
+        load_bytes(bytes, name, None, UriAccess::Confined)
     }
 
     /// A file path, or `builtin:NAME` for a generated scene (see [`Scene::builtin`]).
     pub fn open(arg: &str) -> Result<Self, SceneError> {
+        Self::open_with(arg, UriAccess::Confined)
+    }
+
+    /// [`Scene::open`] with the files a file's URIs may name chosen by `access`.
+    pub fn open_with(arg: &str, access: UriAccess) -> Result<Self, SceneError> {
         match arg.strip_prefix("builtin:") {
             Some(name) => Self::builtin(name),
-            None => Self::load(arg),
+            None => Self::load_with(arg, access),
         }
     }
 }
@@ -129,7 +149,12 @@ struct Loader<'a> {
     stats: BTreeMap<usize, MeshStats>,
 }
 
-fn load_bytes(bytes: &[u8], file: &str, base: Option<&Path>) -> Result<Scene, SceneError> {
+fn load_bytes(
+    bytes: &[u8],
+    file: &str,
+    base: Option<&Path>,
+    access: UriAccess,
+) -> Result<Scene, SceneError> {
     check_glb_header(bytes, file)?;
     let gltf::Gltf { document, blob } =
         gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| SceneError::Parse {
@@ -156,11 +181,11 @@ fn load_bytes(bytes: &[u8], file: &str, base: Option<&Path>) -> Result<Scene, Sc
             reason: other.to_string(),
         },
     })?;
-    let buffers = load_buffers(&doc, blob.as_deref(), file, base)?;
+    let buffers = load_buffers(&doc, blob.as_deref(), file, base, access)?;
     let mut loader = Loader {
         file,
         doc: &doc,
-        res: Resources::new(file, base, buffers),
+        res: Resources::new(file, base, access, buffers),
         report: Report::default(),
         scene: Scene::default(),
         materials: HashMap::new(),

@@ -7,7 +7,7 @@
 
 use std::collections::HashMap;
 use std::io::Cursor;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use super::report::{Report, SceneError, label};
 use super::{Sampler, Texture, Wrap};
@@ -43,6 +43,7 @@ pub(super) fn load_buffers(
     blob: Option<&[u8]>,
     file: &str,
     base: Option<&Path>,
+    access: UriAccess,
 ) -> Result<Vec<Vec<u8>>, SceneError> {
     let mut out = Vec::new();
     for buffer in doc.buffers() {
@@ -77,12 +78,14 @@ pub(super) fn load_buffers(
                     })?
             }
             gltf::buffer::Source::Uri(uri) => {
-                read_uri(uri, base).map_err(|reason| SceneError::Resource {
-                    file: file.into(),
-                    element: element.clone(),
-                    uri: short_uri(uri),
-                    reason,
-                })?
+                read_uri(uri, base, access, Want::Exactly(buffer.length() as u64)).map_err(
+                    |reason| SceneError::Resource {
+                        file: file.into(),
+                        element: element.clone(),
+                        uri: short_uri(uri),
+                        reason,
+                    },
+                )?
             }
         };
         if data.len() < buffer.length() {
@@ -244,26 +247,80 @@ pub(super) fn short_uri(uri: &str) -> String {
     }
 }
 
-/// The bytes behind a glTF URI: `data:…;base64,…`, `file:` or a path relative to `base`.
-pub(super) fn read_uri(uri: &str, base: Option<&Path>) -> Result<Vec<u8>, String> {
+/// Which files a glTF file's URIs may name.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum UriAccess {
+    /// Files in the glTF file's own folder and below, after following links: what a scene
+    /// from anywhere may read. An absolute path, a `file:` URI or a `../` that leads outside
+    /// the folder is an error naming the URI and this rule.
+    #[default]
+    Confined,
+    /// Any file the process may read (`--trust-scene`), for trusted scenes that share
+    /// resources with other folders.
+    Anywhere,
+}
+
+/// How much of a URI's file to read.
+#[derive(Clone, Copy, Debug)]
+pub(super) enum Want {
+    /// A buffer: exactly its declared `byteLength`, which the file must have.
+    Exactly(u64),
+    /// An image: the whole file, at most this many bytes.
+    AtMost(u64),
+}
+
+/// The bytes behind a glTF URI: `data:…;base64,…`, or a relative path or `file:` URI resolved
+/// against `base` (the glTF file's folder) and, unless `access` is [`UriAccess::Anywhere`],
+/// confined to it. Only regular files are read, and only as much as `want` says.
+pub(super) fn read_uri(
+    uri: &str,
+    base: Option<&Path>,
+    access: UriAccess,
+    want: Want,
+) -> Result<Vec<u8>, String> {
     if let Some(rest) = uri.strip_prefix("data:") {
         let (_, payload) = rest
             .split_once(";base64,")
             .ok_or("a data URI must be base64-encoded (';base64,')")?;
         return base64::decode(payload).map_err(|e| format!("bad base64: {e}"));
     }
-    let path = if let Some(rest) = uri.strip_prefix("file:") {
-        PathBuf::from(percent_decode(rest.strip_prefix("//").unwrap_or(rest))?)
+    let relative = if let Some(rest) = uri.strip_prefix("file:") {
+        percent_decode(rest.strip_prefix("//").unwrap_or(rest))?
     } else if uri.contains(':') {
         return Err("only data: URIs and relative paths are supported".into());
     } else {
-        let base = base.ok_or("an in-memory scene cannot refer to external files")?;
-        base.join(percent_decode(uri)?)
+        percent_decode(uri)?
     };
-    if base.is_none() {
-        return Err("an in-memory scene cannot refer to external files".into());
+    let base = base.ok_or("an in-memory scene cannot refer to external files")?;
+    // An absolute path replaces `base` in the join; the confinement below catches it.
+    let path = base.join(&relative);
+    if access == UriAccess::Confined {
+        confine(&path, base)?;
     }
-    std::fs::read(&path).map_err(|e| format!("{} ({e})", path.display()))
+    let read = match want {
+        Want::Exactly(len) => crate::input::read_prefix(&path, len),
+        Want::AtMost(max) => crate::input::read_file(&path, max, "an image"),
+    };
+    read.map_err(|e| format!("{} ({e})", path.display()))
+}
+
+/// Checks that `path`, with every link followed, lies in `base` or below it.
+fn confine(path: &Path, base: &Path) -> Result<(), String> {
+    let folder = base
+        .canonicalize()
+        .map_err(|e| format!("{} ({e})", base.display()))?;
+    let target = path
+        .canonicalize()
+        .map_err(|e| format!("{} ({e})", path.display()))?;
+    if target.starts_with(&folder) {
+        return Ok(());
+    }
+    Err(format!(
+        "it names {}, outside the scene's folder {}: a scene reads files only from its own \
+         folder and below (--trust-scene lets a scene you trust read any file)",
+        target.display(),
+        folder.display()
+    ))
 }
 
 /// RFC 3986 percent-decoding into UTF-8.
@@ -308,6 +365,7 @@ enum Fallback {
 pub(super) struct Resources<'a> {
     pub file: &'a str,
     base: Option<&'a Path>,
+    access: UriAccess,
     pub buffers: Vec<Vec<u8>>,
     /// glTF image index → decoded texels.
     images: HashMap<usize, Decoded>,
@@ -316,10 +374,16 @@ pub(super) struct Resources<'a> {
 }
 
 impl<'a> Resources<'a> {
-    pub fn new(file: &'a str, base: Option<&'a Path>, buffers: Vec<Vec<u8>>) -> Self {
+    pub fn new(
+        file: &'a str,
+        base: Option<&'a Path>,
+        access: UriAccess,
+        buffers: Vec<Vec<u8>>,
+    ) -> Self {
         Self {
             file,
             base,
+            access,
             buffers,
             images: HashMap::new(),
             textures: HashMap::new(),
@@ -432,12 +496,13 @@ impl<'a> Resources<'a> {
                 (bytes.to_vec(), Some(mime_type.to_string()), None)
             }
             gltf::image::Source::Uri { uri, mime_type } => {
-                let bytes = read_uri(uri, self.base).map_err(|reason| SceneError::Resource {
-                    file: self.file.into(),
-                    element: element.into(),
-                    uri: short_uri(uri),
-                    reason,
-                })?;
+                let bytes = read_uri(uri, self.base, self.access, Want::AtMost(MAX_IMAGE_BYTES))
+                    .map_err(|reason| SceneError::Resource {
+                        file: self.file.into(),
+                        element: element.into(),
+                        uri: short_uri(uri),
+                        reason,
+                    })?;
                 let data_mime = uri
                     .strip_prefix("data:")
                     .and_then(|r| r.split(';').next())
@@ -536,22 +601,109 @@ mod tests {
 
     #[test]
     fn uris_resolve_data_and_relative_paths_and_refuse_the_rest() {
+        let any = Want::AtMost(1 << 20);
+        let confined = UriAccess::Confined;
         assert_eq!(
-            read_uri("data:application/octet-stream;base64,AAEC", None).unwrap(),
+            read_uri(
+                "data:application/octet-stream;base64,AAEC",
+                None,
+                confined,
+                any
+            )
+            .unwrap(),
             [0, 1, 2]
         );
         assert!(
-            read_uri("data:text/plain,hello", None)
+            read_uri("data:text/plain,hello", None, confined, any)
                 .unwrap_err()
                 .contains("base64")
         );
-        assert!(read_uri("https://example.com/a.bin", Some(Path::new("."))).is_err());
-        assert!(read_uri("a.bin", None).unwrap_err().contains("in-memory"));
         assert!(
-            read_uri("file:///etc/hostname", None)
+            read_uri(
+                "https://example.com/a.bin",
+                Some(Path::new(".")),
+                confined,
+                any
+            )
+            .is_err()
+        );
+        assert!(
+            read_uri("a.bin", None, confined, any)
+                .unwrap_err()
+                .contains("in-memory")
+        );
+        assert!(
+            read_uri("file:///etc/hostname", None, UriAccess::Anywhere, any)
                 .unwrap_err()
                 .contains("in-memory")
         );
         assert_eq!(short_uri("data:image/png;base64,AAAA"), "data:image/png…");
+    }
+
+    #[test]
+    fn uris_stay_in_the_scenes_folder_unless_the_scene_is_trusted() {
+        let root = std::env::temp_dir().join(format!("raygun-uris-{}", std::process::id()));
+        let scene = root.join("scene");
+        std::fs::create_dir_all(scene.join("textures")).unwrap();
+        std::fs::write(scene.join("textures/a.bin"), b"inside").unwrap();
+        std::fs::write(root.join("secret.bin"), b"outside").unwrap();
+        #[cfg(unix)]
+        std::os::unix::fs::symlink(root.join("secret.bin"), scene.join("link.bin")).unwrap();
+        let base = Some(scene.as_path());
+        let want = Want::AtMost(1 << 20);
+        let read = |uri: &str, access| read_uri(uri, base, access, want);
+        // Inside, by a relative path (percent-escaped or not) or a `file:` URI.
+        assert_eq!(
+            read("textures/a.bin", UriAccess::Confined).unwrap(),
+            b"inside"
+        );
+        assert_eq!(
+            read("textures/%61.bin", UriAccess::Confined).unwrap(),
+            b"inside"
+        );
+        assert_eq!(
+            read("textures/../textures/a.bin", UriAccess::Confined).unwrap(),
+            b"inside"
+        );
+        let inside = format!("file://{}", scene.join("textures/a.bin").display());
+        assert_eq!(read(&inside, UriAccess::Confined).unwrap(), b"inside");
+        // Outside: climbing out, an absolute path, a `file:` URI, a link that leads out.
+        let secret = root.join("secret.bin");
+        let outside = [
+            "../secret.bin".to_owned(),
+            "textures/../../secret.bin".to_owned(),
+            secret.display().to_string(),
+            format!("file://{}", secret.display()),
+            "link.bin".to_owned(),
+        ];
+        for uri in &outside {
+            let e = read(uri, UriAccess::Confined).unwrap_err();
+            assert!(
+                e.contains("outside the scene's folder") && e.contains("--trust-scene"),
+                "{uri}: {e}"
+            );
+            assert_eq!(read(uri, UriAccess::Anywhere).unwrap(), b"outside", "{uri}");
+        }
+        // A device is never read, trusted or not; a buffer reads its byteLength, which the
+        // file must have.
+        let e = read("/dev/zero", UriAccess::Anywhere).unwrap_err();
+        assert!(e.contains("character device"), "{e}");
+        let exactly = |n| {
+            read_uri(
+                "textures/a.bin",
+                base,
+                UriAccess::Confined,
+                Want::Exactly(n),
+            )
+        };
+        assert_eq!(exactly(3).unwrap(), b"ins");
+        assert!(
+            exactly(7)
+                .unwrap_err()
+                .contains("has 6 bytes, fewer than the 7")
+        );
+        let e = read_uri("textures/a.bin", base, UriAccess::Confined, Want::AtMost(5)).unwrap_err();
+        assert!(e.contains("more than the 5 bytes an image may have"), "{e}");
+        std::fs::remove_dir_all(&root).unwrap();
     }
 }

@@ -77,6 +77,13 @@ pub enum ReplayPlanError {
     },
     #[error(transparent)]
     Display(#[from] DisplayModelError),
+    #[error("{}: the header's field `display` names {}, which is not a display model", file.display(), crate::messages::quote(named))]
+    HeaderDisplay {
+        file: PathBuf,
+        named: String,
+        #[source]
+        source: Box<DisplayModelError>,
+    },
     #[error("{}: the recording names no display: give --display MODEL", .0.display())]
     NoDisplay(PathBuf),
     #[error("{}", file.display())]
@@ -165,7 +172,15 @@ impl ReplayPlan {
                     (m, origin.to_string())
                 }
                 (None, Some(m), _) => (m.clone(), "the model stored in the recording".to_owned()),
-                (None, None, Some(named)) => resolve_display(named, &args.file)?,
+                (None, None, Some(named)) => {
+                    resolve_display(named, &args.file).map_err(|source| {
+                        ReplayPlanError::HeaderDisplay {
+                            file: args.file.clone(),
+                            named: named.clone(),
+                            source: Box::new(source),
+                        }
+                    })?
+                }
                 (None, None, None) => return Err(ReplayPlanError::NoDisplay(args.file.clone())),
             };
         // Every decoder the header asks for must be usable.

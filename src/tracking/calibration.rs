@@ -161,13 +161,18 @@ pub enum CalibrationError {
     },
 }
 
+/// The largest calibration file read: a transform and a few devices take a few kilobytes.
+pub const MAX_CALIBRATION_BYTES: u64 = 1 << 20;
+
 impl Calibration {
     /// Reads and validates a calibration file.
     pub fn load(path: &Path) -> Result<Self, CalibrationError> {
-        let text = std::fs::read_to_string(path).map_err(|source| CalibrationError::Io {
-            path: path.to_owned(),
-            source,
-        })?;
+        let text = crate::input::read_text(path, MAX_CALIBRATION_BYTES, "a calibration").map_err(
+            |source| CalibrationError::Io {
+                path: path.to_owned(),
+                source,
+            },
+        )?;
         Self::from_json(&text, path)
     }
 

@@ -260,31 +260,57 @@ pub struct ReplayReader<R> {
 }
 
 impl ReplayReader<io::BufReader<std::fs::File>> {
-    /// Opens a file and reads its header.
+    /// Opens a file (or a pipe: a recording can be streamed in) and reads its header. A device,
+    /// a folder or a socket is refused unread.
     pub fn open(path: &Path) -> Result<Self, ReplayError> {
-        let file = std::fs::File::open(path).map_err(|source| ReplayError::Io {
+        let io_error = |source| ReplayError::Io {
             path: path.to_owned(),
             source,
-        })?;
+        };
+        let file = std::fs::File::open(path).map_err(io_error)?;
+        let meta = file.metadata().map_err(io_error)?;
+        #[cfg(unix)]
+        let streamed = std::os::unix::fs::FileTypeExt::is_fifo(&meta.file_type());
+        #[cfg(not(unix))]
+        let streamed = false;
+        if !meta.is_file() && !streamed {
+            // The same words as every other refused input.
+            return Err(io_error(
+                crate::input::open_regular(path).err().unwrap_or_else(|| {
+                    io::Error::new(io::ErrorKind::InvalidInput, "is not a regular file")
+                }),
+            ));
+        }
         Self::new(io::BufReader::new(file), path)
     }
 }
 
 impl<R: BufRead> ReplayReader<R> {
-    /// Reads the header from `input`; `path` names the input in errors.
+    /// Reads the header from `input`; `path` names the input in errors. The header, like every
+    /// line, is at most [`MAX_LINE`] bytes.
     pub fn new(mut input: R, path: &Path) -> Result<Self, ReplayError> {
-        let mut first = String::new();
-        input
-            .read_line(&mut first)
-            .map_err(|source| ReplayError::Io {
+        let mut first = Vec::new();
+        let line = crate::input::read_line(&mut input, &mut first, MAX_LINE).map_err(|source| {
+            ReplayError::Io {
                 path: path.to_owned(),
                 source,
-            })?;
-        let header: ReplayHeader =
-            serde_json::from_str(first.trim()).map_err(|e| ReplayError::BadHeader {
-                path: path.to_owned(),
-                reason: crate::messages::clip(&e.to_string()),
-            })?;
+            }
+        })?;
+        let bad = |reason: String| ReplayError::BadHeader {
+            path: path.to_owned(),
+            reason,
+        };
+        let text = match line {
+            crate::input::Line::End => return Err(bad("the file is empty".into())),
+            crate::input::Line::TooLong => {
+                return Err(bad(format!("it is longer than {MAX_LINE} bytes")));
+            }
+            crate::input::Line::Line => {
+                std::str::from_utf8(&first).map_err(|_| bad("it is not UTF-8 text".into()))?
+            }
+        };
+        let header: ReplayHeader = serde_json::from_str(text.trim())
+            .map_err(|e| bad(crate::messages::clip(&e.to_string())))?;
         if header.raygun_replay != FORMAT_VERSION {
             return Err(ReplayError::Version {
                 path: path.to_owned(),
@@ -380,27 +406,22 @@ impl<R: BufRead> ReplayReader<R> {
     /// The next record that parses, with its line number; times are only checked to be finite.
     fn next_record(&mut self) -> Option<(ReplayItem, usize)> {
         loop {
-            self.buf.clear();
-            let read = io::Read::take(&mut self.input, MAX_LINE as u64 + 1)
-                .read_until(b'\n', &mut self.buf);
+            let read = crate::input::read_line(&mut self.input, &mut self.buf, MAX_LINE);
             self.line_no += 1;
             match read {
-                Ok(0) => return None,
-                Ok(_) => {}
+                Ok(crate::input::Line::End) => return None,
+                Ok(crate::input::Line::Line) => {}
+                Ok(crate::input::Line::TooLong) => {
+                    self.skip(
+                        "replay_line_too_long",
+                        format_args!("line longer than {MAX_LINE} bytes"),
+                    );
+                    continue;
+                }
                 Err(e) => {
                     self.skip("replay_io", e);
                     return None;
                 }
-            }
-            if self.buf.len() > MAX_LINE {
-                // Drop the rest of the over-long line.
-                let mut sink = Vec::new();
-                let _ = self.input.read_until(b'\n', &mut sink);
-                self.skip(
-                    "replay_line_too_long",
-                    format_args!("line longer than {MAX_LINE} bytes"),
-                );
-                continue;
             }
             let Ok(text) = std::str::from_utf8(&self.buf) else {
                 self.skip("replay_not_json", "line is not UTF-8 text");

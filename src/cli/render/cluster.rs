@@ -95,7 +95,7 @@ fn prepare(args: &RenderArgs, c: &Cluster) -> anyhow::Result<Prepared> {
     // process does); the schedule and the owners' tiles stay on the CPUs, and rank 0 filters
     // the whole picture where it traced.
     let backend = Backend::select(args.backend)?;
-    let scene = load_scene(&args.scene, args.env.as_deref())?;
+    let scene = load_scene(&args.scene, args.env.as_deref(), args.access)?;
     let settings = settings(args, &scene)?;
     let wc = wall_camera(wall.as_ref(), &settings)?;
     let model = plan

@@ -47,6 +47,8 @@ pub struct RenderArgs {
     /// builtin:city-small.
     #[arg(long, value_name = "FILE|builtin:NAME")]
     pub scene: String,
+    #[command(flatten)]
+    pub access: crate::cli::scene::SceneAccess,
     /// Camera by name (default: the scene's first camera, else one framing the scene), or
     /// `wall`: the wall camera — each pixel's primary ray from --eye through its point on
     /// --display; pixels no tile shows (bezels) are never traced and stay black.
@@ -301,7 +303,7 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     };
     check_memory(work, args.size, &backend)?;
     if let Some(plan) = &plan {
-        let scene = load_scene(&args.scene, args.env.as_deref())?;
+        let scene = load_scene(&args.scene, args.env.as_deref(), args.access)?;
         let settings = settings(args, &scene)?;
         let wall = wall_camera(wall.as_ref(), &settings)?;
         return guided::run(args, plan, &scene, settings, wall, &backend);
@@ -320,7 +322,7 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
         }
         None => None,
     };
-    let scene = load_scene(&args.scene, args.env.as_deref())?;
+    let scene = load_scene(&args.scene, args.env.as_deref(), args.access)?;
     let settings = settings(args, &scene)?;
     let [w, h] = args.size;
     let spp = args.spp.unwrap_or(DEFAULT_SPP);
