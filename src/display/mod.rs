@@ -73,6 +73,7 @@
 //! overlap in the room (beyond [`OVERLAP_3D_TOL_M`]) and tile ids that cannot be plain file
 //! names ([`check_file_name`]: `render --tiles` writes `<id>.<ext>`) are rejected too.
 
+pub mod cut;
 mod error;
 mod generator;
 mod intersect;

@@ -16,10 +16,12 @@
 //!
 //! # Pixels no display shows
 //!
-//! An image pixel whose centre falls on no tile's active area (bezels, gaps, the corners of a
-//! canvas that is no full rectangle) is not shown: it is never scheduled (the schedule reads
-//! the [`WallCamera::shown_mask`] bitmask, 1 bit a pixel, 9.2 MB at 73.8 MP), never traced,
-//! keeps zero samples and comes out black.
+//! An image pixel is shown when its centre falls on a tile's active area or when a tile's own
+//! pixel shows it (the wall output's nearest-neighbour cut: below the canvas's resolution the
+//! pixel at a tile's edge may have its centre on the bezel). Every other pixel (bezels, gaps,
+//! the corners of a canvas that is no full rectangle) is not shown: it is never scheduled (the
+//! schedule reads the [`WallCamera::shown_mask`] bitmask, 1 bit a pixel, 9.2 MB at 73.8 MP),
+//! never traced, keeps zero samples and comes out black.
 //!
 //! # Room and scene
 //!
@@ -264,12 +266,17 @@ pub struct WallCamera {
     /// The eye in the scene's frame: every primary ray's origin.
     pub eye: Vec3,
     pub scene_from_room: SceneFromRoom,
+    /// Two entries per tile, every tile's first before any second ([`Self::placed`]): the
+    /// pixels whose centres lie on its active area, then the box of the pixels its own pixels
+    /// show. A pixel is traced through the first entry that holds it ([`Self::tile_of`]).
     pub tiles: Vec<WallTile>,
-    /// Bit `p % 32` of word `p / 32`: image pixel `p = y·width + x` is shown by some tile.
+    /// Bit `p % 32` of word `p / 32`: image pixel `p = y·width + x` is shown by some tile (its
+    /// centre lies on the tile's active area, or one of the tile's pixels shows it).
     shown: Vec<u32>,
     shown_count: u64,
-    /// Per tile, room frame: the wall point of image point `(x0, y0)`, a point of the tile's
-    /// plane and its normal, and its id — what a moved eye needs ([`Self::with_eye`]).
+    /// Per entry of `tiles`, room frame: the wall point of image point `(x0, y0)`, a point of
+    /// the tile's plane and its normal, and its id — what a moved eye needs
+    /// ([`Self::with_eye`]).
     anchors: Vec<TileAnchor>,
     /// The display model's name, for errors.
     model_name: String,
@@ -319,14 +326,56 @@ impl WallCamera {
         check_inputs(model, [width, height], eye)?;
         let canvas = model.canvas_rect();
         let scale = canvas.size() / DVec2::new(f64::from(width), f64::from(height));
-        let mut tiles = Vec::with_capacity(model.tiles().len());
-        let mut anchors = Vec::with_capacity(model.tiles().len());
-        for t in model.tiles() {
+        let n = u64::from(width) * u64::from(height);
+        let mut shown = vec![0u32; n.div_ceil(32) as usize];
+        let mut shown_count = 0u64;
+        let mut show = |x: u32, y: u32| {
+            let p = u64::from(y) * u64::from(width) + u64::from(x);
+            let (w, b) = ((p / 32) as usize, p % 32);
+            if shown[w] & (1 << b) == 0 {
+                shown[w] |= 1 << b;
+                shown_count += 1;
+            }
+        };
+        // Each tile has two entries, all first entries before all second ones (the kernel takes
+        // the first entry that holds a pixel): the image pixels whose centres lie on its active
+        // area, then the box of every image pixel its own pixels show (the wall output's
+        // nearest-neighbour cut, `display::cut::tile_axes`). Below the canvas's resolution a
+        // pixel at a tile's edge can have its centre on the bezel and still be the pixel the
+        // tile's outermost pixels show: it is traced through that tile, its footprint on the
+        // tile's plane, where the bezel lies too (DESIGN.md §3).
+        let mut centre = Vec::with_capacity(model.tiles().len());
+        let mut cut = Vec::with_capacity(model.tiles().len());
+        for (i, t) in model.tiles().iter().enumerate() {
             let a = t.active_rect();
             let x0 = first_pixel_at(a.min.x, canvas.min.x, scale.x, width);
             let x1 = first_pixel_at(a.max.x, canvas.min.x, scale.x, width);
             let y0 = first_pixel_at(a.min.y, canvas.min.y, scale.y, height);
             let y1 = first_pixel_at(a.max.y, canvas.min.y, scale.y, height);
+            for y in y0..y1 {
+                for x in x0..x1 {
+                    show(x, y);
+                }
+            }
+            let (xs, ys) = crate::display::cut::tile_axes(model, i, [width, height]);
+            for &y in &ys {
+                for &x in &xs {
+                    show(x as u32, y as u32);
+                }
+            }
+            let span = |v: &[usize]| (v[0] as u32, v[v.len() - 1] as u32 + 1);
+            let ((cx0, cx1), (cy0, cy1)) = (span(&xs), span(&ys));
+            centre.push([x0, x1, y0, y1]);
+            cut.push([cx0.min(x0), cx1.max(x1), cy0.min(y0), cy1.max(y1)]);
+        }
+        let mut tiles = Vec::with_capacity(2 * model.tiles().len());
+        let mut anchors = Vec::with_capacity(2 * model.tiles().len());
+        for (t, [x0, x1, y0, y1]) in model
+            .tiles()
+            .iter()
+            .cycle()
+            .zip(centre.into_iter().chain(cut))
+        {
             // Image point (x0, y0) on the canvas, and its wall point in the tile's plane.
             let c0 = canvas.min + DVec2::new(f64::from(x0), f64::from(y0)) * scale;
             let p0 = t.canvas_to_point(c0);
@@ -347,21 +396,6 @@ impl WallCamera {
                 plane_point: t.corners()[0],
                 normal: t.normal(),
             });
-        }
-        let n = u64::from(width) * u64::from(height);
-        let mut shown = vec![0u32; n.div_ceil(32) as usize];
-        let mut shown_count = 0u64;
-        for y in 0..height {
-            for t in tiles.iter().filter(|t| (t.y0..t.y1).contains(&y)) {
-                for x in t.x0..t.x1 {
-                    let p = u64::from(y) * u64::from(width) + u64::from(x);
-                    let (w, b) = ((p / 32) as usize, p % 32);
-                    if shown[w] & (1 << b) == 0 {
-                        shown[w] |= 1 << b;
-                        shown_count += 1;
-                    }
-                }
-            }
         }
         Ok(Self {
             width,
@@ -408,14 +442,21 @@ impl WallCamera {
         eye_moved(self.eye_room, eye, threshold_m)
     }
 
-    /// The tile that shows image pixel `(x, y)` (the first listed), else `None`: the twin of
-    /// `wall_tile` in path.wgsl.
+    /// The entry of [`Self::tiles`] through which image pixel `(x, y)` is traced (the first
+    /// that holds it), else `None`: the twin of `wall_tile` in path.wgsl.
     #[inline]
     #[must_use]
     pub fn tile_of(&self, x: u32, y: u32) -> Option<usize> {
         self.tiles
             .iter()
             .position(|t| x >= t.x0 && x < t.x1 && y >= t.y0 && y < t.y1)
+    }
+
+    /// The display model's tile of entry `entry` of [`Self::tiles`] (what [`Self::tile_of`]
+    /// returns): each tile has two entries, all first ones before the second ones.
+    #[must_use]
+    pub fn model_tile(&self, entry: usize) -> usize {
+        entry % (self.tiles.len() / 2).max(1)
     }
 
     /// Whether pixel `p = y·width + x` is shown by some tile (reads the bitmask).
