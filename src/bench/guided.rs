@@ -95,7 +95,9 @@ pub struct GuidedBenchRow {
     pub ms_per_ray_vs_full: Option<f64>,
     /// Full-frame ms per frame ÷ guided ms per iteration.
     pub speedup: f64,
-    /// Total time of the guided iterations (ms); the full-frame render got the same time.
+    /// Time of the guided iterations at their median rate plus the DGI's:
+    /// `iterations × ms_per_iteration + ms_dgi` (ms). The full-frame render gets the same time
+    /// at its own median rate, so one slow frame on a shared machine moves neither side.
     pub guided_total_ms: f64,
     /// Full-frame samples per pixel that fit in the same time (at least 1).
     pub equal_time_full_spp: u32,
@@ -231,7 +233,7 @@ pub fn run(
                     wc.as_ref(),
                 )?;
                 let (mut per_iter, mut sched, mut trace) = (Vec::new(), Vec::new(), Vec::new());
-                let (mut pixels, mut ms_dgi, mut stamps, mut total) = (0u64, None, false, 0.0);
+                let (mut pixels, mut ms_dgi, mut stamps) = (0u64, None, false);
                 let mut rays = Some(0u64);
                 for _ in 0..cfg.iterations.max(1) {
                     let s = g.run_frame(true)?;
@@ -241,15 +243,14 @@ pub fn run(
                         ms_dgi = s.ms_dgi;
                     }
                     stamps = s.ms_schedule.is_some() && backend_is_gpu(backend);
-                    let t = s.ms_schedule.unwrap_or(0.0) + s.ms_trace.unwrap_or(0.0);
-                    total += t + s.ms_dgi.unwrap_or(0.0);
-                    per_iter.push(t);
+                    per_iter.push(s.ms_schedule.unwrap_or(0.0) + s.ms_trace.unwrap_or(0.0));
                     sched.extend(s.ms_schedule);
                     trace.extend(s.ms_trace);
                 }
                 let n = f64::from(cfg.iterations.max(1));
                 let share = pixels as f64 / n / (megapixels * 1e6);
                 let ms_iter = median(per_iter);
+                let total = n * ms_iter + ms_dgi.unwrap_or(0.0);
                 let dgi = g.dgi()?;
                 // ROI pixels (a wall camera's unshown ones are black in every image: left out).
                 let mask: Vec<bool> = dgi

@@ -352,6 +352,10 @@ impl<'a> Renderer<'a> {
         Self::check_wall(&settings, wall.as_ref())?;
         let t0 = Instant::now();
         let packed = std::sync::Arc::new(PackedScene::new(scene));
+        if !backend.is_gpu() {
+            // The CPU twin's own tree is one-time work: here, not in the first frame's time.
+            packed.bvh.prepare_cpu();
+        }
         let build_seconds = t0.elapsed().as_secs_f64();
         Self::with_packed(backend, packed, build_seconds, settings, guidance, wall)
     }

@@ -221,6 +221,18 @@ impl SceneBvh {
         most
     }
 
+    /// Builds the CPU's tree now if it is not built yet: a renderer on the CPU twin does this
+    /// before its first frame, so that no frame's time holds the one-time build.
+    pub fn prepare_cpu(&self) {
+        self.cpu();
+    }
+
+    /// Whether the CPU's tree has been built.
+    #[must_use]
+    pub fn cpu_ready(&self) -> bool {
+        self.cpu.get().is_some()
+    }
+
     /// The CPU's tree, built on first use.
     fn cpu(&self) -> &cpu::CpuTree {
         self.cpu.get_or_init(|| cpu::CpuTree::build(&self.prims))
