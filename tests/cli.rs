@@ -190,6 +190,33 @@ fn errors_name_what_is_wrong_and_exit_non_zero() {
     ]);
     assert_eq!(o.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&o.stderr).contains(".exr"));
+
+    // A cone whose ray misses the wall gives no ROI: an error, as for `render --guide pose:`,
+    // not an all-white DGI.
+    let out = std::env::temp_dir().join(format!("raygun-miss-{}.png", std::process::id()));
+    let o = raygun(&[
+        "dgi",
+        "--display",
+        "hornet",
+        "--origin",
+        "0,0,1",
+        "--dir",
+        "0,0,1",
+        "--fov",
+        "30,30",
+        "--out",
+        out.to_str().unwrap(),
+        "--backend",
+        "cpu",
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("--origin/--dir: the ray from")
+            && err.contains("misses the display (HORNET): it gives no ROI"),
+        "{err}"
+    );
+    assert!(!out.exists());
 }
 
 #[test]

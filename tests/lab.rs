@@ -760,6 +760,40 @@ fn a_full_disk_leaves_no_truncated_image_and_a_recording_of_whole_lines() {
     assert_eq!(problems, 0);
 }
 
+/// The demo writes several files; a full disk halfway leaves none of them, nor the folders it
+/// made. With files limited to 64 kB the display model (under 1 kB) is written and the replay
+/// (265 kB) is not; at 300 kB the inputs fit and the 32-bit image (1.9 MB) fails after the
+/// render.
+#[test]
+fn a_full_disk_leaves_nothing_of_the_demo() {
+    let dir = tmp_dir("full-disk-demo");
+    for kb in [64, 300] {
+        let out = dir.join(format!("demo-{kb}"));
+        let o = with_file_limit(
+            kb,
+            &[
+                "demo",
+                "--headless",
+                "--size",
+                "640,258",
+                "--iterations",
+                "2",
+                "--backend",
+                "cpu",
+                "--quiet",
+                "--out",
+                s(&out),
+            ],
+        )
+        .output()
+        .unwrap();
+        fails_with(&o, &[]);
+        assert!(!out.exists(), "{kb} kB: {:?} is left", out);
+    }
+    let left: Vec<_> = std::fs::read_dir(&dir).unwrap().collect();
+    assert!(left.is_empty(), "{left:?}");
+}
+
 #[test]
 fn render_guide_takes_the_replays_display_and_says_so() {
     let dir = tmp_dir("guide-display");

@@ -14,6 +14,7 @@ use crate::display::DisplayModel;
 use crate::filter::FilterParams;
 use crate::frame::GuideConfig;
 use crate::gpu::{Backend, BackendChoice};
+use crate::output::OutputSet;
 use crate::session::guide::GuideSource;
 use crate::session::render::{GuidedResult, Stopping, render_guided_wall};
 use crate::session::replay::{ReplayOptions, ReplayPlan};
@@ -65,14 +66,15 @@ pub struct DemoArgs {
     pub wall: crate::cli::wall::WallArgs,
 }
 
-/// Writes the embedded display model and replay under `<out>/inputs/`; returns their paths.
-pub fn write_inputs(out: &Path) -> anyhow::Result<(PathBuf, PathBuf)> {
+/// Writes the embedded display model and replay under `<out>/inputs/`, counted in `set`;
+/// returns their paths.
+pub fn write_inputs(out: &Path, set: &mut OutputSet) -> anyhow::Result<(PathBuf, PathBuf)> {
     let dir = out.join("inputs");
-    crate::output::check_folder(&dir)?;
+    set.folder(&dir)?;
     let display = dir.join(DISPLAY_FILE);
     let replay = dir.join(REPLAY_FILE);
-    crate::output::write_bytes(&display, DISPLAY_JSON.as_bytes())?;
-    crate::output::write_bytes(&replay, REPLAY_JSONL.as_bytes())?;
+    set.write_bytes(&display, DISPLAY_JSON.as_bytes())?;
+    set.write_bytes(&replay, REPLAY_JSONL.as_bytes())?;
     Ok((display, replay))
 }
 
@@ -96,7 +98,10 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         check_camera(args)?;
         let embedded = DisplayModel::from_json(DISPLAY_JSON, DISPLAY_FILE)?;
         crate::cli::wall::wall_spec(args.camera.as_deref(), &args.wall, Some(&embedded))?;
-        let (display, replay) = write_inputs(&args.out)?;
+        let mut set = OutputSet::new();
+        let (display, replay) = write_inputs(&args.out, &mut set)?;
+        // The viewer reads them while it runs; they stay.
+        set.finish();
         return crate::cli::view::run(&view_args(args, &display, &replay));
     }
     if !args.headless {
@@ -132,7 +137,9 @@ pub fn run_headless(args: &DemoArgs) -> anyhow::Result<DemoOutput> {
     let embedded = DisplayModel::from_json(DISPLAY_JSON, DISPLAY_FILE)?;
     let wall_spec =
         crate::cli::wall::wall_spec(args.camera.as_deref(), &args.wall, Some(&embedded))?;
-    crate::output::check_folder(&args.out)?;
+    // Everything the demo writes, taken back if it fails before the report (a full disk).
+    let mut set = OutputSet::new();
+    set.folder(&args.out)?;
     let backend = Backend::select(args.backend)?;
     let filter = FilterParams::default();
     crate::cli::render::check_memory(
@@ -143,7 +150,7 @@ pub fn run_headless(args: &DemoArgs) -> anyhow::Result<DemoOutput> {
         args.size,
         &backend,
     )?;
-    let (display_path, replay_path) = write_inputs(&args.out)?;
+    let (display_path, replay_path) = write_inputs(&args.out, &mut set)?;
     let model = DisplayModel::load(&display_path)?;
     if args.tiles {
         crate::cli::render::warn_if_resampled(args.size, &model, "HORNET");
@@ -204,6 +211,7 @@ pub fn run_headless(args: &DemoArgs) -> anyhow::Result<DemoOutput> {
     for name in ["image.png", "image.exr"] {
         let p = args.out.join(name);
         crate::output::write_rgb(&p, w, h, &result.image, 0.0)?;
+        set.add(&p);
         files.push(FileNote::new(
             p,
             if name.ends_with("png") {
@@ -214,6 +222,8 @@ pub fn run_headless(args: &DemoArgs) -> anyhow::Result<DemoOutput> {
         ));
     }
     let (dgi, counts) = (args.out.join("dgi.png"), args.out.join("counts.exr"));
+    set.add(&dgi);
+    set.add(&counts);
     result.write_guides(Some(&dgi), Some(&counts))?;
     files.push(FileNote::new(
         dgi,
@@ -225,6 +235,11 @@ pub fn run_headless(args: &DemoArgs) -> anyhow::Result<DemoOutput> {
     ));
     if args.tiles {
         let dir = args.out.join("tiles");
+        set.folder(&dir)?;
+        for t in 0..model.tiles().len() {
+            let format = crate::output::Format::Png;
+            set.add(&crate::output::tiles::tile_path(&dir, &model, t, format));
+        }
         let n = crate::output::tiles::write_tiles(
             &dir,
             &model,
@@ -245,7 +260,8 @@ pub fn run_headless(args: &DemoArgs) -> anyhow::Result<DemoOutput> {
     let text = report_text(
         &backend, &model, &config, &filter, &result, &args.out, &files,
     );
-    crate::output::write_bytes(&report, text.as_bytes())?;
+    set.write_bytes(&report, text.as_bytes())?;
+    set.finish();
     Ok(DemoOutput {
         result,
         files: files.into_iter().map(|f| f.path).collect(),

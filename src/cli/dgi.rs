@@ -62,6 +62,23 @@ pub struct DgiArgs {
     pub backend: BackendChoice,
 }
 
+/// A ray-gun pose gives an ROI only where its ray meets the display (a press that misses leaves
+/// the ROI as it was, DESIGN.md §4): the error `what` (the flags that gave the pose) says so.
+pub fn check_pose_hits(
+    model: &DisplayModel,
+    origin: DVec3,
+    dir: DVec3,
+    what: &str,
+) -> anyhow::Result<()> {
+    if model.intersect(origin, dir).is_none() {
+        bail!(
+            "{what}: the ray from {origin} along {dir} misses the display ({}): it gives no ROI",
+            model.name()
+        );
+    }
+    Ok(())
+}
+
 /// Builds the ROI the arguments describe.
 pub fn roi_from_args(args: &DgiArgs, model: &DisplayModel) -> anyhow::Result<Roi> {
     match (args.origin, args.center_px) {
@@ -69,9 +86,9 @@ pub fn roi_from_args(args: &DgiArgs, model: &DisplayModel) -> anyhow::Result<Roi
             let (Some(dir), Some(fov)) = (args.dir, args.fov) else {
                 bail!("--origin needs --dir and --fov");
             };
-            Ok(Roi::Cone(Cone::from_pose(
-                origin, dir, args.up, fov.x, fov.y,
-            )?))
+            let cone = Cone::from_pose(origin, dir, args.up, fov.x, fov.y)?;
+            check_pose_hits(model, origin, dir, "--origin/--dir")?;
+            Ok(Roi::Cone(cone))
         }
         (None, Some(center)) => {
             let axes = args.axes_px.context("--center-px needs --axes-px")?;

@@ -156,6 +156,71 @@ pub fn write_bytes(path: &Path, bytes: &[u8]) -> Result<(), FileError> {
     })
 }
 
+/// The files one run writes, taken back if the run fails before it ends: a full disk halfway
+/// through a command that writes several files leaves none of them (each file is already whole
+/// or absent, [`replace_with`]; this makes the set whole or absent). Folders the run created are
+/// removed as well when they are left empty. Call [`OutputSet::finish`] once everything is
+/// written; dropped without it (an error, a panic), the set is removed.
+#[derive(Debug, Default)]
+pub struct OutputSet {
+    files: Vec<PathBuf>,
+    folders: Vec<PathBuf>,
+    finished: bool,
+}
+
+impl OutputSet {
+    #[must_use]
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// [`check_folder`], remembering the folders it creates.
+    pub fn folder(&mut self, dir: &Path) -> Result<(), FileError> {
+        let mut missing = Vec::new();
+        let mut d = Some(dir);
+        while let Some(p) = d.filter(|p| !p.as_os_str().is_empty() && !p.exists()) {
+            missing.push(p.to_owned());
+            d = p.parent();
+        }
+        let result = check_folder(dir);
+        // Parents first, so that they are removed after their children.
+        self.folders.extend(missing.into_iter().rev());
+        result
+    }
+
+    /// Counts `path` as written by this run.
+    pub fn add(&mut self, path: &Path) {
+        self.files.push(path.to_owned());
+    }
+
+    /// [`write_bytes`], counted in the set.
+    pub fn write_bytes(&mut self, path: &Path, bytes: &[u8]) -> Result<(), FileError> {
+        write_bytes(path, bytes)?;
+        self.add(path);
+        Ok(())
+    }
+
+    /// Keeps everything written: the run succeeded.
+    pub fn finish(mut self) {
+        self.finished = true;
+    }
+}
+
+impl Drop for OutputSet {
+    fn drop(&mut self) {
+        if self.finished {
+            return;
+        }
+        for f in self.files.iter().rev() {
+            let _ = std::fs::remove_file(f);
+        }
+        for d in self.folders.iter().rev() {
+            // Only an empty folder: anything else in it is not this run's.
+            let _ = std::fs::remove_dir(d);
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -238,6 +303,32 @@ mod tests {
         // The probes left nothing behind.
         assert_eq!(names(&d), ["file", "new"]);
         assert!(names(&d.join("new/deeper")).is_empty());
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
+    fn an_unfinished_output_set_takes_back_its_files_and_new_folders() {
+        let d = dir("set");
+        std::fs::write(d.join("other.txt"), b"not ours").unwrap();
+        let out = d.join("run/inputs");
+        let mut set = OutputSet::new();
+        set.folder(&out).unwrap();
+        set.write_bytes(&out.join("a.json"), b"{}").unwrap();
+        set.write_bytes(&d.join("b.txt"), b"b").unwrap();
+        drop(set);
+        assert_eq!(names(&d), ["other.txt"]);
+        // Finished, it keeps everything.
+        let mut set = OutputSet::new();
+        set.folder(&out).unwrap();
+        set.write_bytes(&out.join("a.json"), b"{}").unwrap();
+        set.finish();
+        assert_eq!(names(&out), ["a.json"]);
+        // A folder that held something before the run is left, with what it held.
+        let mut set = OutputSet::new();
+        set.folder(&d).unwrap();
+        set.write_bytes(&d.join("c.txt"), b"c").unwrap();
+        drop(set);
+        assert_eq!(names(&d), ["other.txt", "run"]);
         std::fs::remove_dir_all(&d).unwrap();
     }
 }

@@ -81,6 +81,14 @@ impl GuideSource {
         })
     }
 
+    /// The replay's time, seconds since its first event, that iteration `k` of `n` shows: the
+    /// end of its even share of the session, `duration · (k + 1) / n`, so that the last
+    /// iteration shows the session's end and the first already shows what happened in its share.
+    #[must_use]
+    pub fn time_of(duration: f64, k: u32, n: u32) -> f64 {
+        duration * (f64::from(k) + 1.0) / f64::from(n.max(1))
+    }
+
     /// The tracked head's eye for iteration `k` of `n` (the last at or before its time, else
     /// the first); `None` without a head.
     #[must_use]
@@ -88,7 +96,7 @@ impl GuideSource {
         match self {
             Self::Fixed(_) => None,
             Self::Replay { eyes, duration, .. } => {
-                let t = duration * f64::from(k) / f64::from(n.max(1));
+                let t = Self::time_of(*duration, k, n);
                 let i = eyes.partition_point(|(te, _)| *te <= t);
                 eyes.get(i.saturating_sub(1)).map(|(_, e)| *e)
             }
@@ -115,7 +123,7 @@ impl GuideSource {
         }
     }
 
-    /// The ROI for iteration `k` of `n`.
+    /// The ROI for iteration `k` of `n`: the last change at or before [`Self::time_of`].
     #[must_use]
     pub fn roi_at(&self, k: u32, n: u32) -> Option<Roi> {
         match self {
@@ -123,7 +131,7 @@ impl GuideSource {
             Self::Replay {
                 changes, duration, ..
             } => {
-                let t = duration * f64::from(k) / f64::from(n.max(1));
+                let t = Self::time_of(*duration, k, n);
                 changes
                     .iter()
                     .rev()
@@ -131,5 +139,52 @@ impl GuideSource {
                     .and_then(|(_, r)| *r)
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::roi::dgi::Roi;
+
+    fn roi(x: f64) -> Roi {
+        Roi::CanvasEllipse {
+            center: glam::DVec2::new(x, 0.0),
+            semi_axes: glam::DVec2::new(10.0, 10.0),
+        }
+    }
+
+    #[test]
+    fn the_iterations_share_the_session_evenly_and_the_last_shows_its_end() {
+        // Shots at 0, 4 and 7 s of an 8 s session; eyes at 1 and 8 s.
+        let source = GuideSource::Replay {
+            changes: vec![
+                (0.0, Some(roi(0.0))),
+                (4.0, Some(roi(4.0))),
+                (7.0, Some(roi(7.0))),
+            ],
+            duration: 8.0,
+            eyes: vec![(1.0, DVec3::X), (8.0, DVec3::Y)],
+            eye_threshold_m: 0.01,
+        };
+        // Two iterations: the first half, then the whole session.
+        assert_eq!(source.roi_at(0, 2), Some(roi(4.0)));
+        assert_eq!(source.roi_at(1, 2), Some(roi(7.0)));
+        assert_eq!(source.eye_at(1, 2), Some(DVec3::Y));
+        // Eight: one second each.
+        let rois: Vec<_> = (0..8).map(|k| source.roi_at(k, 8)).collect();
+        let xs: Vec<f64> = rois
+            .iter()
+            .map(|r| match r {
+                Some(Roi::CanvasEllipse { center, .. }) => center.x,
+                _ => f64::NAN,
+            })
+            .collect();
+        assert_eq!(xs, [0.0, 0.0, 0.0, 4.0, 4.0, 4.0, 7.0, 7.0]);
+        assert_eq!(source.eye_at(0, 8), Some(DVec3::X));
+        assert_eq!(source.eye_at(6, 8), Some(DVec3::X));
+        assert_eq!(source.eye_at(7, 8), Some(DVec3::Y));
+        // One iteration shows the end.
+        assert_eq!(source.roi_at(0, 1), Some(roi(7.0)));
     }
 }

@@ -54,12 +54,7 @@ pub fn parse_fixed_guide(
             _ => bail!("--guide pose: the field of view is FOV or FOV_H,FOV_V (degrees)"),
         };
         let cone = Cone::from_pose(origin, dir, glam::DVec3::Y, h, v)?;
-        if model.intersect(origin, dir).is_none() {
-            bail!(
-                "--guide pose: the ray from {origin} along {dir} misses the display ({}): it gives no ROI",
-                model.name()
-            );
-        }
+        crate::cli::dgi::check_pose_hits(model, origin, dir, "--guide pose")?;
         return Ok(Some(GuideSource::Fixed(Roi::Cone(cone))));
     }
     if let Some(rest) = arg.strip_prefix("mouse:") {
