@@ -1,6 +1,6 @@
 //! raygun — guided high-quality rendering.
 //!
-//! The pipeline of `DESIGN.md` §1, one module per stage:
+//! The pipeline of `docs/DESIGN.md` §1, one module per stage:
 //!
 //! ```text
 //! tracking ──► interaction ──► display ──► roi (DGI) ──► schedule ──► trace ──► filter ──► output

@@ -630,3 +630,277 @@ fn the_readme_shows_the_layers_and_the_frame_steps_as_they_are() {
         );
     }
 }
+
+// ---------------------------------------------------------------------------------------------
+// Citations of the design document.
+//
+// The code cites `docs/DESIGN.md` by section (the file name, then `§N`, a range `§4–5` or a
+// list `§6, §12`). Every cited section must exist as a heading `## N.` of that file, and no
+// citation may point at a copy outside the repository. Inside the design document itself every
+// `§N` is such a citation. Markdown links in README.md and docs/ must name files that exist
+// and, into the design document, anchors that its headings give.
+
+/// Where citations are looked for (relative to the repository root): folders walked, and files.
+const CITING: &[&str] = &["src", "shaders", "tests", "tools", "docs", "README.md"];
+
+/// The design document, relative to the repository root.
+const DESIGN: &str = "docs/DESIGN.md";
+
+/// The file name a citation starts with. Built at run time so that this file's own text holds
+/// no citation.
+fn design_name() -> String {
+    ["DESIGN", ".md"].concat()
+}
+
+/// Every text file under `rel` (a folder or a file), with its path relative to `root`; files
+/// that are not UTF-8 (images, scenes, captures) are skipped.
+fn text_files(root: &Path, rel: &Path, out: &mut Vec<(PathBuf, String)>) {
+    let path = root.join(rel);
+    if path.is_dir() {
+        let mut entries: Vec<PathBuf> = std::fs::read_dir(&path)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .collect();
+        entries.sort();
+        for p in entries {
+            text_files(root, p.strip_prefix(root).unwrap(), out);
+        }
+    } else if let Ok(text) = std::fs::read_to_string(&path) {
+        out.push((rel.to_owned(), text));
+    }
+}
+
+fn citing_files() -> Vec<(PathBuf, String)> {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut files = Vec::new();
+    for rel in CITING {
+        text_files(root, Path::new(rel), &mut files);
+    }
+    files
+}
+
+/// The section numbers of the design document's `## N.` headings.
+fn design_sections(text: &str) -> BTreeSet<u32> {
+    text.lines()
+        .filter_map(|l| l.strip_prefix("## "))
+        .filter_map(|h| h.split_once('.'))
+        .filter_map(|(n, _)| n.parse().ok())
+        .collect()
+}
+
+/// The leading decimal number of `s` and the rest, or `None` when `s` starts with no digit.
+fn leading_number(s: &str) -> Option<(u32, &str)> {
+    let end = s.find(|c: char| !c.is_ascii_digit()).unwrap_or(s.len());
+    s[..end].parse().ok().map(|n| (n, &s[end..]))
+}
+
+/// The sections cited by the text that follows a `§`: `4`, a range `4–5` (en dash or
+/// hyphen), then, with `lists`, any further `, §N` or ` and §N` (each a number or a range).
+fn sections_after_mark(mut s: &str, lists: bool) -> Vec<u32> {
+    let mut cited = Vec::new();
+    while let Some((first, rest)) = leading_number(s) {
+        let range_end = rest
+            .strip_prefix('–')
+            .or_else(|| rest.strip_prefix('-'))
+            .and_then(leading_number);
+        match range_end {
+            Some((last, after)) if last >= first => {
+                cited.extend(first..=last);
+                s = after;
+            }
+            _ => {
+                cited.push(first);
+                s = rest;
+            }
+        }
+        match s.strip_prefix(", §").or_else(|| s.strip_prefix(" and §")) {
+            Some(next) if lists => s = next,
+            _ => break,
+        }
+    }
+    cited
+}
+
+/// The sections a line cites: after every mention of the design document (`DESIGN.md §N`,
+/// also with the name in backquotes), and — in the design document itself — after every `§`.
+fn cited_sections(line: &str, in_design: bool) -> Vec<u32> {
+    let mut cited = Vec::new();
+    if in_design {
+        for (at, _) in line.match_indices('§') {
+            cited.extend(sections_after_mark(&line[at + '§'.len_utf8()..], false));
+        }
+        return cited;
+    }
+    let name = design_name();
+    for (at, _) in line.match_indices(&name) {
+        let rest = line[at + name.len()..].trim_start_matches('`').trim_start();
+        if let Some(after) = rest.strip_prefix('§') {
+            cited.extend(sections_after_mark(after, true));
+        }
+    }
+    cited
+}
+
+#[test]
+fn the_citation_reader_finds_sections_ranges_and_lists() {
+    let d = design_name();
+    assert_eq!(cited_sections(&format!("({d} §5's bound)"), false), [5]);
+    assert_eq!(cited_sections(&format!("of `{d}` §1, one"), false), [1]);
+    assert_eq!(cited_sections(&format!("({d} §4–5)"), false), [4, 5]);
+    assert_eq!(
+        cited_sections(&format!("({d} §1, §10, §4)"), false),
+        [1, 10, 4]
+    );
+    assert_eq!(
+        cited_sections(&format!("{d} §7 and §9; {d} §12"), false),
+        [7, 9, 12]
+    );
+    assert_eq!(
+        cited_sections(&format!("{d} §N, and §3"), false),
+        Vec::<u32>::new()
+    );
+    assert_eq!(
+        cited_sections("a §3 without the file", false),
+        Vec::<u32>::new()
+    );
+    assert_eq!(cited_sections("see §3 and §16", true), [3, 16]);
+    assert_eq!(
+        design_sections("# t\n## 1. One\ntext\n## 12. Twelve\n### 3. not a section\n"),
+        BTreeSet::from([1, 12])
+    );
+}
+
+/// Every `DESIGN.md §N` in the repository names a section `## N.` of docs/DESIGN.md.
+#[test]
+fn every_design_citation_names_a_section_that_exists() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let design = std::fs::read_to_string(root.join(DESIGN))
+        .unwrap_or_else(|e| panic!("{DESIGN}: {e} (the code cites it by section)"));
+    let sections = design_sections(&design);
+    assert!(sections.contains(&1), "{DESIGN} has no `## 1.` heading");
+    let mut bad = Vec::new();
+    let mut count = 0;
+    for (file, text) in citing_files() {
+        let in_design = file == Path::new(DESIGN);
+        for (i, line) in text.lines().enumerate() {
+            for n in cited_sections(line, in_design) {
+                count += 1;
+                if !sections.contains(&n) {
+                    bad.push(format!(
+                        "{}:{}: §{n}: {}",
+                        file.display(),
+                        i + 1,
+                        line.trim()
+                    ));
+                }
+            }
+        }
+    }
+    assert!(
+        bad.is_empty(),
+        "citations of sections {DESIGN} does not have (its sections: {sections:?}):\n  {}",
+        bad.join("\n  ")
+    );
+    assert!(
+        count > 100,
+        "only {count} citations found: is the reader broken?"
+    );
+}
+
+/// No citation or link points at a design document outside the repository, and every relative
+/// Markdown link of README.md and docs/ names a file that exists — into the design document with
+/// an anchor that one of its headings gives.
+#[test]
+fn citations_and_links_stay_inside_the_repository() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let name = design_name();
+    // Phrases that send a reader out of the repository, built so this file holds none of them.
+    let outside = [
+        ["shared", " notes"].concat(),
+        ["..", "/shared"].concat(),
+        ["project's", " shared"].concat(),
+        ["/work", "/"].concat(),
+    ];
+    let design = std::fs::read_to_string(root.join(DESIGN)).unwrap();
+    let anchors: BTreeSet<String> = design
+        .lines()
+        .filter_map(|l| l.strip_prefix("## "))
+        .map(slug)
+        .collect();
+    let mut bad = Vec::new();
+    for (file, text) in citing_files() {
+        let markdown = file.extension().is_some_and(|e| e == "md");
+        let linking = markdown && (file.starts_with("docs") || file == Path::new("README.md"));
+        for (i, line) in text.lines().enumerate() {
+            let at = format!("{}:{}", file.display(), i + 1);
+            for phrase in &outside {
+                if line.contains(phrase.as_str()) {
+                    bad.push(format!("{at}: says {phrase:?}: {}", line.trim()));
+                }
+            }
+            if !linking {
+                continue;
+            }
+            for target in link_targets(line) {
+                if target.contains("://")
+                    || target.starts_with('#')
+                    || target.starts_with("mailto:")
+                {
+                    continue;
+                }
+                let (path, anchor) = target.split_once('#').unwrap_or((target, ""));
+                let resolved = root.join(file.parent().unwrap()).join(path);
+                if !resolved.exists() {
+                    bad.push(format!("{at}: links {target:?}, which does not exist"));
+                } else if path.ends_with(&name) {
+                    let canonical = resolved.canonicalize().unwrap();
+                    if canonical != root.join(DESIGN).canonicalize().unwrap() {
+                        bad.push(format!("{at}: links a {name} other than {DESIGN}"));
+                    } else if !anchor.is_empty() && !anchors.contains(anchor) {
+                        bad.push(format!("{at}: {DESIGN} has no heading for #{anchor}"));
+                    }
+                }
+            }
+        }
+    }
+    assert!(
+        bad.is_empty(),
+        "links out of place:\n  {}",
+        bad.join("\n  ")
+    );
+}
+
+/// The targets of the Markdown links `[text](target)` on a line.
+fn link_targets(line: &str) -> Vec<&str> {
+    line.match_indices("](")
+        .filter_map(|(at, _)| {
+            let rest = &line[at + 2..];
+            rest.find(')').map(|end| rest[..end].trim())
+        })
+        .filter(|t| !t.is_empty() && !t.contains(' '))
+        .collect()
+}
+
+/// The anchor GitHub gives a heading: lower case, spaces as hyphens, other punctuation dropped.
+fn slug(heading: &str) -> String {
+    heading
+        .trim()
+        .chars()
+        .filter_map(|c| match c {
+            ' ' => Some('-'),
+            '-' | '_' => Some(c),
+            c if c.is_alphanumeric() => Some(c.to_lowercase().next().unwrap_or(c)),
+            _ => None,
+        })
+        .collect()
+}
+
+#[test]
+fn heading_anchors_are_githubs() {
+    assert_eq!(slug("10. Tracking ingest"), "10-tracking-ingest");
+    assert_eq!(slug("14. Scenes and glTF"), "14-scenes-and-gltf");
+    assert_eq!(
+        slug("9. The paper's setup and numbers"),
+        "9-the-papers-setup-and-numbers"
+    );
+}

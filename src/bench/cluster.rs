@@ -1,4 +1,4 @@
-//! `raygun bench cluster`: the paper's guided setup across ranks (DESIGN.md §12).
+//! `raygun bench guided --cluster`: the paper's guided setup across ranks (DESIGN.md §12).
 //!
 //! * **Strong scaling**, measured: the same guided iterations (HORNET, viewer 1 m in front of
 //!   the centre, 10° and 60°) on the ranks of the job it runs in — under `mpirun -np N` with

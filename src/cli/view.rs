@@ -106,7 +106,7 @@ pub struct ViewArgs {
     #[arg(long, value_name = "KIND:N")]
     pub device: Option<DeviceId>,
     /// Interaction mapping JSON (device axes, buttons, stick, the cursor's smoothing, a
-    /// calibration file) for live input and replays; the README lists its fields.
+    /// calibration file) for live input and replays; docs/tracking.md lists its fields.
     #[arg(long, value_name = "FILE")]
     pub config: Option<PathBuf>,
     /// Tracker→room calibration for live input (JSON, as `raygun calibrate` writes it);

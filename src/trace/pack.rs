@@ -109,7 +109,7 @@ pub struct PackedScene {
     /// Nothing beyond the core glTF material: no alpha tests, vertex extras, punctual lights,
     /// normal or metallic-roughness maps, extension BSDFs or absorbing media, so the CPU twin
     /// traces with its plain instantiation, from which those branches are compiled out
-    /// (DESIGN.md §9).
+    /// (DESIGN.md §7: model only what a scene needs).
     pub plain: bool,
 }
 

@@ -1,4 +1,4 @@
-//! The paper's table (DESIGN.md §9) and the targets (DESIGN.md §11) beside this run's figures.
+//! The paper's table (DESIGN.md §9) and the targets (DESIGN.md §15) beside this run's figures.
 
 use serde::Serialize;
 

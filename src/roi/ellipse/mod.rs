@@ -18,8 +18,8 @@
 //! 2. Scale by the major semi-axis `a`: `e = b/a ≤ 1`, `(p, q) = (x, y)/a`.
 //! 3. The Lagrange condition gives the closest point `X = p/(t + 1)`, `Y = e²q/(t + e²)` with `t`
 //!    the root of `(p/(t+1))² + (eq/(t+e²))² = 1` right of the pole `−e²`. We solve for the
-//!    pole-relative unknown `w = t + e²` (DESIGN's `u = s + 1` times the constant `e²`, which
-//!    avoids `e²` under- and overflow): the secular function is
+//!    pole-relative unknown `w = t + e²` (DESIGN.md §5's `u = s + 1` times the constant `e²`,
+//!    which avoids `e²` under- and overflow): the secular function is
 //!    `S(w) = A² + B²` with `A = p/(w + c)`, `B = eq/w`, `c = 1 − e² = (1−e)(1+e)`, and no sum in
 //!    it cancels. `Y = e·B`, so the closest point is `(x/(w + c), b·B)` in the caller's units.
 //! 4. `h(w) = S(w)^(−1/2)` is increasing and concave for `w > 0` (Cauchy–Schwarz:

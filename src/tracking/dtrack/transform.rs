@@ -1,4 +1,4 @@
-//! The tracker → room transform of DTrack's millimetre frame (DESIGN.md §9).
+//! The tracker → room transform of DTrack's millimetre frame (DESIGN.md §2, §10).
 
 use super::*;
 
