@@ -1,4 +1,4 @@
-//! The restart rule of a moving eye (issue 19, part 2): head motion below the threshold keeps
+//! The restart rule of a moving eye: head motion below the threshold keeps
 //! the accumulation (sample counts keep growing), motion past it restarts it (counts back to
 //! zero) and the ROI and its DGI survive — on the CPU twin and the GPU kernel (lavapipe in CI).
 //! A restarted render is the render a fresh renderer at the new eye makes, bit for bit.

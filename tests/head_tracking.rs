@@ -1,4 +1,4 @@
-//! Head tracking (issue 19, part 2): a tracked body moves the wall camera's eye. Recordings
+//! Head tracking: a tracked body moves the wall camera's eye. Recordings
 //! carry the head (its poses in the datagrams, its name and eye offset in the header), replays
 //! replay it, and `render --guide REPLAY` moves the eye deterministically under the restart
 //! rule — the iterations and eyes of its restarts are a golden file.

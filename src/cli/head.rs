@@ -1,5 +1,5 @@
 //! `--head KIND:N [--eye-offset X,Y,Z] [--eye-threshold METRES]`: the tracked head that moves
-//! the wall camera's eye (issue 19; [`crate::tracking::head`]), shared by `view`, `record`,
+//! the wall camera's eye ([`crate::tracking::head`]), shared by `view`, `record`,
 //! `replay` and `render --guide`.
 //!
 //! The head is named like the ray gun (`--device KIND:N`): a DTrack `6d` body is `body:N`, a

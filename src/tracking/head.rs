@@ -1,4 +1,4 @@
-//! Head tracking (issue 19, DESIGN.md §11): the wall camera's eye follows a tracked body.
+//! Head tracking (DESIGN.md §11): the wall camera's eye follows a tracked body.
 //!
 //! The head is a device like the ray gun — a DTrack `6d` body (`body:N`), a body of raygun's
 //! OSC address space (`osc:N`, `/raygun/N/pose`) or a VRPN tracker sensor (the device the VRPN
