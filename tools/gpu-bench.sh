@@ -1,25 +1,25 @@
 #!/usr/bin/env bash
-# Every GPU figure in one call on a lent GPU machine (the `device` tool): the adapter, then the
-# benchmarks at 3840×2160, most important first, each within a time budget, the whole run
-# within 7 minutes; everything it wrote packed into one tarball plus one summary file under
-# $OUT (the device returns at most 8 files).
+# Every GPU figure in one run on a GPU machine with the NVIDIA driver and no Rust toolchain:
+# the adapter, then the benchmarks at 3840×2160, most important first, each within a time
+# budget, the whole run within 7 minutes; everything it wrote packed into one tarball plus one
+# summary file under $OUT (two files to copy back).
 #
-# Here (the development machine), once:
+# On the build machine, once:
 #   tools/gpu-bench.sh stage
-# builds the release binary, strips it into .dev/raygun (git-ignored; the device copies tracked
-# files but only *carried* ignored ones, 64 MiB in all) and downloads the Vulkan loader packages
-# into .gl/ (the GPU machine has the NVIDIA driver but no loader).
+# builds the release binary, strips it into .dev/raygun (git-ignored) and downloads the Vulkan
+# loader packages into .gl/ (the GPU machine has the NVIDIA driver but no loader). Copy the
+# working tree with .dev and .gl (about 64 MiB in all) to the GPU machine.
 #
-# There, with carry [".dev", ".gl"] and a timeout_s of about 480:
+# There, allowing about 8 minutes:
 #   bash tools/gpu-bench.sh run
 # $OUT then holds summary.md (every group: status, seconds, its tables) and gpu-bench.tar.gz
-# (every log, table, JSON and plot). Copy the tables into BENCHMARKS.md with the date and the
-# adapter's name from the summary's first lines.
+# (every log, table, JSON and plot). Each table goes into its stage's section of the report
+# with the date and the adapter's name from the summary's first lines (BENCHMARKS.md, *Methods*).
 #
-# Here, to check the script itself on lavapipe at tiny sizes (about 40 s with the release
-# build once Mesa's shader cache holds the kernels; the first run compiles them, which takes
-# lavapipe minutes and its groups' budgets then stop some; tests/gpu_bench_script.rs runs it
-# with the test build):
+# On the build machine, to check the script itself on lavapipe at tiny sizes (about 40 s with
+# the release build once Mesa's shader cache holds the kernels; the first run compiles them,
+# which takes lavapipe minutes and its groups' budgets then stop some;
+# tests/gpu_bench_script.rs runs it with the test build):
 #   OUT=/tmp/gb bash tools/gpu-bench.sh smoke
 #
 # Settings (environment): RAYGUN_BIN (default .dev/raygun for run, target/release/raygun or
