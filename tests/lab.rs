@@ -1415,3 +1415,290 @@ fn progress_is_reported_off_a_terminal() {
     ok(&o);
     assert!(!stderr(&o).contains("raygun: rendering "), "{}", stderr(&o));
 }
+
+/// The repository's text files under `dirs` (recursively, build output left out) and the
+/// named `files` that exist: source, shaders, scripts and documentation.
+fn text_files(dirs: &[&str], files: &[&str]) -> Vec<PathBuf> {
+    fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
+        let Ok(entries) = std::fs::read_dir(dir) else {
+            return;
+        };
+        for entry in entries.flatten() {
+            let path = entry.path();
+            if path.is_dir() {
+                if path
+                    .file_name()
+                    .is_some_and(|n| n != "target" && n != ".git")
+                {
+                    walk(&path, out);
+                }
+            } else if path
+                .extension()
+                .and_then(|e| e.to_str())
+                .is_some_and(|e| ["rs", "wgsl", "sh", "py", "md", "toml"].contains(&e))
+            {
+                out.push(path);
+            }
+        }
+    }
+    let root = Path::new(ROOT);
+    let mut out = Vec::new();
+    for d in dirs {
+        walk(&root.join(d), &mut out);
+    }
+    out.extend(files.iter().map(|f| root.join(f)).filter(|p| p.is_file()));
+    out.sort();
+    out
+}
+
+/// Each line of `files` (non-UTF-8 files skipped) as (`path:line`, line).
+fn numbered_lines(files: &[PathBuf]) -> Vec<(String, String)> {
+    let root = Path::new(ROOT);
+    let mut out = Vec::new();
+    for f in files {
+        let Ok(text) = std::fs::read_to_string(f) else {
+            continue;
+        };
+        let name = f.strip_prefix(root).unwrap_or(f).display().to_string();
+        for (i, line) in text.lines().enumerate() {
+            out.push((format!("{name}:{}", i + 1), line.to_string()));
+        }
+    }
+    out
+}
+
+/// Code that relies on a measured figure cites the section of the benchmark report that holds
+/// it, in one form on one line: `BENCHMARKS.md, *Methods*` — the file's name, a comma and one
+/// of its headings in asterisks. A citation that names no section, or a heading the report
+/// does not have, fails with its file and line; the report stays a report (at most 700 lines).
+#[test]
+fn benchmark_citations_name_a_section_of_the_report() {
+    let report_name = concat!("BENCHMARKS", ".md");
+    let report = std::fs::read_to_string(Path::new(ROOT).join(report_name)).unwrap();
+    let headings: Vec<&str> = report
+        .lines()
+        .filter(|l| l.starts_with('#'))
+        .map(|l| l.trim_start_matches('#').trim())
+        .collect();
+    let files = text_files(
+        &["src", "shaders", "tests", "tools", "benches", "examples"],
+        &["Cargo.toml"],
+    );
+    let mut citations = 0;
+    let mut bad = Vec::new();
+    let lines = report.lines().count();
+    if lines > 700 {
+        bad.push(format!(
+            "{report_name} has {lines} lines: a report of where raygun stands, not a log"
+        ));
+    }
+    for (at, line) in numbered_lines(&files) {
+        for (i, _) in line.match_indices(report_name) {
+            citations += 1;
+            let rest = &line[i + report_name.len()..];
+            let heading = rest
+                .strip_prefix(", *")
+                .and_then(|r| r.split_once('*'))
+                .map(|(h, _)| h);
+            match heading {
+                Some(h) if headings.contains(&h) => {}
+                Some(h) => bad.push(format!("{at}: *{h}* is no heading of {report_name}")),
+                None => bad.push(format!(
+                    "{at}: cites {report_name} without a section (`{report_name}, *Heading*` on \
+                     one line)"
+                )),
+            }
+        }
+    }
+    assert!(
+        citations > 0,
+        "no citations found: is the scan looking in the right place?"
+    );
+    assert!(bad.is_empty(), "{}", bad.join("\n"));
+}
+
+/// Why a line speaks of how raygun was developed rather than of raygun, if it does: a tracker
+/// issue's number (the word issue, or a hash sign in prose, before digits), the word "session"
+/// for a stretch of development work (a demonstrative or an ordinal from the third before it,
+/// or a number after it — product words such as a tracking session, a recorded or replayed
+/// session, the `session` layer or the first and second sessions of a server pass), borrowed
+/// machines, dated diary headings (Markdown only) and a note left for the next reader.
+fn development_words(line: &str, markdown: bool) -> Option<&'static str> {
+    let l = line.to_lowercase();
+    let b = l.as_bytes();
+    let alnum = |i: usize| b[i].is_ascii_alphanumeric();
+    let digit_at = |mut i: usize, hash: bool| {
+        while i < b.len() && b[i] == b' ' {
+            i += 1;
+        }
+        if hash && i < b.len() && b[i] == b'#' {
+            i += 1;
+        }
+        i < b.len() && b[i].is_ascii_digit()
+    };
+    for (i, _) in l.match_indices("issue") {
+        let after = i + "issue".len();
+        let after = if b.get(after) == Some(&b's') {
+            after + 1
+        } else {
+            after
+        };
+        if (i == 0 || !alnum(i - 1)) && digit_at(after, true) {
+            return Some("a tracker issue's number");
+        }
+    }
+    for (i, _) in l.match_indices('#') {
+        let starts_word = i == 0 || matches!(b[i - 1], b' ' | b'\t' | b'(' | b'[');
+        let digits = b[i + 1..].iter().take_while(|c| c.is_ascii_digit()).count();
+        let ends_word = b
+            .get(i + 1 + digits)
+            .is_none_or(|&c| !(c.is_ascii_alphanumeric() || c == b'_'));
+        if starts_word && digits > 0 && ends_word {
+            return Some("a tracker issue's number (#N)");
+        }
+    }
+    const BEFORE: &[&str] = &[
+        "this", "that", "earlier", "later", "previous", "prior", "next",
+    ];
+    const ORDINALS: &[&str] = &[
+        "third",
+        "fourth",
+        "fifth",
+        "sixth",
+        "seventh",
+        "eighth",
+        "ninth",
+        "tenth",
+        "eleventh",
+        "twelfth",
+        "thirteenth",
+        "fourteenth",
+        "fifteenth",
+        "sixteenth",
+        "seventeenth",
+        "eighteenth",
+        "nineteenth",
+        "twentieth",
+        "thirtieth",
+    ];
+    for (i, _) in l.match_indices("session") {
+        if i > 0 && alnum(i - 1) {
+            continue;
+        }
+        let before = l[..i].trim_end();
+        let word_start = before
+            .rfind(|c: char| !(c.is_ascii_alphabetic() || c == '-'))
+            .map_or(0, |k| k + 1);
+        let word = if before.len() < i {
+            &before[word_start..]
+        } else {
+            ""
+        };
+        let last = word.rsplit('-').next().unwrap_or("");
+        let compound = word.contains('-') && (last == "first" || last == "second");
+        if BEFORE.contains(&word) || ORDINALS.contains(&last) || compound {
+            return Some("a development session");
+        }
+        let after = i + "session".len();
+        let after = if b.get(after) == Some(&b's') {
+            after + 1
+        } else {
+            after
+        };
+        if digit_at(after, false) {
+            return Some("a development session's number");
+        }
+    }
+    let borrowed = concat!("le", "nt");
+    for (i, _) in l.match_indices(borrowed) {
+        let end = i + borrowed.len();
+        if (i == 0 || !b[i - 1].is_ascii_alphabetic())
+            && b.get(end).is_none_or(|c| !c.is_ascii_alphabetic())
+        {
+            return Some("a borrowed machine");
+        }
+    }
+    if l.contains(concat!("this", " week")) {
+        return Some("a diary's week");
+    }
+    if l.contains(concat!("lead-read", "-first")) {
+        return Some("a note left for the next reader");
+    }
+    let heading = line.len() - line.trim_start().len() <= 3 && line.trim_start().starts_with('#');
+    let dated = b.windows(10).any(|w| {
+        w.iter().enumerate().all(|(k, c)| match k {
+            4 | 7 => *c == b'-',
+            _ => c.is_ascii_digit(),
+        })
+    });
+    if markdown && heading && dated {
+        return Some("a dated diary heading");
+    }
+    None
+}
+
+/// raygun's code, scripts and documentation say what raygun does and how fast it is, not how it
+/// was developed: no tracker issue numbers, no development sessions, no borrowed machines, no
+/// dated diary headings, no notes to the next reader. Product vocabulary passes; the checker
+/// is checked on both.
+#[test]
+fn no_word_of_how_raygun_was_developed() {
+    for (line, md) in [
+        (
+            concat!("Head tracking (issue", " 19, part 2): the eye follows"),
+            false,
+        ),
+        (concat!("see issue #", "19"), false),
+        (concat!("the fix for #", "19 landed"), false),
+        (concat!("issues", " 17 and 19"), false),
+        (concat!("measured in this ", "session on the EPYC"), false),
+        (
+            concat!("the eleventh ", "session's resident picture"),
+            false,
+        ),
+        (concat!("the twenty-first ", "session found"), false),
+        (concat!("(session", " 4) four rows per vector"), false),
+        ("### 2026-12-04 — NVIDIA H200", true),
+        (concat!("see LEAD-READ", "-FIRST.md"), false),
+        (concat!("no GPU was ", "le", "nt"), false),
+    ] {
+        assert!(development_words(line, md).is_some(), "not caught: {line}");
+    }
+    for (line, md) in [
+        (
+            "A tracking session with a FlyStick: the session layer replays it",
+            false,
+        ),
+        (
+            "a recorded session, a replay session, the synthetic sessions",
+            false,
+        ),
+        ("Closing lets the server's second session end.", false),
+        (
+            "session::live::LiveTracking and held_points_session()",
+            false,
+        ),
+        (
+            "#[derive(Clone)] and r#\"raw\"# and {:#x} and $# and \"#1\"",
+            false,
+        ),
+        ("## Distance-guide image", true),
+        ("| H200, 2026-12-04 | met |", true),
+        ("excellent, silent, equivalent tissues", false),
+    ] {
+        assert_eq!(development_words(line, md), None, "{line}");
+    }
+    let files = text_files(
+        &[
+            "src", "shaders", "tests", "tools", "benches", "examples", "docs", "fuzz",
+        ],
+        &["README.md", concat!("BENCHMARKS", ".md"), "Cargo.toml"],
+    );
+    let mut found = Vec::new();
+    for (at, line) in numbered_lines(&files) {
+        if let Some(why) = development_words(&line, at.contains(".md:")) {
+            found.push(format!("{at}: {why}: {}", line.trim()));
+        }
+    }
+    assert!(found.is_empty(), "{}", found.join("\n"));
+}

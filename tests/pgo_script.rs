@@ -1,7 +1,7 @@
 //! `tools/pgo-build.sh`: the profile-guided build's training set must keep running as the
 //! command line and the scenes change (a failed training run would stop the build after its
 //! first release build, eight minutes in). `--train BIN` runs exactly that set with the test
-//! build; the two builds themselves are measured, not tested (BENCHMARKS.md).
+//! build; the two builds themselves are measured, not tested (BENCHMARKS.md, *Builds*).
 
 use std::process::{Command, Output};
 

@@ -20,7 +20,7 @@
 # What PGO changes: the compiler's layout and inlining of the code the training ran most (the
 # walks, the shading, the batch loop); not one floating-point operation — the binary renders
 # the same pixels to the bit (checked against target/release/raygun when it exists).
-# Measured in BENCHMARKS.md (the CPU twin against Mitsuba 3).
+# Measured in BENCHMARKS.md, *Builds*.
 #
 # Needs the toolchain's llvm-tools (`rustup component add llvm-tools`; added here when missing
 # and rustup is present). Settings (environment): PGO_TRAIN_THREADS (default 2).

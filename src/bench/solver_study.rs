@@ -1,5 +1,5 @@
 //! The closest-point solvers' iteration counts and time per call, by class of case and on a
-//! 4K grid (DESIGN.md §5): the study behind the solver section of BENCHMARKS.md, run with
+//! 4K grid (DESIGN.md §5): the study behind BENCHMARKS.md, *Closest-point solver*, run with
 //! `cargo run --release --example ellipse_bench [-- --worst]` on an otherwise idle core.
 //!
 //! Unlike [`super::solver`] (the report's solver table: accuracy against the 80-digit

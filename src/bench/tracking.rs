@@ -2,7 +2,7 @@
 //! decode rate, VRPN decode rate, a 10 kHz DTrack datagram stream through the live UDP
 //! listener with latest-state semantics, and a 10 kHz VRPN Pos_Quat stream over loopback TCP
 //! into the live VRPN client.
-//! Run with `cargo bench --bench tracking_ingest`; results are quoted in `BENCHMARKS.md`.
+//! Run with `cargo bench --bench tracking_ingest`; results: BENCHMARKS.md, *Tracking ingest*.
 
 use std::fmt::Write as _;
 use std::io::{Read, Write};

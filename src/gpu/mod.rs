@@ -41,8 +41,9 @@ impl Backend {
             BackendChoice::Gpu => Ok(Self::Gpu(Box::new(GpuContext::new()?))),
             BackendChoice::Auto => match GpuContext::new() {
                 // A software rasteriser (lavapipe) runs our kernels several times slower than
-                // the CPU twins on the same cores (DGI 3840×2160 at 10°: 966 ms on llvmpipe,
-                // 120 ms on the f64 twin, 2 cores; BENCHMARKS.md), so `auto` takes the twins.
+                // the CPU twins on the same cores (the exact DGI at 3840×2160: 13–26× the f64
+                // twin's time on 2 cores; BENCHMARKS.md, *Distance-guide image*), so `auto`
+                // takes the twins.
                 Ok(ctx) if ctx.info.device_type == wgpu::DeviceType::Cpu => {
                     eprintln!(
                         "raygun: the only adapter is a software rasteriser ({}); using the CPU \

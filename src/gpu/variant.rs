@@ -14,7 +14,7 @@ pub const DEFAULT_WORKGROUP: u32 = 64;
 /// order and finds the same hits; they differ only in the memory the GPU uses, which on a GPU
 /// decides how fast a traversal-bound scene (the 343 740-triangle city) traces. Chosen per
 /// context ([`super::GpuContext::with_trace_variant`], `RAYGUN_TRACE_KERNEL`) so that one
-/// binary can time every choice on a lent GPU.
+/// binary can time every choice on one GPU machine.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum TraceStack {
     /// A module-scope private variable (the kernel as written): local memory, zeroed once a

@@ -19,7 +19,7 @@
 //! tree of its own over the same triangles (`bvh/cpu.rs`: eight-wide nodes of f32 boxes, leaves
 //! of up to eight triangles, one 8-wide test each), built from `prims` the first time a ray is
 //! traced on the CPU; it finds the same hits ([`SceneBvh::closest_hit`]), in 15–20 % less time a
-//! ray than walking this tree (BENCHMARKS.md).
+//! ray than walking this tree (BENCHMARKS.md, *CPU traversal*).
 //!
 //! Primitives are stored in BVH order (`prims`, three `vec4<f32>` each: `v0` and the original
 //! triangle index, `e1 = v1 − v0` and the light-selection density, `e2 = v2 − v0` and the
@@ -102,7 +102,7 @@ pub fn intersect_triangle(
 /// the origin is decided on the numerators times den's sign, against `|den|` (`0 ≤ u`,
 /// `0 ≤ v`, `u + v ≤ 1`, `0 < t`), with no division: a miss — most tests — costs none, and no
 /// reciprocal sits on the chain to the decision (the walks ×0.94–0.98 in `cargo bench --bench
-/// traversal`; the whole render unchanged within this machine's noise, BENCHMARKS.md). Only
+/// traversal`; the whole render unchanged within the noise: BENCHMARKS.md, *CPU traversal*). Only
 /// then is t divided out and bounded, `0 < t < tmax`, in its own value: a closest-hit search
 /// passes its nearest hit so far as `tmax`, so a triangle counts exactly when its own t beats
 /// that hit, whatever order a traversal meets it in.
@@ -281,8 +281,9 @@ impl SceneBvh {
     /// in lanes (a ray per lane), a leaf's triangles likewise (the same triangle test's
     /// arithmetic per lane as the one-ray test's), and a child is taken for the rays that
     /// enter its box, nearest first by its first ray's entry. One decision per node for eight rays
-    /// instead of eight: measured faster for camera rays (BENCHMARKS.md). Scenes with
-    /// alpha-tested triangles take [`Self::closest_hit`] per ray.
+    /// instead of eight: measured faster for camera rays (×0.91–0.94 a whole render:
+    /// BENCHMARKS.md, *CPU traversal*). Scenes with alpha-tested triangles take
+    /// [`Self::closest_hit`] per ray.
     #[must_use]
     pub fn closest_hits8(
         &self,

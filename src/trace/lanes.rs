@@ -5,7 +5,7 @@
 //! not part of the x86-64 target raygun is built for): two independent operations each step,
 //! which the cores overlap. Measured on an Intel Xeon against groups of eight (two runs side by
 //! side): ms per sample ×0.975–0.977 on the small city, ×0.965–0.981 on the Cornell boxes
-//! (BENCHMARKS.md).
+//! (BENCHMARKS.md, *CPU shading and batches*).
 //!
 //! Every function here is its scalar twin step for step: the same IEEE operations in the same
 //! order (no FMA in this build; branches become per-lane selects, both sides computed), so that

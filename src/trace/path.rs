@@ -153,8 +153,8 @@ fn wrap_pair(i: i32, n: u32, mode: u32) -> (u32, u32) {
 }
 
 /// `srgb_to_linear(i / 255)` for every 8-bit channel value `i`: the decoding of a colour
-/// texel, computed once (the same values; a `powf` per channel was 7 % of the small city's
-/// profile, BENCHMARKS.md).
+/// texel, computed once (the same values; a `powf` per channel was 6.8 % of the small city's
+/// profile: BENCHMARKS.md, *CPU shading and batches*).
 static SRGB_TO_LINEAR: LazyLock<[f32; 256]> =
     LazyLock::new(|| std::array::from_fn(|i| srgb_to_linear(i as f32 / 255.0)));
 
@@ -922,7 +922,8 @@ pub fn render_cpu_with(
     match list {
         None => {
             // Bands of whole rows, as many as fill a batch: its paths' rays, grouped by
-            // direction octant past the camera, then fill their packets (BENCHMARKS.md).
+            // direction octant past the camera, then fill their packets
+            // (BENCHMARKS.md, *CPU shading and batches*).
             let band = s.width as usize * (batch::BATCH / s.width as usize).max(1);
             accum
                 .sum

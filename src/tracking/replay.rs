@@ -122,7 +122,7 @@ impl ReplayHeader {
         }
     }
 
-    /// The decoder configurations this session needs: the header's, with `calibration` (given
+    /// The decoder configurations this recording needs: the header's, with `calibration` (given
     /// on the command line) or else the header's own calibration replacing their transforms.
     #[must_use]
     pub fn decoder_configs(&self, calibration: Option<&Calibration>) -> (DtrackConfig, OscConfig) {

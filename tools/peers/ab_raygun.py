@@ -2,7 +2,7 @@
 """Two (or more) raygun builds side by side on the peer benchmark's scenes: the CPU twin's
 ms per megasample, the binaries interleaved per scene and round, medians and ratios to the
 first. For measuring one change to the CPU twin on a shared machine, where only ratios taken
-in one run mean anything (BENCHMARKS.md).
+in one run mean anything (BENCHMARKS.md, *Methods*).
 
     python3 tools/peers/ab_raygun.py --rounds 4 before/raygun after/raygun
 
@@ -14,8 +14,8 @@ Scenes, sizes and settings are bench_peers.py's (its Lambert copies, 1280 x 720,
 --side-by-side runs the two builds at the same time, one thread each, each pinned to a core of
 its own (the cores swapped every round), and reports each round's ratio: both builds meet the
 same moments of a shared machine's noise, which drifts by more than a small change is worth
-between one run and the next (BENCHMARKS.md, eighth session: a build against itself gave
-x1.006, rounds 0.95-1.08). Needs two cores and exactly two builds.
+between one run and the next (BENCHMARKS.md, *Methods*: a build against itself gave x1.006,
+rounds 0.95-1.08). Needs two cores and exactly two builds.
 """
 
 from __future__ import annotations

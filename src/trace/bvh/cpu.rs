@@ -7,11 +7,11 @@
 //! preset: spatial pre-splits, PLOC, reinsertion) of one triangle a leaf, collapsed into
 //! eight-wide nodes and leaves of up to eight triangles by the collapse of least surface-area
 //! cost ([`Collapse`]; it replaced taking apart the largest child until eight over obvhs' own
-//! leaves: the small city's ms per sample ×0.935–0.95, BENCHMARKS.md), each node's boxes as
-//! f32 in lanes. A leaf's triangles are contiguous in
+//! leaves: the small city's ms per sample ×0.935–0.95, BENCHMARKS.md, *CPU traversal*), each
+//! node's boxes as f32 in lanes. A leaf's triangles are contiguous in
 //! the tree's own arrays (`prims`, and [`PrimLanes`] for the 8-wide test), so a leaf of up to
 //! eight is one test. Measured against walking the GPU's tree with the same code: 15–20 %
-//! fewer nanoseconds a ray in the cities (BENCHMARKS.md).
+//! fewer nanoseconds a ray in the cities (BENCHMARKS.md, *CPU traversal*).
 //!
 //! The hit is the GPU tree's: the same triangles, the same triangle arithmetic, the nearest
 //! hit, and exact ties resolved by a rule that does not depend on the walk ([`nearer`]). The
@@ -77,7 +77,7 @@ const NODE_COST: f32 = 1.0;
 
 /// The collapse's cost of a leaf's 8-wide triangle test, per unit of its box's area: twice a
 /// node's (measured against 0.5, 1 and 3: the small city's ms per sample ×0.935–0.95 against
-/// the greedy opening's, the others ×0.95–1.0; BENCHMARKS.md).
+/// the greedy opening's, the others ×0.93–1.0; BENCHMARKS.md, *CPU traversal*).
 const LEAF_COST: f32 = 2.0;
 
 /// How far the boxes are widened, relative to the magnitude of the coordinates: a box test
@@ -481,13 +481,14 @@ impl NodeRay {
 /// that box's entry distance. All eight children in one pass of 8-wide AVX2 lanes, each
 /// plane's distance one fused multiply-subtract (a shorter chain of dependent operations from
 /// a node's load to its children: measured, ms per sample ×0.90–0.95 on the small city,
-/// BENCHMARKS.md; only which nodes are visited, and in which order, depends on it, never the
-/// hit); the same operations as [`node_hits_scalar`] lane by lane, so the same bits.
+/// BENCHMARKS.md, *CPU traversal*; only which nodes are visited, and in which order, depends
+/// on it, never the hit); the same operations as [`node_hits_scalar`] lane by lane, so the
+/// same bits.
 ///
 /// The maxima, minima and the comparison are taken on the distances' bits as signed integers
 /// (Embree's `maxi`/`mini`): one cycle each on the integer units where the float forms take
 /// four on Intel cores (measured on an Intel Xeon: the one-ray bounces' walk ×0.92–0.97, the
-/// small city's whole render ×0.98, BENCHMARKS.md). The same values as the float
+/// small city's whole render ×0.98, BENCHMARKS.md, *CPU traversal*). The same values as the float
 /// forms: the entry's maximum includes [`NODE_EPSILON`] > 0, and a non-negative float's bits
 /// order as its value and above every negative one, so the maximum is the float maximum; the
 /// exit's minimum is the float minimum when every term is non-negative and negative when one
@@ -728,7 +729,7 @@ impl CpuPackets {
 /// grown to `size`. The walks set it up with this, not through a closure handed the stack, which
 /// the compiler kept as a function of its own that read the ray, the bound and the node's index
 /// through memory on every node (measured on an Intel Xeon: ×0.98 on the small city and the
-/// Cornell boxes, BENCHMARKS.md).
+/// Cornell boxes, BENCHMARKS.md, *CPU traversal*).
 #[inline(always)]
 fn traversal_stack<'a>(
     size: usize,
@@ -777,7 +778,7 @@ impl PrimLanes {
         // SAFETY: `data[k·stride + first .. k·stride + first + 8]` lies inside array k
         // (`first + 8 ≤ stride`) and so inside `data` (`ARRAYS · stride` long, k < `ARRAYS`);
         // an unaligned read of eight `f32`s. Unchecked because the thirteen bounds checks cost
-        // ×1.03 on the small city's whole render (BENCHMARKS.md).
+        // ×1.03 on the small city's whole render (BENCHMARKS.md, *CPU traversal*).
         unsafe {
             let at = self.data.as_ptr().add(k * self.stride + first);
             f32x8::new(at.cast::<[f32; 8]>().read_unaligned())
@@ -790,8 +791,9 @@ impl PrimLanes {
     /// lanes whose triangle the ray's line meets in front of the origin, and per lane den,
     /// e2·r, e1·r and c·n, from which t, u, v follow ([`Self::test8`]). No division: the
     /// decision is made on the numerators. One AVX instruction an operation on x86-64, two
-    /// NEON ones on AArch64 (`wide`); why it pays: BENCHMARKS.md (the per-triangle test was
-    /// the largest part of traversal).
+    /// NEON ones on AArch64 (`wide`). A leaf of up to eight triangles is one such test (a
+    /// bounce ray in the small city tests 1.2–1.7 leaves, 6–8 triangles:
+    /// BENCHMARKS.md, *CPU traversal*).
     #[inline(always)]
     fn meets8(&self, first: usize, o: Vec3, d: Vec3) -> (u32, [f32x8; 4]) {
         assert!(first + 8 <= self.stride, "lanes past the padding");
@@ -927,8 +929,8 @@ impl CpuTree {
     /// skipped. A leaf entered beyond the node's nearest inner child waits on the stack among
     /// the inner children, to be skipped if a hit in them comes first. (Counted: a third of the
     /// small city's leaf tests were of leaves entered beyond the ray's hit; every child taken
-    /// nearest first, leaves included, measured ×1.08 slower on the Cornell box, whose root's
-    /// leaves were then all sorted and pushed, BENCHMARKS.md.)
+    /// nearest first, leaves included, measured ×1.04–1.12 slower on the Cornell boxes, whose
+    /// root's leaves were then all sorted and pushed: BENCHMARKS.md, *CPU traversal*.)
     pub(super) fn closest_hit_filtered(
         &self,
         origin: Vec3,
@@ -1198,8 +1200,9 @@ impl CpuTree {
     /// in lanes (a ray per lane), a leaf's triangles likewise (the same triangle test's
     /// arithmetic per lane as the one-ray test's), and a child is taken for the rays that
     /// enter its box, nearest first by its first ray's entry. One decision per node for eight rays
-    /// instead of eight: measured faster for camera rays, and slower for rays that scatter
-    /// (BENCHMARKS.md). Scenes with alpha-tested triangles take `closest_hit` per ray.
+    /// instead of eight: measured faster for camera rays (×0.91–0.94 a whole render), and
+    /// slower for rays that scatter (BENCHMARKS.md, *CPU traversal*). Scenes with alpha-tested
+    /// triangles take `closest_hit` per ray.
     pub(super) fn closest_hits8(
         &self,
         origins: &[Vec3; 8],

@@ -2,7 +2,7 @@
 //! at a time, each vertex's shading done for sixteen paths at once in lanes
 //! ([`crate::trace::lanes`], a pair of AVX2 registers each) — the same function as
 //! [`trace_path`], path by path to the bit (tests below and in `tests/twins/trace.rs`), only
-//! faster (BENCHMARKS.md, the CPU twin against Mitsuba).
+//! faster (BENCHMARKS.md, *CPU twin against Mitsuba 3*).
 //!
 //! A vertex of the batch: every live path's ray is traced (sixteen neighbouring paths' rays at
 //! a time as hybrid packets, in AVX-512 lanes where the processor has them, else in pairs of
@@ -28,8 +28,8 @@ use crate::trace::lanes::{self, F, LANES, U, V3};
 /// octants after Russian roulette has thinned them, still fill packets of sixteen rays and
 /// groups of sixteen, few enough that their state (about 450 kB: paths, hits, the shadow queue)
 /// stays in a core's second-level cache. Measured on an Intel Xeon against 256 paths: small
-/// city ×0.945 per sample, Cornell boxes ×0.96–0.97 (against 64, earlier: ×0.91–1.04;
-/// BENCHMARKS.md). The paths' indices are 16-bit.
+/// city ×0.945 per sample, Cornell boxes ×0.96–0.97 (256 against 64: ×0.90–1.04;
+/// BENCHMARKS.md, *CPU shading and batches*). The paths' indices are 16-bit.
 pub(super) const BATCH: usize = 4096;
 const _: () = assert!(BATCH <= 1 << 16, "a path's index is an Idx");
 
@@ -423,7 +423,8 @@ fn by_octant<'a>(items: &[Idx], dir: impl Fn(Idx) -> Vec3, out: &'a mut [Idx; BA
 /// Asks the processor to bring the rows that shading `group` reads first — each hit's
 /// triangle (`hit_prim`) and shading row — into the cache while the group before it is shaded:
 /// they are scattered over the scene's arrays, and their first touch was the shading's largest
-/// stall (BENCHMARKS.md). A hint only: nothing is read, so results cannot change.
+/// stall (BENCHMARKS.md, *CPU shading and batches*). A hint only: nothing is read, so results
+/// cannot change.
 #[inline(always)]
 fn prefetch_rows(sc: &PackedScene, hits: &[Option<TraceHit>; BATCH], group: &[Idx]) {
     #[cfg(not(target_arch = "x86_64"))]

@@ -17,7 +17,8 @@
 //! meets the triangles.
 //!
 //! Where it pays: rays that start near each other — a bounce's or a shadow ray's from
-//! neighbouring pixels — share the top of the tree, which a packet visits once (BENCHMARKS.md).
+//! neighbouring pixels — share the top of the tree, which a packet visits once (×0.815–0.878 a
+//! whole render against one-ray walks: BENCHMARKS.md, *CPU traversal*).
 //! The AVX-512 walks are compiled for AVX-512 F and DQ and run only where the processor has
 //! them ([`available`]); the AVX2 walks need only what the whole build targets (AVX2 and FMA).
 //! `CpuTree::packet_walks` says which a process takes.
@@ -36,8 +37,8 @@ mod lanes;
 
 /// A node entered by this many of a packet's sixteen rays or fewer is walked by each of them
 /// alone: below it, testing a child's box for the packet costs more than the rays' own walks.
-/// Embree's hybrid switches at 7 of 16 as well (10 measured the same here, in AVX-512, and 5
-/// and 10 the same in AVX2: BENCHMARKS.md).
+/// Embree's hybrid switches at 7 of 16 as well (in AVX-512, 4 measured the same and 10 slower,
+/// ×1.04; in AVX2, 5 and 10 the same: BENCHMARKS.md, *CPU traversal*).
 pub(crate) const SWITCH: u32 = 7;
 
 /// Whether this processor runs the sixteen-ray packets (AVX-512 F and DQ).

@@ -431,8 +431,9 @@ impl Lanes for Avx2 {
 
 /// Sixteen lanes as two AVX2 registers each: the sixteen-ray walks on a processor without
 /// AVX-512 (every operation twice; masks as all-ones lanes). Measured against two packets of
-/// eight: ×0.97 a whole render's time (BENCHMARKS.md) — the packet's decisions are made once
-/// for sixteen rays, though its rays no longer fit the sixteen registers.
+/// eight: ×0.97 a whole render's time (BENCHMARKS.md, *CPU traversal*) — the packet's
+/// decisions are made once for sixteen rays, though its rays no longer fit the sixteen
+/// registers.
 #[cfg(all(target_feature = "avx2", target_feature = "fma"))]
 #[derive(Clone, Copy)]
 pub(super) struct Avx2Pair(Avx2);
