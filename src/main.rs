@@ -22,7 +22,7 @@ enum Command {
     /// Path-trace a glTF scene progressively and write EXR (linear) and/or PNG (sRGB).
     Render(cli::render::RenderArgs),
     /// An interactive window showing the guided render as it converges (mouse, replay or live
-    /// DTrack/OSC steering).
+    /// DTrack, OSC or VRPN steering).
     View(cli::view::ViewArgs),
     /// Write the distance-guide image for a ray-gun pose or a mouse ROI.
     Dgi(cli::dgi::DgiArgs),
@@ -33,8 +33,8 @@ enum Command {
     Display(DisplayCommand),
     /// Replay a tracking session: one JSON line per ROI change.
     Replay(cli::tracking::ReplayArgs),
-    /// Record live DTrack or OSC traffic into a replay file (Ctrl-C, SIGTERM or SIGHUP stops
-    /// and saves).
+    /// Record live DTrack, OSC or VRPN traffic into a replay file (Ctrl-C, SIGTERM or SIGHUP
+    /// stops and saves).
     Record(cli::tracking::RecordArgs),
     /// Solve the tracker→room calibration from presses at known wall points; writes the file
     /// `view`, `record`, `replay` and `render --guide` take.
@@ -105,25 +105,26 @@ fn main() {
         Command::Render(args) => cli::render::run(args),
         Command::View(args) => cli::view::run(args),
         Command::Dgi(args) => cli::dgi::run(args),
-        Command::Pick(args) => cli::display::pick(args).map(|v| println!("{v}")),
+        Command::Pick(args) => cli::display::pick(args).and_then(|v| cli::print_out(&v)),
         Command::Display(DisplayCommand::Expand(args)) => {
-            cli::display::expand(args).map(|text| println!("{text}"))
+            cli::display::expand(args).and_then(|text| cli::print_out(&text))
         }
         Command::Replay(args) => replay(args),
         Command::Record(args) => record(args),
         Command::Calibrate(args) => {
             with_stop_signals(|stop| cli::calibrate::run(args, stop)).map(|_| ())
         }
-        Command::SynthReplays(args) => cli::tracking::run_synth(args).map(|files| {
-            for f in files {
-                println!("{}", f.display());
-            }
-        }),
+        Command::SynthReplays(args) => cli::tracking::run_synth(args)
+            .and_then(|files| files.iter().try_for_each(|f| cli::print_out(&f.display()))),
         Command::EllipseDistance => ellipse_distance(),
-        Command::Scene(cmd) => cli::scene::run(cmd).map(|text| println!("{text}")),
+        Command::Scene(cmd) => cli::scene::run(cmd).and_then(|text| cli::print_out(&text)),
         Command::Bench(cmd) => cli::bench::run(cmd),
     };
     if let Err(e) = result {
+        if cli::is_broken_pipe(&e) {
+            drop(runtime_dir);
+            return;
+        }
         eprintln!("raygun: error: {}", cli::error_chain(&e));
         drop(runtime_dir);
         std::process::exit(1);
@@ -187,14 +188,21 @@ fn ellipse_distance() -> anyhow::Result<()> {
         std::io::stderr().lock(),
     )?;
     if stats.errors > 0 {
-        anyhow::bail!("{} of {} lines were rejected", stats.errors, stats.queries);
+        anyhow::bail!(
+            "{} of {} {} rejected",
+            stats.errors,
+            raygun::messages::count(stats.queries, "query line"),
+            if stats.errors == 1 { "was" } else { "were" }
+        );
     }
     Ok(())
 }
 
 fn replay(args: &cli::tracking::ReplayArgs) -> anyhow::Result<()> {
-    let problems =
+    let summary =
         cli::tracking::run_replay(args, std::io::BufWriter::new(std::io::stdout().lock()))?;
+    eprintln!("raygun replay: {}", summary.line());
+    let problems = &summary.problems;
     if problems.total() > 0 {
         let kinds: Vec<String> = problems
             .counts()
@@ -211,7 +219,8 @@ fn replay(args: &cli::tracking::ReplayArgs) -> anyhow::Result<()> {
 fn record(args: &cli::tracking::RecordArgs) -> anyhow::Result<()> {
     let n = with_stop_signals(|stop| cli::tracking::run_record(args, stop))?;
     eprintln!(
-        "raygun record: {n} datagrams written to {}",
+        "raygun record: {} written to {}",
+        raygun::messages::count(usize::try_from(n).unwrap_or(usize::MAX), "record"),
         args.out.display()
     );
     Ok(())

@@ -32,6 +32,42 @@ pub fn bytes(b: u64) -> String {
     }
 }
 
+/// `n` and `noun` in the number `n` takes: "1 triangle", "2 triangles", "3 presses", "0 eyes".
+/// The noun is a singular English noun (or noun phrase) whose plural adds `s`, or `es` after
+/// s, x, z, ch and sh.
+#[must_use]
+pub fn count(n: usize, noun: &str) -> String {
+    if n == 1 {
+        return format!("1 {noun}");
+    }
+    let es = ["s", "x", "z", "ch", "sh"]
+        .iter()
+        .any(|e| noun.ends_with(e));
+    format!("{n} {noun}{}", if es { "es" } else { "s" })
+}
+
+/// serde_json's message for `e`, an error in parsing `text`, without its " at line L column C"
+/// (callers say where in their own form), clipped, and with a word on the mistakes its message
+/// does not explain: `NaN` and `Infinity`, which JSON has no numbers for.
+#[must_use]
+pub fn json_message(e: &serde_json::Error, text: &str) -> String {
+    let full = e.to_string();
+    let suffix = format!(" at line {} column {}", e.line(), e.column());
+    let message = clip(full.strip_suffix(&suffix).unwrap_or(&full));
+    // serde_json's column is the byte after the one it stopped at, 1-based.
+    let at = text
+        .lines()
+        .nth(e.line().saturating_sub(1))
+        .and_then(|l| l.get(e.column().saturating_sub(1)..).or(Some(l)))
+        .unwrap_or("");
+    let at = at.trim_start_matches(['-', '+']);
+    let words = ["NaN", "nan", "Infinity", "infinity", "inf", "Inf"];
+    if words.iter().any(|w| at.starts_with(w)) {
+        return format!("{message}: NaN and Infinity are not JSON numbers (give a finite number)");
+    }
+    message
+}
+
 /// A message from elsewhere (a parser's) cut to a few hundred characters: serde quotes the
 /// offending value whole, however long it is.
 #[must_use]
@@ -170,5 +206,33 @@ mod tests {
         assert_eq!(number(1.0 / 3.0), "0.333333");
         assert_eq!(number(12_345.678_901_234_567), "12345.7");
         assert!(number(f64::MAX).len() < 16);
+    }
+
+    #[test]
+    fn counts_take_their_number() {
+        assert_eq!(count(1, "triangle"), "1 triangle");
+        assert_eq!(count(0, "triangle"), "0 triangles");
+        assert_eq!(count(2, "press"), "2 presses");
+        assert_eq!(count(1, "press"), "1 press");
+        assert_eq!(count(35, "tile image"), "35 tile images");
+    }
+
+    #[test]
+    fn json_messages_say_that_nan_is_no_json_number() {
+        for (text, bad) in [
+            ("{\"a\": NaN}", true),
+            ("[1,\n -Infinity]", true),
+            ("{\"a\": 1,}", false),
+            ("{\"a\": nope}", false),
+        ] {
+            let e = serde_json::from_str::<serde_json::Value>(text).unwrap_err();
+            let m = json_message(&e, text);
+            assert_eq!(
+                m.contains("NaN and Infinity are not JSON numbers"),
+                bad,
+                "{text}: {m}"
+            );
+            assert!(!m.contains(" at line "), "{m}");
+        }
     }
 }

@@ -171,7 +171,6 @@ mod mpi {
             "0.05",
             "--backend",
             "cpu",
-            "--quiet",
             "--out",
             s(&out),
         ])
@@ -197,7 +196,6 @@ mod mpi {
             "0,0,1.5",
             "--backend",
             "cpu",
-            "--quiet",
             "--out",
             s(&dir.join("img.exr")),
         ])

@@ -177,7 +177,7 @@ fn bench_guided_report_is_consistent() {
         &[("cornell".into(), scene)],
         &cfg,
         None,
-        |_| {},
+        |_, _| {},
     )
     .unwrap();
     let (narrow, wide) = (&report.rows[0], &report.rows[1]);

@@ -263,6 +263,15 @@ fn record_says_where_it_listens_and_names_the_flag_for_the_network() {
         s(&dir.join("x.jsonl")),
     ]);
     fails_with(&o, &["0.0.0.0", "--allow-network"]);
+    // A VRPN server on another machine names the same flag (refused before any connection).
+    let o = raygun(&[
+        "record",
+        "--vrpn",
+        "Tracker0@192.0.2.1",
+        "--out",
+        s(&dir.join("v.jsonl")),
+    ]);
+    fails_with(&o, &["192.0.2.1", "--allow-network"]);
     // A recording folder that does not exist fails before anything binds.
     let o = raygun(&["record", "--dtrack", "0", "--out", "/nonexistent/x.jsonl"]);
     fails_with(&o, &["/nonexistent"]);
@@ -338,6 +347,12 @@ fn calibrate_solves_the_tracker_frame_from_presses_at_wall_points_and_states_the
     ok(&o);
     let e = stderr(&o);
     assert!(e.contains("residual RMS"), "{e}");
+    // A recording's presses are already there: no prompts to hold the device anywhere.
+    assert!(
+        !e.contains("hold ")
+            && e.contains("target 1 (top-left of tile c0r0): press 1 of the recording"),
+        "{e}"
+    );
     let c = Calibration::load(&cal).unwrap();
     let got = c.tracker_to_room(1e-3);
     let diff = (got.rotation() - truth.rotation())
@@ -792,6 +807,215 @@ fn a_full_disk_leaves_nothing_of_the_demo() {
     }
     let left: Vec<_> = std::fs::read_dir(&dir).unwrap().collect();
     assert!(left.is_empty(), "{left:?}");
+}
+
+/// `--quiet` prints nothing but warnings and errors; summaries name every file written and
+/// count in words that agree with their numbers; messages speak the user's syntax.
+#[test]
+fn quiet_is_quiet_and_messages_say_what_happened() {
+    let dir = tmp_dir("say");
+    let out = dir.join("q.png");
+    let render = |extra: &[&str], out: &Path| {
+        let mut args = vec![
+            "render",
+            "--scene",
+            "builtin:cornell",
+            "--size",
+            "16,9",
+            "--spp",
+            "1",
+            "--out",
+            s(out),
+        ];
+        args.extend_from_slice(extra);
+        raygun(&args)
+    };
+    // Whatever the adapter (`auto` says why it takes the CPU where it does), nothing at all.
+    let o = render(&["--quiet"], &out);
+    ok(&o);
+    assert_eq!(stderr(&o), "", "--quiet");
+    let o = render(&["--backend", "cpu"], &out);
+    ok(&o);
+    let e = stderr(&o);
+    assert!(e.contains(&format!("; wrote {}", out.display())), "{e}");
+    // A guided render lists its image with its DGI and counts.
+    let guided = dir.join("g.exr");
+    let dgi = dir.join("g.dgi.exr");
+    let o = raygun(&[
+        "render",
+        "--scene",
+        "builtin:cornell",
+        "--size",
+        "16,9",
+        "--guide",
+        "mouse:8,4:3,3",
+        "--iterations",
+        "1",
+        "--backend",
+        "cpu",
+        "--dgi-out",
+        s(&dgi),
+        "--out",
+        s(&guided),
+    ]);
+    ok(&o);
+    let e = stderr(&o);
+    assert!(
+        e.contains(&format!("; wrote {}, {}", guided.display(), dgi.display()))
+            && e.contains("(1 iteration done): 1 iteration in"),
+        "{e}"
+    );
+    // A scene of one triangle says so in the singular.
+    let tri = dir.join("one.gltf");
+    let pos: Vec<u8> = [0f32, 0., 0., 1., 0., 0., 0., 1., 0.]
+        .iter()
+        .flat_map(|v| v.to_le_bytes())
+        .collect();
+    let gltf = serde_json::json!({
+        "asset": { "version": "2.0" },
+        "buffers": [{ "byteLength": 36, "uri": format!("data:application/octet-stream;base64,{}", base64_of(&pos)) }],
+        "bufferViews": [{ "buffer": 0, "byteLength": 36 }],
+        "accessors": [{ "bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                        "min": [0, 0, 0], "max": [1, 1, 0] }],
+        "meshes": [{ "primitives": [{ "attributes": { "POSITION": 0 } }] }],
+        "nodes": [{ "mesh": 0 }],
+        "scenes": [{ "nodes": [0] }]
+    });
+    std::fs::write(&tri, gltf.to_string()).unwrap();
+    let o = raygun(&["scene", "info", s(&tri)]);
+    ok(&o);
+    let text = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(
+        text.contains("1 triangle (0 emissive), 1 material, 0 textures"),
+        "{text}"
+    );
+    // A replay in which nobody pressed anything says what it read.
+    let quiet = dir.join("no-press.jsonl");
+    let frame = |t: f64, n: u32| {
+        serde_json::json!({ "t": t, "dtrack": format!(
+            "fr {n}\nts {t}\n6df2 1 1 [0 1.0 6 2][0 0 1000][1 0 0 0 1 0 0 0 1][0 0 0]"
+        ) })
+    };
+    let header =
+        serde_json::json!({ "raygun_replay": 1, "display": "hornet", "device": "flystick:0" });
+    let lines: Vec<String> = std::iter::once(header.to_string())
+        .chain((0..3).map(|k| frame(f64::from(k) * 0.5, k + 1).to_string()))
+        .collect();
+    std::fs::write(&quiet, lines.join("\n") + "\n").unwrap();
+    let o = raygun(&["replay", s(&quiet)]);
+    ok(&o);
+    assert!(o.stdout.is_empty());
+    let e = stderr(&o);
+    assert!(
+        e.contains("3 frames of flystick:0 over 1.0 s: no trigger was pressed"),
+        "{e}"
+    );
+    // Display models: a negative bezel (zero is allowed), NaN, and a pitch too small for
+    // six decimals.
+    let model = |bezel: &str, res: &str| {
+        format!(
+            r#"{{"name":"m","generator":{{"columns":1,"rows":1,"resolution":{res},"active_size":[1.0,0.5625],"bezel":{{"left":{bezel},"right":0,"top":0,"bottom":0}},"yaw_step_deg":0}}}}"#
+        )
+    };
+    for (name, text, needles) in [
+        (
+            "neg.json",
+            model("-5", "[1920, 1080]"),
+            vec!["-5 m is negative: it must be 0 or more"],
+        ),
+        (
+            "nan.json",
+            model("NaN", "[1920, 1080]"),
+            vec!["NaN and Infinity are not JSON numbers"],
+        ),
+        (
+            "fine.json",
+            model("0", "[4000000000, 1080]"),
+            vec!["pixel pitch differs between the axes: 2.5e-7 mm across"],
+        ),
+    ] {
+        let f = dir.join(name);
+        std::fs::write(&f, text).unwrap();
+        let o = raygun(&["display", "expand", s(&f)]);
+        let e = fails_with(&o, &needles);
+        assert!(
+            !e.contains("(or zero)") && !e.contains(": 0.000000 mm"),
+            "{e}"
+        );
+    }
+    // A negative size is a bad size, not an unknown flag.
+    let o = raygun(&[
+        "dgi",
+        "--size",
+        "-5,10",
+        "--center-px",
+        "1,1",
+        "--axes-px",
+        "1,1",
+        "--out",
+        "/tmp/x.png",
+    ]);
+    let e = stderr(&o);
+    assert!(
+        !o.status.success() && e.contains("--size") && e.contains("-5,10"),
+        "{e}"
+    );
+    assert!(!e.contains("unexpected argument"), "{e}");
+    // A vertical pose: the syntax has no up vector to blame.
+    let o = raygun(&[
+        "render",
+        "--scene",
+        "builtin:cornell",
+        "--guide",
+        "pose:0,0,1:0,1,0:30",
+        "--iterations",
+        "1",
+        "--out",
+        s(&dir.join("p.png")),
+    ]);
+    let e = fails_with(&o, &["--guide pose", "points straight up or down"]);
+    assert!(!e.contains("up vector"), "{e}");
+    // One rule for outputs: the file or folder named is made, the folders above it are not.
+    let o = render(&["--tiles", s(&dir.join("no/such/tiles"))], &out);
+    fails_with(&o, &["does not exist"]);
+    assert!(!dir.join("no").exists());
+    let o = render(&["--quiet", "--tiles", s(&dir.join("tiles"))], &out);
+    ok(&o);
+    assert!(dir.join("tiles").is_dir());
+    // Help shows words, not rustdoc links.
+    let o = raygun(&["render", "--help"]);
+    let help = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(!help.contains("[`"), "{help}");
+    // A closed pipe (`raygun … | head` after head has gone) ends a printing command quietly.
+    let (reader, writer) = std::io::pipe().unwrap();
+    drop(reader);
+    let o = command(Path::new(ROOT), &["display", "expand", "hornet"])
+        .stdout(writer)
+        .stderr(Stdio::piped())
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(stderr(&o), "");
+}
+
+/// Standard base64 of `bytes` (the tests' data URIs).
+fn base64_of(bytes: &[u8]) -> String {
+    const A: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut out = String::new();
+    for c in bytes.chunks(3) {
+        let n = c
+            .iter()
+            .enumerate()
+            .fold(0u32, |n, (i, &b)| n | u32::from(b) << (16 - 8 * i));
+        for k in 0..4 {
+            if k <= c.len() {
+                out.push(A[(n >> (18 - 6 * k) & 63) as usize] as char);
+            } else {
+                out.push('=');
+            }
+        }
+    }
+    out
 }
 
 #[test]

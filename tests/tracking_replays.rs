@@ -70,7 +70,7 @@ fn every_replay_matches_its_golden_roi_sequence() {
     assert!(files.len() >= 13);
     for file in files {
         let mut out = Vec::new();
-        let problems = run_replay(&args(&file), &mut out).unwrap();
+        let problems = run_replay(&args(&file), &mut out).unwrap().problems;
         assert_eq!(
             problems.total(),
             0,
@@ -257,7 +257,7 @@ fn bad_replay_lines_are_counted_once_per_kind_and_never_change_the_roi() {
     let mut a = args(&bad);
     a.display = Some(concat!(env!("CARGO_MANIFEST_DIR"), "/display-models/hornet.json").to_owned());
     let mut out = Vec::new();
-    let problems = run_replay(&a, &mut out).unwrap();
+    let problems = run_replay(&a, &mut out).unwrap().problems;
     std::fs::remove_dir_all(&dir).unwrap();
     let expect = std::fs::read_to_string(golden_path(&file)).unwrap();
     assert!(
@@ -344,7 +344,7 @@ fn replay_reads_are_bounded_and_a_bad_header_display_is_named() {
     std::fs::create_dir_all(padded.parent().unwrap()).unwrap();
     std::fs::write(&padded, lines.join("\n") + "\n").unwrap();
     let mut out = Vec::new();
-    let problems = run_replay(&args(&padded), &mut out).unwrap();
+    let problems = run_replay(&args(&padded), &mut out).unwrap().problems;
     assert_eq!(
         problems.count("replay_line_too_long"),
         1,

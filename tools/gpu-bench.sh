@@ -10,8 +10,8 @@
 #   OUT=DIR bash tools/gpu-bench.sh smoke   the script itself on lavapipe at tiny sizes
 #                                           (tests/gpu_bench_script.rs runs it)
 #
-# Settings (environment): RAYGUN_BIN (default .dev/raygun for run, target/release/raygun or
-# target/debug/raygun for smoke), GPU_BENCH_LIMIT_S (the whole run's budget: 420 for run, 300
+# Settings (environment): RAYGUN_BIN (default .dev/raygun for run, target/dist/raygun,
+# target/release/raygun or target/debug/raygun for smoke), GPU_BENCH_LIMIT_S (the whole run's budget: 420 for run, 300
 # for smoke), GPU_BENCH_GROUPS (some groups only, by name, e.g. "adapter guided all" for a
 # rerun of what failed; default every group), OUT (where the results go; required).
 set -uo pipefail
@@ -19,9 +19,9 @@ cd "$(dirname "$0")/.."
 
 stage() {
   set -e
-  cargo build --release --locked
+  cargo build --profile dist --locked
   mkdir -p .dev
-  cp target/release/raygun .dev/raygun
+  cp target/dist/raygun .dev/raygun
   strip .dev/raygun
   # The shared libraries beyond the C and C++ runtimes (fontconfig, freetype and theirs: the
   # plots' fonts), for a GPU machine whose image lacks them; `setup_device` uses only those
@@ -270,6 +270,7 @@ main() {
       ;;
     smoke)
       if [ -n "${RAYGUN_BIN:-}" ]; then BIN="$RAYGUN_BIN"
+      elif [ -x target/dist/raygun ]; then BIN=target/dist/raygun
       elif [ -x target/release/raygun ]; then BIN=target/release/raygun
       else BIN=target/debug/raygun; fi
       LIMIT="${GPU_BENCH_LIMIT_S:-300}"

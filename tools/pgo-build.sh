@@ -5,21 +5,21 @@
 #   bash tools/pgo-build.sh [OUT]        # default OUT: the repository's target/pgo/raygun
 #   bash tools/pgo-build.sh --train BIN  # only the training runs, with BIN (a check)
 #
-# Three steps, each in its own folder under target/pgo/ (the ordinary target/release is left
-# alone):
-#   1. an instrumented release build (rustc -Cprofile-generate) in target/pgo/gen;
+# Three steps, each in its own folder under target/pgo/ (the ordinary target/dist is left
+# alone), all in the `dist` profile (fat LTO, one codegen unit):
+#   1. an instrumented build (rustc -Cprofile-generate) in target/pgo/gen;
 #   2. that binary renders a training set — the CPU twin on the builtin scenes and the peer
 #      suite's scenes (area light, environment, environment map, textures, glossy, glass,
 #      punctual lights, the wall camera) and the guided benchmark (DGI, schedule, filter) — at
 #      small sizes, about ten seconds on two cores; the counts are merged with the toolchain's
 #      llvm-profdata into target/pgo/raygun.profdata;
-#   3. a release build that uses them (-Cprofile-use) in target/pgo/use, copied to OUT once
+#   3. a build that uses them (-Cprofile-use) in target/pgo/use, copied to OUT once
 #      it renders what the ordinary build renders.
-# The two builds take as long as two release builds from scratch (about 16 minutes here).
+# The two builds take as long as two `dist` builds from scratch (README, *Building*).
 #
 # What PGO changes: the compiler's layout and inlining of the code the training ran most (the
 # walks, the shading, the batch loop); not one floating-point operation — the binary renders
-# the same pixels to the bit (checked against target/release/raygun when it exists).
+# the same pixels to the bit (checked against target/dist/raygun when it exists).
 # Measured in BENCHMARKS.md, *Builds*.
 #
 # Needs the toolchain's llvm-tools (`rustup component add llvm-tools`; added here when missing
@@ -124,7 +124,7 @@ build() { # TARGET_DIR FLAG
     x86_64-*) cfg=(--config "$(flags "$2")") ;;
     *) export RUSTFLAGS="$2" ;;
   esac
-  cargo build --release --locked --bin raygun --target-dir "$1" "${cfg[@]}"
+  cargo build --profile dist --locked --bin raygun --target-dir "$1" "${cfg[@]}"
 }
 
 echo "pgo-build: 1/3 instrumented build (target/pgo/gen)" >&2
@@ -132,18 +132,18 @@ build "$pgo/gen" "-Cprofile-generate=$profiles"
 
 echo "pgo-build: 2/3 training runs" >&2
 export LLVM_PROFILE_FILE="$profiles/raygun-%p-%m.profraw"
-bin=$pgo/gen/release/raygun
+bin=$pgo/gen/dist/raygun
 train_all
 unset LLVM_PROFILE_FILE
 "$profdata" merge -o "$pgo/raygun.profdata" "$profiles"
 
 echo "pgo-build: 3/3 optimised build (target/pgo/use)" >&2
 build "$pgo/use" "-Cprofile-use=$pgo/raygun.profdata"
-built=$pgo/use/release/raygun
+built=$pgo/use/dist/raygun
 
 # The same pixels as the ordinary build, where there is one to compare with, before OUT is
 # written.
-if [ -x target/release/raygun ]; then
+if [ -x target/dist/raygun ]; then
   tmp=$(mktemp -d)
   trap 'rm -rf "$tmp"' EXIT
   render() { # BIN NAME SCENE ENV
@@ -152,15 +152,15 @@ if [ -x target/release/raygun ]; then
   }
   for case in "builtin:city-small 1,1,1" "builtin:cornell-light 0,0,0" "$peers/glossy.glb 1,1,1"; do
     read -r scene env <<<"$case"
-    render target/release/raygun release "$scene" "$env"
+    render target/dist/raygun dist "$scene" "$env"
     render "$built" pgo "$scene" "$env"
-    if ! cmp -s "$tmp/release.exr" "$tmp/pgo.exr"; then
-      echo "pgo-build: $built renders other pixels than target/release/raygun ($scene;" \
-        "is target/release/raygun built from these sources?)" >&2
+    if ! cmp -s "$tmp/dist.exr" "$tmp/pgo.exr"; then
+      echo "pgo-build: $built renders other pixels than target/dist/raygun ($scene;" \
+        "is target/dist/raygun built from these sources?)" >&2
       exit 1
     fi
   done
-  echo "pgo-build: the same pixels as target/release/raygun (three scenes, 96×54, 4 spp)" >&2
+  echo "pgo-build: the same pixels as target/dist/raygun (three scenes, 96×54, 4 spp)" >&2
 fi
 
 mkdir -p "$(dirname "$out")"

@@ -162,14 +162,37 @@ fn rmse(image: &[Vec3], reference: &[Vec3], mask: &[bool]) -> (f64, f64) {
     ((se / n as f64).sqrt(), sum / n as f64)
 }
 
-/// Runs the benchmark; `progress` hears what is being measured.
+/// The reference's samples per pixel where none are asked for: 16 × `iterations`, from 64 to
+/// 1024. The renders it judges have at most `iterations` samples a pixel, so its own noise adds
+/// at most 1/16 to their mean squared error (3 % to an RMSE), and it takes a time that fits the
+/// run (`bench guided --iterations 8` at 320×180 renders 128 spp, not 1024).
+#[must_use]
+pub fn default_reference_spp(iterations: u32) -> u32 {
+    iterations.saturating_mul(16).clamp(64, 1024)
+}
+
+/// The frames [`run`] renders before the equal-time full frames, whose number the run measures
+/// (a frame: one full-frame sample of every pixel, or one guided iteration): per scene the
+/// full frame's warm-up and timed frames, the reference, and every FOV's iterations.
+#[must_use]
+pub fn planned_frames(cfg: &GuidedBenchConfig, scenes: usize) -> u64 {
+    let per_fov = u64::from(cfg.iterations.max(1)) * cfg.orders.len() as u64;
+    scenes as u64
+        * (2 + u64::from(cfg.full_frames.max(1))
+            + u64::from(cfg.reference_spp)
+            + per_fov * cfg.fovs_deg.len() as u64)
+}
+
+/// Runs the benchmark; `progress` hears what is being measured and how many frames have been
+/// rendered since it last heard (0 at a step's start; [`planned_frames`] in all, plus the
+/// equal-time full frames).
 pub fn run(
     backend: &Backend,
     display: &DisplayModel,
     scenes: &[(String, Scene)],
     cfg: &GuidedBenchConfig,
     wall: Option<&WallSpec>,
-    mut progress: impl FnMut(&str),
+    mut progress: impl FnMut(&str, u32),
 ) -> Result<GuidedBenchReport, GuidedBenchError> {
     let [w, h] = cfg.size;
     let megapixels = f64::from(w) * f64::from(h) / 1e6;
@@ -190,13 +213,17 @@ pub fn run(
                 scene: name.clone(),
                 source,
             })?;
-        progress(&format!("{name}: full-frame baseline"));
+        progress(&format!("{name}: full-frame baseline"), 0);
         let mut full = match &wc {
             Some(c) => Renderer::full_wall(backend, scene, settings(cfg.seed), c.clone())?,
             None => Renderer::full(backend, scene, settings(cfg.seed))?,
         };
         full.iterate(2)?;
         let timed = full.timed_iterations(cfg.full_frames.max(1))?;
+        progress(
+            &format!("{name}: full-frame baseline"),
+            2 + cfg.full_frames.max(1),
+        );
         let ms_full = median(timed.ms.clone());
         let full_row = FullFrameRow {
             scene: name.clone(),
@@ -206,17 +233,20 @@ pub fn run(
                 .then(|| timed.rays_per_iteration / (megapixels * 1e6)),
         };
         drop(full);
-        progress(&format!("{name}: reference ({} spp)", cfg.reference_spp));
+        let step = format!("{name}: reference ({} spp)", cfg.reference_spp);
+        progress(&step, 0);
         let reference = paper::reference_image_wall(
             backend,
             scene,
             settings(cfg.seed ^ 0x5eed),
             cfg.reference_spp,
             wc.as_ref(),
+            &mut |n| progress(&step, n),
         )?;
         for &fov in &cfg.fovs_deg {
             for &order in &cfg.orders {
-                progress(&format!("{name}: {fov}° ({order:?})"));
+                let step = format!("{name}: {fov}° ({order:?})");
+                progress(&step, 0);
                 let roi = paper::roi_from(cfg.origin, cfg.dir, fov)?;
                 let config = GuideConfig {
                     p_min: cfg.p_min,
@@ -244,6 +274,7 @@ pub fn run(
                     }
                     stamps = s.ms_schedule.is_some() && backend_is_gpu(backend);
                     per_iter.push(s.ms_schedule.unwrap_or(0.0) + s.ms_trace.unwrap_or(0.0));
+                    progress(&step, 1);
                     sched.extend(s.ms_schedule);
                     trace.extend(s.ms_trace);
                 }
@@ -261,12 +292,14 @@ pub fn run(
                 let guided_image = g.accumulation()?.mean_image();
                 drop(g);
                 let spp_eq = ((total / ms_full).floor() as u32).max(1);
+                let step = format!("{name}: {fov}°, the full frame in equal time ({spp_eq} spp)");
                 let full_image = paper::reference_image_wall(
                     backend,
                     scene,
                     settings(cfg.seed.wrapping_add(2)),
                     spp_eq,
                     wc.as_ref(),
+                    &mut |n| progress(&step, n),
                 )?;
                 let (rg, mean_ref) = rmse(&guided_image, &reference, &mask);
                 let (rf, _) = rmse(&full_image, &reference, &mask);

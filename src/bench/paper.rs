@@ -119,16 +119,18 @@ pub fn reference_image(
     settings: TraceSettings,
     spp: u32,
 ) -> Result<Vec<glam::Vec3>, FrameError> {
-    reference_image_wall(backend, scene, settings, spp, None)
+    reference_image_wall(backend, scene, settings, spp, None, &mut |_| {})
 }
 
-/// [`reference_image`] through the wall camera `wall` when given (its unshown pixels black).
+/// [`reference_image`] through the wall camera `wall` when given (its unshown pixels black);
+/// `frames_done` hears each batch of frames as it finishes (a progress report).
 pub fn reference_image_wall(
     backend: &Backend,
     scene: &Scene,
     settings: TraceSettings,
     spp: u32,
     wall: Option<&WallCamera>,
+    frames_done: &mut dyn FnMut(u32),
 ) -> Result<Vec<glam::Vec3>, FrameError> {
     let mut r = match wall {
         Some(w) => Renderer::full_wall(backend, scene, settings, w.clone())?,
@@ -138,6 +140,7 @@ pub fn reference_image_wall(
     while left > 0 {
         let n = left.min(64);
         r.iterate(n)?;
+        frames_done(n);
         left -= n;
     }
     Ok(r.accumulation()?.mean_image())

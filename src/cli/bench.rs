@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 
-use crate::cli::progress::{bench_progress, print_and_save};
+use crate::cli::progress::{Progress, bench_progress, print_and_save};
 
 use crate::bench::dgi::{self, DgiBenchConfig};
 use crate::cluster::Cluster;
@@ -57,7 +57,7 @@ pub struct PictureArgs {
     #[arg(long, value_name = "MODEL", default_value = crate::display::DEFAULT_MODEL)]
     pub display: String,
     /// Image size.
-    #[arg(long, value_name = "W,H", default_value = "3840,2160", value_parser = crate::cli::args::parse_size)]
+    #[arg(allow_hyphen_values = true, long, value_name = "W,H", default_value = "3840,2160", value_parser = crate::cli::args::parse_size)]
     pub size: [u32; 2],
     /// The ROI's field of view, degrees (a square cone).
     #[arg(long, value_name = "DEG", default_value_t = 10.0)]
@@ -118,7 +118,7 @@ fn run_picture(args: &PictureArgs) -> anyhow::Result<()> {
 #[derive(Clone, Debug, clap::Args)]
 pub struct ReadbackArgs {
     /// Image size whose accumulation is read back.
-    #[arg(long, value_name = "W,H", default_value = "3840,2160", value_parser = crate::cli::args::parse_size)]
+    #[arg(allow_hyphen_values = true, long, value_name = "W,H", default_value = "3840,2160", value_parser = crate::cli::args::parse_size)]
     pub size: [u32; 2],
     /// Rounds (each reads back both ways).
     #[arg(long, default_value_t = 9)]
@@ -206,7 +206,7 @@ pub struct AllBenchArgs {
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
     /// Image size, overriding the mode's (quick 160×90, full 3840×2160).
-    #[arg(long, value_name = "W,H", value_parser = crate::cli::args::parse_size)]
+    #[arg(allow_hyphen_values = true, long, value_name = "W,H", value_parser = crate::cli::args::parse_size)]
     pub size: Option<[u32; 2]>,
     /// Scene (file or builtin:NAME).
     #[arg(long, value_name = "SCENE", default_value = "builtin:cornell")]
@@ -272,7 +272,7 @@ pub struct GuidedBenchArgs {
     #[arg(long, value_name = "MODEL", default_value = crate::display::DEFAULT_MODEL)]
     pub display: String,
     /// Image size, or `native`: the display canvas's own pixel size.
-    #[arg(long, value_name = "W,H|native", value_parser = crate::cli::args::parse_size_or_native, default_value = "3840,2160")]
+    #[arg(allow_hyphen_values = true, long, value_name = "W,H|native", value_parser = crate::cli::args::parse_size_or_native, default_value = "3840,2160")]
     pub size: [u32; 2],
     /// Fields of view, degrees.
     #[arg(
@@ -285,9 +285,10 @@ pub struct GuidedBenchArgs {
     /// Guided iterations per FOV.
     #[arg(long, value_name = "N", default_value_t = 100)]
     pub iterations: u32,
-    /// Samples per pixel of the converged reference.
-    #[arg(long, value_name = "N", default_value_t = 1024)]
-    pub reference_spp: u32,
+    /// Samples per pixel of the converged reference; default 16 × --iterations, from 64 to
+    /// 1024 (the renders it judges have at most --iterations samples a pixel).
+    #[arg(long, value_name = "N")]
+    pub reference_spp: Option<u32>,
     /// Lowest sampling probability (paper preset 0).
     #[arg(long, value_name = "P", default_value_t = 0.0)]
     pub p_min: f32,
@@ -328,7 +329,7 @@ pub struct GuidedBenchArgs {
     pub cluster_threads: Option<usize>,
     /// Image sizes of the exchange count and the model (repeatable; default 3840,2160 and
     /// HORNET's native 13519,5457).
-    #[arg(long, value_name = "W,H", value_parser = crate::cli::args::parse_size, requires = "cluster")]
+    #[arg(allow_hyphen_values = true, long, value_name = "W,H", value_parser = crate::cli::args::parse_size, requires = "cluster")]
     pub model_size: Vec<[u32; 2]>,
     /// Most ranks of the exchange count.
     #[arg(long, value_name = "N", default_value_t = 35, requires = "cluster")]
@@ -588,18 +589,35 @@ fn run_guided_bench(args: &GuidedBenchArgs) -> anyhow::Result<()> {
         size: crate::cli::args::resolve_size(args.size, &args.display)?,
         fovs_deg: args.fov.clone(),
         iterations: args.iterations,
-        reference_spp: args.reference_spp.max(1),
+        reference_spp: args
+            .reference_spp
+            .unwrap_or_else(|| crate::bench::guided::default_reference_spp(args.iterations))
+            .max(1),
         p_min: args.p_min,
         orders: args.order.clone(),
         ..Default::default()
     };
-    let (bar, progress) = bench_progress(
-        args.json,
-        (scenes.len() * (2 + cfg.fovs_deg.len() * cfg.orders.len())) as u64,
-    );
-    let report =
-        crate::bench::guided::run(&backend, &display, &scenes, &cfg, wall.as_ref(), progress)?;
-    bar.finish_and_clear();
+    // Frames, as `render` counts samples: the reference alone is minutes at the paper's size.
+    let mut planned = crate::bench::guided::planned_frames(&cfg, scenes.len());
+    let mut bar = Progress::new(args.json, "bench guided", Some(planned), "frames");
+    let mut done = 0u64;
+    let report = crate::bench::guided::run(
+        &backend,
+        &display,
+        &scenes,
+        &cfg,
+        wall.as_ref(),
+        |what, frames| {
+            done += u64::from(frames);
+            if done > planned {
+                planned = done;
+                bar.lengthen(planned);
+            }
+            bar.note(what);
+            bar.set(done);
+        },
+    )?;
+    bar.finish();
     let text = if args.json {
         serde_json::to_string_pretty(&report)?
     } else {
@@ -627,7 +645,7 @@ pub struct TraceBenchArgs {
     #[command(flatten)]
     pub access: crate::cli::scene::SceneAccess,
     /// Image size.
-    #[arg(long, value_name = "W,H", value_parser = crate::cli::args::parse_size, default_value = "3840,2160")]
+    #[arg(allow_hyphen_values = true, long, value_name = "W,H", value_parser = crate::cli::args::parse_size, default_value = "3840,2160")]
     pub size: [u32; 2],
     /// Timed frames of one sample per pixel (median reported).
     #[arg(long, value_name = "N", default_value_t = 20)]
@@ -738,7 +756,7 @@ pub struct DgiBenchArgs {
     #[arg(long, value_name = "MODEL", default_value = crate::display::DEFAULT_MODEL)]
     pub display: String,
     /// Image size.
-    #[arg(long, value_name = "W,H", value_parser = crate::cli::args::parse_size, default_value = "3840,2160")]
+    #[arg(allow_hyphen_values = true, long, value_name = "W,H", value_parser = crate::cli::args::parse_size, default_value = "3840,2160")]
     pub size: [u32; 2],
     /// Fields of view to measure, degrees (square cones).
     #[arg(
@@ -794,7 +812,7 @@ fn check_before(cmd: &BenchCommand) -> anyhow::Result<()> {
         if a.iterations == 0 {
             anyhow::bail!("--iterations must be at least 1 (every figure is per iteration)");
         }
-        if a.reference_spp == 0 {
+        if a.reference_spp == Some(0) {
             anyhow::bail!("--reference-spp must be at least 1");
         }
         if !(0.0..=1.0).contains(&a.p_min) {
@@ -848,7 +866,7 @@ pub struct ScheduleBenchArgs {
     #[arg(long, value_name = "MODEL", default_value = crate::display::DEFAULT_MODEL)]
     pub display: String,
     /// Image size.
-    #[arg(long, value_name = "W,H", value_parser = crate::cli::args::parse_size, default_value = "3840,2160")]
+    #[arg(allow_hyphen_values = true, long, value_name = "W,H", value_parser = crate::cli::args::parse_size, default_value = "3840,2160")]
     pub size: [u32; 2],
     /// Fields of view, degrees (square cones).
     #[arg(

@@ -146,10 +146,15 @@ pub fn run(args: &CalibrateArgs, stop: &AtomicBool) -> anyhow::Result<Calibratio
         _ => unreachable!("clap requires one input"),
     };
     let metres_per_unit = args.units.map_or(native, Units::metres_per_unit);
-    eprintln!("raygun calibrate: {} targets on {origin}", targets.len());
+    eprintln!(
+        "raygun calibrate: {} on {origin}",
+        crate::messages::count(targets.len(), "target")
+    );
     let mut collector = PressCollector::new(args.device, args.button);
+    // A person holds the device for a live source; a recording's presses are already there.
+    let live = args.replay.is_none();
     let prompt = |n: usize| {
-        if let Some(t) = targets.get(n) {
+        if live && let Some(t) = targets.get(n) {
             eprintln!(
                 "raygun calibrate: target {}/{}: hold {} at the {} (room {:.3}, {:.3}, {:.3} m) and press button {}",
                 n + 1,
@@ -168,11 +173,14 @@ pub fn run(args: &CalibrateArgs, stop: &AtomicBool) -> anyhow::Result<Calibratio
     let feed = |events: &[TrackingEvent], collector: &mut PressCollector| {
         for e in events {
             if collector.event(e) {
-                eprintln!(
-                    "raygun calibrate: target {} recorded",
-                    collector.positions.len()
-                );
-                prompt(collector.positions.len());
+                let n = collector.positions.len();
+                let name = targets.get(n - 1).map_or("", |t| t.name.as_str());
+                if live {
+                    eprintln!("raygun calibrate: target {n} ({name}) recorded");
+                } else {
+                    eprintln!("raygun calibrate: target {n} ({name}): press {n} of the recording");
+                }
+                prompt(n);
             }
         }
     };
@@ -202,7 +210,7 @@ pub fn run(args: &CalibrateArgs, stop: &AtomicBool) -> anyhow::Result<Calibratio
         };
         let mut source = UdpSource::bind(ListenerConfig::loopback(port))?;
         let addr: SocketAddr = source.local_addr()?;
-        eprintln!("raygun calibrate: listening on {addr} for {protocol:?}");
+        eprintln!("raygun calibrate: listening on {addr} for {protocol}");
         let start = Instant::now();
         let limit = Duration::from_secs_f64(args.seconds);
         while collector.positions.len() < targets.len() {
@@ -230,20 +238,26 @@ pub fn run(args: &CalibrateArgs, stop: &AtomicBool) -> anyhow::Result<Calibratio
     }
     if collector.untracked_presses > 0 {
         eprintln!(
-            "raygun calibrate: {} presses while {} was not tracked were ignored",
-            collector.untracked_presses, args.device
+            "raygun calibrate: {} while {} was not tracked {} ignored",
+            crate::messages::count(collector.untracked_presses as usize, "press"),
+            args.device,
+            if collector.untracked_presses == 1 {
+                "was"
+            } else {
+                "were"
+            }
         );
     }
     if collector.positions.len() < targets.len() {
         bail!(
-            "{}: {} presses of button {} by {} found, {} targets given",
+            "{}: {} of button {} by {} found, {} given",
             args.replay
                 .as_deref()
                 .map_or_else(String::new, |p| p.display().to_string()),
-            collector.positions.len(),
+            crate::messages::count(collector.positions.len(), "press"),
             args.button,
             args.device,
-            targets.len()
+            crate::messages::count(targets.len(), "target")
         );
     }
     let room: Vec<DVec3> = targets.iter().map(|t| t.room).collect();

@@ -46,8 +46,8 @@ pub struct ClusterArgs {
     /// ends the job naming the rank that did not answer.
     #[arg(long, value_name = "S", default_value_t = 20.0, requires = "cluster")]
     pub cluster_timeout: f64,
-    /// How a new ROI's DGI reaches the ranks: every rank computes it, or rank 0 computes and
-    /// broadcasts it.
+    /// How a new ROI's DGI reaches the ranks: every rank computes it, rank 0 computes and
+    /// broadcasts it, or every rank computes a share of its bands and sends them to the others.
     #[arg(long, value_enum, default_value_t = DgiMode::Compute, requires = "cluster")]
     pub cluster_dgi: DgiMode,
     /// Test hook: RANK:ITERATION:exit|hang makes that rank end (exit status 9) or stop

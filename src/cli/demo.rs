@@ -48,14 +48,14 @@ pub struct DemoArgs {
     pub iterations: u32,
     /// Image size; the image covers HORNET's canvas (aspect about 2.48:1); `native`: its own
     /// 13519×5457 pixels.
-    #[arg(long, value_name = "W,H|native", value_parser = crate::cli::args::parse_size_or_native, default_value = "992,400")]
+    #[arg(allow_hyphen_values = true, long, value_name = "W,H|native", value_parser = crate::cli::args::parse_size_or_native, default_value = "992,400")]
     pub size: [u32; 2],
     #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
     pub backend: BackendChoice,
     /// Also write the 35 wall tiles (1920×1080 PNGs) to `<out>/tiles/`.
     #[arg(long)]
     pub tiles: bool,
-    /// No progress bar.
+    /// Print only warnings and errors: no progress bar, no summary.
     #[arg(long)]
     pub quiet: bool,
     /// `wall`: render through the wall camera from --eye (in the viewer too, where the mouse
@@ -106,23 +106,28 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     }
     if !args.headless {
         if cfg!(feature = "viewer") {
-            eprintln!(
-                "raygun demo: no display (DISPLAY / WAYLAND_DISPLAY unset): rendering headless"
+            crate::cli::say(
+                args.quiet,
+                "demo: no display (DISPLAY / WAYLAND_DISPLAY unset): rendering headless",
             );
         } else {
-            eprintln!(
-                "raygun demo: built without its window (the `viewer` feature): rendering headless"
+            crate::cli::say(
+                args.quiet,
+                "demo: built without its window (the `viewer` feature): rendering headless",
             );
         }
     }
     let out = run_headless(args)?;
-    eprintln!(
-        "raygun demo: {} iterations in {:.2} s, {:.1} % of full-frame samples; wrote {} files and {}",
-        out.result.iterations,
-        out.result.seconds,
-        100.0 * out.result.sample_share(),
-        out.files.len(),
-        out.report.display()
+    crate::cli::say(
+        args.quiet,
+        format_args!(
+            "demo: {} in {:.2} s, {:.1} % of full-frame samples; wrote {} and {}",
+            crate::messages::count(out.result.iterations as usize, "iteration"),
+            out.result.seconds,
+            100.0 * out.result.sample_share(),
+            crate::messages::count(out.files.len(), "file"),
+            out.report.display()
+        ),
     );
     Ok(())
 }
@@ -140,7 +145,10 @@ pub fn run_headless(args: &DemoArgs) -> anyhow::Result<DemoOutput> {
     // Everything the demo writes, taken back if it fails before the report (a full disk).
     let mut set = OutputSet::new();
     set.folder(&args.out)?;
-    let backend = Backend::select(args.backend)?;
+    let (backend, note) = Backend::choose(args.backend)?;
+    if let Some(note) = note {
+        crate::cli::say(args.quiet, note);
+    }
     let filter = FilterParams::default();
     crate::cli::render::check_memory(
         crate::memory::Work::Render {

@@ -44,7 +44,7 @@ pub struct DgiArgs {
     pub metric: Metric,
     /// Image size (the image covers the display's canvas), or `native`: the canvas's own
     /// pixel size.
-    #[arg(long, value_name = "W,H|native", value_parser = crate::cli::args::parse_size_or_native, default_value = "3840,2160")]
+    #[arg(allow_hyphen_values = true, long, value_name = "W,H|native", value_parser = crate::cli::args::parse_size_or_native, default_value = "3840,2160")]
     pub size: [u32; 2],
     /// Falloff L = BASE + SCALE × ROI radius: the base, metres along the wall.
     #[arg(long, value_name = "METRES", default_value_t = Falloff::DEFAULT_BASE_M)]

@@ -19,7 +19,7 @@ pub struct PickArgs {
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
     pub dir: DVec3,
     /// Rendered image size, for `image_px`.
-    #[arg(long, value_name = "W,H", value_parser = parse_size, default_value = "3840,2160")]
+    #[arg(allow_hyphen_values = true, long, value_name = "W,H", value_parser = parse_size, default_value = "3840,2160")]
     pub size: [u32; 2],
 }
 

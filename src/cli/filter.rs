@@ -54,7 +54,7 @@ pub struct FilterBenchArgs {
     #[arg(long, value_name = "MODEL", default_value = crate::display::DEFAULT_MODEL)]
     pub display: String,
     /// Image size.
-    #[arg(long, value_name = "W,H", value_parser = crate::cli::args::parse_size, default_value = "3840,2160")]
+    #[arg(allow_hyphen_values = true, long, value_name = "W,H", value_parser = crate::cli::args::parse_size, default_value = "3840,2160")]
     pub size: [u32; 2],
     /// Fields of view, degrees (square cones).
     #[arg(

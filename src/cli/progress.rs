@@ -101,6 +101,20 @@ impl Progress {
         }
     }
 
+    /// Lengthens the run to `len` units where it turns out longer than first said.
+    pub fn lengthen(&mut self, len: u64) {
+        if let Some(bar) = &self.bar
+            && bar.length().is_some_and(|n| n < len)
+        {
+            bar.set_length(len);
+        }
+        if let Some(l) = &mut self.lines
+            && l.len.is_some_and(|n| n < len)
+        {
+            l.len = Some(len);
+        }
+    }
+
     /// A note shown beside the count (e.g. the ROI's current noise).
     pub fn note(&mut self, text: &str) {
         if let Some(bar) = &self.bar {
@@ -152,7 +166,7 @@ pub fn bench_progress(json: bool, steps: u64) -> (indicatif::ProgressBar, impl F
 
 /// Prints a benchmark's text and, with `--out`, also writes it to that file.
 pub fn print_and_save(text: &str, out: Option<&std::path::Path>) -> anyhow::Result<()> {
-    println!("{text}");
+    crate::cli::print_out(&text)?;
     if let Some(path) = out {
         crate::output::write_bytes(path, text.as_bytes())?;
     }

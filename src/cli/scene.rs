@@ -87,8 +87,9 @@ pub fn run(cmd: &SceneCommand) -> anyhow::Result<String> {
     let Generated { glb, triangles } = generated.map_err(anyhow::Error::msg)?;
     crate::output::write_bytes(out, &glb)?;
     Ok(format!(
-        "{}: {triangles} triangles, {} bytes",
+        "{}: {}, {} bytes",
         out.display(),
+        crate::messages::count(triangles, "triangle"),
         glb.len()
     ))
 }
@@ -193,13 +194,14 @@ fn short(v: &Value) -> String {
 }
 
 fn info_text(s: &Value) -> String {
+    let n = |key: &str| s[key].as_u64().unwrap_or(0) as usize;
     let mut out = format!(
-        "{}: {} triangles ({} emissive), {} materials, {} textures\n",
+        "{}: {} ({} emissive), {}, {}\n",
         s["scene"].as_str().unwrap_or(""),
-        s["triangles"],
-        s["emissive_triangles"],
-        s["materials"],
-        s["textures"]
+        crate::messages::count(n("triangles"), "triangle"),
+        n("emissive_triangles"),
+        crate::messages::count(n("materials"), "material"),
+        crate::messages::count(n("textures"), "texture"),
     );
     match s["bounds"].as_object() {
         Some(b) => out += &format!("bounds: {} .. {}\n", short(&b["min"]), short(&b["max"])),

@@ -120,7 +120,7 @@ pub struct SynthArgs {
 
 /// Runs a replay, printing changes to `out` (and, with a tracked head, the eyes that restart
 /// the accumulation); returns the problem counts (reader and decoders).
-pub fn run_replay(args: &ReplayArgs, out: impl Write) -> anyhow::Result<ProblemLog> {
+pub fn run_replay(args: &ReplayArgs, out: impl Write) -> anyhow::Result<ReplaySummary> {
     args.head.check()?;
     let options = args.options();
     let (plan, _) = ReplayPlan::new(&options)?;
@@ -128,11 +128,22 @@ pub fn run_replay(args: &ReplayArgs, out: impl Write) -> anyhow::Result<ProblemL
     let mut printer = ChangePrinter::new(out);
     let io_result = std::cell::RefCell::new(Ok(()));
     let printer_ref = std::cell::RefCell::new(&mut printer);
+    let summary = std::cell::RefCell::new(ReplaySummary {
+        device: plan.interaction.device.to_string(),
+        ..ReplaySummary::default()
+    });
     let problems = replay_changes_with(
         &plan,
         &options.file,
-        |t| printer_ref.borrow_mut().saw_event(t),
+        |t| {
+            let mut s = summary.borrow_mut();
+            s.frames += 1;
+            s.first_t.get_or_insert(t);
+            s.last_t = t;
+            printer_ref.borrow_mut().saw_event(t);
+        },
         |c| {
+            summary.borrow_mut().changes += 1;
             let mut r = io_result.borrow_mut();
             if r.is_ok() {
                 *r = printer_ref.borrow_mut().print(c);
@@ -144,12 +155,65 @@ pub fn run_replay(args: &ReplayArgs, out: impl Write) -> anyhow::Result<ProblemL
                 && rule.offer(eye)
                 && r.is_ok()
             {
+                summary.borrow_mut().eyes += 1;
                 *r = printer_ref.borrow_mut().print_eye(t, eye);
             }
         },
     )?;
     io_result.into_inner().context("writing ROI changes")?;
-    Ok(problems)
+    let mut summary = summary.into_inner();
+    summary.problems = problems;
+    Ok(summary)
+}
+
+/// What `raygun replay` read and printed.
+#[derive(Debug, Default)]
+pub struct ReplaySummary {
+    /// The followed device, as named on the command line.
+    pub device: String,
+    /// Frames (datagrams or events) that held the followed device.
+    pub frames: u64,
+    /// The time of the first and last of them, seconds.
+    pub first_t: Option<f64>,
+    pub last_t: f64,
+    /// ROI changes printed (shots, misses, FOV changes).
+    pub changes: u64,
+    /// Eye lines printed (restarts of a tracked head).
+    pub eyes: u64,
+    /// Bad input, counted by kind.
+    pub problems: ProblemLog,
+}
+
+impl ReplaySummary {
+    /// One line for standard error: how much was read, and what it gave — said plainly when a
+    /// session never pressed the trigger (stdout then holds nothing).
+    #[must_use]
+    pub fn line(&self) -> String {
+        let span = self.first_t.map_or(0.0, |t0| self.last_t - t0);
+        let read = format!(
+            "{} of {} over {span:.1} s",
+            crate::messages::count(self.frames as usize, "frame"),
+            self.device
+        );
+        let eyes = if self.eyes > 0 {
+            format!(
+                ", {}",
+                crate::messages::count(self.eyes as usize, "eye restart")
+            )
+        } else {
+            String::new()
+        };
+        if self.changes == 0 {
+            format!(
+                "{read}: no trigger was pressed and the stick did not move: no ROI change{eyes}"
+            )
+        } else {
+            format!(
+                "{read}: {}{eyes}",
+                crate::messages::count(self.changes as usize, "ROI change")
+            )
+        }
+    }
 }
 
 /// Validated recorder settings.
@@ -196,7 +260,7 @@ pub fn run_record(args: &RecordArgs, stop: &AtomicBool) -> anyhow::Result<u64> {
     let mut source = UdpSource::bind(config)?;
     let addr = source.local_addr()?;
     let mut header = ReplayHeader::new(format!(
-        "recorded by raygun record from {protocol:?} on {addr}, for {origin}"
+        "recorded by raygun record from {protocol} on {addr}, for {origin}"
     ));
     header.display = Some(match origin {
         crate::display::ModelOrigin::Builtin(name) => name.to_owned(),
@@ -210,7 +274,7 @@ pub fn run_record(args: &RecordArgs, stop: &AtomicBool) -> anyhow::Result<u64> {
     let mut writer = ReplayWriter::new(file, &header)?;
     writer.flush()?;
     eprintln!(
-        "raygun record: listening on {addr} for {protocol:?}, writing {}",
+        "raygun record: listening on {addr} for {protocol}, writing {}",
         args.out.display()
     );
     let mut problems = ProblemLog::default();

@@ -49,7 +49,7 @@ pub struct ViewArgs {
     pub display: String,
     /// Image size (the renderer's; the window scales it to fit), or `native`: the display
     /// canvas's own pixel size.
-    #[arg(long, value_name = "W,H|native", value_parser = crate::cli::args::parse_size_or_native, default_value = "992,400")]
+    #[arg(allow_hyphen_values = true, long, value_name = "W,H|native", value_parser = crate::cli::args::parse_size_or_native, default_value = "992,400")]
     pub size: [u32; 2],
     /// Environment light: linear radiance R,G,B or an equirectangular .hdr/.exr image.
     #[arg(long, value_name = "R,G,B|FILE")]
@@ -148,7 +148,7 @@ pub struct ViewArgs {
     /// With --cluster: every rank but 0 opens a window showing the display tiles it owns, laid
     /// out as they hang and filtered where they are owned (on a wall: each PC's screens; give
     /// the console, rank 0, no tiles with --tile-owners). With --screenshot-after each saves
-    /// `screenshot.rankN.window.png` into its --save-dir when rank 0 closes.
+    /// the tiles it showed as `rankN-tiles/<tile id>.png` in its --save-dir when rank 0 closes.
     #[arg(long, requires = "cluster")]
     pub show_tiles: bool,
 }
@@ -423,7 +423,7 @@ fn setup(args: &ViewArgs, root: bool) -> anyhow::Result<Setup> {
                 calibration.as_ref(),
             )?;
             eprintln!(
-                "raygun view: listening on 127.0.0.1:{} for {protocol:?}",
+                "raygun view: listening on 127.0.0.1:{} for {protocol}",
                 l.port
             );
             Some(l)

@@ -115,9 +115,9 @@ pub enum DgiMode {
     /// Rank 0 computes it and broadcasts it (4 bytes a pixel to every rank).
     Broadcast,
     /// Every rank computes every N-th band of 16 rows and sends it to the others (each rank
-    /// receives 4 bytes a pixel of the others' bands): a 1/N share of the work each. On GPU
-    /// ranks, [`Self::Compute`]: a GPU computes the whole DGI in one dispatch, and the bands'
-    /// exchange would bring nothing it has not computed.
+    /// receives 4 bytes a pixel of the others' bands): a 1/N share of the work each. GPU ranks
+    /// compute instead, as with `compute`: a GPU makes the whole DGI in one dispatch, and the
+    /// bands' exchange would bring nothing it has not computed.
     Split,
 }
 

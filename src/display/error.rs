@@ -80,7 +80,7 @@ pub enum Problem {
     /// A count that must be at least 1 (generator columns/rows).
     CountZero,
     /// A length that must be > 0 (active size) or ≥ 0 (bezel).
-    Negative { value: f64 },
+    Negative { value: f64, zero_allowed: bool },
     /// An edge of the active area shorter than [`crate::display::MIN_EDGE_M`].
     DegenerateEdge { length_m: f64 },
     /// The top and left edges are not perpendicular: |cos| above
@@ -136,7 +136,14 @@ impl fmt::Display for Problem {
                 write!(f, "{value} pixels: must be between 1 and {}", u32::MAX)
             }
             Self::CountZero => write!(f, "must be at least 1"),
-            Self::Negative { value } => write!(f, "{value} m is negative (or zero)"),
+            Self::Negative {
+                value,
+                zero_allowed: true,
+            } => write!(f, "{value} m is negative: it must be 0 or more"),
+            Self::Negative {
+                value,
+                zero_allowed: false,
+            } => write!(f, "{value} m: it must be more than 0"),
             Self::DegenerateEdge { length_m } => write!(
                 f,
                 "gives an active-area edge {length_m:e} m long (degenerate corners)"
@@ -156,17 +163,17 @@ impl fmt::Display for Problem {
             ),
             Self::PitchAxes { x_m, y_m } => write!(
                 f,
-                "pixel pitch differs between the axes: {:.6} mm across, {:.6} mm down \
+                "pixel pitch differs between the axes: {} mm across, {} mm down \
                  (relative tolerance {PITCH_REL_TOL:e}); check the resolution and the corners",
-                x_m * 1e3,
-                y_m * 1e3
+                crate::messages::number(x_m * 1e3),
+                crate::messages::number(y_m * 1e3)
             ),
             Self::PitchModel { tile_m, model_m } => write!(
                 f,
-                "pixel pitch {:.6} mm differs from the model's {:.6} mm (relative tolerance \
+                "pixel pitch {} mm differs from the model's {} mm (relative tolerance \
                  {PITCH_REL_TOL:e}): one canvas needs one pitch",
-                tile_m * 1e3,
-                model_m * 1e3
+                crate::messages::number(tile_m * 1e3),
+                crate::messages::number(model_m * 1e3)
             ),
             Self::DuplicateId => write!(f, "another tile already has this id"),
             Self::DuplicateGridPosition { other } => {

@@ -36,7 +36,13 @@ fn finite3(name: &str, v: [f64; 3]) -> Result<DVec3, FieldError> {
 fn positive(name: &str, v: f64, allow_zero: bool) -> Result<f64, FieldError> {
     check_number(v).map_err(|p| field(name, p))?;
     if v < 0.0 || (v == 0.0 && !allow_zero) {
-        return Err(field(name, Problem::Negative { value: v }));
+        return Err(field(
+            name,
+            Problem::Negative {
+                value: v,
+                zero_allowed: allow_zero,
+            },
+        ));
     }
     Ok(v)
 }

@@ -273,7 +273,7 @@ impl DisplayModel {
     /// `"<stdin>"`). Never panics, whatever the input.
     pub fn from_json(text: &str, source_name: &str) -> Result<Self, DisplayModelError> {
         let spec: DisplayModelSpec =
-            serde_json::from_str(text).map_err(|e| json_error(&e, source_name))?;
+            serde_json::from_str(text).map_err(|e| json_error(&e, text, source_name))?;
         Self::from_spec(&spec, source_name)
     }
 
@@ -486,10 +486,8 @@ impl From<DisplayModel> for DisplayModelSpec {
 
 /// serde_json's message without its " at line L column C" suffix (we print the position first,
 /// compiler style).
-fn json_error(e: &serde_json::Error, file: &str) -> DisplayModelError {
-    let full = e.to_string();
-    let suffix = format!(" at line {} column {}", e.line(), e.column());
-    let message = crate::messages::clip(full.strip_suffix(&suffix).unwrap_or(&full));
+fn json_error(e: &serde_json::Error, text: &str, file: &str) -> DisplayModelError {
+    let message = crate::messages::json_message(e, text);
     DisplayModelError::Json {
         file: file.to_owned(),
         line: e.line(),

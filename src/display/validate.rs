@@ -168,7 +168,14 @@ fn check_tile(s: &TileSpec) -> Result<Tile, Failure> {
     for (name, v) in s.bezel.named() {
         check_number(v).map_err(|p| fail(id, name, p))?;
         if v < 0.0 {
-            return Err(fail(id, name, Problem::Negative { value: v }));
+            return Err(fail(
+                id,
+                name,
+                Problem::Negative {
+                    value: v,
+                    zero_allowed: true,
+                },
+            ));
         }
     }
     let tl = DVec3::from_array(s.top_left);

@@ -84,7 +84,11 @@ pub enum StopReason {
 impl fmt::Display for StopReason {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            Self::Iterations(n) => write!(f, "{n} iterations done"),
+            Self::Iterations(n) => write!(
+                f,
+                "{} done",
+                crate::messages::count(*n as usize, "iteration")
+            ),
             Self::Reached(c) => write!(f, "{c} reached"),
         }
     }

@@ -36,27 +36,39 @@ impl Backend {
     /// standard error) when no hardware adapter can be created; `Gpu` takes any adapter and
     /// turns having none into an error.
     pub fn select(choice: BackendChoice) -> Result<Self, GpuError> {
+        let (backend, note) = Self::choose(choice)?;
+        if let Some(note) = note {
+            eprintln!("raygun: {note}");
+        }
+        Ok(backend)
+    }
+
+    /// [`Self::select`] that returns what it would say (why `auto` took the CPU) instead of
+    /// printing it, for a command that prints only when it is not `--quiet`.
+    pub fn choose(choice: BackendChoice) -> Result<(Self, Option<String>), GpuError> {
         match choice {
-            BackendChoice::Cpu => Ok(Self::Cpu),
-            BackendChoice::Gpu => Ok(Self::Gpu(Box::new(GpuContext::new()?))),
+            BackendChoice::Cpu => Ok((Self::Cpu, None)),
+            BackendChoice::Gpu => Ok((Self::Gpu(Box::new(GpuContext::new()?)), None)),
             BackendChoice::Auto => match GpuContext::new() {
                 // A software rasteriser (lavapipe) runs our kernels several times slower than
                 // the CPU twins on the same cores (the exact DGI at 3840×2160: 13–26× the f64
                 // twin's time on 2 cores; BENCHMARKS.md, *Distance-guide image*), so `auto`
                 // takes the twins.
-                Ok(ctx) if ctx.info.device_type == wgpu::DeviceType::Cpu => {
-                    eprintln!(
-                        "raygun: the only adapter is a software rasteriser ({}); using the CPU \
-                         backend (--backend gpu forces it)",
+                Ok(ctx) if ctx.info.device_type == wgpu::DeviceType::Cpu => Ok((
+                    Self::Cpu,
+                    Some(format!(
+                        "the only adapter is a software rasteriser ({}); using the CPU backend \
+                         (--backend gpu forces it)",
                         ctx.info.name
-                    );
-                    Ok(Self::Cpu)
-                }
-                Ok(ctx) => Ok(Self::Gpu(Box::new(ctx))),
-                Err(e) => {
-                    eprintln!("raygun: no usable GPU adapter ({e}); using the CPU backend");
-                    Ok(Self::Cpu)
-                }
+                    )),
+                )),
+                Ok(ctx) => Ok((Self::Gpu(Box::new(ctx)), None)),
+                Err(e) => Ok((
+                    Self::Cpu,
+                    Some(format!(
+                        "no usable GPU adapter ({e}); using the CPU backend"
+                    )),
+                )),
             },
         }
     }

@@ -156,7 +156,12 @@ impl InteractionConfig {
             })?;
         let mut c: Self = serde_json::from_str(&text).map_err(|e| ConfigError::Json {
             path: path.to_owned(),
-            message: crate::messages::clip(&e.to_string()),
+            message: format!(
+                "{} at line {} column {}",
+                crate::messages::json_message(&e, &text),
+                e.line(),
+                e.column()
+            ),
         })?;
         if let Some(cal) = &mut c.calibration
             && cal.is_relative()

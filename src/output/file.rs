@@ -84,21 +84,49 @@ pub fn check_writable(path: &Path) -> Result<(), FileError> {
     probe(path, &folder)
 }
 
-/// Creates `dir` (and its parents) if missing and checks that it takes new files: for commands
-/// that write several files into a folder.
+/// Creates `dir` if missing and checks that it takes new files: for commands that write several
+/// files into a folder. One rule for every output, file or folder: raygun creates what it is
+/// told to write, never the folders above it — the folder `dir` goes in must exist, as a file's
+/// must ([`check_writable`]), so a typo in a path fails at once instead of making folders.
 pub fn check_folder(dir: &Path) -> Result<(), FileError> {
-    if dir.exists() && !dir.is_dir() {
-        return Err(FileError::NotAFolder {
+    if dir.exists() {
+        if !dir.is_dir() {
+            return Err(FileError::NotAFolder {
+                path: dir.to_owned(),
+                folder: dir.to_owned(),
+            });
+        }
+    } else {
+        let parent = folder_of(dir);
+        if !parent.is_dir() {
+            return Err(if parent.exists() {
+                FileError::NotAFolder {
+                    path: dir.to_owned(),
+                    folder: parent,
+                }
+            } else {
+                FileError::NoFolder {
+                    path: dir.to_owned(),
+                    folder: parent,
+                }
+            });
+        }
+        create_folder(dir).map_err(|source| FileError::NotWritable {
             path: dir.to_owned(),
-            folder: dir.to_owned(),
-        });
+            folder: parent,
+            source,
+        })?;
     }
-    std::fs::create_dir_all(dir).map_err(|source| FileError::NotWritable {
-        path: dir.to_owned(),
-        folder: dir.to_owned(),
-        source,
-    })?;
     probe(&dir.join("probe"), dir)
+}
+
+/// Creates the folder `dir` (not the folders above it); one that exists already — another
+/// process, an MPI rank, may have made it meanwhile — is what was wanted.
+pub fn create_folder(dir: &Path) -> std::io::Result<()> {
+    match std::fs::create_dir(dir) {
+        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists && dir.is_dir() => Ok(()),
+        other => other,
+    }
 }
 
 fn probe(path: &Path, folder: &Path) -> Result<(), FileError> {
@@ -174,18 +202,14 @@ impl OutputSet {
         Self::default()
     }
 
-    /// [`check_folder`], remembering the folders it creates.
+    /// [`check_folder`], remembering the folder if it creates it.
     pub fn folder(&mut self, dir: &Path) -> Result<(), FileError> {
-        let mut missing = Vec::new();
-        let mut d = Some(dir);
-        while let Some(p) = d.filter(|p| !p.as_os_str().is_empty() && !p.exists()) {
-            missing.push(p.to_owned());
-            d = p.parent();
+        let created = !dir.exists();
+        check_folder(dir)?;
+        if created {
+            self.folders.push(dir.to_owned());
         }
-        let result = check_folder(dir);
-        // Parents first, so that they are removed after their children.
-        self.folders.extend(missing.into_iter().rev());
-        result
+        Ok(())
     }
 
     /// Counts `path` as written by this run.
@@ -298,6 +322,13 @@ mod tests {
             check_folder(&d.join("file")).unwrap_err(),
             FileError::NotAFolder { .. }
         ));
+        // The folder named is made; the folders above it are not (as for a file's folder).
+        assert!(matches!(
+            check_folder(&d.join("new/deeper")).unwrap_err(),
+            FileError::NoFolder { .. }
+        ));
+        assert!(!d.join("new").exists());
+        check_folder(&d.join("new")).unwrap();
         check_folder(&d.join("new/deeper")).unwrap();
         assert!(d.join("new/deeper").is_dir());
         // The probes left nothing behind.
@@ -312,6 +343,7 @@ mod tests {
         std::fs::write(d.join("other.txt"), b"not ours").unwrap();
         let out = d.join("run/inputs");
         let mut set = OutputSet::new();
+        set.folder(&d.join("run")).unwrap();
         set.folder(&out).unwrap();
         set.write_bytes(&out.join("a.json"), b"{}").unwrap();
         set.write_bytes(&d.join("b.txt"), b"b").unwrap();
@@ -319,6 +351,7 @@ mod tests {
         assert_eq!(names(&d), ["other.txt"]);
         // Finished, it keeps everything.
         let mut set = OutputSet::new();
+        set.folder(&d.join("run")).unwrap();
         set.folder(&out).unwrap();
         set.write_bytes(&out.join("a.json"), b"{}").unwrap();
         set.finish();

@@ -9,7 +9,9 @@ pub mod srgb8;
 pub mod stats;
 pub mod tiles;
 
-pub use file::{FileError, OutputSet, check_folder, check_writable, replace_with, write_bytes};
+pub use file::{
+    FileError, OutputSet, check_folder, check_writable, create_folder, replace_with, write_bytes,
+};
 
 /// Why an image could not be written.
 #[derive(Debug, thiserror::Error)]

@@ -135,7 +135,8 @@ pub fn write_tile(
             height: h,
         });
     }
-    std::fs::create_dir_all(dir).map_err(|source| TilesError::Dir {
+    // The folder named, never the folders above it (`output::check_folder`).
+    super::file::create_folder(dir).map_err(|source| TilesError::Dir {
         dir: dir.to_owned(),
         source,
     })?;

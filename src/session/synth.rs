@@ -791,7 +791,7 @@ pub fn all_replays() -> io::Result<Vec<(String, Vec<u8>)>> {
 
 /// Writes every shipped replay into `dir`.
 pub fn write_all(dir: &Path) -> io::Result<Vec<PathBuf>> {
-    std::fs::create_dir_all(dir)?;
+    crate::output::check_folder(dir).map_err(io::Error::other)?;
     all_replays()?
         .into_iter()
         .map(|(name, bytes)| {

@@ -93,7 +93,7 @@ pub enum VrpnClientError {
         source: io::Error,
     },
     #[error(
-        "VRPN server {address} is at {ip}, not a loopback address (pass the explicit flag to connect over the network)"
+        "VRPN server {address} is at {ip}, not a loopback address: pass --allow-network to connect to a server on another machine"
     )]
     NonLoopback { address: String, ip: IpAddr },
     #[error(

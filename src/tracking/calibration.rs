@@ -178,15 +178,11 @@ impl Calibration {
 
     /// Parses and validates; `path` names the text in errors.
     pub fn from_json(text: &str, path: &Path) -> Result<Self, CalibrationError> {
-        let c: Self = serde_json::from_str(text).map_err(|e| {
-            let full = e.to_string();
-            let suffix = format!(" at line {} column {}", e.line(), e.column());
-            CalibrationError::Json {
-                path: path.to_owned(),
-                line: e.line(),
-                column: e.column(),
-                message: crate::messages::clip(full.strip_suffix(&suffix).unwrap_or(&full)),
-            }
+        let c: Self = serde_json::from_str(text).map_err(|e| CalibrationError::Json {
+            path: path.to_owned(),
+            line: e.line(),
+            column: e.column(),
+            message: crate::messages::json_message(&e, text),
         })?;
         c.validate(path)?;
         Ok(c)

@@ -22,6 +22,18 @@ pub enum Protocol {
     VrpnUdp,
 }
 
+impl std::fmt::Display for Protocol {
+    /// The protocol's own name, as its makers write it.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Self::Dtrack => "DTrack",
+            Self::Osc => "OSC",
+            Self::VrpnTcp => "VRPN over TCP",
+            Self::VrpnUdp => "VRPN over UDP",
+        })
+    }
+}
+
 /// Decoders for every protocol plus the problem counters. VRPN needs a device name and a
 /// mapping, so its decoder exists only once [`Ingest::with_vrpn`] configured it.
 #[derive(Clone, Debug)]

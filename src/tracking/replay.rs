@@ -310,7 +310,7 @@ impl<R: BufRead> ReplayReader<R> {
             }
         };
         let header: ReplayHeader = serde_json::from_str(text.trim())
-            .map_err(|e| bad(crate::messages::clip(&e.to_string())))?;
+            .map_err(|e| bad(crate::messages::json_message(&e, text.trim())))?;
         if header.raygun_replay != FORMAT_VERSION {
             return Err(ReplayError::Version {
                 path: path.to_owned(),

@@ -849,7 +849,8 @@ pub fn save_picture(
     p: &Picture,
     exposure: f32,
 ) -> Result<Vec<PathBuf>, ViewerError> {
-    std::fs::create_dir_all(dir).map_err(|error| ViewerError::CreateDir {
+    // The folder named, never the folders above it (`output::check_folder`).
+    crate::output::create_folder(dir).map_err(|error| ViewerError::CreateDir {
         dir: dir.to_owned(),
         error,
     })?;

@@ -105,9 +105,9 @@ impl<'a> TilesApp<'a> {
                 .collect();
             match written {
                 Ok(files) => eprintln!(
-                    "raygun view: rank {}: saved the {} tiles it showed to {}",
+                    "raygun view: rank {}: saved the {} it showed to {}",
                     self.view.rank(),
-                    files.len(),
+                    crate::messages::count(files.len(), "tile"),
                     dir.display()
                 ),
                 Err(e) => self.fail(format!(

@@ -2,8 +2,8 @@
 """The peer benchmark in one run: raygun's CPU twin against Mitsuba 3 scalar_rgb and
 llvm_ad_rgb on the same scenes, interleaved, in ms per megasample.
 
-    python3 tools/peers/bench_peers.py --raygun target/release/raygun [--spp 8] [--rounds 3]
-    python3 tools/peers/bench_peers.py --raygun target/release/raygun --cuda   # on a GPU machine
+    python3 tools/peers/bench_peers.py --raygun target/dist/raygun [--spp 8] [--rounds 3]
+    python3 tools/peers/bench_peers.py --raygun target/dist/raygun --cuda   # on a GPU machine
 
 Scenes (1280 x 720, raygun --max-depth 8 = Mitsuba max_depth 9, rr_depth 4 in both): the
 Cornell box with its ceiling light (light only, env 0), the environment-only Cornell box

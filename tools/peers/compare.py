@@ -3,7 +3,7 @@
 
     python3 tools/peers/compare.py tests/data/peers/cornell-lambert-env.json render.exr [more.exr …]
     python3 tools/peers/compare.py tests/data/peers/cornell-lambert-env.json \
-        --raygun target/release/raygun [--backend cpu|gpu] [--spp N] [--renders K]
+        --raygun target/dist/raygun [--backend cpu|gpu] [--spp N] [--renders K]
 
 With `--raygun` the script renders the reference's scene itself (its `raygun_command`, seeds
 1..K, spp split evenly); otherwise it reads the EXRs given. Several renders (different seeds)

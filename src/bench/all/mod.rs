@@ -269,7 +269,12 @@ pub fn run(
             ..GuidedBenchConfig::default()
         },
         None,
-        &mut progress,
+        // Bench all counts steps: a step's start, not its frames.
+        |what, frames| {
+            if frames == 0 {
+                progress(what);
+            }
+        },
     )?;
     progress("filter");
     let fovs = end_fovs(cfg);

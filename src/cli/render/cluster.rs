@@ -94,7 +94,10 @@ fn prepare(args: &RenderArgs, c: &Cluster) -> anyhow::Result<Prepared> {
     // Each rank traces on its own GPU where it has one and computes the DGI there (as one GPU
     // process does); the schedule and the owners' tiles stay on the CPUs, and rank 0 filters
     // the whole picture where it traced.
-    let backend = Backend::select(args.backend)?;
+    let (backend, note) = Backend::choose(args.backend)?;
+    if let Some(note) = note {
+        crate::cli::say(args.quiet, note);
+    }
     let scene = load_scene(&args.scene, args.env.as_deref(), args.access)?;
     let settings = settings(args, &scene)?;
     let wc = wall_camera(wall.as_ref(), &settings)?;
@@ -178,7 +181,7 @@ fn work(c: &mut Cluster, args: &RenderArgs, mut p: Prepared) -> anyhow::Result<(
     if c.is_root()
         && let Some(plan) = &p.plan
     {
-        eprintln!("raygun: display: {}", plan.display_note);
+        crate::cli::say(args.quiet, format_args!("display: {}", plan.display_note));
     }
     let mut bar = Progress::new(
         args.quiet || !c.is_root(),
@@ -216,7 +219,7 @@ fn work(c: &mut Cluster, args: &RenderArgs, mut p: Prepared) -> anyhow::Result<(
     let summary = summary(&run, ranks);
     let Some((acc, dgi)) = run.gathered.as_ref() else {
         if c.is_root() {
-            tiles_only_note(&p, &r, &run, &device, &summary)?;
+            tiles_only_note(&p, &r, &run, &device, &summary, args.quiet)?;
         }
         return Ok(());
     };
@@ -257,13 +260,19 @@ fn work(c: &mut Cluster, args: &RenderArgs, mut p: Prepared) -> anyhow::Result<(
                 super::write_wall_tiles(args, model, &image)?;
             }
             let samples: u64 = acc.count.iter().map(|&n| u64::from(n)).sum();
-            eprintln!(
-                "raygun: {} triangles, {w}×{h}, {} spp in {:.2} s on {device}: {:.2} ms per megasample (BVH build {:.2} s); {summary}",
-                p.scene.triangles.len(),
-                run.iterations,
-                run.seconds,
-                run.seconds * 1e3 / (samples as f64 / 1e6),
-                r.build_seconds,
+            let files: Vec<&std::path::Path> =
+                args.out.iter().map(std::path::PathBuf::as_path).collect();
+            crate::cli::say(
+                args.quiet,
+                format_args!(
+                    "{}, {w}×{h}, {} spp in {:.2} s on {device}: {:.2} ms per megasample (BVH build {:.2} s); {summary}{}",
+                    crate::messages::count(p.scene.triangles.len(), "triangle"),
+                    run.iterations,
+                    run.seconds,
+                    run.seconds * 1e3 / (samples as f64 / 1e6),
+                    r.build_seconds,
+                    crate::cli::wrote(&files),
+                ),
             );
             Ok(())
         }
@@ -284,22 +293,27 @@ fn tiles_only_note(
     run: &ClusterRun,
     device: &str,
     summary: &str,
+    quiet: bool,
 ) -> anyhow::Result<()> {
     let samples = r.samples();
     if p.plan.is_some() && samples == 0 {
         return Err(super::guided::nothing_sampled(run.iterations));
     }
-    eprintln!(
-        "raygun: {} stopped ({}): {} iterations in {:.2} s on {device}: {samples} samples, {:.2} ms per megasample; the whole picture was not assembled (no --out); {summary}",
-        if p.plan.is_some() {
-            "guided render"
-        } else {
-            "render"
-        },
-        run.stop,
-        run.iterations,
-        run.seconds,
-        run.seconds * 1e3 / (samples.max(1) as f64 / 1e6),
+    crate::cli::say(
+        quiet,
+        format_args!(
+            "{} stopped ({}): {} in {:.2} s on {device}: {}, {:.2} ms per megasample; the whole picture was not assembled (no --out); {summary}",
+            if p.plan.is_some() {
+                "guided render"
+            } else {
+                "render"
+            },
+            run.stop,
+            crate::messages::count(run.iterations as usize, "iteration"),
+            run.seconds,
+            crate::messages::count(samples as usize, "sample"),
+            run.seconds * 1e3 / (samples.max(1) as f64 / 1e6),
+        ),
     );
     Ok(())
 }
@@ -347,11 +361,14 @@ fn write_owned_tiles(
             .enumerate()
             .map(|(rank, n)| format!("rank {rank}: {n}"))
             .collect();
-        eprintln!(
-            "raygun: the owners wrote {} tile images to {} ({})",
-            per_rank.iter().sum::<u32>(),
-            dir.display(),
-            list.join(", ")
+        crate::cli::say(
+            args.quiet,
+            format_args!(
+                "the owners wrote {} to {} ({})",
+                crate::messages::count(per_rank.iter().sum::<u32>() as usize, "tile image"),
+                dir.display(),
+                list.join(", ")
+            ),
         );
     }
     Ok(true)

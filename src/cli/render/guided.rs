@@ -53,7 +53,14 @@ pub fn parse_fixed_guide(
             [a, b] => (a, b),
             _ => bail!("--guide pose: the field of view is FOV or FOV_H,FOV_V (degrees)"),
         };
-        let cone = Cone::from_pose(origin, dir, glam::DVec3::Y, h, v)?;
+        let cone = Cone::from_pose(origin, dir, glam::DVec3::Y, h, v).map_err(|e| match e {
+            crate::roi::cone::ConeError::UpParallel => anyhow::anyhow!(
+                "--guide pose: the direction {dir} points straight up or down: the ROI's \
+                 horizontal axis is level (square to the room's +Y), so the ray gun must not \
+                 point vertically"
+            ),
+            e => anyhow::Error::new(e).context("--guide pose"),
+        })?;
         crate::cli::dgi::check_pose_hits(model, origin, dir, "--guide pose")?;
         return Ok(Some(GuideSource::Fixed(Roi::Cone(cone))));
     }
@@ -218,7 +225,7 @@ pub fn run(
     wall: Option<WallCamera>,
     backend: &Backend,
 ) -> anyhow::Result<()> {
-    eprintln!("raygun: display: {}", plan.display_note);
+    crate::cli::say(args.quiet, format_args!("display: {}", plan.display_note));
     let mut bar = Progress::new(
         args.quiet,
         "guided render",
@@ -260,22 +267,20 @@ pub fn run(
 /// Why a guided render that took no sample writes nothing.
 pub fn nothing_sampled(iterations: u32) -> anyhow::Error {
     anyhow::anyhow!(
-        "no pixel was sampled in {iterations} iterations: the ROI never reached the image and --p-min is 0"
+        "no pixel was sampled in {}: the ROI never reached the image and --p-min is 0",
+        crate::messages::count(iterations as usize, "iteration")
     )
 }
 
 /// `; wrote DGI, COUNTS` for the guide images a render writes (nothing without them).
-fn wrote_guides(plan: &GuidedPlan) -> String {
-    let files: Vec<String> = [&plan.dgi_out, &plan.counts_out]
-        .into_iter()
-        .flatten()
-        .map(|p| p.display().to_string())
+fn wrote_files(args: &RenderArgs, plan: &GuidedPlan) -> String {
+    let files: Vec<&std::path::Path> = args
+        .out
+        .iter()
+        .chain([&plan.dgi_out, &plan.counts_out].into_iter().flatten())
+        .map(std::path::PathBuf::as_path)
         .collect();
-    if files.is_empty() {
-        String::new()
-    } else {
-        format!("; wrote {}", files.join(", "))
-    }
+    crate::cli::wrote(&files)
 }
 
 /// Writes a guided render's image, tiles (unless their owners wrote them: `tiles_written`),
@@ -301,18 +306,22 @@ pub fn write_outputs(
     }
     res.write_guides(plan.dgi_out.as_deref(), plan.counts_out.as_deref())?;
     if !res.eye_restarts.is_empty() || res.eyes_refused > 0 {
-        eprintln!(
-            "raygun: the tracked head moved the eye {} times (the accumulation restarted each time, the ROI kept; the picture holds the last {} iterations){}",
-            res.eye_restarts.len(),
-            res.accumulated,
-            if res.eyes_refused > 0 {
-                format!(
-                    "; {} eyes on or behind a tile's plane were refused",
-                    res.eyes_refused
-                )
-            } else {
-                String::new()
-            }
+        crate::cli::say(
+            args.quiet,
+            format_args!(
+                "the tracked head moved the eye {} (the accumulation restarted each time, the ROI kept; the picture holds the last {}){}",
+                crate::messages::count(res.eye_restarts.len(), "time"),
+                crate::messages::count(res.accumulated as usize, "iteration"),
+                if res.eyes_refused > 0 {
+                    format!(
+                        "; {} on or behind a tile's plane {} refused",
+                        crate::messages::count(res.eyes_refused as usize, "eye"),
+                        if res.eyes_refused == 1 { "was" } else { "were" }
+                    )
+                } else {
+                    String::new()
+                }
+            ),
         );
     }
     let roi = res.progress.map_or(String::new(), |p| {
@@ -321,18 +330,22 @@ pub fn write_outputs(
             p.pixels, p.median_se, p.min_samples
         )
     });
-    eprintln!(
-        "raygun: guided render stopped ({}): {} iterations in {:.2} s on {}: {samples} samples ({:.2} % of full frame), {:.2} ms per megasample{roi}{}",
-        res.stop,
-        res.iterations,
-        res.seconds,
-        device,
-        100.0 * res.sample_share(),
-        res.seconds * 1e3 / (samples as f64 / 1e6),
-        wrote_guides(plan),
+    crate::cli::say(
+        args.quiet,
+        format_args!(
+            "guided render stopped ({}): {} in {:.2} s on {}: {} ({:.2} % of full frame), {:.2} ms per megasample{roi}{}",
+            res.stop,
+            crate::messages::count(res.iterations as usize, "iteration"),
+            res.seconds,
+            device,
+            crate::messages::count(samples as usize, "sample"),
+            100.0 * res.sample_share(),
+            res.seconds * 1e3 / (samples as f64 / 1e6),
+            wrote_files(args, plan),
+        ),
     );
     if !extra.is_empty() {
-        eprintln!("raygun: {extra}");
+        crate::cli::say(args.quiet, extra);
     }
     Ok(())
 }

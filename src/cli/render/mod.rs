@@ -72,7 +72,7 @@ pub struct RenderArgs {
     pub yfov: Option<f32>,
     /// Image size, or `native`: the display canvas's own pixel size (13519×5457 for HORNET),
     /// at which --tiles writes every tile at its own resolution without resampling.
-    #[arg(long, value_name = "W,H|native", value_parser = crate::cli::args::parse_size_or_native, default_value = "1280,720")]
+    #[arg(allow_hyphen_values = true, long, value_name = "W,H|native", value_parser = crate::cli::args::parse_size_or_native, default_value = "1280,720")]
     pub size: [u32; 2],
     /// Samples per pixel of a full-frame render (default 64; guided renders take
     /// --iterations instead).
@@ -103,7 +103,7 @@ pub struct RenderArgs {
     pub exposure: f32,
     #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
     pub backend: BackendChoice,
-    /// No progress report.
+    /// Print only warnings and errors: no progress report, no summary.
     #[arg(long)]
     pub quiet: bool,
     /// Guided rendering: the ROI from a tracking replay (spread evenly over the iterations),
@@ -191,10 +191,9 @@ pub fn write_wall_tiles(
     let paths =
         crate::output::tiles::write_tiles(dir, model, image, args.size, format, args.exposure)
             .with_context(|| format!("--tiles {}", dir.display()))?;
-    eprintln!(
-        "raygun: wrote {} tile images to {}",
-        paths.len(),
-        dir.display()
+    crate::cli::say(
+        args.quiet,
+        format_args!("wrote {} tile images to {}", paths.len(), dir.display()),
     );
     Ok(())
 }
@@ -290,7 +289,10 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
         None => None,
     };
     let wall = resolve_wall(args, plan.as_ref())?;
-    let backend = Backend::select(args.backend)?;
+    let (backend, note) = Backend::choose(args.backend)?;
+    if let Some(note) = note {
+        crate::cli::say(args.quiet, note);
+    }
     let work = if plan.is_some() {
         Work::Render {
             gpu: backend.is_gpu(),
@@ -357,13 +359,18 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
         write_wall_tiles(args, model, &image)?;
     }
     let megasamples = f64::from(w) * f64::from(h) * f64::from(spp) / 1e6;
-    eprintln!(
-        "raygun: {} triangles, {w}×{h}, {spp} spp in {:.2} s on {}: {:.2} ms per megasample (BVH build {:.2} s)",
-        scene.triangles.len(),
-        seconds,
-        backend.describe(),
-        seconds * 1e3 / megasamples,
-        renderer.build_seconds,
+    let files: Vec<&std::path::Path> = args.out.iter().map(PathBuf::as_path).collect();
+    crate::cli::say(
+        args.quiet,
+        format_args!(
+            "{}, {w}×{h}, {spp} spp in {:.2} s on {}: {:.2} ms per megasample (BVH build {:.2} s){}",
+            crate::messages::count(scene.triangles.len(), "triangle"),
+            seconds,
+            backend.describe(),
+            seconds * 1e3 / megasamples,
+            renderer.build_seconds,
+            crate::cli::wrote(&files),
+        ),
     );
     Ok(())
 }
