@@ -585,6 +585,7 @@ fn tile_ids_that_are_not_plain_file_names_are_refused_and_nothing_leaves_the_fol
     let model = dir.join("evil.json");
     std::fs::write(&model, model_json("../../EVIL")).unwrap();
     let tiles = dir.join("a/b/tiles");
+    std::fs::create_dir_all(dir.join("a/b")).unwrap();
     let o = raygun(&[
         "render",
         "--scene",

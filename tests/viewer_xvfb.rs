@@ -179,8 +179,9 @@ fn viewer_under_xvfb_renders_through_the_wall_camera_with_a_tracked_head() {
     let o = Command::new("xvfb-run")
         .args(["-a", "-s", "-screen 0 1280x700x24"])
         .arg(env!("CARGO_BIN_EXE_raygun"))
-        // 1/16 of HORNET's canvas: bezels then hold pixel centres.
-        .args(["view", "--backend", "cpu", "--size", "845,341"])
+        // 1/10 of HORNET's canvas: image pixels narrower than its gaps, so some lie in a gap
+        // no tile shows (smaller images are shown whole).
+        .args(["view", "--backend", "cpu", "--size", "1352,546"])
         .args(["--camera", "wall", "--max-depth", "1", "--replay"])
         .arg(&replay)
         .args(["--screenshot-after", "6", "--save-dir"])
@@ -196,7 +197,7 @@ fn viewer_under_xvfb_renders_through_the_wall_camera_with_a_tracked_head() {
     let any = (glam::DVec3::ZERO, glam::DVec3::NEG_Z, glam::DVec3::Y);
     let wall = raygun::trace::wall::WallCamera::new(
         &model,
-        [845, 341],
+        [1352, 546],
         glam::DVec3::new(0.0, 0.0, 1.0),
         &raygun::trace::wall::WorldFromRoom::Identity,
         any,
