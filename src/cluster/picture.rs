@@ -15,9 +15,10 @@ use std::collections::HashMap;
 
 use glam::Vec3;
 
+use super::codec::{PIXEL_BYTES, sums_and_counts};
 use super::exchange::ExchangeError;
 use super::owners::{BlockOwners, TileOwners, block_of};
-use super::{ClusterError, ClusterRenderer, PIXEL_BYTES, sums_and_counts};
+use super::{ClusterError, ClusterRenderer};
 use crate::display::DisplayModel;
 use crate::filter::{Filter, FilterParams};
 use crate::gpu::Backend;

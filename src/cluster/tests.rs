@@ -4,13 +4,23 @@ use std::time::Duration;
 
 use glam::DVec3;
 
-use super::exchange::InProcess;
-use super::owners::TileOwners;
+use std::sync::Arc;
+
+use glam::{DVec2, Vec3};
+
+use super::codec::{decode_masks, encode_masks};
+use super::exchange::{Exchange, InProcess};
+use super::owners::{TileOwners, block_pixels};
 use super::*;
+use crate::display::DisplayModel;
 use crate::filter::FilterParams;
-use crate::frame::Renderer;
-use crate::gpu::Backend;
-use crate::schedule::Order;
+use crate::frame::stop::RoiProgress;
+use crate::frame::{EyeFollow, Renderer};
+use crate::gpu::{Backend, GpuContext};
+use crate::roi::cone::Cone;
+use crate::scene::Scene;
+use crate::schedule::{BLOCK_PIXELS, Order};
+use crate::trace::accum::{Accumulation, every, every_size};
 use crate::trace::wall::{WallSpec, WorldFromRoom};
 
 const SIZE: [u32; 2] = [96, 40];
