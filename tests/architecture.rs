@@ -617,7 +617,7 @@ fn the_readme_shows_the_layers_and_the_frame_steps_as_they_are() {
     }
     let frame = std::fs::read_to_string(root.join("src/frame/steps.rs")).unwrap();
     let body = frame
-        .split("pub fn run_frame(")
+        .split("fn run_frame(")
         .nth(1)
         .and_then(|rest| rest.split("\n    }\n").next())
         .expect("run_frame in src/frame/steps.rs");

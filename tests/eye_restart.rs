@@ -5,7 +5,7 @@
 
 use glam::DVec3;
 use raygun::display::DisplayModel;
-use raygun::frame::{EyeFollow, FrameError, GuideConfig, Renderer};
+use raygun::frame::{EyeFollow, FrameError, GuideConfig, Render, Renderer};
 use raygun::gpu::{Backend, GpuContext};
 use raygun::roi::cone::Cone;
 use raygun::roi::dgi::Roi;

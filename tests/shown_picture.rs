@@ -10,7 +10,7 @@
 use glam::DVec3;
 use raygun::display::DisplayModel;
 use raygun::filter::{Blend, FilterKind, FilterParams};
-use raygun::frame::{GuideConfig, Renderer};
+use raygun::frame::{GuideConfig, Render, Renderer};
 use raygun::gpu::{Backend, GpuContext};
 use raygun::output::srgb8::{OUTLINE, display_rgba, paint_outline, roi_outline};
 use raygun::roi::cone::Cone;

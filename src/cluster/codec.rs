@@ -14,7 +14,7 @@ pub struct FrameControl {
     /// No frame: the render ends here.
     pub stop: bool,
     /// After this frame, the owners send rank 0 the sums of the ROI's pixels
-    /// ([`ClusterRenderer::roi_progress`]: a stop condition on the ROI's progress).
+    /// ([`crate::frame::Render::roi_progress`]: a stop condition on the ROI's progress).
     pub measure: bool,
     /// `Some`: the ROI changed to this (`Some(None)`: no ROI, sample everything).
     pub roi: Option<Option<Roi>>,

@@ -22,7 +22,7 @@ use crate::trace::path::samples_cpu;
 use crate::trace::wall::WallCamera;
 
 impl ClusterRenderer {
-    /// The restart rule of a moving eye, as [`crate::frame::Renderer::follow_eye`] applies it:
+    /// The restart rule of a moving eye, as one process applies it ([`crate::frame::Render::follow_eye`]):
     /// past `threshold_m` from the eye the accumulation started with, the wall camera moves
     /// there and this rank's owned sums and counts restart (the ROI and its DGI
     /// kept); otherwise nothing changes. Every rank applies the same eyes in the same frames,
@@ -62,7 +62,7 @@ impl ClusterRenderer {
     }
 
     /// The pinhole camera `camera` from now on, and the accumulation restarted (the
-    /// one-process renderer's [`crate::frame::Renderer::set_camera`]).
+    /// one-process renderer's [`crate::frame::Render::set_camera`]).
     pub fn set_camera(&mut self, camera: crate::trace::camera::RenderCamera) {
         self.settings.camera = camera;
         if let Some(g) = &self.gpu {

@@ -15,7 +15,7 @@ use super::*;
 use crate::display::DisplayModel;
 use crate::filter::FilterParams;
 use crate::frame::stop::RoiProgress;
-use crate::frame::{EyeFollow, Renderer};
+use crate::frame::{EyeFollow, Render, Renderer};
 use crate::gpu::{Backend, GpuContext};
 use crate::roi::cone::Cone;
 use crate::scene::Scene;

@@ -28,7 +28,7 @@ pub fn prepare_dgi(
 }
 
 /// The DGI of `roi` (`None`: 0 everywhere) computed by the CPU twin: what a CPU renderer's
-/// [`Renderer::set_roi`] installs, value for value.
+/// [`Render::set_roi`](super::Render::set_roi) installs, value for value.
 pub fn dgi_cpu(
     surface: &Surface,
     pitch_m: f64,

@@ -9,7 +9,6 @@ use super::{
 };
 use crate::display::DisplayModel;
 use crate::gpu::{Backend, Band, GpuContext, GpuError, PassTimer};
-use crate::roi::dgi::Roi;
 use crate::roi::gpu::DgiKernel;
 use crate::scene::Scene;
 use crate::schedule::gpu::{ScheduleConfig, ScheduleKernel};
@@ -41,7 +40,7 @@ impl<'a> Renderer<'a> {
     }
 
     /// A render of `settings.width × settings.height` pixels covering `display`'s canvas,
-    /// steered by the ROI set with [`Self::set_roi`] (none yet: the whole frame is sampled).
+    /// steered by the ROI set with [`Render::set_roi`](super::Render::set_roi) (none yet: the whole frame is sampled).
     pub fn guided(
         backend: &'a Backend,
         scene: &Scene,
@@ -212,24 +211,6 @@ impl<'a> Renderer<'a> {
         })
     }
 
-    /// Iterations run so far.
-    #[must_use]
-    pub fn iteration(&self) -> u32 {
-        self.iteration
-    }
-
-    /// The current ROI (`None` also for a full-frame render).
-    #[must_use]
-    pub fn roi(&self) -> Option<&Roi> {
-        self.guidance.as_ref().and_then(|g| g.roi.as_ref())
-    }
-
-    /// How the ROI steers sampling (`None` for a full-frame render).
-    #[must_use]
-    pub fn guide_config(&self) -> Option<&GuideConfig> {
-        self.guidance.as_ref().map(|g| &g.config)
-    }
-
     /// The backend the frames run on.
     #[must_use]
     pub fn backend(&self) -> &'a Backend {
@@ -244,12 +225,6 @@ impl<'a> Renderer<'a> {
             Engine::Gpu { bands, .. } => Some(bands.len()),
             Engine::Cpu { .. } => None,
         }
-    }
-
-    /// The wall camera, if the frames trace through one.
-    #[must_use]
-    pub fn wall(&self) -> Option<&WallCamera> {
-        self.wall.as_ref()
     }
 }
 

@@ -33,6 +33,7 @@
 mod dgi;
 mod engine;
 mod picture;
+mod render;
 pub mod roi_stats;
 pub mod shown;
 mod steps;
@@ -54,6 +55,7 @@ use crate::trace::path::TraceSettings;
 use crate::trace::wall::{WallCamera, WallCameraError};
 
 pub use dgi::{dgi_cpu, dgi_cpu_bands, prepare_dgi};
+pub use render::Render;
 
 /// How the ROI steers sampling.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
@@ -115,7 +117,7 @@ pub enum FrameError {
     Wall(#[from] WallCameraError),
 }
 
-/// What [`Renderer::follow_eye`] did with an eye.
+/// What [`Render::follow_eye`] did with an eye.
 #[derive(Debug)]
 pub enum EyeFollow {
     /// Within the threshold of the eye the accumulation started with: nothing changed.

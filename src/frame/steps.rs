@@ -1,14 +1,19 @@
 //! One frame, step by step (DESIGN.md §1), and what changes between frames: the ROI, the
-//! wall camera's eye, the pinhole camera, a restart.
+//! wall camera's eye, the pinhole camera, a restart — [`Render`] for one process.
 
 use std::time::Instant;
 
 use super::dgi::prepare_dgi;
-use super::{Engine, EyeFollow, FrameError, FrameStats, PendingDgi, Renderer, TimedIterations};
+use super::stop::RoiProgress;
+use super::{
+    Engine, EyeFollow, FrameError, FrameStats, GuideConfig, PendingDgi, Render, Renderer,
+    TimedIterations,
+};
 use crate::roi::dgi::{Roi, compute_cpu};
 use crate::schedule::schedule_cpu_shown;
+use crate::trace::accum::Accumulation;
 use crate::trace::camera::RenderCamera;
-use crate::trace::path::render_cpu_with;
+use crate::trace::path::{TraceSettings, render_cpu_with};
 use crate::trace::wall::WallCamera;
 
 /// Timer slots of a frame's passes.
@@ -28,10 +33,33 @@ struct FrameInProgress {
     started: Instant,
 }
 
-impl Renderer<'_> {
-    /// Sets the ROI; its DGI is computed by the next frame (`None`: sample the whole frame).
-    /// The accumulation is kept: samples taken under the old ROI still count.
-    pub fn set_roi(&mut self, roi: Option<Roi>) -> Result<(), FrameError> {
+impl Render for Renderer<'_> {
+    type Error = FrameError;
+    type Stats = FrameStats;
+
+    fn settings(&self) -> &TraceSettings {
+        &self.settings
+    }
+
+    fn guide_config(&self) -> Option<&GuideConfig> {
+        self.guidance.as_ref().map(|g| &g.config)
+    }
+
+    fn wall(&self) -> Option<&WallCamera> {
+        self.wall.as_ref()
+    }
+
+    fn roi(&self) -> Option<&Roi> {
+        self.guidance.as_ref().and_then(|g| g.roi.as_ref())
+    }
+
+    fn iteration(&self) -> u32 {
+        self.iteration
+    }
+
+    /// The DGI is prepared here and installed by the next frame (the CPU twin computes it
+    /// now).
+    fn set_roi(&mut self, roi: Option<Roi>) -> Result<(), FrameError> {
         let (w, h) = (self.settings.width, self.settings.height);
         let g = self.guidance.as_mut().ok_or(FrameError::NotGuided)?;
         let prepared = match &roi {
@@ -82,11 +110,33 @@ impl Renderer<'_> {
         Ok(())
     }
 
-    /// Runs one frame: the DGI if the ROI changed, the schedule, and one path for each
-    /// scheduled pixel. With `timed`, stage times are measured (GPU timestamps where the
-    /// adapter has them) and the pixel and ray counts are read back — for benchmarks; an
-    /// interactive loop leaves it off so nothing waits on the GPU.
-    pub fn run_frame(&mut self, timed: bool) -> Result<FrameStats, FrameError> {
+    fn follow_eye(&mut self, eye: glam::DVec3, threshold_m: f64) -> Result<EyeFollow, FrameError> {
+        let wall = self.wall.as_ref().ok_or(FrameError::NoWall)?;
+        if !wall.eye_moved(eye, threshold_m) {
+            return Ok(EyeFollow::Kept);
+        }
+        match self.set_wall_eye(eye) {
+            Ok(()) => Ok(EyeFollow::Restarted),
+            Err(FrameError::Wall(e)) => Ok(EyeFollow::Refused(e)),
+            Err(e) => Err(e),
+        }
+    }
+
+    fn set_camera(&mut self, camera: RenderCamera) {
+        self.settings.camera = camera;
+        if let Engine::Gpu { ctx, bands, .. } = &self.engine {
+            for b in bands {
+                b.trace.set_settings(ctx, &self.packed, &self.settings);
+            }
+        }
+        self.restart();
+    }
+
+    /// One frame: the DGI if the ROI changed, the schedule, and one path for each scheduled
+    /// pixel; on the GPU recorded into one command encoder and submitted once, nothing read
+    /// back. With `timed`, stage times are measured (GPU timestamps where the adapter has them)
+    /// and the pixel and ray counts read back, which makes the frame wait for the GPU.
+    fn run_frame(&mut self, timed: bool) -> Result<FrameStats, FrameError> {
         let mut frame = self.begin(timed);
         self.install_dgi(&mut frame);
         self.schedule(&mut frame)?;
@@ -94,6 +144,20 @@ impl Renderer<'_> {
         self.submit(frame)
     }
 
+    /// On a GPU renderer of one band measured there ([`Renderer::roi_stats`]'s measurement);
+    /// otherwise from the accumulation (a read-back on the GPU).
+    fn roi_progress(&mut self) -> Result<Option<RoiProgress>, FrameError> {
+        self.progress()
+    }
+
+    /// Always here (a read-back on the GPU; a copy on the CPU: [`Renderer::finish`] moves it
+    /// out instead).
+    fn gather(&mut self) -> Result<Option<(Accumulation, Vec<f32>)>, FrameError> {
+        Ok(Some((self.accumulation()?, self.dgi()?)))
+    }
+}
+
+impl Renderer<'_> {
     /// Starts a frame: on the GPU, the command encoder the steps record into (and, timed, the
     /// cleared ray counter).
     fn begin(&self, timed: bool) -> FrameInProgress {
@@ -347,38 +411,6 @@ impl Renderer<'_> {
         self.wall = Some(wall);
         self.restart();
         Ok(())
-    }
-
-    /// The restart rule of a moving eye (a tracked head, a desktop user's orbit): when `eye`
-    /// lies more than `threshold_m` from the eye the accumulation started with, the wall camera
-    /// moves there and the accumulation restarts, the ROI kept; otherwise nothing changes.
-    pub fn follow_eye(
-        &mut self,
-        eye: glam::DVec3,
-        threshold_m: f64,
-    ) -> Result<EyeFollow, FrameError> {
-        let wall = self.wall.as_ref().ok_or(FrameError::NoWall)?;
-        if !wall.eye_moved(eye, threshold_m) {
-            return Ok(EyeFollow::Kept);
-        }
-        match self.set_wall_eye(eye) {
-            Ok(()) => Ok(EyeFollow::Restarted),
-            Err(FrameError::Wall(e)) => Ok(EyeFollow::Refused(e)),
-            Err(e) => Err(e),
-        }
-    }
-
-    /// Replaces the pinhole (or orthographic) camera and restarts the accumulation
-    /// ([`Self::restart`]); the ROI stays. (With a wall camera the primary rays come from its
-    /// eye: move that with [`Self::set_wall_eye`].)
-    pub fn set_camera(&mut self, camera: RenderCamera) {
-        self.settings.camera = camera;
-        if let Engine::Gpu { ctx, bands, .. } = &self.engine {
-            for b in bands {
-                b.trace.set_settings(ctx, &self.packed, &self.settings);
-            }
-        }
-        self.restart();
     }
 
     /// Runs `n` frames and waits for them.

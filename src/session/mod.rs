@@ -8,7 +8,7 @@
 //! replay::ReplayPlan (a recording) ──┼─► pipeline::Pipeline (Ingest ─► Interaction) ─► ROI changes
 //!                                    │        ├─► live::LiveTracking (viewer, own thread)
 //!                                    │        ├─► timeline::Timeline (viewer: play / scrub)
-//!                                    │        └─► guide::GuideSource ─► render::render_guided
+//!                                    │        └─► guide::GuideSource ─► render::run_guided
 //! calibrate (presses for `raygun calibrate`)
 //! ```
 //!

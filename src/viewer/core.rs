@@ -14,7 +14,7 @@ use glam::{DVec3, Vec3};
 use crate::cluster::{CONSOLE_PIXELS, ClusterRenderer, reduction_for};
 use crate::display::DisplayModel;
 use crate::filter::Filter;
-use crate::frame::{EyeFollow, FrameStats, GuideConfig, Renderer};
+use crate::frame::{EyeFollow, FrameStats, GuideConfig, Render, Renderer};
 use crate::gpu::Backend;
 use crate::output::stats::RoiStats;
 use crate::output::tiles::wall_view;
@@ -106,19 +106,19 @@ pub trait RenderView {
 
 impl RenderView for Renderer<'_> {
     fn iteration(&self) -> u32 {
-        Renderer::iteration(self)
+        Render::iteration(self)
     }
     fn roi(&self) -> Option<&Roi> {
-        Renderer::roi(self)
+        Render::roi(self)
     }
     fn settings(&self) -> &TraceSettings {
         &self.settings
     }
     fn guide_config(&self) -> Option<&GuideConfig> {
-        Renderer::guide_config(self)
+        Render::guide_config(self)
     }
     fn wall(&self) -> Option<&WallCamera> {
-        Renderer::wall(self)
+        Render::wall(self)
     }
 }
 
@@ -438,7 +438,7 @@ impl<'a> ViewerCore<'a> {
                         camera: r.settings.camera,
                         ..self.base
                     };
-                    let wall = r.wall().cloned();
+                    let wall = Render::wall(&**r).cloned();
                     **r = r.rebuilt_guided(settings, self.model, config, wall)?;
                 }
                 Engine::Cluster(v) => {
