@@ -5,32 +5,49 @@ use std::time::Instant;
 
 use super::codec::f32_bytes;
 use super::deal::CostTable;
+use super::gpu_rank::block_masks;
 use super::owners::{BlockOwners, block_grid, block_of};
-use super::{ClusterError, ClusterRenderer, DgiMode, Guidance};
+use super::{Cluster, ClusterError, ClusterRenderer, DgiMode, Guidance};
 use crate::display::DisplayModel;
 use crate::frame::{FrameError, GuideConfig};
-use crate::roi::dgi::{Roi, Surface};
+use crate::roi::dgi::Surface;
 use crate::scene::Scene;
 use crate::schedule::{BLOCK_PIXELS, TILE_EDGE};
 use crate::trace::pack::PackedScene;
 use crate::trace::path::TraceSettings;
 use crate::trace::wall::WallCamera;
 
-impl ClusterRenderer {
-    /// Rank `rank` of `ranks`: a render of `scene` (guided when `guide` gives the display and
-    /// how the ROI steers; a full frame otherwise), through `wall` when given, with the blocks
-    /// owned as `owners` says.
-    #[allow(clippy::too_many_arguments)]
+/// What a render across ranks renders: the same on every rank of a job (the start-up check
+/// compares the ranks' settings).
+#[derive(Clone, Debug)]
+pub struct ClusterSetup<'m> {
+    pub settings: TraceSettings,
+    /// The display and how the ROI steers sampling: a guided render (`None`: a full frame).
+    pub guide: Option<(&'m DisplayModel, GuideConfig)>,
+    /// The wall camera the frames trace through, if any (DESIGN.md §11).
+    pub wall: Option<WallCamera>,
+    /// Which rank owns each block.
+    pub owners: BlockOwners,
+    /// How the DGI of a new ROI reaches every rank.
+    pub dgi_mode: DgiMode,
+}
+
+impl<'c> ClusterRenderer<'c> {
+    /// This rank's part of the job `link`'s render of `scene` as `setup` says; it holds `link`
+    /// until it is dropped.
     pub fn new(
+        link: &'c mut Cluster,
         scene: &Scene,
-        settings: TraceSettings,
-        guide: Option<(&DisplayModel, GuideConfig)>,
-        wall: Option<WallCamera>,
-        owners: BlockOwners,
-        dgi_mode: DgiMode,
-        rank: usize,
-        ranks: usize,
+        setup: ClusterSetup<'_>,
     ) -> Result<Self, ClusterError> {
+        let ClusterSetup {
+            settings,
+            guide,
+            wall,
+            owners,
+            dgi_mode,
+        } = setup;
+        let (rank, ranks) = (link.rank(), link.ranks());
         let size = [settings.width, settings.height];
         if [owners.width, owners.height] != size {
             return Err(ClusterError::MapSize {
@@ -68,6 +85,7 @@ impl ClusterRenderer {
             slot[b as usize] = i as u32;
         }
         Ok(Self {
+            link,
             packed,
             settings,
             build_seconds,
@@ -99,34 +117,66 @@ impl ClusterRenderer {
         })
     }
 
-    /// How the ROI steers sampling (`None`: a full frame).
+    /// The job this rank renders in.
     #[must_use]
-    pub fn guide_config(&self) -> Option<&GuideConfig> {
-        self.guidance.as_ref().map(|g| &g.config)
+    pub fn cluster(&self) -> &Cluster {
+        self.link
+    }
+
+    /// The job, for the collectives of the loop that drives this renderer (rank 0's control of
+    /// each frame, a benchmark's numbers). Every rank must call them at the same points.
+    pub fn cluster_mut(&mut self) -> &mut Cluster {
+        self.link
+    }
+
+    /// Starts again from nothing with `settings` (the same image) and the guide `config`, as a
+    /// new renderer of this one's scene, link, owners, wall camera and backend would: no ROI,
+    /// the accumulation and the deal's costs empty. The samples in flight are collected first;
+    /// the scene is neither packed nor uploaded again (`view --cluster`'s rebuild when its
+    /// settings change or a reset is asked for: seconds for a large scene). A collective.
+    pub fn rebuild(
+        &mut self,
+        settings: TraceSettings,
+        config: GuideConfig,
+    ) -> Result<(), ClusterError> {
+        let size = [settings.width, settings.height];
+        if size != [self.settings.width, self.settings.height] {
+            return Err(ClusterError::MapSize {
+                map: [self.owners.width, self.owners.height],
+                image: size,
+            });
+        }
+        crate::schedule::validate_p_min(config.p_min)?;
+        if self.guidance.is_none() {
+            return Err(FrameError::NotGuided.into());
+        }
+        self.finish()?;
+        if let Some(g) = &mut self.guidance {
+            g.config = config;
+        }
+        self.settings = settings;
+        self.pending = None;
+        self.roi = None;
+        self.dgi.fill(0.0);
+        self.costs = CostTable::new(self.owners.owner.len());
+        if let Some(g) = self.gpu.as_deref_mut() {
+            g.run.set_settings(&g.ctx, &self.packed, &self.settings);
+            g.masks = block_masks(
+                &g.ctx,
+                self.guidance.as_ref(),
+                self.wall.as_ref(),
+                &self.settings,
+                &self.dgi,
+            )?;
+        }
+        self.restart();
+        Ok(())
     }
 
     /// Samples taken so far, over the whole image (every rank knows every block's length).
     #[must_use]
     pub fn samples(&self) -> u64 {
         self.total
-    }
-
-    /// Iterations run so far.
-    #[must_use]
-    pub fn iteration(&self) -> u32 {
-        self.iteration
-    }
-
-    /// The ROI set last (`None` also for a full frame).
-    #[must_use]
-    pub fn roi(&self) -> Option<&Roi> {
-        self.roi.as_ref()
-    }
-
-    /// The wall camera, if the frames trace through one.
-    #[must_use]
-    pub fn wall(&self) -> Option<&WallCamera> {
-        self.wall.as_ref()
     }
 
     /// Where pixel `p`'s sums and count are in `sums` and `counts`, if its block is this

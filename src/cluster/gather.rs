@@ -5,19 +5,17 @@
 use super::codec::{PIXEL_BYTES, sums_and_counts};
 use super::exchange::ExchangeError;
 use super::owners::{block_pixels, block_pixels_every};
-use super::{Cluster, ClusterError, ClusterRenderer};
+use super::{ClusterError, ClusterRenderer};
 use crate::frame::stop::RoiProgress;
 use crate::trace::accum::{Accumulation, every, every_size};
 
-impl ClusterRenderer {
-    /// How far the ROI has come, on rank 0 (`Some(None)` without ROI pixels; `None` on the
-    /// other ranks): every owner sends rank 0 the sums and counts of its pixels inside the ROI
-    /// (d = 0), [`PIXEL_BYTES`] each, and rank 0 measures them as one process does.
-    pub fn roi_progress(
-        &mut self,
-        c: &mut Cluster,
-    ) -> Result<Option<Option<RoiProgress>>, ClusterError> {
-        self.collect(c)?;
+impl ClusterRenderer<'_> {
+    /// How far the ROI has come ([`crate::frame::Render::roi_progress`]), on rank 0 (`None`
+    /// without ROI pixels, and on the other ranks): every owner sends rank 0 the sums and
+    /// counts of its pixels inside the ROI (d = 0), [`PIXEL_BYTES`] each, and rank 0 measures
+    /// them as one process does.
+    pub(super) fn progress(&mut self) -> Result<Option<RoiProgress>, ClusterError> {
+        self.collect()?;
         self.sync_sums()?;
         let size = [self.settings.width, self.settings.height];
         let tiles_x = self.owners.tiles[0];
@@ -28,7 +26,7 @@ impl ClusterRenderer {
                 self.own_bytes(p, &mut mine);
             }
         }
-        let Some(all) = c.gather("the ROI's sums", mine)? else {
+        let Some(all) = self.link.gather("the ROI's sums", mine)? else {
             return Ok(None);
         };
         let (mut sum, mut count) = (Vec::new(), Vec::new());
@@ -58,29 +56,20 @@ impl ClusterRenderer {
             sum,
             count,
         };
-        Ok(Some(RoiProgress::measure(&acc, &vec![0.0; n])))
+        Ok(RoiProgress::measure(&acc, &vec![0.0; n]))
     }
 
-    /// The whole accumulation and the DGI the last frame used, on rank 0 (`None` on the
-    /// others): every owner sends rank 0 its sums and counts.
-    pub fn gather(
-        &mut self,
-        c: &mut Cluster,
-    ) -> Result<Option<(Accumulation, Vec<f32>)>, ClusterError> {
-        self.gather_every(c, 1)
-    }
-
-    /// [`Self::gather`] of the pixels at every `step`-th column of every `step`-th row only,
-    /// as an image of ⌈W / step⌉ × ⌈H / step⌉: [`Accumulation::every`] of the whole
-    /// accumulation (and the DGI's pixels there), for a picture smaller than the wall — rank
-    /// 0's console. Each owner sends those of its pixels ([`PIXEL_BYTES`] each): 1/step² of
-    /// the whole gather's bytes.
+    /// The accumulation and the DGI the last frame used at every `step`-th column of every
+    /// `step`-th row, on rank 0 (`None` on the others), as an image of ⌈W / step⌉ × ⌈H / step⌉:
+    /// [`Accumulation::every`] of the whole accumulation (and the DGI's pixels there), for a
+    /// picture smaller than the wall — rank 0's console. Each owner sends those of its pixels
+    /// ([`PIXEL_BYTES`] each): 1/step² of the whole gather's bytes (step 1: the whole
+    /// accumulation, [`crate::frame::Render::gather`]).
     pub fn gather_every(
         &mut self,
-        c: &mut Cluster,
         step: u32,
     ) -> Result<Option<(Accumulation, Vec<f32>)>, ClusterError> {
-        self.collect(c)?;
+        self.collect()?;
         self.sync_sums()?;
         let size = [self.settings.width, self.settings.height];
         let pixels_of = |rank: usize| {
@@ -94,7 +83,7 @@ impl ClusterRenderer {
         for p in pixels_of(self.rank) {
             self.own_bytes(p, &mut mine);
         }
-        let Some(all) = c.gather("the owners' sums", mine)? else {
+        let Some(all) = self.link.gather("the owners' sums", mine)? else {
             return Ok(None);
         };
         let [w, h] = every_size(size, step);

@@ -12,6 +12,7 @@ use crate::roi::gpu::DgiKernel;
 use crate::schedule::gpu::BlockMasksRun;
 use crate::schedule::{Order, ScheduleError};
 use crate::trace::gpu::{GpuScene, OwnedSums, SampleRun, TraceKernel};
+use crate::trace::path::TraceSettings;
 use crate::trace::wall::WallCamera;
 
 /// A rank's GPU, with the scene on it and the kernel's compact mode ([`SampleRun`]).
@@ -51,7 +52,7 @@ impl GpuRank {
     }
 }
 
-impl ClusterRenderer {
+impl ClusterRenderer<'_> {
     /// Traces this rank's samples on `ctx`'s GPU from now on, the scene uploaded to it (the
     /// kernel's compact mode: the samples come back to this rank, which sends them to their
     /// owners as the CPU twin's). Every rank should trace on the same kind of adapter: the
@@ -68,23 +69,13 @@ impl ClusterRenderer {
             self.wall.as_ref(),
         );
         let dgi = DgiKernel::new(&ctx);
-        let masks = match &self.guidance {
-            Some(g) if g.config.order == Order::Coherent => {
-                let shown = self.wall.as_ref().map(WallCamera::shown_mask);
-                let (w, h) = (self.settings.width, self.settings.height);
-                match BlockMasksRun::new(&ctx, w, h, g.config.p_min, shown) {
-                    Ok(m) => {
-                        m.set_dgi(&ctx, &self.dgi);
-                        Some(m)
-                    }
-                    // Over the adapter's binding: the CPU draws (every rank of a job has the
-                    // same adapter, the start-up check, so every rank decides alike).
-                    Err(ScheduleError::Gpu(crate::gpu::GpuError::TooLarge { .. })) => None,
-                    Err(e) => return Err(e.into()),
-                }
-            }
-            _ => None,
-        };
+        let masks = block_masks(
+            &ctx,
+            self.guidance.as_ref(),
+            self.wall.as_ref(),
+            &self.settings,
+            &self.dgi,
+        )?;
         let owned = OwnedSums::new(&ctx, self.sums.len() as u64);
         // The owned sums start from the CPU's (zero before the first frame).
         if let Some(o) = &owned {
@@ -106,5 +97,32 @@ impl ClusterRenderer {
     #[must_use]
     pub fn gpu(&self) -> Option<&GpuContext> {
         self.gpu.as_deref().map(|g| &*g.ctx)
+    }
+}
+
+/// The whole coherent schedule drawn on `ctx`'s GPU as every block's slot mask, from the DGI
+/// `dgi` (a guided render in coherent order; `None` for a full frame, scattered order, or an
+/// image whose DGI is over one binding of this adapter: then the CPU's split draw).
+pub(super) fn block_masks(
+    ctx: &GpuContext,
+    guidance: Option<&Guidance>,
+    wall: Option<&WallCamera>,
+    settings: &TraceSettings,
+    dgi: &[f32],
+) -> Result<Option<BlockMasksRun>, ClusterError> {
+    let Some(g) = guidance.filter(|g| g.config.order == Order::Coherent) else {
+        return Ok(None);
+    };
+    let shown = wall.map(WallCamera::shown_mask);
+    let (w, h) = (settings.width, settings.height);
+    match BlockMasksRun::new(ctx, w, h, g.config.p_min, shown) {
+        Ok(m) => {
+            m.set_dgi(ctx, dgi);
+            Ok(Some(m))
+        }
+        // Over the adapter's binding: the CPU draws (every rank of a job has the same adapter,
+        // the start-up check, so every rank decides alike).
+        Err(ScheduleError::Gpu(crate::gpu::GpuError::TooLarge { .. })) => Ok(None),
+        Err(e) => Err(e.into()),
     }
 }

@@ -18,11 +18,13 @@
 //! ([`ClusterRenderer::finish`]); the messages wait on their own lane
 //! ([`exchange::Lane::Later`]) while that frame's rounds pass.
 //!
-//! [`ClusterRenderer::run_frame`] is that function. Samples are exact: a sample depends only
-//! on (pixel, sample index, seed), a pixel's owner keeps its sample count and tells the rank
-//! that traces it, and a pixel gets at most one sample an iteration, which its owner adds as the
-//! one-process renderer does. N ranks therefore give the accumulation of one process bit for
-//! bit, whatever the deal — the tests compare them.
+//! [`ClusterRenderer`]'s [`run_frame`](crate::frame::Render::run_frame) is that function: a
+//! rank's renderer is driven through [`crate::frame::Render`] as one process's is, every rank
+//! calling the same methods in the same order (they are collectives). Samples are exact: a
+//! sample depends only on (pixel, sample index, seed), a pixel's owner keeps its sample count
+//! and tells the rank that traces it, and a pixel gets at most one sample an iteration, which
+//! its owner adds as the one-process renderer does. N ranks therefore give the accumulation of
+//! one process bit for bit, whatever the deal — the tests compare them.
 //!
 //! A rank's own work and memory are its share of the image: it keeps the sums and counts of
 //! the blocks it owns, knows every listed block's length (the deal's input: a population
@@ -45,9 +47,16 @@
 //!
 //! Every wait has a deadline ([`Cluster`]): a rank that stops answering ends the job with an
 //! error naming it. The transport is [`exchange::Exchange`]: threads in one process for the
-//! tests ([`exchange::InProcess`]), MPI with the `cluster` feature (`mpi`). Modules: [`mod@deal`]
-//! (blocks and the deal), [`owners`] (the tile map and the `--tile-owners` file), [`handshake`]
-//! (the start-up check), [`exchange`], [`picture`] (each owner's tiles, filtered where they are
+//! tests ([`exchange::InProcess`]), MPI with the `cluster` feature (`mpi`).
+//!
+//! Files by job: `collective.rs` ([`Cluster`]: the collectives and their deadlines),
+//! `codec.rs` (what crosses the link, as bytes: [`FrameControl`], masks, samples, sums),
+//! `engine.rs` (a rank's renderer set up, [`ClusterSetup`], and where its owned pixels lie),
+//! `steps.rs` (the frame's steps 1–4 and what changes between frames), `samples.rs` (step 5,
+//! the samples' exchange), `gpu_rank.rs` (a rank tracing on its GPU), `gather.rs` (what rank 0
+//! reads of the owners' sums); and the modules [`mod@deal`] (blocks and the deal), [`owners`]
+//! (the tile map and the `--tile-owners` file), [`handshake`] (the start-up check),
+//! [`exchange`] (the transport), [`picture`] (each owner's tiles, filtered where they are
 //! owned).
 
 mod codec;
@@ -67,7 +76,7 @@ mod steps;
 
 use std::sync::Arc;
 
-use crate::frame::{FrameError, GuideConfig};
+use crate::frame::{FrameError, FrameStats, GuideConfig};
 use crate::roi::dgi::{Roi, Surface};
 use crate::schedule::ScheduleError;
 use crate::trace::pack::PackedScene;
@@ -81,6 +90,7 @@ use samples::InFlight;
 
 pub use codec::{FrameControl, PIXEL_BYTES, f32_bytes};
 pub use collective::{Cluster, binomial_tree};
+pub use engine::ClusterSetup;
 pub use gather::{CONSOLE_PIXELS, reduction_for};
 pub use steps::split_dgi;
 
@@ -152,6 +162,23 @@ pub struct ClusterFrameStats {
     pub traffic: Traffic,
 }
 
+/// A rank's frame as one process's reads: rank 0's stages in the viewer's panel, with the
+/// exchange that waits for the slowest rank counted with the trace.
+impl From<ClusterFrameStats> for FrameStats {
+    fn from(s: ClusterFrameStats) -> Self {
+        Self {
+            iteration: s.iteration,
+            dgi_recomputed: s.dgi_recomputed,
+            pixels: u32::try_from(s.pixels).ok(),
+            ms_dgi: s.dgi_recomputed.then_some(s.ms_dgi),
+            ms_schedule: Some(s.ms_schedule),
+            ms_trace: Some(s.ms_trace + s.ms_exchange),
+            gpu_timestamps: false,
+            rays: Some(s.rays),
+        }
+    }
+}
+
 /// Where the ROI is aimed and how it steers sampling.
 struct Guidance {
     config: GuideConfig,
@@ -160,8 +187,12 @@ struct Guidance {
 }
 
 /// One rank's part of a progressive render across ranks: the schedule, sample counts and DGI
-/// of the whole image, the sums of the blocks this rank owns.
-pub struct ClusterRenderer {
+/// of the whole image, the sums of the blocks this rank owns. It holds the rank's handle on the
+/// job for as long as it renders: its frames and reads ([`crate::frame::Render`]) are
+/// collectives, which every rank calls in the same order.
+pub struct ClusterRenderer<'c> {
+    /// The job: the transport and the deadlines of every wait.
+    link: &'c mut Cluster,
     pub packed: PackedScene,
     pub settings: TraceSettings,
     /// Seconds spent building the BVH and packing the scene.
@@ -169,6 +200,7 @@ pub struct ClusterRenderer {
     wall: Option<WallCamera>,
     guidance: Option<Guidance>,
     dgi_mode: DgiMode,
+    /// This rank and the job's ranks (the link's, kept at hand).
     rank: usize,
     ranks: usize,
     iteration: u32,

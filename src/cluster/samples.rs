@@ -12,7 +12,7 @@ use super::codec::{rgb_bytes, rgb_of};
 use super::deal::BlockList;
 use super::engine::{local_in_block, own_base_of};
 use super::exchange::ExchangeError;
-use super::{Cluster, ClusterError, ClusterRenderer};
+use super::{ClusterError, ClusterRenderer};
 use crate::schedule::BLOCK_PIXELS;
 use crate::trace::accum::accumulate_sums;
 
@@ -56,7 +56,7 @@ enum BlockSamples<'a> {
     Wire(&'a [u8]),
 }
 
-impl ClusterRenderer {
+impl ClusterRenderer<'_> {
     /// Step 5, first half: every rank's samples posted to the owners of their blocks, and every
     /// block's rays to every rank (the deal's weights). An owner counts the samples of its
     /// pixels now — a pixel's count is its sample index, which the next frame's counts need,
@@ -64,7 +64,6 @@ impl ClusterRenderer {
     /// ([`Self::collect`]).
     pub(super) fn post(
         &mut self,
-        c: &mut Cluster,
         list: Arc<BlockList>,
         tracer: Vec<u32>,
         mine: Traced,
@@ -119,7 +118,7 @@ impl ClusterRenderer {
             });
         self.total += list.len();
         let what = format!("the samples of iteration {}", self.iteration);
-        let own = c.all_to_all_post(&what, parts)?;
+        let own = self.link.all_to_all_post(&what, parts)?;
         self.in_flight = Some(InFlight {
             iteration: self.iteration,
             list,
@@ -134,13 +133,13 @@ impl ClusterRenderer {
     /// Step 5, second half: the posted frame's samples (if one is in flight) received, and
     /// their sums added by the owners of their blocks — unless the accumulation restarted
     /// since — and every block's rays recorded for the next deals.
-    pub(super) fn collect(&mut self, c: &mut Cluster) -> Result<(), ClusterError> {
+    pub(super) fn collect(&mut self) -> Result<(), ClusterError> {
         let Some(f) = self.in_flight.take() else {
             return Ok(());
         };
         let (list, tracer, mine) = (&f.list, &f.tracer, &f.mine);
         let what = format!("the samples of iteration {}", f.iteration);
-        let got = c.all_to_all_collect(&what, f.own)?;
+        let got = self.link.all_to_all_collect(&what, f.own)?;
         // Own blocks first (no bytes), then each other rank's, by the same layout: each owned
         // block's samples found (at most one rank traced it), then added — on this rank's GPU
         // where its owned sums are there, else on all cores, a block's pixels in its own slot.
@@ -287,8 +286,8 @@ impl ClusterRenderer {
     /// Brings every owner the samples still in flight: before the accumulation is read
     /// (gathers, pictures, the ROI's progress) and at the end of a render. Every rank calls it
     /// at the same point (it is a collective when samples are in flight).
-    pub fn finish(&mut self, c: &mut Cluster) -> Result<(), ClusterError> {
-        self.collect(c)
+    pub fn finish(&mut self) -> Result<(), ClusterError> {
+        self.collect()
     }
 
     /// Whether a frame's samples travel while the next frame is traced (`true`, the default)

@@ -13,21 +13,54 @@ use super::deal::{BlockList, deal};
 use super::exchange::ExchangeError;
 use super::samples::Traced;
 use super::{Cluster, ClusterError, ClusterFrameStats, ClusterRenderer, DgiMode, owners};
-use crate::frame::{EyeFollow, FrameError, GuideConfig, dgi_cpu};
+use crate::frame::stop::RoiProgress;
+use crate::frame::{EyeFollow, FrameError, GuideConfig, Render, dgi_cpu};
 use crate::roi::dgi::{Roi, Surface};
 use crate::schedule::{Order, schedule_cpu_block_masks, schedule_cpu_shown};
-use crate::trace::accum::block_rays;
+use crate::trace::accum::{Accumulation, block_rays};
+use crate::trace::camera::RenderCamera;
 use crate::trace::gpu::SampleRun;
-use crate::trace::path::samples_cpu;
+use crate::trace::path::{TraceSettings, samples_cpu};
 use crate::trace::wall::WallCamera;
 
-impl ClusterRenderer {
-    /// The restart rule of a moving eye, as one process applies it ([`crate::frame::Render::follow_eye`]):
-    /// past `threshold_m` from the eye the accumulation started with, the wall camera moves
-    /// there and this rank's owned sums and counts restart (the ROI and its DGI
-    /// kept); otherwise nothing changes. Every rank applies the same eyes in the same frames,
-    /// so they stay in step.
-    pub fn follow_eye(&mut self, eye: DVec3, threshold_m: f64) -> Result<EyeFollow, ClusterError> {
+impl Render for ClusterRenderer<'_> {
+    type Error = ClusterError;
+    type Stats = ClusterFrameStats;
+
+    fn settings(&self) -> &TraceSettings {
+        &self.settings
+    }
+
+    fn guide_config(&self) -> Option<&GuideConfig> {
+        self.guidance.as_ref().map(|g| &g.config)
+    }
+
+    fn wall(&self) -> Option<&WallCamera> {
+        self.wall.as_ref()
+    }
+
+    /// The ROI set last.
+    fn roi(&self) -> Option<&Roi> {
+        self.roi.as_ref()
+    }
+
+    fn iteration(&self) -> u32 {
+        self.iteration
+    }
+
+    fn set_roi(&mut self, roi: Option<Roi>) -> Result<(), ClusterError> {
+        if self.guidance.is_none() {
+            return Err(FrameError::NotGuided.into());
+        }
+        self.pending = Some(roi);
+        self.roi = roi;
+        Ok(())
+    }
+
+    /// A restart sets this rank's owned sums and counts back to zero. Every rank applies the
+    /// same eyes in the same frames, so they stay in step: rank 0 decides, the others
+    /// [`move_eye`](ClusterRenderer::move_eye) where it restarted.
+    fn follow_eye(&mut self, eye: DVec3, threshold_m: f64) -> Result<EyeFollow, ClusterError> {
         let wall = self.wall.as_ref().ok_or(FrameError::NoWall)?;
         if !wall.eye_moved(eye, threshold_m) {
             return Ok(EyeFollow::Kept);
@@ -41,8 +74,63 @@ impl ClusterRenderer {
         }
     }
 
+    fn set_camera(&mut self, camera: RenderCamera) {
+        self.settings.camera = camera;
+        if let Some(g) = &self.gpu {
+            g.run.set_settings(&g.ctx, &self.packed, &self.settings);
+        }
+        self.restart();
+    }
+
+    /// One frame on this rank, in step with the others: the DGI of a changed ROI, the
+    /// schedule, the deal, this rank's samples, and the exchange that brings every owner the
+    /// samples of its blocks. Every step is timed by this rank's clock, `timed` or not:
+    /// nothing waits for it.
+    fn run_frame(&mut self, _timed: bool) -> Result<ClusterFrameStats, ClusterError> {
+        let before = self.link.traffic();
+        let mut stats = ClusterFrameStats {
+            iteration: self.iteration,
+            ..Default::default()
+        };
+        self.install_dgi(&mut stats)?;
+        let mut list = self.schedule(&mut stats)?;
+        let tracer = deal(&list, &self.costs, self.ranks);
+        if let Some(l) = Arc::get_mut(&mut list) {
+            // A list from masks: expand this rank's share, the blocks it traces or owns.
+            let (me, owner) = (self.rank, &self.owners.owner);
+            l.hold(|i, b| tracer[i] as usize == me || owner[b as usize] as usize == me);
+        }
+        stats.pixels_held = list.held_len() as u64;
+        let counts = self.counts_to_trace(&list, &tracer, &mut stats)?;
+        let samples = self.trace(&list, &tracer, &counts, &mut stats)?;
+        let t0 = Instant::now();
+        // The last frame's samples, which travelled while this one was traced; then this
+        // frame's, posted (and, without overlap, collected at once).
+        self.collect()?;
+        stats.pixels = list.len();
+        self.post(list, tracer, samples)?;
+        if !self.overlap {
+            self.collect()?;
+        }
+        stats.ms_exchange = t0.elapsed().as_secs_f64() * 1e3;
+        stats.traffic = self.link.traffic().since(&before);
+        self.iteration += 1;
+        Ok(stats)
+    }
+
+    fn roi_progress(&mut self) -> Result<Option<RoiProgress>, ClusterError> {
+        self.progress()
+    }
+
+    /// Every owner sends rank 0 its sums and counts.
+    fn gather(&mut self) -> Result<Option<(Accumulation, Vec<f32>)>, ClusterError> {
+        self.gather_every(1)
+    }
+}
+
+impl ClusterRenderer<'_> {
     /// Moves the eye to `eye` and restarts, unconditionally: what the other ranks do with an
-    /// eye rank 0's [`Self::follow_eye`] restarted at.
+    /// eye rank 0's [`Render::follow_eye`] restarted at.
     pub fn move_eye(&mut self, eye: DVec3) -> Result<(), ClusterError> {
         let wall = self.wall.as_ref().ok_or(FrameError::NoWall)?;
         let moved = wall.with_eye(eye).map_err(FrameError::Wall)?;
@@ -61,18 +149,8 @@ impl ClusterRenderer {
         self.restart();
     }
 
-    /// The pinhole camera `camera` from now on, and the accumulation restarted (the
-    /// one-process renderer's [`crate::frame::Render::set_camera`]).
-    pub fn set_camera(&mut self, camera: crate::trace::camera::RenderCamera) {
-        self.settings.camera = camera;
-        if let Some(g) = &self.gpu {
-            g.run.set_settings(&g.ctx, &self.packed, &self.settings);
-        }
-        self.restart();
-    }
-
     /// This rank's owned sums and counts back to zero.
-    fn restart(&mut self) {
+    pub(super) fn restart(&mut self) {
         if let Some(f) = &mut self.in_flight {
             f.stale = true;
         }
@@ -88,57 +166,8 @@ impl ClusterRenderer {
         self.iteration = 0;
     }
 
-    /// Sets the ROI; the next frame installs its DGI. The accumulation is kept.
-    pub fn set_roi(&mut self, roi: Option<Roi>) -> Result<(), ClusterError> {
-        if self.guidance.is_none() {
-            return Err(FrameError::NotGuided.into());
-        }
-        self.pending = Some(roi);
-        self.roi = roi;
-        Ok(())
-    }
-
-    /// One frame on this rank, in step with the others: the DGI of a changed ROI, the
-    /// schedule, the deal, this rank's samples, and the exchange that brings every owner the
-    /// samples of its blocks.
-    pub fn run_frame(&mut self, c: &mut Cluster) -> Result<ClusterFrameStats, ClusterError> {
-        let before = c.traffic();
-        let mut stats = ClusterFrameStats {
-            iteration: self.iteration,
-            ..Default::default()
-        };
-        self.install_dgi(c, &mut stats)?;
-        let mut list = self.schedule(c, &mut stats)?;
-        let tracer = deal(&list, &self.costs, self.ranks);
-        if let Some(l) = Arc::get_mut(&mut list) {
-            // A list from masks: expand this rank's share, the blocks it traces or owns.
-            let (me, owner) = (self.rank, &self.owners.owner);
-            l.hold(|i, b| tracer[i] as usize == me || owner[b as usize] as usize == me);
-        }
-        stats.pixels_held = list.held_len() as u64;
-        let counts = self.counts_to_trace(c, &list, &tracer, &mut stats)?;
-        let samples = self.trace(&list, &tracer, &counts, &mut stats)?;
-        let t0 = Instant::now();
-        // The last frame's samples, which travelled while this one was traced; then this
-        // frame's, posted (and, without overlap, collected at once).
-        self.collect(c)?;
-        stats.pixels = list.len();
-        self.post(c, list, tracer, samples)?;
-        if !self.overlap {
-            self.collect(c)?;
-        }
-        stats.ms_exchange = t0.elapsed().as_secs_f64() * 1e3;
-        stats.traffic = c.traffic().since(&before);
-        self.iteration += 1;
-        Ok(stats)
-    }
-
     /// Step 1: the DGI of a changed ROI, computed here or received from rank 0.
-    fn install_dgi(
-        &mut self,
-        c: &mut Cluster,
-        stats: &mut ClusterFrameStats,
-    ) -> Result<(), ClusterError> {
+    fn install_dgi(&mut self, stats: &mut ClusterFrameStats) -> Result<(), ClusterError> {
         let (Some(roi), Some(g)) = (self.pending.take(), &self.guidance) else {
             return Ok(());
         };
@@ -164,14 +193,21 @@ impl ClusterRenderer {
             // on the same backend: the start-up check).
             DgiMode::Compute => compute()?,
             DgiMode::Split if gpu.is_some() => compute()?,
-            DgiMode::Split => split_dgi(c, &g.surface, g.pitch_m, &g.config, roi.as_ref(), size)?,
+            DgiMode::Split => split_dgi(
+                self.link,
+                &g.surface,
+                g.pitch_m,
+                &g.config,
+                roi.as_ref(),
+                size,
+            )?,
             DgiMode::Broadcast => {
-                let mine = if c.is_root() {
+                let mine = if self.link.is_root() {
                     f32_bytes(&compute()?)
                 } else {
                     Vec::new()
                 };
-                let got = c.broadcast("the DGI", mine)?;
+                let got = self.link.broadcast("the DGI", mine)?;
                 let dgi = f32s(&got, 1);
                 if dgi.len() != self.pixels {
                     return Err(ExchangeError::Length {
@@ -199,11 +235,7 @@ impl ClusterRenderer {
     /// coherent order each rank draws every N-th block and sends the others its blocks'
     /// selected slots (a flag byte a block, 128 bytes a non-empty one): the draw is split N
     /// ways instead of repeated on every rank.
-    fn schedule(
-        &mut self,
-        c: &mut Cluster,
-        stats: &mut ClusterFrameStats,
-    ) -> Result<Arc<BlockList>, ClusterError> {
+    fn schedule(&mut self, stats: &mut ClusterFrameStats) -> Result<Arc<BlockList>, ClusterError> {
         let t0 = Instant::now();
         let size = [self.settings.width, self.settings.height];
         let shown = self.wall.as_ref().map(WallCamera::shown_mask);
@@ -234,7 +266,7 @@ impl ClusterRenderer {
                 )?;
                 let part = encode_masks(&masks);
                 let what = format!("the schedule of iteration {}", self.iteration);
-                let got = c.all_to_all(&what, vec![part; self.ranks])?;
+                let got = self.link.all_to_all(&what, vec![part; self.ranks])?;
                 let mut all = vec![[0u32; 32]; n as usize];
                 for (src, bytes) in got.iter().enumerate() {
                     let theirs: Vec<u32> = (src as u32..n).step_by(self.ranks).collect();
@@ -279,7 +311,6 @@ impl ClusterRenderer {
     /// of their blocks it was dealt (4 bytes a pixel, blocks ascending).
     fn counts_to_trace(
         &mut self,
-        c: &mut Cluster,
         list: &BlockList,
         tracer: &[u32],
         stats: &mut ClusterFrameStats,
@@ -307,7 +338,7 @@ impl ClusterRenderer {
                 }
             }
             let what = format!("the counts of iteration {}", self.iteration);
-            got = c.all_to_all(&what, parts)?;
+            got = self.link.all_to_all(&what, parts)?;
             for (src, bytes) in got.iter().enumerate().filter(|(s, _)| *s != me) {
                 let expected: usize = (0..list.blocks.len())
                     .filter(|&i| tracer[i] as usize == me && owner(i) == src)

@@ -15,7 +15,7 @@ use super::*;
 use crate::display::DisplayModel;
 use crate::filter::FilterParams;
 use crate::frame::stop::RoiProgress;
-use crate::frame::{EyeFollow, Render, Renderer};
+use crate::frame::{EyeFollow, GuideConfig, Render, Renderer};
 use crate::gpu::{Backend, GpuContext};
 use crate::roi::cone::Cone;
 use crate::scene::Scene;
@@ -112,7 +112,7 @@ fn ranks_then<T: Send>(
     with_wall: bool,
     mode: DgiMode,
     owners: impl Fn(usize) -> BlockOwners + Sync,
-    after: impl Fn(&mut Cluster, &mut ClusterRenderer, &[ClusterFrameStats]) -> T + Sync,
+    after: impl Fn(&mut ClusterRenderer, &[ClusterFrameStats]) -> T + Sync,
 ) -> Vec<T> {
     ranks_on_then(n, guided, with_wall, mode, owners, None, after)
 }
@@ -125,7 +125,7 @@ fn ranks_on_then<T: Send>(
     mode: DgiMode,
     owners: impl Fn(usize) -> BlockOwners + Sync,
     gpu: Option<&Arc<GpuContext>>,
-    after: impl Fn(&mut Cluster, &mut ClusterRenderer, &[ClusterFrameStats]) -> T + Sync,
+    after: impl Fn(&mut ClusterRenderer, &[ClusterFrameStats]) -> T + Sync,
 ) -> Vec<T> {
     std::thread::scope(|sc| {
         let handles: Vec<_> = InProcess::job(n)
@@ -133,15 +133,18 @@ fn ranks_on_then<T: Send>(
             .map(|end| {
                 let (owners, after) = (&owners, &after);
                 sc.spawn(move || {
-                    let rank = end.rank();
                     let mut c = Cluster::new(Box::new(end), Duration::from_secs(30));
                     let s = scene();
                     let w = with_wall.then(|| wall(&s));
                     let model = hornet();
-                    let guide = guided.map(|o| (&model, config(o)));
-                    let mut r =
-                        ClusterRenderer::new(&s, settings(&s), guide, w, owners(n), mode, rank, n)
-                            .unwrap();
+                    let setup = ClusterSetup {
+                        settings: settings(&s),
+                        guide: guided.map(|o| (&model, config(o))),
+                        wall: w,
+                        owners: owners(n),
+                        dgi_mode: mode,
+                    };
+                    let mut r = ClusterRenderer::new(&mut c, &s, setup).unwrap();
                     if let Some(ctx) = gpu {
                         r.trace_on_gpu(Arc::clone(ctx)).unwrap();
                     }
@@ -154,19 +157,22 @@ fn ranks_on_then<T: Send>(
                             roi: if guided.is_some() { roi_at(k) } else { None },
                             eye: None,
                         };
-                        let got = c.broadcast("control", control.encode()).unwrap();
+                        let got = r
+                            .cluster_mut()
+                            .broadcast("control", control.encode())
+                            .unwrap();
                         let got = FrameControl::decode(&got).unwrap();
                         assert_eq!(got, control);
                         if let Some(roi) = got.roi {
                             r.set_roi(roi).unwrap();
                         }
-                        let st = r.run_frame(&mut c).unwrap();
+                        let st = r.run_frame(false).unwrap();
                         assert_eq!(st.iteration, k);
                         frames.push(st);
                     }
                     // The render's end: the last frame's samples reach their owners.
-                    r.finish(&mut c).unwrap();
-                    after(&mut c, &mut r, &frames)
+                    r.finish().unwrap();
+                    after(&mut r, &frames)
                 })
             })
             .collect();
@@ -183,17 +189,17 @@ fn ranks(
     mode: DgiMode,
     owners: impl Fn(usize) -> BlockOwners + Sync,
 ) -> (Accumulation, Vec<f32>) {
-    let results = ranks_then(n, guided, with_wall, mode, owners, |c, r, _| {
+    let results = ranks_then(n, guided, with_wall, mode, owners, |r, _| {
         let progress = if guided.is_some() {
-            r.roi_progress(c).unwrap()
+            r.roi_progress().unwrap()
         } else {
             None
         };
-        let g = r.gather(c).unwrap();
-        if let (Some(g), Some(p)) = (&g, progress) {
+        let g = r.gather().unwrap();
+        if let (Some(g), true) = (&g, guided.is_some()) {
             // Measured from the owners' ROI sums as from the whole accumulation.
-            assert_eq!(p, RoiProgress::measure(&g.0, &g.1));
-            assert!(p.is_some());
+            assert_eq!(progress, RoiProgress::measure(&g.0, &g.1));
+            assert!(progress.is_some());
         }
         g
     });
@@ -249,11 +255,11 @@ fn the_console_gathers_every_kth_pixel_and_its_bytes_only() {
                 with_wall,
                 DgiMode::Compute,
                 columns,
-                |c, r, _| {
+                |r, _| {
                     steps.map(|step| {
-                        let before = c.traffic();
-                        let g = r.gather_every(c, step).unwrap();
-                        (g, c.traffic().since(&before).bytes_received)
+                        let before = r.cluster().traffic();
+                        let g = r.gather_every(step).unwrap();
+                        (g, r.cluster().traffic().since(&before).bytes_received)
                     })
                 },
             );
@@ -296,18 +302,11 @@ fn a_rank_holds_only_the_blocks_it_traces_or_owns() {
         (Order::Coherent, 1),
         (Order::Scattered, 3),
     ] {
-        let per_rank = ranks_then(
-            n,
-            Some(order),
-            false,
-            DgiMode::Compute,
-            columns,
-            |_, r, f| {
-                let owned = r.owners.owned_by(r.rank).len() * BLOCK_PIXELS as usize;
-                assert_eq!((r.counts.len(), r.sums.len()), (owned, owned));
-                f.to_vec()
-            },
-        );
+        let per_rank = ranks_then(n, Some(order), false, DgiMode::Compute, columns, |r, f| {
+            let owned = r.owners.owned_by(r.rank).len() * BLOCK_PIXELS as usize;
+            assert_eq!((r.counts.len(), r.sums.len()), (owned, owned));
+            f.to_vec()
+        });
         for k in 0..ITERATIONS as usize {
             let pixels = per_rank[0][k].pixels;
             let held: Vec<u64> = per_rank.iter().map(|f| f[k].pixels_held).collect();
@@ -439,17 +438,14 @@ fn a_silent_or_ended_rank_is_named_within_the_deadline() {
                         let rank = end.rank();
                         let mut c = Cluster::new(Box::new(end), Duration::from_millis(300));
                         let s = scene();
-                        let mut r = ClusterRenderer::new(
-                            &s,
-                            settings(&s),
-                            None,
-                            None,
-                            BlockOwners::strips(SIZE, 3),
-                            DgiMode::Compute,
-                            rank,
-                            3,
-                        )
-                        .unwrap();
+                        let setup = ClusterSetup {
+                            settings: settings(&s),
+                            guide: None,
+                            wall: None,
+                            owners: BlockOwners::strips(SIZE, 3),
+                            dgi_mode: DgiMode::Compute,
+                        };
+                        let mut r = ClusterRenderer::new(&mut c, &s, setup).unwrap();
                         for k in 0..4 {
                             if rank == 2 && k == 2 {
                                 if hang {
@@ -457,7 +453,7 @@ fn a_silent_or_ended_rank_is_named_within_the_deadline() {
                                 }
                                 return None;
                             }
-                            if let Err(e) = r.run_frame(&mut c) {
+                            if let Err(e) = r.run_frame(false) {
                                 // A rank that failed stays until rank 0 has seen what it sees
                                 // (under MPI it lives until the job is ended): dropped at
                                 // once, it would be the first gone rank rank 0 meets.
@@ -541,13 +537,13 @@ fn owners_pictures_match(
         with_wall,
         DgiMode::Compute,
         |n| BlockOwners::of_display(&m, &map(n), SIZE),
-        |c, r, _| {
-            let before = c.traffic();
+        |r, _| {
+            let before = r.cluster().traffic();
             let pictures = match halo {
-                Some(h) => r.tile_pictures_with(c, &m, &map(n), params, h).unwrap(),
-                None => r.tile_pictures(c, &m, &map(n), params).unwrap(),
+                Some(h) => r.tile_pictures_with(&m, &map(n), params, h).unwrap(),
+                None => r.tile_pictures(&m, &map(n), params).unwrap(),
             };
-            let after = c.traffic();
+            let after = r.cluster().traffic();
             let traffic = (
                 after.bytes_sent - before.bytes_sent,
                 after.bytes_received - before.bytes_received,
@@ -702,28 +698,24 @@ fn gpu_ranks_give_the_one_gpu_process_accumulation_and_follow_a_moved_eye() {
             .map(|end| {
                 let (s, ctx) = (&s, &ctx);
                 sc.spawn(move || {
-                    let rank = end.rank();
                     let mut c = Cluster::new(Box::new(end), Duration::from_secs(30));
-                    let mut r = ClusterRenderer::new(
-                        s,
-                        settings(s),
-                        None,
-                        Some(wall(s)),
-                        columns(2),
-                        DgiMode::Compute,
-                        rank,
-                        2,
-                    )
-                    .unwrap();
+                    let setup = ClusterSetup {
+                        settings: settings(s),
+                        guide: None,
+                        wall: Some(wall(s)),
+                        owners: columns(2),
+                        dgi_mode: DgiMode::Compute,
+                    };
+                    let mut r = ClusterRenderer::new(&mut c, s, setup).unwrap();
                     r.trace_on_gpu(ctx.clone()).unwrap();
                     assert!(r.gpu().is_some());
                     for k in 0..5 {
                         if k == 2 {
                             r.move_eye(moved).unwrap();
                         }
-                        r.run_frame(&mut c).unwrap();
+                        r.run_frame(false).unwrap();
                     }
-                    r.gather(&mut c).unwrap()
+                    r.gather().unwrap()
                 })
             })
             .collect();
@@ -756,18 +748,10 @@ fn guided_gpu_ranks_give_the_one_gpu_process_accumulation_and_dgi() {
     ] {
         // Each rank's gathered accumulation (rank 0's) and the bytes it received over the
         // frames.
-        let got = ranks_on_then(
-            n,
-            Some(order),
-            false,
-            mode,
-            columns,
-            Some(&ctx),
-            |c, r, f| {
-                let received: u64 = f.iter().map(|s| s.traffic.bytes_received).sum();
-                (r.gather(c).unwrap(), received)
-            },
-        );
+        let got = ranks_on_then(n, Some(order), false, mode, columns, Some(&ctx), |r, f| {
+            let received: u64 = f.iter().map(|s| s.traffic.bytes_received).sum();
+            (r.gather().unwrap(), received)
+        });
         let received: Vec<u64> = got.iter().map(|g| g.1).collect();
         let root = got.into_iter().next().unwrap().0.expect("rank 0 gathers");
         assert_bits_equal(&root, &one, &format!("{n} GPU ranks, DGI {mode:?}"));
@@ -795,12 +779,12 @@ fn gpu_ranks_draw_the_coherent_schedule_on_their_gpus() {
                 DgiMode::Compute,
                 columns,
                 Some(&ctx),
-                |c, r, _| {
+                |r, _| {
                     assert!(
                         r.gpu.as_ref().is_some_and(|g| g.masks.is_some()),
                         "the schedule is drawn on the GPU"
                     );
-                    r.gather(c).unwrap()
+                    r.gather().unwrap()
                 },
             );
             let root = got.into_iter().next().unwrap().expect("rank 0 gathers");
@@ -870,22 +854,17 @@ fn samples_in_flight_arrive_with_the_next_frame_and_a_restart_drops_them() {
                     .into_iter()
                     .map(|end| {
                         sc.spawn(move || {
-                            let rank = end.rank();
                             let mut c = Cluster::new(Box::new(end), Duration::from_secs(30));
                             let s = scene();
                             let model = hornet();
-                            let guide = Some((&model, config(order)));
-                            let mut r = ClusterRenderer::new(
-                                &s,
-                                settings(&s),
-                                guide,
-                                None,
-                                columns(n),
-                                DgiMode::Compute,
-                                rank,
-                                n,
-                            )
-                            .unwrap();
+                            let setup = ClusterSetup {
+                                settings: settings(&s),
+                                guide: Some((&model, config(order))),
+                                wall: None,
+                                owners: columns(n),
+                                dgi_mode: DgiMode::Compute,
+                            };
+                            let mut r = ClusterRenderer::new(&mut c, &s, setup).unwrap();
                             r.set_overlap(overlap);
                             for k in 0..ITERATIONS {
                                 if let Some(roi) = roi_at(k) {
@@ -894,10 +873,10 @@ fn samples_in_flight_arrive_with_the_next_frame_and_a_restart_drops_them() {
                                 if k == MOVE_AT {
                                     r.set_camera(moved);
                                 }
-                                r.run_frame(&mut c).unwrap();
+                                r.run_frame(false).unwrap();
                                 assert_eq!(r.in_flight.is_some(), overlap, "after frame {k}");
                             }
-                            r.gather(&mut c).unwrap()
+                            r.gather().unwrap()
                         })
                     })
                     .collect();

@@ -306,6 +306,11 @@ struct Press {
 }
 
 /// Simulates one session at its frame rate.
+///
+/// One function of some 240 lines on purpose: every draw from the session's generator happens
+/// in one fixed order — the targets, the presses, then frame by frame the motion, tremor, noise
+/// and stick — and the shipped files depend on that order byte for byte; read top to bottom,
+/// the function is that order.
 #[must_use]
 pub fn simulate(spec: &SessionSpec) -> Vec<Sample> {
     let mut rng = Rng::new(spec.seed.wrapping_mul(0x2545_F491_4F6C_DD1D) ^ 0x5EED);
