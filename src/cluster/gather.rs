@@ -12,14 +12,20 @@ use crate::trace::accum::{Accumulation, every, every_size};
 impl ClusterRenderer<'_> {
     /// How far the ROI has come ([`crate::frame::Render::roi_progress`]), on rank 0 (`None`
     /// without ROI pixels, and on the other ranks): every owner sends rank 0 the sums and
-    /// counts of its pixels inside the ROI (d = 0), [`PIXEL_BYTES`] each, and rank 0 measures
-    /// them as one process does.
+    /// counts of its pixels of d = 0 (every pixel of a full frame) that a wall camera's display
+    /// shows, [`PIXEL_BYTES`] each, and rank 0 measures them as one process does — pixels no
+    /// tile shows are never sampled and would hold the fewest samples at 0 for ever.
     pub(super) fn progress(&mut self) -> Result<Option<RoiProgress>, ClusterError> {
         self.collect()?;
         self.sync_sums()?;
         let size = [self.settings.width, self.settings.height];
         let tiles_x = self.owners.tiles[0];
-        let in_roi = |p: &u32| self.dgi.get(*p as usize) == Some(&0.0);
+        // A full frame keeps no DGI: d = 0 everywhere.
+        let guided = self.guidance.is_some();
+        let wall = self.wall.as_ref();
+        let in_roi = |p: &u32| {
+            (!guided || self.dgi[*p as usize] == 0.0) && wall.is_none_or(|w| w.is_shown(*p))
+        };
         let mut mine = Vec::new();
         for b in self.owners.owned_by(self.rank) {
             for p in block_pixels(b, size, tiles_x).filter(in_roi) {

@@ -190,15 +190,14 @@ fn ranks(
     owners: impl Fn(usize) -> BlockOwners + Sync,
 ) -> (Accumulation, Vec<f32>) {
     let results = ranks_then(n, guided, with_wall, mode, owners, |r, _| {
-        let progress = if guided.is_some() {
-            r.roi_progress().unwrap()
-        } else {
-            None
-        };
+        let progress = r.roi_progress().unwrap();
         let g = r.gather().unwrap();
-        if let (Some(g), true) = (&g, guided.is_some()) {
-            // Measured from the owners' ROI sums as from the whole accumulation.
-            assert_eq!(progress, RoiProgress::measure(&g.0, &g.1));
+        if let Some(g) = &g {
+            // Measured from the owners' sums of the pixels of d = 0 a display shows, as one
+            // process measures its whole accumulation.
+            let wall = r.wall();
+            let shown = |i: usize| wall.is_none_or(|w| w.is_shown(i as u32));
+            assert_eq!(progress, RoiProgress::measure_where(&g.0, &g.1, shown));
             assert!(progress.is_some());
         }
         g
@@ -359,6 +358,79 @@ fn the_dgi_broadcast_and_any_tile_map_change_nothing() {
         &one,
         "strips",
     );
+}
+
+/// The ROI's progress across ranks is one process's through a wall camera whose display leaves
+/// pixels of the ROI unshown: those are never sampled, and counted they would hold the fewest
+/// samples at 0 for ever (a `--until roi-spp:N` that never stops).
+#[test]
+fn the_rois_progress_counts_only_the_pixels_a_display_shows() {
+    let (s, model) = (scene(), hornet());
+    // Large enough that image pixels lie wholly on the bezels (at 845 × 341 and below every
+    // pixel is some tile's: DESIGN.md §11).
+    let size = [1352, 546];
+    let camera = crate::trace::camera::RenderCamera::choose(&s, None, size[0], size[1]).unwrap();
+    let settings = TraceSettings {
+        width: size[0],
+        height: size[1],
+        max_depth: 1,
+        camera,
+        ..settings(&s)
+    };
+    let wall = WallSpec {
+        model: model.clone(),
+        eye: DVec3::new(0.0, 0.0, 1.0),
+        placement: WorldFromRoom::Auto,
+    }
+    .camera(size, &camera)
+    .unwrap();
+    let roi = Some(cone(60.0, 0.0));
+    let config = config(Order::Coherent);
+    let mut one = Renderer::guided_wall(
+        &Backend::Cpu,
+        &s,
+        settings,
+        &model,
+        config,
+        Some(wall.clone()),
+    )
+    .unwrap();
+    one.set_roi(roi).unwrap();
+    one.iterate(2).unwrap();
+    let want = one.roi_progress().unwrap();
+    assert!(want.is_some_and(|p| p.min_samples == 2), "{want:?}");
+    let dgi = one.dgi().unwrap();
+    assert!(
+        (0..size[0] * size[1]).any(|p| dgi[p as usize] == 0.0 && !wall.is_shown(p)),
+        "the ROI holds pixels no tile shows"
+    );
+    let owners = BlockOwners::of_display(&model, &TileOwners::columns(&model, 2), size);
+    let got: Vec<_> = std::thread::scope(|sc| {
+        let handles: Vec<_> = InProcess::job(2)
+            .into_iter()
+            .map(|end| {
+                let (s, model, wall, owners) = (&s, &model, &wall, &owners);
+                sc.spawn(move || {
+                    let mut c = Cluster::new(Box::new(end), Duration::from_secs(30));
+                    let setup = ClusterSetup {
+                        settings,
+                        guide: Some((model, config)),
+                        wall: Some(wall.clone()),
+                        owners: owners.clone(),
+                        dgi_mode: DgiMode::Compute,
+                    };
+                    let mut r = ClusterRenderer::new(&mut c, s, setup).unwrap();
+                    r.set_roi(roi).unwrap();
+                    for _ in 0..2 {
+                        r.run_frame(false).unwrap();
+                    }
+                    r.roi_progress().unwrap()
+                })
+            })
+            .collect();
+        handles.into_iter().map(|h| h.join().unwrap()).collect()
+    });
+    assert_eq!(got, [want, None], "rank 0 measures; rank 1 only sends");
 }
 
 #[test]
