@@ -120,7 +120,9 @@ fn a_wall_camera_render_measures_the_pixels_its_display_shows() {
     let backend = gpu();
     let model = DisplayModel::open("hornet").unwrap().0;
     let scene = Scene::builtin("cornell").unwrap();
-    let size = [331, 134];
+    // Large enough that image pixels lie wholly on the bezels: at 845 × 341 and below every
+    // pixel is some tile's (DESIGN.md §11), and nothing would be left unshown to leave out.
+    let size = [1352, 546];
     let s = settings(&scene, size);
     let c = &s.camera;
     let wall = WallCamera::new(
