@@ -36,8 +36,9 @@ fn settings_of(scene: &Scene, [w, h]: [u32; 2]) -> TraceSettings {
     }
 }
 
-/// HORNET at a third of its canvas: its bezels hold some pixel centres.
-const WALL_SIZE: [u32; 2] = [331, 134];
+/// HORNET at a tenth of its canvas: its bezels hide some pixels (at 845 × 341 and below every
+/// pixel is some tile's, DESIGN.md §11).
+const WALL_SIZE: [u32; 2] = [1352, 546];
 
 fn roi() -> Roi {
     Roi::Cone(
