@@ -594,7 +594,7 @@ fn twin_names_follow_the_rule() {
 }
 
 /// The README's Architecture section shows the layers of [`LAYERS`] and the frame function's
-/// steps as they are in `src/frame/mod.rs`.
+/// steps as they are in `src/frame/steps.rs`.
 #[test]
 fn the_readme_shows_the_layers_and_the_frame_steps_as_they_are() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
@@ -615,12 +615,12 @@ fn the_readme_shows_the_layers_and_the_frame_steps_as_they_are() {
             "README's row for {layer} does not list {listed}: {line}"
         );
     }
-    let frame = std::fs::read_to_string(root.join("src/frame/mod.rs")).unwrap();
+    let frame = std::fs::read_to_string(root.join("src/frame/steps.rs")).unwrap();
     let body = frame
-        .split("pub fn run_frame(")
+        .split("fn run_frame(")
         .nth(1)
         .and_then(|rest| rest.split("\n    }\n").next())
-        .expect("run_frame in src/frame/mod.rs");
+        .expect("run_frame in src/frame/steps.rs");
     let steps: Vec<&str> = body.lines().skip(1).map(str::trim).collect();
     assert!(steps.len() >= 4, "{steps:?}");
     for step in steps {

@@ -7,7 +7,7 @@
 use glam::DVec3;
 use raygun::display::DisplayModel;
 use raygun::filter::FilterParams;
-use raygun::frame::{FrameStats, GuideConfig, Renderer};
+use raygun::frame::{FrameStats, GuideConfig, Render, Renderer};
 use raygun::gpu::{Backend, Band, GpuContext, GpuError};
 use raygun::roi::cone::Cone;
 use raygun::roi::dgi::{DgiParams, Guide, Metric, Roi, Surface};

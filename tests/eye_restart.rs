@@ -5,14 +5,15 @@
 
 use glam::DVec3;
 use raygun::display::DisplayModel;
-use raygun::frame::{EyeFollow, FrameError, GuideConfig, Renderer};
+use raygun::frame::{EyeFollow, FrameError, GuideConfig, Render, Renderer};
 use raygun::gpu::{Backend, GpuContext};
 use raygun::roi::cone::Cone;
 use raygun::roi::dgi::Roi;
 use raygun::scene::Scene;
 use raygun::trace::camera::RenderCamera;
 use raygun::trace::path::TraceSettings;
-use raygun::trace::wall::{DEFAULT_EYE_THRESHOLD_M, WallCamera, WorldFromRoom};
+use raygun::trace::wall::{WallCamera, WorldFromRoom};
+use raygun::tracking::head::DEFAULT_EYE_THRESHOLD_M;
 
 const SIZE: [u32; 2] = [124, 50];
 

@@ -4,7 +4,7 @@
 mod walls;
 use walls::hornet;
 
-use raygun::frame::{GuideConfig, Renderer};
+use raygun::frame::{GuideConfig, Render, Renderer};
 use raygun::gpu::{Backend, GpuContext};
 use raygun::roi::dgi::Roi;
 use raygun::scene::{Environment, Scene};

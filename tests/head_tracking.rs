@@ -18,7 +18,7 @@ use raygun::frame::GuideConfig;
 use raygun::gpu::Backend;
 use raygun::scene::Scene;
 use raygun::session::guide::GuideSource;
-use raygun::session::render::{GuidedResult, Stopping, render_guided_wall};
+use raygun::session::render::{GuidedRender, GuidedResult, Stopping, render_guided};
 use raygun::session::replay::{EyeReport, ReplayOptions, ReplayPlan};
 use raygun::trace::camera::RenderCamera;
 use raygun::trace::path::TraceSettings;
@@ -69,17 +69,19 @@ fn render(replay: &str) -> (GuidedResult, GuideSource) {
         (c.position.as_dvec3(), c.forward.as_dvec3(), c.up.as_dvec3()),
     )
     .unwrap();
-    let r = render_guided_wall(
+    let r = render_guided(
         &Backend::Cpu,
         &scene,
-        settings,
-        &plan.surface,
-        Some(wall),
-        GuideConfig {
-            p_min: 0.05,
-            ..GuideConfig::default()
+        GuidedRender {
+            settings,
+            model: &plan.surface,
+            wall: Some(wall),
+            config: GuideConfig {
+                p_min: 0.05,
+                ..GuideConfig::default()
+            },
+            filter: FilterParams::default(),
         },
-        &FilterParams::default(),
         &source,
         &Stopping {
             iterations: Some(ITERATIONS),

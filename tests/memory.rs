@@ -10,6 +10,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use clap::Parser;
 use raygun::filter::FilterKind;
+use raygun::frame::Render;
 use raygun::memory::{Budget, FIXED_BYTES, Work};
 
 struct Counting;

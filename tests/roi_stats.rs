@@ -12,7 +12,7 @@ mod roi_stats;
 use glam::DVec3;
 use raygun::display::DisplayModel;
 use raygun::frame::stop::RoiProgress;
-use raygun::frame::{GuideConfig, Renderer};
+use raygun::frame::{GuideConfig, Render, Renderer};
 use raygun::gpu::{Backend, GpuContext};
 use raygun::output::gpu::SE_TOLERANCE;
 use raygun::output::stats::RoiStats;
@@ -62,7 +62,7 @@ fn gpu() -> Backend {
 }
 
 /// The renderer's statistics against the CPU twin's on its read-back accumulation and DGI.
-fn check(r: &Renderer, shown: impl Fn(usize) -> bool, what: &str) -> RoiStats {
+fn check(r: &mut Renderer, shown: impl Fn(usize) -> bool, what: &str) -> RoiStats {
     let measured = r.roi_stats().unwrap();
     let cpu = RoiStats::measure(&r.accumulation().unwrap(), &r.dgi().unwrap(), P_MIN, shown);
     same(what, &cpu, &measured);
@@ -98,20 +98,20 @@ fn a_guided_gpu_render_measures_its_statistics_in_place() {
     assert!((measured.median_se - whole.median_se).abs() <= SE_TOLERANCE * whole.median_se);
     r.set_roi(Some(cone(0.0, 60.0))).unwrap();
     r.iterate(4).unwrap();
-    let first = check(&r, |_| true, "4 frames");
+    let first = check(&mut r, |_| true, "4 frames");
     assert!(
         first.contrast.is_some() && first.roi_pixels > 100,
         "{first:?}"
     );
     // More frames into the same bindings.
     r.iterate(3).unwrap();
-    let later = check(&r, |_| true, "7 frames");
+    let later = check(&mut r, |_| true, "7 frames");
     assert_eq!(later.roi_pixels, first.roi_pixels);
     assert!(later.roi_samples > first.roi_samples);
     // A moved, smaller ROI: the next frame installs its DGI, the accumulation restarts.
     r.set_roi(Some(cone(-0.5, 25.0))).unwrap();
     r.iterate(3).unwrap();
-    let moved = check(&r, |_| true, "moved ROI");
+    let moved = check(&mut r, |_| true, "moved ROI");
     assert!(moved.roi_pixels < first.roi_pixels, "{moved:?}");
 }
 
@@ -120,7 +120,9 @@ fn a_wall_camera_render_measures_the_pixels_its_display_shows() {
     let backend = gpu();
     let model = DisplayModel::open("hornet").unwrap().0;
     let scene = Scene::builtin("cornell").unwrap();
-    let size = [331, 134];
+    // Large enough that image pixels lie wholly on the bezels: at 845 × 341 and below every
+    // pixel is some tile's (DESIGN.md §11), and nothing would be left unshown to leave out.
+    let size = [1352, 546];
     let s = settings(&scene, size);
     let c = &s.camera;
     let wall = WallCamera::new(
@@ -136,7 +138,7 @@ fn a_wall_camera_render_measures_the_pixels_its_display_shows() {
     assert!(r.measures_stats_on_gpu());
     r.set_roi(Some(cone(0.0, 60.0))).unwrap();
     r.iterate(3).unwrap();
-    let measured = check(&r, |i| wall.is_shown(i as u32), "wall camera");
+    let measured = check(&mut r, |i| wall.is_shown(i as u32), "wall camera");
     // Unshown ROI pixels are never sampled: counted, the fewest samples would be 0.
     let all = RoiStats::measure(&r.accumulation().unwrap(), &r.dgi().unwrap(), P_MIN, |_| {
         true

@@ -10,7 +10,7 @@
 use glam::DVec3;
 use raygun::display::DisplayModel;
 use raygun::filter::{Blend, FilterKind, FilterParams};
-use raygun::frame::{GuideConfig, Renderer};
+use raygun::frame::{GuideConfig, Render, Renderer};
 use raygun::gpu::{Backend, GpuContext};
 use raygun::output::srgb8::{OUTLINE, display_rgba, paint_outline, roi_outline};
 use raygun::roi::cone::Cone;
@@ -36,8 +36,9 @@ fn settings_of(scene: &Scene, [w, h]: [u32; 2]) -> TraceSettings {
     }
 }
 
-/// HORNET at a third of its canvas: its bezels hold some pixel centres.
-const WALL_SIZE: [u32; 2] = [331, 134];
+/// HORNET at a tenth of its canvas: its bezels hide some pixels (at 845 × 341 and below every
+/// pixel is some tile's, DESIGN.md §11).
+const WALL_SIZE: [u32; 2] = [1352, 546];
 
 fn roi() -> Roi {
     Roi::Cone(

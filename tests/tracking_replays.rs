@@ -10,8 +10,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use raygun::cli::tracking::{ReplayArgs, run_replay};
+use raygun::interaction::synth;
 use raygun::session::replay::{ChangePrinter, ReplayPlan, golden_path};
-use raygun::session::synth;
 use raygun::session::udp::{ListenerConfig, Live, UdpSource, run_live};
 use raygun::tracking::head::EyeRule;
 use raygun::tracking::replay::ReplayPayload;

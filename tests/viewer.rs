@@ -37,6 +37,22 @@ fn scene() -> Scene {
     s
 }
 
+/// One rank's view of `view --cluster` over its end `c` of an in-process job, traced on `gpu`
+/// where given.
+fn cluster_view<'a>(
+    c: &'a mut raygun::cluster::Cluster,
+    scene: &Scene,
+    model: &'a raygun::display::DisplayModel,
+    setup: raygun::cluster::ClusterSetup<'_>,
+    gpu: Option<std::sync::Arc<raygun::gpu::GpuContext>>,
+) -> raygun::session::cluster::ClusterView<'a> {
+    let mut r = raygun::cluster::ClusterRenderer::new(c, scene, setup).unwrap();
+    if let Some(ctx) = gpu {
+        r.trace_on_gpu(ctx).unwrap();
+    }
+    raygun::session::cluster::ClusterView::new(r, model).unwrap()
+}
+
 fn base(scene: &Scene) -> TraceSettings {
     TraceSettings {
         width: W,
@@ -56,7 +72,7 @@ fn a_click_centres_the_roi_where_it_was_clicked() {
     let state = ViewerState::new(RoiSource::Mouse, 4);
     let mut core = ViewerCore::new(&backend, &scene, &model, base(&scene), state).unwrap();
     core.step(ONE).unwrap();
-    assert!(core.renderer().roi().is_none(), "no ROI before a click");
+    assert!(core.roi().is_none(), "no ROI before a click");
     // Click the centre of pixel (40, 10).
     core.state.mouse_radius_px = 700.0;
     core.state.click(&model, DVec2::new(40.5, 10.5), [W, H]);
@@ -64,7 +80,7 @@ fn a_click_centres_the_roi_where_it_was_clicked() {
     // The canvas point, computed from the canvas rectangle by hand.
     let c = model.canvas_rect();
     let want = c.min + DVec2::new(40.5 / f64::from(W), 10.5 / f64::from(H)) * c.size();
-    match core.renderer().roi() {
+    match core.roi() {
         Some(Roi::CanvasEllipse { center, semi_axes }) => {
             assert!((*center - want).length() < 1e-9, "{center} vs {want}");
             assert_eq!(*semi_axes, DVec2::splat(700.0));
@@ -104,7 +120,7 @@ fn panel_settings_reach_the_renderer() {
     for _ in 0..3 {
         core.step(ONE).unwrap();
     }
-    assert_eq!(core.renderer().iteration(), 3);
+    assert_eq!(core.iteration(), 3);
     // Moving the sliders rebuilds the renderer with the new values (accumulation restarts),
     // keeping the ROI.
     core.state.p_min = 1.0;
@@ -112,7 +128,7 @@ fn panel_settings_reach_the_renderer() {
     core.state.falloff_base_m = 0.5;
     core.state.falloff_scale = 1.25;
     core.step(ONE).unwrap();
-    let r = core.renderer();
+    let r = &core;
     assert_eq!(r.guide_config().unwrap().p_min, 1.0);
     assert_eq!(r.settings().max_depth, 2);
     assert_eq!(
@@ -131,20 +147,20 @@ fn panel_settings_reach_the_renderer() {
     // Reset restarts the accumulation with the same settings.
     core.state.reset = true;
     core.step(ONE).unwrap();
-    assert_eq!(core.renderer().iteration(), 1);
+    assert_eq!(core.iteration(), 1);
     assert!(!core.state.reset);
     // Filter settings go to the picture's filter, not to the renderer (no rebuild).
     core.state.filter.k_max = 5.0;
     core.state.filter.kind = FilterKind::Exact;
     core.step(ONE).unwrap();
-    assert_eq!(core.renderer().iteration(), 2);
+    assert_eq!(core.iteration(), 2);
     let f = core.state.filter_params();
     assert_eq!((f.kind, f.k_max), (FilterKind::Exact, 5.0));
     // A bad value is an error naming it, and the renderer is left as it was.
     core.state.falloff_base_m = 0.0;
     let e = core.step(ONE).unwrap_err();
     assert!(format!("{e:#}").contains("falloff"), "{e:#}");
-    assert_eq!(core.renderer().guide_config().unwrap().falloff.base_m, 0.5);
+    assert_eq!(core.guide_config().unwrap().falloff.base_m, 0.5);
 }
 
 #[test]
@@ -748,30 +764,26 @@ fn the_wall_cameras_eye_follows_gestures_and_the_head_under_the_restart_rule() {
     for _ in 0..3 {
         core.step(ONE).unwrap();
     }
-    assert_eq!(core.renderer().iteration(), 3);
+    assert_eq!(core.iteration(), 3);
     let start = core.eye().unwrap();
     assert_eq!(start, DVec3::new(0.0, 0.0, 1.0));
-    let roi = *core.renderer().roi().unwrap();
+    let roi = *core.roi().unwrap();
     // One pixel of orbit about the wall's centre 1 m away: 5 mm, below 1 cm — kept.
     core.state.gesture(Gesture::Orbit(DVec2::new(1.0, 0.0)));
     core.step(ONE).unwrap();
-    assert_eq!(core.renderer().iteration(), 4, "the accumulation goes on");
+    assert_eq!(core.iteration(), 4, "the accumulation goes on");
     assert_eq!(core.eye(), Some(start));
     assert_eq!(core.restarts, 0);
     // Ten more: 5.5 cm from where it started — restarted, at the viewpoint, the ROI kept.
     core.state.gesture(Gesture::Orbit(DVec2::new(10.0, 0.0)));
     core.step(ONE).unwrap();
     assert_eq!(core.restarts, 1);
-    assert_eq!(
-        core.renderer().iteration(),
-        1,
-        "one frame since the restart"
-    );
+    assert_eq!(core.iteration(), 1, "one frame since the restart");
     let eye = core.eye().unwrap();
     let want = core.state.view.as_ref().unwrap().position();
     assert!(eye.abs_diff_eq(want, 1e-12), "{eye} vs {want}");
     assert!(eye.x < -0.05, "dragging right moves the eye left: {eye}");
-    assert_eq!(core.renderer().roi(), Some(&roi));
+    assert_eq!(core.roi(), Some(&roi));
     // Pan and dolly move it too.
     let before = core.eye().unwrap();
     core.state.gesture(Gesture::Dolly(100.0));
@@ -794,10 +806,10 @@ fn the_wall_cameras_eye_follows_gestures_and_the_head_under_the_restart_rule() {
     core.step(ONE).unwrap();
     assert_eq!(core.eye(), Some(head));
     // Its sway below the threshold keeps the accumulation.
-    let n = core.renderer().iteration();
+    let n = core.iteration();
     core.state.head = Some(head + DVec3::new(0.004, 0.0, 0.0));
     core.step(ONE).unwrap();
-    assert_eq!(core.renderer().iteration(), n + 1);
+    assert_eq!(core.iteration(), n + 1);
     assert_eq!(core.eye(), Some(head));
     // A gesture takes over from the head (from where the head was).
     core.state.gesture(Gesture::Dolly(-100.0));
@@ -833,21 +845,21 @@ fn the_pinhole_camera_orbits_under_the_restart_rule() {
     let mut core = ViewerCore::new(&backend, &scene, &model, base(&scene), state).unwrap();
     core.step(ONE).unwrap();
     core.step(ONE).unwrap();
-    let cam0 = core.renderer().settings().camera;
+    let cam0 = core.settings().camera;
     assert_eq!(cam0.position, base(&scene).camera.position);
     // A tiny drag: far below the threshold's angle.
     core.state.eye_threshold_m = 0.05;
     core.state.gesture(Gesture::Orbit(DVec2::new(1.0, 0.0)));
     core.step(ONE).unwrap();
-    assert_eq!(core.renderer().iteration(), 3);
-    assert_eq!(core.renderer().settings().camera.position, cam0.position);
+    assert_eq!(core.iteration(), 3);
+    assert_eq!(core.settings().camera.position, cam0.position);
     core.state.gesture(Gesture::Orbit(DVec2::new(40.0, 0.0)));
     core.step(ONE).unwrap();
     assert_eq!(core.restarts, 1);
-    assert_eq!(core.renderer().iteration(), 1);
-    let cam = core.renderer().settings().camera;
+    assert_eq!(core.iteration(), 1);
+    let cam = core.settings().camera;
     assert!(cam.position.distance(cam0.position) > 0.05);
-    assert!(core.renderer().roi().is_some(), "the ROI stays");
+    assert!(core.roi().is_some(), "the ROI stays");
     assert!(core.eye().is_none());
 }
 
@@ -924,8 +936,8 @@ fn live_dtrack_moves_the_eye_of_a_tracked_head_through_the_calibration() {
 fn the_viewer_across_ranks_shows_the_one_process_pictures_bit_for_bit() {
     use raygun::cluster::exchange::InProcess;
     use raygun::cluster::owners::{BlockOwners, TileOwners};
-    use raygun::cluster::{Cluster, DgiMode};
-    use raygun::session::cluster::{Applied, ClusterView, ViewStep};
+    use raygun::cluster::{Cluster, ClusterSetup, DgiMode};
+    use raygun::session::cluster::{Applied, ViewStep};
     use raygun::viewer::core::Picture;
     use raygun::viewer::orbit::Gesture;
     /// The user's actions, a picture after each.
@@ -973,25 +985,18 @@ fn the_viewer_across_ranks_shows_the_one_process_pictures_bit_for_bit() {
             let mut ends = InProcess::job(2).into_iter();
             let (root, other) = (ends.next().unwrap(), ends.next().unwrap());
             let (scene, model, owners) = (&scene, &model, &owners);
-            // One rank's view over its end of the job, the owners' pictures asked for.
-            let view = move |end: InProcess| {
-                let c = Cluster::new(Box::new(end), Duration::from_secs(30));
-                ClusterView::new(
-                    c,
-                    scene,
-                    model,
-                    base(scene),
-                    config,
-                    wall(),
-                    owners.clone(),
-                    DgiMode::Compute,
-                    None,
-                )
-                .unwrap()
-                .with_tiles(TileOwners::columns(model, 2))
+            let setup = move || ClusterSetup {
+                settings: base(scene),
+                guide: Some((model, config)),
+                wall: wall(),
+                owners: owners.clone(),
+                dgi_mode: DgiMode::Compute,
             };
             let follower = s.spawn(move || {
-                let mut v = view(other);
+                let mut c = Cluster::new(Box::new(other), Duration::from_secs(30));
+                // The owners' pictures asked for.
+                let mut v = cluster_view(&mut c, scene, model, setup(), None)
+                    .with_tiles(TileOwners::columns(model, 2));
                 // The frames it ran, and the pictures of its own tiles it was last asked for.
                 let (mut frames, mut last) = (0, None);
                 while let Some((step, applied)) = v.next_step().unwrap() {
@@ -1002,7 +1007,9 @@ fn the_viewer_across_ranks_shows_the_one_process_pictures_bit_for_bit() {
                 }
                 (frames, last.expect("rank 0 asked for the owners' pictures"))
             });
-            let v = view(root);
+            let mut c = Cluster::new(Box::new(root), Duration::from_secs(30));
+            let v = cluster_view(&mut c, scene, model, setup(), None)
+                .with_tiles(TileOwners::columns(model, 2));
             let mut core =
                 ViewerCore::over_cluster(&backend, scene, model, base(scene), state(), v).unwrap();
             assert!(
@@ -1086,9 +1093,8 @@ fn the_console_reduces_what_exceeds_a_4k_monitor() {
 fn gpu_ranks_show_the_one_process_gpu_pictures_bit_for_bit() {
     use raygun::cluster::exchange::InProcess;
     use raygun::cluster::owners::{BlockOwners, TileOwners};
-    use raygun::cluster::{Cluster, DgiMode};
+    use raygun::cluster::{Cluster, ClusterSetup, DgiMode};
     use raygun::gpu::GpuContext;
-    use raygun::session::cluster::ClusterView;
     use raygun::viewer::core::Picture;
     use raygun::viewer::orbit::Gesture;
     fn script(core: &mut ViewerCore, model: &raygun::display::DisplayModel) -> Vec<Picture> {
@@ -1115,30 +1121,24 @@ fn gpu_ranks_show_the_one_process_gpu_pictures_bit_for_bit() {
         let mut ends = InProcess::job(2).into_iter();
         let (root, other) = (ends.next().unwrap(), ends.next().unwrap());
         let (scene, model, owners) = (&scene, &model, &owners);
-        let view = move |end: InProcess, gpu: std::sync::Arc<GpuContext>| {
-            let c = Cluster::new(Box::new(end), Duration::from_secs(60));
-            let (s, cfg) = (base(scene), config);
-            ClusterView::new(
-                c,
-                scene,
-                model,
-                s,
-                cfg,
-                None,
-                owners.clone(),
-                DgiMode::Compute,
-                Some(gpu),
-            )
-            .unwrap()
+        let setup = move || ClusterSetup {
+            settings: base(scene),
+            guide: Some((model, config)),
+            wall: None,
+            owners: owners.clone(),
+            dgi_mode: DgiMode::Compute,
         };
         let follower = s.spawn(move || {
-            let mut v = view(other, std::sync::Arc::new(GpuContext::for_tests()));
+            let mut c = Cluster::new(Box::new(other), Duration::from_secs(60));
+            let gpu = std::sync::Arc::new(GpuContext::for_tests());
+            let mut v = cluster_view(&mut c, scene, model, setup(), Some(gpu));
             while v.next_step().unwrap().is_some() {}
         });
         let ctx = std::sync::Arc::new(GpuContext::for_tests());
         // Rank 0's filter on its rank's GPU, as `view --cluster --backend gpu` sets it up.
         let filter_backend = Backend::Gpu(Box::new((*ctx).clone()));
-        let v = view(root, ctx);
+        let mut c = Cluster::new(Box::new(root), Duration::from_secs(60));
+        let v = cluster_view(&mut c, scene, model, setup(), Some(ctx));
         let mut core =
             ViewerCore::over_cluster(&filter_backend, scene, model, base(scene), state(), v)
                 .unwrap();

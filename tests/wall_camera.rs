@@ -13,7 +13,7 @@ mod cli;
 
 use glam::{DVec2, DVec3, Vec2, Vec3, Vec4};
 use raygun::display::DisplayModel;
-use raygun::frame::{GuideConfig, Renderer};
+use raygun::frame::{GuideConfig, Render, Renderer};
 use raygun::gpu::{Backend, GpuContext};
 use raygun::random::{pcg4d, stream, unit_f32};
 use raygun::scene::{Environment, EnvironmentMap, Material, Scene, Triangle};

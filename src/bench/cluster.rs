@@ -25,10 +25,10 @@ use super::{median, paper};
 use crate::cluster::deal::{BlockList, CostTable, deal};
 use crate::cluster::owners::{BlockOwners, TileOwners};
 use crate::cluster::{
-    Cluster, ClusterError, ClusterFrameStats, ClusterRenderer, DgiMode, f32_bytes,
+    Cluster, ClusterError, ClusterFrameStats, ClusterRenderer, ClusterSetup, DgiMode, f32_bytes,
 };
 use crate::display::DisplayModel;
-use crate::frame::{FrameError, GuideConfig, dgi_cpu};
+use crate::frame::{FrameError, GuideConfig, Render, dgi_cpu};
 use crate::roi::cone::ConeError;
 use crate::roi::dgi::Surface;
 use crate::scene::Scene;
@@ -229,6 +229,11 @@ pub struct ClusterBenchReport {
 }
 
 /// The measured guided run on this job's ranks (rank 0 gets the rows).
+///
+/// One function of some 180 lines on purpose: each FOV's measurements are collectives that
+/// every rank must reach in the same order (frames, the DGI's broadcast and split, the owners'
+/// pictures, the gathers, the numbers to rank 0); read top to bottom, the function is that
+/// order.
 pub fn scaling(
     c: &mut Cluster,
     scene: &Scene,
@@ -243,16 +248,14 @@ pub fn scaling(
         let settings = paper::settings(scene, cfg.size, 1, cfg.max_depth)?;
         let roi = paper::roi(fov)?;
         let config = GuideConfig::default();
-        let mut r = ClusterRenderer::new(
-            scene,
+        let setup = ClusterSetup {
             settings,
-            Some((display, config)),
-            None,
-            owners.clone(),
-            DgiMode::Compute,
-            rank,
-            ranks,
-        )?;
+            guide: Some((display, config)),
+            wall: None,
+            owners: owners.clone(),
+            dgi_mode: DgiMode::Compute,
+        };
+        let mut r = ClusterRenderer::new(c, scene, setup)?;
         if let Some(ctx) = &gpu {
             r.trace_on_gpu(ctx.clone())?;
         }
@@ -261,7 +264,7 @@ pub fn scaling(
         // timed broadcast right after it (the frame's exchange leaves the ranks in step) is the
         // transfer alone.
         let surface = Surface::from_model(display);
-        let dgi = if c.is_root() {
+        let dgi = if r.cluster().is_root() {
             f32_bytes(&dgi_cpu(
                 &surface,
                 display.pitch_m(),
@@ -273,16 +276,17 @@ pub fn scaling(
             Vec::new()
         };
         // The first frame computes the DGI on every rank.
-        let first = r.run_frame(c)?;
+        let first = r.run_frame(false)?;
         // Its samples delivered, so that the timed iterations' bytes are theirs alone.
-        r.finish(c)?;
+        r.finish()?;
         let t0 = Instant::now();
-        c.broadcast("the DGI (timed)", dgi)
+        r.cluster_mut()
+            .broadcast("the DGI (timed)", dgi)
             .map_err(ClusterError::from)?;
         let ms_dgi_broadcast = t0.elapsed().as_secs_f64() * 1e3;
         let t0 = Instant::now();
         crate::cluster::split_dgi(
-            c,
+            r.cluster_mut(),
             &surface,
             display.pitch_m(),
             &config,
@@ -291,24 +295,24 @@ pub fn scaling(
         )?;
         let ms_dgi_split = t0.elapsed().as_secs_f64() * 1e3;
         let mut frames: Vec<(f64, ClusterFrameStats)> = Vec::new();
-        let before = c.traffic();
+        let before = r.cluster().traffic();
         for _ in 0..cfg.iterations.max(1) {
             let t = Instant::now();
-            let s = r.run_frame(c)?;
+            let s = r.run_frame(false)?;
             frames.push((t.elapsed().as_secs_f64() * 1e3, s));
         }
         // The last frame's samples, still in flight, reach their owners before the pictures.
-        r.finish(c)?;
+        r.finish()?;
         // The iterations' bytes, each frame's samples counted with it (a frame's own stats
         // count the samples it collected, the frame's before).
-        let moved = c.traffic().since(&before);
+        let moved = r.cluster().traffic().since(&before);
         // The same iterations with each frame's samples collected within the frame (the
         // exchange not overlapped with the next trace), for the side-by-side column.
         r.set_overlap(false);
         let mut sync = Vec::new();
         for _ in 0..cfg.iterations.max(1) {
             let t = Instant::now();
-            r.run_frame(c)?;
+            r.run_frame(false)?;
             sync.push(t.elapsed().as_secs_f64() * 1e3);
         }
         r.set_overlap(true);
@@ -340,11 +344,11 @@ pub fn scaling(
         // The picture, both ways: every owner its own tiles, and rank 0 the whole image.
         let params = crate::filter::FilterParams::default();
         let tile_map = TileOwners::columns(display, ranks);
-        let before = c.traffic();
+        let before = r.cluster().traffic();
         let t = Instant::now();
-        r.tile_pictures(c, display, &tile_map, &params)?;
+        r.tile_pictures(display, &tile_map, &params)?;
         let ms_tile_pictures = t.elapsed().as_secs_f64() * 1e3;
-        let moved = c.traffic();
+        let moved = r.cluster().traffic();
         // Rank 0 filters where it traces, as `render --cluster` and `view --cluster` do.
         let filter_backend = match r.gpu() {
             Some(ctx) => crate::gpu::Backend::Gpu(Box::new(ctx.clone())),
@@ -352,28 +356,28 @@ pub fn scaling(
         };
         let filter = crate::filter::Filter::new(&filter_backend);
         let t = Instant::now();
-        if let Some((acc, dgi)) = r.gather(c)? {
+        if let Some((acc, dgi)) = r.gather()? {
             filter
                 .image(&params, &acc, &dgi)
                 .map_err(ClusterError::from)?;
         }
-        let ms_gather_and_filter = if c.is_root() {
+        let ms_gather_and_filter = if r.cluster().is_root() {
             t.elapsed().as_secs_f64() * 1e3
         } else {
             0.0
         };
         let console_every = crate::cluster::reduction_for(cfg.size, crate::cluster::CONSOLE_PIXELS);
-        let console_before = c.traffic();
+        let console_before = r.cluster().traffic();
         let t = Instant::now();
-        if let Some((acc, dgi)) = r.gather_every(c, console_every)? {
+        if let Some((acc, dgi)) = r.gather_every(console_every)? {
             filter
                 .image(&params, &acc, &dgi)
                 .map_err(ClusterError::from)?;
         }
-        let (ms_console_picture, console_bytes_received) = if c.is_root() {
+        let (ms_console_picture, console_bytes_received) = if r.cluster().is_root() {
             (
                 t.elapsed().as_secs_f64() * 1e3,
-                c.traffic().since(&console_before).bytes_received,
+                r.cluster().traffic().since(&console_before).bytes_received,
             )
         } else {
             (0.0, 0)
@@ -389,7 +393,8 @@ pub fn scaling(
             ..mine
         };
         let samples = frames.iter().map(|(_, s)| s.pixels as f64).sum::<f64>() / n;
-        let gathered = c
+        let gathered = r
+            .cluster_mut()
             .gather(
                 "the benchmark's numbers",
                 serde_json::to_vec(&mine).expect("numbers serialise"),
@@ -783,31 +788,24 @@ mod tests {
                     s.spawn(move || {
                         let rank = crate::cluster::exchange::Exchange::rank(&end);
                         let mut c = Cluster::new(Box::new(end), Duration::from_secs(30));
-                        let renderer = || {
-                            let mut r = ClusterRenderer::new(
-                                scene,
-                                settings,
-                                Some((display, config)),
-                                None,
-                                owners.clone(),
-                                DgiMode::Compute,
-                                rank,
-                                ranks,
-                            )
-                            .unwrap();
-                            r.set_roi(Some(roi)).unwrap();
-                            r
+                        let setup = || ClusterSetup {
+                            settings,
+                            guide: Some((display, config)),
+                            wall: None,
+                            owners: owners.clone(),
+                            dgi_mode: DgiMode::Compute,
                         };
-                        let mut r = renderer();
+                        let mut r = ClusterRenderer::new(&mut c, scene, setup()).unwrap();
+                        r.set_roi(Some(roi)).unwrap();
                         // The frame's own bytes: its samples collected within it (overlapped,
                         // they would be received during the next frame).
                         r.set_overlap(false);
-                        let t = r.run_frame(&mut c).unwrap().traffic;
+                        let t = r.run_frame(false).unwrap().traffic;
                         // The console's picture, at several reductions: rank 0's bytes.
                         let console = [1, 3, 7].map(|every| {
-                            let before = c.traffic();
-                            r.gather_every(&mut c, every).unwrap();
-                            (every, c.traffic().since(&before).bytes_received)
+                            let before = r.cluster().traffic();
+                            r.gather_every(every).unwrap();
+                            (every, r.cluster().traffic().since(&before).bytes_received)
                         });
                         if rank == 0 {
                             for (every, got) in console {
@@ -821,11 +819,13 @@ mod tests {
                         }
                         // The same frame overlapped: it sends everything and receives what
                         // comes before the trace; the rest arrives when it is collected.
-                        let mut r = renderer();
-                        let o = r.run_frame(&mut c).unwrap().traffic;
-                        let before = c.traffic();
-                        r.finish(&mut c).unwrap();
-                        let later = c.traffic().since(&before);
+                        drop(r);
+                        let mut r = ClusterRenderer::new(&mut c, scene, setup()).unwrap();
+                        r.set_roi(Some(roi)).unwrap();
+                        let o = r.run_frame(false).unwrap().traffic;
+                        let before = r.cluster().traffic();
+                        r.finish().unwrap();
+                        let later = r.cluster().traffic().since(&before);
                         let lanes = LaneBytes {
                             now: (o.bytes_sent, o.bytes_received),
                             later: (later.bytes_sent, later.bytes_received),

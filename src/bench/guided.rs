@@ -13,7 +13,7 @@ use super::median;
 
 use super::paper;
 use crate::display::DisplayModel;
-use crate::frame::{FrameError, GuideConfig, Renderer};
+use crate::frame::{FrameError, GuideConfig, Render, Renderer};
 use crate::gpu::{Backend, GpuError};
 use crate::roi::cone::ConeError;
 use crate::scene::Scene;

@@ -13,7 +13,7 @@ use std::time::Instant;
 use crate::bench::{median, paper};
 use crate::display::DisplayModel;
 use crate::filter::FilterKind;
-use crate::frame::{FrameError, GuideConfig};
+use crate::frame::{FrameError, GuideConfig, Render};
 use crate::gpu::Backend;
 use crate::memory::{Budget, MemoryError, Work};
 use crate::output::tiles::canvas_pixel_size;

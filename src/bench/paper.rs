@@ -7,7 +7,7 @@ use crate::trace::wall::WallCamera;
 use glam::DVec3;
 
 use crate::display::DisplayModel;
-use crate::frame::{FrameError, GuideConfig, Renderer};
+use crate::frame::{FrameError, GuideConfig, Render, Renderer};
 use crate::gpu::Backend;
 use crate::roi::cone::{Cone, ConeError};
 use crate::roi::dgi::{

@@ -32,7 +32,7 @@ use serde::Serialize;
 
 use crate::display::DisplayModel;
 use crate::filter::{FilterKind, FilterParams};
-use crate::frame::{FrameError, GuideConfig, Renderer};
+use crate::frame::{FrameError, GuideConfig, Render, Renderer};
 use crate::gpu::{Backend, GpuContext, GpuError};
 use crate::output::gpu::SE_TOLERANCE;
 use crate::output::srgb8::{display_rgba, paint_outline, roi_outline};

@@ -11,7 +11,7 @@ use serde::Serialize;
 
 use super::median;
 
-use crate::frame::Renderer;
+use crate::frame::{Render, Renderer};
 use crate::gpu::{Backend, GpuError};
 use crate::scene::Scene;
 use crate::trace::camera::CameraError;

@@ -16,7 +16,7 @@ use crate::frame::GuideConfig;
 use crate::gpu::{Backend, BackendChoice};
 use crate::output::OutputSet;
 use crate::session::guide::GuideSource;
-use crate::session::render::{GuidedResult, Stopping, render_guided_wall};
+use crate::session::render::{GuidedRender, GuidedResult, Stopping, render_guided};
 use crate::session::replay::{ReplayOptions, ReplayPlan};
 use crate::trace::camera::RenderCamera;
 use crate::trace::path::{DEFAULT_MAX_DEPTH, TraceSettings};
@@ -190,14 +190,16 @@ pub fn run_headless(args: &DemoArgs) -> anyhow::Result<DemoOutput> {
         .map(|w| w.camera(args.size, &settings.camera))
         .transpose()
         .context("--camera wall")?;
-    let result = render_guided_wall(
+    let result = render_guided(
         &backend,
         &scene,
-        settings,
-        &model,
-        wall,
-        config,
-        &filter,
+        GuidedRender {
+            settings,
+            model: &model,
+            wall,
+            config,
+            filter,
+        },
         &source,
         &Stopping {
             iterations: Some(args.iterations),

@@ -12,7 +12,7 @@ use anyhow::Context;
 use glam::DVec3;
 
 use crate::tracking::event::DeviceId;
-use crate::tracking::head::{DEFAULT_THRESHOLD_M, HeadConfig, HeadOverride};
+use crate::tracking::head::{DEFAULT_EYE_THRESHOLD_M, HeadConfig, HeadOverride};
 
 /// The head's flags.
 #[derive(Clone, Debug, Default, clap::Args)]
@@ -59,7 +59,7 @@ impl HeadArgs {
     /// The restart threshold, metres.
     #[must_use]
     pub fn threshold_m(&self) -> f64 {
-        self.eye_threshold.unwrap_or(DEFAULT_THRESHOLD_M)
+        self.eye_threshold.unwrap_or(DEFAULT_EYE_THRESHOLD_M)
     }
 
     /// Checks the numbers before any work.

@@ -359,6 +359,6 @@ fn record_vrpn(
 
 /// Writes the synthetic sessions.
 pub fn run_synth(args: &SynthArgs) -> anyhow::Result<Vec<PathBuf>> {
-    crate::session::synth::write_all(&args.out)
+    crate::interaction::synth::write_all(&args.out)
         .with_context(|| format!("writing into {}", args.out.display()))
 }

@@ -5,6 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 
+use crate::cluster::{ClusterRenderer, ClusterSetup};
 use crate::display::DisplayModel;
 use crate::gpu::{Backend, BackendChoice};
 use crate::interaction::{CursorSmoother, InteractionConfig};
@@ -253,17 +254,18 @@ fn run_cluster(args: &ViewArgs) -> anyhow::Result<()> {
         Backend::Cpu => (None, Backend::Cpu),
     };
     let done = (|| -> anyhow::Result<()> {
-        let view = crate::session::cluster::ClusterView::new(
-            c,
-            &s.scene,
-            &s.model,
-            s.base,
-            config,
-            s.wall,
+        let setup = ClusterSetup {
+            settings: s.base,
+            guide: Some((&s.model, config)),
+            wall: s.wall,
             owners,
-            args.cluster.cluster_dgi,
-            gpu,
-        )?;
+            dgi_mode: args.cluster.cluster_dgi,
+        };
+        let mut r = ClusterRenderer::new(&mut c, &s.scene, setup)?;
+        if let Some(ctx) = gpu {
+            r.trace_on_gpu(ctx)?;
+        }
+        let view = crate::session::cluster::ClusterView::new(r, &s.model)?;
         let view = match tile_owners {
             Some(t) if args.show_tiles => view.with_tiles(t),
             _ => view,
@@ -290,8 +292,10 @@ fn run_cluster(args: &ViewArgs) -> anyhow::Result<()> {
     })();
     match done {
         Err(e) if !root => {
-            // Rank 0 waits on this rank: end the job now (mpirun ends every rank) rather than
-            // at rank 0's deadline.
+            // This rank's link closes (its last sends waited for); then, since rank 0 waits on
+            // this rank, the job ends now (mpirun ends every rank) rather than at rank 0's
+            // deadline.
+            drop(c);
             eprintln!(
                 "raygun: error: rank {rank}: {}",
                 crate::cli::error_chain(&e)

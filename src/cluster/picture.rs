@@ -15,9 +15,10 @@ use std::collections::HashMap;
 
 use glam::Vec3;
 
+use super::codec::{PIXEL_BYTES, sums_and_counts};
 use super::exchange::ExchangeError;
 use super::owners::{BlockOwners, TileOwners, block_of};
-use super::{ClusterError, ClusterRenderer, PIXEL_BYTES, sums_and_counts};
+use super::{ClusterError, ClusterRenderer};
 use crate::display::DisplayModel;
 use crate::filter::{Filter, FilterParams};
 use crate::gpu::Backend;
@@ -159,7 +160,7 @@ pub struct TilePicture {
     pub pixels: Vec<Vec3>,
 }
 
-impl ClusterRenderer {
+impl ClusterRenderer<'_> {
     /// This rank's sums and count of pixel `p`, if its block is this rank's.
     fn own_sum(&self, p: u32) -> Option<([f32; 4], u32)> {
         self.own_index(p).map(|k| (self.sums[k], self.counts[k]))
@@ -174,24 +175,22 @@ impl ClusterRenderer {
     /// one process, cut as [`crate::output::tiles::cut_tile`] cuts it.
     pub fn tile_pictures(
         &mut self,
-        c: &mut super::Cluster,
         model: &DisplayModel,
         tiles: &TileOwners,
         params: &FilterParams,
     ) -> Result<Vec<TilePicture>, ClusterError> {
-        self.tile_pictures_with(c, model, tiles, params, crate::filter::halo(params))
+        self.tile_pictures_with(model, tiles, params, crate::filter::halo(params))
     }
 
     /// [`Self::tile_pictures`] with the margin given (the tests cut it to show it matters).
     pub(super) fn tile_pictures_with(
         &mut self,
-        c: &mut super::Cluster,
         model: &DisplayModel,
         tiles: &TileOwners,
         params: &FilterParams,
         halo: (u32, u32),
     ) -> Result<Vec<TilePicture>, ClusterError> {
-        self.collect(c)?;
+        self.collect()?;
         self.sync_sums()?;
         let size = [self.settings.width, self.settings.height];
         let (me, n) = (self.rank, self.ranks);
@@ -210,7 +209,7 @@ impl ClusterRenderer {
                 }
             }
         }
-        let got = c.all_to_all(what, parts)?;
+        let got = self.link.all_to_all(what, parts)?;
         let own_regions = regions(model, tiles, me, size, halo);
         let mine: Vec<Rect> = own_regions.iter().map(|r| r.reads).collect();
         let mut theirs: HashMap<u32, ([f32; 4], u32)> = HashMap::new();

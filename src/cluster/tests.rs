@@ -4,13 +4,23 @@ use std::time::Duration;
 
 use glam::DVec3;
 
-use super::exchange::InProcess;
-use super::owners::TileOwners;
+use std::sync::Arc;
+
+use glam::{DVec2, Vec3};
+
+use super::codec::{decode_masks, encode_masks};
+use super::exchange::{Exchange, InProcess};
+use super::owners::{TileOwners, block_pixels};
 use super::*;
+use crate::display::DisplayModel;
 use crate::filter::FilterParams;
-use crate::frame::Renderer;
-use crate::gpu::Backend;
-use crate::schedule::Order;
+use crate::frame::stop::RoiProgress;
+use crate::frame::{EyeFollow, GuideConfig, Render, Renderer};
+use crate::gpu::{Backend, GpuContext};
+use crate::roi::cone::Cone;
+use crate::scene::Scene;
+use crate::schedule::{BLOCK_PIXELS, Order};
+use crate::trace::accum::{Accumulation, every, every_size};
 use crate::trace::wall::{WallSpec, WorldFromRoom};
 
 const SIZE: [u32; 2] = [96, 40];
@@ -102,7 +112,7 @@ fn ranks_then<T: Send>(
     with_wall: bool,
     mode: DgiMode,
     owners: impl Fn(usize) -> BlockOwners + Sync,
-    after: impl Fn(&mut Cluster, &mut ClusterRenderer, &[ClusterFrameStats]) -> T + Sync,
+    after: impl Fn(&mut ClusterRenderer, &[ClusterFrameStats]) -> T + Sync,
 ) -> Vec<T> {
     ranks_on_then(n, guided, with_wall, mode, owners, None, after)
 }
@@ -115,7 +125,7 @@ fn ranks_on_then<T: Send>(
     mode: DgiMode,
     owners: impl Fn(usize) -> BlockOwners + Sync,
     gpu: Option<&Arc<GpuContext>>,
-    after: impl Fn(&mut Cluster, &mut ClusterRenderer, &[ClusterFrameStats]) -> T + Sync,
+    after: impl Fn(&mut ClusterRenderer, &[ClusterFrameStats]) -> T + Sync,
 ) -> Vec<T> {
     std::thread::scope(|sc| {
         let handles: Vec<_> = InProcess::job(n)
@@ -123,15 +133,18 @@ fn ranks_on_then<T: Send>(
             .map(|end| {
                 let (owners, after) = (&owners, &after);
                 sc.spawn(move || {
-                    let rank = end.rank();
                     let mut c = Cluster::new(Box::new(end), Duration::from_secs(30));
                     let s = scene();
                     let w = with_wall.then(|| wall(&s));
                     let model = hornet();
-                    let guide = guided.map(|o| (&model, config(o)));
-                    let mut r =
-                        ClusterRenderer::new(&s, settings(&s), guide, w, owners(n), mode, rank, n)
-                            .unwrap();
+                    let setup = ClusterSetup {
+                        settings: settings(&s),
+                        guide: guided.map(|o| (&model, config(o))),
+                        wall: w,
+                        owners: owners(n),
+                        dgi_mode: mode,
+                    };
+                    let mut r = ClusterRenderer::new(&mut c, &s, setup).unwrap();
                     if let Some(ctx) = gpu {
                         r.trace_on_gpu(Arc::clone(ctx)).unwrap();
                     }
@@ -144,19 +157,22 @@ fn ranks_on_then<T: Send>(
                             roi: if guided.is_some() { roi_at(k) } else { None },
                             eye: None,
                         };
-                        let got = c.broadcast("control", control.encode()).unwrap();
+                        let got = r
+                            .cluster_mut()
+                            .broadcast("control", control.encode())
+                            .unwrap();
                         let got = FrameControl::decode(&got).unwrap();
                         assert_eq!(got, control);
                         if let Some(roi) = got.roi {
                             r.set_roi(roi).unwrap();
                         }
-                        let st = r.run_frame(&mut c).unwrap();
+                        let st = r.run_frame(false).unwrap();
                         assert_eq!(st.iteration, k);
                         frames.push(st);
                     }
                     // The render's end: the last frame's samples reach their owners.
-                    r.finish(&mut c).unwrap();
-                    after(&mut c, &mut r, &frames)
+                    r.finish().unwrap();
+                    after(&mut r, &frames)
                 })
             })
             .collect();
@@ -173,17 +189,16 @@ fn ranks(
     mode: DgiMode,
     owners: impl Fn(usize) -> BlockOwners + Sync,
 ) -> (Accumulation, Vec<f32>) {
-    let results = ranks_then(n, guided, with_wall, mode, owners, |c, r, _| {
-        let progress = if guided.is_some() {
-            r.roi_progress(c).unwrap()
-        } else {
-            None
-        };
-        let g = r.gather(c).unwrap();
-        if let (Some(g), Some(p)) = (&g, progress) {
-            // Measured from the owners' ROI sums as from the whole accumulation.
-            assert_eq!(p, RoiProgress::measure(&g.0, &g.1));
-            assert!(p.is_some());
+    let results = ranks_then(n, guided, with_wall, mode, owners, |r, _| {
+        let progress = r.roi_progress().unwrap();
+        let g = r.gather().unwrap();
+        if let Some(g) = &g {
+            // Measured from the owners' sums of the pixels of d = 0 a display shows, as one
+            // process measures its whole accumulation.
+            let wall = r.wall();
+            let shown = |i: usize| wall.is_none_or(|w| w.is_shown(i as u32));
+            assert_eq!(progress, RoiProgress::measure_where(&g.0, &g.1, shown));
+            assert!(progress.is_some());
         }
         g
     });
@@ -239,11 +254,11 @@ fn the_console_gathers_every_kth_pixel_and_its_bytes_only() {
                 with_wall,
                 DgiMode::Compute,
                 columns,
-                |c, r, _| {
+                |r, _| {
                     steps.map(|step| {
-                        let before = c.traffic();
-                        let g = r.gather_every(c, step).unwrap();
-                        (g, c.traffic().since(&before).bytes_received)
+                        let before = r.cluster().traffic();
+                        let g = r.gather_every(step).unwrap();
+                        (g, r.cluster().traffic().since(&before).bytes_received)
                     })
                 },
             );
@@ -286,18 +301,11 @@ fn a_rank_holds_only_the_blocks_it_traces_or_owns() {
         (Order::Coherent, 1),
         (Order::Scattered, 3),
     ] {
-        let per_rank = ranks_then(
-            n,
-            Some(order),
-            false,
-            DgiMode::Compute,
-            columns,
-            |_, r, f| {
-                let owned = r.owners.owned_by(r.rank).len() * BLOCK_PIXELS as usize;
-                assert_eq!((r.counts.len(), r.sums.len()), (owned, owned));
-                f.to_vec()
-            },
-        );
+        let per_rank = ranks_then(n, Some(order), false, DgiMode::Compute, columns, |r, f| {
+            let owned = r.owners.owned_by(r.rank).len() * BLOCK_PIXELS as usize;
+            assert_eq!((r.counts.len(), r.sums.len()), (owned, owned));
+            f.to_vec()
+        });
         for k in 0..ITERATIONS as usize {
             let pixels = per_rank[0][k].pixels;
             let held: Vec<u64> = per_rank.iter().map(|f| f[k].pixels_held).collect();
@@ -350,6 +358,79 @@ fn the_dgi_broadcast_and_any_tile_map_change_nothing() {
         &one,
         "strips",
     );
+}
+
+/// The ROI's progress across ranks is one process's through a wall camera whose display leaves
+/// pixels of the ROI unshown: those are never sampled, and counted they would hold the fewest
+/// samples at 0 for ever (a `--until roi-spp:N` that never stops).
+#[test]
+fn the_rois_progress_counts_only_the_pixels_a_display_shows() {
+    let (s, model) = (scene(), hornet());
+    // Large enough that image pixels lie wholly on the bezels (at 845 × 341 and below every
+    // pixel is some tile's: DESIGN.md §11).
+    let size = [1352, 546];
+    let camera = crate::trace::camera::RenderCamera::choose(&s, None, size[0], size[1]).unwrap();
+    let settings = TraceSettings {
+        width: size[0],
+        height: size[1],
+        max_depth: 1,
+        camera,
+        ..settings(&s)
+    };
+    let wall = WallSpec {
+        model: model.clone(),
+        eye: DVec3::new(0.0, 0.0, 1.0),
+        placement: WorldFromRoom::Auto,
+    }
+    .camera(size, &camera)
+    .unwrap();
+    let roi = Some(cone(60.0, 0.0));
+    let config = config(Order::Coherent);
+    let mut one = Renderer::guided_wall(
+        &Backend::Cpu,
+        &s,
+        settings,
+        &model,
+        config,
+        Some(wall.clone()),
+    )
+    .unwrap();
+    one.set_roi(roi).unwrap();
+    one.iterate(2).unwrap();
+    let want = one.roi_progress().unwrap();
+    assert!(want.is_some_and(|p| p.min_samples == 2), "{want:?}");
+    let dgi = one.dgi().unwrap();
+    assert!(
+        (0..size[0] * size[1]).any(|p| dgi[p as usize] == 0.0 && !wall.is_shown(p)),
+        "the ROI holds pixels no tile shows"
+    );
+    let owners = BlockOwners::of_display(&model, &TileOwners::columns(&model, 2), size);
+    let got: Vec<_> = std::thread::scope(|sc| {
+        let handles: Vec<_> = InProcess::job(2)
+            .into_iter()
+            .map(|end| {
+                let (s, model, wall, owners) = (&s, &model, &wall, &owners);
+                sc.spawn(move || {
+                    let mut c = Cluster::new(Box::new(end), Duration::from_secs(30));
+                    let setup = ClusterSetup {
+                        settings,
+                        guide: Some((model, config)),
+                        wall: Some(wall.clone()),
+                        owners: owners.clone(),
+                        dgi_mode: DgiMode::Compute,
+                    };
+                    let mut r = ClusterRenderer::new(&mut c, s, setup).unwrap();
+                    r.set_roi(roi).unwrap();
+                    for _ in 0..2 {
+                        r.run_frame(false).unwrap();
+                    }
+                    r.roi_progress().unwrap()
+                })
+            })
+            .collect();
+        handles.into_iter().map(|h| h.join().unwrap()).collect()
+    });
+    assert_eq!(got, [want, None], "rank 0 measures; rank 1 only sends");
 }
 
 #[test]
@@ -429,17 +510,14 @@ fn a_silent_or_ended_rank_is_named_within_the_deadline() {
                         let rank = end.rank();
                         let mut c = Cluster::new(Box::new(end), Duration::from_millis(300));
                         let s = scene();
-                        let mut r = ClusterRenderer::new(
-                            &s,
-                            settings(&s),
-                            None,
-                            None,
-                            BlockOwners::strips(SIZE, 3),
-                            DgiMode::Compute,
-                            rank,
-                            3,
-                        )
-                        .unwrap();
+                        let setup = ClusterSetup {
+                            settings: settings(&s),
+                            guide: None,
+                            wall: None,
+                            owners: BlockOwners::strips(SIZE, 3),
+                            dgi_mode: DgiMode::Compute,
+                        };
+                        let mut r = ClusterRenderer::new(&mut c, &s, setup).unwrap();
                         for k in 0..4 {
                             if rank == 2 && k == 2 {
                                 if hang {
@@ -447,7 +525,7 @@ fn a_silent_or_ended_rank_is_named_within_the_deadline() {
                                 }
                                 return None;
                             }
-                            if let Err(e) = r.run_frame(&mut c) {
+                            if let Err(e) = r.run_frame(false) {
                                 // A rank that failed stays until rank 0 has seen what it sees
                                 // (under MPI it lives until the job is ended): dropped at
                                 // once, it would be the first gone rank rank 0 meets.
@@ -531,13 +609,13 @@ fn owners_pictures_match(
         with_wall,
         DgiMode::Compute,
         |n| BlockOwners::of_display(&m, &map(n), SIZE),
-        |c, r, _| {
-            let before = c.traffic();
+        |r, _| {
+            let before = r.cluster().traffic();
             let pictures = match halo {
-                Some(h) => r.tile_pictures_with(c, &m, &map(n), params, h).unwrap(),
-                None => r.tile_pictures(c, &m, &map(n), params).unwrap(),
+                Some(h) => r.tile_pictures_with(&m, &map(n), params, h).unwrap(),
+                None => r.tile_pictures(&m, &map(n), params).unwrap(),
             };
-            let after = c.traffic();
+            let after = r.cluster().traffic();
             let traffic = (
                 after.bytes_sent - before.bytes_sent,
                 after.bytes_received - before.bytes_received,
@@ -692,28 +770,24 @@ fn gpu_ranks_give_the_one_gpu_process_accumulation_and_follow_a_moved_eye() {
             .map(|end| {
                 let (s, ctx) = (&s, &ctx);
                 sc.spawn(move || {
-                    let rank = end.rank();
                     let mut c = Cluster::new(Box::new(end), Duration::from_secs(30));
-                    let mut r = ClusterRenderer::new(
-                        s,
-                        settings(s),
-                        None,
-                        Some(wall(s)),
-                        columns(2),
-                        DgiMode::Compute,
-                        rank,
-                        2,
-                    )
-                    .unwrap();
+                    let setup = ClusterSetup {
+                        settings: settings(s),
+                        guide: None,
+                        wall: Some(wall(s)),
+                        owners: columns(2),
+                        dgi_mode: DgiMode::Compute,
+                    };
+                    let mut r = ClusterRenderer::new(&mut c, s, setup).unwrap();
                     r.trace_on_gpu(ctx.clone()).unwrap();
                     assert!(r.gpu().is_some());
                     for k in 0..5 {
                         if k == 2 {
                             r.move_eye(moved).unwrap();
                         }
-                        r.run_frame(&mut c).unwrap();
+                        r.run_frame(false).unwrap();
                     }
-                    r.gather(&mut c).unwrap()
+                    r.gather().unwrap()
                 })
             })
             .collect();
@@ -746,18 +820,10 @@ fn guided_gpu_ranks_give_the_one_gpu_process_accumulation_and_dgi() {
     ] {
         // Each rank's gathered accumulation (rank 0's) and the bytes it received over the
         // frames.
-        let got = ranks_on_then(
-            n,
-            Some(order),
-            false,
-            mode,
-            columns,
-            Some(&ctx),
-            |c, r, f| {
-                let received: u64 = f.iter().map(|s| s.traffic.bytes_received).sum();
-                (r.gather(c).unwrap(), received)
-            },
-        );
+        let got = ranks_on_then(n, Some(order), false, mode, columns, Some(&ctx), |r, f| {
+            let received: u64 = f.iter().map(|s| s.traffic.bytes_received).sum();
+            (r.gather().unwrap(), received)
+        });
         let received: Vec<u64> = got.iter().map(|g| g.1).collect();
         let root = got.into_iter().next().unwrap().0.expect("rank 0 gathers");
         assert_bits_equal(&root, &one, &format!("{n} GPU ranks, DGI {mode:?}"));
@@ -785,12 +851,12 @@ fn gpu_ranks_draw_the_coherent_schedule_on_their_gpus() {
                 DgiMode::Compute,
                 columns,
                 Some(&ctx),
-                |c, r, _| {
+                |r, _| {
                     assert!(
                         r.gpu.as_ref().is_some_and(|g| g.masks.is_some()),
                         "the schedule is drawn on the GPU"
                     );
-                    r.gather(c).unwrap()
+                    r.gather().unwrap()
                 },
             );
             let root = got.into_iter().next().unwrap().expect("rank 0 gathers");
@@ -860,22 +926,17 @@ fn samples_in_flight_arrive_with_the_next_frame_and_a_restart_drops_them() {
                     .into_iter()
                     .map(|end| {
                         sc.spawn(move || {
-                            let rank = end.rank();
                             let mut c = Cluster::new(Box::new(end), Duration::from_secs(30));
                             let s = scene();
                             let model = hornet();
-                            let guide = Some((&model, config(order)));
-                            let mut r = ClusterRenderer::new(
-                                &s,
-                                settings(&s),
-                                guide,
-                                None,
-                                columns(n),
-                                DgiMode::Compute,
-                                rank,
-                                n,
-                            )
-                            .unwrap();
+                            let setup = ClusterSetup {
+                                settings: settings(&s),
+                                guide: Some((&model, config(order))),
+                                wall: None,
+                                owners: columns(n),
+                                dgi_mode: DgiMode::Compute,
+                            };
+                            let mut r = ClusterRenderer::new(&mut c, &s, setup).unwrap();
                             r.set_overlap(overlap);
                             for k in 0..ITERATIONS {
                                 if let Some(roi) = roi_at(k) {
@@ -884,10 +945,10 @@ fn samples_in_flight_arrive_with_the_next_frame_and_a_restart_drops_them() {
                                 if k == MOVE_AT {
                                     r.set_camera(moved);
                                 }
-                                r.run_frame(&mut c).unwrap();
+                                r.run_frame(false).unwrap();
                                 assert_eq!(r.in_flight.is_some(), overlap, "after frame {k}");
                             }
-                            r.gather(&mut c).unwrap()
+                            r.gather().unwrap()
                         })
                     })
                     .collect();

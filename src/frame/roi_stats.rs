@@ -7,7 +7,7 @@
 //! 3840×2160, which the window would read twice a second) by the CPU twin
 //! [`RoiStats::measure`].
 
-use super::{Engine, FrameError, Renderer};
+use super::{Engine, FrameError, Render, Renderer};
 use crate::frame::stop::RoiProgress;
 use crate::output::gpu::{GpuStatsInputs, StatsKernel, StatsRun};
 use crate::output::stats::RoiStats;
@@ -34,12 +34,12 @@ impl Renderer<'_> {
         self.measured_stats()
     }
 
-    /// How far the pixels of d = 0 have come (with a wall camera over the pixels its display
-    /// shows): the ROI's, or every pixel's while a guided renderer has no ROI or a full frame
-    /// is rendered; `None` without such pixels. On a GPU renderer of one band measured there
-    /// ([`Self::roi_stats`]'s measurement); otherwise from the accumulation (a read-back on
-    /// the GPU).
-    pub fn roi_progress(&self) -> Result<Option<RoiProgress>, FrameError> {
+    /// How far the pixels of d = 0 have come ([`Render::roi_progress`]), with a wall camera
+    /// over the pixels its display shows: the ROI's, or every pixel's while a guided renderer
+    /// has no ROI or a full frame is rendered; `None` without such pixels. On a GPU renderer of
+    /// one band measured there ([`Self::roi_stats`]'s measurement); otherwise from the
+    /// accumulation (a read-back on the GPU).
+    pub(super) fn progress(&self) -> Result<Option<RoiProgress>, FrameError> {
         if self.measures_stats_on_gpu() {
             return Ok(self.measured_stats()?.progress);
         }

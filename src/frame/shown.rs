@@ -12,7 +12,7 @@
 
 use std::time::Instant;
 
-use super::{Engine, FrameError, Renderer};
+use super::{Engine, FrameError, Render, Renderer};
 use crate::filter::gpu::{FilterRun, GpuFilterInputs, fits_one_binding};
 use crate::filter::{Filter, FilterParams};
 use crate::gpu::PassTimer;

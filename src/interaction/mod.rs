@@ -11,10 +11,16 @@
 //!
 //! Everything is driven by event times, never the wall clock, so a replay gives the same ROI
 //! sequence however fast it is played.
+//!
+//! [`synth`] runs the other way: a simulated person aiming the FlyStick (or a mouse) at the wall
+//! under this stage's own mapping, written as the trackers would send it — the synthetic
+//! sessions of `tracking-replays/` (`raygun synth-replays`). It needs this stage's wall and
+//! stick mapping, so it lives here and not with the parsers it writes for.
 
 pub mod config;
 pub mod cursor;
 pub mod surface;
+pub mod synth;
 
 use glam::{DVec2, DVec3};
 use serde::Serialize;

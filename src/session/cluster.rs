@@ -1,33 +1,29 @@
 //! The render loop across ranks (DESIGN.md §12): rank 0 follows the guide source and the stop
-//! rule and broadcasts each frame's control (iteration, stop, ROI change); every rank runs the
-//! cluster frame; at the end rank 0 gathers the owners' sums. For `view --cluster`, rank 0's
-//! viewer sends each of its steps instead ([`ViewStep`], [`ClusterView`]) and the other ranks
-//! follow them until the window closes.
+//! rule and broadcasts each frame's control (iteration, stop, ROI change, a restarted eye);
+//! every rank runs the cluster frame; at the end rank 0 gathers the owners' sums. For `view
+//! --cluster`, rank 0's viewer sends each of its steps instead ([`ViewStep`], [`ClusterView`])
+//! and the other ranks follow them until the window closes.
 
-use std::sync::Arc;
 use std::time::Instant;
 
+use glam::DVec3;
+
 use super::guide::GuideSource;
-use super::render::Stopping;
+use super::render::{PROGRESS_INTERVAL_S, Steering, Stopping};
 use crate::cluster::exchange::ExchangeError;
-use crate::cluster::owners::{BlockOwners, TileOwners};
+use crate::cluster::owners::TileOwners;
 use crate::cluster::picture::TilePicture;
-use crate::cluster::{
-    Cluster, ClusterError, ClusterFrameStats, ClusterRenderer, DgiMode, FrameControl,
-};
+use crate::cluster::{ClusterError, ClusterFrameStats, ClusterRenderer, FrameControl};
 use crate::display::DisplayModel;
 use crate::filter::{Blend, FilterKind, FilterParams};
 use crate::frame::stop::{RoiProgress, StopCondition, StopReason, reached};
-use crate::frame::{EyeFollow, GuideConfig};
+use crate::frame::{EyeFollow, FrameError, GuideConfig, Render};
 use crate::gpu::GpuContext;
-use crate::roi::dgi::Roi;
-use crate::roi::dgi::{Falloff, Metric};
-use crate::scene::Scene;
+use crate::roi::dgi::{Falloff, Metric, Roi};
 use crate::schedule::Order;
 use crate::trace::accum::Accumulation;
 use crate::trace::camera::RenderCamera;
 use crate::trace::path::TraceSettings;
-use crate::trace::wall::WallCamera;
 
 /// A fault a test injects (`--cluster-fault`): that rank ends, or stops answering, at the
 /// start of that iteration — what the other ranks' deadlines are for.
@@ -79,19 +75,15 @@ pub struct ClusterRun {
     pub eyes_refused: u32,
 }
 
-/// How often rank 0 measures the ROI's progress for a stop condition (the one-process loop's
-/// interval): a gather of the ROI pixels' sums.
-const PROGRESS_INTERVAL_S: f64 = 0.5;
-
 /// Runs frames on every rank until rank 0's stop rule says so; then, with `gather`, rank 0
-/// assembles the whole accumulation (every rank must pass the same `gather`). `source` steers a guided render
-/// (read on rank 0 only; `None`: a full frame). `--until time:S` is rank 0's clock; a condition
-/// on the ROI's progress is measured every half second from the owners' ROI sums
-/// ([`ClusterRenderer::roi_progress`]). `fault` is a test's. `on_iteration` hears each finished
-/// frame on this rank, and rank 0's progress when it was measured.
+/// assembles the whole accumulation (every rank must pass the same `gather`). `source` steers a
+/// guided render (read on rank 0 only, as [`run_guided`](super::render::run_guided) reads it:
+/// [`Steering`]; `None`: a full frame). `--until time:S` is rank 0's clock; a condition on the
+/// ROI's progress is measured every half second from the owners' ROI sums
+/// ([`Render::roi_progress`]). `fault` is a test's. `on_iteration` hears each finished frame on
+/// this rank, and rank 0's progress when it was measured.
 pub fn run_cluster(
-    c: &mut Cluster,
-    r: &mut ClusterRenderer,
+    r: &mut ClusterRenderer<'_>,
     source: Option<&GuideSource>,
     stopping: &Stopping,
     fault: Option<Fault>,
@@ -102,16 +94,16 @@ pub fn run_cluster(
     let needs_progress = stopping.until.iter().any(StopCondition::needs_progress);
     let mut last_check = f64::NEG_INFINITY;
     let mut progress: Option<RoiProgress> = None;
-    let spread = stopping.iterations.unwrap_or(1);
-    let mut current: Option<Roi> = None;
+    let (rank, root) = (r.cluster().rank(), r.cluster().is_root());
+    // Rank 0 decides what the guide asks; the others hear it in each frame's control.
+    let mut steering = source.filter(|_| root).map(|s| Steering::new(s, stopping));
     let mut frames = Vec::new();
     let mut k = 0u32;
-    let (mut eye_restarts, mut eyes_refused) = (Vec::new(), 0);
     let stop = loop {
         if let Some(f) = &fault {
-            f.strike(c.rank(), k);
+            f.strike(rank, k);
         }
-        let control = if c.is_root() {
+        let control = if root {
             let elapsed = t0.elapsed().as_secs_f64();
             let stop = match stopping.iterations {
                 Some(n) if k >= n => Some(StopReason::Iterations(k)),
@@ -121,33 +113,19 @@ pub fn run_cluster(
             if measure {
                 last_check = elapsed;
             }
-            let roi = source.map(|s| s.roi_at(k, spread));
-            let changed = roi.filter(|&roi| k == 0 || roi != current);
-            if let Some(roi) = changed {
-                current = roi;
-            }
-            // The tracked head (a wall camera only): rank 0 applies the restart rule, and an
-            // eye it restarted at goes to the other ranks with this frame's control.
-            let mut moved = None;
-            if r.wall().is_some()
-                && let Some(s) = source
-                && let Some(e) = s.eye_at(k, spread)
-            {
-                match r.follow_eye(e, s.eye_threshold_m())? {
-                    EyeFollow::Kept => {}
-                    EyeFollow::Restarted => {
-                        eye_restarts.push((k, e));
-                        moved = Some(e);
-                    }
-                    EyeFollow::Refused(_) => eyes_refused += 1,
-                }
-            }
+            // The ROI's change and the tracked head (a wall camera only): rank 0 applies the
+            // restart rule, and an eye it restarted at goes to the other ranks with this
+            // frame's control.
+            let (roi, eye) = match &mut steering {
+                Some(s) => (s.roi_change(k), s.follow_eye(r, k)?),
+                None => (None, None),
+            };
             FrameControl {
                 iteration: k,
                 stop: stop.is_some(),
                 measure,
-                roi: changed,
-                eye: moved,
+                roi,
+                eye,
             }
         } else {
             FrameControl {
@@ -158,28 +136,27 @@ pub fn run_cluster(
                 eye: None,
             }
         };
-        let bytes = c.broadcast(&format!("the control of iteration {k}"), control.encode())?;
+        let what = format!("the control of iteration {k}");
+        let bytes = r.cluster_mut().broadcast(&what, control.encode())?;
         let got = FrameControl::decode(&bytes).ok_or_else(|| ExchangeError::Malformed {
             rank: 0,
-            what: format!("the control of iteration {k}"),
+            what: what.clone(),
             reason: format!("{} bytes that are no control message", bytes.len()),
         })?;
         if got.iteration != k {
             return Err(ExchangeError::Malformed {
                 rank: 0,
-                what: format!("the control of iteration {k}"),
+                what,
                 reason: format!("iteration {}, this rank is at iteration {k}", got.iteration),
             }
             .into());
         }
-        if !c.is_root()
-            && let Some(e) = got.eye
-        {
+        if !root && let Some(e) = got.eye {
             r.move_eye(e)?;
         }
         if got.stop {
             let elapsed = t0.elapsed().as_secs_f64();
-            break match (stopping.iterations, c.is_root()) {
+            break match (stopping.iterations, root) {
                 (Some(n), _) if k >= n => StopReason::Iterations(k),
                 (_, true) => reached(&stopping.until, progress.as_ref(), elapsed)
                     .map_or(StopReason::Iterations(k), StopReason::Reached),
@@ -190,14 +167,11 @@ pub fn run_cluster(
         if let Some(roi) = got.roi {
             r.set_roi(roi)?;
         }
-        let stats = r.run_frame(c)?;
-        let measured = if got.measure {
-            if let Some(p) = r.roi_progress(c)? {
-                progress = p;
-            }
-            c.is_root()
-        } else {
-            false
+        let stats = r.run_frame(false)?;
+        let measured = got.measure && {
+            // Rank 0 gets the measurement; the others send their sums.
+            progress = r.roi_progress()?;
+            root
         };
         on_iteration(&stats, progress.as_ref().filter(|_| measured));
         frames.push(stats);
@@ -205,10 +179,12 @@ pub fn run_cluster(
     };
     // The last frame's samples reach their owners (counted in the run's time: they are part
     // of it).
-    r.finish(c)?;
+    r.finish()?;
     let seconds = t0.elapsed().as_secs_f64();
     let accumulated = r.iteration();
-    let gathered = if gather { r.gather(c)? } else { None };
+    let gathered = if gather { r.gather()? } else { None };
+    let (eye_restarts, eyes_refused) =
+        steering.map_or((Vec::new(), 0), |s| (s.eye_restarts, s.eyes_refused));
     Ok(ClusterRun {
         iterations: k,
         seconds,
@@ -239,8 +215,9 @@ pub enum ViewStep {
     Eye(glam::DVec3),
     /// The pinhole moved: this camera from now on, the accumulation restarted.
     Camera(RenderCamera),
-    /// The guide's settings or the path depth changed: a new renderer (the accumulation
-    /// restarts, with no ROI), as the one-process viewer builds one.
+    /// The guide's settings or the path depth changed: the renderer starts again from nothing
+    /// ([`ClusterRenderer::rebuild`]: the accumulation restarts, with no ROI), as the
+    /// one-process viewer builds a new one.
     Rebuild { config: GuideConfig, max_depth: u32 },
     /// The window closed: the render ends on every rank.
     Stop,
@@ -454,18 +431,13 @@ pub enum Applied {
     Done,
 }
 
-/// One rank's part of `view --cluster`: the job, this rank's renderer, and what a rebuild
-/// needs. Rank 0 [`sends`](Self::send) the viewer's steps (each applied on every rank, this one
-/// included); the others [`follow`](Self::follow) them until the window closes. Dropped on
-/// rank 0 before the window's last step, it tells the others to stop.
+/// One rank's part of `view --cluster`: this rank's renderer, holding the job, and what the
+/// owners' pictures need. Rank 0 [`sends`](Self::send) the viewer's steps (each applied on every
+/// rank, this one included); the others [`follow`](Self::follow) them until the window closes.
+/// Dropped on rank 0 before the window's last step, it tells the others to stop.
 pub struct ClusterView<'a> {
-    c: Cluster,
-    r: ClusterRenderer,
-    scene: &'a Scene,
+    r: ClusterRenderer<'a>,
     model: &'a DisplayModel,
-    owners: BlockOwners,
-    dgi_mode: DgiMode,
-    gpu: Option<Arc<GpuContext>>,
     /// The tile map, for the owners' pictures ([`ViewStep::Tiles`]).
     tiles: Option<TileOwners>,
     /// A test's fault, struck at the start of a frame.
@@ -476,31 +448,15 @@ pub struct ClusterView<'a> {
 }
 
 impl<'a> ClusterView<'a> {
-    /// This rank's view: a guided render of `scene` on `model`, through `wall` when given,
-    /// traced on `gpu` when given (else the CPU twin).
-    #[allow(clippy::too_many_arguments)]
-    pub fn new(
-        c: Cluster,
-        scene: &'a Scene,
-        model: &'a DisplayModel,
-        settings: TraceSettings,
-        config: GuideConfig,
-        wall: Option<WallCamera>,
-        owners: BlockOwners,
-        dgi_mode: DgiMode,
-        gpu: Option<Arc<GpuContext>>,
-    ) -> Result<Self, ClusterError> {
-        let r = Self::make(
-            &c, scene, model, settings, config, wall, &owners, dgi_mode, &gpu,
-        )?;
+    /// This rank's view of the guided render `r` (guided on `model`; traced on its GPU where
+    /// [`ClusterRenderer::trace_on_gpu`] was called).
+    pub fn new(r: ClusterRenderer<'a>, model: &'a DisplayModel) -> Result<Self, ClusterError> {
+        if r.guide_config().is_none() {
+            return Err(FrameError::NotGuided.into());
+        }
         Ok(Self {
-            c,
             r,
-            scene,
             model,
-            owners,
-            dgi_mode,
-            gpu,
             tiles: None,
             fault: None,
             frames: 0,
@@ -539,47 +495,19 @@ impl<'a> ClusterView<'a> {
     /// This rank.
     #[must_use]
     pub fn rank(&self) -> usize {
-        self.c.rank()
-    }
-
-    #[allow(clippy::too_many_arguments)]
-    fn make(
-        c: &Cluster,
-        scene: &Scene,
-        model: &DisplayModel,
-        settings: TraceSettings,
-        config: GuideConfig,
-        wall: Option<WallCamera>,
-        owners: &BlockOwners,
-        dgi_mode: DgiMode,
-        gpu: &Option<Arc<GpuContext>>,
-    ) -> Result<ClusterRenderer, ClusterError> {
-        let mut r = ClusterRenderer::new(
-            scene,
-            settings,
-            Some((model, config)),
-            wall,
-            owners.clone(),
-            dgi_mode,
-            c.rank(),
-            c.ranks(),
-        )?;
-        if let Some(ctx) = gpu {
-            r.trace_on_gpu(Arc::clone(ctx))?;
-        }
-        Ok(r)
+        self.r.cluster().rank()
     }
 
     /// This rank's renderer as it stands.
     #[must_use]
-    pub fn renderer(&self) -> &ClusterRenderer {
+    pub fn renderer(&self) -> &ClusterRenderer<'a> {
         &self.r
     }
 
     /// The job's ranks.
     #[must_use]
     pub fn ranks(&self) -> usize {
-        self.c.ranks()
+        self.r.cluster().ranks()
     }
 
     /// The ranks and where this one traces, in words.
@@ -587,66 +515,70 @@ impl<'a> ClusterView<'a> {
     pub fn describe(&self) -> String {
         format!(
             "{} rank(s), rank 0 tracing on {}",
-            self.c.ranks(),
-            self.gpu
-                .as_ref()
-                .map_or_else(|| "the CPU twins".to_owned(), |g| g.describe())
+            self.ranks(),
+            self.r
+                .gpu()
+                .map_or_else(|| "the CPU twins".to_owned(), GpuContext::describe)
         )
     }
 
     /// Rank 0: `step` on every rank, this one included; what it gave here.
     pub fn send(&mut self, step: ViewStep) -> Result<Applied, ClusterError> {
-        assert!(self.c.is_root(), "rank 0 sends the viewer's steps");
-        self.c.broadcast("the viewer's next step", step.encode())?;
+        assert!(
+            self.r.cluster().is_root(),
+            "rank 0 sends the viewer's steps"
+        );
+        self.r
+            .cluster_mut()
+            .broadcast("the viewer's next step", step.encode())?;
         self.apply(step)
+    }
+
+    /// Rank 0: the restart rule of a moving eye ([`Render::follow_eye`]) decided here, and an
+    /// eye the accumulation restarts at sent to every rank ([`ViewStep::Eye`]).
+    pub fn follow_eye(&mut self, eye: DVec3, threshold_m: f64) -> Result<EyeFollow, ClusterError> {
+        let wall = self.r.wall().ok_or(FrameError::NoWall)?;
+        if !wall.eye_moved(eye, threshold_m) {
+            return Ok(EyeFollow::Kept);
+        }
+        if let Err(e) = wall.with_eye(eye) {
+            return Ok(EyeFollow::Refused(e));
+        }
+        self.send(ViewStep::Eye(eye))?;
+        Ok(EyeFollow::Restarted)
     }
 
     fn apply(&mut self, step: ViewStep) -> Result<Applied, ClusterError> {
         match step {
             ViewStep::Frame => {
                 if let Some(f) = &self.fault {
-                    f.strike(self.c.rank(), self.frames);
+                    f.strike(self.rank(), self.frames);
                 }
                 self.frames += 1;
-                return Ok(Applied::Frame(self.r.run_frame(&mut self.c)?));
+                return Ok(Applied::Frame(self.r.run_frame(false)?));
             }
             ViewStep::Gather { every } => {
-                return Ok(Applied::Gathered(self.r.gather_every(&mut self.c, every)?));
+                return Ok(Applied::Gathered(self.r.gather_every(every)?));
             }
             ViewStep::Roi(roi) => self.r.set_roi(roi)?,
             ViewStep::Eye(e) => self.r.move_eye(e)?,
             ViewStep::Camera(camera) => self.r.set_camera(camera),
             ViewStep::Rebuild { config, max_depth } => {
-                // The old renderer's samples in flight are collected before it goes.
-                self.r.finish(&mut self.c)?;
                 let settings = TraceSettings {
                     max_depth,
-                    ..self.r.settings
+                    ..*self.r.settings()
                 };
-                let wall = self.r.wall().cloned();
-                self.r = Self::make(
-                    &self.c,
-                    self.scene,
-                    self.model,
-                    settings,
-                    config,
-                    wall,
-                    &self.owners,
-                    self.dgi_mode,
-                    &self.gpu,
-                )?;
+                self.r.rebuild(settings, config)?;
             }
             ViewStep::Stop => {
-                self.r.finish(&mut self.c)?;
+                self.r.finish()?;
                 self.stopped = true;
             }
             ViewStep::Tiles { filter, exposure } => {
                 let tiles = self.tiles.as_ref().ok_or_else(|| {
                     ClusterError::Rejected("the owners' pictures need the tile map".into())
                 })?;
-                let pictures = self
-                    .r
-                    .tile_pictures(&mut self.c, self.model, tiles, &filter)?;
+                let pictures = self.r.tile_pictures(self.model, tiles, &filter)?;
                 return Ok(Applied::Tiles(pictures, exposure));
             }
         }
@@ -659,7 +591,7 @@ impl<'a> ClusterView<'a> {
             return Ok(None);
         }
         let what = "the viewer's next step";
-        let bytes = self.c.broadcast_patiently(what, Vec::new())?;
+        let bytes = self.r.cluster_mut().broadcast_patiently(what, Vec::new())?;
         let step = ViewStep::decode(&bytes).ok_or_else(|| ExchangeError::Malformed {
             rank: 0,
             what: what.into(),
@@ -682,7 +614,7 @@ impl<'a> ClusterView<'a> {
 impl Drop for ClusterView<'_> {
     /// Rank 0's window closed (or its viewer ended on an error): the others stop too.
     fn drop(&mut self) {
-        if self.c.is_root() && !self.stopped {
+        if self.r.cluster().is_root() && !self.stopped {
             let _ = self.send(ViewStep::Stop);
         }
     }

@@ -75,7 +75,7 @@ impl GuideSource {
             eyes,
             eye_threshold_m: plan
                 .head
-                .map_or(crate::tracking::head::DEFAULT_THRESHOLD_M, |h| {
+                .map_or(crate::tracking::head::DEFAULT_EYE_THRESHOLD_M, |h| {
                     h.eye_threshold_m
                 }),
         })
@@ -110,7 +110,7 @@ impl GuideSource {
             Self::Replay {
                 eye_threshold_m, ..
             } => *eye_threshold_m,
-            Self::Fixed(_) => crate::tracking::head::DEFAULT_THRESHOLD_M,
+            Self::Fixed(_) => crate::tracking::head::DEFAULT_EYE_THRESHOLD_M,
         }
     }
 

@@ -8,8 +8,8 @@
 //! replay::ReplayPlan (a recording) ──┼─► pipeline::Pipeline (Ingest ─► Interaction) ─► ROI changes
 //!                                    │        ├─► live::LiveTracking (viewer, own thread)
 //!                                    │        ├─► timeline::Timeline (viewer: play / scrub)
-//!                                    │        └─► guide::GuideSource ─► render::render_guided
-//! synth (synthetic sessions), calibrate (presses for `raygun calibrate`)
+//!                                    │        └─► guide::GuideSource ─► render::run_guided
+//! calibrate (presses for `raygun calibrate`)
 //! ```
 //!
 //! A tracked head (`crate::tracking::head`) rides along every path: replay plans name it
@@ -20,7 +20,7 @@
 //! recorder), [`vrpn`] (the VRPN client), [`live`] (live tracking for the viewer), [`replay`]
 //! (replay plans and their ROI changes), [`timeline`] (a replay collected for the viewer),
 //! [`guide`] (a guided render's ROI over its iterations), [`render`] (the shared render loop),
-//! [`calibrate`] (calibration presses), [`synth`] (the shipped synthetic sessions).
+//! [`calibrate`] (calibration presses).
 
 pub mod calibrate;
 pub mod cluster;
@@ -29,7 +29,6 @@ pub mod live;
 pub mod pipeline;
 pub mod render;
 pub mod replay;
-pub mod synth;
 pub mod timeline;
 pub mod udp;
 pub mod vrpn;

@@ -1,16 +1,20 @@
-//! The render loop that `render --guide`, `demo` and the benchmarks share: guided frames with
-//! the ROI from a [`GuideSource`] until a stop rule says so, then the picture.
+//! The render loop of a guided render (`render --guide`, `demo`): frames with the ROI — and a
+//! tracked head's eye — from a [`GuideSource`] until a stop rule says so, then the picture.
+//!
+//! [`run_guided`] drives any [`Render`]; [`Steering`] is what it decides each iteration from the
+//! guide, which rank 0 of a render across ranks decides the same way and sends the others
+//! (`super::cluster::run_cluster`).
 
 use std::path::Path;
 use std::time::Instant;
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 
 use super::guide::GuideSource;
 use crate::display::DisplayModel;
 use crate::filter::{Filter, FilterParams};
 use crate::frame::stop::{RoiProgress, StopCondition, StopReason, reached};
-use crate::frame::{EyeFollow, FrameError, GuideConfig, Renderer};
+use crate::frame::{EyeFollow, FrameError, GuideConfig, Render, Renderer};
 use crate::gpu::Backend;
 use crate::output::OutputError;
 use crate::roi::dgi::Roi;
@@ -27,8 +31,68 @@ pub struct Stopping {
 }
 
 /// How often the ROI's progress is measured for a stop condition (on a GPU renderer of one
-/// band a submit and 208 bytes back, `Renderer::roi_stats`; elsewhere a read-back).
-const PROGRESS_INTERVAL_S: f64 = 0.5;
+/// band a submit and 208 bytes back, `Renderer::roi_stats`; elsewhere a read-back; across ranks
+/// a gather of the ROI's sums on rank 0).
+pub const PROGRESS_INTERVAL_S: f64 = 0.5;
+
+/// What the guide asks of a render iteration by iteration: the ROI when it changes, and the
+/// tracked head's eye under the restart rule (DESIGN.md §11), with what became of the eyes.
+pub struct Steering<'s> {
+    source: &'s GuideSource,
+    /// The iterations the guide's time axis is spread over.
+    spread: u32,
+    /// The ROI given last.
+    current: Option<Roi>,
+    /// (iteration, eye): where the eye restarted the accumulation.
+    pub eye_restarts: Vec<(u32, DVec3)>,
+    /// Eyes refused (on or behind a tile's plane: the eye stayed where it was).
+    pub eyes_refused: u32,
+}
+
+impl<'s> Steering<'s> {
+    /// `source` spread over `stopping`'s iterations (over one without a number).
+    #[must_use]
+    pub fn new(source: &'s GuideSource, stopping: &Stopping) -> Self {
+        Self {
+            source,
+            spread: stopping.iterations.unwrap_or(1),
+            current: None,
+            eye_restarts: Vec::new(),
+            eyes_refused: 0,
+        }
+    }
+
+    /// The ROI of iteration `k` where it differs from the one given last (always at 0).
+    pub fn roi_change(&mut self, k: u32) -> Option<Option<Roi>> {
+        let roi = self.source.roi_at(k, self.spread);
+        (k == 0 || roi != self.current).then(|| {
+            self.current = roi;
+            roi
+        })
+    }
+
+    /// The tracked head's eye of iteration `k` applied to `r` under the restart rule (a wall
+    /// camera's only): `Some(eye)` where the accumulation restarted there.
+    pub fn follow_eye<R: Render>(&mut self, r: &mut R, k: u32) -> Result<Option<DVec3>, R::Error> {
+        if r.wall().is_none() {
+            return Ok(None);
+        }
+        let Some(eye) = self.source.eye_at(k, self.spread) else {
+            return Ok(None);
+        };
+        Ok(match r.follow_eye(eye, self.source.eye_threshold_m())? {
+            EyeFollow::Kept => None,
+            EyeFollow::Restarted => {
+                self.eye_restarts.push((k, eye));
+                Some(eye)
+            }
+            EyeFollow::Refused(_) => {
+                self.eyes_refused += 1;
+                None
+            }
+        })
+    }
+}
 
 /// What a guided render produced.
 pub struct GuidedResult {
@@ -87,82 +151,47 @@ impl GuidedResult {
     }
 }
 
-/// Runs guided frames with the ROI from `source` until `stopping` says so, then reads back and
-/// filters. `on_iteration` is called after each frame with the number done and the ROI's
-/// progress when it was measured.
-#[allow(clippy::too_many_arguments)]
-pub fn render_guided(
-    backend: &Backend,
-    scene: &Scene,
-    settings: TraceSettings,
-    model: &DisplayModel,
-    config: GuideConfig,
-    filter: &FilterParams,
-    source: &GuideSource,
-    stopping: &Stopping,
-    on_iteration: impl FnMut(u32, Option<&RoiProgress>),
-) -> Result<GuidedResult, FrameError> {
-    render_guided_wall(
-        backend,
-        scene,
-        settings,
-        model,
-        None,
-        config,
-        filter,
-        source,
-        stopping,
-        on_iteration,
-    )
+/// What the render loop did; the renderer holds the accumulation.
+#[derive(Clone, Debug)]
+pub struct Steered {
+    pub iterations: u32,
+    /// Wall-clock seconds of the iterations.
+    pub seconds: f64,
+    pub stop: StopReason,
+    /// The ROI's last measured progress (with stop conditions only).
+    pub progress: Option<RoiProgress>,
+    /// (iteration, eye): where a tracked head's eye restarted the accumulation.
+    pub eye_restarts: Vec<(u32, DVec3)>,
+    /// Head eyes refused (on or behind a tile's plane).
+    pub eyes_refused: u32,
 }
 
-/// [`render_guided`] through the wall camera `wall` when given (DESIGN.md §11): only the pixels
-/// its display shows are scheduled and traced, and the others come out black. A replay with a
-/// tracked head moves the wall camera's eye along with the ROI (its eyes spread over the
-/// iterations on the same time axis), under the restart rule: an eye past the threshold from
-/// the one the accumulation started with restarts it, the ROI kept.
-#[allow(clippy::too_many_arguments)]
-pub fn render_guided_wall(
-    backend: &Backend,
-    scene: &Scene,
-    settings: TraceSettings,
-    model: &DisplayModel,
-    wall: Option<WallCamera>,
-    config: GuideConfig,
-    filter: &FilterParams,
+/// The render loop: frames of `r` with the ROI from `source` until `stopping` says so. A
+/// replay with a tracked head moves a wall camera's eye along with the ROI (its eyes spread
+/// over the iterations on the same time axis), under the restart rule: an eye past the
+/// threshold from the one the accumulation started with restarts it, the ROI kept.
+/// `on_iteration` is called after each frame with the number done and the ROI's progress when
+/// it was measured.
+pub fn run_guided<R: Render>(
+    r: &mut R,
     source: &GuideSource,
     stopping: &Stopping,
     mut on_iteration: impl FnMut(u32, Option<&RoiProgress>),
-) -> Result<GuidedResult, FrameError> {
-    let mut r = Renderer::guided_wall(backend, scene, settings, model, config, wall)?;
+) -> Result<Steered, R::Error> {
     let t0 = Instant::now();
     let needs_progress = stopping.until.iter().any(StopCondition::needs_progress);
-    let spread = stopping.iterations.unwrap_or(1);
-    let mut current: Option<Roi> = None;
+    let mut steering = Steering::new(source, stopping);
     let mut last_check = f64::NEG_INFINITY;
     let mut progress = None;
-    let mut eye_restarts = Vec::new();
-    let mut eyes_refused = 0;
-    let threshold = source.eye_threshold_m();
     let mut k = 0;
     let stop = loop {
         if stopping.iterations.is_some_and(|n| k >= n) {
             break StopReason::Iterations(k);
         }
-        let roi = source.roi_at(k, spread);
-        if k == 0 || roi != current {
+        if let Some(roi) = steering.roi_change(k) {
             r.set_roi(roi)?;
-            current = roi;
         }
-        if r.wall().is_some()
-            && let Some(eye) = source.eye_at(k, spread)
-        {
-            match r.follow_eye(eye, threshold)? {
-                EyeFollow::Kept => {}
-                EyeFollow::Restarted => eye_restarts.push((k, eye)),
-                EyeFollow::Refused(_) => eyes_refused += 1,
-            }
-        }
+        steering.follow_eye(r, k)?;
         r.run_frame(false)?;
         k += 1;
         let elapsed = t0.elapsed().as_secs_f64();
@@ -177,25 +206,68 @@ pub fn render_guided_wall(
             break StopReason::Reached(c);
         }
     };
-    let seconds = t0.elapsed().as_secs_f64();
+    Ok(Steered {
+        iterations: k,
+        seconds: t0.elapsed().as_secs_f64(),
+        stop,
+        progress,
+        eye_restarts: steering.eye_restarts,
+        eyes_refused: steering.eyes_refused,
+    })
+}
+
+/// A guided render as [`render_guided`] makes it: what the frames trace and how the picture is
+/// filtered.
+#[derive(Clone, Debug)]
+pub struct GuidedRender<'a> {
+    pub settings: TraceSettings,
+    /// The display the ROI is aimed at.
+    pub model: &'a DisplayModel,
+    /// The wall camera the frames trace through (DESIGN.md §11): only the pixels its display
+    /// shows are scheduled and traced, and the others come out black.
+    pub wall: Option<WallCamera>,
+    pub config: GuideConfig,
+    pub filter: FilterParams,
+}
+
+/// One process's guided render of `scene` on `backend`: the render loop ([`run_guided`]), then
+/// the accumulation read back and filtered.
+pub fn render_guided(
+    backend: &Backend,
+    scene: &Scene,
+    job: GuidedRender<'_>,
+    source: &GuideSource,
+    stopping: &Stopping,
+    on_iteration: impl FnMut(u32, Option<&RoiProgress>),
+) -> Result<GuidedResult, FrameError> {
+    let [w, h] = [job.settings.width, job.settings.height];
+    let mut r = Renderer::guided_wall(
+        backend,
+        scene,
+        job.settings,
+        job.model,
+        job.config,
+        job.wall,
+    )?;
+    let run = run_guided(&mut r, source, stopping, on_iteration)?;
     let accumulated = r.iteration();
     let wall = r.wall().cloned();
     let (acc, dgi) = r.finish()?;
-    let mut image = Filter::new(backend).image(filter, &acc, &dgi)?;
-    if let Some(w) = &wall {
-        w.blank_unshown(&mut image);
+    let mut image = Filter::new(backend).image(&job.filter, &acc, &dgi)?;
+    if let Some(wc) = &wall {
+        wc.blank_unshown(&mut image);
     }
     Ok(GuidedResult {
-        size: [settings.width, settings.height],
-        iterations: k,
+        size: [w, h],
+        iterations: run.iterations,
         image,
         dgi,
         counts: acc.count,
-        seconds,
-        stop,
-        progress,
+        seconds: run.seconds,
+        stop: run.stop,
+        progress: run.progress,
         accumulated,
-        eye_restarts,
-        eyes_refused,
+        eye_restarts: run.eye_restarts,
+        eyes_refused: run.eyes_refused,
     })
 }

@@ -37,8 +37,10 @@
 //! the shown mask (none depends on the eye), and recomputes only each tile's vector from the
 //! eye to its anchor point, from the same f64 room points as [`WallCamera::new`] — so a moved
 //! camera equals one built afresh at that eye with that placement, bit for bit. Whether a move
-//! restarts the accumulation is [`eye_moved`]: more than a threshold
-//! ([`DEFAULT_EYE_THRESHOLD_M`], 1 cm) from the eye the accumulation started with.
+//! restarts the accumulation is the tracked head's rule ([`WallCamera::eye_moved`],
+//! [`crate::tracking::head::eye_moved`]): more than a threshold
+//! ([`crate::tracking::head::DEFAULT_EYE_THRESHOLD_M`], 1 cm) from the eye the accumulation
+//! started with.
 
 use glam::{DMat3, DVec2, DVec3, Vec3};
 
@@ -54,10 +56,6 @@ pub const NO_TILE: u32 = u32::MAX;
 
 /// Vec4s per tile in the GPU table (`wall` in shaders/trace/path.wgsl).
 pub const TILE_VEC4S: usize = 4;
-
-/// How far (metres) the eye may move from the eye the accumulation started with before the
-/// accumulation restarts (`--eye-threshold`).
-pub const DEFAULT_EYE_THRESHOLD_M: f64 = 0.01;
 
 /// A wall camera's inputs: an image with pixels, and a finite eye in front of every tile.
 fn check_inputs(
@@ -79,14 +77,6 @@ fn check_inputs(
             .iter()
             .map(|t| (t.id(), t.corners()[0], t.normal())),
     )
-}
-
-/// The restart rule of a moving eye: whether `eye` lies more than `threshold_m` from `started`
-/// (the eye the accumulation started with). A non-finite eye never restarts (it is refused
-/// where it is used).
-#[must_use]
-pub fn eye_moved(started: DVec3, eye: DVec3, threshold_m: f64) -> bool {
-    eye.is_finite() && eye.distance(started) > threshold_m
 }
 
 /// Where the room frame sits in the scene (`--world-from-room`).
@@ -436,10 +426,11 @@ impl WallCamera {
     }
 
     /// Whether moving the eye to `eye` restarts the accumulation under `threshold_m`
-    /// ([`eye_moved`] from this camera's eye, the one its accumulation started with).
+    /// (the tracked head's rule, [`crate::tracking::head::eye_moved`], from this camera's eye,
+    /// the one its accumulation started with).
     #[must_use]
     pub fn eye_moved(&self, eye: DVec3, threshold_m: f64) -> bool {
-        eye_moved(self.eye_room, eye, threshold_m)
+        crate::tracking::head::eye_moved(self.eye_room, eye, threshold_m)
     }
 
     /// The entry of [`Self::tiles`] through which image pixel `(x, y)` is traced (the first
@@ -556,6 +547,7 @@ pub fn shown_bit(mask: &[u32], p: u32) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::tracking::head::DEFAULT_EYE_THRESHOLD_M;
 
     fn cam() -> (DVec3, DVec3, DVec3) {
         (DVec3::new(1.0, 2.0, 3.0), DVec3::NEG_X, DVec3::Y)

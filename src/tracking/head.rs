@@ -9,20 +9,34 @@
 //!
 //! A recording carries the head's stream like every other device's (the raw datagrams hold
 //! every body), and its header names the head ([`HeadConfig`], the replay header's `head`), so
-//! a replay moves the eye as the live session did. [`EyeRule`] is the restart rule on a stream
-//! of eyes: the accumulation restarts when the eye lies more than the threshold from the eye it
-//! started with ([`crate::trace::wall::eye_moved`], the renderer's rule).
+//! a replay moves the eye as the live session did.
+//!
+//! The restart rule lives here, where the parsers' consumers and the renderers both reach it:
+//! [`eye_moved`] says whether an eye lies more than the threshold
+//! ([`DEFAULT_EYE_THRESHOLD_M`], 1 cm, unless given) from the eye the accumulation started
+//! with; the wall camera applies it to its own eye, and [`EyeRule`] to a stream of eyes (a
+//! replay's, before any renderer exists).
 
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
 use super::event::{DeviceId, DeviceKind, Tracking, TrackingEvent};
 
-/// The restart threshold when none is given, metres (1 cm).
-pub const DEFAULT_THRESHOLD_M: f64 = 0.01;
+/// How far (metres) the eye may move from the eye the accumulation started with before the
+/// accumulation restarts, when no threshold is given (`--eye-threshold`, a replay header's
+/// `eye_threshold_m`).
+pub const DEFAULT_EYE_THRESHOLD_M: f64 = 0.01;
+
+/// The restart rule of a moving eye: whether `eye` lies more than `threshold_m` from `started`
+/// (the eye the accumulation started with). A non-finite eye never restarts (it is refused
+/// where it is used).
+#[must_use]
+pub fn eye_moved(started: DVec3, eye: DVec3, threshold_m: f64) -> bool {
+    eye.is_finite() && eye.distance(started) > threshold_m
+}
 
 fn default_threshold() -> f64 {
-    DEFAULT_THRESHOLD_M
+    DEFAULT_EYE_THRESHOLD_M
 }
 
 fn is_zero(v: &[f64; 3]) -> bool {
@@ -62,7 +76,7 @@ impl HeadConfig {
         Self {
             device,
             eye_offset_m: [0.0; 3],
-            eye_threshold_m: DEFAULT_THRESHOLD_M,
+            eye_threshold_m: DEFAULT_EYE_THRESHOLD_M,
         }
     }
 
@@ -146,7 +160,7 @@ impl EyeRule {
     pub fn offer(&mut self, eye: DVec3) -> bool {
         let restart = match self.started {
             None => eye.is_finite(),
-            Some(s) => crate::trace::wall::eye_moved(s, eye, self.threshold_m),
+            Some(s) => eye_moved(s, eye, self.threshold_m),
         };
         if restart {
             self.started = Some(eye);
@@ -253,7 +267,7 @@ mod tests {
         );
         let json = r#"{"device":"body:3","eye_offset_m":[0,0.05,-0.08]}"#;
         let h: HeadConfig = serde_json::from_str(json).unwrap();
-        assert_eq!(h.eye_threshold_m, DEFAULT_THRESHOLD_M);
+        assert_eq!(h.eye_threshold_m, DEFAULT_EYE_THRESHOLD_M);
         assert!(serde_json::from_str::<HeadConfig>(r#"{"device":"body:3","x":1}"#).is_err());
     }
 }

@@ -390,7 +390,7 @@ impl<'a> ViewerApp<'a> {
         let eye = self.core.eye();
         let restarts = self.core.restarts;
         let refused = self.core.eye_refused.clone();
-        let camera_at = self.core.renderer().settings().camera.position;
+        let camera_at = self.core.settings().camera.position;
         let model = self.core.model;
         let s = &mut self.core.state;
         ui.heading(if eye.is_some() {

@@ -1,5 +1,6 @@
 //! The viewer without a screen: the panel's settings ([`ViewerState`]), what they mean for the
-//! renderer, and [`ViewerCore`], which keeps a [`Renderer`] in step with them and
+//! renderer, and [`ViewerCore`], which keeps the renderer in step with them — one process's
+//! [`Renderer`], or rank 0's part of a render across ranks, read through [`Render`] — and
 //! composes the picture the window shows. The egui front end (`app.rs`) only maps widgets and
 //! clicks onto these; tests drive them directly.
 //!
@@ -11,10 +12,10 @@ use std::time::{Duration, Instant};
 
 use glam::{DVec3, Vec3};
 
-use crate::cluster::{CONSOLE_PIXELS, ClusterRenderer, reduction_for};
+use crate::cluster::{CONSOLE_PIXELS, reduction_for};
 use crate::display::DisplayModel;
 use crate::filter::Filter;
-use crate::frame::{EyeFollow, FrameStats, GuideConfig, Renderer};
+use crate::frame::{EyeFollow, FrameStats, GuideConfig, Render, Renderer};
 use crate::gpu::Backend;
 use crate::output::stats::RoiStats;
 use crate::output::tiles::wall_view;
@@ -93,53 +94,6 @@ pub struct Picture {
     pub noise: Vec<f32>,
 }
 
-/// The renderer as the viewer shows it, whichever engine renders: one process's [`Renderer`]
-/// or rank 0's part of a render across ranks ([`ClusterRenderer`], `view --cluster`).
-pub trait RenderView {
-    /// Frames in the accumulation (since the last restart).
-    fn iteration(&self) -> u32;
-    fn roi(&self) -> Option<&Roi>;
-    fn settings(&self) -> &TraceSettings;
-    fn guide_config(&self) -> Option<&GuideConfig>;
-    fn wall(&self) -> Option<&WallCamera>;
-}
-
-impl RenderView for Renderer<'_> {
-    fn iteration(&self) -> u32 {
-        Renderer::iteration(self)
-    }
-    fn roi(&self) -> Option<&Roi> {
-        Renderer::roi(self)
-    }
-    fn settings(&self) -> &TraceSettings {
-        &self.settings
-    }
-    fn guide_config(&self) -> Option<&GuideConfig> {
-        Renderer::guide_config(self)
-    }
-    fn wall(&self) -> Option<&WallCamera> {
-        Renderer::wall(self)
-    }
-}
-
-impl RenderView for ClusterRenderer {
-    fn iteration(&self) -> u32 {
-        ClusterRenderer::iteration(self)
-    }
-    fn roi(&self) -> Option<&Roi> {
-        ClusterRenderer::roi(self)
-    }
-    fn settings(&self) -> &TraceSettings {
-        &self.settings
-    }
-    fn guide_config(&self) -> Option<&GuideConfig> {
-        ClusterRenderer::guide_config(self)
-    }
-    fn wall(&self) -> Option<&WallCamera> {
-        ClusterRenderer::wall(self)
-    }
-}
-
 /// What the viewer renders with. Across ranks every change goes to every rank as a
 /// [`ViewStep`] the moment the viewer makes it, so rank 0's renderer is always the one the
 /// others have.
@@ -148,14 +102,24 @@ enum Engine<'a> {
     Cluster(Box<ClusterView<'a>>),
 }
 
-impl Engine<'_> {
-    fn view(&self) -> &dyn RenderView {
-        match self {
-            Self::Local(r) => &**r,
-            Self::Cluster(v) => v.renderer(),
+/// `$body` with `$r` the renderer the viewer reads, through [`Render`]: one process's, or rank
+/// 0's part of the job (every rank applies the same steps, so it stands for every rank's).
+macro_rules! read {
+    ($engine:expr, |$r:ident| $body:expr) => {
+        match $engine {
+            Engine::Local(local) => {
+                let $r: &Renderer<'_> = local;
+                $body
+            }
+            Engine::Cluster(view) => {
+                let $r = view.renderer();
+                $body
+            }
         }
-    }
+    };
+}
 
+impl Engine<'_> {
     fn set_roi(&mut self, roi: Option<Roi>) -> Result<(), ViewerError> {
         match self {
             Self::Local(r) => r.set_roi(roi)?,
@@ -166,25 +130,12 @@ impl Engine<'_> {
         Ok(())
     }
 
-    /// The restart rule of a moving eye (rank 0 decides; every rank moves).
+    /// The restart rule of a moving eye (across ranks rank 0 decides; every rank moves).
     fn follow_eye(&mut self, eye: DVec3, threshold_m: f64) -> Result<EyeFollow, ViewerError> {
-        match self {
-            Self::Local(r) => Ok(r.follow_eye(eye, threshold_m)?),
-            Self::Cluster(v) => {
-                let wall = v
-                    .renderer()
-                    .wall()
-                    .ok_or(crate::frame::FrameError::NoWall)?;
-                if !wall.eye_moved(eye, threshold_m) {
-                    return Ok(EyeFollow::Kept);
-                }
-                if let Err(e) = wall.with_eye(eye) {
-                    return Ok(EyeFollow::Refused(e));
-                }
-                v.send(ViewStep::Eye(eye))?;
-                Ok(EyeFollow::Restarted)
-            }
-        }
+        Ok(match self {
+            Self::Local(r) => r.follow_eye(eye, threshold_m)?,
+            Self::Cluster(v) => v.follow_eye(eye, threshold_m)?,
+        })
     }
 
     fn set_camera(&mut self, camera: RenderCamera) -> Result<(), ViewerError> {
@@ -201,17 +152,8 @@ impl Engine<'_> {
         match self {
             Self::Local(r) => Ok(r.run_frame(timed)?),
             Self::Cluster(v) => match v.send(ViewStep::Frame)? {
-                Applied::Frame(s) => Ok(FrameStats {
-                    iteration: s.iteration,
-                    dgi_recomputed: s.dgi_recomputed,
-                    pixels: u32::try_from(s.pixels).ok(),
-                    ms_dgi: s.dgi_recomputed.then_some(s.ms_dgi),
-                    ms_schedule: Some(s.ms_schedule),
-                    // Rank 0's trace and the exchange that waits for the slowest rank.
-                    ms_trace: Some(s.ms_trace + s.ms_exchange),
-                    gpu_timestamps: false,
-                    rays: Some(s.rays),
-                }),
+                // Rank 0's stages, the exchange that waits for the slowest rank with the trace.
+                Applied::Frame(s) => Ok(s.into()),
                 _ => unreachable!("a frame step gives a frame"),
             },
         }
@@ -223,7 +165,7 @@ impl Engine<'_> {
         match self {
             Self::Local(r) => {
                 assert_eq!(every, 1, "one process's picture is whole");
-                Ok((r.accumulation()?, r.dgi()?))
+                Ok(r.gather()?.expect("one process holds its whole picture"))
             }
             Self::Cluster(v) => match v.send(ViewStep::Gather { every })? {
                 Applied::Gathered(Some(g)) => Ok(g),
@@ -367,11 +309,10 @@ impl<'a> ViewerCore<'a> {
         state: ViewerState,
         engine: Engine<'a>,
     ) -> Self {
-        let r = engine.view();
-        let built = Built {
+        let built = read!(&engine, |r| Built {
             config: *r.guide_config().expect("the viewer's render is guided"),
             max_depth: r.settings().max_depth,
-        };
+        });
         Self {
             backend,
             model,
@@ -394,7 +335,7 @@ impl<'a> ViewerCore<'a> {
     /// The wall camera's eye (room frame), the one the accumulation started with.
     #[must_use]
     pub fn eye(&self) -> Option<DVec3> {
-        self.renderer().wall().map(|w| w.eye_room)
+        self.wall().map(|w| w.eye_room)
     }
 
     #[must_use]
@@ -411,10 +352,34 @@ impl<'a> ViewerCore<'a> {
         }
     }
 
-    /// The renderer as it stands (settings it received, iterations, ROI).
+    /// Iterations in the renderer's accumulation (since it last restarted).
     #[must_use]
-    pub fn renderer(&self) -> &dyn RenderView {
-        self.engine.view()
+    pub fn iteration(&self) -> u32 {
+        read!(&self.engine, |r| r.iteration())
+    }
+
+    /// The ROI the renderer has.
+    #[must_use]
+    pub fn roi(&self) -> Option<&Roi> {
+        read!(&self.engine, |r| r.roi())
+    }
+
+    /// The settings the renderer traces with (the panel's path depth, the camera as moved).
+    #[must_use]
+    pub fn settings(&self) -> &TraceSettings {
+        read!(&self.engine, |r| r.settings())
+    }
+
+    /// How the ROI steers the renderer's sampling.
+    #[must_use]
+    pub fn guide_config(&self) -> Option<&GuideConfig> {
+        read!(&self.engine, |r| r.guide_config())
+    }
+
+    /// The wall camera, if the renderer traces through one.
+    #[must_use]
+    pub fn wall(&self) -> Option<&WallCamera> {
+        read!(&self.engine, |r| r.wall())
     }
 
     /// Brings the renderer in line with the state: rebuilds it when the guide settings or the
@@ -451,7 +416,7 @@ impl<'a> ViewerCore<'a> {
         }
         self.follow_viewpoint()?;
         let roi = self.state.roi();
-        let changed = self.renderer().roi() != roi.as_ref();
+        let changed = self.roi() != roi.as_ref();
         if changed {
             let t0 = Instant::now();
             self.roi_since = t0;
@@ -479,7 +444,7 @@ impl<'a> ViewerCore<'a> {
     /// refused eye leaves the camera as it was and puts the desktop viewpoint back there.
     fn follow_viewpoint(&mut self) -> Result<(), ViewerError> {
         let threshold = self.state.eye_threshold_m;
-        if self.renderer().wall().is_some() {
+        if self.wall().is_some() {
             // While the head leads, the desktop viewpoint follows it, so a drag starts there.
             if self.state.follow_head
                 && let (Some(h), Some(v)) = (self.state.head, &mut self.state.view)
@@ -505,7 +470,7 @@ impl<'a> ViewerCore<'a> {
                 }
             }
         } else if let Some(v) = &self.state.view {
-            let now = self.renderer().settings().camera;
+            let now = self.settings().camera;
             let camera = v.camera(&now);
             if camera_moved(&now, &camera, threshold) {
                 self.engine.set_camera(camera)?;
@@ -521,7 +486,7 @@ impl<'a> ViewerCore<'a> {
         let mut roi_changed = self.sync()?;
         let t0 = Instant::now();
         loop {
-            let timed = roi_changed || self.renderer().iteration().is_multiple_of(TIMED_EVERY);
+            let timed = roi_changed || self.iteration().is_multiple_of(TIMED_EVERY);
             roi_changed = false;
             let s = self.engine.run_frame(timed)?;
             if timed {
@@ -537,7 +502,7 @@ impl<'a> ViewerCore<'a> {
                 break;
             }
         }
-        self.stats.iterations = self.renderer().iteration();
+        self.stats.iterations = self.iteration();
         let secs = self.window.1.elapsed().as_secs_f64();
         if secs > 0.0 {
             self.stats.iterations_per_s = f64::from(self.window.0) / secs;
@@ -714,11 +679,10 @@ impl<'a> ViewerCore<'a> {
         let width = acc.width as usize;
         let step = every as usize;
         let pixel = |i: usize| ((i / width * step) * full_width + (i % width) * step) as u32;
-        let r = self.engine.view();
-        let measured = if r.roi().is_some() {
-            let wall = r.wall();
+        let measured = if self.roi().is_some() {
+            let wall = self.wall();
             let shown = |i: usize| wall.is_none_or(|w| w.is_shown(pixel(i)));
-            let p_min = r.guide_config().map_or(0.0, |c| c.p_min);
+            let p_min = self.guide_config().map_or(0.0, |c| c.p_min);
             RoiStats::measure_with_noise(acc, dgi, noise, p_min, shown)
         } else {
             RoiStats::default()
@@ -776,7 +740,7 @@ impl<'a> ViewerCore<'a> {
                 exposure: self.state.exposure,
             })?;
         }
-        let wall = self.engine.view().wall();
+        let wall = self.wall();
         let shown = |i: usize| wall.is_none_or(|w| w.is_shown(pixel(i)));
         let params = self.state.filter_params();
         let image = match &self.engine {
@@ -812,7 +776,7 @@ impl<'a> ViewerCore<'a> {
             Overlay::Counts => heat_map(&acc.count),
             Overlay::Noise => noise_map(&noise),
         };
-        if self.state.roi_outline && self.renderer().roi().is_some() {
+        if self.state.roi_outline && self.roi().is_some() {
             paint_outline(&mut rgba, &roi_outline(&dgi, size));
         }
         let rgba = self.wall_view(rgba, size);

@@ -3,13 +3,13 @@
 //! +/− or Page Up/Down for the same). One [`Orbit`] moves either the wall camera's eye (room
 //! frame, about the wall's centre) or the pinhole camera (scene frame, about a point in front of
 //! it); the viewer applies the result under the restart rule of a moving eye
-//! ([`crate::trace::wall::eye_moved`]; for a pinhole [`camera_moved`]).
+//! ([`crate::tracking::head::eye_moved`]; for a pinhole [`camera_moved`]).
 
 use glam::{DVec2, DVec3};
 
 use crate::display::DisplayModel;
 use crate::trace::camera::RenderCamera;
-use crate::trace::wall::eye_moved;
+use crate::tracking::head::eye_moved;
 
 /// Radians of orbit per pointer pixel (half a turn across a 630-pixel image).
 pub const ORBIT_RAD_PER_PX: f64 = 0.005;

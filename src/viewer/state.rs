@@ -121,7 +121,7 @@ impl ViewerState {
             view: None,
             head: None,
             follow_head: true,
-            eye_threshold_m: crate::trace::wall::DEFAULT_EYE_THRESHOLD_M,
+            eye_threshold_m: crate::tracking::head::DEFAULT_EYE_THRESHOLD_M,
         }
     }
 

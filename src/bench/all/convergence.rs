@@ -9,7 +9,7 @@ use super::{AllBenchError, AllConfig};
 use crate::bench::paper;
 use crate::display::DisplayModel;
 use crate::filter::FilterParams;
-use crate::frame::{GuideConfig, Renderer};
+use crate::frame::{GuideConfig, Render, Renderer};
 use crate::gpu::Backend;
 use crate::scene::Scene;
 use crate::trace::accum::Accumulation;

@@ -21,7 +21,7 @@ use serde::Serialize;
 
 use crate::display::DisplayModel;
 use crate::filter::{Filter, FilterParams};
-use crate::frame::{GuideConfig, Renderer};
+use crate::frame::{GuideConfig, Render, Renderer};
 use crate::gpu::Backend;
 use crate::output::srgb8::display_rgba;
 use crate::scene::Scene;

@@ -12,7 +12,7 @@ use crate::cli::progress::Progress;
 use crate::cli::scene::load_scene;
 use crate::cluster::handshake::scene_hash;
 use crate::cluster::owners::{BlockOwners, TileOwners};
-use crate::cluster::{Cluster, ClusterRenderer};
+use crate::cluster::{Cluster, ClusterRenderer, ClusterSetup};
 use crate::display::DisplayModel;
 use crate::filter::Filter;
 use crate::gpu::Backend;
@@ -155,18 +155,15 @@ fn prepare(args: &RenderArgs, c: &Cluster) -> anyhow::Result<Prepared> {
 }
 
 fn work(c: &mut Cluster, args: &RenderArgs, mut p: Prepared) -> anyhow::Result<()> {
-    let (rank, ranks) = (c.rank(), c.ranks());
-    let guide = p.plan.as_ref().map(|plan| (&plan.model, plan.config));
-    let mut r = ClusterRenderer::new(
-        &p.scene,
-        p.settings,
-        guide,
-        p.wall.clone(),
-        p.owners.clone(),
-        args.cluster.cluster_dgi,
-        rank,
-        ranks,
-    )?;
+    let (root, ranks) = (c.is_root(), c.ranks());
+    let setup = ClusterSetup {
+        settings: p.settings,
+        guide: p.plan.as_ref().map(|plan| (&plan.model, plan.config)),
+        wall: p.wall.clone(),
+        owners: p.owners.clone(),
+        dgi_mode: args.cluster.cluster_dgi,
+    };
+    let mut r = ClusterRenderer::new(c, &p.scene, setup)?;
     let device = format!("{ranks} rank(s), {}", trace_backend(&p.backend));
     if let Backend::Gpu(ctx) = std::mem::replace(&mut p.backend, Backend::Cpu) {
         r.trace_on_gpu(ctx.into())?;
@@ -178,13 +175,11 @@ fn work(c: &mut Cluster, args: &RenderArgs, mut p: Prepared) -> anyhow::Result<(
             until: Vec::new(),
         },
     };
-    if c.is_root()
-        && let Some(plan) = &p.plan
-    {
+    if root && let Some(plan) = &p.plan {
         crate::cli::say(args.quiet, format_args!("display: {}", plan.display_note));
     }
     let mut bar = Progress::new(
-        args.quiet || !c.is_root(),
+        args.quiet || !root,
         if p.plan.is_some() {
             "guided render"
         } else {
@@ -198,7 +193,6 @@ fn work(c: &mut Cluster, args: &RenderArgs, mut p: Prepared) -> anyhow::Result<(
         },
     );
     let run = run_cluster(
-        c,
         &mut r,
         p.plan.as_ref().map(|plan| &plan.source),
         &stopping,
@@ -215,10 +209,10 @@ fn work(c: &mut Cluster, args: &RenderArgs, mut p: Prepared) -> anyhow::Result<(
         },
     )?;
     bar.finish();
-    let tiles_written = write_owned_tiles(c, args, &p, &mut r)?;
+    let tiles_written = write_owned_tiles(args, &p, &mut r)?;
     let summary = summary(&run, ranks);
     let Some((acc, dgi)) = run.gathered.as_ref() else {
-        if c.is_root() {
+        if root {
             tiles_only_note(&p, &r, &run, &device, &summary, args.quiet)?;
         }
         return Ok(());
@@ -289,7 +283,7 @@ fn assembles(args: &RenderArgs) -> bool {
 /// samples every rank counts.
 fn tiles_only_note(
     p: &Prepared,
-    r: &ClusterRenderer,
+    r: &ClusterRenderer<'_>,
     run: &ClusterRun,
     device: &str,
     summary: &str,
@@ -322,10 +316,9 @@ fn tiles_only_note(
 /// ([`ClusterRenderer::tile_pictures`]), the files one process writes; rank 0 says how many
 /// each rank wrote. `false` (nothing written) without `--tiles` or a tile map.
 fn write_owned_tiles(
-    c: &mut Cluster,
     args: &RenderArgs,
     p: &Prepared,
-    r: &mut ClusterRenderer,
+    r: &mut ClusterRenderer<'_>,
 ) -> anyhow::Result<bool> {
     let (Some(dir), Some(tiles)) = (&args.tiles, &p.tile_owners) else {
         return Ok(false);
@@ -342,13 +335,13 @@ fn write_owned_tiles(
         (None, None) => return Ok(false),
     };
     let format = super::tiles_format(args)?;
-    let pictures = r.tile_pictures(c, model, tiles, &params)?;
+    let pictures = r.tile_pictures(model, tiles, &params)?;
     for t in &pictures {
         crate::output::tiles::write_tile(dir, model, t.tile, &t.pixels, format, args.exposure)
             .with_context(|| format!("--tiles {}", dir.display()))?;
     }
     let written = (pictures.len() as u32).to_le_bytes().to_vec();
-    if let Some(all) = c.gather("the tiles written", written)? {
+    if let Some(all) = r.cluster_mut().gather("the tiles written", written)? {
         let per_rank: Vec<u32> = all
             .iter()
             .map(|b| {

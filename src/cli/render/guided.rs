@@ -20,7 +20,7 @@ use crate::roi::cone::Cone;
 use crate::roi::dgi::{Falloff, Roi};
 use crate::scene::Scene;
 use crate::session::guide::GuideSource;
-use crate::session::render::{Stopping, render_guided_wall};
+use crate::session::render::{GuidedRender, Stopping, render_guided};
 use crate::session::replay::{ReplayOptions, ReplayPlan};
 use crate::trace::path::TraceSettings;
 use crate::trace::wall::WallCamera;
@@ -237,14 +237,16 @@ pub fn run(
         _ => None,
     });
     let t0 = Instant::now();
-    let res = render_guided_wall(
+    let res = render_guided(
         backend,
         scene,
-        settings,
-        &plan.model,
-        wall,
-        plan.config,
-        &plan.filter,
+        GuidedRender {
+            settings,
+            model: &plan.model,
+            wall,
+            config: plan.config,
+            filter: plan.filter,
+        },
         &plan.source,
         &plan.stopping,
         |k, progress| {

@@ -1,4 +1,4 @@
-//! The inverse of the `6df2` parser, for the synthesiser (`session::synth`) and tests.
+//! The inverse of the `6df2` parser, for the synthesiser (`interaction::synth`) and tests.
 
 use super::*;
 

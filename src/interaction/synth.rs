@@ -32,13 +32,14 @@ use std::path::{Path, PathBuf};
 
 use glam::{DMat3, DQuat, DVec2, DVec3};
 
-use crate::interaction::{HingedWall, InteractionConfig, RaySurface};
 use crate::tracking::dtrack::{DtrackConfig, TrackerToRoom, format_flystick_block};
 use crate::tracking::event::{DeviceId, DeviceKind, Pose, TrackingEvent};
 use crate::tracking::head::HeadConfig;
 use crate::tracking::ingest::Protocol;
 use crate::tracking::osc::encode;
 use crate::tracking::replay::{ReplayHeader, ReplayWriter};
+
+use super::{HingedWall, InteractionConfig, RaySurface};
 
 /// SplitMix64: tiny, fast and fully specified, so sessions are identical on every platform.
 #[derive(Clone, Debug)]
@@ -305,6 +306,11 @@ struct Press {
 }
 
 /// Simulates one session at its frame rate.
+///
+/// One function of some 240 lines on purpose: every draw from the session's generator happens
+/// in one fixed order — the targets, the presses, then frame by frame the motion, tremor, noise
+/// and stick — and the shipped files depend on that order byte for byte; read top to bottom,
+/// the function is that order.
 #[must_use]
 pub fn simulate(spec: &SessionSpec) -> Vec<Sample> {
     let mut rng = Rng::new(spec.seed.wrapping_mul(0x2545_F491_4F6C_DD1D) ^ 0x5EED);
@@ -551,9 +557,14 @@ pub fn simulate(spec: &SessionSpec) -> Vec<Sample> {
     out
 }
 
+/// The generator as the shipped sessions' descriptions name it: the module path it had when
+/// they were made. The text is part of the files, which must stay byte for byte what this
+/// generator makes, so it does not follow the module.
+const MADE_BY: &str = "raygun::session::synth";
+
 fn header(spec: &SessionSpec, device: DeviceId, form: &str) -> ReplayHeader {
     let mut h = ReplayHeader::new(format!(
-        "SYNTHETIC session `{}` ({form}), made by raygun::session::synth (seed {}): {} s at {} Hz, \
+        "SYNTHETIC session `{}` ({form}), made by {MADE_BY} (seed {}): {} s at {} Hz, \
          {}, targets {:?}, {} dropouts. Not recorded from a person.",
         spec.name,
         spec.seed,
@@ -724,10 +735,10 @@ pub fn osc_replay(spec: &SessionSpec, samples: &[Sample]) -> io::Result<Vec<u8>>
 pub fn mouse_replay() -> io::Result<Vec<u8>> {
     let mut rng = Rng::new(77);
     let device = DeviceId::new(DeviceKind::Mouse, 0);
-    let mut h = ReplayHeader::new(
+    let mut h = ReplayHeader::new(format!(
         "SYNTHETIC mouse session on display-models/desktop-27in-4k.json (27-inch 3840x2160), made by \
-         raygun::session::synth: 12 s at 60 Hz, min-jerk pointer moves, 8 clicks. Not recorded from a person.",
-    );
+         {MADE_BY}: 12 s at 60 Hz, min-jerk pointer moves, 8 clicks. Not recorded from a person."
+    ));
     h.synthetic = true;
     h.display = Some("display-models/desktop-27in-4k.json".into());
     h.device = Some(device);
