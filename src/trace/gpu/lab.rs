@@ -4,8 +4,8 @@
 //! that one binary can time them side by side.
 
 use super::params::{MAX_GROUPS_X, full_frame_grid};
-use super::split::{SplitKernels, bind_layout};
-use super::{TRACE_WGSL, TraceKernel, TraceStack, TraceVariant, WORKGROUP};
+use super::split::{SplitKernels, SplitLayouts};
+use super::{STACK_ENTRIES, TRACE_WGSL, TraceKernel, TraceStack, TraceVariant};
 use crate::gpu::GpuContext;
 
 /// A full frame's launch for `variant`: the frame's threads (one a pixel slot, 8 × 8 tiles
@@ -28,9 +28,17 @@ pub fn full_frame_launch(width: u32, height: u32, variant: TraceVariant) -> (u32
     (threads, [rx, ry], rx * ry * variant.workgroup)
 }
 
-/// The kernel's source for `variant`: `TRACE_WGSL` with the stack's declaration and accesses
-/// moved, the workgroup's size set, and for a `+vote` variant the triangle postponing's
-/// percentage set and its lane count a subgroup ballot.
+/// The kernel's source for `variant`: [`TRACE_WGSL`] as written, but where an override
+/// constant cannot say it — WGSL has no conditional compilation — with
+///
+/// * the traversal stack moved out of module scope: into `traverse` (`function`) or into
+///   workgroup memory (`workgroup`, `STACK_SIZE × WORKGROUP` entries), an address space being
+///   part of a declaration;
+/// * for a `+vote` variant, `lanes_voting` a subgroup ballot: a module that names a subgroup
+///   operation needs the adapter's subgroup operations even where it never calls it.
+///
+/// Everything else a variant changes is a pipeline constant ([`constants`]) or a compile
+/// option, on the source as written.
 #[must_use]
 pub fn kernel_source(variant: TraceVariant) -> std::borrow::Cow<'static, str> {
     const MODULE: &str = "var<private> stack: array<vec2<u32>, STACK_SIZE>;\n";
@@ -38,9 +46,6 @@ pub fn kernel_source(variant: TraceVariant) -> std::borrow::Cow<'static, str> {
     const FIRST: &str = "    var sp = 0u;\n";
     const PUSH: &str = "stack[sp] = current;";
     const POP: &str = "current = stack[sp];";
-    const SIZE: &str = "const WORKGROUP: u32 = 64u;";
-    const REGENERATE: &str = "const REGENERATE: bool = false;";
-    const POSTPONE: &str = "const POSTPONE: u32 = 0u;";
     const LANES: &str = "fn lanes_voting(yes: bool) -> u32 {\n    return u32(yes);\n}";
     const BALLOT: &str = "fn lanes_voting(yes: bool) -> u32 {\n    let b = subgroupBallot(yes);\n    \
                           return countOneBits(b.x) + countOneBits(b.y) + countOneBits(b.z) + \
@@ -54,16 +59,7 @@ pub fn kernel_source(variant: TraceVariant) -> std::borrow::Cow<'static, str> {
         s.replacen(from, to, 1)
     };
     let mut s = std::borrow::Cow::Borrowed(TRACE_WGSL);
-    if variant.workgroup != WORKGROUP {
-        let size = format!("const WORKGROUP: u32 = {}u;", variant.workgroup);
-        s = once(&s, SIZE, &size).into();
-    }
-    if variant.regen != 0 {
-        s = once(&s, REGENERATE, "const REGENERATE: bool = true;").into();
-    }
     if variant.vote != 0 {
-        let percent = format!("const POSTPONE: u32 = {}u;", variant.vote);
-        s = once(&s, POSTPONE, &percent).into();
         s = once(&s, LANES, BALLOT).into();
     }
     match variant.stack {
@@ -84,12 +80,29 @@ pub fn kernel_source(variant: TraceVariant) -> std::borrow::Cow<'static, str> {
                 POP,
                 "current = trace_stack[sp * WORKGROUP + trace_lane];",
             );
-            (s + "\nvar<workgroup> trace_stack: array<vec2<u32>, STACK_SIZE * WORKGROUP>;\n").into()
+            // Sized by the variant's workgroup: a workgroup array sized by an override
+            // expression is beyond what naga's back ends take.
+            let entries = STACK_ENTRIES * variant.workgroup;
+            (s + &format!("\nvar<workgroup> trace_stack: array<vec2<u32>, {entries}>;\n")).into()
         }
     }
 }
 
-/// The kernel compiled as `variant`.
+/// The pipeline constants that specialise the kernel as `variant` (WGSL `override`s, at their
+/// defaults in the kernel as written): its workgroup's size, whether lists regenerate their
+/// paths, and the vote's percentage.
+#[must_use]
+pub fn constants(variant: TraceVariant) -> [(&'static str, f64); 3] {
+    [
+        ("WORKGROUP", f64::from(variant.workgroup)),
+        ("REGENERATE", f64::from(u8::from(variant.regen != 0))),
+        ("POSTPONE", f64::from(variant.vote)),
+    ]
+}
+
+/// The kernel compiled as `variant`: [`kernel_source`] with [`constants`], without wgpu's
+/// run-time checks where `+unchecked`, and the wavefront split's three kernels beside `trace`
+/// where `+split`.
 pub(super) fn compile(ctx: &GpuContext, variant: TraceVariant) -> TraceKernel {
     let label = format!("trace/path ({variant})");
     let source = kernel_source(variant);
@@ -110,75 +123,38 @@ pub(super) fn compile(ctx: &GpuContext, variant: TraceVariant) -> TraceKernel {
     } else {
         ctx.shader_module(&label, &source)
     };
+    let constants = constants(variant);
+    let make = |entry: &str, layout: Option<&wgpu::PipelineLayout>| {
+        ctx.device
+            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(&label),
+                layout,
+                module: &module,
+                entry_point: Some(entry),
+                compilation_options: wgpu::PipelineCompilationOptions {
+                    constants: &constants,
+                    ..Default::default()
+                },
+                cache: None,
+            })
+    };
     if variant.split == 0 {
-        let pipeline = ctx.compute_pipeline_in(&module, &label, "trace");
         return TraceKernel {
-            pipeline,
+            pipeline: make(super::ENTRY, None),
             variant,
             split: None,
         };
     }
-    // The split's kernels take the bind groups made for `trace`: one explicit layout for
-    // all four (a layout derived from one pipeline serves that pipeline alone).
-    use wgpu::BufferBindingType as B;
-    let read = B::Storage { read_only: true };
-    let write = B::Storage { read_only: false };
-    let scene = bind_layout(
-        ctx,
-        "trace scene",
-        &[0, 1, 2, 3, 4, 5, 6, 7].map(|b| (b, read)),
-    );
-    let frame = bind_layout(
-        ctx,
-        "trace frame",
-        &[
-            (0, B::Uniform),
-            (1, write),
-            (2, write),
-            (3, read),
-            (4, read),
-            (5, write),
-            (6, read),
-        ],
-    );
-    let chunk_layout = bind_layout(
-        ctx,
-        "trace split chunk",
-        &[
-            (0, write),
-            (1, write),
-            (2, B::Uniform),
-            (3, write),
-            (4, write),
-        ],
-    );
-    let make = |entry: &str, groups: &[Option<&wgpu::BindGroupLayout>]| {
-        let layout = ctx
-            .device
-            .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some(&label),
-                bind_group_layouts: groups,
-                immediate_size: 0,
-            });
-        ctx.device
-            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(&label),
-                layout: Some(&layout),
-                module: &module,
-                entry_point: Some(entry),
-                compilation_options: Default::default(),
-                cache: None,
-            })
-    };
-    let three = [Some(&scene), Some(&frame), Some(&chunk_layout)];
+    let layouts = SplitLayouts::new(ctx);
+    let three = layouts.pipeline(ctx, &label, true);
     let split = SplitKernels {
-        start: make("split_start", &three),
-        extend: make("split_extend", &three),
-        shade: make("split_shade", &three),
-        chunk_layout: chunk_layout.clone(),
+        start: make("split_start", Some(&three)),
+        extend: make("split_extend", Some(&three)),
+        shade: make("split_shade", Some(&three)),
+        chunk_layout: layouts.chunk.clone(),
     };
     TraceKernel {
-        pipeline: make("trace", &[Some(&scene), Some(&frame)]),
+        pipeline: make(super::ENTRY, Some(&layouts.pipeline(ctx, &label, false))),
         variant,
         split: Some(split),
     }
@@ -186,9 +162,10 @@ pub(super) fn compile(ctx: &GpuContext, variant: TraceVariant) -> TraceKernel {
 
 #[cfg(test)]
 mod tests {
-    use super::super::STACK_ENTRIES;
+    use super::super::WORKGROUP;
     use super::*;
-    use crate::gpu::wgsl::validated_with;
+    use crate::gpu::wgsl::{const_literal, specialised};
+    use wgpu::naga::Literal;
 
     /// The variants the tests compile and render: every stack and checks choice, every
     /// workgroup size with the stack as written and in workgroup memory, and the vote with
@@ -213,27 +190,54 @@ mod tests {
 
     #[test]
     fn every_trace_kernel_variant_validates_and_names_itself() {
-        // The workgroup stack's size is the kernel's stack and workgroup.
+        // The workgroup stack's size is the kernel's stack and workgroup; the workgroup's size
+        // and the other constants a variant sets are the kernel's overrides.
         assert!(TRACE_WGSL.contains(&format!("const STACK_SIZE: u32 = {STACK_ENTRIES}u;")));
-        assert!(TRACE_WGSL.contains(&format!("const WORKGROUP: u32 = {WORKGROUP}u;")));
+        assert!(TRACE_WGSL.contains(&format!("override WORKGROUP: u32 = {WORKGROUP}u;")));
+        assert!(TRACE_WGSL.contains("override REGENERATE: bool = false;"));
+        assert!(TRACE_WGSL.contains("override POSTPONE: u32 = 0u;"));
         assert!(TRACE_WGSL.contains("@workgroup_size(WORKGROUP)"));
         assert_eq!(
             TraceVariant::new(TraceStack::Workgroup, false).workgroup_bytes(),
             4 + 32 * 8 * WORKGROUP
         );
+        // The default is the kernel as written, its constants at their defaults.
+        let default = TraceVariant::default();
+        assert_eq!(kernel_source(default), TRACE_WGSL);
+        assert_eq!(
+            constants(default),
+            [("WORKGROUP", 64.0), ("REGENERATE", 0.0), ("POSTPONE", 0.0)]
+        );
         let mut sources = std::collections::HashSet::new();
-        for v in tested_variants() {
+        let mut variants = tested_variants();
+        variants.push(default.with_regen(3));
+        variants.push(TraceVariant::new(TraceStack::Workgroup, true).with_split(64));
+        for v in variants {
             let source = kernel_source(v);
             // Only a vote uses subgroup operations: every other variant runs without them.
             let voting = v.vote != 0;
             assert_eq!(source.contains("subgroupBallot"), voting, "{v}");
-            let module = validated_with(&format!("path.wgsl ({v})"), &source, voting);
-            let entry = module
-                .entry_points
-                .iter()
-                .find(|e| e.name == "trace")
-                .unwrap();
-            assert_eq!(entry.workgroup_size, [v.workgroup, 1, 1], "{v}");
+            let name = format!("path.wgsl ({v})");
+            let entries: &[&str] = if v.split == 0 {
+                &["trace"]
+            } else {
+                &["trace", "split_start", "split_extend", "split_shade"]
+            };
+            for entry in entries {
+                let module = specialised(&name, &source, voting, entry, &constants(v));
+                let e = module
+                    .entry_points
+                    .iter()
+                    .find(|e| e.name == *entry)
+                    .unwrap();
+                assert_eq!(e.workgroup_size, [v.workgroup, 1, 1], "{v}: {entry}");
+                if *entry == "trace" {
+                    // Each override became a constant of the variant's value.
+                    let regen = v.regen != 0;
+                    assert_eq!(const_literal(&module, "REGENERATE"), Literal::Bool(regen));
+                    assert_eq!(const_literal(&module, "POSTPONE"), Literal::U32(v.vote));
+                }
+            }
             // Only the function-scope variant zeroes a stack in `traverse`.
             let local = source.contains("    var stack: array<vec2<u32>, STACK_SIZE>;\n");
             assert_eq!(local, v.stack == TraceStack::Function, "{v}");
@@ -245,9 +249,10 @@ mod tests {
             sources.insert(source.into_owned());
             assert_eq!(v.to_string().parse::<TraceVariant>(), Ok(v));
         }
-        // The checks are a compile option, not a source change: 3 stacks at the default size,
-        // 2 at each of the 3 others, and 3 votes.
-        assert_eq!(sources.len(), 3 + 2 * 3 + 3);
+        // The checks are a compile option and the workgroup's size, the regeneration and the
+        // vote's percentage pipeline constants, not source changes: 3 stacks, the workgroup
+        // stack at each of the 3 other sizes, and the ballot with each stack.
+        assert_eq!(sources.len(), 3 + 3 + 3);
     }
 
     #[test]

@@ -51,6 +51,9 @@ pub const TRACE_WGSL: &str = concat!(
 /// says otherwise ([`TraceVariant::workgroup`]).
 pub const WORKGROUP: u32 = crate::gpu::variant::DEFAULT_WORKGROUP;
 
+/// The kernel's entry point (path.wgsl's `trace`).
+const ENTRY: &str = "trace";
+
 /// A cluster rank's owned sums and the rays per block it traced: `shaders/trace/accum.wgsl`.
 pub const ACCUM_WGSL: &str = include_str!("../../../shaders/trace/accum.wgsl");
 
@@ -99,12 +102,20 @@ fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::gpu::wgsl::{assert_same_layout, struct_size, validated};
+    use crate::gpu::wgsl::{assert_same_layout, specialised, struct_size, validated};
     use owned::ACCUM_WORKGROUP;
 
     #[test]
     fn kernel_validates_and_params_match_their_rust_twin() {
         let module = validated("path.wgsl", TRACE_WGSL);
+        // As a device compiles it: every override at its default, `WORKGROUP` threads a group.
+        let compiled = specialised("path.wgsl", TRACE_WGSL, false, ENTRY, &[]);
+        assert_eq!(compiled.entry_points.len(), 1);
+        assert_eq!(compiled.entry_points[0].workgroup_size, [WORKGROUP, 1, 1]);
+        use crate::gpu::wgsl::const_literal;
+        use wgpu::naga::Literal;
+        assert_eq!(const_literal(&compiled, "REGENERATE"), Literal::Bool(false));
+        assert_eq!(const_literal(&compiled, "POSTPONE"), Literal::U32(0));
         assert_same_layout(
             &module,
             "Params",

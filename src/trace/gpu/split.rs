@@ -63,7 +63,7 @@ pub fn split_bytes(variant: TraceVariant, width: u32, rows: u32, max_binding: u6
 }
 
 /// A compute-stage bind group layout of `entries`: `(binding, type)`.
-pub(super) fn bind_layout(
+fn bind_layout(
     ctx: &GpuContext,
     label: &str,
     entries: &[(u32, wgpu::BufferBindingType)],
@@ -86,6 +86,73 @@ pub(super) fn bind_layout(
             label: Some(label),
             entries: &entries,
         })
+}
+
+/// The explicit bind group layouts the split's kernels share with `trace`: a layout derived
+/// from one pipeline serves that pipeline alone, and the split's kernels take the bind groups
+/// made for `trace` (groups 0 and 1) beside a chunk's (group 2).
+pub(super) struct SplitLayouts {
+    scene: wgpu::BindGroupLayout,
+    frame: wgpu::BindGroupLayout,
+    /// Bind group 2: a chunk's path states, closest hits, [`GpuSplitParams`], and its two
+    /// queues of live paths with their lengths.
+    pub(super) chunk: wgpu::BindGroupLayout,
+}
+
+impl SplitLayouts {
+    pub(super) fn new(ctx: &GpuContext) -> Self {
+        use wgpu::BufferBindingType as B;
+        let read = B::Storage { read_only: true };
+        let write = B::Storage { read_only: false };
+        Self {
+            scene: bind_layout(
+                ctx,
+                "trace scene",
+                &[0, 1, 2, 3, 4, 5, 6, 7].map(|b| (b, read)),
+            ),
+            frame: bind_layout(
+                ctx,
+                "trace frame",
+                &[
+                    (0, B::Uniform),
+                    (1, write),
+                    (2, write),
+                    (3, read),
+                    (4, read),
+                    (5, write),
+                    (6, read),
+                ],
+            ),
+            chunk: bind_layout(
+                ctx,
+                "trace split chunk",
+                &[
+                    (0, write),
+                    (1, write),
+                    (2, B::Uniform),
+                    (3, write),
+                    (4, write),
+                ],
+            ),
+        }
+    }
+
+    /// The pipeline layout of `trace` (the scene and the frame), or of the split's kernels
+    /// where `chunk` (and a chunk's group).
+    pub(super) fn pipeline(
+        &self,
+        ctx: &GpuContext,
+        label: &str,
+        chunk: bool,
+    ) -> wgpu::PipelineLayout {
+        let groups = [Some(&self.scene), Some(&self.frame), Some(&self.chunk)];
+        ctx.device
+            .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some(label),
+                bind_group_layouts: &groups[..if chunk { 3 } else { 2 }],
+                immediate_size: 0,
+            })
+    }
 }
 
 /// A full frame in the wavefront split: the kernels, and each chunk's bind groups (one a
