@@ -37,8 +37,8 @@ pub fn validated_with(name: &str, source: &str, subgroups: bool) -> naga::Module
     module
 }
 
-/// The compute entry point `entry` of `source` as a device compiles its pipeline: [`validated_with`],
-/// then every WGSL `override` set — to its value in `constants` (what
+/// The compute entry point `entry` of `source` as a device compiles its pipeline:
+/// [`validated_with`], then every WGSL `override` set — to its value in `constants` (what
 /// `wgpu::PipelineCompilationOptions::constants` passes), else to its default — with naga's
 /// own pass, the module cut down to what `entry` reaches, and validated again. Panics with
 /// naga's diagnostic, naming `name`, if any step fails.

@@ -1,12 +1,71 @@
-//! The trace kernel's variants: the same function compiled as other code
-//! ([`TraceVariant`]: where the traversal stack lives, wgpu's run-time checks, the workgroup's
-//! size, path regeneration, the wavefront split, triangle tests postponed by subgroup vote), so
-//! that one binary can time them side by side.
+//! The kernel lab (the `kernel-lab` feature): the trace kernel's variants, the same function
+//! compiled as other code ([`TraceVariant`]: where the traversal stack lives, wgpu's run-time
+//! checks, the workgroup's size, path regeneration, the wavefront split, triangle tests
+//! postponed by subgroup vote), so that one binary can time them side by side on a GPU. The
+//! default variant is the kernel raygun ships, compiled as it is without the feature.
 
 use super::params::{MAX_GROUPS_X, full_frame_grid};
-use super::split::{SplitKernels, SplitLayouts};
-use super::{STACK_ENTRIES, TRACE_WGSL, TraceKernel, TraceStack, TraceVariant};
+use super::split::{SplitKernels, SplitLayouts, SplitRun};
+use super::{ENTRY, STACK_ENTRIES, TRACE_WGSL, TraceKernel, TraceStack, TraceVariant};
 use crate::gpu::GpuContext;
+
+/// What a lab build's [`TraceKernel`] knows beside its pipeline.
+#[derive(Clone, Default)]
+pub(super) struct LabKernel {
+    variant: TraceVariant,
+    /// The wavefront split's kernels, for a `+split` variant.
+    split: Option<SplitKernels>,
+}
+
+impl LabKernel {
+    /// The kernel of the variant `ctx` was made with, compiled once a device and variant; `None`
+    /// for the default variant, which is compiled as without the feature.
+    pub(super) fn compiled(ctx: &GpuContext) -> Option<TraceKernel> {
+        let variant = ctx.trace_variant();
+        (variant != TraceVariant::default())
+            .then(|| ctx.kept(&format!("trace kernel {variant}"), || compile(ctx, variant)))
+    }
+}
+
+/// The kernel's launches, by its variant.
+impl TraceKernel {
+    /// Threads per workgroup (what the scheduler's indirect dispatch arguments count in).
+    #[must_use]
+    pub fn workgroup(&self) -> u32 {
+        self.lab.variant.workgroup
+    }
+
+    /// The most workgroups a list's launch may have (0: no cap): a regenerating variant's
+    /// [`TraceVariant::regen`], which the scheduler's indirect arguments must respect.
+    #[must_use]
+    pub fn max_list_groups(&self) -> u32 {
+        self.lab.variant.regen
+    }
+
+    /// A full frame's launch of `width × rows` pixels ([`full_frame_launch`]).
+    pub(super) fn full_frame_launch(&self, width: u32, rows: u32) -> (u32, [u32; 2], u32) {
+        full_frame_launch(width, rows, self.lab.variant)
+    }
+
+    /// The wavefront split of a full frame of `jobs` threads (`None` for a list, or a kernel
+    /// without the split).
+    pub(super) fn split_run(
+        &self,
+        ctx: &GpuContext,
+        full_frame: bool,
+        jobs: u32,
+        max_depth: u32,
+    ) -> Option<SplitRun> {
+        let kernels = self.lab.split.as_ref().filter(|_| full_frame)?;
+        Some(SplitRun::new(
+            ctx,
+            kernels,
+            self.lab.variant,
+            jobs,
+            max_depth,
+        ))
+    }
+}
 
 /// A full frame's launch for `variant`: the frame's threads (one a pixel slot, 8 × 8 tiles
 /// padded), the workgroup grid dispatched, and the stride between a thread's paths — 0 where
@@ -100,10 +159,11 @@ pub fn constants(variant: TraceVariant) -> [(&'static str, f64); 3] {
     ]
 }
 
-/// The kernel compiled as `variant`: [`kernel_source`] with [`constants`], without wgpu's
+/// The kernel compiled as `variant` (not the default: [`TraceKernel::new`] compiles that):
+/// [`kernel_source`] with [`constants`], without wgpu's
 /// run-time checks where `+unchecked`, and the wavefront split's three kernels beside `trace`
 /// where `+split`.
-pub(super) fn compile(ctx: &GpuContext, variant: TraceVariant) -> TraceKernel {
+fn compile(ctx: &GpuContext, variant: TraceVariant) -> TraceKernel {
     let label = format!("trace/path ({variant})");
     let source = kernel_source(variant);
     let module = if variant.unchecked {
@@ -140,9 +200,11 @@ pub(super) fn compile(ctx: &GpuContext, variant: TraceVariant) -> TraceKernel {
     };
     if variant.split == 0 {
         return TraceKernel {
-            pipeline: make(super::ENTRY, None),
-            variant,
-            split: None,
+            pipeline: make(ENTRY, None),
+            lab: LabKernel {
+                variant,
+                split: None,
+            },
         };
     }
     let layouts = SplitLayouts::new(ctx);
@@ -154,9 +216,11 @@ pub(super) fn compile(ctx: &GpuContext, variant: TraceVariant) -> TraceKernel {
         chunk_layout: layouts.chunk.clone(),
     };
     TraceKernel {
-        pipeline: make(super::ENTRY, Some(&layouts.pipeline(ctx, &label, false))),
-        variant,
-        split: Some(split),
+        pipeline: make(ENTRY, Some(&layouts.pipeline(ctx, &label, false))),
+        lab: LabKernel {
+            variant,
+            split: Some(split),
+        },
     }
 }
 
@@ -190,6 +254,9 @@ mod tests {
 
     #[test]
     fn every_trace_kernel_variant_validates_and_names_itself() {
+        // The variants' defaults are the kernel's (the variant type lives below the trace stage).
+        assert_eq!(crate::gpu::variant::STACK_ENTRIES, STACK_ENTRIES);
+        assert_eq!(crate::gpu::variant::DEFAULT_WORKGROUP, WORKGROUP);
         // The workgroup stack's size is the kernel's stack and workgroup; the workgroup's size
         // and the other constants a variant sets are the kernel's overrides.
         assert!(TRACE_WGSL.contains(&format!("const STACK_SIZE: u32 = {STACK_ENTRIES}u;")));

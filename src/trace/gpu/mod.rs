@@ -9,29 +9,39 @@
 //!   lists, bands of rows;
 //! * `samples` and `owned`: a cluster rank's runs — its samples returned ([`SampleRun`]) and
 //!   its owned sums added on its GPU ([`OwnedSums`], `shaders/trace/accum.wgsl`);
-//! * `lab` and `split`: the kernel's variants and the wavefront split.
+//! * with the `kernel-lab` feature, `lab` and `split`: the kernel's variants, for timing them
+//!   on a GPU (DESIGN.md §7), and the wavefront split among them.
 //!
 //! Bind group 0 is the scene ([`GpuScene`], uploaded once), bind group 1 the frame: the
 //! parameters, the accumulation ([`GpuAccum`]) and, for guided rendering, the scheduler's pixel
 //! list and its indirect-dispatch arguments `(x, y, z, count)`.
+//!
+//! raygun ships one trace kernel: [`TRACE_WGSL`] as written, every override constant at its
+//! default.
 
 mod accumulation;
+#[cfg(feature = "kernel-lab")]
 mod lab;
 mod owned;
 mod params;
 mod run;
 mod samples;
 mod scene;
+#[cfg(feature = "kernel-lab")]
 mod split;
 
-pub use crate::gpu::variant::{STACK_ENTRIES, TraceStack, TraceVariant};
 pub use accumulation::GpuAccum;
-pub use lab::{full_frame_launch, kernel_source};
 pub use owned::{GpuOwnedParams, OwnedSums};
 pub use params::{GpuTraceParams, full_frame_grid};
 pub use run::TraceRun;
 pub use samples::SampleRun;
 pub use scene::GpuScene;
+
+#[cfg(feature = "kernel-lab")]
+pub use crate::gpu::variant::{TraceStack, TraceVariant};
+#[cfg(feature = "kernel-lab")]
+pub use lab::{constants, full_frame_launch, kernel_source};
+#[cfg(feature = "kernel-lab")]
 pub use split::{GpuSplitParams, SPLIT_PATH_BYTES, split_bytes, split_chunk};
 
 use crate::gpu::GpuContext;
@@ -47,9 +57,13 @@ pub const TRACE_WGSL: &str = concat!(
     include_str!("../../../shaders/trace/path.wgsl")
 );
 
-/// Threads per workgroup of the trace kernel (`WORKGROUP` in path.wgsl), unless its variant
-/// says otherwise ([`TraceVariant::workgroup`]).
-pub const WORKGROUP: u32 = crate::gpu::variant::DEFAULT_WORKGROUP;
+/// Threads per workgroup of the trace kernel (the default of the override `WORKGROUP` in
+/// path.wgsl).
+pub const WORKGROUP: u32 = 64;
+
+/// Entries of the kernel's traversal stack (`STACK_SIZE` in bvh.wgsl): a scene whose tree a
+/// walk could need more of is refused ([`GpuScene::upload`]).
+pub const STACK_ENTRIES: u32 = 32;
 
 /// The kernel's entry point (path.wgsl's `trace`).
 const ENTRY: &str = "trace";
@@ -61,34 +75,58 @@ pub const ACCUM_WGSL: &str = include_str!("../../../shaders/trace/accum.wgsl");
 #[derive(Clone)]
 pub struct TraceKernel {
     pipeline: wgpu::ComputePipeline,
-    variant: TraceVariant,
-    /// The wavefront split's kernels, for a `+split` variant.
-    split: Option<split::SplitKernels>,
+    /// The variant it was compiled as, and the wavefront split's kernels where it has them.
+    #[cfg(feature = "kernel-lab")]
+    lab: lab::LabKernel,
 }
 
 impl TraceKernel {
-    /// The kernel in the variant `ctx` was made with ([`GpuContext::trace_variant`]),
-    /// compiled once a device and variant ([`GpuContext::kept`]): every renderer needs it, and
-    /// a driver takes longer to create its pipeline than to run many frames.
+    /// The kernel, compiled once a device ([`GpuContext::kept`]): every renderer needs it, and
+    /// a driver takes longer to create its pipeline than to run many frames. With the
+    /// `kernel-lab` feature, the variant `ctx` was made with (`GpuContext::trace_variant`),
+    /// compiled once a device and variant.
     #[must_use]
     pub fn new(ctx: &GpuContext) -> Self {
-        let variant = ctx.trace_variant();
-        ctx.kept(&format!("trace kernel {variant}"), || {
-            lab::compile(ctx, variant)
-        })
+        #[cfg(feature = "kernel-lab")]
+        if let Some(kernel) = lab::LabKernel::compiled(ctx) {
+            return kernel;
+        }
+        ctx.kept("trace kernel", || Self::compile(ctx))
     }
 
+    /// [`TRACE_WGSL`] as written, its overrides at their defaults.
+    fn compile(ctx: &GpuContext) -> Self {
+        let module = ctx.shader_module("trace/path", TRACE_WGSL);
+        Self {
+            pipeline: ctx.compute_pipeline_in(&module, "trace/path", ENTRY),
+            #[cfg(feature = "kernel-lab")]
+            lab: lab::LabKernel::default(),
+        }
+    }
+}
+
+/// The kernel's launches (a kernel-lab build has its own, by variant: `lab.rs`).
+#[cfg(not(feature = "kernel-lab"))]
+impl TraceKernel {
     /// Threads per workgroup (what the scheduler's indirect dispatch arguments count in).
     #[must_use]
     pub fn workgroup(&self) -> u32 {
-        self.variant.workgroup
+        WORKGROUP
     }
 
-    /// The most workgroups a list's launch may have (0: no cap): a regenerating variant's
-    /// [`TraceVariant::regen`], which the scheduler's indirect arguments must respect.
+    /// The most workgroups a list's launch may have (0: no cap, a thread a listed pixel),
+    /// which the scheduler's indirect arguments respect.
     #[must_use]
     pub fn max_list_groups(&self) -> u32 {
-        self.variant.regen
+        0
+    }
+
+    /// A full frame's launch of `width × rows` pixels: its threads (one a pixel slot, 8 × 8
+    /// tiles padded), the workgroup grid dispatched, and the stride between a thread's paths
+    /// (0: a thread a path).
+    fn full_frame_launch(&self, width: u32, rows: u32) -> (u32, [u32; 2], u32) {
+        let (threads, grid) = full_frame_grid(width, rows, WORKGROUP);
+        (threads, grid, 0)
     }
 }
 

@@ -5,7 +5,7 @@
 use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt;
 
-use super::{TraceVariant, full_frame_launch};
+use super::TraceKernel;
 use crate::gpu::{Band, GpuContext};
 use crate::trace::pack::PackedScene;
 use crate::trace::path::TraceSettings;
@@ -50,8 +50,9 @@ pub struct GpuTraceParams {
     /// pixels from image row `row0`.
     pub row0: u32,
     pub rows: u32,
-    /// Full frames of a regenerating variant: the threads launched, each tracing the paths of
-    /// slots `linear`, `linear + stride`, …; 0: a thread a path.
+    /// Full frames of a regenerating kernel (the kernel lab's `+regenG`): the threads
+    /// launched, each tracing the paths of slots `linear`, `linear + stride`, …; 0: a thread a
+    /// path.
     pub stride: u32,
 }
 
@@ -66,30 +67,29 @@ pub fn full_frame_grid(width: u32, height: u32, workgroup: u32) -> (u32, [u32; 2
 }
 
 impl GpuTraceParams {
-    /// The parameters with `wall`'s eye and tile count when given, for the kernel compiled as
-    /// `variant`.
+    /// The parameters for `kernel` with `wall`'s eye and tile count when given.
     #[must_use]
     pub fn with_wall(
+        kernel: &TraceKernel,
         scene: &PackedScene,
         s: &TraceSettings,
         wall: Option<&WallCamera>,
         list_mode: bool,
-        variant: TraceVariant,
     ) -> Self {
-        Self::for_band(scene, s, wall, list_mode, Band::whole(s.height), variant)
+        Self::for_band(kernel, scene, s, wall, list_mode, Band::whole(s.height))
     }
 
     /// [`Self::with_wall`] for the rows of `band` alone.
     #[must_use]
     pub fn for_band(
+        kernel: &TraceKernel,
         scene: &PackedScene,
         s: &TraceSettings,
         wall: Option<&WallCamera>,
         list_mode: bool,
         band: Band,
-        variant: TraceVariant,
     ) -> Self {
-        let (threads, [gx, _], stride) = full_frame_launch(s.width, band.rows, variant);
+        let (threads, [gx, _], stride) = kernel.full_frame_launch(s.width, band.rows);
         // A list is dispatched from its count, a thread a path.
         let stride = if list_mode { 0 } else { stride };
         let c = &s.camera;
@@ -167,7 +167,8 @@ mod tests {
     #[test]
     fn full_frame_grid_stays_within_dispatch_limits() {
         for (w, h) in [(1, 1), (7, 9), (128, 72), (3840, 2160), (7680, 4320)] {
-            for wg in TraceVariant::WORKGROUPS {
+            // Every workgroup size the kernel lab compiles.
+            for wg in [32, 64, 128, 256] {
                 let (threads, [gx, gy]) = full_frame_grid(w, h, wg);
                 assert!(gx <= MAX_GROUPS_X);
                 assert!(u64::from(gx) * u64::from(gy) * u64::from(wg) >= u64::from(threads));

@@ -4,10 +4,9 @@
 use wgpu::util::DeviceExt;
 
 use super::params::{replace_wall, wall_table_buffer};
+#[cfg(feature = "kernel-lab")]
 use super::split::SplitRun;
-use super::{
-    GpuAccum, GpuScene, GpuTraceParams, TraceKernel, TraceVariant, entry, full_frame_launch,
-};
+use super::{GpuAccum, GpuScene, GpuTraceParams, TraceKernel, entry};
 use crate::gpu::{Band, GpuContext, PassTimer};
 use crate::trace::pack::PackedScene;
 use crate::trace::path::TraceSettings;
@@ -15,21 +14,21 @@ use crate::trace::wall::WallCamera;
 
 /// A prepared trace dispatch over one accumulation, full frame or from a pixel list.
 pub struct TraceRun {
-    pipeline: wgpu::ComputePipeline,
+    /// The kernel (its pipeline, its workgroup's size, whether its launches regenerate).
+    kernel: TraceKernel,
     params: wgpu::Buffer,
     bind: wgpu::BindGroup,
     /// The scheduler's `(x, y, z, count)` buffer in list mode.
     args: Option<wgpu::Buffer>,
     groups: [u32; 2],
-    /// The kernel's variant (its workgroup's size, whether its launches regenerate).
-    variant: TraceVariant,
     /// The wall camera the tile table was uploaded for (its eye goes into the parameters).
     wall: Option<WallCamera>,
     /// The tile table ([`TILE_VEC4S`](crate::trace::wall::TILE_VEC4S) vec4s a tile).
     wall_table: wgpu::Buffer,
     /// The rows of the image this run's accumulation holds.
     band: Band,
-    /// A full frame's wavefront split, for a `+split` kernel.
+    /// A full frame's wavefront split, for the kernel lab's `+split` variants.
+    #[cfg(feature = "kernel-lab")]
     split: Option<SplitRun>,
 }
 
@@ -82,12 +81,12 @@ impl TraceRun {
             .create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("trace params"),
                 contents: bytemuck::bytes_of(&GpuTraceParams::for_band(
+                    kernel,
                     scene,
                     settings,
                     wall,
                     schedule.is_some(),
                     band,
-                    kernel.variant,
                 )),
                 usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             });
@@ -122,25 +121,15 @@ impl TraceRun {
                 entry(6, &wall_buf),
             ],
         });
-        let (threads, groups, _) = full_frame_launch(settings.width, band.rows, kernel.variant);
-        let split = match (&kernel.split, schedule) {
-            (Some(k), None) => Some(SplitRun::new(
-                ctx,
-                k,
-                kernel.variant,
-                threads,
-                settings.max_depth,
-            )),
-            _ => None,
-        };
+        let launch = kernel.full_frame_launch(settings.width, band.rows);
         Self {
-            split,
-            pipeline: kernel.pipeline.clone(),
+            #[cfg(feature = "kernel-lab")]
+            split: kernel.split_run(ctx, schedule.is_none(), launch.0, settings.max_depth),
+            kernel: kernel.clone(),
             params,
             bind,
             args: schedule.map(|(_, a)| a.clone()),
-            groups,
-            variant: kernel.variant,
+            groups: launch.1,
             wall: wall.cloned(),
             wall_table: wall_buf,
             band,
@@ -168,15 +157,16 @@ impl TraceRun {
     /// Rewrites the parameters (a new camera, seed or depth) before the next submit.
     pub fn set_settings(&self, ctx: &GpuContext, scene: &PackedScene, settings: &TraceSettings) {
         let p = GpuTraceParams::for_band(
+            &self.kernel,
             scene,
             settings,
             self.wall.as_ref(),
             self.args.is_some(),
             self.band,
-            self.variant,
         );
         ctx.queue
             .write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
+        #[cfg(feature = "kernel-lab")]
         if let Some(split) = &self.split {
             split.max_depth.set(settings.max_depth);
         }
@@ -204,13 +194,18 @@ impl TraceRun {
             label: Some("trace/path"),
             timestamp_writes,
         });
-        pass.set_pipeline(&self.pipeline);
+        pass.set_pipeline(&self.kernel.pipeline);
         pass.set_bind_group(0, &scene.bind, &[]);
         pass.set_bind_group(1, &self.bind, &[]);
-        match (&self.args, &self.split) {
-            (Some(args), _) => pass.dispatch_workgroups_indirect(args, 0),
-            (None, Some(split)) => split.record(&mut pass),
-            (None, None) => pass.dispatch_workgroups(self.groups[0], self.groups[1], 1),
+        if let Some(args) = &self.args {
+            pass.dispatch_workgroups_indirect(args, 0);
+            return;
         }
+        #[cfg(feature = "kernel-lab")]
+        if let Some(split) = &self.split {
+            split.record(&mut pass);
+            return;
+        }
+        pass.dispatch_workgroups(self.groups[0], self.groups[1], 1);
     }
 }

@@ -4,7 +4,7 @@
 use wgpu::util::DeviceExt;
 
 use super::params::{replace_wall, wall_table_buffer};
-use super::{GpuScene, GpuTraceParams, TraceKernel, TraceVariant, entry};
+use super::{GpuScene, GpuTraceParams, TraceKernel, entry};
 use crate::gpu::{GpuContext, GpuError};
 use crate::trace::pack::PackedScene;
 use crate::trace::path::TraceSettings;
@@ -19,13 +19,12 @@ use crate::trace::wall::WallCamera;
 /// Per sample the link to the GPU carries 8 bytes up (pixel, sample index) and 16 down; the
 /// buffers grow with the longest list so far.
 pub struct SampleRun {
-    pipeline: wgpu::ComputePipeline,
+    /// The kernel (its pipeline, its workgroup's size, whether its launches regenerate).
+    kernel: TraceKernel,
     params: wgpu::Buffer,
     wall_table: wgpu::Buffer,
     wall: Option<WallCamera>,
     buffers: Option<SampleBuffers>,
-    /// The kernel's variant (its workgroup's size, whether its launches regenerate).
-    variant: TraceVariant,
 }
 
 /// A [`SampleRun`]'s list-sized buffers and the frame bind group over them.
@@ -52,34 +51,28 @@ impl SampleRun {
             .device
             .create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("samples params"),
-                contents: bytemuck::bytes_of(&Self::params_of(
-                    scene,
-                    settings,
-                    wall,
-                    kernel.variant,
-                )),
+                contents: bytemuck::bytes_of(&Self::params_of(kernel, scene, settings, wall)),
                 usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             });
         let wall_table = wall_table_buffer(ctx, "samples wall tiles", wall);
         Self {
-            pipeline: kernel.pipeline.clone(),
+            kernel: kernel.clone(),
             params,
             wall_table,
             wall: wall.cloned(),
             buffers: None,
-            variant: kernel.variant,
         }
     }
 
     fn params_of(
+        kernel: &TraceKernel,
         scene: &PackedScene,
         settings: &TraceSettings,
         wall: Option<&WallCamera>,
-        variant: TraceVariant,
     ) -> GpuTraceParams {
         GpuTraceParams {
             mode: 2,
-            ..GpuTraceParams::with_wall(scene, settings, wall, true, variant)
+            ..GpuTraceParams::with_wall(kernel, scene, settings, wall, true)
         }
     }
 
@@ -102,7 +95,7 @@ impl SampleRun {
 
     /// Rewrites the parameters (a new camera or depth) before the next list.
     pub fn set_settings(&self, ctx: &GpuContext, scene: &PackedScene, settings: &TraceSettings) {
-        let p = Self::params_of(scene, settings, self.wall.as_ref(), self.variant);
+        let p = Self::params_of(&self.kernel, scene, settings, self.wall.as_ref());
         ctx.queue
             .write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
     }
@@ -135,7 +128,7 @@ impl SampleRun {
             let stats = make("samples stats", 16, U::STORAGE);
             let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("samples frame"),
-                layout: &self.pipeline.get_bind_group_layout(1),
+                layout: &self.kernel.pipeline.get_bind_group_layout(1),
                 entries: &[
                     entry(0, &self.params),
                     entry(1, &out),
@@ -222,11 +215,11 @@ impl SampleRun {
         // The scheduler's grid for this kernel (capped where it regenerates).
         let [gx, gy, _] = crate::schedule::indirect_grid(
             len,
-            self.variant.workgroup,
-            self.variant.regen,
+            self.kernel.workgroup(),
+            self.kernel.max_list_groups(),
             ctx.limits.max_compute_workgroups_per_dimension,
         );
-        let pipeline = self.pipeline.clone();
+        let pipeline = self.kernel.pipeline.clone();
         let b = self.buffers(ctx, len)?;
         ctx.queue
             .write_buffer(&b.list, 0, bytemuck::cast_slice(pixels));
