@@ -127,11 +127,12 @@ impl Budget {
         self.device.iter().map(|(_, b)| b).sum()
     }
 
-    /// The budget with the GPU buffers of the trace kernel `variant` beyond the per-pixel
-    /// figures, on an adapter whose largest binding is `max_binding` bytes: the wavefront
+    /// The budget with the GPU buffers of the kernel lab's trace kernel `variant` beyond the
+    /// per-pixel figures, on an adapter whose largest binding is `max_binding` bytes: the wavefront
     /// split's path buffers ([`crate::trace::gpu::split_bytes`]), one set a band of the frame,
     /// where the work traces full frames on the GPU (a guided render's iterations trace the
     /// scheduler's lists, which keep the one kernel).
+    #[cfg(feature = "kernel-lab")]
     #[must_use]
     pub fn with_trace_kernel(
         mut self,
@@ -270,6 +271,7 @@ pub fn available_host_bytes() -> Option<u64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    #[cfg(feature = "kernel-lab")]
     use crate::gpu::variant::TraceVariant;
 
     const GB: u64 = 1 << 30;
@@ -279,6 +281,7 @@ mod tests {
     /// frame's threads (8 × 8 tiles) where the frame has fewer than a chunk, of what one
     /// binding holds of path states where that is less; nothing for the default kernel, a
     /// guided render (lists), the DGI or the CPU.
+    #[cfg(feature = "kernel-lab")]
     #[test]
     fn the_split_kernels_paths_are_in_the_gpu_budget() {
         let render = Work::Render {

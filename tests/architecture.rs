@@ -14,7 +14,8 @@
 //! `shaders/<stage>/<k>.wgsl` is computed by `src/<stage>/<k>.rs` (or `src/<stage>/<k>/`), the
 //! definitions every kernel of a stage shares (`shaders/<stage>/common.wgsl`) live in
 //! `src/<stage>/mod.rs`, `shaders/<k>.wgsl` pairs with `src/<k>.rs`, each twin names its kernel
-//! file, and a stage's kernels are dispatched from its `src/<stage>/gpu.rs`.
+//! file, and a stage's kernels are dispatched from its `gpu` module (`src/<stage>/gpu.rs` or
+//! `src/<stage>/gpu/mod.rs`).
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -521,6 +522,40 @@ fn wgsl_files(dir: &Path, out: &mut Vec<PathBuf>) {
     }
 }
 
+/// The file of a stage's dispatching module `<stage>::gpu`: `src/<stage>/gpu.rs`, or
+/// `src/<stage>/gpu/mod.rs` where the module is a folder (its other files do the module's
+/// other jobs; the kernels are included by the module's own file).
+fn gpu_module_file(root: &Path, stage: &Path) -> PathBuf {
+    let file = Path::new("src").join(stage).join("gpu.rs");
+    let folder = Path::new("src").join(stage).join("gpu").join("mod.rs");
+    if !root.join(&file).is_file() && root.join(&folder).is_file() {
+        folder
+    } else {
+        file
+    }
+}
+
+/// Why the kernel `rel` (`shaders/<stage>/<k>.wgsl`, relative to `root`) is not dispatched
+/// from its stage, if it is not: a stage kernel is included by the file of its stage's `gpu`
+/// module ([`gpu_module_file`]), not by another module's and not by a child of `gpu`.
+fn dispatch_problem(root: &Path, rel: &Path) -> Option<String> {
+    let stage = rel.parent()?.strip_prefix("shaders").ok()?;
+    if stage.as_os_str().is_empty() {
+        return None;
+    }
+    let name = rel.file_name()?.to_string_lossy();
+    let gpu = gpu_module_file(root, stage);
+    let include = format!("shaders/{}/{name}\")", stage.display());
+    let dispatch = std::fs::read_to_string(root.join(&gpu)).unwrap_or_default();
+    (!dispatch.contains(&include)).then(|| {
+        format!(
+            "{}: not included by {} (dispatch lives in the stage's gpu module)",
+            rel.display(),
+            gpu.display()
+        )
+    })
+}
+
 #[test]
 fn every_kernel_has_a_cpu_twin_of_its_name_and_is_dispatched_from_its_stage() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
@@ -552,28 +587,51 @@ fn every_kernel_has_a_cpu_twin_of_its_name_and_is_dispatched_from_its_stage() {
                 twin.display()
             ));
         }
-        // Dispatch: a stage kernel is included by its stage's gpu.rs.
-        if let Some(stage) = rel.parent().and_then(|p| p.strip_prefix("shaders").ok()) {
-            if stage.as_os_str().is_empty() {
-                continue;
-            }
-            let gpu = Path::new("src").join(stage).join("gpu.rs");
-            let include = format!("shaders/{}/{name}\")", stage.display());
-            let dispatch = std::fs::read_to_string(root.join(&gpu)).unwrap_or_default();
-            if !dispatch.contains(&include) {
-                problems.push(format!(
-                    "{}: not included by {} (dispatch lives in the stage's gpu.rs)",
-                    rel.display(),
-                    gpu.display()
-                ));
-            }
-        }
+        problems.extend(dispatch_problem(root, &rel));
     }
     assert!(
         problems.is_empty(),
         "kernels and twins:\n  {}",
         problems.join("\n  ")
     );
+}
+
+/// The dispatch rule on made-up trees: a kernel included by `src/<stage>/gpu.rs` or by
+/// `src/<stage>/gpu/mod.rs` passes; one included only by a child of `gpu/`, by another
+/// module, or by nothing fails naming the file that should include it.
+#[test]
+fn the_dispatch_rule_takes_the_gpu_module_file_and_nothing_else() {
+    let root = std::env::temp_dir().join(format!("raygun-arch-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&root);
+    let write = |rel: &str, text: &str| {
+        let p = root.join(rel);
+        std::fs::create_dir_all(p.parent().unwrap()).unwrap();
+        std::fs::write(p, text).unwrap();
+    };
+    let kernel = Path::new("shaders/trace/path.wgsl");
+    let include = r#"include_str!("../../../shaders/trace/path.wgsl")"#;
+    assert!(
+        dispatch_problem(&root, kernel)
+            .unwrap()
+            .contains("src/trace/gpu.rs")
+    );
+    write("src/trace/gpu/mod.rs", "mod run;");
+    write("src/trace/gpu/run.rs", include);
+    write("src/frame/mod.rs", include);
+    let problem = dispatch_problem(&root, kernel).expect("a child of gpu/ does not dispatch");
+    assert!(problem.contains("src/trace/gpu/mod.rs"), "{problem}");
+    write("src/trace/gpu/mod.rs", include);
+    assert_eq!(dispatch_problem(&root, kernel), None);
+    std::fs::remove_dir_all(root.join("src/trace/gpu")).unwrap();
+    assert!(dispatch_problem(&root, kernel).is_some());
+    write("src/trace/gpu.rs", include);
+    assert_eq!(dispatch_problem(&root, kernel), None);
+    // Kernels of no stage (`shaders/<k>.wgsl`) are anyone's to include.
+    assert_eq!(
+        dispatch_problem(&root, Path::new("shaders/random.wgsl")),
+        None
+    );
+    std::fs::remove_dir_all(&root).unwrap();
 }
 
 #[test]

@@ -308,7 +308,9 @@ fn record_stops_on_ctrl_c_and_keeps_every_datagram() {
 /// `bench trace --trace-kernel` times the trace kernel's variants side by side and labels every
 /// row; `RAYGUN_TRACE_KERNEL` compiles another variant for any command, and a guided render
 /// made with it (another stack, regeneration, the vote) writes the default kernel's files byte
-/// for byte; bad names are refused by name.
+/// for byte; bad names are refused by name. A kernel-lab test: lavapipe compiles each variant
+/// in tens of seconds.
+#[cfg(feature = "kernel-lab")]
 #[test]
 fn trace_kernel_variants_are_timed_side_by_side_and_render_the_same_files() {
     let o = raygun(&[
@@ -408,6 +410,78 @@ fn trace_kernel_variants_are_timed_side_by_side_and_render_the_same_files() {
     assert!(!bad.status.success());
     let err = String::from_utf8_lossy(&bad.stderr);
     assert!(err.contains("RAYGUN_TRACE_KERNEL=\"stack\""), "{err}");
+}
+
+/// A build without the kernel lab has one trace kernel and no way to ask for another:
+/// `bench trace` has no `--trace-kernel` and its help names no variant, and a
+/// `RAYGUN_TRACE_KERNEL` is refused — with `--backend auto` too, not taken for a missing GPU —
+/// naming the variable and the feature that has it, before any work; its benchmark rows name
+/// the kernel as the kernel lab names the default.
+#[cfg(not(feature = "kernel-lab"))]
+#[test]
+fn a_build_without_the_kernel_lab_has_one_trace_kernel() {
+    let help = raygun(&["bench", "trace", "--help"]);
+    assert!(help.status.success());
+    let help = String::from_utf8_lossy(&help.stdout).to_lowercase();
+    assert!(help.contains("--scene"), "{help}");
+    assert!(
+        !help.contains("--trace-kernel") && !help.contains("variant"),
+        "{help}"
+    );
+    let o = raygun(&["bench", "trace", "--trace-kernel", "private"]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--trace-kernel"));
+
+    let dir = support::tmp_dir("no-kernel-lab");
+    for backend in ["gpu", "auto"] {
+        let out = dir.join(format!("{backend}.exr"));
+        let o = support::command(
+            std::path::Path::new(support::ROOT),
+            &[
+                "render",
+                "--scene",
+                "builtin:cornell",
+                "--size",
+                "8,8",
+                "--spp",
+                "1",
+                "--backend",
+                backend,
+            ],
+        )
+        .arg("--out")
+        .arg(&out)
+        .env("RAYGUN_TRACE_KERNEL", "private+vote")
+        .output()
+        .unwrap();
+        assert!(!o.status.success(), "{backend}");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            err.contains("RAYGUN_TRACE_KERNEL=\"private+vote\"") && err.contains("kernel-lab"),
+            "{backend}: {err}"
+        );
+        assert!(!err.contains("using the CPU backend"), "{backend}: {err}");
+        assert!(!out.exists(), "{backend}");
+    }
+
+    let o = raygun(&[
+        "bench",
+        "trace",
+        "--backend",
+        "gpu",
+        "--scene",
+        "builtin:cornell",
+        "--size",
+        "16,9",
+        "--spp",
+        "1",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = String::from_utf8_lossy(&o.stdout);
+    let json: serde_json::Value = serde_json::from_str(&out[out.find('{').unwrap()..]).unwrap();
+    assert_eq!(json["rows"][0]["kernel"], "private");
+    assert!(json.get("kernels_not_run").is_none(), "{json}");
 }
 
 /// `RAYGUN_CPU_PACKETS` chooses how the CPU twin walks its rays — one at a time, or packets in

@@ -548,7 +548,8 @@ fn bezel_pixels_are_never_scheduled_or_traced_on_either_backend() {
 
 /// Full frames through the wall camera with path regeneration (a thread's next slots may be
 /// bezel pixels, which it skips): the default kernel's accumulation to the bit, every shown
-/// pixel traced once a frame and no bezel pixel.
+/// pixel traced once a frame and no bezel pixel (the kernel lab's `+regenG`).
+#[cfg(feature = "kernel-lab")]
 #[test]
 fn regenerated_wall_frames_skip_the_bezels_and_match_the_default_kernel() {
     use raygun::trace::gpu::TraceVariant;

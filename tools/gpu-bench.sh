@@ -4,8 +4,10 @@
 # it wrote packed into one tarball plus one summary file under $OUT. Step by step, with the
 # groups and what comes back: docs/gpu-benchmark.md.
 #
-#   tools/gpu-bench.sh stage          on the build machine: the stripped release binary into
-#                                     .dev/ and the Vulkan loader packages into .gl/
+#   tools/gpu-bench.sh stage          on the build machine: the stripped dist binary, built
+#                                     with the kernel-lab feature (the `kernels` groups time
+#                                     the trace kernel's variants), into .dev/ and the Vulkan
+#                                     loader packages into .gl/
 #   OUT=DIR bash tools/gpu-bench.sh run     on the GPU machine, with .dev/ and .gl/ copied there
 #   OUT=DIR bash tools/gpu-bench.sh smoke   the script itself on lavapipe at tiny sizes
 #                                           (tests/gpu_bench_script.rs runs it)
@@ -19,7 +21,8 @@ cd "$(dirname "$0")/.."
 
 stage() {
   set -e
-  cargo build --profile dist --locked
+  # The kernel lab: the `kernels` and `kernels-guided` groups rank the trace kernel's variants.
+  cargo build --profile dist --locked --features kernel-lab
   mkdir -p .dev
   cp target/dist/raygun .dev/raygun
   strip .dev/raygun
@@ -117,6 +120,22 @@ KERNEL_VARIANTS+=,private+vote,private+vote10,private+vote35,private+split+vote
 GUIDED_KERNEL_VARIANTS="private function private+unchecked workgroup+unchecked+wg32"
 GUIDED_KERNEL_VARIANTS+=" private+regen528 private+regen2112 private+vote"
 
+# Whether the binary has the kernel lab (the `kernel-lab` feature: the trace kernel's variants,
+# `bench trace --trace-kernel` and RAYGUN_TRACE_KERNEL).
+has_kernel_lab() {
+  "$BIN" bench trace --help 2>/dev/null | grep -q -- '--trace-kernel'
+}
+
+# Why a group has no command line in this build (`group_command` printed none).
+missing_reason() {
+  case "$1" in
+    kernels | kernels-guided)
+      echo "not in this build: the trace kernel's variants need the kernel-lab feature ($BIN lacks it; \`tools/gpu-bench.sh stage\` builds with it, or cargo build --features kernel-lab)"
+      ;;
+    *) echo "not in this build" ;;
+  esac
+}
+
 # One group's command line (printed, then run by `bash -c` in `run_groups`).
 group_command() {
   local g="$1" d="$2"
@@ -130,7 +149,7 @@ group_command() {
       # The trace kernel's variants side by side (frames interleaved): where the traversal
       # stack lives, wgpu's run-time checks on or off, the workgroup's size. Same pictures,
       # different code; the table's last column is each one's time over the default's.
-      if "$BIN" bench trace --help 2>/dev/null | grep -q -- '--trace-kernel'; then
+      if has_kernel_lab; then
         # A scene a run, the city first (the H200's largest kernel miss), so that a group
         # stopped by its budget still leaves the city's table.
         echo "$BIN bench trace --backend gpu --size $s --scene $CITY --spp $SPP --trace-kernel $KERNEL_VARIANTS --out $d/kernels-city.md && $BIN bench trace --backend gpu --size $s --scene builtin:cornell --spp $SPP --trace-kernel $KERNEL_VARIANTS --out $d/kernels.md"
@@ -139,7 +158,7 @@ group_command() {
     kernels-guided)
       # A few of those variants in guided iterations (small launches: 2.9 % of the pixels at
       # 10°), each a run of its own with RAYGUN_TRACE_KERNEL.
-      if "$BIN" bench trace --help 2>/dev/null | grep -q -- '--trace-kernel'; then
+      if has_kernel_lab; then
         echo "for v in $GUIDED_KERNEL_VARIANTS; do RAYGUN_TRACE_KERNEL=\$v $BIN bench guided --backend gpu --size $s --scene builtin:cornell --fov 10,60 --iterations $ITERATIONS --reference-spp $REFERENCE_SPP --out $d/guided-\$v.md || exit; done"
       fi
       ;;
@@ -198,7 +217,7 @@ run_groups() {
     if [ "$g" = "${BENCH_GROUPS[-1]}" ] && [ "$left" -gt "$budget" ]; then budget=$left; fi
     cmd=$(group_command "$g" "$d")
     if [ -z "$cmd" ]; then
-      status="not in this build"
+      status="$(missing_reason "$g")"
       echo "== $g: $status" | tee "$d/$g.log"
       printf '%s\t%s\t0\n' "$g" "$status" >>"$WORK/status.tsv"
       continue

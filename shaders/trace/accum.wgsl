@@ -4,9 +4,9 @@
 // rays per owned block it traced (the deal's weights), summed where the samples lie. A pixel
 // gets at most one sample a frame, so no two threads of a dispatch write one pixel. CPU twins:
 // `accumulate_sums` and `block_rays` in src/trace/accum.rs; dispatch: `OwnedSums` in
-// src/trace/gpu.rs.
+// src/trace/gpu/owned.rs.
 
-// Mirrors `GpuOwnedParams` in src/trace/gpu.rs (16 bytes).
+// Mirrors `GpuOwnedParams` in src/trace/gpu/owned.rs (16 bytes).
 struct OwnedParams {
     // Samples in `own` to add (entries 0..own of it).
     own: u32,

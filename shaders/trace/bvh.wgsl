@@ -24,21 +24,22 @@ const NODE_EPSILON: f32 = 0.0001;
 const STACK_SIZE: u32 = 32u;
 // The traversal stack, one an invocation at module scope: WGSL zero-initialises a function's
 // variables at every call (256 bytes written a ray), a private variable once an invocation.
-// src/trace/gpu.rs compiles variants with it in `traverse` or in workgroup memory
-// (`TraceStack`); all find the same hits.
+// The kernel lab (src/trace/gpu/lab.rs, builds with the `kernel-lab` feature) compiles variants
+// with it in `traverse` or in workgroup memory (`TraceStack`); all find the same hits.
 var<private> stack: array<vec2<u32>, STACK_SIZE>;
 
-// Triangle postponing (Ylitie, Karras, Laine 2017, §4), the `+vote` variants' (src/trace/gpu.rs
-// sets the percentage P; 0 here: off): a lane whose triangles few of its subgroup's lanes are
-// testing with it — fewer than P % of those still traversing — keeps them aside and walks on
-// into its next node, so that the subgroup's lanes run node tests together instead of waiting
-// on each other's triangle loops. Kept in one slot a lane (the stack's use stays the default's),
-// they are tested before the lane's next pop. Only the order of the tests changes; the closest
-// hit does not depend on it (the tie rule in `traverse`).
-const POSTPONE: u32 = 0u;
+// Triangle postponing (Ylitie, Karras, Laine 2017, §4), the kernel lab's `+vote` variants' (a
+// pipeline constant sets the percentage P; 0 by default: off): a lane whose triangles few of
+// its subgroup's lanes are testing with it — fewer than P % of those still traversing — keeps
+// them aside and walks on into its next node, so that the subgroup's lanes run node tests
+// together instead of waiting on each other's triangle loops. Kept in one slot a lane (the
+// stack's use stays the default's), they are tested before the lane's next pop. Only the order
+// of the tests changes; the closest hit does not depend on it (the tie rule in `traverse`).
+override POSTPONE: u32 = 0u;
 
 // How many of the subgroup's lanes that call this together pass `yes`: a subgroup ballot in the
-// `+vote` variants (the only ones that need subgroups), never called in the others.
+// `+vote` variants (the only ones that need subgroups; a module that names a subgroup operation
+// needs them on every adapter, so the lab patches the ballot in), never called in the others.
 fn lanes_voting(yes: bool) -> u32 {
     return u32(yes);
 }

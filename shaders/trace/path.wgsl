@@ -1,6 +1,6 @@
 // The path-tracing integrator (CPU twin: src/trace/path.rs). One thread traces one path for one
 // pixel — every pixel in tile order (full frame) or the pixels of the scheduler's list — and
-// adds it to the pixel's accumulation (a regenerating variant's thread traces several paths,
+// adds it to the pixel's accumulation (a regenerating kernel's thread traces several paths,
 // one after the other). A cluster rank's samples (mode 2, DESIGN.md §12) are
 // returned instead: entry i of a compact list traces pixel list[i] with sample index counts[i]
 // and writes its RGB and its ray count into accum[i] (CPU twin: `samples_cpu`).
@@ -35,8 +35,8 @@ struct Params {
     // buffers hold size.x × rows pixels from image row row0 (src/gpu/mod.rs, `Band`).
     row0: u32,
     rows: u32,
-    // Full frames of a regenerating variant: threads launched (a thread's paths are that
-    // far apart); 0: a thread a path.
+    // Full frames of a regenerating kernel (the kernel lab's `+regenG`): threads launched (a
+    // thread's paths are that far apart); 0: a thread a path.
     stride: u32,
 }
 
@@ -75,7 +75,8 @@ const MIN_ALPHA: f32 = 1e-3;
 
 const NO_TEXTURE: u32 = 0xffffffffu;
 const STREAM_TRACE: u32 = 0x7a3c0000u;
-const WORKGROUP: u32 = 64u;
+// Threads a workgroup; the kernel lab's `+wgN` variants set it (a pipeline constant).
+override WORKGROUP: u32 = 64u;
 
 @group(0) @binding(2) var<storage, read> shade: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read> materials: array<vec4<f32>>;
@@ -100,8 +101,8 @@ const NO_TILE: u32 = 0xffffffffu;
 
 var<private> rays_traced: u32;
 var<workgroup> workgroup_rays: atomic<u32>;
-// This thread's index in its workgroup (the workgroup-memory traversal stack's variant,
-// src/trace/gpu.rs `TraceStack::Workgroup`, indexes its entries by it).
+// This thread's index in its workgroup (the kernel lab's workgroup-memory traversal stack,
+// src/trace/gpu/lab.rs, indexes its entries by it).
 var<private> trace_lane: u32;
 
 fn rand4(pixel: u32, sample: u32, dim: u32) -> vec4<f32> {
@@ -849,7 +850,7 @@ fn finish(slot: u32, sample: u32, rgb: vec3<f32>, rays: u32) {
 
 // Jobs `first`, `first + stride`, … below `count`, each path traced as `trace_sample` traces
 // it, to the bit, but the thread starts its next path as soon as its last one ends (path
-// regeneration: a regenerating variant's capped launch, `stride` its threads), so that a
+// regeneration: a regenerating kernel's capped launch, `stride` its threads), so that a
 // group's threads stay busy while paths of different lengths finish.
 fn trace_jobs(first: u32, count: u32, stride: u32) {
     var job = first;
@@ -903,10 +904,10 @@ fn trace_job(job: u32, count: u32) {
     finish(j.x, sample, trace_sample(j.y, sample, tile), rays_traced);
 }
 
-// Whether lists regenerate their paths (a regenerating variant: `src/trace/gpu.rs`,
-// `kernel_source`); its launches are capped by the scheduler's arguments pass or the rank's
-// dispatch, and the kernel reads its stride from the grid they launch.
-const REGENERATE: bool = false;
+// Whether lists regenerate their paths (a pipeline constant the kernel lab's `+regenG` variants
+// set: src/trace/gpu/lab.rs); their launches are capped by the scheduler's arguments pass or the
+// rank's dispatch, and the kernel reads its stride from the grid they launch.
+override REGENERATE: bool = false;
 
 @compute @workgroup_size(WORKGROUP)
 fn trace(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
@@ -942,10 +943,10 @@ fn trace(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) 
     }
 }
 
-// The wavefront split (a `+split` variant, full frames only; src/trace/gpu.rs, `SplitRun`):
-// the same paths as `trace`, to the bit, in three kernels a bounce apart, so that the
-// traversal runs in a kernel of its own (few registers, many threads resident) and the
-// shading in another. A frame's jobs go in chunks of `split.jobs`; the chunk's paths wait in
+// The wavefront split (the kernel lab's `+split` variants, full frames only; src/trace/gpu/
+// split.rs, `SplitRun`): the same paths as `trace`, to the bit, in three kernels a bounce apart,
+// so that the traversal runs in a kernel of its own (few registers, many threads resident) and
+// the shading in another. A frame's jobs go in chunks of `split.jobs`; the chunk's paths wait in
 // `split_states` between kernels and their closest hits in `split_hits`. `split_start` starts
 // them, then `split_extend` (closest hits) and `split_shade` (the rest of `path_bounce`, shadow
 // rays included) alternate `params.max_depth` times. A path that ends is added to its slot at

@@ -12,10 +12,11 @@ use serde::Serialize;
 use super::median;
 
 use crate::frame::{Render, Renderer};
+#[cfg(feature = "kernel-lab")]
+use crate::gpu::variant::TraceVariant;
 use crate::gpu::{Backend, GpuError};
 use crate::scene::Scene;
 use crate::trace::camera::CameraError;
-use crate::trace::gpu::TraceVariant;
 use crate::trace::wall::{WallCameraError, WallSpec};
 
 /// What to measure.
@@ -48,7 +49,8 @@ pub struct TraceBenchRow {
     pub scene: String,
     /// "pinhole" (the scene's camera) or "wall" (the wall camera).
     pub camera: &'static str,
-    /// The GPU trace kernel's variant ([`TraceVariant`]); none on the CPU.
+    /// The GPU trace kernel's name (`GpuContext::trace_kernel_name`: `private`, or a kernel
+    /// lab's variant); none on the CPU.
     pub kernel: Option<String>,
     /// Pixels traced per frame (the wall camera skips those no tile shows).
     pub pixels: u64,
@@ -90,6 +92,7 @@ pub enum TraceBenchError {
         #[source]
         source: WallCameraError,
     },
+    #[cfg(feature = "kernel-lab")]
     #[error("--trace-kernel: the trace kernel's variants are GPU kernels; use --backend gpu")]
     KernelsNeedGpu,
 }
@@ -105,17 +108,29 @@ fn reference(scene: &str) -> (Option<f64>, Option<f64>) {
     }
 }
 
-/// Measures each scene (with `wall`, the pinhole and the wall camera interleaved; with
-/// `kernels`, each of the trace kernel's variants on `backend`'s GPU, interleaved too: one
-/// frame of each in turn, so that every variant sees the same GPU state); `progress` is told
-/// the scene name before it starts.
+/// Measures each scene (with `wall`, the pinhole and the wall camera interleaved, one frame
+/// of each in turn, so that both see the same machine state); `progress` is told the scene
+/// name before it starts.
 pub fn run(
     backend: &Backend,
     scenes: &[(String, Scene)],
     cfg: &TraceBenchConfig,
     wall: Option<&WallSpec>,
+    progress: impl FnMut(&str),
+) -> Result<Vec<TraceBenchRow>, TraceBenchError> {
+    measure(&[backend], scenes, cfg, wall, progress)
+}
+
+/// [`run`] for each of the kernel lab's trace kernels `kernels` on `backend`'s GPU,
+/// interleaved too (one frame of each in turn, so that every variant sees the same GPU state).
+#[cfg(feature = "kernel-lab")]
+pub fn run_kernels(
+    backend: &Backend,
+    scenes: &[(String, Scene)],
+    cfg: &TraceBenchConfig,
+    wall: Option<&WallSpec>,
     kernels: &[TraceVariant],
-    mut progress: impl FnMut(&str),
+    progress: impl FnMut(&str),
 ) -> Result<Vec<TraceBenchRow>, TraceBenchError> {
     let variants: Vec<Backend> = match backend {
         Backend::Gpu(ctx) => kernels
@@ -125,13 +140,23 @@ pub fn run(
         Backend::Cpu if kernels.is_empty() => Vec::new(),
         Backend::Cpu => return Err(TraceBenchError::KernelsNeedGpu),
     };
-    let engines: Vec<&Backend> = if variants.is_empty() {
-        vec![backend]
-    } else {
-        variants.iter().collect()
-    };
+    if variants.is_empty() {
+        return run(backend, scenes, cfg, wall, progress);
+    }
+    let engines: Vec<&Backend> = variants.iter().collect();
+    measure(&engines, scenes, cfg, wall, progress)
+}
+
+/// Each scene on each of `engines`, their frames interleaved.
+fn measure(
+    engines: &[&Backend],
+    scenes: &[(String, Scene)],
+    cfg: &TraceBenchConfig,
+    wall: Option<&WallSpec>,
+    mut progress: impl FnMut(&str),
+) -> Result<Vec<TraceBenchRow>, TraceBenchError> {
     let kernel_of = |b: &Backend| match b {
-        Backend::Gpu(ctx) => Some(ctx.trace_variant().to_string()),
+        Backend::Gpu(ctx) => Some(ctx.trace_kernel_name()),
         Backend::Cpu => None,
     };
     let mut rows = Vec::new();
@@ -152,7 +177,7 @@ pub fn run(
                 source,
             })?;
         let mut renderers = Vec::new();
-        for &engine in &engines {
+        for &engine in engines {
             let kernel = kernel_of(engine);
             renderers.push((
                 "pinhole",

@@ -683,8 +683,9 @@ pub struct TraceBenchArgs {
     /// `function,private+unchecked+wg32,private+regen1056,private+split,private+vote`. Same pictures, different code;
     /// variants the adapter cannot run are named and left out. Default: the one
     /// `RAYGUN_TRACE_KERNEL` names, else `private`.
+    #[cfg(feature = "kernel-lab")]
     #[arg(long, value_name = "VARIANT,…", value_delimiter = ',')]
-    pub trace_kernel: Vec<crate::trace::gpu::TraceVariant>,
+    pub trace_kernel: Vec<crate::gpu::variant::TraceVariant>,
 }
 
 fn run_trace_bench(args: &TraceBenchArgs) -> anyhow::Result<()> {
@@ -708,39 +709,39 @@ fn run_trace_bench(args: &TraceBenchArgs) -> anyhow::Result<()> {
         ..Default::default()
     };
     let (bar, progress) = bench_progress(args.json, scenes.len() as u64);
-    // Variants this adapter cannot run (a workgroup stack over its workgroup memory) are
-    // left out and named, so that one list serves every adapter.
-    let mut kernels = Vec::new();
-    let mut refused = Vec::new();
-    for &v in &args.trace_kernel {
-        match &backend {
-            Backend::Gpu(ctx) => match v.check(&ctx.limits, ctx.device.features()) {
-                Ok(()) => kernels.push(v),
-                Err(e) => refused.push(e.to_string()),
-            },
-            // `bench::trace::run` refuses variants on the CPU, naming the flag.
-            Backend::Cpu => kernels.push(v),
-        }
-    }
-    for r in &refused {
-        eprintln!("raygun bench trace: not run: {r}");
-    }
-    if !args.trace_kernel.is_empty() && kernels.is_empty() {
-        anyhow::bail!("--trace-kernel: this adapter can run none of the variants asked for");
-    }
-    let rows =
-        crate::bench::trace::run(&backend, &scenes, &cfg, wall.as_ref(), &kernels, progress)?;
+    #[cfg(not(feature = "kernel-lab"))]
+    let rows = crate::bench::trace::run(&backend, &scenes, &cfg, wall.as_ref(), progress)?;
+    #[cfg(feature = "kernel-lab")]
+    let (rows, refused) = {
+        let (kernels, refused) = lab_kernels(&args.trace_kernel, &backend)?;
+        let rows = crate::bench::trace::run_kernels(
+            &backend,
+            &scenes,
+            &cfg,
+            wall.as_ref(),
+            &kernels,
+            progress,
+        )?;
+        (rows, refused)
+    };
     bar.finish_and_clear();
     let device = crate::bench::device(&backend);
     let text = if args.json {
-        serde_json::to_string_pretty(&serde_json::json!({
+        #[cfg_attr(not(feature = "kernel-lab"), allow(unused_mut))]
+        let mut json = serde_json::json!({
             "device": device,
             "config": cfg,
             "rows": rows,
-            "kernels_not_run": refused,
-        }))?
+        });
+        #[cfg(feature = "kernel-lab")]
+        {
+            json["kernels_not_run"] = serde_json::json!(refused);
+        }
+        serde_json::to_string_pretty(&json)?
     } else {
+        #[cfg_attr(not(feature = "kernel-lab"), allow(unused_mut))]
         let mut md = crate::bench::trace::markdown(&rows, &device);
+        #[cfg(feature = "kernel-lab")]
         for r in &refused {
             md += &format!("\nNot run on this adapter: {r}.\n");
         }
@@ -748,6 +749,35 @@ fn run_trace_bench(args: &TraceBenchArgs) -> anyhow::Result<()> {
     };
     print_and_save(&text, args.out.as_deref())?;
     Ok(())
+}
+
+/// The kernel lab's `--trace-kernel` variants this adapter can run, and why each other one
+/// cannot (a workgroup stack over its workgroup memory), printed: left out and named, so that
+/// one list serves every adapter. An error where it can run none of them.
+#[cfg(feature = "kernel-lab")]
+fn lab_kernels(
+    asked: &[crate::gpu::variant::TraceVariant],
+    backend: &Backend,
+) -> anyhow::Result<(Vec<crate::gpu::variant::TraceVariant>, Vec<String>)> {
+    let mut kernels = Vec::new();
+    let mut refused = Vec::new();
+    for &v in asked {
+        match backend {
+            Backend::Gpu(ctx) => match v.check(&ctx.limits, ctx.device.features()) {
+                Ok(()) => kernels.push(v),
+                Err(e) => refused.push(e.to_string()),
+            },
+            // `bench::trace::run_kernels` refuses variants on the CPU, naming the flag.
+            Backend::Cpu => kernels.push(v),
+        }
+    }
+    for r in &refused {
+        eprintln!("raygun bench trace: not run: {r}");
+    }
+    if !asked.is_empty() && kernels.is_empty() {
+        anyhow::bail!("--trace-kernel: this adapter can run none of the variants asked for");
+    }
+    Ok((kernels, refused))
 }
 
 #[derive(Clone, Debug, clap::Args)]

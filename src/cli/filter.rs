@@ -91,7 +91,7 @@ pub struct FilterBenchArgs {
     #[arg(long, value_name = "N", default_value_t = 256)]
     pub reference_spp: u32,
     /// Filter settings of the error table (--filter and --filter-blend are ignored: every
-    /// variant is measured).
+    /// filter and blend is measured).
     #[command(flatten)]
     pub filter: FilterArgs,
     #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]

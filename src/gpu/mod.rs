@@ -7,6 +7,7 @@
 
 use std::fmt;
 
+#[cfg(feature = "kernel-lab")]
 pub mod variant;
 pub mod wgsl;
 
@@ -34,7 +35,8 @@ pub enum Backend {
 impl Backend {
     /// Resolves the user's choice into a backend. `Auto` falls back to the CPU (and says so on
     /// standard error) when no hardware adapter can be created; `Gpu` takes any adapter and
-    /// turns having none into an error.
+    /// turns having none into an error. Both refuse a `RAYGUN_TRACE_KERNEL` that a build
+    /// without the kernel lab cannot honour.
     pub fn select(choice: BackendChoice) -> Result<Self, GpuError> {
         let (backend, note) = Self::choose(choice)?;
         if let Some(note) = note {
@@ -63,6 +65,10 @@ impl Backend {
                     )),
                 )),
                 Ok(ctx) => Ok((Self::Gpu(Box::new(ctx)), None)),
+                // A kernel asked for that this build does not have is the user's error, not a
+                // missing GPU.
+                #[cfg(not(feature = "kernel-lab"))]
+                Err(e @ GpuError::NoKernelLab { .. }) => Err(e),
                 Err(e) => Ok((
                     Self::Cpu,
                     Some(format!(
@@ -134,10 +140,19 @@ pub enum GpuError {
     },
     #[error("RAYGUN_MAX_BINDING={value:?}: expected a number of bytes, at least 4")]
     BadMaxBinding { value: String },
+    #[cfg(feature = "kernel-lab")]
     #[error("RAYGUN_TRACE_KERNEL={value:?}: {why}")]
     BadTraceKernel { value: String, why: String },
+    #[cfg(feature = "kernel-lab")]
     #[error("trace kernel {variant}: {why}")]
     TraceVariant { variant: String, why: String },
+    #[cfg(not(feature = "kernel-lab"))]
+    #[error(
+        "RAYGUN_TRACE_KERNEL={value:?}: this build has the one trace kernel raygun ships; the \
+         kernel's variants are in builds with the kernel-lab feature (cargo build --features \
+         kernel-lab), or unset RAYGUN_TRACE_KERNEL"
+    )]
+    NoKernelLab { value: String },
     #[error(
         "the scene's BVH needs {needs} entries on the trace kernel's traversal stack, which \
          holds {holds}: render it with --backend cpu"
@@ -229,6 +244,7 @@ pub struct GpuContext {
     staging: std::sync::Arc<std::sync::Mutex<Vec<wgpu::Buffer>>>,
     /// The trace kernel's variant ([`variant::TraceVariant`]): the default unless
     /// `RAYGUN_TRACE_KERNEL` or [`Self::with_trace_variant`] chose another.
+    #[cfg(feature = "kernel-lab")]
     trace_variant: variant::TraceVariant,
     /// What [`Self::kept`] made for this device, by type and key (clones share it).
     kept: std::sync::Arc<std::sync::Mutex<KeptMap>>,
@@ -356,8 +372,9 @@ impl GpuContext {
     /// (DESIGN.md §11), and this exercises that split on an adapter whose own limit is large.
     ///
     /// `RAYGUN_TRACE_KERNEL=VARIANT` compiles the trace kernel as another variant of the same
-    /// function ([`variant::TraceVariant`]: `function`, `private` or `workgroup`, then the
-    /// options its `FromStr` names), for timing them on a GPU.
+    /// function in a build with the `kernel-lab` feature (`variant::TraceVariant`: `function`,
+    /// `private` or `workgroup`, then the options its `FromStr` names), for timing them on a
+    /// GPU; a build without the feature refuses it.
     pub fn new() -> Result<Self, GpuError> {
         let cap = match std::env::var("RAYGUN_MAX_BINDING") {
             Ok(v) => Some(
@@ -369,17 +386,25 @@ impl GpuContext {
             ),
             Err(_) => None,
         };
-        let ctx = pollster::block_on(Self::new_async(cap))?;
-        match std::env::var("RAYGUN_TRACE_KERNEL") {
-            Ok(v) => {
-                let variant = v.parse().map_err(|why| GpuError::BadTraceKernel {
-                    value: v.clone(),
-                    why,
-                })?;
-                ctx.with_trace_variant(variant)
-            }
-            Err(_) => Ok(ctx),
+        let kernel = std::env::var("RAYGUN_TRACE_KERNEL").ok();
+        #[cfg(not(feature = "kernel-lab"))]
+        if let Some(value) = kernel {
+            return Err(GpuError::NoKernelLab { value });
         }
+        #[cfg(feature = "kernel-lab")]
+        let kernel = kernel
+            .map(|value| {
+                value
+                    .parse::<variant::TraceVariant>()
+                    .map_err(|why| GpuError::BadTraceKernel { value, why })
+            })
+            .transpose()?;
+        let ctx = pollster::block_on(Self::new_async(cap))?;
+        #[cfg(feature = "kernel-lab")]
+        if let Some(variant) = kernel {
+            return ctx.with_trace_variant(variant);
+        }
+        Ok(ctx)
     }
 
     /// [`Self::new`] with the storage binding capped at `max_binding` bytes (rounded down to a
@@ -423,9 +448,12 @@ impl GpuContext {
         if timestamps {
             features |= wgpu::Features::TIMESTAMP_QUERY;
         }
-        // Subgroup operations where the adapter has them: the trace kernel's `+vote` variants
-        // use them (the default kernels do not).
-        features |= supported & wgpu::Features::SUBGROUP;
+        // Subgroup operations where the adapter has them, in a kernel-lab build: the trace
+        // kernel's `+vote` variants use them (raygun's kernels do not).
+        #[cfg(feature = "kernel-lab")]
+        {
+            features |= supported & wgpu::Features::SUBGROUP;
+        }
         // Ask for everything the adapter offers: big images need big storage bindings
         // (3840×2160 RGBA f32 is 133 MB, over lavapipe's 128 MiB binding limit but far under
         // an H100's 2 GiB), and stages check the limits they need themselves.
@@ -456,12 +484,26 @@ impl GpuContext {
             timestamps,
             supported,
             staging: std::sync::Arc::default(),
+            #[cfg(feature = "kernel-lab")]
             trace_variant: variant::TraceVariant::default(),
             kept: std::sync::Arc::default(),
         })
     }
 
+    /// The name reports give the trace kernel renderers made on this context compile: `private`
+    /// (its traversal stack in private memory, the kernel as written) where it is the one raygun
+    /// ships, else the kernel lab's variant.
+    #[must_use]
+    pub fn trace_kernel_name(&self) -> String {
+        #[cfg(feature = "kernel-lab")]
+        if self.trace_variant != variant::TraceVariant::default() {
+            return self.trace_variant.to_string();
+        }
+        "private".to_string()
+    }
+
     /// The trace kernel's variant renderers made on this context compile.
+    #[cfg(feature = "kernel-lab")]
     #[must_use]
     pub fn trace_variant(&self) -> variant::TraceVariant {
         self.trace_variant
@@ -469,6 +511,7 @@ impl GpuContext {
 
     /// This context (the same device, queue and kept buffers) with the trace kernel compiled
     /// as `variant`; an error naming the variant where the adapter's limits do not allow it.
+    #[cfg(feature = "kernel-lab")]
     pub fn with_trace_variant(&self, variant: variant::TraceVariant) -> Result<Self, GpuError> {
         variant.check(&self.limits, self.device.features())?;
         Ok(Self {
@@ -552,15 +595,16 @@ impl GpuContext {
                 "shader_int64": has(wgpu::Features::SHADER_INT64),
             },
             "timestamps_enabled": self.timestamps,
-            "trace_kernel": self.trace_variant.to_string(),
+            "trace_kernel": self.trace_kernel_name(),
         })
     }
 
-    /// "NAME (API, driver DRIVER INFO)", and ", trace kernel VARIANT" where the trace kernel
-    /// is not the default one (so that every figure it measured says which).
+    /// "NAME (API, driver DRIVER INFO)", and in a kernel-lab build ", trace kernel VARIANT"
+    /// where the trace kernel is not the default one (so that every figure it measured says
+    /// which).
     #[must_use]
     pub fn describe(&self) -> String {
-        let mut s = format!(
+        let s = format!(
             "{} ({:?}, {:?}, driver {} {})",
             self.info.name,
             self.info.backend,
@@ -568,8 +612,9 @@ impl GpuContext {
             self.info.driver,
             self.info.driver_info
         );
+        #[cfg(feature = "kernel-lab")]
         if self.trace_variant != variant::TraceVariant::default() {
-            s += &format!(", trace kernel {}", self.trace_variant);
+            return format!("{s}, trace kernel {}", self.trace_variant);
         }
         s
     }
@@ -865,8 +910,8 @@ mod tests {
     }
 
     /// A kept value is made once a device, type and key: later calls, on the context and its
-    /// clones (another trace variant included), get it without making it again; another key
-    /// or type is made anew, and a new device keeps its own.
+    /// clones (another trace variant included, in a kernel-lab build), get it without making it
+    /// again; another key or type is made anew, and a new device keeps its own.
     #[test]
     fn kept_values_are_made_once_a_device_type_and_key() {
         let ctx = GpuContext::for_tests();
@@ -877,10 +922,15 @@ mod tests {
         };
         assert_eq!(ctx.kept("a", || make(1)), 1);
         assert_eq!(ctx.kept("a", || make(2)), 1);
-        let clone = ctx
-            .with_trace_variant(variant::TraceVariant::default().with_workgroup(32))
-            .unwrap();
+        let clone = ctx.clone();
         assert_eq!(clone.kept("a", || make(3)), 1);
+        #[cfg(feature = "kernel-lab")]
+        {
+            let lab = ctx
+                .with_trace_variant(variant::TraceVariant::default().with_workgroup(32))
+                .unwrap();
+            assert_eq!(lab.kept("a", || make(3)), 1);
+        }
         assert_eq!(made.get(), 1);
         assert_eq!(ctx.kept("b", || make(4)), 4);
         assert_eq!(

@@ -1,12 +1,15 @@
-//! How the trace kernel is compiled: a choice the GPU context carries
-//! ([`super::GpuContext::trace_variant`]) and the trace stage applies (`src/trace/gpu.rs`
-//! turns a variant into the kernel's source and compile options). Every variant computes the
-//! same function; they differ in the code a GPU runs, so that one binary can time them all.
+//! The kernel lab's trace kernel variants (the `kernel-lab` feature; raygun itself ships one
+//! kernel, the default variant): how the trace kernel is compiled, a choice the GPU context
+//! carries ([`super::GpuContext::trace_variant`]) and the trace stage applies
+//! (`src/trace/gpu/lab.rs` turns a variant into the kernel's source, its pipeline constants and
+//! compile options). Every variant computes the same function; they differ in the code a GPU
+//! runs, so that one binary can time them all. It lives in the base layer because the context
+//! carries it.
 
 use super::GpuError;
 
-/// Threads per workgroup of the trace kernel unless a variant says otherwise (`WORKGROUP` in
-/// `shaders/trace/path.wgsl`).
+/// Threads per workgroup of the trace kernel unless a variant says otherwise (the override
+/// `WORKGROUP` in `shaders/trace/path.wgsl`; `crate::trace::gpu::WORKGROUP`).
 pub const DEFAULT_WORKGROUP: u32 = 64;
 
 /// Where the trace kernel keeps its BVH traversal stack (`STACK_SIZE` = 32 entries of 8
@@ -69,7 +72,8 @@ impl Default for TraceVariant {
     }
 }
 
-/// Entries of the trace kernel's traversal stack (`STACK_SIZE` in `shaders/trace/bvh.wgsl`).
+/// Entries of the trace kernel's traversal stack (`STACK_SIZE` in `shaders/trace/bvh.wgsl`;
+/// `crate::trace::gpu::STACK_ENTRIES`).
 pub const STACK_ENTRIES: u32 = 32;
 
 /// Bytes of one thread's traversal stack ([`STACK_ENTRIES`] of `vec2<u32>`).

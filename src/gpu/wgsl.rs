@@ -37,6 +37,37 @@ pub fn validated_with(name: &str, source: &str, subgroups: bool) -> naga::Module
     module
 }
 
+/// The compute entry point `entry` of `source` as a device compiles its pipeline:
+/// [`validated_with`], then every WGSL `override` set — to its value in `constants` (what
+/// `wgpu::PipelineCompilationOptions::constants` passes), else to its default — with naga's
+/// own pass, the module cut down to what `entry` reaches, and validated again. Panics with
+/// naga's diagnostic, naming `name`, if any step fails.
+pub fn specialised(
+    name: &str,
+    source: &str,
+    subgroups: bool,
+    entry: &str,
+    constants: &[(&str, f64)],
+) -> naga::Module {
+    let module = validated_with(name, source, subgroups);
+    let mut validator = naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::all(),
+    );
+    let info = validator
+        .validate(&module)
+        .unwrap_or_else(|e| panic!("{name} does not validate: {}", e.emit_to_string(source)));
+    let mut values = naga::back::PipelineConstants::default();
+    for &(k, v) in constants {
+        values.insert(k.to_string(), v);
+    }
+    let stage = Some((naga::ShaderStage::Compute, entry));
+    match naga::back::pipeline_constants::process_overrides(&module, &info, stage, &values) {
+        Ok((m, _)) => m.into_owned(),
+        Err(e) => panic!("{name}, entry point {entry}: its overrides cannot be set: {e}"),
+    }
+}
+
 /// The size in bytes of the struct `name` declared in `module`; panics when there is none.
 #[must_use]
 pub fn struct_size(module: &naga::Module, name: &str) -> usize {

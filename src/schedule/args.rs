@@ -9,10 +9,11 @@
 /// than gy idle groups; `[0, 1, 1]` when nothing is listed. The tracer's thread for list entry
 /// `(wg.y · gx + wg.x) · workgroup_size + local_index` returns when that is ≥ count.
 ///
-/// A regenerating tracer (`max_groups` > 0: [`crate::gpu::variant::TraceVariant::regen`]) launches at
-/// most about `max_groups` groups (gx·gy ≥ min(⌈count / workgroup_size⌉, max_groups)); its
-/// thread `t` of the gx·gy·workgroup_size launched traces entries t, t + gx·gy·workgroup_size,
-/// … Identical to `shaders/schedule/args.wgsl`.
+/// A regenerating tracer (`max_groups` > 0: the kernel lab's `+regenG`,
+/// [`crate::trace::gpu::TraceKernel::max_list_groups`]) launches at most about `max_groups`
+/// groups (gx·gy ≥ min(⌈count / workgroup_size⌉, max_groups)); its thread `t` of the
+/// gx·gy·workgroup_size launched traces entries t, t + gx·gy·workgroup_size, … Identical to
+/// `shaders/schedule/args.wgsl`.
 #[must_use]
 pub fn indirect_grid(
     count: u32,

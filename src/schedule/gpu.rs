@@ -121,8 +121,10 @@ pub struct ScheduleConfig {
     pub order: Order,
     /// Threads per workgroup of the tracer that consumes the list (the indirect grid's unit).
     pub trace_workgroup_size: u32,
-    /// The most workgroups the tracer's launch may have (0: a thread an entry): a regenerating
-    /// tracer's cap ([`crate::gpu::variant::TraceVariant::regen`]), whose threads trace several entries.
+    /// The most workgroups the tracer's launch may have (0: a thread an entry, the kernel
+    /// raygun ships): a regenerating tracer's cap (the kernel lab's `+regenG`,
+    /// [`crate::trace::gpu::TraceKernel::max_list_groups`]), whose threads trace several
+    /// entries.
     pub trace_max_groups: u32,
 }
 

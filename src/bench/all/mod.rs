@@ -250,7 +250,6 @@ pub fn run(
             ..TraceBenchConfig::default()
         },
         None,
-        &[],
         &mut progress,
     )?;
     drop(trace_scenes);

@@ -222,10 +222,13 @@ pub fn warn_if_resampled(size: [u32; 2], model: &DisplayModel, origin: &str) {
 /// Checks the memory a render of `size` needs against this machine and the backend, printing
 /// the note for a large run.
 pub fn check_memory(work: Work, size: [u32; 2], backend: &Backend) -> anyhow::Result<()> {
-    let mut budget = Budget::of(work, size);
-    if let Backend::Gpu(ctx) = backend {
-        budget = budget.with_trace_kernel(work, ctx.trace_variant(), ctx.max_binding());
-    }
+    let budget = Budget::of(work, size);
+    // A kernel-lab build's trace kernel may hold buffers of its own (the wavefront split's).
+    #[cfg(feature = "kernel-lab")]
+    let budget = match backend {
+        Backend::Gpu(ctx) => budget.with_trace_kernel(work, ctx.trace_variant(), ctx.max_binding()),
+        Backend::Cpu => budget,
+    };
     if let Some(note) =
         budget.check(crate::memory::available_host_bytes(), backend.max_binding())?
     {
