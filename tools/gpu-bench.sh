@@ -14,7 +14,8 @@
 #
 # Settings (environment): RAYGUN_BIN (default .dev/raygun for run, target/dist/raygun,
 # target/release/raygun or target/debug/raygun for smoke), GPU_BENCH_LIMIT_S (the whole run's budget: 420 for run, 300
-# for smoke), GPU_BENCH_GROUPS (some groups only, by name, e.g. "adapter guided all" for a
+# for smoke), GPU_BENCH_BUDGET_SCALE (smoke only: every budget and the limit times this whole
+# number, for a machine whose cores other work shares; default 1), GPU_BENCH_GROUPS (some groups only, by name, e.g. "adapter guided all" for a
 # rerun of what failed; default every group), OUT (where the results go; required).
 set -uo pipefail
 cd "$(dirname "$0")/.."
@@ -292,7 +293,9 @@ main() {
       elif [ -x target/dist/raygun ]; then BIN=target/dist/raygun
       elif [ -x target/release/raygun ]; then BIN=target/release/raygun
       else BIN=target/debug/raygun; fi
-      LIMIT="${GPU_BENCH_LIMIT_S:-300}"
+      local scale="${GPU_BENCH_BUDGET_SCALE:-1}"
+      [[ "$scale" =~ ^[1-9][0-9]*$ ]] || { echo "GPU_BENCH_BUDGET_SCALE: expected a whole number from 1, found '$scale'" >&2; exit 2; }
+      LIMIT="${GPU_BENCH_LIMIT_S:-$((300 * scale))}"
       SIZE=32,18 REPS=1 SPP=1 ITERATIONS=2 REFERENCE_SPP=2 CITY=builtin:city-small
       ALL_QUICK_SIZE="--size 16,9 --scene builtin:cornell" ALL_SIZE="--size 24,12 --scene builtin:cornell"
       WALL_SIZE=64,26 NATIVE_ITERATIONS=2 NATIVE_DISPLAY=tiny
@@ -304,7 +307,7 @@ main() {
       KERNEL_VARIANTS=private,workgroup+unchecked+wg32,private+regen264,workgroup+unchecked+wg128,private+vote
       GUIDED_KERNEL_VARIANTS="private+regen4"
       declare -gA BUDGETS
-      for g in "${BENCH_GROUPS[@]}"; do BUDGETS[$g]=${SMOKE_BUDGET[$g]}; done
+      for g in "${BENCH_GROUPS[@]}"; do BUDGETS[$g]=$((SMOKE_BUDGET[$g] * scale)); done
       export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-/tmp}"
       ;;
     *)

@@ -54,6 +54,7 @@
 pub mod exact;
 pub mod fast;
 pub mod gpu;
+pub mod oidn;
 pub mod pyramid;
 pub mod synth;
 
