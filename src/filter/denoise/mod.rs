@@ -89,6 +89,12 @@
 //! ([`halo`]); a band of rows with that many rows of margin on each side gives the whole image's
 //! values, bit for bit ([`denoise_cpu_banded`], [`gpu::DenoiseKernels::denoise_banded`]).
 //!
+//! # Memory
+//!
+//! On the GPU, [`DEVICE_BPP`] bytes a pixel: the accumulation (16 + 4), the two features
+//! (16 each), a work buffer and the output (16 each). The CPU twin holds [`HOST_BPP`] beyond its
+//! inputs: the classes, two (x, c) images, and the output's alpha set in place.
+//!
 //! # Numerics
 //!
 //! f32 throughout, on both sides. The kernel and this twin perform the same operations in the
@@ -113,6 +119,12 @@ pub const NORMAL_CUT: f32 = 0.9;
 pub const SIGMA_Z: f32 = 0.05;
 /// The relative depth difference above which two pixels never mix.
 pub const DEPTH_CUT: f32 = 0.1;
+/// GPU bytes a pixel while denoising: accumulation 16 + 4, albedo 16, normal/depth 16, work
+/// 16, output 16.
+pub const DEVICE_BPP: u64 = 84;
+/// The CPU twin's working set a pixel beyond its inputs: the class (8) and two `[f32; 4]`
+/// images (32).
+pub const HOST_BPP: u64 = 40;
 /// The cubic B-spline taps (1, 4, 6, 4, 1)/16.
 pub const TAPS: [f32; 5] = [0.0625, 0.25, 0.375, 0.25, 0.0625];
 

@@ -393,3 +393,10 @@ fn bad_inputs_are_named() {
         assert!(e.contains(field), "{e}");
     }
 }
+
+/// The stated host working set is what the twin allocates per pixel.
+#[test]
+fn the_stated_host_memory_is_the_twins_allocation() {
+    let per_pixel = size_of::<Class>() + 2 * size_of::<[f32; 4]>();
+    assert_eq!(per_pixel as u64, HOST_BPP);
+}
