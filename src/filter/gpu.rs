@@ -29,6 +29,10 @@ pub const FAST_WGSL: &str = concat!(
 /// The fast filter's separable pyramid passes.
 pub const PYRAMID_WGSL: &str = include_str!("../../shaders/filter/pyramid.wgsl");
 
+/// The denoiser's kernel (entry points `init` and `atrous`); CPU twin and definition:
+/// [`super::denoise`], its dispatch: [`super::denoise::gpu`].
+pub const DENOISE_WGSL: &str = include_str!("../../shaders/filter/denoise.wgsl");
+
 /// Mirrors `LevelDesc` in shaders/filter/common.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]

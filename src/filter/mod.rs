@@ -51,6 +51,7 @@
 //! its resolution to about 1e-7 of the mean squared luminance per sample, so thresholds far
 //! below that are not meaningful. The kernels work in f32, the exact twin in f64.
 
+pub mod denoise;
 pub mod exact;
 pub mod fast;
 pub mod gpu;
