@@ -199,6 +199,7 @@ pub fn run_headless(args: &DemoArgs) -> anyhow::Result<DemoOutput> {
             wall,
             config,
             filter,
+            denoise: None,
         },
         &source,
         &Stopping {

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use crate::bench::filter::{self as bench, FilterBenchConfig};
 use crate::display::DisplayModel;
-use crate::filter::{Blend, FilterKind, FilterParams, FilterParamsError, synth};
+use crate::filter::{Blend, DenoiseKind, FilterKind, FilterParams, FilterParamsError, oidn, synth};
 use crate::gpu::{Backend, BackendChoice};
 use crate::roi::dgi::Surface;
 
@@ -47,6 +47,37 @@ impl FilterArgs {
         Ok(p)
     }
 }
+
+/// Denoising of the picture a command writes (DESIGN.md §8).
+#[derive(Clone, Debug, clap::Args)]
+pub struct DenoiseArgs {
+    /// Denoise the picture: off (the filter's picture) or oidn (Intel Open Image Denoise 2 on
+    /// the HDR colour at its high quality, on the CUDA device with an NVIDIA GPU, else the CPU;
+    /// install it with `bash tools/oidn.sh install`, or set OIDN_DIR).
+    #[arg(long, value_enum, default_value_t = DenoiseKind::Off)]
+    pub denoise: DenoiseKind,
+}
+
+impl DenoiseArgs {
+    /// The OIDN device `--denoise oidn` asks for, opened now so that a missing library is an
+    /// error before any work; `None` for `off`.
+    pub fn device(&self, backend: &Backend) -> Result<Option<oidn::Device>, DenoiseArgsError> {
+        match self.denoise {
+            DenoiseKind::Off => Ok(None),
+            DenoiseKind::Oidn => {
+                let choice = oidn::DeviceChoice::Auto {
+                    nvidia: backend.is_nvidia(),
+                };
+                Ok(Some(oidn::Oidn::load()?.device(choice)?))
+            }
+        }
+    }
+}
+
+/// `--denoise oidn` could not open OIDN.
+#[derive(Debug, thiserror::Error)]
+#[error("--denoise oidn: {0}")]
+pub struct DenoiseArgsError(#[from] oidn::OidnError);
 
 #[derive(Clone, Debug, clap::Args)]
 pub struct FilterBenchArgs {

@@ -80,6 +80,17 @@ pub enum FilterKind {
     Fast,
 }
 
+/// What denoises the picture after the filter (`--denoise`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum DenoiseKind {
+    /// None: the filter's picture.
+    #[default]
+    Off,
+    /// Intel Open Image Denoise 2 ([`oidn`]).
+    Oidn,
+}
+
 /// How the filtered value is blended with the unfiltered pixel (`--filter-blend`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, Serialize)]
 #[serde(rename_all = "lowercase")]

@@ -335,11 +335,13 @@ impl Oidn {
             oidn: Arc::clone(self),
             raw,
             kind,
+            version: 0,
         };
         // SAFETY: `raw` is a live device.
         unsafe { (self.api.commit_device)(raw) };
         device.check()?;
         let version = device.int(c"version");
+        device.version = version;
         if version < 20000 {
             return Err(OidnError::NotOidn2 {
                 path: self.path.clone(),
@@ -370,10 +372,13 @@ impl Oidn {
 }
 
 /// An OIDN device, committed and ready to filter.
+#[derive(Debug)]
 pub struct Device {
     oidn: Arc<Oidn>,
     raw: *mut c_void,
     kind: DeviceKind,
+    /// OIDN's version as it reports it: 10000 · major + 100 · minor + patch.
+    version: c_int,
 }
 
 // SAFETY: OIDN's API is thread-safe; calls on one device are serialised by the library.
@@ -396,6 +401,18 @@ impl Device {
     /// The device that runs the filter.
     pub fn kind(&self) -> DeviceKind {
         self.kind
+    }
+
+    /// What runs the filter, for messages: "Intel Open Image Denoise 2.5.1 on its CPU device".
+    pub fn describe(&self) -> String {
+        let v = self.version;
+        format!(
+            "Intel Open Image Denoise {}.{}.{} on its {} device",
+            v / 10000,
+            v / 100 % 100,
+            v % 100,
+            self.kind
+        )
     }
 
     fn int(&self, name: &CStr) -> c_int {
@@ -523,6 +540,28 @@ pub fn colour_input(acc: &Accumulation, filled: &[Vec3]) -> (Vec<f32>, usize) {
         out.extend_from_slice(&v.to_array());
     }
     (out, fills)
+}
+
+/// A render's picture denoised by OIDN: `filled` is the filter's picture (DESIGN.md §8), whose
+/// values OIDN sees only where a pixel has no usable mean of its own ([`colour_input`]); the
+/// result is linear RGB like `filled`.
+pub fn denoise_picture(
+    device: &Device,
+    acc: &Accumulation,
+    filled: &[Vec3],
+    quality: Quality,
+) -> Result<Vec<Vec3>, OidnError> {
+    let (color, _) = colour_input(acc, filled);
+    let out = device.denoise(
+        Images {
+            size: [acc.width, acc.height],
+            color: &color,
+            albedo: None,
+            normal: None,
+        },
+        quality,
+    )?;
+    Ok(out.chunks_exact(3).map(Vec3::from_slice).collect())
 }
 
 impl Drop for Device {
@@ -659,6 +698,10 @@ mod tests {
     fn a_flat_picture_stays_flat() {
         let device = installed().device(DeviceChoice::Cpu).unwrap();
         assert_eq!(device.kind(), DeviceKind::Cpu);
+        assert_eq!(
+            device.describe(),
+            "Intel Open Image Denoise 2.5.1 on its CPU device"
+        );
         let (w, h) = (48, 32);
         let color = vec![0.5f32; (w * h * 3) as usize];
         let out = device

@@ -89,6 +89,8 @@ pub enum FrameError {
     Guide(#[from] GuideError),
     #[error(transparent)]
     Filter(#[from] FilterGpuError),
+    #[error(transparent)]
+    Denoise(#[from] crate::filter::oidn::OidnError),
     #[error(
         "a full-frame renderer has no display to aim an ROI at (build it with Renderer::guided)"
     )]

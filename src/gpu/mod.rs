@@ -95,6 +95,12 @@ impl Backend {
         matches!(self, Self::Gpu(_))
     }
 
+    /// Whether the GPU backend runs on an NVIDIA adapter (PCI vendor 0x10de).
+    #[must_use]
+    pub fn is_nvidia(&self) -> bool {
+        matches!(self, Self::Gpu(ctx) if ctx.info.vendor == 0x10de)
+    }
+
     /// The adapter's description on the GPU backend; `None` on the CPU twins.
     #[must_use]
     pub fn adapter(&self) -> Option<String> {

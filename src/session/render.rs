@@ -12,7 +12,7 @@ use glam::{DVec3, Vec3};
 
 use super::guide::GuideSource;
 use crate::display::DisplayModel;
-use crate::filter::{Filter, FilterParams};
+use crate::filter::{Filter, FilterParams, oidn};
 use crate::frame::stop::{RoiProgress, StopCondition, StopReason, reached};
 use crate::frame::{EyeFollow, FrameError, GuideConfig, Render, Renderer};
 use crate::gpu::Backend;
@@ -228,6 +228,9 @@ pub struct GuidedRender<'a> {
     pub wall: Option<WallCamera>,
     pub config: GuideConfig,
     pub filter: FilterParams,
+    /// The OIDN device that denoises the filtered picture (`--denoise oidn`; DESIGN.md §8), at
+    /// the quality for saved images.
+    pub denoise: Option<&'a oidn::Device>,
 }
 
 /// One process's guided render of `scene` on `backend`: the render loop ([`run_guided`]), then
@@ -254,6 +257,9 @@ pub fn render_guided(
     let wall = r.wall().cloned();
     let (acc, dgi) = r.finish()?;
     let mut image = Filter::new(backend).image(&job.filter, &acc, &dgi)?;
+    if let Some(device) = job.denoise {
+        image = oidn::denoise_picture(device, &acc, &image, oidn::Quality::High)?;
+    }
     if let Some(wc) = &wall {
         wc.blank_unshown(&mut image);
     }

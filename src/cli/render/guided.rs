@@ -224,6 +224,7 @@ pub fn run(
     settings: TraceSettings,
     wall: Option<WallCamera>,
     backend: &Backend,
+    denoise: Option<&crate::filter::oidn::Device>,
 ) -> anyhow::Result<()> {
     crate::cli::say(args.quiet, format_args!("display: {}", plan.display_note));
     let mut bar = Progress::new(
@@ -246,6 +247,7 @@ pub fn run(
             wall,
             config: plan.config,
             filter: plan.filter,
+            denoise,
         },
         &plan.source,
         &plan.stopping,

@@ -150,6 +150,8 @@ pub struct RenderArgs {
     pub order: crate::schedule::Order,
     #[command(flatten)]
     pub filter: crate::cli::filter::FilterArgs,
+    #[command(flatten)]
+    pub denoise: crate::cli::filter::DenoiseArgs,
     /// Where to write the DGI (EXR or PNG; default `<out stem>.dgi.exr` beside the first
     /// --out, none without one).
     #[arg(long, value_name = "FILE")]
@@ -307,11 +309,23 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
         }
     };
     check_memory(work, args.size, &backend)?;
+    let denoiser = args.denoise.device(&backend)?;
+    if let Some(d) = &denoiser {
+        crate::cli::say(args.quiet, format_args!("denoise: {}", d.describe()));
+    }
     if let Some(plan) = &plan {
         let scene = load_scene(&args.scene, args.env.as_deref(), args.access)?;
         let settings = settings(args, &scene)?;
         let wall = wall_camera(wall.as_ref(), &settings)?;
-        return guided::run(args, plan, &scene, settings, wall, &backend);
+        return guided::run(
+            args,
+            plan,
+            &scene,
+            settings,
+            wall,
+            &backend,
+            denoiser.as_ref(),
+        );
     }
     // A full frame: --display matters only for the tiles and the wall camera.
     let tiles_model = match &args.tiles {
@@ -353,7 +367,19 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     let seconds = t0.elapsed().as_secs_f64();
     bar.finish();
     let acc = renderer.accumulation()?;
-    let image = acc.mean_image();
+    let mut image = acc.mean_image();
+    if let Some(d) = &denoiser {
+        image = crate::filter::oidn::denoise_picture(
+            d,
+            &acc,
+            &image,
+            crate::filter::oidn::Quality::High,
+        )?;
+        // Pixels no tile shows stay black, as without it.
+        if let Some(wc) = crate::frame::Render::wall(&renderer) {
+            wc.blank_unshown(&mut image);
+        }
+    }
     drop(acc);
     for out in &args.out {
         write_rgb(out, w, h, &image, args.exposure)?;
