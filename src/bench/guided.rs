@@ -405,7 +405,7 @@ pub fn plot(r: &GuidedBenchReport, path: &Path) -> Result<(), GuidedBenchError> 
         path: path.display().to_string(),
         reason: e,
     };
-    crate::bench::font::register().map_err(err)?;
+    crate::bench::font::register().map_err(|e| err(e.to_string()))?;
     let root = BitMapBackend::new(path, (1200, 500)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| err(e.to_string()))?;
     let (left, right) = root.split_horizontally(600);

@@ -422,7 +422,9 @@ fn cluster_bench(c: &mut Cluster, args: &GuidedBenchArgs) -> anyhow::Result<Opti
                 ("trace backend", crate::cli::cluster::trace_backend(b)),
             ],
         ),
-        Err(e) => Err(crate::cli::error_chain(e)),
+        Err(e) => Err(crate::cluster::handshake::StartupFailure(
+            crate::cli::error_chain(e),
+        )),
     };
     check(c, mine)?;
     let (display, size, scene, backend) = prepared?;

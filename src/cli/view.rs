@@ -240,7 +240,9 @@ fn run_cluster(args: &ViewArgs) -> anyhow::Result<()> {
     })();
     let mine = match &prepared {
         Ok((.., fields)) => identity(c.ranks(), fields),
-        Err(e) => Err(crate::cli::error_chain(e)),
+        Err(e) => Err(crate::cluster::handshake::StartupFailure(
+            crate::cli::error_chain(e),
+        )),
     };
     check(&mut c, mine)?;
     let (s, owners, tile_owners, config, _) = prepared?;

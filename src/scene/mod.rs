@@ -32,7 +32,7 @@ use glam::{Vec2, Vec3, Vec4};
 pub use environment::EnvironmentError;
 pub use load::{MAX_ABSORPTION, MAX_COORDINATE, MAX_SCENE_FILE_BYTES, SUPPORTED_EXTENSIONS};
 pub use report::SceneError;
-pub use resources::UriAccess;
+pub use resources::{UriAccess, UriError};
 
 /// One triangle in world space.
 #[derive(Clone, Copy, Debug, PartialEq)]

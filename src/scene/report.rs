@@ -24,7 +24,7 @@ pub enum SceneError {
         file: String,
         element: String,
         uri: String,
-        reason: String,
+        reason: crate::scene::resources::UriError,
     },
     #[error("{file}: {element}: {problem}")]
     Element {
@@ -35,7 +35,10 @@ pub enum SceneError {
     #[error("unknown built-in scene '{name}' (built-ins: {known})")]
     UnknownBuiltin { name: String, known: String },
     #[error("cannot generate built-in scene '{name}': {reason}")]
-    Generate { name: String, reason: String },
+    Generate {
+        name: String,
+        reason: crate::scene::generate::GenerateError,
+    },
 }
 
 /// `mesh 'Tower'` or `mesh 3`.

@@ -44,7 +44,9 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     let prepared = prepare(args, &c);
     let mine = match &prepared {
         Ok(p) => identity(c.ranks(), &p.fields),
-        Err(e) => Err(crate::cli::error_chain(e)),
+        Err(e) => Err(crate::cluster::handshake::StartupFailure(
+            crate::cli::error_chain(e),
+        )),
     };
     check(&mut c, mine)?;
     // The check passed, so this rank prepared (its error would have failed the check).

@@ -170,11 +170,16 @@ pub struct RenderArgs {
     pub cluster: crate::cli::cluster::ClusterArgs,
 }
 
-fn parse_format(s: &str) -> Result<Format, String> {
+/// A `--tiles-format` that is neither exr nor png.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("'{0}': the tile format is exr or png")]
+pub struct TileFormatError(String);
+
+fn parse_format(s: &str) -> Result<Format, TileFormatError> {
     match s.to_ascii_lowercase().as_str() {
         "exr" => Ok(Format::Exr),
         "png" => Ok(Format::Png),
-        _ => Err(format!("'{s}': the tile format is exr or png")),
+        _ => Err(TileFormatError(s.to_owned())),
     }
 }
 

@@ -24,6 +24,13 @@ pub use cornell::{CORNELL_CAMERA_POSITION, cornell, cornell_camera_yfov};
 /// Names `Scene::builtin` (and `--scene builtin:NAME`) accepts.
 pub const BUILTINS: &[&str] = &["cornell", "cornell-light", "city", "city-small"];
 
+/// Why a scene could not be generated.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum GenerateError {
+    #[error("--blocks must be in 1..={max}, got {got}")]
+    Blocks { max: u32, got: u32 },
+}
+
 /// A generated scene: GLB bytes and the number of triangles in them.
 #[derive(Clone, Debug)]
 pub struct Generated {

@@ -628,6 +628,30 @@ thread_local! {
     static CHOSEN: std::cell::Cell<Option<CpuPackets>> = const { std::cell::Cell::new(None) };
 }
 
+/// Why a `RAYGUN_CPU_PACKETS` value names no walks this processor and build run.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum CpuPacketsError {
+    #[error(
+        "expected 0 (one ray at a time), avx2 or avx512 (packets of sixteen rays in those lanes)"
+    )]
+    Unknown,
+    #[error("packets of sixteen rays are walked in x86-64 lanes; this build is for {arch}: use 0")]
+    NotX86_64 { arch: &'static str },
+    #[error("AVX2 packets need a build for AVX2 and FMA (.cargo/config.toml)")]
+    NoAvx2Build,
+    #[error("AVX-512 packets need a processor with AVX-512 F and DQ")]
+    NoAvx512Processor,
+}
+
+/// Why `RAYGUN_CPU_PACKETS` names no walks: the variable and its value, and why.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum CpuPacketsEnvError {
+    #[error("RAYGUN_CPU_PACKETS={value:?}: {why}")]
+    Value { value: String, why: CpuPacketsError },
+    #[error("RAYGUN_CPU_PACKETS={value:?}: not UTF-8")]
+    NotUnicode { value: std::ffi::OsString },
+}
+
 impl CpuPackets {
     /// The fastest walks this processor and build run: packets in AVX-512 where the processor
     /// has AVX-512 F and DQ, else in AVX2 where the build targets AVX2 and FMA (every x86-64
@@ -647,43 +671,31 @@ impl CpuPackets {
 
     /// The walks `value` names: `0` one ray at a time, `avx2` or `avx512` packets in those
     /// lanes; an error says why where this processor or build cannot.
-    pub fn parse(value: &str) -> Result<Self, String> {
+    pub fn parse(value: &str) -> Result<Self, CpuPacketsError> {
         let want = match value.trim() {
             "0" => return Ok(Self::One),
             "avx2" => Self::Avx2,
             "avx512" => Self::Avx512,
-            _ => {
-                return Err(
-                    "expected 0 (one ray at a time), avx2 or avx512 (packets of sixteen \
-                            rays in those lanes)"
-                        .to_owned(),
-                );
-            }
+            _ => return Err(CpuPacketsError::Unknown),
         };
         match (want, Self::widest()) {
-            _ if !cfg!(target_arch = "x86_64") => Err(format!(
-                "packets of sixteen rays are walked in x86-64 lanes; this build is for {}: \
-                 use 0",
-                std::env::consts::ARCH
-            )),
-            (Self::Avx2, Self::One) => {
-                Err("AVX2 packets need a build for AVX2 and FMA (.cargo/config.toml)".into())
-            }
-            (Self::Avx512, Self::One | Self::Avx2) => {
-                Err("AVX-512 packets need a processor with AVX-512 F and DQ".into())
-            }
+            _ if !cfg!(target_arch = "x86_64") => Err(CpuPacketsError::NotX86_64 {
+                arch: std::env::consts::ARCH,
+            }),
+            (Self::Avx2, Self::One) => Err(CpuPacketsError::NoAvx2Build),
+            (Self::Avx512, Self::One | Self::Avx2) => Err(CpuPacketsError::NoAvx512Processor),
             _ => Ok(want),
         }
     }
 
     /// `RAYGUN_CPU_PACKETS` ([`Self::parse`]; unset: [`Self::widest`]), the error naming the
     /// variable and its value.
-    pub fn from_env() -> Result<Self, String> {
+    pub fn from_env() -> Result<Self, CpuPacketsEnvError> {
         match std::env::var("RAYGUN_CPU_PACKETS") {
-            Ok(v) => Self::parse(&v).map_err(|why| format!("RAYGUN_CPU_PACKETS={v:?}: {why}")),
+            Ok(v) => Self::parse(&v).map_err(|why| CpuPacketsEnvError::Value { value: v, why }),
             Err(std::env::VarError::NotPresent) => Ok(Self::widest()),
-            Err(std::env::VarError::NotUnicode(v)) => {
-                Err(format!("RAYGUN_CPU_PACKETS={v:?}: not UTF-8"))
+            Err(std::env::VarError::NotUnicode(value)) => {
+                Err(CpuPacketsEnvError::NotUnicode { value })
             }
         }
     }
@@ -1531,11 +1543,11 @@ mod tests {
         };
         assert_eq!(CpuPackets::widest(), widest);
         if !cfg!(target_arch = "x86_64") {
-            let e = CpuPackets::parse("avx2").unwrap_err();
+            let e = CpuPackets::parse("avx2").unwrap_err().to_string();
             assert!(e.contains(std::env::consts::ARCH), "{e}");
         }
         for bad in ["", "1", "8", "16", "AVX2", "avx", "avx2,avx512"] {
-            let e = CpuPackets::parse(bad).unwrap_err();
+            let e = CpuPackets::parse(bad).unwrap_err().to_string();
             assert!(e.contains("expected 0"), "{bad:?}: {e}");
         }
         let outside = CpuPackets::current();
