@@ -142,18 +142,20 @@ pub fn run_bench(args: &FilterBenchArgs) -> anyhow::Result<()> {
                 &config,
                 progress,
                 |fov, _| {
-                    crate::bench::guided::filter_input(
-                        &backend,
-                        &model,
+                    let subject = crate::bench::paper::Subject {
+                        backend: &backend,
+                        display: &model,
                         name,
-                        &scene,
-                        args.size,
+                        scene: &scene,
+                    };
+                    let shot = crate::bench::paper::Shot {
+                        size: args.size,
                         fov,
-                        args.rounds,
-                        args.reference_spp,
-                        config.seed,
-                    )
-                    .map_err(|e| bench::FilterBenchError::Render(e.to_string()))
+                        iterations: args.rounds,
+                        seed: config.seed,
+                    };
+                    crate::bench::guided::filter_input(&subject, shot, args.reference_spp)
+                        .map_err(|e| bench::FilterBenchError::Render(e.to_string()))
                 },
             )?
         }

@@ -437,6 +437,15 @@ impl PrimLanes {
     }
 }
 
+/// A ray's segment: from `origin` along `dir` (not normalised: `t` counts `dir`s) up to
+/// `tmax`.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Segment {
+    pub(super) origin: Vec3,
+    pub(super) dir: Vec3,
+    pub(super) tmax: f32,
+}
+
 /// What the box test needs of a ray, computed once per ray: obvhs' guarded reciprocal of the
 /// direction (the GPU's `safe_inverse`), the origin times it, and per axis which plane of a
 /// box the ray meets first (the near plane is the maximum for a negative direction).
@@ -955,7 +964,8 @@ impl CpuTree {
         }
         let mut best = None;
         let ray = NodeRay::new(origin, dir);
-        self.walk_closest(0, &ray, origin, dir, tmax, &mut best, &covered);
+        let segment = Segment { origin, dir, tmax };
+        self.walk_closest(0, &ray, segment, &mut best, &covered);
         best.map(|(t, u, v, i)| TraceHit {
             t,
             u,
@@ -965,23 +975,20 @@ impl CpuTree {
         })
     }
 
-    /// The closest hit's walk below node `root` for a ray (`ray`: its reciprocal direction, of
-    /// `origin` and `dir`) whose closest hit so far is `best` (t, u, v, primitive), kept in
-    /// `best` ([`Self::closest_hit_filtered`]'s walk; the hybrid packets finish their rays'
-    /// walks with it).
+    /// The closest hit's walk below node `root` for the ray of `segment` (`ray`: its reciprocal
+    /// direction) whose closest hit so far is `best` (t, u, v, primitive), kept in `best`
+    /// ([`Self::closest_hit_filtered`]'s walk; the hybrid packets finish their rays' walks
+    /// with it).
     #[inline(always)]
-    #[allow(clippy::too_many_arguments)]
     fn walk_closest(
         &self,
         root: usize,
         ray: &NodeRay,
-        origin: Vec3,
-        dir: Vec3,
-        tmax: f32,
+        segment: Segment,
         best: &mut Option<(f32, f32, f32, u32)>,
         covered: &impl Fn(u32, f32, f32) -> bool,
     ) {
-        let ray_tmax = tmax;
+        let tmax = segment.tmax;
         // The nodes' bound: the closest hit's t once there is one (a node entered exactly there
         // is still visited: it may hold an equally near hit on a higher triangle).
         let mut tmax = best.map_or(tmax, |b| b.0);
@@ -1020,9 +1027,7 @@ impl CpuTree {
                 changed |= self.leaf_closest(
                     node.child[c],
                     u32::from(node.count[c]),
-                    origin,
-                    dir,
-                    ray_tmax,
+                    segment,
                     best,
                     covered,
                 );
@@ -1094,7 +1099,7 @@ impl CpuTree {
                     let node = &self.nodes[((r & !LEAF_REF) >> 3) as usize];
                     let c = (r & 7) as usize;
                     let count = u32::from(node.count[c]);
-                    if self.leaf_closest(node.child[c], count, origin, dir, ray_tmax, best, covered)
+                    if self.leaf_closest(node.child[c], count, segment, best, covered)
                         && let Some(b) = *best
                     {
                         tmax = b.0;
@@ -1450,17 +1455,15 @@ impl CpuTree {
     /// The leaf `first..first + count`'s hits kept in `best` ([`PrimLanes::closest`]), with
     /// alpha-tested primitives asked `covered`, one at a time. Whether `best` changed.
     #[inline(always)]
-    #[allow(clippy::too_many_arguments)]
     fn leaf_closest(
         &self,
         first: u32,
         count: u32,
-        origin: Vec3,
-        dir: Vec3,
-        tmax: f32,
+        segment: Segment,
         best: &mut Option<(f32, f32, f32, u32)>,
         covered: &impl Fn(u32, f32, f32) -> bool,
     ) -> bool {
+        let Segment { origin, dir, tmax } = segment;
         if !self.lanes.alpha {
             return self.lanes.closest(first, count, origin, dir, tmax, best);
         }
