@@ -6,7 +6,6 @@ use std::path::PathBuf;
 use crate::bench::filter::{self as bench, FilterBenchConfig};
 use crate::display::DisplayModel;
 use crate::filter::{Blend, FilterKind, FilterParams, FilterParamsError, synth};
-use crate::gpu::{Backend, BackendChoice};
 use crate::roi::dgi::Surface;
 
 /// Sparse-sample filter settings (DESIGN.md §8; definitions in `src/filter/mod.rs`).
@@ -94,8 +93,8 @@ pub struct FilterBenchArgs {
     /// filter and blend is measured).
     #[command(flatten)]
     pub filter: FilterArgs,
-    #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
-    pub backend: BackendChoice,
+    #[command(flatten)]
+    pub backend: crate::cli::args::BackendArgs,
     /// Print JSON instead of Markdown tables.
     #[arg(long)]
     pub json: bool,
@@ -116,7 +115,7 @@ pub fn run_bench(args: &FilterBenchArgs) -> anyhow::Result<()> {
     }
     let model = DisplayModel::open(&args.display)?.0;
     let surface = Surface::from_model(&model);
-    let backend = Backend::select(args.backend)?;
+    let backend = args.backend.select()?;
     let config = FilterBenchConfig {
         size: args.size,
         fovs_deg: args.fov.clone(),

@@ -96,7 +96,7 @@ fn prepare(args: &RenderArgs, c: &Cluster) -> anyhow::Result<Prepared> {
     // Each rank traces on its own GPU where it has one and computes the DGI there (as one GPU
     // process does); the schedule and the owners' tiles stay on the CPUs, and rank 0 filters
     // the whole picture where it traced.
-    let (backend, note) = Backend::choose(args.backend)?;
+    let (backend, note) = args.backend.choose()?;
     if let Some(note) = note {
         crate::cli::say(args.quiet, note);
     }
