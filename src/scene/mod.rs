@@ -31,8 +31,8 @@ use glam::{Vec2, Vec3, Vec4};
 
 pub use environment::EnvironmentError;
 pub use load::{MAX_ABSORPTION, MAX_COORDINATE, MAX_SCENE_FILE_BYTES, SUPPORTED_EXTENSIONS};
-pub use report::SceneError;
-pub use resources::{UriAccess, UriError};
+pub use report::{GenerateError, SceneError, UriError};
+pub use resources::UriAccess;
 
 /// One triangle in world space.
 #[derive(Clone, Copy, Debug, PartialEq)]

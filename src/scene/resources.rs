@@ -9,7 +9,7 @@ use std::collections::HashMap;
 use std::io::Cursor;
 use std::path::Path;
 
-use super::report::{Report, SceneError, label};
+use super::report::{Report, SceneError, UriError, label};
 use super::{Sampler, Texture, Wrap};
 
 /// Images larger than this (bytes of decoded RGBA8) are refused by the decoder: a 16k × 8k
@@ -267,38 +267,6 @@ pub(super) enum Want {
     Exactly(u64),
     /// An image: the whole file, at most this many bytes.
     AtMost(u64),
-}
-
-/// Why the bytes behind a glTF URI could not be read.
-#[derive(Debug, thiserror::Error)]
-pub enum UriError {
-    #[error("a data URI must be base64-encoded (';base64,')")]
-    NotBase64,
-    #[error("bad base64: {0}")]
-    Base64(base64::DecodeError),
-    #[error("only data: URIs and relative paths are supported")]
-    Scheme,
-    #[error("an in-memory scene cannot refer to external files")]
-    InMemory,
-    #[error("bad percent-escape in URI '{uri}'")]
-    PercentEscape { uri: String },
-    #[error("URI '{uri}' does not decode to UTF-8")]
-    NotUtf8 { uri: String },
-    #[error("{} ({error})", path.display())]
-    Read {
-        path: std::path::PathBuf,
-        error: std::io::Error,
-    },
-    #[error(
-        "it names {}, outside the scene's folder {}: a scene reads files only from its own \
-         folder and below (--trust-scene lets a scene you trust read any file)",
-        target.display(),
-        folder.display()
-    )]
-    Outside {
-        target: std::path::PathBuf,
-        folder: std::path::PathBuf,
-    },
 }
 
 /// The bytes behind a glTF URI: `data:…;base64,…`, or a relative path or `file:` URI resolved

@@ -16,6 +16,7 @@ mod city;
 mod cornell;
 mod glb;
 
+pub use super::GenerateError;
 use super::{Scene, SceneError};
 
 pub use city::{CityParams, city};
@@ -23,13 +24,6 @@ pub use cornell::{CORNELL_CAMERA_POSITION, cornell, cornell_camera_yfov};
 
 /// Names `Scene::builtin` (and `--scene builtin:NAME`) accepts.
 pub const BUILTINS: &[&str] = &["cornell", "cornell-light", "city", "city-small"];
-
-/// Why a scene could not be generated.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-pub enum GenerateError {
-    #[error("--blocks must be in 1..={max}, got {got}")]
-    Blocks { max: u32, got: u32 },
-}
 
 /// A generated scene: GLB bytes and the number of triangles in them.
 #[derive(Clone, Debug)]
