@@ -554,20 +554,19 @@ fn stage_times_on_the_gpu_fit_in_the_iteration() {
         ..Default::default()
     };
     for path in [PicturePath::Host, PicturePath::Gpu, PicturePath::Texture] {
-        let r = raygun::bench::all::stages::measure(
-            &backend,
-            &display,
-            "cornell",
-            &scene,
-            [48, 27],
-            60.0,
-            3,
-            &filter,
-            0.0,
-            1,
-            path,
-        )
-        .unwrap();
+        let subject = raygun::bench::paper::Subject {
+            backend: &backend,
+            display: &display,
+            name: "cornell",
+            scene: &scene,
+        };
+        let shot = raygun::bench::paper::Shot {
+            size: [48, 27],
+            fov: 60.0,
+            iterations: 3,
+            seed: 1,
+        };
+        let r = raygun::bench::all::stages::measure(&subject, shot, &filter, 0.0, path).unwrap();
         assert_eq!(r.picture, path, "a one-band frame takes the way asked for");
         assert_eq!(r.iterations, 3);
         assert!(r.share_sampled > 0.0 && r.share_sampled < 1.0);

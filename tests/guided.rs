@@ -302,18 +302,19 @@ fn filters_reduce_the_band_error_of_a_guided_render() {
     use raygun::filter::Filter;
     use raygun::filter::FilterParams;
     let scene = cornell();
-    let input = raygun::bench::guided::filter_input(
-        &Backend::Cpu,
-        &hornet(),
-        "cornell",
-        &scene,
-        [96, 54],
-        60.0,
-        16,
-        128,
-        3,
-    )
-    .unwrap();
+    let subject = raygun::bench::paper::Subject {
+        backend: &Backend::Cpu,
+        display: &hornet(),
+        name: "cornell",
+        scene: &scene,
+    };
+    let shot = raygun::bench::paper::Shot {
+        size: [96, 54],
+        fov: 60.0,
+        iterations: 16,
+        seed: 3,
+    };
+    let input = raygun::bench::guided::filter_input(&subject, shot, 128).unwrap();
     let params = FilterParams {
         k_max: 4.0,
         ..FilterParams::default()

@@ -81,6 +81,7 @@ fn render(replay: &str) -> (GuidedResult, GuideSource) {
                 ..GuideConfig::default()
             },
             filter: FilterParams::default(),
+            denoise: None,
         },
         &source,
         &Stopping {

@@ -251,7 +251,8 @@ fn city_seed_changes_the_layout_and_blocks_are_checked() {
         blocks: too_many,
         seed: 1,
     })
-    .unwrap_err();
+    .unwrap_err()
+    .to_string();
     assert!(e.contains("--blocks"), "{e}");
 }
 

@@ -17,7 +17,7 @@ use raygun::frame::{GuideConfig, Render, Renderer};
 use raygun::gpu::{Backend, GpuContext};
 use raygun::random::{pcg4d, stream, unit_f32};
 use raygun::scene::{Environment, EnvironmentMap, Material, Scene, Triangle};
-use raygun::schedule::{Order, schedule_cpu_shown};
+use raygun::schedule::{DrawInput, Order, schedule_cpu_shown};
 use raygun::trace::accum::Accumulation;
 use raygun::trace::camera::RenderCamera;
 use raygun::trace::gpu::{GpuAccum, GpuScene, TraceKernel, TraceRun};
@@ -145,21 +145,28 @@ fn shown_by(model: &DisplayModel, size: [u32; 2]) -> Vec<Vec<usize>> {
     by
 }
 
+/// The wall camera an image was traced through: the display, the camera, the image size, the
+/// eye (room frame) and where the room sits in the scene.
+struct Traced<'a> {
+    model: &'a DisplayModel,
+    wc: &'a WallCamera,
+    size: [u32; 2],
+    eye: DVec3,
+    xf: &'a SceneFromRoom,
+}
+
 /// Checks one sample per pixel against the geometry: a pixel is shown when its centre lies on
 /// a tile's active area (traced through that tile) or when a tile's own pixels show it (traced
 /// through one of those tiles); unshown pixels have no sample, shown ones met the texel of
 /// their jittered wall point (±1 texel, columns wrapping).
-#[allow(clippy::too_many_arguments)]
-fn check_image(
-    acc: &Accumulation,
-    model: &DisplayModel,
-    wc: &WallCamera,
-    size: [u32; 2],
-    eye: DVec3,
-    xf: &SceneFromRoom,
-    seed: u32,
-    label: &str,
-) {
+fn check_image(acc: &Accumulation, traced: &Traced, seed: u32, label: &str) {
+    let Traced {
+        model,
+        wc,
+        size,
+        eye,
+        xf,
+    } = *traced;
     let [w, h] = size;
     let by = shown_by(model, size);
     let mut checked = 0;
@@ -275,11 +282,13 @@ fn cpu_twin_rays_pass_through_every_pixels_wall_point_on_every_shipped_model() {
             render_cpu_with(&packed, &s, Some(&wc), &mut acc, None);
             check_image(
                 &acc,
-                &model,
-                &wc,
-                size,
-                eye,
-                &IDENTITY,
+                &Traced {
+                    model: &model,
+                    wc: &wc,
+                    size,
+                    eye,
+                    xf: &IDENTITY,
+                },
                 seed,
                 &format!("CPU, {}, eye {eye}", model.name()),
             );
@@ -309,11 +318,13 @@ fn gpu_rays_pass_through_every_pixels_wall_point_on_every_shipped_model() {
             let acc = acc.read(&ctx).unwrap();
             check_image(
                 &acc,
-                &model,
-                &wc,
-                size,
-                eye,
-                &IDENTITY,
+                &Traced {
+                    model: &model,
+                    wc: &wc,
+                    size,
+                    eye,
+                    xf: &IDENTITY,
+                },
                 seed,
                 &format!("GPU, {}, eye {eye}", model.name()),
             );
@@ -359,11 +370,13 @@ fn world_from_room_turns_the_rays_into_the_scene() {
         render_cpu_with(&packed, &s, Some(&wc), &mut acc, None);
         check_image(
             &acc,
-            &model,
-            &wc,
-            size,
-            eye,
-            &wc.scene_from_room,
+            &Traced {
+                model: &model,
+                wc: &wc,
+                size,
+                eye,
+                xf: &wc.scene_from_room,
+            },
             11,
             &format!("CPU, {placement:?}"),
         );
@@ -494,17 +507,16 @@ fn bezel_pixels_are_never_scheduled_or_traced_on_either_backend() {
     assert_eq!(wc.shown_count() as usize, n - hidden);
     // With d = 0 everywhere every shown pixel has p = 1, every hidden one p = 0.
     let dgi = vec![0.0f32; n];
-    let list = schedule_cpu_shown(
-        &dgi,
-        Some(wc.shown_mask()),
-        w,
-        h,
-        0.5,
-        0,
-        1,
-        Order::Coherent,
-    )
-    .unwrap();
+    let input = DrawInput {
+        dgi: &dgi,
+        shown: Some(wc.shown_mask()),
+        width: w,
+        height: h,
+        p_min: 0.5,
+        iteration: 0,
+        seed: 1,
+    };
+    let list = schedule_cpu_shown(&input, Order::Coherent).unwrap();
     assert_eq!(list.len() as u64, wc.shown_count());
     assert!(list.iter().all(|&p| wc.is_shown(p)));
     let iterations = 3;

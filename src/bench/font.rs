@@ -13,15 +13,18 @@ pub const FAMILY: &str = "sans-serif";
 
 /// Registers the built-in typeface as [`FAMILY`] (once per process; later calls return the
 /// first call's outcome).
-pub fn register() -> Result<(), String> {
-    static REGISTERED: OnceLock<Result<(), String>> = OnceLock::new();
-    REGISTERED
-        .get_or_init(|| {
-            plotters::style::register_font(FAMILY, plotters::style::FontStyle::Normal, DEJAVU_SANS)
-                .map_err(|_| "the built-in font (DejaVu Sans) did not parse".to_string())
-        })
-        .clone()
+pub fn register() -> Result<(), FontError> {
+    static REGISTERED: OnceLock<Result<(), FontError>> = OnceLock::new();
+    *REGISTERED.get_or_init(|| {
+        plotters::style::register_font(FAMILY, plotters::style::FontStyle::Normal, DEJAVU_SANS)
+            .map_err(|_| FontError)
+    })
 }
+
+/// The built-in typeface did not parse.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("the built-in font (DejaVu Sans) did not parse")]
+pub struct FontError;
 
 #[cfg(test)]
 mod tests {

@@ -405,7 +405,7 @@ pub fn plot(r: &GuidedBenchReport, path: &Path) -> Result<(), GuidedBenchError> 
         path: path.display().to_string(),
         reason: e,
     };
-    crate::bench::font::register().map_err(err)?;
+    crate::bench::font::register().map_err(|e| err(e.to_string()))?;
     let root = BitMapBackend::new(path, (1200, 500)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| err(e.to_string()))?;
     let (left, right) = root.split_horizontally(600);
@@ -489,21 +489,27 @@ pub fn plot(r: &GuidedBenchReport, path: &Path) -> Result<(), GuidedBenchError> 
     Ok(())
 }
 
-/// A guided render of `scene` in the paper's setup (viewer 1 m in front of the wall centre,
-/// square cone of `fov` degrees, p_min 0), for the filter benchmark's error table: `iterations`
-/// guided iterations and a full-frame reference of `reference_spp` samples per pixel.
-#[allow(clippy::too_many_arguments)]
+/// A guided render of `subject.scene` in the paper's setup (viewer 1 m in front of the wall
+/// centre, square cone of `shot.fov` degrees, p_min 0), for the filter benchmark's error table:
+/// `shot.iterations` guided iterations and a full-frame reference of `reference_spp` samples
+/// per pixel.
 pub fn filter_input(
-    backend: &Backend,
-    display: &DisplayModel,
-    name: &str,
-    scene: &Scene,
-    size: [u32; 2],
-    fov: f64,
-    iterations: u32,
+    subject: &paper::Subject,
+    shot: paper::Shot,
     reference_spp: u32,
-    seed: u32,
 ) -> Result<crate::bench::filter::FilterBenchInput, GuidedBenchError> {
+    let paper::Subject {
+        backend,
+        display,
+        name,
+        scene,
+    } = *subject;
+    let paper::Shot {
+        size,
+        fov,
+        iterations,
+        seed,
+    } = shot;
     let base = paper::settings(scene, size, seed, crate::trace::path::DEFAULT_MAX_DEPTH).map_err(
         |source| GuidedBenchError::Camera {
             scene: name.to_string(),

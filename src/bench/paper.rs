@@ -26,6 +26,26 @@ pub const ORIGIN: [f64; 3] = [0.0, 0.0, 1.0];
 /// Where the viewer points: straight at the wall.
 pub const DIR: [f64; 3] = [0.0, 0.0, -1.0];
 
+/// What a measurement in the paper's setup renders: `scene` (named `name` in the reports) on
+/// `backend`, for `display`'s wall.
+#[derive(Clone, Copy)]
+pub struct Subject<'a> {
+    pub backend: &'a Backend,
+    pub display: &'a DisplayModel,
+    pub name: &'a str,
+    pub scene: &'a Scene,
+}
+
+/// A guided render in the paper's setup: the image `size`, the square cone's `fov` (degrees),
+/// how many guided `iterations`, and the `seed`.
+#[derive(Clone, Copy, Debug)]
+pub struct Shot {
+    pub size: [u32; 2],
+    pub fov: f64,
+    pub iterations: u32,
+    pub seed: u32,
+}
+
 /// A square cone of `fov_deg` from `origin` along `dir` (up +Y).
 pub fn cone_from(origin: [f64; 3], dir: [f64; 3], fov_deg: f64) -> Result<Cone, ConeError> {
     Cone::from_pose(

@@ -99,7 +99,7 @@ pub enum PictureBenchError {
         host: u8,
     },
     #[error("the statistics measured on the GPU differ from the CPU twin's: {0}")]
-    StatsDiffer(String),
+    StatsDiffer(crate::output::stats::StatsMismatch),
     #[error("the picture written into a texture differs from the GPU-resident bytes at byte {0}")]
     TextureDiffers(usize),
     #[error(transparent)]

@@ -2,7 +2,9 @@
 
 use glam::{DVec2, DVec3};
 
+use crate::gpu::{Backend, BackendChoice, GpuError};
 use crate::messages::quote;
+use crate::trace::camera::LookAt;
 
 /// Why a command-line list did not parse.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -79,6 +81,53 @@ pub fn parse_vec3(text: &str) -> Result<DVec3, ListParseError> {
 /// "A,B" → a finite pair.
 pub fn parse_pair(text: &str) -> Result<DVec2, ListParseError> {
     floats::<2>(text, "A,B").map(DVec2::from_array)
+}
+
+/// `--backend`: where the stages run, the same flag in every command that renders.
+#[derive(Clone, Copy, Debug, clap::Args)]
+pub struct BackendArgs {
+    #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
+    pub backend: BackendChoice,
+}
+
+impl BackendArgs {
+    /// The backend `--backend` names ([`Backend::select`]).
+    pub fn select(&self) -> Result<Backend, GpuError> {
+        Backend::select(self.backend)
+    }
+
+    /// The backend `--backend` names and a note on the choice ([`Backend::choose`]).
+    pub fn choose(&self) -> Result<(Backend, Option<String>), GpuError> {
+        Backend::choose(self.backend)
+    }
+}
+
+/// `--look-from X,Y,Z --look-at X,Y,Z [--yfov DEG]`: a viewpoint instead of a scene camera,
+/// the same flags in `render` and `view`.
+#[derive(Clone, Copy, Debug, Default, clap::Args)]
+pub struct LookArgs {
+    /// Look from this point (X,Y,Z, metres, the scene's frame) instead of a scene camera;
+    /// needs --look-at.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, requires = "look_at", conflicts_with = "camera", allow_hyphen_values = true)]
+    pub look_from: Option<DVec3>,
+    /// The point --look-from looks at (+Y up).
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, requires = "look_from", allow_hyphen_values = true)]
+    pub look_at: Option<DVec3>,
+    /// Vertical field of view of --look-from, degrees (default 45).
+    #[arg(long, value_name = "DEG", requires = "look_from")]
+    pub yfov: Option<f32>,
+}
+
+impl LookArgs {
+    /// The viewpoint the flags give (clap makes `--look-from` and `--look-at` go together).
+    #[must_use]
+    pub fn viewpoint(&self) -> Option<LookAt> {
+        Some(LookAt {
+            from: self.look_from?.as_vec3(),
+            at: self.look_at?.as_vec3(),
+            yfov_deg: self.yfov.unwrap_or(45.0),
+        })
+    }
 }
 
 /// `--size native` as parsed, before the display is known: [`resolve_size`] replaces it with the

@@ -216,8 +216,8 @@ pub struct AllBenchArgs {
     /// Display model (the paper's setup: HORNET).
     #[arg(long, value_name = "MODEL", default_value = crate::display::DEFAULT_MODEL)]
     pub display: String,
-    #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
-    pub backend: BackendChoice,
+    #[command(flatten)]
+    pub backend: crate::cli::args::BackendArgs,
     /// Guided iterations of the guided benchmark and of each convergence curve, overriding
     /// the mode's (quick 128, full 100): fewer for a report that must fit a short run.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
@@ -229,7 +229,7 @@ pub struct AllBenchArgs {
 }
 
 fn run_all_bench(args: &AllBenchArgs) -> anyhow::Result<()> {
-    let backend = Backend::select(args.backend)?;
+    let backend = args.backend.select()?;
     let display = DisplayModel::open(&args.display)?.0;
     let scene = crate::cli::scene::load_scene(&args.scene, None, args.access)?;
     let name = args.scene.trim_start_matches("builtin:");
@@ -298,8 +298,8 @@ pub struct GuidedBenchArgs {
     /// Environment (R,G,B or an .hdr/.exr file); default white.
     #[arg(long, value_name = "R,G,B|FILE")]
     pub env: Option<String>,
-    #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
-    pub backend: BackendChoice,
+    #[command(flatten)]
+    pub backend: crate::cli::args::BackendArgs,
     /// Print JSON instead of Markdown.
     #[arg(long)]
     pub json: bool,
@@ -399,7 +399,7 @@ fn cluster_bench(c: &mut Cluster, args: &GuidedBenchArgs) -> anyhow::Result<Opti
         let display = DisplayModel::open(&args.display).context("--display")?.0;
         let size = crate::cli::args::resolve_size(args.size, &args.display)?;
         let scene = crate::cli::scene::load_scene(&scene_name, args.env.as_deref(), args.access)?;
-        let backend = Backend::select(args.backend)?;
+        let backend = args.backend.select()?;
         Ok((display, size, scene, backend))
     })();
     let mine = match &prepared {
@@ -422,7 +422,9 @@ fn cluster_bench(c: &mut Cluster, args: &GuidedBenchArgs) -> anyhow::Result<Opti
                 ("trace backend", crate::cli::cluster::trace_backend(b)),
             ],
         ),
-        Err(e) => Err(crate::cli::error_chain(e)),
+        Err(e) => Err(crate::cluster::handshake::StartupFailure(
+            crate::cli::error_chain(e),
+        )),
     };
     check(c, mine)?;
     let (display, size, scene, backend) = prepared?;
@@ -516,8 +518,8 @@ pub struct NativeBenchArgs {
     /// Environment (R,G,B or an .hdr/.exr file); default white.
     #[arg(long, value_name = "R,G,B|FILE")]
     pub env: Option<String>,
-    #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
-    pub backend: BackendChoice,
+    #[command(flatten)]
+    pub backend: crate::cli::args::BackendArgs,
     /// Print JSON instead of Markdown.
     #[arg(long)]
     pub json: bool,
@@ -546,7 +548,7 @@ fn run_native_bench(args: &NativeBenchArgs) -> anyhow::Result<()> {
             args.p_min
         );
     }
-    let backend = Backend::select(args.backend)?;
+    let backend = args.backend.select()?;
     let scenes = crate::cli::scene::load_scenes(&args.scene, args.env.as_deref(), args.access)?;
     let cfg = crate::bench::native::NativeBenchConfig {
         fovs_deg: args.fov.clone(),
@@ -583,7 +585,7 @@ fn run_guided_bench(args: &GuidedBenchArgs) -> anyhow::Result<()> {
         anyhow::bail!("--camera {c}: bench guided measures the pinhole (default) or wall");
     }
     let wall = crate::cli::wall::wall_spec(args.camera.as_deref(), &args.wall, Some(&display))?;
-    let backend = Backend::select(args.backend)?;
+    let backend = args.backend.select()?;
     let scenes = crate::cli::scene::load_scenes(&args.scene, args.env.as_deref(), args.access)?;
     let cfg = crate::bench::guided::GuidedBenchConfig {
         size: crate::cli::args::resolve_size(args.size, &args.display)?,
@@ -656,8 +658,8 @@ pub struct TraceBenchArgs {
     /// Environment (R,G,B or an .hdr/.exr file); default white.
     #[arg(long, value_name = "R,G,B|FILE")]
     pub env: Option<String>,
-    #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
-    pub backend: BackendChoice,
+    #[command(flatten)]
+    pub backend: crate::cli::args::BackendArgs,
     /// Print JSON instead of a Markdown table.
     #[arg(long)]
     pub json: bool,
@@ -700,7 +702,7 @@ fn run_trace_bench(args: &TraceBenchArgs) -> anyhow::Result<()> {
         _ => None,
     };
     let wall = crate::cli::wall::wall_spec(camera, &args.wall, model.as_ref())?;
-    let backend = Backend::select(args.backend)?;
+    let backend = args.backend.select()?;
     let scenes = crate::cli::scene::load_scenes(&args.scene, args.env.as_deref(), args.access)?;
     let cfg = crate::bench::trace::TraceBenchConfig {
         size: args.size,
@@ -802,8 +804,8 @@ pub struct DgiBenchArgs {
     /// CPU repetitions per measurement.
     #[arg(long, default_value_t = 3)]
     pub cpu_reps: u32,
-    #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
-    pub backend: BackendChoice,
+    #[command(flatten)]
+    pub backend: crate::cli::args::BackendArgs,
     /// Print JSON instead of a Markdown table.
     #[arg(long)]
     pub json: bool,
@@ -867,7 +869,7 @@ pub fn run(cmd: &BenchCommand) -> anyhow::Result<()> {
         BenchCommand::Dgi(args) => {
             let model = DisplayModel::open(&args.display)?.0;
             let surface = Surface::from_model(&model);
-            let backend = Backend::select(args.backend)?;
+            let backend = args.backend.select()?;
             let config = DgiBenchConfig {
                 size: args.size,
                 fovs_deg: args.fov.clone(),

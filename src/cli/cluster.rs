@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, bail};
 
-use crate::cluster::handshake::{Identity, handshake};
+use crate::cluster::handshake::{Identity, StartupFailure, handshake};
 use crate::cluster::owners::{BlockOwners, TileOwners};
 use crate::cluster::{Cluster, ClusterError, DgiMode};
 use crate::display::DisplayModel;
@@ -56,21 +56,42 @@ pub struct ClusterArgs {
     pub cluster_fault: Option<Fault>,
 }
 
+/// Why a `--cluster-fault` value did not parse.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum FaultParseError {
+    #[error("{text:?}: expected RANK:ITERATION:exit|hang")]
+    Form { text: String },
+    #[error("{text:?}: {what} {value:?} is not a whole number")]
+    NotANumber {
+        text: String,
+        what: &'static str,
+        value: String,
+    },
+    #[error("{text:?}: the fault is exit or hang, not {kind:?}")]
+    Kind { text: String, kind: String },
+}
+
 /// Parses `--cluster-fault`.
-pub fn parse_fault(s: &str) -> Result<Fault, String> {
+pub fn parse_fault(s: &str) -> Result<Fault, FaultParseError> {
     let parts: Vec<&str> = s.split(':').collect();
     let [rank, iteration, kind] = parts[..] else {
-        return Err(format!("{s:?}: expected RANK:ITERATION:exit|hang"));
+        return Err(FaultParseError::Form { text: s.to_owned() });
     };
-    let num = |v: &str, what: &str| {
-        v.parse::<u32>()
-            .map_err(|_| format!("{s:?}: {what} {v:?} is not a whole number"))
+    let num = |v: &str, what: &'static str| {
+        v.parse::<u32>().map_err(|_| FaultParseError::NotANumber {
+            text: s.to_owned(),
+            what,
+            value: v.to_owned(),
+        })
     };
     let (rank, iteration) = (num(rank, "rank")? as usize, num(iteration, "iteration")?);
     match kind {
         "exit" => Ok(Fault::Exit { rank, iteration }),
         "hang" => Ok(Fault::Hang { rank, iteration }),
-        _ => Err(format!("{s:?}: the fault is exit or hang, not {kind:?}")),
+        _ => Err(FaultParseError::Kind {
+            text: s.to_owned(),
+            kind: kind.to_owned(),
+        }),
     }
 }
 
@@ -144,7 +165,7 @@ pub fn block_owners(
 }
 
 /// The start-up check's record of a render: `fields` after the binary and the job's size.
-pub fn identity(ranks: usize, fields: &[(&str, String)]) -> Result<Identity, String> {
+pub fn identity(ranks: usize, fields: &[(&str, String)]) -> Result<Identity, StartupFailure> {
     let mut id = Identity::new(ranks)?;
     for (name, value) in fields {
         id.push(name, value.clone());
@@ -164,7 +185,7 @@ pub fn model_field(model: &DisplayModel) -> String {
 
 /// Runs the start-up check with this rank's record (or the error that kept it from one): `Ok`
 /// on every rank to go on; an error (the same on every rank) naming the ranks at fault.
-pub fn check(c: &mut Cluster, mine: Result<Identity, String>) -> anyhow::Result<()> {
+pub fn check(c: &mut Cluster, mine: Result<Identity, StartupFailure>) -> anyhow::Result<()> {
     match handshake(c, mine) {
         Ok(()) => Ok(()),
         Err(ClusterError::Rejected(why)) => bail!("--cluster: rank {}: {why}", c.rank()),
@@ -208,7 +229,7 @@ mod tests {
             })
         );
         for bad in ["2:3", "x:3:hang", "2:-1:exit", "2:3:crash"] {
-            let e = parse_fault(bad).unwrap_err();
+            let e = parse_fault(bad).unwrap_err().to_string();
             assert!(e.contains(bad), "{e}");
         }
     }

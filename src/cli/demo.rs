@@ -13,7 +13,7 @@ use crate::cli::view::{ViewArgs, has_display};
 use crate::display::DisplayModel;
 use crate::filter::FilterParams;
 use crate::frame::GuideConfig;
-use crate::gpu::{Backend, BackendChoice};
+use crate::gpu::Backend;
 use crate::output::OutputSet;
 use crate::session::guide::GuideSource;
 use crate::session::render::{GuidedRender, GuidedResult, Stopping, render_guided};
@@ -50,8 +50,8 @@ pub struct DemoArgs {
     /// 13519×5457 pixels.
     #[arg(allow_hyphen_values = true, long, value_name = "W,H|native", value_parser = crate::cli::args::parse_size_or_native, default_value = "992,400")]
     pub size: [u32; 2],
-    #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
-    pub backend: BackendChoice,
+    #[command(flatten)]
+    pub backend: crate::cli::args::BackendArgs,
     /// Also write the 35 wall tiles (1920×1080 PNGs) to `<out>/tiles/`.
     #[arg(long)]
     pub tiles: bool,
@@ -145,7 +145,7 @@ pub fn run_headless(args: &DemoArgs) -> anyhow::Result<DemoOutput> {
     // Everything the demo writes, taken back if it fails before the report (a full disk).
     let mut set = OutputSet::new();
     set.folder(&args.out)?;
-    let (backend, note) = Backend::choose(args.backend)?;
+    let (backend, note) = args.backend.choose()?;
     if let Some(note) = note {
         crate::cli::say(args.quiet, note);
     }
@@ -407,9 +407,7 @@ pub fn view_args(args: &DemoArgs, display: &Path, replay: &Path) -> ViewArgs {
         camera: args.camera.clone(),
         wall: args.wall.clone(),
         head: crate::cli::head::HeadArgs::default(),
-        look_from: None,
-        look_at: None,
-        yfov: None,
+        look: crate::cli::args::LookArgs::default(),
         max_depth: DEFAULT_MAX_DEPTH,
         backend: args.backend,
         window_gpu: crate::cli::view::WindowGpu::Shared,

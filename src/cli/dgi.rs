@@ -8,7 +8,7 @@ use glam::{DVec2, DVec3};
 
 use crate::cli::args::{parse_pair, parse_vec3};
 use crate::display::DisplayModel;
-use crate::gpu::{Backend, BackendChoice};
+use crate::gpu::Backend;
 use crate::roi::cone::Cone;
 use crate::roi::dgi::{DgiParams, Falloff, Guide, Metric, Roi, Surface, compute_cpu, roi_radius_m};
 use crate::roi::gpu::DgiKernel;
@@ -58,8 +58,8 @@ pub struct DgiArgs {
     /// Output file: .exr (32-bit float, one channel) or .png (8-bit view of d).
     #[arg(long, value_name = "FILE")]
     pub out: PathBuf,
-    #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
-    pub backend: BackendChoice,
+    #[command(flatten)]
+    pub backend: crate::cli::args::BackendArgs,
 }
 
 /// A ray-gun pose gives an ROI only where its ray meets the display (a press that misses leaves
@@ -129,7 +129,7 @@ pub fn run(args: &DgiArgs) -> anyhow::Result<()> {
     }
     let model = DisplayModel::open(&args.display)?.0;
     let roi = roi_from_args(args, &model)?;
-    let backend = Backend::select(args.backend)?;
+    let backend = args.backend.select()?;
     crate::cli::render::check_memory(
         crate::memory::Work::Dgi {
             gpu: backend.is_gpu(),

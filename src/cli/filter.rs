@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use crate::bench::filter::{self as bench, FilterBenchConfig};
 use crate::display::DisplayModel;
 use crate::filter::{Blend, DenoiseKind, FilterKind, FilterParams, FilterParamsError, oidn, synth};
-use crate::gpu::{Backend, BackendChoice};
+use crate::gpu::Backend;
 use crate::roi::dgi::Surface;
 
 /// Sparse-sample filter settings (DESIGN.md §8; definitions in `src/filter/mod.rs`).
@@ -125,8 +125,8 @@ pub struct FilterBenchArgs {
     /// filter and blend is measured).
     #[command(flatten)]
     pub filter: FilterArgs,
-    #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
-    pub backend: BackendChoice,
+    #[command(flatten)]
+    pub backend: crate::cli::args::BackendArgs,
     /// Print JSON instead of Markdown tables.
     #[arg(long)]
     pub json: bool,
@@ -147,7 +147,7 @@ pub fn run_bench(args: &FilterBenchArgs) -> anyhow::Result<()> {
     }
     let model = DisplayModel::open(&args.display)?.0;
     let surface = Surface::from_model(&model);
-    let backend = Backend::select(args.backend)?;
+    let backend = args.backend.select()?;
     let config = FilterBenchConfig {
         size: args.size,
         fovs_deg: args.fov.clone(),
@@ -173,18 +173,20 @@ pub fn run_bench(args: &FilterBenchArgs) -> anyhow::Result<()> {
                 &config,
                 progress,
                 |fov, _| {
-                    crate::bench::guided::filter_input(
-                        &backend,
-                        &model,
+                    let subject = crate::bench::paper::Subject {
+                        backend: &backend,
+                        display: &model,
                         name,
-                        &scene,
-                        args.size,
+                        scene: &scene,
+                    };
+                    let shot = crate::bench::paper::Shot {
+                        size: args.size,
                         fov,
-                        args.rounds,
-                        args.reference_spp,
-                        config.seed,
-                    )
-                    .map_err(|e| bench::FilterBenchError::Render(e.to_string()))
+                        iterations: args.rounds,
+                        seed: config.seed,
+                    };
+                    crate::bench::guided::filter_input(&subject, shot, args.reference_spp)
+                        .map_err(|e| bench::FilterBenchError::Render(e.to_string()))
                 },
             )?
         }

@@ -84,7 +84,7 @@ pub fn run(cmd: &SceneCommand) -> anyhow::Result<String> {
         );
     }
     crate::output::check_writable(out)?;
-    let Generated { glb, triangles } = generated.map_err(anyhow::Error::msg)?;
+    let Generated { glb, triangles } = generated?;
     crate::output::write_bytes(out, &glb)?;
     Ok(format!(
         "{}: {}, {} bytes",

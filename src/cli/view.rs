@@ -7,7 +7,7 @@ use anyhow::Context;
 
 use crate::cluster::{ClusterRenderer, ClusterSetup};
 use crate::display::DisplayModel;
-use crate::gpu::{Backend, BackendChoice};
+use crate::gpu::Backend;
 use crate::interaction::{CursorSmoother, InteractionConfig};
 use crate::session::live::LiveTracking;
 use crate::session::replay::ReplayOptions;
@@ -66,21 +66,13 @@ pub struct ViewArgs {
     /// the replay's header's head).
     #[command(flatten)]
     pub head: crate::cli::head::HeadArgs,
-    /// Look from this point (X,Y,Z, metres, the scene's frame) instead of a scene camera;
-    /// needs --look-at.
-    #[arg(long, value_name = "X,Y,Z", value_parser = crate::cli::args::parse_vec3, requires = "look_at", conflicts_with = "camera", allow_hyphen_values = true)]
-    pub look_from: Option<glam::DVec3>,
-    /// The point --look-from looks at (+Y up).
-    #[arg(long, value_name = "X,Y,Z", value_parser = crate::cli::args::parse_vec3, requires = "look_from", allow_hyphen_values = true)]
-    pub look_at: Option<glam::DVec3>,
-    /// Vertical field of view of --look-from, degrees (default 45).
-    #[arg(long, value_name = "DEG", requires = "look_from")]
-    pub yfov: Option<f32>,
+    #[command(flatten)]
+    pub look: crate::cli::args::LookArgs,
     /// Maximum path vertices (also a panel slider).
     #[arg(long, value_name = "N", default_value_t = DEFAULT_MAX_DEPTH)]
     pub max_depth: u32,
-    #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
-    pub backend: BackendChoice,
+    #[command(flatten)]
+    pub backend: crate::cli::args::BackendArgs,
     /// The device the window draws with where raygun renders on a GPU: `shared`, the GPU raygun
     /// renders on (the picture is written into the window's texture there and never leaves
     /// it), or `own`, a device the window picks for its display (each picture then comes back
@@ -240,7 +232,9 @@ fn run_cluster(args: &ViewArgs) -> anyhow::Result<()> {
     })();
     let mine = match &prepared {
         Ok((.., fields)) => identity(c.ranks(), fields),
-        Err(e) => Err(crate::cli::error_chain(e)),
+        Err(e) => Err(crate::cluster::handshake::StartupFailure(
+            crate::cli::error_chain(e),
+        )),
     };
     check(&mut c, mine)?;
     let (s, owners, tile_owners, config, _) = prepared?;
@@ -349,7 +343,7 @@ fn setup(args: &ViewArgs, root: bool) -> anyhow::Result<Setup> {
         interaction.use_calibrated_axes(c);
         interaction.validate()?;
     }
-    let backend = Backend::select(args.backend)?;
+    let backend = args.backend.select()?;
     crate::cli::render::check_memory(
         crate::memory::Work::Render {
             gpu: backend.is_gpu(),
@@ -360,7 +354,7 @@ fn setup(args: &ViewArgs, root: bool) -> anyhow::Result<Setup> {
     )?;
     let scene = crate::cli::scene::load_scene(&args.scene, args.env.as_deref(), args.access)?;
     let [w, h] = args.size;
-    let look = crate::cli::render::look_at(args.look_from, args.look_at, args.yfov);
+    let look = args.look.viewpoint();
     let name = args
         .camera
         .as_deref()

@@ -5,6 +5,7 @@ use anyhow::{Context, bail};
 use glam::DVec3;
 
 use crate::display::DisplayModel;
+use crate::messages::quote;
 use crate::trace::wall::{WallSpec, WorldFromRoom};
 
 /// The `--camera` value that selects the wall camera (any other value names a scene camera).
@@ -24,8 +25,30 @@ pub struct WallArgs {
     pub world_from_room: Option<WorldFromRoom>,
 }
 
+/// Why a `--world-from-room` value did not parse.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum WorldFromRoomError {
+    #[error(
+        "{}: expected auto, identity or X,Y,Z,YAW_DEG[,SCALE] (4 or 5 numbers), found {found} items",
+        quote(text)
+    )]
+    Count { text: String, found: usize },
+    #[error(
+        "{}: item {index} ({}) is not a finite number",
+        quote(text),
+        quote(item)
+    )]
+    NotFinite {
+        text: String,
+        index: usize,
+        item: String,
+    },
+    #[error("{}: SCALE must be above 0 (scene units per metre)", quote(text))]
+    Scale { text: String },
+}
+
 /// Parses `--world-from-room`.
-pub fn parse_world_from_room(text: &str) -> Result<WorldFromRoom, String> {
+pub fn parse_world_from_room(text: &str) -> Result<WorldFromRoom, WorldFromRoomError> {
     match text.trim() {
         "auto" => return Ok(WorldFromRoom::Auto),
         "identity" => return Ok(WorldFromRoom::Identity),
@@ -33,11 +56,10 @@ pub fn parse_world_from_room(text: &str) -> Result<WorldFromRoom, String> {
     }
     let items: Vec<&str> = text.split(',').map(str::trim).collect();
     if !(4..=5).contains(&items.len()) {
-        return Err(format!(
-            "{}: expected auto, identity or X,Y,Z,YAW_DEG[,SCALE] (4 or 5 numbers), found {} items",
-            crate::messages::quote(text),
-            items.len()
-        ));
+        return Err(WorldFromRoomError::Count {
+            text: text.to_owned(),
+            found: items.len(),
+        });
     }
     let mut v = [0.0f64, 0.0, 0.0, 0.0, 1.0];
     for (i, item) in items.iter().enumerate() {
@@ -45,20 +67,16 @@ pub fn parse_world_from_room(text: &str) -> Result<WorldFromRoom, String> {
             .parse::<f64>()
             .ok()
             .filter(|x| x.is_finite())
-            .ok_or_else(|| {
-                format!(
-                    "{}: item {} ({}) is not a finite number",
-                    crate::messages::quote(text),
-                    i + 1,
-                    crate::messages::quote(item)
-                )
+            .ok_or_else(|| WorldFromRoomError::NotFinite {
+                text: text.to_owned(),
+                index: i + 1,
+                item: (*item).to_owned(),
             })?;
     }
     if v[4] <= 0.0 {
-        return Err(format!(
-            "{}: SCALE must be above 0 (scene units per metre)",
-            crate::messages::quote(text)
-        ));
+        return Err(WorldFromRoomError::Scale {
+            text: text.to_owned(),
+        });
     }
     Ok(WorldFromRoom::Explicit {
         translation: DVec3::new(v[0], v[1], v[2]),

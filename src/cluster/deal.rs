@@ -296,7 +296,7 @@ mod tests {
     /// edge tiles and a shown mask included.
     #[test]
     fn masks_drawn_apart_give_the_whole_schedules_list() {
-        use crate::schedule::{schedule_cpu_block_masks, schedule_cpu_shown};
+        use crate::schedule::{DrawInput, schedule_cpu_block_masks, schedule_cpu_shown};
         let size = [150, 90];
         let mut shown = vec![0u32; (150 * 90usize).div_ceil(32)];
         for p in (0..150 * 90u32).filter(|p| p % 7 != 0) {
@@ -305,15 +305,22 @@ mod tests {
         let d = dgi(size);
         for mask in [None, Some(&shown[..])] {
             for k in 0..4 {
-                let list =
-                    schedule_cpu_shown(&d, mask, 150, 90, 0.05, k, 7, Order::Coherent).unwrap();
+                let input = DrawInput {
+                    dgi: &d,
+                    shown: mask,
+                    width: 150,
+                    height: 90,
+                    p_min: 0.05,
+                    iteration: k,
+                    seed: 7,
+                };
+                let list = schedule_cpu_shown(&input, Order::Coherent).unwrap();
                 let want = BlockList::group(&list, size);
                 let n = 5 * 3;
                 let mut all = vec![[0u32; 32]; n];
                 for part in 0..3u32 {
                     let blocks: Vec<u32> = (part..n as u32).step_by(3).collect();
-                    let masks =
-                        schedule_cpu_block_masks(&d, mask, 150, 90, 0.05, k, 7, &blocks).unwrap();
+                    let masks = schedule_cpu_block_masks(&input, &blocks).unwrap();
                     for (b, m) in blocks.into_iter().zip(masks) {
                         all[b as usize] = m;
                     }

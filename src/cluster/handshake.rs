@@ -3,7 +3,7 @@
 //! that far; rank 0 compares every rank's record with its own and answers with one verdict, so
 //! a mismatch stops every rank before the first frame, naming the rank and what differs.
 
-use std::sync::OnceLock;
+use std::sync::{Arc, OnceLock};
 
 use super::{Cluster, ClusterError};
 
@@ -25,15 +25,42 @@ pub fn content_hash(bytes: &[u8]) -> u64 {
     h ^ (h >> 32)
 }
 
+/// Why this process's executable file could not be hashed.
+#[derive(Clone, Debug, thiserror::Error)]
+pub enum BinaryHashError {
+    #[error("the executable's path: {0}")]
+    Path(Arc<std::io::Error>),
+    #[error("reading {}: {error}", exe.display())]
+    Read {
+        exe: std::path::PathBuf,
+        error: Arc<std::io::Error>,
+    },
+}
+
 /// The hash of this process's executable file (read once), or why it could not be read.
-pub fn binary_hash() -> Result<u64, String> {
-    static HASH: OnceLock<Result<u64, String>> = OnceLock::new();
+pub fn binary_hash() -> Result<u64, BinaryHashError> {
+    static HASH: OnceLock<Result<u64, BinaryHashError>> = OnceLock::new();
     HASH.get_or_init(|| {
-        let exe = std::env::current_exe().map_err(|e| format!("the executable's path: {e}"))?;
-        let bytes = std::fs::read(&exe).map_err(|e| format!("reading {}: {e}", exe.display()))?;
+        let exe = std::env::current_exe().map_err(|e| BinaryHashError::Path(Arc::new(e)))?;
+        let bytes = std::fs::read(&exe).map_err(|e| BinaryHashError::Read {
+            exe: exe.clone(),
+            error: Arc::new(e),
+        })?;
         Ok(content_hash(&bytes))
     })
     .clone()
+}
+
+/// Why a rank could not get as far as its record: its start-up error's message, sent to rank 0
+/// as text (a JSON string on the wire).
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, thiserror::Error)]
+#[error("{0}")]
+pub struct StartupFailure(pub String);
+
+impl From<BinaryHashError> for StartupFailure {
+    fn from(e: BinaryHashError) -> Self {
+        Self(e.to_string())
+    }
 }
 
 /// The hash of a loaded scene: its triangles, materials, textures, lights, cameras and
@@ -89,7 +116,7 @@ pub struct Identity {
 
 impl Identity {
     /// Starts a record with the binary (hash and version) and the job's size.
-    pub fn new(ranks: usize) -> Result<Self, String> {
+    pub fn new(ranks: usize) -> Result<Self, BinaryHashError> {
         let mut id = Self::default();
         id.push(
             "binary",
@@ -150,26 +177,25 @@ fn describe(name: &str, mine: &str, theirs: &str, rank: usize) -> String {
 /// every rank returns it: `Ok` to go on, or the reasons, each naming a rank.
 pub fn handshake(
     cluster: &mut Cluster,
-    mine: Result<Identity, String>,
+    mine: Result<Identity, StartupFailure>,
 ) -> Result<(), ClusterError> {
-    let record: Result<Identity, String> = mine;
+    let record: Result<Identity, StartupFailure> = mine;
     let bytes = serde_json::to_vec(&record).expect("a record serialises");
     let gathered = cluster.gather("the start-up check", bytes)?;
     let verdict = match gathered {
         Some(all) => {
             let mut problems = Vec::new();
-            let decoded: Vec<Result<Identity, String>> = all
+            let decoded: Vec<Result<Identity, StartupFailure>> = all
                 .iter()
-                .enumerate()
-                .map(|(r, b)| {
-                    serde_json::from_slice(b)
-                        .unwrap_or_else(|e| Err(format!("an unreadable record ({e})")))
-                        .map_err(|e: String| format!("rank {r} could not start: {e}"))
+                .map(|b| {
+                    serde_json::from_slice(b).unwrap_or_else(|e| {
+                        Err(StartupFailure(format!("an unreadable record ({e})")))
+                    })
                 })
                 .collect();
             for (r, d) in decoded.iter().enumerate() {
                 match (d, &decoded[0]) {
-                    (Err(e), _) => problems.push(e.clone()),
+                    (Err(e), _) => problems.push(format!("rank {r} could not start: {e}")),
                     (Ok(id), Ok(root)) if r > 0 => problems.extend(root.mismatch(id, r)),
                     _ => {}
                 }

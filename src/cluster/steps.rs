@@ -16,7 +16,7 @@ use super::{Cluster, ClusterError, ClusterFrameStats, ClusterRenderer, DgiMode, 
 use crate::frame::stop::RoiProgress;
 use crate::frame::{EyeFollow, FrameError, GuideConfig, Render, dgi_cpu};
 use crate::roi::dgi::{Roi, Surface};
-use crate::schedule::{Order, schedule_cpu_block_masks, schedule_cpu_shown};
+use crate::schedule::{DrawInput, Order, schedule_cpu_block_masks, schedule_cpu_shown};
 use crate::trace::accum::{Accumulation, block_rays};
 use crate::trace::camera::RenderCamera;
 use crate::trace::gpu::SampleRun;
@@ -254,16 +254,16 @@ impl ClusterRenderer<'_> {
                 let [tx, ty] = owners::block_grid(size);
                 let n = tx * ty;
                 let mine: Vec<u32> = (self.rank as u32..n).step_by(self.ranks).collect();
-                let masks = schedule_cpu_block_masks(
-                    &self.dgi,
+                let input = DrawInput {
+                    dgi: &self.dgi,
                     shown,
-                    size[0],
-                    size[1],
-                    cfg.p_min,
-                    self.iteration,
-                    self.settings.seed,
-                    &mine,
-                )?;
+                    width: size[0],
+                    height: size[1],
+                    p_min: cfg.p_min,
+                    iteration: self.iteration,
+                    seed: self.settings.seed,
+                };
+                let masks = schedule_cpu_block_masks(&input, &mine)?;
                 let part = encode_masks(&masks);
                 let what = format!("the schedule of iteration {}", self.iteration);
                 let got = self.link.all_to_all(&what, vec![part; self.ranks])?;
@@ -285,16 +285,16 @@ impl ClusterRenderer<'_> {
             }
             (Some(g), None) => {
                 let c = &g.config;
-                let list = schedule_cpu_shown(
-                    &self.dgi,
+                let input = DrawInput {
+                    dgi: &self.dgi,
                     shown,
-                    size[0],
-                    size[1],
-                    c.p_min,
-                    self.iteration,
-                    self.settings.seed,
-                    c.order,
-                )?;
+                    width: size[0],
+                    height: size[1],
+                    p_min: c.p_min,
+                    iteration: self.iteration,
+                    seed: self.settings.seed,
+                };
+                let list = schedule_cpu_shown(&input, c.order)?;
                 Arc::new(BlockList::group(&list, size))
             }
             (None, _) => Arc::clone(

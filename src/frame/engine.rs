@@ -13,7 +13,7 @@ use crate::roi::gpu::DgiKernel;
 use crate::scene::Scene;
 use crate::schedule::gpu::{ScheduleConfig, ScheduleKernel};
 use crate::trace::accum::Accumulation;
-use crate::trace::gpu::{GpuAccum, GpuScene, TraceKernel, TraceRun};
+use crate::trace::gpu::{GpuAccum, GpuScene, RunInputs, TraceKernel, TraceRun};
 use crate::trace::pack::PackedScene;
 use crate::trace::path::TraceSettings;
 use crate::trace::wall::WallCamera;
@@ -155,18 +155,16 @@ impl<'a> Renderer<'a> {
                         )?),
                         _ => None,
                     };
-                    let trace = TraceRun::for_band(
-                        ctx,
-                        &kernel,
-                        &packed,
-                        &settings,
-                        wall.as_ref(),
-                        &accum,
-                        guide
+                    let inputs = RunInputs {
+                        scene: &packed,
+                        settings: &settings,
+                        wall: wall.as_ref(),
+                        accum: &accum,
+                        schedule: guide
                             .as_ref()
                             .map(|g| (g.schedule.list(), g.schedule.args())),
-                        band,
-                    );
+                    };
+                    let trace = TraceRun::for_band(ctx, &kernel, inputs, band);
                     accum.clear(&mut enc);
                     if let Some(g) = &guide {
                         enc.clear_buffer(&g.dgi, 0, None);

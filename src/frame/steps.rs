@@ -10,7 +10,7 @@ use super::{
     TimedIterations,
 };
 use crate::roi::dgi::{Roi, compute_cpu};
-use crate::schedule::schedule_cpu_shown;
+use crate::schedule::{DrawInput, schedule_cpu_shown};
 use crate::trace::accum::Accumulation;
 use crate::trace::camera::RenderCamera;
 use crate::trace::path::{TraceSettings, render_cpu_with};
@@ -252,9 +252,16 @@ impl Renderer<'_> {
                 let t0 = Instant::now();
                 let c = &guidance.config;
                 let shown = self.wall.as_ref().map(WallCamera::shown_mask);
-                frame.list = Some(schedule_cpu_shown(
-                    &g.dgi, shown, w, h, c.p_min, iteration, seed, c.order,
-                )?);
+                let input = DrawInput {
+                    dgi: &g.dgi,
+                    shown,
+                    width: w,
+                    height: h,
+                    p_min: c.p_min,
+                    iteration,
+                    seed,
+                };
+                frame.list = Some(schedule_cpu_shown(&input, c.order)?);
                 if frame.timed {
                     frame.stats.ms_schedule = Some(t0.elapsed().as_secs_f64() * 1e3);
                 }

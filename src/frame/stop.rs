@@ -18,20 +18,36 @@ pub enum StopCondition {
     Time(f64),
 }
 
-impl FromStr for StopCondition {
-    type Err = String;
+/// Why a `--until` stop condition did not parse.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum StopConditionError {
+    #[error("{text:?}: a stop condition is roi-se:X, roi-spp:N or time:SECONDS")]
+    NoColon { text: String },
+    #[error("{text:?}: {value:?} is not a positive number")]
+    NotPositive { text: String, value: String },
+    #[error("{text:?}: {value:?} is not a whole number of samples ≥ 1")]
+    NotSamples { text: String, value: String },
+    #[error("{text:?}: unknown stop condition {kind:?} (roi-se:X, roi-spp:N or time:SECONDS)")]
+    Unknown { text: String, kind: String },
+}
 
-    fn from_str(s: &str) -> Result<Self, String> {
-        let (kind, value) = s.split_once(':').ok_or_else(|| {
-            format!("{s:?}: a stop condition is roi-se:X, roi-spp:N or time:SECONDS")
-        })?;
+impl FromStr for StopCondition {
+    type Err = StopConditionError;
+
+    fn from_str(s: &str) -> Result<Self, StopConditionError> {
+        let (kind, value) = s
+            .split_once(':')
+            .ok_or_else(|| StopConditionError::NoColon { text: s.to_owned() })?;
         let number = || {
             value
                 .trim()
                 .parse::<f64>()
                 .ok()
                 .filter(|v| v.is_finite() && *v > 0.0)
-                .ok_or_else(|| format!("{s:?}: {value:?} is not a positive number"))
+                .ok_or_else(|| StopConditionError::NotPositive {
+                    text: s.to_owned(),
+                    value: value.to_owned(),
+                })
         };
         match kind {
             "roi-se" => Ok(Self::RoiSe(number()?)),
@@ -42,10 +58,14 @@ impl FromStr for StopCondition {
                 .ok()
                 .filter(|n| *n > 0)
                 .map(Self::RoiSpp)
-                .ok_or_else(|| format!("{s:?}: {value:?} is not a whole number of samples ≥ 1")),
-            _ => Err(format!(
-                "{s:?}: unknown stop condition {kind:?} (roi-se:X, roi-spp:N or time:SECONDS)"
-            )),
+                .ok_or_else(|| StopConditionError::NotSamples {
+                    text: s.to_owned(),
+                    value: value.to_owned(),
+                }),
+            _ => Err(StopConditionError::Unknown {
+                text: s.to_owned(),
+                kind: kind.to_owned(),
+            }),
         }
     }
 }
@@ -128,7 +148,7 @@ mod tests {
             "time:0",
             "spp:4",
         ] {
-            let e = bad.parse::<StopCondition>().unwrap_err();
+            let e = bad.parse::<StopCondition>().unwrap_err().to_string();
             assert!(e.contains(bad), "{e}");
         }
     }

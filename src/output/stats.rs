@@ -59,51 +59,75 @@ impl RoiStats {
     /// Whether `other` (measured on the GPU) is this measurement (the CPU twin's) within the
     /// kernel's precision: the totals equal, each median within `tolerance` relative (see
     /// [`super::gpu::SE_TOLERANCE`]); the error names the first that is not.
-    pub fn matches(&self, other: &Self, tolerance: f32) -> Result<(), String> {
-        let close = |what: &str, a: f32, b: f32| {
+    pub fn matches(&self, other: &Self, tolerance: f32) -> Result<(), StatsMismatch> {
+        let close = |what: &'static str, a: f32, b: f32| {
             if a == b || (a - b).abs() <= tolerance * a.abs() {
                 Ok(())
             } else {
-                Err(format!("{what}: {a:e} against {b:e}"))
+                Err(StatsMismatch::Median { what, a, b })
             }
         };
         if (self.roi_samples, self.roi_pixels) != (other.roi_samples, other.roi_pixels) {
-            return Err(format!(
-                "ROI samples and pixels: {:?} against {:?}",
-                (self.roi_samples, self.roi_pixels),
-                (other.roi_samples, other.roi_pixels)
-            ));
+            return Err(StatsMismatch::Totals {
+                a: (self.roi_samples, self.roi_pixels),
+                b: (other.roi_samples, other.roi_pixels),
+            });
         }
         match (&self.contrast, &other.contrast) {
             (Some(a), Some(b)) => {
                 if (a.roi_pixels, a.periphery_pixels) != (b.roi_pixels, b.periphery_pixels) {
-                    return Err(format!(
-                        "noisy pixels (ROI, periphery): {:?} against {:?}",
-                        (a.roi_pixels, a.periphery_pixels),
-                        (b.roi_pixels, b.periphery_pixels)
-                    ));
+                    return Err(StatsMismatch::NoisyPixels {
+                        a: (a.roi_pixels, a.periphery_pixels),
+                        b: (b.roi_pixels, b.periphery_pixels),
+                    });
                 }
                 close("the ROI's noise", a.roi, b.roi)?;
                 close("the periphery's noise", a.periphery, b.periphery)?;
             }
             (None, None) => {}
-            (a, b) => return Err(format!("noise contrast: {a:?} against {b:?}")),
+            (a, b) => return Err(StatsMismatch::Contrast { a: *a, b: *b }),
         }
         match (&self.progress, &other.progress) {
             (Some(a), Some(b)) => {
                 if (a.pixels, a.min_samples) != (b.pixels, b.min_samples) {
-                    return Err(format!(
-                        "progress (pixels, fewest samples): {:?} against {:?}",
-                        (a.pixels, a.min_samples),
-                        (b.pixels, b.min_samples)
-                    ));
+                    return Err(StatsMismatch::Progress {
+                        a: (a.pixels, a.min_samples),
+                        b: (b.pixels, b.min_samples),
+                    });
                 }
                 close("the progress's median SE", a.median_se, b.median_se)
             }
             (None, None) => Ok(()),
-            (a, b) => Err(format!("progress: {a:?} against {b:?}")),
+            (a, b) => Err(StatsMismatch::HasProgress { a: *a, b: *b }),
         }
     }
+}
+
+/// Where two measurements of [`RoiStats`] differ ([`RoiStats::matches`]): the first value
+/// that does, this measurement's (`a`) against the other's (`b`).
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+pub enum StatsMismatch {
+    #[error("ROI samples and pixels: {a:?} against {b:?}")]
+    Totals { a: (u64, u64), b: (u64, u64) },
+    #[error("noisy pixels (ROI, periphery): {a:?} against {b:?}")]
+    NoisyPixels {
+        a: (usize, usize),
+        b: (usize, usize),
+    },
+    #[error("noise contrast: {a:?} against {b:?}")]
+    Contrast {
+        a: Option<NoiseContrast>,
+        b: Option<NoiseContrast>,
+    },
+    #[error("progress (pixels, fewest samples): {a:?} against {b:?}")]
+    Progress { a: (u64, u32), b: (u64, u32) },
+    #[error("progress: {a:?} against {b:?}")]
+    HasProgress {
+        a: Option<RoiProgress>,
+        b: Option<RoiProgress>,
+    },
+    #[error("{what}: {a:e} against {b:e}")]
+    Median { what: &'static str, a: f32, b: f32 },
 }
 
 /// The standard error of each pixel's mean luminance, √(s²/n) with the unbiased sample variance

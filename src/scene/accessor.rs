@@ -155,6 +155,29 @@ fn read_elements<T: Copy + Default>(
     Ok(out)
 }
 
+/// Why a strided byte range does not lie in its buffer view and buffer.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+enum ByteRangeError {
+    #[error("byte range overflows (count {count}, stride {stride})")]
+    Overflow { count: usize, stride: usize },
+    #[error("bytes {start}..{end} run past the end of buffer view {view} ({view_end})")]
+    PastView {
+        start: usize,
+        end: usize,
+        view: usize,
+        view_end: usize,
+    },
+    #[error("buffer {0} is not loaded")]
+    NotLoaded(usize),
+    #[error("buffer view {view} ends at byte {view_end}, past the {len} bytes of buffer {buffer}")]
+    PastBuffer {
+        view: usize,
+        view_end: usize,
+        len: usize,
+        buffer: usize,
+    },
+}
+
 /// The bytes of `count` elements of `elem` bytes, `stride` apart, starting `offset` bytes into
 /// `view`; relative to the returned slice element i starts at `i * stride`.
 fn strided_bytes<'b>(
@@ -164,11 +187,11 @@ fn strided_bytes<'b>(
     stride: usize,
     elem: usize,
     buffers: &'b [Vec<u8>],
-) -> Result<&'b [u8], String> {
+) -> Result<&'b [u8], ByteRangeError> {
     if count == 0 {
         return Ok(&[]);
     }
-    let too_big = || format!("byte range overflows (count {count}, stride {stride})");
+    let too_big = || ByteRangeError::Overflow { count, stride };
     let start = view.offset().checked_add(offset).ok_or_else(too_big)?;
     let end = stride
         .checked_mul(count - 1)
@@ -180,21 +203,23 @@ fn strided_bytes<'b>(
         .checked_add(view.length())
         .ok_or_else(too_big)?;
     if end > view_end {
-        return Err(format!(
-            "bytes {start}..{end} run past the end of buffer view {} ({view_end})",
-            view.index()
-        ));
+        return Err(ByteRangeError::PastView {
+            start,
+            end,
+            view: view.index(),
+            view_end,
+        });
     }
     let buffer = buffers
         .get(view.buffer().index())
-        .ok_or_else(|| format!("buffer {} is not loaded", view.buffer().index()))?;
+        .ok_or_else(|| ByteRangeError::NotLoaded(view.buffer().index()))?;
     if view_end > buffer.len() {
-        return Err(format!(
-            "buffer view {} ends at byte {view_end}, past the {} bytes of buffer {}",
-            view.index(),
-            buffer.len(),
-            view.buffer().index()
-        ));
+        return Err(ByteRangeError::PastBuffer {
+            view: view.index(),
+            view_end,
+            len: buffer.len(),
+            buffer: view.buffer().index(),
+        });
     }
     Ok(&buffer[start..end])
 }

@@ -22,46 +22,116 @@ use ktx2::{ColorModel, SupercompressionScheme};
 /// The largest texture decoded (texels): 64 Mi, 256 MiB of RGBA8, the loader's image bound.
 pub const MAX_TEXELS: u64 = 1 << 26;
 
+/// What in a KTX2 file is wrong or unsupported.
+#[derive(Debug, thiserror::Error)]
+pub enum Ktx2Error {
+    #[error("not a valid KTX2 file ({0})")]
+    Container(ktx2::ParseError),
+    #[error(
+        "not a valid KTX2 file (its data format descriptor has {len} bytes, fewer than its \
+         length field)"
+    )]
+    ShortDescriptor { len: usize },
+    #[error(
+        "not a valid KTX2 file (its data format descriptor has a texel block dimension of 256)"
+    )]
+    BlockDimension256,
+    #[error(
+        "a KTX2 {kind} (depth {depth}, {layers} layers, {faces} faces): glTF textures are \
+         single 2D images"
+    )]
+    Not2d {
+        kind: &'static str,
+        depth: u32,
+        layers: u32,
+        faces: u32,
+    },
+    #[error("a KTX2 image without pixels")]
+    NoPixels,
+    #[error("a {width}×{height} KTX2 image is larger than {MAX_TEXELS} texels")]
+    TooLarge { width: u32, height: u32 },
+    #[error(
+        "KTX2 format {0:?}: KHR_texture_basisu textures hold Basis Universal data (ETC1S or UASTC)"
+    )]
+    Format(ktx2::Format),
+    #[error("a KTX2 file without a basic data format descriptor")]
+    NoDescriptor,
+    #[error("a KTX2 file without levels")]
+    NoLevels,
+    #[error("UASTC with supercompression {0:?}")]
+    UastcSupercompression(SupercompressionScheme),
+    #[error("its UASTC level 0 holds {bytes} bytes, {width}×{height} needs {expected}")]
+    UastcLength {
+        bytes: usize,
+        width: u32,
+        height: u32,
+        expected: u64,
+    },
+    #[error(
+        "KTX2 colour model {model:?} with supercompression {scheme:?}: not Basis Universal \
+         ETC1S (BasisLZ) or UASTC"
+    )]
+    NotBasis {
+        model: Option<ColorModel>,
+        scheme: Option<SupercompressionScheme>,
+    },
+    #[error("a level of {0} bytes")]
+    LevelTooLarge(u64),
+    #[error("its Zstandard level does not decode ({0})")]
+    Zstd(String),
+    #[error("its Zstandard level decodes to {got} bytes, its index says {expected}")]
+    ZstdLength { got: usize, expected: u64 },
+    #[error("its BasisLZ global data ends inside the {0}")]
+    GlobalDataEnds(String),
+    #[error("its BasisLZ global data has empty codebooks")]
+    EmptyCodebooks,
+    #[error("its {0} slice lies outside level 0")]
+    SliceOutside(&'static str),
+    #[error("its {what} ({n}) does not fit a Basis Universal file")]
+    DoesNotFit { what: String, n: u64 },
+    #[error("its Basis Universal data is inconsistent")]
+    Inconsistent,
+    #[error("its Basis Universal codebooks do not decode")]
+    Codebooks,
+    #[error("its Basis Universal blocks do not transcode ({0})")]
+    Blocks(String),
+    #[error("the transcoder returned fewer texels than the image has")]
+    FewerTexels,
+}
+
 /// A decoded KTX2: width, height and RGBA8 texels, row-major from the top.
 pub type Rgba8 = (u32, u32, Vec<[u8; 4]>);
 
 /// Decodes the largest level of a Basis Universal KTX2 (`KHR_texture_basisu`) into RGBA8; the
 /// error says what in the file is wrong or unsupported.
-pub fn decode(bytes: &[u8]) -> Result<Rgba8, String> {
+pub fn decode(bytes: &[u8]) -> Result<Rgba8, Ktx2Error> {
     refuse_what_the_parser_panics_on(bytes)?;
-    let reader = ktx2::Reader::new(bytes).map_err(|e| format!("not a valid KTX2 file ({e})"))?;
+    let reader = ktx2::Reader::new(bytes).map_err(Ktx2Error::Container)?;
     let header = reader.header();
     let (width, height) = (header.pixel_width, header.pixel_height);
     if header.pixel_depth > 1 || header.layer_count > 1 || header.face_count != 1 {
-        return Err(format!(
-            "a KTX2 {} (depth {}, {} layers, {} faces): glTF textures are single 2D images",
-            if header.face_count == 6 {
+        return Err(Ktx2Error::Not2d {
+            kind: if header.face_count == 6 {
                 "cube map"
             } else {
                 "array or volume"
             },
-            header.pixel_depth,
-            header.layer_count,
-            header.face_count
-        ));
+            depth: header.pixel_depth,
+            layers: header.layer_count,
+            faces: header.face_count,
+        });
     }
     if width == 0 || height == 0 {
-        return Err("a KTX2 image without pixels".into());
+        return Err(Ktx2Error::NoPixels);
     }
     if u64::from(width) * u64::from(height) > MAX_TEXELS {
-        return Err(format!(
-            "a {width}×{height} KTX2 image is larger than {MAX_TEXELS} texels"
-        ));
+        return Err(Ktx2Error::TooLarge { width, height });
     }
     if let Some(format) = header.format {
-        return Err(format!(
-            "KTX2 format {format:?}: KHR_texture_basisu textures hold Basis Universal data (ETC1S or UASTC)"
-        ));
+        return Err(Ktx2Error::Format(format));
     }
-    let dfd = reader
-        .basic_dfd()
-        .ok_or("a KTX2 file without a basic data format descriptor")?;
-    let level = reader.levels().next().ok_or("a KTX2 file without levels")?;
+    let dfd = reader.basic_dfd().ok_or(Ktx2Error::NoDescriptor)?;
+    let level = reader.levels().next().ok_or(Ktx2Error::NoLevels)?;
     let blocks = [width.div_ceil(4), height.div_ceil(4)];
     let basis = match (dfd.color_model, header.supercompression_scheme) {
         (Some(ColorModel::ETC1S), Some(SupercompressionScheme::BasisLZ)) => {
@@ -78,15 +148,17 @@ pub fn decode(bytes: &[u8]) -> Result<Rgba8, String> {
                     zstd(level.data, level.uncompressed_byte_length)?
                 }
                 Some(other) => {
-                    return Err(format!("UASTC with supercompression {other:?}"));
+                    return Err(Ktx2Error::UastcSupercompression(other));
                 }
             };
             let expected = u64::from(blocks[0]) * u64::from(blocks[1]) * 16;
             if data.len() as u64 != expected {
-                return Err(format!(
-                    "its UASTC level 0 holds {} bytes, {width}×{height} needs {expected}",
-                    data.len()
-                ));
+                return Err(Ktx2Error::UastcLength {
+                    bytes: data.len(),
+                    width,
+                    height,
+                    expected,
+                });
             }
             // Channel type 3 (RGBA) or 5 (RRRG) carries alpha (KTX2 §3.10.2).
             let alpha = dfd
@@ -104,10 +176,7 @@ pub fn decode(bytes: &[u8]) -> Result<Rgba8, String> {
             })?
         }
         (model, scheme) => {
-            return Err(format!(
-                "KTX2 colour model {model:?} with supercompression {scheme:?}: not Basis Universal \
-                 ETC1S (BasisLZ) or UASTC"
-            ));
+            return Err(Ktx2Error::NotBasis { model, scheme });
         }
     };
     transcode(&basis, width, height)
@@ -117,7 +186,7 @@ pub fn decode(bytes: &[u8]) -> Result<Rgba8, String> {
 /// returning an error (found by the fuzz target): a descriptor shorter than its own length
 /// field, and a basic block with a texel block dimension byte of 255 (dimension 256, which
 /// the crate's `NonZeroU8` cannot hold). Everything else the crate checks itself.
-fn refuse_what_the_parser_panics_on(bytes: &[u8]) -> Result<(), String> {
+fn refuse_what_the_parser_panics_on(bytes: &[u8]) -> Result<(), Ktx2Error> {
     let u32_at = |at: usize| -> Option<usize> {
         Some(u32::from_le_bytes(bytes.get(at..at + 4)?.try_into().ok()?) as usize)
     };
@@ -128,10 +197,7 @@ fn refuse_what_the_parser_panics_on(bytes: &[u8]) -> Result<(), String> {
         return Ok(()); // too short: the crate says so
     };
     if len < 4 {
-        return Err(format!(
-            "not a valid KTX2 file (its data format descriptor has {len} bytes, fewer than its \
-             length field)"
-        ));
+        return Err(Ktx2Error::ShortDescriptor { len });
     }
     let end = (start + len).min(bytes.len());
     let mut at = start + 4;
@@ -150,11 +216,7 @@ fn refuse_what_the_parser_panics_on(bytes: &[u8]) -> Result<(), String> {
             && at + 16 <= end
             && bytes[at + 12..at + 16].contains(&255)
         {
-            return Err(
-                "not a valid KTX2 file (its data format descriptor has a texel block \
-                 dimension of 256)"
-                    .into(),
-            );
+            return Err(Ktx2Error::BlockDimension256);
         }
         at += size;
     }
@@ -162,24 +224,24 @@ fn refuse_what_the_parser_panics_on(bytes: &[u8]) -> Result<(), String> {
 }
 
 /// Zstandard-decompresses a UASTC level to exactly `expected` bytes.
-fn zstd(data: &[u8], expected: u64) -> Result<Vec<u8>, String> {
+fn zstd(data: &[u8], expected: u64) -> Result<Vec<u8>, Ktx2Error> {
     use std::io::Read;
     if expected > MAX_TEXELS * 4 {
-        return Err(format!("a level of {expected} bytes"));
+        return Err(Ktx2Error::LevelTooLarge(expected));
     }
     let mut decoder = ruzstd::decoding::StreamingDecoder::new(data)
-        .map_err(|e| format!("its Zstandard level does not decode ({e})"))?;
+        .map_err(|e| Ktx2Error::Zstd(e.to_string()))?;
     let mut out = Vec::with_capacity(expected as usize);
     // One byte more than expected tells a longer stream from an exact one.
     (&mut decoder)
         .take(expected + 1)
         .read_to_end(&mut out)
-        .map_err(|e| format!("its Zstandard level does not decode ({e})"))?;
+        .map_err(|e| Ktx2Error::Zstd(e.to_string()))?;
     if out.len() as u64 != expected {
-        return Err(format!(
-            "its Zstandard level decodes to {} bytes, its index says {expected}",
-            out.len()
-        ));
+        return Err(Ktx2Error::ZstdLength {
+            got: out.len(),
+            expected,
+        });
     }
     Ok(out)
 }
@@ -191,22 +253,22 @@ struct Cursor<'a> {
 }
 
 impl<'a> Cursor<'a> {
-    fn take(&mut self, n: usize, what: &str) -> Result<&'a [u8], String> {
+    fn take(&mut self, n: usize, what: &str) -> Result<&'a [u8], Ktx2Error> {
         let end = self
             .at
             .checked_add(n)
             .filter(|&e| e <= self.bytes.len())
-            .ok_or_else(|| format!("its BasisLZ global data ends inside the {what}"))?;
+            .ok_or_else(|| Ktx2Error::GlobalDataEnds(what.to_owned()))?;
         let s = &self.bytes[self.at..end];
         self.at = end;
         Ok(s)
     }
 
-    fn u16(&mut self, what: &str) -> Result<u16, String> {
+    fn u16(&mut self, what: &str) -> Result<u16, Ktx2Error> {
         Ok(u16::from_le_bytes(self.take(2, what)?.try_into().unwrap()))
     }
 
-    fn u32(&mut self, what: &str) -> Result<u32, String> {
+    fn u32(&mut self, what: &str) -> Result<u32, Ktx2Error> {
         Ok(u32::from_le_bytes(self.take(4, what)?.try_into().unwrap()))
     }
 }
@@ -222,7 +284,7 @@ fn etc1s_basis(
     width: u32,
     height: u32,
     alpha: bool,
-) -> Result<Vec<u8>, String> {
+) -> Result<Vec<u8>, Ktx2Error> {
     let mut c = Cursor {
         bytes: global,
         at: 0,
@@ -243,14 +305,14 @@ fn etc1s_basis(
     let sel = c.take(selectors_len as usize, "selector codebook")?;
     let tables = c.take(tables_len as usize, "Huffman tables")?;
     if endpoints == 0 || selectors == 0 || ep.is_empty() || sel.is_empty() || tables.is_empty() {
-        return Err("its BasisLZ global data has empty codebooks".into());
+        return Err(Ktx2Error::EmptyCodebooks);
     }
-    let slice = |(off, len): (u32, u32), what: &str| {
+    let slice = |(off, len): (u32, u32), what: &'static str| {
         (off as usize)
             .checked_add(len as usize)
             .and_then(|end| level.get(off as usize..end))
             .filter(|s| !s.is_empty())
-            .ok_or_else(|| format!("its {what} slice lies outside level 0"))
+            .ok_or(Ktx2Error::SliceOutside(what))
     };
     let mut slices = vec![(0u32, slice(rgb, "colour")?)];
     if alpha {
@@ -290,11 +352,12 @@ const HEADER_LEN: usize = 77;
 const SLICE_DESC_LEN: usize = 23;
 
 /// Writes `n`'s low `bytes` bytes (little-endian), refusing values that do not fit.
-fn put(out: &mut Vec<u8>, n: u64, bytes: usize, what: &str) -> Result<(), String> {
+fn put(out: &mut Vec<u8>, n: u64, bytes: usize, what: &str) -> Result<(), Ktx2Error> {
     if bytes < 8 && n >> (8 * bytes) != 0 {
-        return Err(format!(
-            "its {what} ({n}) does not fit a Basis Universal file"
-        ));
+        return Err(Ktx2Error::DoesNotFit {
+            what: what.to_owned(),
+            n,
+        });
     }
     out.extend_from_slice(&n.to_le_bytes()[..bytes]);
     Ok(())
@@ -312,7 +375,7 @@ fn crc16(bytes: &[u8]) -> u16 {
 }
 
 /// A `.basis` file (format version 0x13) with one image of one level.
-fn basis_file(h: BasisHeader) -> Result<Vec<u8>, String> {
+fn basis_file(h: BasisHeader) -> Result<Vec<u8>, Ktx2Error> {
     let descs_at = HEADER_LEN;
     let mut at = descs_at + SLICE_DESC_LEN * h.slices.len();
     let mut sections = Vec::new();
@@ -399,14 +462,14 @@ fn basis_file(h: BasisHeader) -> Result<Vec<u8>, String> {
 }
 
 /// Transcodes a `.basis` file's one image to RGBA8.
-fn transcode(basis: &[u8], width: u32, height: u32) -> Result<Rgba8, String> {
+fn transcode(basis: &[u8], width: u32, height: u32) -> Result<Rgba8, Ktx2Error> {
     let mut transcoder = Transcoder::new();
     if !transcoder.validate_header(basis) {
-        return Err("its Basis Universal data is inconsistent".into());
+        return Err(Ktx2Error::Inconsistent);
     }
     transcoder
         .prepare_transcoding(basis)
-        .map_err(|()| "its Basis Universal codebooks do not decode".to_string())?;
+        .map_err(|()| Ktx2Error::Codebooks)?;
     let rgba = transcoder
         .transcode_image_level(
             basis,
@@ -417,11 +480,11 @@ fn transcode(basis: &[u8], width: u32, height: u32) -> Result<Rgba8, String> {
                 ..Default::default()
             },
         )
-        .map_err(|e| format!("its Basis Universal blocks do not transcode ({e:?})"))?;
+        .map_err(|e| Ktx2Error::Blocks(format!("{e:?}")))?;
     transcoder.end_transcoding();
     let n = width as usize * height as usize;
     if rgba.len() < 4 * n {
-        return Err("the transcoder returned fewer texels than the image has".into());
+        return Err(Ktx2Error::FewerTexels);
     }
     Ok((
         width,

@@ -31,7 +31,7 @@ use glam::{Vec2, Vec3, Vec4};
 
 pub use environment::EnvironmentError;
 pub use load::{MAX_ABSORPTION, MAX_COORDINATE, MAX_SCENE_FILE_BYTES, SUPPORTED_EXTENSIONS};
-pub use report::SceneError;
+pub use report::{GenerateError, SceneError, UriError};
 pub use resources::UriAccess;
 
 /// One triangle in world space.

@@ -24,7 +24,7 @@ pub enum SceneError {
         file: String,
         element: String,
         uri: String,
-        reason: String,
+        reason: UriError,
     },
     #[error("{file}: {element}: {problem}")]
     Element {
@@ -35,7 +35,46 @@ pub enum SceneError {
     #[error("unknown built-in scene '{name}' (built-ins: {known})")]
     UnknownBuiltin { name: String, known: String },
     #[error("cannot generate built-in scene '{name}': {reason}")]
-    Generate { name: String, reason: String },
+    Generate { name: String, reason: GenerateError },
+}
+
+/// Why the bytes behind a glTF URI could not be read.
+#[derive(Debug, thiserror::Error)]
+pub enum UriError {
+    #[error("a data URI must be base64-encoded (';base64,')")]
+    NotBase64,
+    #[error("bad base64: {0}")]
+    Base64(base64::DecodeError),
+    #[error("only data: URIs and relative paths are supported")]
+    Scheme,
+    #[error("an in-memory scene cannot refer to external files")]
+    InMemory,
+    #[error("bad percent-escape in URI '{uri}'")]
+    PercentEscape { uri: String },
+    #[error("URI '{uri}' does not decode to UTF-8")]
+    NotUtf8 { uri: String },
+    #[error("{} ({error})", path.display())]
+    Read {
+        path: std::path::PathBuf,
+        error: std::io::Error,
+    },
+    #[error(
+        "it names {}, outside the scene's folder {}: a scene reads files only from its own \
+         folder and below (--trust-scene lets a scene you trust read any file)",
+        target.display(),
+        folder.display()
+    )]
+    Outside {
+        target: std::path::PathBuf,
+        folder: std::path::PathBuf,
+    },
+}
+
+/// Why a scene could not be generated.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum GenerateError {
+    #[error("--blocks must be in 1..={max}, got {got}")]
+    Blocks { max: u32, got: u32 },
 }
 
 /// `mesh 'Tower'` or `mesh 3`.

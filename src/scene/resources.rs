@@ -9,7 +9,7 @@ use std::collections::HashMap;
 use std::io::Cursor;
 use std::path::Path;
 
-use super::report::{Report, SceneError, label};
+use super::report::{Report, SceneError, UriError, label};
 use super::{Sampler, Texture, Wrap};
 
 /// Images larger than this (bytes of decoded RGBA8) are refused by the decoder: a 16k × 8k
@@ -277,21 +277,19 @@ pub(super) fn read_uri(
     base: Option<&Path>,
     access: UriAccess,
     want: Want,
-) -> Result<Vec<u8>, String> {
+) -> Result<Vec<u8>, UriError> {
     if let Some(rest) = uri.strip_prefix("data:") {
-        let (_, payload) = rest
-            .split_once(";base64,")
-            .ok_or("a data URI must be base64-encoded (';base64,')")?;
-        return base64::decode(payload).map_err(|e| format!("bad base64: {e}"));
+        let (_, payload) = rest.split_once(";base64,").ok_or(UriError::NotBase64)?;
+        return base64::decode(payload).map_err(UriError::Base64);
     }
     let relative = if let Some(rest) = uri.strip_prefix("file:") {
         percent_decode(rest.strip_prefix("//").unwrap_or(rest))?
     } else if uri.contains(':') {
-        return Err("only data: URIs and relative paths are supported".into());
+        return Err(UriError::Scheme);
     } else {
         percent_decode(uri)?
     };
-    let base = base.ok_or("an in-memory scene cannot refer to external files")?;
+    let base = base.ok_or(UriError::InMemory)?;
     // An absolute path replaces `base` in the join; the confinement below catches it.
     let path = base.join(&relative);
     if access == UriAccess::Confined {
@@ -301,30 +299,27 @@ pub(super) fn read_uri(
         Want::Exactly(len) => crate::input::read_prefix(&path, len),
         Want::AtMost(max) => crate::input::read_file(&path, max, "an image"),
     };
-    read.map_err(|e| format!("{} ({e})", path.display()))
+    read.map_err(|error| UriError::Read { path, error })
 }
 
 /// Checks that `path`, with every link followed, lies in `base` or below it.
-fn confine(path: &Path, base: &Path) -> Result<(), String> {
-    let folder = base
-        .canonicalize()
-        .map_err(|e| format!("{} ({e})", base.display()))?;
-    let target = path
-        .canonicalize()
-        .map_err(|e| format!("{} ({e})", path.display()))?;
+fn confine(path: &Path, base: &Path) -> Result<(), UriError> {
+    let canonical = |p: &Path| {
+        p.canonicalize().map_err(|error| UriError::Read {
+            path: p.to_owned(),
+            error,
+        })
+    };
+    let folder = canonical(base)?;
+    let target = canonical(path)?;
     if target.starts_with(&folder) {
         return Ok(());
     }
-    Err(format!(
-        "it names {}, outside the scene's folder {}: a scene reads files only from its own \
-         folder and below (--trust-scene lets a scene you trust read any file)",
-        target.display(),
-        folder.display()
-    ))
+    Err(UriError::Outside { target, folder })
 }
 
 /// RFC 3986 percent-decoding into UTF-8.
-fn percent_decode(s: &str) -> Result<String, String> {
+fn percent_decode(s: &str) -> Result<String, UriError> {
     let bytes = s.as_bytes();
     let mut out = Vec::with_capacity(bytes.len());
     let mut i = 0;
@@ -334,7 +329,7 @@ fn percent_decode(s: &str) -> Result<String, String> {
                 .get(i + 1..i + 3)
                 .and_then(|h| std::str::from_utf8(h).ok())
                 .and_then(|h| u8::from_str_radix(h, 16).ok())
-                .ok_or_else(|| format!("bad percent-escape in URI '{s}'"))?;
+                .ok_or_else(|| UriError::PercentEscape { uri: s.to_owned() })?;
             out.push(hex);
             i += 3;
         } else {
@@ -342,7 +337,7 @@ fn percent_decode(s: &str) -> Result<String, String> {
             i += 1;
         }
     }
-    String::from_utf8(out).map_err(|_| format!("URI '{s}' does not decode to UTF-8"))
+    String::from_utf8(out).map_err(|_| UriError::NotUtf8 { uri: s.to_owned() })
 }
 
 /// The first bytes of every KTX2 file ("«KTX 20»\r\n\x1a\n").
@@ -563,20 +558,32 @@ fn convert_sampler(s: &gltf::texture::Sampler) -> Sampler {
 
 /// Decodes PNG or JPEG into RGBA8 (grey, grey-alpha, RGB and 16-bit images are expanded the way
 /// the `image` crate does: 16-bit channels are rounded to 8 bits, missing alpha is opaque).
-fn decode_rgba8(bytes: &[u8], format: image::ImageFormat) -> Result<image::RgbaImage, String> {
+/// Why a PNG or JPEG did not decode.
+#[derive(Debug, thiserror::Error)]
+enum ImageDecodeError {
+    #[error("{0}")]
+    Image(image::ImageError),
+    #[error("{w}×{h} is larger than {MAX_IMAGE_BYTES} bytes of RGBA8")]
+    TooLarge { w: u64, h: u64 },
+    #[error("the image is empty")]
+    Empty,
+}
+
+fn decode_rgba8(
+    bytes: &[u8],
+    format: image::ImageFormat,
+) -> Result<image::RgbaImage, ImageDecodeError> {
     let mut reader = image::ImageReader::with_format(Cursor::new(bytes), format);
     let mut limits = image::Limits::default();
     limits.max_alloc = Some(MAX_IMAGE_BYTES);
     reader.limits(limits);
-    let img = reader.decode().map_err(|e| e.to_string())?;
+    let img = reader.decode().map_err(ImageDecodeError::Image)?;
     let (w, h) = (u64::from(img.width()), u64::from(img.height()));
     if w * h * 4 > MAX_IMAGE_BYTES {
-        return Err(format!(
-            "{w}×{h} is larger than {MAX_IMAGE_BYTES} bytes of RGBA8"
-        ));
+        return Err(ImageDecodeError::TooLarge { w, h });
     }
     if w == 0 || h == 0 {
-        return Err("the image is empty".into());
+        return Err(ImageDecodeError::Empty);
     }
     Ok(img.to_rgba8())
 }
@@ -590,10 +597,16 @@ mod tests {
         assert_eq!(percent_decode("a%20b%C3%A9.png").unwrap(), "a bé.png");
         assert_eq!(percent_decode("plain.bin").unwrap(), "plain.bin");
         // The gltf crate unwraps this decoding and panics; here it is an error.
-        assert!(percent_decode("%FF.png").unwrap_err().contains("UTF-8"));
+        assert!(
+            percent_decode("%FF.png")
+                .unwrap_err()
+                .to_string()
+                .contains("UTF-8")
+        );
         assert!(
             percent_decode("%G1")
                 .unwrap_err()
+                .to_string()
                 .contains("percent-escape")
         );
         assert!(percent_decode("end%2").is_err());
@@ -616,6 +629,7 @@ mod tests {
         assert!(
             read_uri("data:text/plain,hello", None, confined, any)
                 .unwrap_err()
+                .to_string()
                 .contains("base64")
         );
         assert!(
@@ -630,11 +644,13 @@ mod tests {
         assert!(
             read_uri("a.bin", None, confined, any)
                 .unwrap_err()
+                .to_string()
                 .contains("in-memory")
         );
         assert!(
             read_uri("file:///etc/hostname", None, UriAccess::Anywhere, any)
                 .unwrap_err()
+                .to_string()
                 .contains("in-memory")
         );
         assert_eq!(short_uri("data:image/png;base64,AAAA"), "data:image/png…");
@@ -677,7 +693,7 @@ mod tests {
             "link.bin".to_owned(),
         ];
         for uri in &outside {
-            let e = read(uri, UriAccess::Confined).unwrap_err();
+            let e = read(uri, UriAccess::Confined).unwrap_err().to_string();
             assert!(
                 e.contains("outside the scene's folder") && e.contains("--trust-scene"),
                 "{uri}: {e}"
@@ -686,7 +702,9 @@ mod tests {
         }
         // A device is never read, trusted or not; a buffer reads its byteLength, which the
         // file must have.
-        let e = read("/dev/zero", UriAccess::Anywhere).unwrap_err();
+        let e = read("/dev/zero", UriAccess::Anywhere)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("character device"), "{e}");
         let exactly = |n| {
             read_uri(
@@ -700,9 +718,12 @@ mod tests {
         assert!(
             exactly(7)
                 .unwrap_err()
+                .to_string()
                 .contains("has 6 bytes, fewer than the 7")
         );
-        let e = read_uri("textures/a.bin", base, UriAccess::Confined, Want::AtMost(5)).unwrap_err();
+        let e = read_uri("textures/a.bin", base, UriAccess::Confined, Want::AtMost(5))
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("more than the 5 bytes an image may have"), "{e}");
         std::fs::remove_dir_all(&root).unwrap();
     }

@@ -105,6 +105,20 @@ pub(crate) fn check_shown(shown: Option<&[u32]>, layout: &Layout) -> Result<(), 
     }
 }
 
+/// What one iteration's schedule is drawn from: the DGI of a `width × height` frame, the
+/// pixels shown (bit `p % 32` of word `p / 32` for pixel `p`; `None`: every pixel), the
+/// probability floor, and the iteration and seed the draw is keyed on.
+#[derive(Clone, Copy, Debug)]
+pub struct DrawInput<'a> {
+    pub dgi: &'a [f32],
+    pub shown: Option<&'a [u32]>,
+    pub width: u32,
+    pub height: u32,
+    pub p_min: f32,
+    pub iteration: u32,
+    pub seed: u32,
+}
+
 /// One iteration's draw over a validated DGI: what a compaction workgroup knows.
 pub(super) struct Draw<'a> {
     dgi: &'a [f32],
@@ -120,15 +134,16 @@ pub(super) struct Draw<'a> {
 }
 
 impl<'a> Draw<'a> {
-    pub(super) fn new(
-        dgi: &'a [f32],
-        shown: Option<&'a [u32]>,
-        (width, height): (u32, u32),
-        p_min: f32,
-        iteration: u32,
-        seed: u32,
-        order: Order,
-    ) -> Result<Self, ScheduleError> {
+    pub(super) fn new(input: &DrawInput<'a>, order: Order) -> Result<Self, ScheduleError> {
+        let DrawInput {
+            dgi,
+            shown,
+            width,
+            height,
+            p_min,
+            iteration,
+            seed,
+        } = *input;
         let p_min = validate_p_min(p_min)?;
         let layout = Layout::new(width, height)?;
         check_dgi(dgi, &layout)?;
@@ -210,7 +225,16 @@ pub fn schedule_cpu_blocks(
     seed: u32,
     order: Order,
 ) -> Result<Vec<Vec<u32>>, ScheduleError> {
-    let draw = Draw::new(dgi, None, (width, height), p_min, iteration, seed, order)?;
+    let input = DrawInput {
+        dgi,
+        shown: None,
+        width,
+        height,
+        p_min,
+        iteration,
+        seed,
+    };
+    let draw = Draw::new(&input, order)?;
     Ok((0..draw.layout.blocks())
         .into_par_iter()
         .map(|block| {
@@ -232,24 +256,23 @@ pub fn schedule_cpu(
     seed: u32,
     order: Order,
 ) -> Result<Vec<u32>, ScheduleError> {
-    schedule_cpu_shown(dgi, None, width, height, p_min, iteration, seed, order)
+    let input = DrawInput {
+        dgi,
+        shown: None,
+        width,
+        height,
+        p_min,
+        iteration,
+        seed,
+    };
+    schedule_cpu_shown(&input, order)
 }
 
 /// [`schedule_cpu`] with a shown mask (bit `p % 32` of word `p / 32` for pixel `p`): pixels
 /// whose bit is clear have probability 0 and are never listed (the wall camera's bezels and
 /// gaps, DESIGN.md §11). The twin of the kernel with `Params.masked = 1`.
-#[allow(clippy::too_many_arguments)]
-pub fn schedule_cpu_shown(
-    dgi: &[f32],
-    shown: Option<&[u32]>,
-    width: u32,
-    height: u32,
-    p_min: f32,
-    iteration: u32,
-    seed: u32,
-    order: Order,
-) -> Result<Vec<u32>, ScheduleError> {
-    let draw = Draw::new(dgi, shown, (width, height), p_min, iteration, seed, order)?;
+pub fn schedule_cpu_shown(input: &DrawInput, order: Order) -> Result<Vec<u32>, ScheduleError> {
+    let draw = Draw::new(input, order)?;
     let [tiles_x, tiles_y] = draw.layout.tiles;
     // One task per row of blocks: few allocations, and rows balance well across threads.
     let rows: Vec<Vec<u32>> = (0..tiles_y)

@@ -152,17 +152,24 @@ fn shown_buffer(ctx: &GpuContext, shown: Option<&[u32]>) -> wgpu::Buffer {
         })
 }
 
-/// The kernels' parameters of one iteration over `layout`.
-#[allow(clippy::too_many_arguments)]
-fn gpu_params(
-    layout: &Layout,
+/// What the kernels are recorded with besides the iteration and seed: the order, the
+/// probability floor, whether a shown mask applies, and the band's first pixel.
+#[derive(Clone, Copy, Debug)]
+struct Recorded {
     order: Order,
     p_min: f32,
     masked: bool,
     pixel_base: u32,
-    iteration: u32,
-    seed: u32,
-) -> GpuParams {
+}
+
+/// The kernels' parameters of one iteration over `layout`.
+fn gpu_params(layout: &Layout, recorded: Recorded, iteration: u32, seed: u32) -> GpuParams {
+    let Recorded {
+        order,
+        p_min,
+        masked,
+        pixel_base,
+    } = recorded;
     GpuParams {
         size: [layout.width, layout.height],
         tiles_x: layout.tiles[0],
@@ -451,15 +458,13 @@ impl ScheduleRun {
     /// The kernel's parameters for one iteration.
     #[must_use]
     pub fn gpu_params(&self, iteration: u32, seed: u32) -> GpuParams {
-        gpu_params(
-            &self.layout,
-            self.order,
-            self.p_min,
-            self.masked,
-            self.pixel_base,
-            iteration,
-            seed,
-        )
+        let recorded = Recorded {
+            order: self.order,
+            p_min: self.p_min,
+            masked: self.masked,
+            pixel_base: self.pixel_base,
+        };
+        gpu_params(&self.layout, recorded, iteration, seed)
     }
 
     /// Changes p_min for the iterations recorded from now on.
@@ -610,15 +615,13 @@ impl BlockMasksRun {
         iteration: u32,
         seed: u32,
     ) -> Result<Vec<super::SlotMask>, GpuError> {
-        let params = gpu_params(
-            &self.layout,
-            Order::Coherent,
-            self.p_min,
-            self.masked,
-            0,
-            iteration,
-            seed,
-        );
+        let recorded = Recorded {
+            order: Order::Coherent,
+            p_min: self.p_min,
+            masked: self.masked,
+            pixel_base: 0,
+        };
+        let params = gpu_params(&self.layout, recorded, iteration, seed);
         ctx.queue
             .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
         let mut enc = ctx

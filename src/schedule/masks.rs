@@ -4,7 +4,7 @@
 
 use rayon::prelude::*;
 
-use super::compact::Draw;
+use super::compact::{Draw, DrawInput};
 use super::{BLOCK_PIXELS, Order, ScheduleError};
 
 /// A block's selected slots: bit `s % 32` of word `s / 32` for slot `s` ([`super::Layout::pixel`]).
@@ -14,26 +14,11 @@ pub type SlotMask = [u32; (BLOCK_PIXELS / 32) as usize];
 /// selected slots as a [`SlotMask`]: its pixels in list order are its set bits ascending,
 /// through [`super::Layout::pixel`]. Ranks split an iteration's schedule so (DESIGN.md §12): each
 /// draws a share of the blocks and sends the others 128 bytes a non-empty block.
-#[allow(clippy::too_many_arguments)]
 pub fn schedule_cpu_block_masks(
-    dgi: &[f32],
-    shown: Option<&[u32]>,
-    width: u32,
-    height: u32,
-    p_min: f32,
-    iteration: u32,
-    seed: u32,
+    input: &DrawInput,
     blocks: &[u32],
 ) -> Result<Vec<SlotMask>, ScheduleError> {
-    let draw = Draw::new(
-        dgi,
-        shown,
-        (width, height),
-        p_min,
-        iteration,
-        seed,
-        Order::Coherent,
-    )?;
+    let draw = Draw::new(input, Order::Coherent)?;
     Ok(blocks
         .par_iter()
         .map(|&block| {

@@ -30,7 +30,7 @@ pub mod masks;
 pub mod select;
 
 pub use args::indirect_grid;
-pub use compact::{Layout, schedule_cpu, schedule_cpu_blocks, schedule_cpu_shown};
+pub use compact::{DrawInput, Layout, schedule_cpu, schedule_cpu_blocks, schedule_cpu_shown};
 pub use masks::{SlotMask, schedule_cpu_block_masks};
 pub use select::{morton_decode, probability, scatter, scatter_half_bits, selected};
 

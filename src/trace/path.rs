@@ -298,8 +298,19 @@ fn emission_at(sc: &PackedScene, mb: usize, flags: u32, sp: SurfacePoint) -> Vec
     e
 }
 
-/// The extensions' BSDF of material `mb` (with `flags`) over its core BSDF `core` at `sp`, hit
-/// from the front or not (KHR_materials_transmission, _ior, _specular, _clearcoat, _sheen,
+/// Where [`ext_bsdf`] is evaluated: the surface point `sp`, hit from the front or not, `ns`
+/// the interpolated normal before any normal map and `ng` the geometric normal towards the
+/// viewer.
+#[derive(Clone, Copy)]
+struct ExtSurface {
+    front: bool,
+    sp: SurfacePoint,
+    ns: Vec3,
+    ng: Vec3,
+}
+
+/// The extensions' BSDF of material `mb` (with `flags`) over its core BSDF `core` at
+/// `surface.sp`, hit from the front or not (KHR_materials_transmission, _ior, _specular, _clearcoat, _sheen,
 /// _anisotropy, _dispersion, _diffuse_transmission): each factor times its texture where the
 /// material has one — transmission × R, specular × A, specular colour × RGB, coat × R, coat
 /// roughness × G (α = max(α · G², [`MIN_ALPHA`]), as the metallic-roughness map's), diffuse
@@ -309,18 +320,15 @@ fn emission_at(sc: &PackedScene, mb: usize, flags: u32, sp: SurfacePoint) -> Vec
 /// through a dispersive material (its index of refraction then that channel's), or
 /// [`ALL_CHANNELS`]. The twin of `ext_bsdf` in path.wgsl.
 #[inline(never)]
-#[allow(clippy::too_many_arguments)]
 fn ext_bsdf(
     sc: &PackedScene,
     mb: usize,
     flags: u32,
     mut core: Bsdf,
-    front: bool,
-    sp: SurfacePoint,
-    ns: Vec3,
-    ng: Vec3,
+    surface: ExtSurface,
     channel: u32,
 ) -> BsdfExt {
+    let ExtSurface { front, sp, ns, ng } = surface;
     let (m3, m4) = (sc.materials[mb + 3], sc.materials[mb + 4]);
     // The anisotropy's strength and its direction in the tangent frame (cos, sin of the
     // rotation, or the texture's direction rotated by it), and the dispersion.
@@ -755,8 +763,14 @@ fn trace_path<const FULL: bool>(
         if FULL && flags & MAT_DISPERSION != 0 {
             (channel, throughput) = pick_channel(throughput, r2[3]);
         }
+        let surface = ExtSurface {
+            front,
+            sp,
+            ns: ns_interpolated,
+            ng,
+        };
         let ext = (FULL && flags & MAT_EXT_BSDF != 0)
-            .then(|| ext_bsdf(sc, mb, flags, bsdf, front, sp, ns_interpolated, ng, channel));
+            .then(|| ext_bsdf(sc, mb, flags, bsdf, surface, channel));
         let transmits = ext.is_some_and(|e| e.transmits());
         // The core BSDF's lobe probability, shared by its two evaluations and its sample.
         let ps = if ext.is_none() {

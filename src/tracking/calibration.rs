@@ -63,15 +63,20 @@ impl Units {
     }
 }
 
-impl std::str::FromStr for Units {
-    type Err = String;
+/// A `--units` value that is none of mm, cm or m.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("{0:?}: the units are mm, cm or m")]
+pub struct UnitsError(pub String);
 
-    fn from_str(s: &str) -> Result<Self, String> {
+impl std::str::FromStr for Units {
+    type Err = UnitsError;
+
+    fn from_str(s: &str) -> Result<Self, UnitsError> {
         match s {
             "mm" => Ok(Self::Millimetres),
             "cm" => Ok(Self::Centimetres),
             "m" => Ok(Self::Metres),
-            _ => Err(format!("{s:?}: the units are mm, cm or m")),
+            _ => Err(UnitsError(s.to_owned())),
         }
     }
 }

@@ -165,7 +165,11 @@ impl<'a> ViewerApp<'a> {
         self.core.window_picture_into(&g.texture)
     }
 
-    fn save(&mut self, stem: &str, picture: &super::core::Picture) -> Result<(), String> {
+    fn save(
+        &mut self,
+        stem: &str,
+        picture: &super::core::Picture,
+    ) -> Result<(), super::ViewerError> {
         match save_picture(&self.save_dir, stem, picture, self.core.state.exposure) {
             Ok(files) => {
                 self.message =
@@ -174,8 +178,8 @@ impl<'a> ViewerApp<'a> {
                 Ok(())
             }
             Err(e) => {
-                self.message = format!("save failed: {}", crate::messages::chain(&e));
-                Err(self.message.clone())
+                self.message = save_failed(&e);
+                Err(e)
             }
         }
     }
@@ -687,7 +691,7 @@ impl eframe::App for ViewerApp<'_> {
                 .as_ref()
                 .expect("taken above when a screenshot is due");
             if let Err(e) = self.save("screenshot", whole) {
-                self.fail(ui.ctx(), e);
+                self.fail(ui.ctx(), save_failed(&e));
                 return;
             }
             let slot = Arc::new(Mutex::new(None));
@@ -836,4 +840,9 @@ impl eframe::App for ViewerApp<'_> {
         });
         ui.ctx().request_repaint();
     }
+}
+
+/// The status line, and the failure, of a save that failed.
+fn save_failed(e: &super::ViewerError) -> String {
+    format!("save failed: {}", crate::messages::chain(e))
 }

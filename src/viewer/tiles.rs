@@ -43,13 +43,9 @@ impl<'a> TilesApp<'a> {
     }
 
     /// Rank 0's steps up to its next picture (or its stop).
-    fn follow(&mut self) -> Result<(), String> {
+    fn follow(&mut self) -> Result<(), crate::cluster::ClusterError> {
         loop {
-            match self
-                .view
-                .next_step()
-                .map_err(|e| crate::messages::chain(&e))?
-            {
+            match self.view.next_step()? {
                 Some((_, Applied::Tiles(pictures, exposure))) => {
                     // Drawn by the next `ui` (a hidden window keeps only the latest).
                     self.last = Some((pictures, exposure));
@@ -172,7 +168,7 @@ impl eframe::App for TilesApp<'_> {
         if !self.stopped
             && let Err(e) = self.follow()
         {
-            self.fail(e);
+            self.fail(crate::messages::chain(&e));
             ctx.send_viewport_cmd(egui::ViewportCommand::Close);
             return;
         }

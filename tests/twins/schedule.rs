@@ -570,7 +570,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {{
 #[test]
 fn gpu_block_masks_equal_the_cpu_twin() {
     use raygun::schedule::gpu::BlockMasksRun;
-    use raygun::schedule::schedule_cpu_block_masks;
+    use raygun::schedule::{DrawInput, schedule_cpu_block_masks};
     let ctx = GpuContext::for_tests();
     let mut checked = 0;
     for (w, h) in [(130u32, 70u32), (64, 32), (97, 1), (1, 45), (1, 1)] {
@@ -599,10 +599,16 @@ fn gpu_block_masks_equal_the_cpu_twin() {
                             shown.is_some()
                         );
                         let gpu = run.masks(&ctx, iteration, seed).unwrap();
-                        let cpu = schedule_cpu_block_masks(
-                            &dgi, shown, w, h, p_min, iteration, seed, &blocks,
-                        )
-                        .unwrap();
+                        let input = DrawInput {
+                            dgi: &dgi,
+                            shown,
+                            width: w,
+                            height: h,
+                            p_min,
+                            iteration,
+                            seed,
+                        };
+                        let cpu = schedule_cpu_block_masks(&input, &blocks).unwrap();
                         assert_eq!(gpu, cpu, "{what}");
                         checked += 1;
                     }

@@ -133,7 +133,6 @@ fn time_to_target(curve: &[CurvePoint], target: f64) -> TimeToTarget {
 /// `cfg.iterations` iterations, then a full-frame render until its accumulated time reaches the
 /// guided one's (at least two iterations). Time is the frames' own (GPU timestamps where the
 /// adapter has them, else wall clock); the filtered curves use the fast filter's CPU twin.
-#[allow(clippy::too_many_arguments)]
 pub fn convergence(
     backend: &Backend,
     display: &DisplayModel,

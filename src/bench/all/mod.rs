@@ -20,6 +20,7 @@ use serde::Serialize;
 use crate::bench::dgi::{self, DgiBenchConfig, DgiBenchReport};
 use crate::bench::filter::{self, FilterBenchConfig, FilterBenchReport};
 use crate::bench::guided::{self, GuidedBenchConfig, GuidedBenchReport};
+use crate::bench::paper::{Shot, Subject};
 use crate::bench::solver::{self, SolverReport};
 use crate::bench::trace::{self, TraceBenchConfig, TraceBenchRow};
 use crate::display::DisplayModel;
@@ -276,6 +277,12 @@ pub fn run(
         },
     )?;
     progress("filter");
+    let subject = Subject {
+        backend,
+        display,
+        name,
+        scene,
+    };
     let fovs = end_fovs(cfg);
     let fcfg = FilterBenchConfig {
         size: cfg.size,
@@ -294,18 +301,14 @@ pub fn run(
         &fcfg,
         &mut progress,
         |fov, _| {
-            guided::filter_input(
-                backend,
-                display,
-                name,
-                scene,
-                cfg.size,
+            let shot = Shot {
+                size: cfg.size,
                 fov,
-                cfg.iterations.max(1),
-                cfg.reference_spp.max(1),
-                cfg.seed,
-            )
-            .map_err(|e| filter::FilterBenchError::Render(e.to_string()))
+                iterations: cfg.iterations.max(1),
+                seed: cfg.seed,
+            };
+            guided::filter_input(&subject, shot, cfg.reference_spp.max(1))
+                .map_err(|e| filter::FilterBenchError::Render(e.to_string()))
         },
     )?;
     let convergence = convergence(backend, display, name, scene, &fovs, cfg, &mut progress)?;
@@ -326,19 +329,13 @@ pub fn run(
     for &fov in &fovs {
         for &path in paths {
             progress(&format!("per-stage times: {fov}°, picture {path:?}"));
-            stage_rows.push(stages::measure(
-                backend,
-                display,
-                name,
-                scene,
-                cfg.size,
+            let shot = Shot {
+                size: cfg.size,
                 fov,
-                cfg.stage_iterations,
-                &cfg.filter,
-                0.0,
-                cfg.seed.wrapping_add(21),
-                path,
-            )?);
+                iterations: cfg.stage_iterations,
+                seed: cfg.seed.wrapping_add(21),
+            };
+            stage_rows.push(stages::measure(&subject, shot, &cfg.filter, 0.0, path)?);
         }
     }
     let mut report = AllReport {

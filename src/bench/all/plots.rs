@@ -15,7 +15,7 @@ pub fn plot_dgi_metrics(r: &DgiBenchReport, path: &Path) -> Result<(), AllBenchE
         path: path.display().to_string(),
         reason: e,
     };
-    crate::bench::font::register().map_err(err)?;
+    crate::bench::font::register().map_err(|e| err(e.to_string()))?;
     let root = BitMapBackend::new(path, (1200, 500)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| err(e.to_string()))?;
     let (left, right) = root.split_horizontally(600);
@@ -103,7 +103,7 @@ pub fn plot_convergence(r: &AllReport, path: &Path) -> Result<(), AllBenchError>
         path: path.display().to_string(),
         reason: e,
     };
-    crate::bench::font::register().map_err(err)?;
+    crate::bench::font::register().map_err(|e| err(e.to_string()))?;
     let n = r.convergence.len().max(1);
     let root = BitMapBackend::new(path, (600 * n as u32, 500)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| err(e.to_string()))?;

@@ -19,14 +19,13 @@ use std::time::Instant;
 
 use serde::Serialize;
 
-use crate::display::DisplayModel;
 use crate::filter::{Filter, FilterParams};
 use crate::frame::{GuideConfig, Render, Renderer};
 use crate::gpu::Backend;
 use crate::output::srgb8::display_rgba;
-use crate::scene::Scene;
 
 use super::AllBenchError;
+use crate::bench::paper::{Shot, Subject};
 
 /// One FOV's stage times (ms). Stage columns are means over the iterations, so that they add
 /// up: the mean of the per-iteration sums is the sum of the means.
@@ -97,25 +96,30 @@ impl PicturePath {
     }
 }
 
-/// Measures `iterations` guided iterations of `scene` in the paper's setup (viewer at
-/// (0, 0, 1) m pointing at the wall centre, square cone of `fov` degrees) with the ROI set on
-/// the first, filtering with `filter` and converting for display with `exposure` every one,
-/// the picture made the `picture` way (a GPU renderer whose frame is one band; else the host
-/// way, and the row says so).
-#[allow(clippy::too_many_arguments)]
+/// Measures `shot.iterations` guided iterations of `subject.scene` in the paper's setup
+/// (viewer at (0, 0, 1) m pointing at the wall centre, square cone of `shot.fov` degrees) with
+/// the ROI set on the first, filtering with `filter` and converting for display with
+/// `exposure` every one, the picture made the `picture` way (a GPU renderer whose frame is one
+/// band; else the host way, and the row says so).
 pub fn measure(
-    backend: &Backend,
-    display: &DisplayModel,
-    name: &str,
-    scene: &Scene,
-    size: [u32; 2],
-    fov: f64,
-    iterations: u32,
+    subject: &Subject,
+    shot: Shot,
     filter: &FilterParams,
     exposure: f32,
-    seed: u32,
     picture: PicturePath,
 ) -> Result<StageRow, AllBenchError> {
+    let Subject {
+        backend,
+        display,
+        name,
+        scene,
+    } = *subject;
+    let Shot {
+        size,
+        fov,
+        iterations,
+        seed,
+    } = shot;
     let [w, h] = size;
     let settings =
         crate::bench::paper::settings(scene, size, seed, crate::trace::path::DEFAULT_MAX_DEPTH)
@@ -268,6 +272,8 @@ pub fn markdown(rows: &[StageRow], device: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::display::DisplayModel;
+    use crate::scene::Scene;
     use crate::trace::camera::RenderCamera;
     use crate::trace::path::TraceSettings;
     use crate::viewer::core::ViewerCore;

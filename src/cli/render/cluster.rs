@@ -44,7 +44,9 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     let prepared = prepare(args, &c);
     let mine = match &prepared {
         Ok(p) => identity(c.ranks(), &p.fields),
-        Err(e) => Err(crate::cli::error_chain(e)),
+        Err(e) => Err(crate::cluster::handshake::StartupFailure(
+            crate::cli::error_chain(e),
+        )),
     };
     check(&mut c, mine)?;
     // The check passed, so this rank prepared (its error would have failed the check).
@@ -94,7 +96,7 @@ fn prepare(args: &RenderArgs, c: &Cluster) -> anyhow::Result<Prepared> {
     // Each rank traces on its own GPU where it has one and computes the DGI there (as one GPU
     // process does); the schedule and the owners' tiles stay on the CPUs, and rank 0 filters
     // the whole picture where it traced.
-    let (backend, note) = Backend::choose(args.backend)?;
+    let (backend, note) = args.backend.choose()?;
     if let Some(note) = note {
         crate::cli::say(args.quiet, note);
     }

@@ -20,7 +20,7 @@ use crate::cli::wall::WALL_CAMERA;
 use crate::display::DisplayModel;
 use crate::frame::Renderer;
 use crate::frame::stop::StopCondition;
-use crate::gpu::{Backend, BackendChoice};
+use crate::gpu::Backend;
 use crate::memory::{Budget, Work};
 use crate::output::{Format, check_image_path, write_rgb};
 use crate::scene::Scene;
@@ -60,16 +60,8 @@ pub struct RenderArgs {
     /// head); `--eye` may then be left out (the head's first eye).
     #[command(flatten)]
     pub head: crate::cli::head::HeadArgs,
-    /// Look from this point (X,Y,Z, metres, the scene's frame) instead of a scene camera;
-    /// needs --look-at.
-    #[arg(long, value_name = "X,Y,Z", value_parser = crate::cli::args::parse_vec3, requires = "look_at", conflicts_with = "camera", allow_hyphen_values = true)]
-    pub look_from: Option<glam::DVec3>,
-    /// The point --look-from looks at (+Y up).
-    #[arg(long, value_name = "X,Y,Z", value_parser = crate::cli::args::parse_vec3, requires = "look_from", allow_hyphen_values = true)]
-    pub look_at: Option<glam::DVec3>,
-    /// Vertical field of view of --look-from, degrees (default 45).
-    #[arg(long, value_name = "DEG", requires = "look_from")]
-    pub yfov: Option<f32>,
+    #[command(flatten)]
+    pub look: crate::cli::args::LookArgs,
     /// Image size, or `native`: the display canvas's own pixel size (13519×5457 for HORNET),
     /// at which --tiles writes every tile at its own resolution without resampling.
     #[arg(allow_hyphen_values = true, long, value_name = "W,H|native", value_parser = crate::cli::args::parse_size_or_native, default_value = "1280,720")]
@@ -101,8 +93,8 @@ pub struct RenderArgs {
         allow_hyphen_values = true
     )]
     pub exposure: f32,
-    #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
-    pub backend: BackendChoice,
+    #[command(flatten)]
+    pub backend: crate::cli::args::BackendArgs,
     /// Print only warnings and errors: no progress report, no summary.
     #[arg(long)]
     pub quiet: bool,
@@ -172,11 +164,16 @@ pub struct RenderArgs {
     pub cluster: crate::cli::cluster::ClusterArgs,
 }
 
-fn parse_format(s: &str) -> Result<Format, String> {
+/// A `--tiles-format` that is neither exr nor png.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("'{0}': the tile format is exr or png")]
+pub struct TileFormatError(String);
+
+fn parse_format(s: &str) -> Result<Format, TileFormatError> {
     match s.to_ascii_lowercase().as_str() {
         "exr" => Ok(Format::Exr),
         "png" => Ok(Format::Png),
-        _ => Err(format!("'{s}': the tile format is exr or png")),
+        _ => Err(TileFormatError(s.to_owned())),
     }
 }
 
@@ -294,7 +291,7 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
         None => None,
     };
     let wall = resolve_wall(args, plan.as_ref())?;
-    let (backend, note) = Backend::choose(args.backend)?;
+    let (backend, note) = args.backend.choose()?;
     if let Some(note) = note {
         crate::cli::say(args.quiet, note);
     }
@@ -438,7 +435,7 @@ fn wall_camera(
 /// camera `--world-from-room auto` puts at the eye: the scene's first).
 fn settings(args: &RenderArgs, scene: &Scene) -> anyhow::Result<TraceSettings> {
     let [w, h] = args.size;
-    let look = look_at(args.look_from, args.look_at, args.yfov);
+    let look = args.look.viewpoint();
     let name = args.camera.as_deref().filter(|c| *c != WALL_CAMERA);
     let camera = RenderCamera::choose_or_look_at(scene, name, look.as_ref(), w, h)
         .with_context(|| format!("scene {}", args.scene))?;
@@ -448,20 +445,5 @@ fn settings(args: &RenderArgs, scene: &Scene) -> anyhow::Result<TraceSettings> {
         seed: args.seed,
         max_depth: args.max_depth,
         camera,
-    })
-}
-
-/// `--look-from`, `--look-at` and `--yfov` as a viewpoint (clap makes the first two go
-/// together).
-#[must_use]
-pub fn look_at(
-    from: Option<glam::DVec3>,
-    at: Option<glam::DVec3>,
-    yfov: Option<f32>,
-) -> Option<crate::trace::camera::LookAt> {
-    Some(crate::trace::camera::LookAt {
-        from: from?.as_vec3(),
-        at: at?.as_vec3(),
-        yfov_deg: yfov.unwrap_or(45.0),
     })
 }

@@ -92,7 +92,13 @@ impl EllipseSolver {
         } else {
             (x.abs(), y.abs())
         };
-        let q = first_quadrant_lanes(self.major, self.minor, self.e, self.c, qx, qy, hint, mask);
+        let axes = Axes {
+            a: self.major,
+            b: self.minor,
+            e: self.e,
+            c: self.c,
+        };
+        let q = first_quadrant_lanes(axes, qx, qy, hint, mask);
         let distance = hypot_lanes(qx - q.x, qy - q.y, mask);
         let (cx, cy) = if self.swap { (q.y, q.x) } else { (q.x, q.y) };
         // The query's signs back, by flipping sign bits as `-c` does (`< 0` keeps −0.0 on the
@@ -128,6 +134,17 @@ pub(super) struct Quadrant {
     pub(super) root: f64x4,
 }
 
+/// The ellipse the first-quadrant solver works on: the semi-axes `a ≥ b` along x and y, and
+/// `e = b/a` and `c = (1 − e)(1 + e)` hoisted (NaN when `a = 0`, which returns before using
+/// them).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Axes {
+    pub(super) a: f64,
+    pub(super) b: f64,
+    pub(super) e: f64,
+    pub(super) c: f64,
+}
+
 /// The first-quadrant solver (steps 2–8 of the module docs) for [`LANES`] queries on the same
 /// ellipse at once, lanes whose `mask` is off skipped.
 ///
@@ -141,17 +158,14 @@ pub(super) struct Quadrant {
 /// but keeps its root, so a lane's answer never depends on its neighbours
 /// (`lanes_are_bit_identical_to_one_at_a_time`). The one-query solver is lane 0 of this one.
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
 pub(super) fn first_quadrant_lanes(
-    a: f64,
-    b: f64,
-    e: f64,
-    c: f64,
+    axes: Axes,
     x: f64x4,
     y: f64x4,
     hint: f64x4,
     mask: f64x4,
 ) -> Quadrant {
+    let Axes { a, b, e, c } = axes;
     let nan = f64x4::splat(f64::NAN);
     if a == 0.0 {
         // The point ellipse.

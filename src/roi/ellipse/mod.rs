@@ -220,10 +220,7 @@ fn first_quadrant_core(
 ) -> (f64, f64, u32, f64) {
     let first = |v: f64, rest: f64| f64x4::new([v, rest, rest, rest]);
     let q = first_quadrant_lanes(
-        a,
-        b,
-        e,
-        c,
+        lanes::Axes { a, b, e, c },
         first(x, 0.0),
         first(y, 0.0),
         first(hint, f64::NAN),

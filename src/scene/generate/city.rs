@@ -49,13 +49,12 @@ fn rand(seed: u32, a: u32, b: u32, salt: u32) -> f32 {
 /// towards the centre), with flat or hipped roofs and rooftop plant rooms. Materials: asphalt
 /// (textured), sidewalk, roof, and four facades (one textured with windows). Cameras "street"
 /// (eye height, looking down the central avenue) and "aerial".
-pub fn city(params: CityParams) -> Result<Generated, String> {
+pub fn city(params: CityParams) -> Result<Generated, GenerateError> {
     if params.blocks == 0 || params.blocks > CityParams::MAX_BLOCKS {
-        return Err(format!(
-            "--blocks must be in 1..={}, got {}",
-            CityParams::MAX_BLOCKS,
-            params.blocks
-        ));
+        return Err(GenerateError::Blocks {
+            max: CityParams::MAX_BLOCKS,
+            got: params.blocks,
+        });
     }
     let seed = params.seed;
     let mut b = Builder::new();

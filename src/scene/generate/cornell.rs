@@ -85,7 +85,7 @@ pub fn cornell_camera_yfov() -> f32 {
 /// 0.001, 180° about +Y, x shifted by 0.278 m) takes them to glTF's metres with the opening at
 /// z = 0 facing +Z, the room centred on x = 0, the floor at y = 0 and the back wall at
 /// z = −0.5592. The camera "front" looks in through the opening along −Z.
-pub fn cornell(light: bool) -> Result<Generated, String> {
+pub fn cornell(light: bool) -> Result<Generated, GenerateError> {
     let mut b = Builder::new();
     let white = b.material("white", CORNELL_WHITE, None, None);
     let red = b.material("red", CORNELL_RED_RGB, None, None);

@@ -16,6 +16,7 @@ mod city;
 mod cornell;
 mod glb;
 
+pub use super::GenerateError;
 use super::{Scene, SceneError};
 
 pub use city::{CityParams, city};

@@ -437,6 +437,15 @@ impl PrimLanes {
     }
 }
 
+/// A ray's segment: from `origin` along `dir` (not normalised: `t` counts `dir`s) up to
+/// `tmax`.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Segment {
+    pub(super) origin: Vec3,
+    pub(super) dir: Vec3,
+    pub(super) tmax: f32,
+}
+
 /// What the box test needs of a ray, computed once per ray: obvhs' guarded reciprocal of the
 /// direction (the GPU's `safe_inverse`), the origin times it, and per axis which plane of a
 /// box the ray meets first (the near plane is the maximum for a negative direction).
@@ -628,6 +637,30 @@ thread_local! {
     static CHOSEN: std::cell::Cell<Option<CpuPackets>> = const { std::cell::Cell::new(None) };
 }
 
+/// Why a `RAYGUN_CPU_PACKETS` value names no walks this processor and build run.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum CpuPacketsError {
+    #[error(
+        "expected 0 (one ray at a time), avx2 or avx512 (packets of sixteen rays in those lanes)"
+    )]
+    Unknown,
+    #[error("packets of sixteen rays are walked in x86-64 lanes; this build is for {arch}: use 0")]
+    NotX86_64 { arch: &'static str },
+    #[error("AVX2 packets need a build for AVX2 and FMA (.cargo/config.toml)")]
+    NoAvx2Build,
+    #[error("AVX-512 packets need a processor with AVX-512 F and DQ")]
+    NoAvx512Processor,
+}
+
+/// Why `RAYGUN_CPU_PACKETS` names no walks: the variable and its value, and why.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum CpuPacketsEnvError {
+    #[error("RAYGUN_CPU_PACKETS={value:?}: {why}")]
+    Value { value: String, why: CpuPacketsError },
+    #[error("RAYGUN_CPU_PACKETS={value:?}: not UTF-8")]
+    NotUnicode { value: std::ffi::OsString },
+}
+
 impl CpuPackets {
     /// The fastest walks this processor and build run: packets in AVX-512 where the processor
     /// has AVX-512 F and DQ, else in AVX2 where the build targets AVX2 and FMA (every x86-64
@@ -647,43 +680,31 @@ impl CpuPackets {
 
     /// The walks `value` names: `0` one ray at a time, `avx2` or `avx512` packets in those
     /// lanes; an error says why where this processor or build cannot.
-    pub fn parse(value: &str) -> Result<Self, String> {
+    pub fn parse(value: &str) -> Result<Self, CpuPacketsError> {
         let want = match value.trim() {
             "0" => return Ok(Self::One),
             "avx2" => Self::Avx2,
             "avx512" => Self::Avx512,
-            _ => {
-                return Err(
-                    "expected 0 (one ray at a time), avx2 or avx512 (packets of sixteen \
-                            rays in those lanes)"
-                        .to_owned(),
-                );
-            }
+            _ => return Err(CpuPacketsError::Unknown),
         };
         match (want, Self::widest()) {
-            _ if !cfg!(target_arch = "x86_64") => Err(format!(
-                "packets of sixteen rays are walked in x86-64 lanes; this build is for {}: \
-                 use 0",
-                std::env::consts::ARCH
-            )),
-            (Self::Avx2, Self::One) => {
-                Err("AVX2 packets need a build for AVX2 and FMA (.cargo/config.toml)".into())
-            }
-            (Self::Avx512, Self::One | Self::Avx2) => {
-                Err("AVX-512 packets need a processor with AVX-512 F and DQ".into())
-            }
+            _ if !cfg!(target_arch = "x86_64") => Err(CpuPacketsError::NotX86_64 {
+                arch: std::env::consts::ARCH,
+            }),
+            (Self::Avx2, Self::One) => Err(CpuPacketsError::NoAvx2Build),
+            (Self::Avx512, Self::One | Self::Avx2) => Err(CpuPacketsError::NoAvx512Processor),
             _ => Ok(want),
         }
     }
 
     /// `RAYGUN_CPU_PACKETS` ([`Self::parse`]; unset: [`Self::widest`]), the error naming the
     /// variable and its value.
-    pub fn from_env() -> Result<Self, String> {
+    pub fn from_env() -> Result<Self, CpuPacketsEnvError> {
         match std::env::var("RAYGUN_CPU_PACKETS") {
-            Ok(v) => Self::parse(&v).map_err(|why| format!("RAYGUN_CPU_PACKETS={v:?}: {why}")),
+            Ok(v) => Self::parse(&v).map_err(|why| CpuPacketsEnvError::Value { value: v, why }),
             Err(std::env::VarError::NotPresent) => Ok(Self::widest()),
-            Err(std::env::VarError::NotUnicode(v)) => {
-                Err(format!("RAYGUN_CPU_PACKETS={v:?}: not UTF-8"))
+            Err(std::env::VarError::NotUnicode(value)) => {
+                Err(CpuPacketsEnvError::NotUnicode { value })
             }
         }
     }
@@ -943,7 +964,8 @@ impl CpuTree {
         }
         let mut best = None;
         let ray = NodeRay::new(origin, dir);
-        self.walk_closest(0, &ray, origin, dir, tmax, &mut best, &covered);
+        let segment = Segment { origin, dir, tmax };
+        self.walk_closest(0, &ray, segment, &mut best, &covered);
         best.map(|(t, u, v, i)| TraceHit {
             t,
             u,
@@ -953,23 +975,20 @@ impl CpuTree {
         })
     }
 
-    /// The closest hit's walk below node `root` for a ray (`ray`: its reciprocal direction, of
-    /// `origin` and `dir`) whose closest hit so far is `best` (t, u, v, primitive), kept in
-    /// `best` ([`Self::closest_hit_filtered`]'s walk; the hybrid packets finish their rays'
-    /// walks with it).
+    /// The closest hit's walk below node `root` for the ray of `segment` (`ray`: its reciprocal
+    /// direction) whose closest hit so far is `best` (t, u, v, primitive), kept in `best`
+    /// ([`Self::closest_hit_filtered`]'s walk; the hybrid packets finish their rays' walks
+    /// with it).
     #[inline(always)]
-    #[allow(clippy::too_many_arguments)]
     fn walk_closest(
         &self,
         root: usize,
         ray: &NodeRay,
-        origin: Vec3,
-        dir: Vec3,
-        tmax: f32,
+        segment: Segment,
         best: &mut Option<(f32, f32, f32, u32)>,
         covered: &impl Fn(u32, f32, f32) -> bool,
     ) {
-        let ray_tmax = tmax;
+        let tmax = segment.tmax;
         // The nodes' bound: the closest hit's t once there is one (a node entered exactly there
         // is still visited: it may hold an equally near hit on a higher triangle).
         let mut tmax = best.map_or(tmax, |b| b.0);
@@ -1008,9 +1027,7 @@ impl CpuTree {
                 changed |= self.leaf_closest(
                     node.child[c],
                     u32::from(node.count[c]),
-                    origin,
-                    dir,
-                    ray_tmax,
+                    segment,
                     best,
                     covered,
                 );
@@ -1082,7 +1099,7 @@ impl CpuTree {
                     let node = &self.nodes[((r & !LEAF_REF) >> 3) as usize];
                     let c = (r & 7) as usize;
                     let count = u32::from(node.count[c]);
-                    if self.leaf_closest(node.child[c], count, origin, dir, ray_tmax, best, covered)
+                    if self.leaf_closest(node.child[c], count, segment, best, covered)
                         && let Some(b) = *best
                     {
                         tmax = b.0;
@@ -1438,17 +1455,15 @@ impl CpuTree {
     /// The leaf `first..first + count`'s hits kept in `best` ([`PrimLanes::closest`]), with
     /// alpha-tested primitives asked `covered`, one at a time. Whether `best` changed.
     #[inline(always)]
-    #[allow(clippy::too_many_arguments)]
     fn leaf_closest(
         &self,
         first: u32,
         count: u32,
-        origin: Vec3,
-        dir: Vec3,
-        tmax: f32,
+        segment: Segment,
         best: &mut Option<(f32, f32, f32, u32)>,
         covered: &impl Fn(u32, f32, f32) -> bool,
     ) -> bool {
+        let Segment { origin, dir, tmax } = segment;
         if !self.lanes.alpha {
             return self.lanes.closest(first, count, origin, dir, tmax, best);
         }
@@ -1531,11 +1546,11 @@ mod tests {
         };
         assert_eq!(CpuPackets::widest(), widest);
         if !cfg!(target_arch = "x86_64") {
-            let e = CpuPackets::parse("avx2").unwrap_err();
+            let e = CpuPackets::parse("avx2").unwrap_err().to_string();
             assert!(e.contains(std::env::consts::ARCH), "{e}");
         }
         for bad in ["", "1", "8", "16", "AVX2", "avx", "avx2,avx512"] {
-            let e = CpuPackets::parse(bad).unwrap_err();
+            let e = CpuPackets::parse(bad).unwrap_err().to_string();
             assert!(e.contains("expected 0"), "{bad:?}: {e}");
         }
         let outside = CpuPackets::current();

@@ -33,7 +33,7 @@ mod split;
 pub use accumulation::GpuAccum;
 pub use owned::{GpuOwnedParams, OwnedSums};
 pub use params::{GpuTraceParams, full_frame_grid};
-pub use run::TraceRun;
+pub use run::{RunInputs, TraceRun};
 pub use samples::SampleRun;
 pub use scene::GpuScene;
 

@@ -32,6 +32,18 @@ pub struct TraceRun {
     split: Option<SplitRun>,
 }
 
+/// What a trace run traces and where its samples go: the scene and its settings, the wall
+/// camera's primary rays when given, the accumulation, and the scheduler's `list` and
+/// indirect `args` (`None`: every pixel; see [`TraceRun::new`]).
+#[derive(Clone, Copy)]
+pub struct RunInputs<'a> {
+    pub scene: &'a PackedScene,
+    pub settings: &'a TraceSettings,
+    pub wall: Option<&'a WallCamera>,
+    pub accum: &'a GpuAccum,
+    pub schedule: Option<(&'a wgpu::Buffer, &'a wgpu::Buffer)>,
+}
+
 impl TraceRun {
     /// Full frame when `schedule` is `None`; otherwise one path per entry of the scheduler's
     /// `list` (pixel indices), launched indirectly from `args` = `(x, y, z, count)` (which
@@ -59,22 +71,31 @@ impl TraceRun {
         schedule: Option<(&wgpu::Buffer, &wgpu::Buffer)>,
     ) -> Self {
         let band = Band::whole(settings.height);
-        Self::for_band(ctx, kernel, scene, settings, wall, accum, schedule, band)
+        let inputs = RunInputs {
+            scene,
+            settings,
+            wall,
+            accum,
+            schedule,
+        };
+        Self::for_band(ctx, kernel, inputs, band)
     }
 
-    /// [`Self::with_wall`] for the rows of `band` alone: `accum` holds those rows (it is
-    /// `width × band.rows`), and `schedule`'s list, if any, holds band pixel indices.
-    #[allow(clippy::too_many_arguments)]
+    /// [`Self::with_wall`] for the rows of `band` alone: `inputs.accum` holds those rows (it
+    /// is `width × band.rows`), and `inputs.schedule`'s list, if any, holds band pixel indices.
     pub fn for_band(
         ctx: &GpuContext,
         kernel: &TraceKernel,
-        scene: &PackedScene,
-        settings: &TraceSettings,
-        wall: Option<&WallCamera>,
-        accum: &GpuAccum,
-        schedule: Option<(&wgpu::Buffer, &wgpu::Buffer)>,
+        inputs: RunInputs<'_>,
         band: Band,
     ) -> Self {
+        let RunInputs {
+            scene,
+            settings,
+            wall,
+            accum,
+            schedule,
+        } = inputs;
         debug_assert_eq!([accum.width, accum.height], [settings.width, band.rows]);
         let params = ctx
             .device

@@ -307,17 +307,13 @@ fn batches<const FULL: bool>(
                 if let Some(next) = next {
                     prefetch_rows(sc, hits, next);
                 }
-                shade_lanes::<FULL>(
-                    sc,
-                    s,
-                    depth,
-                    group,
-                    hits,
-                    paths,
-                    live,
-                    &mut n_live,
-                    shadows.as_deref_mut(),
-                );
+                let shaded = Shaded {
+                    paths: &mut *paths,
+                    live: &mut *live,
+                    n_live: &mut n_live,
+                    shadows: shadows.as_deref_mut(),
+                };
+                shade_lanes::<FULL>(sc, s, depth, group, hits, shaded);
             }
             if let Some(shadows) = &mut shadows {
                 shadows.trace(sc, paths, sorted);
@@ -521,13 +517,22 @@ fn lanes_of(bits: u32) -> F {
     bytemuck::cast((U::splat(bits) & slot).simd_eq(slot))
 }
 
+/// What shading one vertex writes: the paths (radiance, throughput, next ray), the survivors,
+/// appended to `live` after its first `n_live`, and the shadow rays left for a packet trace
+/// (`None`: each traced at once).
+struct Shaded<'a> {
+    paths: &'a mut [Path; BATCH],
+    live: &'a mut [Idx; BATCH],
+    n_live: &'a mut usize,
+    shadows: Option<&'a mut ShadowRays>,
+}
+
 /// One vertex of the paths in `group` (one to [`LANES`], each with its hit in `hits`): the body of
 /// `trace_path::<FULL>`'s loop after the trace, in lanes. What only some materials or scenes
 /// have — normal maps, metallic-roughness maps, the extensions' BSDF (glass, coat), punctual
 /// lights, cut-out emitters, alpha-tested shadow rays — is `trace_path`'s own code, run for
 /// the lanes that need it. Lanes past the group's end repeat its last path: they compute along
-/// and are never written back. The survivors are appended to `live`.
-#[allow(clippy::too_many_arguments)]
+/// and are never written back. The survivors are appended to `shaded.live`.
 #[inline(never)]
 fn shade_lanes<const FULL: bool>(
     sc: &PackedScene,
@@ -535,11 +540,14 @@ fn shade_lanes<const FULL: bool>(
     depth: u32,
     group: &[Idx],
     hits: &[Option<TraceHit>; BATCH],
-    paths: &mut [Path; BATCH],
-    live: &mut [Idx; BATCH],
-    n_live: &mut usize,
-    mut shadows: Option<&mut ShadowRays>,
+    shaded: Shaded<'_>,
 ) {
+    let Shaded {
+        paths,
+        live,
+        n_live,
+        mut shadows,
+    } = shaded;
     let bvh = &sc.bvh;
     let tri_select = 1.0 - sc.env_select - sc.punct_select;
     let alpha_scene = FULL && sc.features & FEAT_ALPHA != 0;
@@ -689,7 +697,13 @@ fn shade_lanes<const FULL: bool>(
                     |v: V3| Vec3::new(v.x.to_array()[i], v.y.to_array()[i], v.z.to_array()[i]);
                 let (n, ng) = (lane(ns_interpolated), lane(ng));
                 let (mb, flags) = (g.mb[i], g.flags[i]);
-                ext_bsdf(sc, mb, flags, core, front, sp[i], n, ng, channel[i])
+                let surface = ExtSurface {
+                    front,
+                    sp: sp[i],
+                    ns: n,
+                    ng,
+                };
+                ext_bsdf(sc, mb, flags, core, surface, channel[i])
             })
         })
     };

@@ -31,7 +31,7 @@ use glam::Vec3;
 #[cfg(all(target_feature = "avx2", target_feature = "fma"))]
 use self::lanes::Avx2Pair;
 use self::lanes::{Avx512, Lanes};
-use super::{CpuNode, CpuTree, INLINE_STACK, NODE_EPSILON, NodeRay, PRIM_CULL, TraceHit};
+use super::{CpuNode, CpuTree, INLINE_STACK, NODE_EPSILON, NodeRay, PRIM_CULL, Segment, TraceHit};
 
 mod lanes;
 
@@ -475,15 +475,12 @@ impl CpuTree {
                 best.v[i],
                 best.prim[i],
             ));
-            self.walk_closest(
-                node,
-                &alone(each, i),
-                origins[i],
-                dirs[i],
-                f32::INFINITY,
-                &mut hit,
-                &|_, _, _| true,
-            );
+            let segment = Segment {
+                origin: origins[i],
+                dir: dirs[i],
+                tmax: f32::INFINITY,
+            };
+            self.walk_closest(node, &alone(each, i), segment, &mut hit, &|_, _, _| true);
             if let Some(h) = hit {
                 (best.t[i], best.u[i], best.v[i], best.prim[i]) = h;
                 best.tri[i] = self.triangle(h.3);

@@ -655,37 +655,29 @@ mod tests {
             let ia: [u32; 16] = std::array::from_fn(|i| if i == 3 { u32::MAX } else { next() });
             let ib: [u32; 16] = std::array::from_fn(|i| if i == 5 { 0 } else { next() });
             let bits = next() & 0xffff;
+            let case = Case { a, b, c, ia, ib };
             #[cfg(all(target_feature = "avx2", target_feature = "fma"))]
-            check(Avx2::new(), &a, &b, &c, &ia, &ib, bits & 0xff, round);
+            check(Avx2::new(), &case, bits & 0xff, round);
             #[cfg(all(target_feature = "avx2", target_feature = "fma"))]
-            check(Avx2Pair::new(), &a, &b, &c, &ia, &ib, bits, round);
+            check(Avx2Pair::new(), &case, bits, round);
             if super::super::available() {
                 // SAFETY: the processor has AVX-512 F and DQ (`available`).
-                check(
-                    unsafe { Avx512::assume() },
-                    &a,
-                    &b,
-                    &c,
-                    &ia,
-                    &ib,
-                    bits,
-                    round,
-                );
+                check(unsafe { Avx512::assume() }, &case, bits, round);
             }
         }
     }
 
-    #[allow(clippy::too_many_arguments)]
-    fn check<L: Lanes>(
-        l: L,
-        a: &[f32; 16],
-        b: &[f32; 16],
-        c: &[f32; 16],
-        ia: &[u32; 16],
-        ib: &[u32; 16],
-        bits: u32,
-        round: u32,
-    ) {
+    /// One round's operands: three float vectors and two integer vectors, sixteen lanes each.
+    struct Case {
+        a: [f32; 16],
+        b: [f32; 16],
+        c: [f32; 16],
+        ia: [u32; 16],
+        ib: [u32; 16],
+    }
+
+    fn check<L: Lanes>(l: L, case: &Case, bits: u32, round: u32) {
+        let Case { a, b, c, ia, ib } = case;
         let w = L::WIDTH;
         let (va, vb, vc) = (l.load(a), l.load(b), l.load(c));
         let (via, vib) = (l.load_i(ia), l.load_i(ib));
