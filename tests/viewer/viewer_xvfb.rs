@@ -9,8 +9,7 @@ use std::process::Command;
 
 use raygun::viewer::diagnostics::{NoiseContrast, NoiseRegions, predicted_noise_ratio};
 
-#[path = "support/xvfb_settings.rs"]
-mod xvfb;
+use crate::xvfb;
 
 const W: u32 = xvfb::SIZE[0];
 const H: u32 = xvfb::SIZE[1];

@@ -26,8 +26,7 @@ use raygun::trace::wall::{WallCamera, WorldFromRoom};
 use raygun::tracking::event::{DeviceId, DeviceKind};
 use raygun::tracking::replay::{ReplayPayload, ReplayReader};
 
-#[path = "support/cli.rs"]
-mod support;
+use crate::support;
 use support::{ROOT, command, ok, raygun, s, stderr, stdout, tmp_dir};
 
 const HEAD_DTRACK: &str = "tracking-replays/head-1-walk.dtrack.jsonl";

@@ -1,8 +1,7 @@
 //! The block-pruned CPU DGI (`compute_cpu`) against the straightforward per-pixel reference
 //! (`compute_cpu_reference`) on many walls, poses, FOVs and metrics, raw and normalised.
 
-#[path = "support/walls.rs"]
-mod walls;
+use crate::walls;
 
 use glam::DVec2;
 use raygun::display::DisplayModel;

@@ -2,10 +2,8 @@
 //! a scene built in code with a known answer, on both backends (GPU against the CPU twin on one
 //! scene using all of them: tests/twins/trace.rs).
 
-#[path = "support/gltf_scenes.rs"]
-mod gltf_scenes;
-#[path = "support/render.rs"]
-mod render;
+use crate::gltf_scenes;
+use crate::render;
 
 use glam::{Vec2, Vec3, Vec4};
 use gltf_scenes::{flat, material, ortho, rect, tex_ref, texture};

@@ -8,8 +8,7 @@
 //!
 //! `RAYGUN_BLESS=1 cargo test --test tracking_vrpn` rewrites the replays and golden files.
 
-#[path = "support/walls.rs"]
-mod walls;
+use crate::walls;
 
 use std::collections::BTreeMap;
 use std::io::{Read, Write};
