@@ -854,7 +854,7 @@ fn a_clear_coat_on_black_reflects_its_fresnel_share_of_the_sky() {
 /// left half of the quad with the factor alone and the right half of the quad with the factor
 /// times zero — for transmissionTexture (R), specularTexture (A), specularColorTexture (RGB;
 /// read linear here, so that 255 is exactly 1: the loader marks it sRGB,
-/// tests/scene_loading.rs), clearcoatTexture (R), clearcoatRoughnessTexture (G; zero
+/// tests/scene/scene_loading.rs), clearcoatTexture (R), clearcoatRoughnessTexture (G; zero
 /// roughness is the smallest α), sheenColorTexture (RGB, likewise read linear) and
 /// sheenRoughnessTexture (A; zero is the sheen's smallest roughness), on both backends. Every material here takes the extensions'
 /// BSDF (ior 1.6), so the references run the same code as the textured quad. The CPU twin to

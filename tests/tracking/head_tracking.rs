@@ -3,7 +3,7 @@
 //! replay it, and `render --guide REPLAY` moves the eye deterministically under the restart
 //! rule — the iterations and eyes of its restarts are a golden file.
 //!
-//! `RAYGUN_BLESS=1 cargo test --test head_tracking` rewrites the golden file.
+//! `RAYGUN_BLESS=1 cargo test --test tracking head_tracking::` rewrites the golden file.
 
 use std::io::{BufRead, BufReader};
 use std::net::UdpSocket;
