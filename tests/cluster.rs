@@ -285,7 +285,7 @@ mod mpi {
     /// every rank traces — GPU ranks (lavapipe) through the wall camera — and the whole job ends
     /// when the window closes (`--screenshot-after`), every ROI pixel of the saved picture
     /// sampled in every frame. (That the picture is the one-process viewer's bit for bit is
-    /// tests/viewer.rs's, over in-process ranks.)
+    /// tests/viewer/viewer.rs's, over in-process ranks.)
     #[test]
     fn the_viewer_across_ranks_opens_one_window_and_every_rank_ends_with_it() {
         let dir = tmp_dir("view");
@@ -339,7 +339,7 @@ mod mpi {
     /// (whole columns: rank 1 columns 3–4, the Cornell box, rank 2 columns 5–6, the white
     /// environment beside it) and, asked for a screenshot, saves the tiles it showed last at
     /// their own resolution. (That they are the
-    /// one-process picture's cut bit for bit is tests/viewer.rs's.)
+    /// one-process picture's cut bit for bit is tests/viewer/viewer.rs's.)
     #[test]
     fn with_show_tiles_every_owner_shows_its_own_tiles() {
         let dir = tmp_dir("view-tiles");

@@ -9,7 +9,7 @@
 #
 # The whole run takes about an hour on two cores: the cross build 7 min, then under emulation
 # the library's unit tests 4 min and the integration tests 52 min (mostly the GPU tests on an
-# emulated lavapipe; tests/peers.rs alone 19 min). `lint` takes about 2 min.
+# emulated lavapipe; tests/render/peers.rs alone 19 min). `lint` takes about 2 min.
 #
 # What differs on ARM: the CPU twin walks its rays one at a time (the sixteen-ray packets are
 # x86-64 lanes; `RAYGUN_CPU_PACKETS` accepts only 0 there), each leaf's eight triangles in one
@@ -18,7 +18,7 @@
 # tests check.
 #
 # The tests run: the library's unit tests and every integration test that does not start the
-# `raygun` binary. Those that do (the files under tests/ that include `support/cli.rs` or name
+# `raygun` binary. Those that do (the files under tests/ that use `support/cli.rs` or name
 # `CARGO_BIN_EXE`) would start an ARM executable, which needs the kernel's binfmt_misc to hand
 # it to qemu — containers have none. Times under emulation mean nothing: this checks
 # correctness, never speed.
@@ -80,15 +80,33 @@ if (($#)); then
   exec cargo test --target "$TARGET" --locked "$@"
 fi
 
-# The integration tests that run in this process: not those that start the binary.
-# Cargo's test targets: tests/NAME.rs, and tests/NAME/main.rs with the folder's other files.
-tests=()
+# The integration tests that run in this process: not those that start the binary. Cargo's
+# test targets: tests/NAME.rs, and tests/NAME/main.rs whose folder's other files are its modules
+# (one subject each); a module that starts the binary is skipped by its name (`--skip FILE::`),
+# a binary all of whose tests would be skipped is left out.
+starts() { grep -qE 'support/cli\.rs|crate::support\b|CARGO_BIN_EXE' "$1"; }
+names=() skips=()
 for f in tests/*.rs tests/*/main.rs; do
   case $f in
-    */main.rs) name=$(basename "$(dirname "$f")") files=("$(dirname "$f")"/*.rs) ;;
-    *) name=$(basename "$f" .rs) files=("$f") ;;
+    */main.rs)
+      name=$(basename "$(dirname "$f")") skip=() kept=0
+      for m in "$(dirname "$f")"/*.rs; do
+        [ "$m" = "$f" ] && continue
+        if starts "$m"; then skip+=(--skip "$(basename "$m" .rs)::"); else kept=1; fi
+      done
+      ((kept)) || continue
+      ;;
+    *)
+      name=$(basename "$f" .rs) skip=()
+      starts "$f" && continue
+      ;;
   esac
-  grep -qE 'support/cli\.rs|CARGO_BIN_EXE' "${files[@]}" || tests+=(--test "$name")
+  names+=("$name") skips+=("${skip[*]}")
 done
-log "cargo test --target $TARGET: the library and ${#tests[@]} integration tests, under qemu"
-cargo test --target "$TARGET" --locked --lib "${tests[@]}"
+log "cargo test --target $TARGET: the library and ${#names[@]} integration tests, under qemu"
+cargo test --target "$TARGET" --locked --no-run --lib "${names[@]/#/--test=}"
+cargo test --target "$TARGET" --locked --lib
+for i in "${!names[@]}"; do
+  # shellcheck disable=SC2086 # the skips are words without spaces
+  cargo test --target "$TARGET" --locked --test "${names[$i]}" -- ${skips[$i]}
+done

@@ -10,7 +10,7 @@
 #                                     loader packages into .gl/
 #   OUT=DIR bash tools/gpu-bench.sh run     on the GPU machine, with .dev/ and .gl/ copied there
 #   OUT=DIR bash tools/gpu-bench.sh smoke   the script itself on lavapipe at tiny sizes
-#                                           (tests/gpu_bench_script.rs runs it)
+#                                           (tests/bench/gpu_bench_script.rs runs it)
 #
 # Settings (environment): RAYGUN_BIN (default .dev/raygun for run, target/dist/raygun,
 # target/release/raygun or target/debug/raygun for smoke), GPU_BENCH_LIMIT_S (the whole run's budget: 420 for run, 300

@@ -1,4 +1,4 @@
-//! glTF-feature scenes built in code (tests/gltf_features.rs, tests/twins/trace.rs).
+//! glTF-feature scenes built in code (tests/scene/gltf_features.rs, tests/twins/trace.rs).
 
 #![allow(dead_code)]
 

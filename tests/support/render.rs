@@ -1,5 +1,5 @@
 //! Rendering a scene on either backend for the tests, and the statistical test of two
-//! renders (tests/trace.rs, tests/gltf_features.rs, tests/twins/trace.rs).
+//! renders (tests/render/trace.rs, tests/scene/gltf_features.rs, tests/twins/trace.rs).
 
 #![allow(dead_code)]
 

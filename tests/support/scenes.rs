@@ -1,4 +1,4 @@
-//! Scenes built in code for the path-tracer tests (tests/trace.rs, tests/twins/trace.rs).
+//! Scenes built in code for the path-tracer tests (tests/render/trace.rs, tests/twins/trace.rs).
 
 #![allow(dead_code)]
 

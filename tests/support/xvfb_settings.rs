@@ -1,5 +1,5 @@
-//! The viewer smoke test's settings (tests/viewer_xvfb.rs), shared with the ViewerCore test that
-//! shows its noise claim fails for a uniform sampler (tests/viewer.rs).
+//! The viewer smoke test's settings (tests/viewer/viewer_xvfb.rs), shared with the ViewerCore test that
+//! shows its noise claim fails for a uniform sampler (tests/viewer/viewer.rs).
 
 /// Image size: small, for lavapipe in CI (the test renders with `--backend gpu`).
 pub const SIZE: [u32; 2] = [124, 50];

@@ -23,7 +23,7 @@ fn curved_wall(yaw_deg: f64) -> Surface {
 
 /// Raw-distance agreement: |d_GPU − d_CPU| ≤ RAW_ABS_PX + RAW_REL · d_CPU. The kernel's pixel
 /// offsets are exact to f32 rounding of the local offset (≤ ~1e-7 × 3000 px here), the solvers
-/// reach ~1e-6 of their scale in f32 (tests/ellipse_hard_cases.rs), and far distances grow
+/// reach ~1e-6 of their scale in f32 (tests/display/ellipse_hard_cases.rs), and far distances grow
 /// with the conic's size; measured worst on lavapipe: ~1e-4 relative.
 const RAW_ABS_PX: f64 = 2e-3;
 const RAW_REL: f64 = 5e-4;

@@ -2,8 +2,7 @@
 //! and textures arrive as the file says, every unsupported feature is named, bad files give
 //! errors naming the file and element, and bad data never reaches the tracer.
 
-#[path = "support/cli.rs"]
-mod support;
+use crate::support;
 use support::tmp_dir;
 
 use std::path::{Path, PathBuf};

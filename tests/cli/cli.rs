@@ -1,7 +1,6 @@
 //! The `raygun` binary end to end: arguments, outputs and error messages.
 
-#[path = "support/cli.rs"]
-mod support;
+use crate::support;
 use support::{raygun, tmp_file};
 
 use std::path::PathBuf;

@@ -1,7 +1,6 @@
 //! Wall output (`render --tiles DIR`): one image per display tile, cut from the canvas.
 
-#[path = "support/cli.rs"]
-mod support;
+use crate::support;
 use support::tmp_dir;
 
 use std::path::Path;

@@ -1,8 +1,7 @@
 //! The block-pruned CPU DGI (`compute_cpu`) against the straightforward per-pixel reference
 //! (`compute_cpu_reference`) on many walls, poses, FOVs and metrics, raw and normalised.
 
-#[path = "support/walls.rs"]
-mod walls;
+use crate::walls;
 
 use glam::DVec2;
 use raygun::display::DisplayModel;
@@ -38,7 +37,7 @@ fn cone(o: [f64; 3], d: [f64; 3], fh: f64, fv: f64) -> Roi {
 
 /// The pruned DGI may differ from the reference only by the solvers' rounding: which pieces are
 /// solved, and in which order, changes, but a pruned piece is provably no nearer. Allowed:
-/// 1e-14 of the canvas scale (the solvers' backward error bound, tests/ellipse_hard_cases.rs), in
+/// 1e-14 of the canvas scale (the solvers' backward error bound, tests/display/ellipse_hard_cases.rs), in
 /// raw canvas px, divided by L for normalised values.
 const REL_TO_SCALE: f64 = 1e-14;
 

@@ -8,8 +8,7 @@
 //! f64 through the display module; rendered and expected texels must agree to one texel (the
 //! map's resolution: f32 rounding can tip a direction across a texel edge).
 
-#[path = "support/cli.rs"]
-mod cli;
+use crate::support as cli;
 
 use glam::{DVec2, DVec3, Vec2, Vec3, Vec4};
 use raygun::display::DisplayModel;

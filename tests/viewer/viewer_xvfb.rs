@@ -9,8 +9,7 @@ use std::process::Command;
 
 use raygun::viewer::diagnostics::{NoiseContrast, NoiseRegions, predicted_noise_ratio};
 
-#[path = "support/xvfb_settings.rs"]
-mod xvfb;
+use crate::xvfb;
 
 const W: u32 = xvfb::SIZE[0];
 const H: u32 = xvfb::SIZE[1];
@@ -133,7 +132,7 @@ fn viewer_under_xvfb_renders_and_saves_a_screenshot() {
     // probability p_min, so its SE should be about √p_min (¼) of the periphery's; the bound
     // allows twice that for the regions' different content and the spread of an SE estimated
     // from ~4 samples. A viewer sampling every pixel alike has a ratio near 1 and fails it
-    // (tests/viewer.rs: the_roi_is_less_noisy_than_the_periphery_and_a_uniform_sampler_is_not).
+    // (tests/viewer/viewer.rs: the_roi_is_less_noisy_than_the_periphery_and_a_uniform_sampler_is_not).
     let noise = gray_exr(&dir.join("screenshot.noise.exr"));
     for (i, se) in noise.iter().enumerate() {
         assert_eq!(

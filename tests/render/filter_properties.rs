@@ -99,7 +99,7 @@ fn unsampled_pixels_do_not_change_the_mean_brightness() {
     let raw = filter::unfiltered_cpu(&acc);
     assert!((mean(&raw) - sampled_mean).abs().min_element() > 100.0 * tol);
     // The fast filter (k = 6 mixes pyramid levels 0 and 1) weights differently; its mean
-    // brightness differs from the exact one's by at most the bias bound tests/filter_fast.rs
+    // brightness differs from the exact one's by at most the bias bound tests/render/filter_fast.rs
     // states (FAST_REL_MEAN = 0.5 % of the mean brightness), so |D_fast| ≤ tol + that bias.
     let fast = fast::filter_cpu(&params, &acc, &dgi);
     let bias = 0.005 * mean(&exact).max_element();

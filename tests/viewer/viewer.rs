@@ -1,8 +1,7 @@
 //! The viewer's logic without a screen: clicks, panel settings and what the renderer receives,
 //! overlays, replay playback and saving (the egui front end only maps widgets onto these).
 
-#[path = "support/walls.rs"]
-mod walls;
+use crate::walls;
 use walls::hornet;
 
 use std::time::Duration;
@@ -25,8 +24,7 @@ use raygun::viewer::diagnostics::{
 };
 use raygun::viewer::state::{Overlay, RoiSource, ViewerState};
 
-#[path = "support/xvfb_settings.rs"]
-mod xvfb;
+use crate::xvfb;
 
 const W: u32 = 64;
 const H: u32 = 26;

@@ -1,7 +1,6 @@
 //! Guided rendering (DESIGN.md §1, §6): the frame function's DGI → schedule → trace on both backends.
 
-#[path = "support/walls.rs"]
-mod walls;
+use crate::walls;
 use walls::hornet;
 
 use raygun::frame::{GuideConfig, Render, Renderer};

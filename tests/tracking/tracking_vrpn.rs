@@ -6,10 +6,9 @@
 //! sessions and a recording give the golden ROI changes on HORNET; bad servers of every kind
 //! are counted once per kind.
 //!
-//! `RAYGUN_BLESS=1 cargo test --test tracking_vrpn` rewrites the replays and golden files.
+//! `RAYGUN_BLESS=1 cargo test --test tracking tracking_vrpn::` rewrites the replays and golden files.
 
-#[path = "support/walls.rs"]
-mod walls;
+use crate::walls;
 
 use std::collections::BTreeMap;
 use std::io::{Read, Write};

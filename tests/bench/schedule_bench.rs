@@ -2,8 +2,7 @@
 //! twin's, the measured share tracks the expected one, wider cones select more). Speed itself is
 //! never asserted.
 
-#[path = "support/walls.rs"]
-mod walls;
+use crate::walls;
 
 use raygun::bench::schedule::{ScheduleBenchConfig, run};
 use raygun::gpu::{Backend, GpuContext};

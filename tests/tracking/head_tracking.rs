@@ -3,7 +3,7 @@
 //! replay it, and `render --guide REPLAY` moves the eye deterministically under the restart
 //! rule — the iterations and eyes of its restarts are a golden file.
 //!
-//! `RAYGUN_BLESS=1 cargo test --test head_tracking` rewrites the golden file.
+//! `RAYGUN_BLESS=1 cargo test --test tracking head_tracking::` rewrites the golden file.
 
 use std::io::{BufRead, BufReader};
 use std::net::UdpSocket;
@@ -26,8 +26,7 @@ use raygun::trace::wall::{WallCamera, WorldFromRoom};
 use raygun::tracking::event::{DeviceId, DeviceKind};
 use raygun::tracking::replay::{ReplayPayload, ReplayReader};
 
-#[path = "support/cli.rs"]
-mod support;
+use crate::support;
 use support::{ROOT, command, ok, raygun, s, stderr, stdout, tmp_dir};
 
 const HEAD_DTRACK: &str = "tracking-replays/head-1-walk.dtrack.jsonl";

@@ -6,8 +6,7 @@
 //! ROI). Without an ROI the statistics measure nothing; the CPU twin and a banded frame measure
 //! the read-back accumulation.
 
-#[path = "support/roi_stats.rs"]
-mod roi_stats;
+use crate::roi_stats_support as roi_stats;
 
 use glam::DVec3;
 use raygun::display::DisplayModel;

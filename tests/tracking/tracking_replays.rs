@@ -1,7 +1,7 @@
 //! The shipped replays: up to date with their generator, and every one gives its golden ROI
 //! sequence both offline and through the live UDP path.
 //!
-//! `RAYGUN_BLESS=1 cargo test --test tracking_replays` rewrites the replays and golden files.
+//! `RAYGUN_BLESS=1 cargo test --test tracking tracking_replays::` rewrites the replays and golden files.
 
 use std::net::UdpSocket;
 use std::path::{Path, PathBuf};

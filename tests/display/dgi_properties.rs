@@ -2,8 +2,7 @@
 //! continuity across seams and bezels, symmetry, hard poses, the falloff calibration, and the
 //! GPU kernel against its CPU twin.
 
-#[path = "support/walls.rs"]
-mod walls;
+use crate::walls;
 
 use glam::DVec2;
 use raygun::display::DisplayModel;

@@ -2,10 +2,8 @@
 //! a scene built in code with a known answer, on both backends (GPU against the CPU twin on one
 //! scene using all of them: tests/twins/trace.rs).
 
-#[path = "support/gltf_scenes.rs"]
-mod gltf_scenes;
-#[path = "support/render.rs"]
-mod render;
+use crate::gltf_scenes;
+use crate::render;
 
 use glam::{Vec2, Vec3, Vec4};
 use gltf_scenes::{flat, material, ortho, rect, tex_ref, texture};
@@ -856,7 +854,7 @@ fn a_clear_coat_on_black_reflects_its_fresnel_share_of_the_sky() {
 /// left half of the quad with the factor alone and the right half of the quad with the factor
 /// times zero — for transmissionTexture (R), specularTexture (A), specularColorTexture (RGB;
 /// read linear here, so that 255 is exactly 1: the loader marks it sRGB,
-/// tests/scene_loading.rs), clearcoatTexture (R), clearcoatRoughnessTexture (G; zero
+/// tests/scene/scene_loading.rs), clearcoatTexture (R), clearcoatRoughnessTexture (G; zero
 /// roughness is the smallest α), sheenColorTexture (RGB, likewise read linear) and
 /// sheenRoughnessTexture (A; zero is the sheen's smallest roughness), on both backends. Every material here takes the extensions'
 /// BSDF (ior 1.6), so the references run the same code as the textured quad. The CPU twin to

@@ -1,8 +1,7 @@
 //! `raygun scene …` end to end: the generators write what the library generates, and `info`
 //! summarises files and built-ins.
 
-#[path = "support/cli.rs"]
-mod support;
+use crate::support;
 use support::{raygun, tmp_file};
 
 #[test]

@@ -1,10 +1,8 @@
 //! The path tracer: furnace tests and other analytic answers on both backends (the GPU kernel
 //! against its CPU twin is in tests/twins/trace.rs).
 
-#[path = "support/render.rs"]
-mod render;
-#[path = "support/scenes.rs"]
-mod scenes;
+use crate::render;
+use crate::scenes;
 
 use glam::{Vec2, Vec3};
 use raygun::gpu::GpuContext;

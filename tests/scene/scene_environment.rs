@@ -1,8 +1,7 @@
 //! The `--env` argument: a constant radiance or an equirectangular .hdr / .exr in linear RGB;
 //! bad values are errors naming the argument, the file or the pixel.
 
-#[path = "support/cli.rs"]
-mod support;
+use crate::support;
 use support::tmp_file;
 
 use glam::Vec3;

@@ -1,7 +1,6 @@
 //! `raygun bench filter` end to end, small, on the CPU twins.
 
-#[path = "support/cli.rs"]
-mod support;
+use crate::support;
 use support::raygun;
 
 #[test]

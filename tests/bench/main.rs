@@ -1,0 +1,13 @@
+//! The benchmarks' commands: `bench all`, `bench schedule`, `bench filter`, and the GPU
+//! benchmark script.
+
+mod bench_all;
+mod filter_cli;
+mod gpu_bench_script;
+mod schedule_bench;
+
+// The helpers of tests/support/ that the files above use, each compiled once here.
+#[path = "../support/cli.rs"]
+mod support;
+#[path = "../support/walls.rs"]
+mod walls;
