@@ -4,7 +4,7 @@
 //! The set is `tests/data/ellipse_hard_cases.csv` (80-digit mpmath references; its header
 //! documents the columns), embedded in the binary so the benchmark runs anywhere. Accuracy is
 //! `max |d − d_ref| / scale` with `scale = max(a, b, |p|)` (the backward-stability measure of
-//! `tests/ellipse_hard_cases.rs`). The f64 solver is judged against the CSV's reference; the f32
+//! `tests/display/ellipse_hard_cases.rs`). The f64 solver is judged against the CSV's reference; the f32
 //! solvers, like in that test, against the f64 solver on the f32-rounded inputs, so the rounding
 //! of the inputs to f32 does not count against them. They run on the subset whose inputs are
 //! f32-normal (the GPU on the further subset whose intermediate values stay normal, since GPUs
@@ -14,7 +14,7 @@
 //! `tiny-off-axis-*`) is left out of this benchmark ([`timed_cases`]): the DGI asks the solver
 //! about points outside the ROI only, and that class's arithmetic on subnormal numbers, which
 //! x86 cores run about a hundred times slower, would dominate the time per solve.
-//! `tests/ellipse_hard_cases.rs` holds it to the accuracy bounds, and
+//! `tests/display/ellipse_hard_cases.rs` holds it to the accuracy bounds, and
 //! `examples/ellipse_bench.rs` times it apart.
 
 use std::hint::black_box;
@@ -36,7 +36,7 @@ pub const HARD_CASES_PATH: &str = "tests/data/ellipse_hard_cases.csv";
 pub const F64_DISTANCE_BOUND: f64 = 1e-14;
 /// The spacing of subnormal doubles (2⁻¹⁰⁷⁴): a subnormal result cannot be closer to the truth
 /// than half of it, and each rounding on the way may cost one. Errors up to four of them are not
-/// counted (as in `tests/ellipse_hard_cases.rs`), else cases with a subnormal scale would report
+/// counted (as in `tests/display/ellipse_hard_cases.rs`), else cases with a subnormal scale would report
 /// a relative error of order 1 that no floating-point method can avoid.
 pub const SUBNORMAL_SLACK: f64 = 4.0 * f64::from_bits(1);
 

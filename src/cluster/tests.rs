@@ -446,7 +446,7 @@ fn full_frames_and_the_wall_camera_match_too() {
     let got = ranks(3, None, true, DgiMode::Compute, columns);
     assert_bits_equal(&got, &one, "full frame, wall camera");
     // Pixels no tile shows are never traced (at this size no bezel covers a pixel centre;
-    // tests/wall_camera.rs covers the bezels).
+    // tests/render/wall_camera.rs covers the bezels).
     let w = wall(&scene());
     assert!((0..SIZE[0] * SIZE[1]).all(|p| w.is_shown(p) || got.0.count[p as usize] == 0));
     let one = single(Some(Order::Coherent), true);

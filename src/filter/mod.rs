@@ -37,7 +37,7 @@
 //!   normalised convolution, so unsampled pixels contribute zero weight there too. Pixels with
 //!   k_i ≤ [`fast::K_DIRECT`] run the exact loop; larger kernels interpolate between the two
 //!   pyramid levels that bracket σ_i² (matching the kernel's variance). Its error against the
-//!   exact filter is measured and bounded in `tests/filter_fast.rs`. CPU twin
+//!   exact filter is measured and bounded in `tests/render/filter_fast.rs`. CPU twin
 //!   [`fast::filter_cpu`] (the pyramid in [`pyramid`]); kernels `shaders/filter/pyramid.wgsl` and
 //!   `shaders/filter/fast.wgsl`.
 //! * This file: the definitions both kernels share (w_i, k_i, the per-pixel state), whose WGSL

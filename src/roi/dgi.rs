@@ -171,7 +171,7 @@ impl DgiParams {
 /// to the ROI's size gives 40 % at 60° but 1.2 % at 10°. So L grows with the ROI:
 /// L = base + scale · ρ, with ρ the ROI's radius on the wall (metres; for the ray gun the
 /// distance to the wall along the axis times √(tan(α_h/2)·tan(α_v/2)), for the mouse √(a·b)).
-/// The defaults were fitted on HORNET; the calibration test in `tests/dgi_properties.rs`
+/// The defaults were fitted on HORNET; the calibration test in `tests/display/dgi_properties.rs`
 /// (`default_falloff_meets_the_papers_implied_shares_on_hornet`) checks the shares they give.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct Falloff {
@@ -393,7 +393,7 @@ fn paper_ellipse(surface: &Surface, cone: &Cone) -> Result<Option<Piece>, GuideE
 /// piece's box, or its distance from the block centre minus the pixel's offset) cannot rule
 /// out, nearest first. The values agree with the per-pixel [`compute_cpu_reference`] to the
 /// solvers' rounding (a pruned piece is provably no nearer than the result, with a margin far
-/// above that rounding); `tests/dgi_blocks.rs` checks it on many poses.
+/// above that rounding); `tests/display/dgi_blocks.rs` checks it on many poses.
 #[must_use]
 pub fn compute_cpu(surface: &Surface, guide: &Guide, params: &DgiParams) -> Vec<f32> {
     compute_cpu_bands(surface, guide, params, 0, 1)

@@ -9,7 +9,7 @@
 //!
 //! Raw datagrams from a replay file and from a live socket take the same path (the session
 //! layer's `Pipeline`: these decoders, validation, then the interaction), so a recorded
-//! session reproduces exactly what the live run did; `tests/tracking_replays.rs` checks that
+//! session reproduces exactly what the live run did; `tests/tracking/tracking_replays.rs` checks that
 //! for every shipped replay. This layer only parses and validates: sockets, threads and
 //! replays played against a display belong to `session`.
 //!

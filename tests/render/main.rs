@@ -3,6 +3,7 @@
 //! picture, and the peer renderer's references.
 
 mod bands;
+mod denoise;
 mod eye_restart;
 mod filter_fast;
 mod filter_properties;
