@@ -250,6 +250,12 @@ fn check_args(args: &RenderArgs) -> anyhow::Result<()> {
             crate::messages::number(f64::from(args.exposure))
         );
     }
+    if args.cluster.cluster && args.denoise.denoise != crate::filter::DenoiseKind::Off {
+        anyhow::bail!(
+            "--denoise oidn denoises one process's picture: with --cluster the ranks write their \
+             tiles as filtered; leave out one of the two"
+        );
+    }
     Ok(())
 }
 
@@ -446,4 +452,33 @@ fn settings(args: &RenderArgs, scene: &Scene) -> anyhow::Result<TraceSettings> {
         max_depth: args.max_depth,
         camera,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::Parser;
+
+    #[derive(clap::Parser)]
+    struct Cli {
+        #[command(flatten)]
+        render: super::RenderArgs,
+    }
+
+    fn args(extra: &[&str]) -> super::RenderArgs {
+        let mut argv = vec!["render", "--scene", "builtin:cornell", "--out", "x.png"];
+        argv.extend_from_slice(extra);
+        Cli::try_parse_from(argv).unwrap().render
+    }
+
+    #[test]
+    fn denoising_is_refused_with_the_cluster_and_taken_without_it() {
+        let e = super::check_args(&args(&["--cluster", "--denoise", "oidn"])).unwrap_err();
+        assert!(
+            e.to_string()
+                .starts_with("--denoise oidn denoises one process's picture"),
+            "{e}"
+        );
+        super::check_args(&args(&["--denoise", "oidn"])).unwrap();
+        super::check_args(&args(&["--cluster", "--denoise", "off"])).unwrap();
+    }
 }
