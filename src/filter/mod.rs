@@ -87,7 +87,7 @@ pub enum DenoiseKind {
     /// None: the filter's picture.
     #[default]
     Off,
-    /// Intel Open Image Denoise 2 ([`oidn`]).
+    /// Intel Open Image Denoise 2, opened at run time.
     Oidn,
 }
 
