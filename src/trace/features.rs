@@ -1,6 +1,7 @@
 //! Per-pixel feature buffers for the denoiser (DESIGN.md §8): albedo, shading normal and
 //! primary-hit depth, in the layout `crate::filter::denoise` reads (`[r, g, b, 0]` and
-//! `[n.x, n.y, n.z, depth]`). This is the CPU definition (the oracle of a features kernel).
+//! `[n.x, n.y, n.z, depth]`). This is the CPU definition and the twin of the kernel
+//! `shaders/trace/features.wgsl` (dispatch: [`crate::trace::gpu::FeaturesKernel`]).
 //!
 //! Features are computed once per view (camera or eye), for every pixel, independent of the
 //! sampling schedule: a guided frame leaves periphery pixels unsampled for a while, and the
