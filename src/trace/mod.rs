@@ -3,6 +3,7 @@
 pub mod accum;
 pub mod bvh;
 pub mod camera;
+pub mod features;
 pub mod gpu;
 pub mod lanes;
 pub mod pack;

@@ -74,7 +74,7 @@ fn rand4(pixel: u32, sample: u32, seed: u32, dim: u32) -> [f32; 4] {
 }
 
 #[inline]
-fn v3(a: [f32; 4]) -> Vec3 {
+pub(super) fn v3(a: [f32; 4]) -> Vec3 {
     Vec3::new(a[0], a[1], a[2])
 }
 
@@ -204,10 +204,10 @@ fn texture(sc: &PackedScene, tex: u32, uv: Vec2) -> Vec4 {
 
 /// A point on a triangle: its index and the barycentrics of its second and third vertex.
 #[derive(Clone, Copy)]
-struct SurfacePoint {
-    tri: u32,
-    u: f32,
-    v: f32,
+pub(super) struct SurfacePoint {
+    pub(super) tri: u32,
+    pub(super) u: f32,
+    pub(super) v: f32,
 }
 
 impl SurfacePoint {
@@ -235,7 +235,7 @@ fn surface_uv(sc: &PackedScene, sp: SurfacePoint, set: u32) -> Vec2 {
 }
 
 /// Material `mb`'s texture slot `k` at `sp` (the slot's set and transform).
-fn slot(sc: &PackedScene, mb: usize, k: usize, sp: SurfacePoint) -> Vec4 {
+pub(super) fn slot(sc: &PackedScene, mb: usize, k: usize, sp: SurfacePoint) -> Vec4 {
     let (r0, r1) = (sc.materials[mb + 5 + 2 * k], sc.materials[mb + 6 + 2 * k]);
     let uv = surface_uv(sc, sp, r1[3].to_bits()).extend(1.0);
     let t = Vec2::new(v3(r0).dot(uv), v3(r1).dot(uv));
@@ -248,7 +248,7 @@ fn material_base(sc: &PackedScene, tri: u32) -> usize {
 }
 
 /// Base colour (factor × texture × vertex colour) at `sp` for material `mb` with `flags`.
-fn base_color(sc: &PackedScene, mb: usize, flags: u32, sp: SurfacePoint) -> Vec4 {
+pub(super) fn base_color(sc: &PackedScene, mb: usize, flags: u32, sp: SurfacePoint) -> Vec4 {
     let mut base = Vec4::from_array(sc.materials[mb]);
     if flags & MAT_BASE_TEX != 0 {
         base *= slot(sc, mb, 0, sp);
@@ -264,7 +264,7 @@ fn base_color(sc: &PackedScene, mb: usize, flags: u32, sp: SurfacePoint) -> Vec4
 /// with a uniform threshold hashed from the ray's seed and the triangle (so a ray sees a
 /// blended surface with probability alpha). The twin of `alpha_covered` in path.wgsl.
 #[inline(never)]
-fn alpha_covered(sc: &PackedScene, tri: u32, u: f32, v: f32, seed: u32) -> bool {
+pub(super) fn alpha_covered(sc: &PackedScene, tri: u32, u: f32, v: f32, seed: u32) -> bool {
     let mb = material_base(sc, tri);
     let flags = sc.materials[mb + 1][3] as u32;
     let a = base_color(sc, mb, flags, SurfacePoint { tri, u, v }).w;
@@ -279,7 +279,7 @@ const ALPHA_HASH: u32 = 0x414c_5048;
 
 /// A ray's coverage seed: `which` 0 for the path's ray at `depth`, 1 for its shadow ray.
 #[inline]
-fn ray_seed(pixel: u32, sample: u32, seed: u32, depth: u32, which: u32) -> u32 {
+pub(super) fn ray_seed(pixel: u32, sample: u32, seed: u32, depth: u32, which: u32) -> u32 {
     pcg4d([
         pixel,
         sample,
@@ -458,7 +458,7 @@ fn absorbed(sc: &PackedScene, mb: usize, t: f32) -> Vec3 {
 /// The normal-mapped shading normal: the slot-2 texel in the frame of the interpolated
 /// tangent (sign in w) and `ns` (before any flip to the viewer's side).
 #[inline(never)]
-fn normal_mapped(sc: &PackedScene, mb: usize, sp: SurfacePoint, ns: Vec3) -> Vec3 {
+pub(super) fn normal_mapped(sc: &PackedScene, mb: usize, sp: SurfacePoint, ns: Vec3) -> Vec3 {
     normal_mapped_by(sc, mb, 2, sc.materials[mb + 4][3], sp, ns)
 }
 
@@ -497,7 +497,7 @@ fn tangent_frame(sc: &PackedScene, sp: SurfacePoint, ns: Vec3) -> (Vec3, Vec3) {
 
 /// Environment radiance arriving along `-d` (i.e. seen looking along `d`) and the density
 /// (solid angle) with which [`sample_env`] picks `d`.
-fn env_eval(sc: &PackedScene, d: Vec3) -> (Vec3, f32) {
+pub(super) fn env_eval(sc: &PackedScene, d: Vec3) -> (Vec3, f32) {
     let [w, h] = sc.env_size;
     if w == 0 {
         return (sc.env_constant, 1.0 / (4.0 * PI));

@@ -5,6 +5,8 @@
 //!   the wall camera's tile table;
 //! * `scene`: the scene's arrays uploaded ([`GpuScene`]);
 //! * `accumulation`: the accumulation buffers ([`GpuAccum`]);
+//! * `features`: the denoiser's feature buffers ([`FeaturesKernel`], [`GpuFeatures`];
+//!   `shaders/trace/features.wgsl`, CPU twin [`crate::trace::features`]);
 //! * `run`: the runs over one accumulation ([`TraceRun`]) — full frames, the scheduler's
 //!   lists, bands of rows;
 //! * `samples` and `owned`: a cluster rank's runs — its samples returned ([`SampleRun`]) and
@@ -20,6 +22,7 @@
 //! default.
 
 mod accumulation;
+mod features;
 #[cfg(feature = "kernel-lab")]
 mod lab;
 mod owned;
@@ -31,6 +34,7 @@ mod scene;
 mod split;
 
 pub use accumulation::GpuAccum;
+pub use features::{FeatureInputs, FeaturesKernel, GpuFeatures};
 pub use owned::{GpuOwnedParams, OwnedSums};
 pub use params::{GpuTraceParams, full_frame_grid};
 pub use run::{RunInputs, TraceRun};
@@ -55,6 +59,20 @@ pub const TRACE_WGSL: &str = concat!(
     include_str!("../../../shaders/trace/shading.wgsl"),
     "\n",
     include_str!("../../../shaders/trace/path.wgsl")
+);
+
+/// The features kernel's source: the trace kernel's (its helpers and bindings) and
+/// `features.wgsl` (WGSL has no includes).
+pub const FEATURES_WGSL: &str = concat!(
+    include_str!("../../../shaders/random.wgsl"),
+    "\n",
+    include_str!("../../../shaders/trace/bvh.wgsl"),
+    "\n",
+    include_str!("../../../shaders/trace/shading.wgsl"),
+    "\n",
+    include_str!("../../../shaders/trace/path.wgsl"),
+    "\n",
+    include_str!("../../../shaders/trace/features.wgsl")
 );
 
 /// Threads per workgroup of the trace kernel (the default of the override `WORKGROUP` in

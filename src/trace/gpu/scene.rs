@@ -10,6 +10,8 @@ use crate::trace::pack::PackedScene;
 /// The scene on the GPU.
 pub struct GpuScene {
     pub(super) bind: wgpu::BindGroup,
+    /// The arrays, in binding order (other kernels over the scene bind what they use).
+    pub(super) buffers: Vec<wgpu::Buffer>,
     /// Bytes uploaded (for reports).
     pub bytes: u64,
 }
@@ -69,6 +71,10 @@ impl GpuScene {
             layout: &kernel.pipeline.get_bind_group_layout(0),
             entries: &entries,
         });
-        Ok(Self { bind, bytes })
+        Ok(Self {
+            bind,
+            buffers,
+            bytes,
+        })
     }
 }
