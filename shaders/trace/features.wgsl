@@ -2,7 +2,9 @@
 // them exactly): per pixel of the band, the mean over four fixed positions of the first
 // non-specular hit's albedo, its shading normal (made unit) and the primary hit's depth (0 for
 // a miss). Appended to the trace kernel's source (path.wgsl's helpers and bindings); params.seed
-// holds FEATURE_SEED (the alpha coverage seeds), params.row0/rows the band.
+// holds FEATURE_SEED (the alpha coverage seeds), params.row0/rows the band; with the wall
+// camera (params.wall_tiles > 0) the rays start at its eye (params.cam_pos) through the pixel's
+// wall points (the `wall` table).
 
 const FEATURE_DEPTH: u32 = 4u;
 const SPECULAR_ALPHA: f32 = 0.01;
@@ -110,6 +112,16 @@ fn features(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgrou
     let x = i % params.size.x;
     let y = params.row0 + i / params.size.x;
     let pixel = y * params.size.x + x;
+    // The wall camera: a pixel no tile shows sees nothing (the miss's features).
+    var tile = NO_TILE;
+    if params.wall_tiles > 0u {
+        tile = wall_tile(x, y);
+        if tile == NO_TILE {
+            feature_albedo[i] = vec4<f32>(0.0);
+            feature_normal_depth[i] = vec4<f32>(0.0);
+            return;
+        }
+    }
     let positions = array<vec2<f32>, 4>(
         vec2<f32>(0.375, 0.125), vec2<f32>(0.875, 0.375),
         vec2<f32>(0.125, 0.625), vec2<f32>(0.625, 0.875));
@@ -121,7 +133,9 @@ fn features(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgrou
         let py = f32(y) + positions[k].y;
         var o = params.cam_pos;
         var d = camera_direction(px, py);
-        if params.ortho_half_y > 0.0 {
+        if params.wall_tiles > 0u {
+            d = wall_direction(tile, x, y, positions[k]);
+        } else if params.ortho_half_y > 0.0 {
             o = camera_origin(px, py);
             d = params.cam_fwd;
         }

@@ -5,7 +5,10 @@ use std::path::PathBuf;
 
 use crate::bench::filter::{self as bench, FilterBenchConfig};
 use crate::display::DisplayModel;
-use crate::filter::{Blend, DenoiseKind, FilterKind, FilterParams, FilterParamsError, oidn, synth};
+use crate::filter::denoise::DenoiseParams;
+use crate::filter::{
+    Blend, DenoiseKind, Denoiser, FilterKind, FilterParams, FilterParamsError, oidn, synth,
+};
 use crate::gpu::Backend;
 use crate::roi::dgi::Surface;
 
@@ -51,25 +54,66 @@ impl FilterArgs {
 /// Denoising of the picture a command writes (DESIGN.md §8).
 #[derive(Clone, Debug, clap::Args)]
 pub struct DenoiseArgs {
-    /// Denoise the picture: off (the filter's picture) or oidn (Intel Open Image Denoise 2 on
-    /// the HDR colour at its high quality, on the CUDA device with an NVIDIA GPU, else the CPU;
-    /// install it with `bash tools/oidn.sh install`, or set OIDN_DIR).
+    /// Denoise the picture: off (the filter's picture), interactive (raygun's own edge-avoiding
+    /// denoiser, steered by each pixel's albedo, normal and depth, on the render's backend) or
+    /// oidn (Intel Open Image Denoise 2 with the same albedo and normal, at its high quality, on
+    /// the CUDA device with an NVIDIA GPU, else the CPU; install it with
+    /// `bash tools/oidn.sh install`, or set OIDN_DIR).
     #[arg(long, value_enum, default_value_t = DenoiseKind::Off)]
     pub denoise: DenoiseKind,
 }
 
 impl DenoiseArgs {
     /// The OIDN device `--denoise oidn` asks for, opened now so that a missing library is an
-    /// error before any work; `None` for `off`.
+    /// error before any work; `None` for the others.
     pub fn device(&self, backend: &Backend) -> Result<Option<oidn::Device>, DenoiseArgsError> {
         match self.denoise {
-            DenoiseKind::Off => Ok(None),
+            DenoiseKind::Off | DenoiseKind::Interactive => Ok(None),
             DenoiseKind::Oidn => {
                 let choice = oidn::DeviceChoice::Auto {
                     nvidia: backend.is_nvidia(),
                 };
                 Ok(Some(oidn::Oidn::load()?.device(choice)?))
             }
+        }
+    }
+
+    /// What denoises the picture: raygun's denoiser with the filter's variance threshold (a
+    /// pixel the filter leaves as it is passes through it too), or OIDN on `device` (opened by
+    /// [`Self::device`]) at `quality`; `None` for `off`.
+    #[must_use]
+    pub fn denoiser<'d>(
+        &self,
+        device: Option<&'d oidn::Device>,
+        filter: &FilterParams,
+        quality: oidn::Quality,
+    ) -> Option<Denoiser<'d>> {
+        match self.denoise {
+            DenoiseKind::Off => None,
+            DenoiseKind::Interactive => Some(Denoiser::Interactive(DenoiseParams {
+                variance_threshold: filter.variance_threshold,
+                ..DenoiseParams::default()
+            })),
+            DenoiseKind::Oidn => device.map(|d| Denoiser::Oidn(d, quality)),
+        }
+    }
+
+    /// What the command says about its denoiser (`None` for `off`).
+    #[must_use]
+    pub fn describe(&self, device: Option<&oidn::Device>, backend: &Backend) -> Option<String> {
+        match (self.denoise, device) {
+            (DenoiseKind::Off, _) => None,
+            (DenoiseKind::Interactive, _) => Some(match backend {
+                Backend::Gpu(ctx) => {
+                    format!(
+                        "denoise: raygun's interactive denoiser on {}",
+                        ctx.describe()
+                    )
+                }
+                Backend::Cpu => "denoise: raygun's interactive denoiser on the CPU".to_owned(),
+            }),
+            (DenoiseKind::Oidn, Some(d)) => Some(format!("denoise: {}", d.describe())),
+            (DenoiseKind::Oidn, None) => None,
         }
     }
 }

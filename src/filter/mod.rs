@@ -87,8 +87,20 @@ pub enum DenoiseKind {
     /// None: the filter's picture.
     #[default]
     Off,
+    /// raygun's own edge-avoiding à-trous denoiser ([`denoise`]), on the render's backend.
+    Interactive,
     /// Intel Open Image Denoise 2, opened at run time.
     Oidn,
+}
+
+/// How a picture is denoised once `--denoise` is resolved (DESIGN.md §8): both are steered by
+/// the render's feature buffers (albedo, shading normal, depth).
+#[derive(Clone, Copy, Debug)]
+pub enum Denoiser<'a> {
+    /// raygun's own denoiser ([`denoise`]) with these settings, on the render's backend.
+    Interactive(denoise::DenoiseParams),
+    /// Intel Open Image Denoise on this device at this quality.
+    Oidn(&'a oidn::Device, oidn::Quality),
 }
 
 /// How the filtered value is blended with the unfiltered pixel (`--filter-blend`).

@@ -543,21 +543,26 @@ pub fn colour_input(acc: &Accumulation, filled: &[Vec3]) -> (Vec<f32>, usize) {
 }
 
 /// A render's picture denoised by OIDN: `filled` is the filter's picture (DESIGN.md §8), whose
-/// values OIDN sees only where a pixel has no usable mean of its own ([`colour_input`]); the
-/// result is linear RGB like `filled`.
+/// values OIDN sees only where a pixel has no usable mean of its own ([`colour_input`]); with
+/// `features`, their albedo and shading normal guide it (OIDN keeps the edges and textures they
+/// show). The result is linear RGB like `filled`.
 pub fn denoise_picture(
     device: &Device,
     acc: &Accumulation,
     filled: &[Vec3],
+    features: Option<&super::denoise::Features>,
     quality: Quality,
 ) -> Result<Vec<Vec3>, OidnError> {
     let (color, _) = colour_input(acc, filled);
+    let rgb = |v: &[[f32; 4]]| -> Vec<f32> { v.iter().flat_map(|a| [a[0], a[1], a[2]]).collect() };
+    let albedo = features.map(|f| rgb(&f.albedo));
+    let normal = features.map(|f| rgb(&f.normal_depth));
     let out = device.denoise(
         Images {
             size: [acc.width, acc.height],
             color: &color,
-            albedo: None,
-            normal: None,
+            albedo: albedo.as_deref(),
+            normal: normal.as_deref(),
         },
         quality,
     )?;

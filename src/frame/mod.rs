@@ -27,9 +27,11 @@
 //!
 //! [`Renderer`] is one type in files by job: its set-up (the backends' buffers and kernels, the
 //! bands) in `engine.rs`, the frame's steps and what changes between frames in `steps.rs`, the
-//! accumulation read back and the picture in `picture.rs`, an ROI's DGI in `dgi.rs`, the
-//! window's picture in [`shown`] and the ROI's statistics in [`roi_stats`].
+//! accumulation read back and the picture in `picture.rs`, the features and the denoised
+//! picture in `denoise.rs`, an ROI's DGI in `dgi.rs`, the window's picture in [`shown`] and the
+//! ROI's statistics in [`roi_stats`].
 
+mod denoise;
 mod dgi;
 mod engine;
 mod picture;
@@ -54,6 +56,7 @@ use crate::trace::pack::PackedScene;
 use crate::trace::path::TraceSettings;
 use crate::trace::wall::{WallCamera, WallCameraError};
 
+pub use denoise::denoise_picture;
 pub use dgi::{dgi_cpu, dgi_cpu_bands, prepare_dgi};
 pub use render::Render;
 
@@ -91,6 +94,10 @@ pub enum FrameError {
     Filter(#[from] FilterGpuError),
     #[error(transparent)]
     Denoise(#[from] crate::filter::oidn::OidnError),
+    #[error(transparent)]
+    DenoiseInput(#[from] crate::filter::denoise::DenoiseInputError),
+    #[error(transparent)]
+    DenoiseGpu(#[from] crate::filter::denoise::gpu::DenoiseGpuError),
     #[error(
         "a full-frame renderer has no display to aim an ROI at (build it with Renderer::guided)"
     )]

@@ -12,9 +12,9 @@ use glam::{DVec3, Vec3};
 
 use super::guide::GuideSource;
 use crate::display::DisplayModel;
-use crate::filter::{Filter, FilterParams, oidn};
+use crate::filter::{Denoiser, Filter, FilterParams};
 use crate::frame::stop::{RoiProgress, StopCondition, StopReason, reached};
-use crate::frame::{EyeFollow, FrameError, GuideConfig, Render, Renderer};
+use crate::frame::{EyeFollow, FrameError, GuideConfig, Render, Renderer, denoise_picture};
 use crate::gpu::Backend;
 use crate::output::OutputError;
 use crate::roi::dgi::Roi;
@@ -117,6 +117,8 @@ pub struct GuidedResult {
     pub eye_restarts: Vec<(u32, glam::DVec3)>,
     /// Head eyes refused (on or behind a tile's plane: the eye stayed where it was).
     pub eyes_refused: u32,
+    /// Pixels the denoiser dropped for a NaN or infinite sum (DESIGN.md §8).
+    pub denoise_dropped: u64,
 }
 
 impl GuidedResult {
@@ -228,9 +230,9 @@ pub struct GuidedRender<'a> {
     pub wall: Option<WallCamera>,
     pub config: GuideConfig,
     pub filter: FilterParams,
-    /// The OIDN device that denoises the filtered picture (`--denoise oidn`; DESIGN.md §8), at
-    /// the quality for saved images.
-    pub denoise: Option<&'a oidn::Device>,
+    /// What denoises the filtered picture (`--denoise`; DESIGN.md §8), steered by the view's
+    /// features.
+    pub denoise: Option<Denoiser<'a>>,
 }
 
 /// One process's guided render of `scene` on `backend`: the render loop ([`run_guided`]), then
@@ -255,10 +257,14 @@ pub fn render_guided(
     let run = run_guided(&mut r, source, stopping, on_iteration)?;
     let accumulated = r.iteration();
     let wall = r.wall().cloned();
+    // The features depend on the view alone: taken before the accumulation leaves the renderer.
+    let features = job.denoise.map(|_| r.features()).transpose()?;
     let (acc, dgi) = r.finish()?;
     let mut image = Filter::new(backend).image(&job.filter, &acc, &dgi)?;
-    if let Some(device) = job.denoise {
-        image = oidn::denoise_picture(device, &acc, &image, oidn::Quality::High)?;
+    let mut dropped = 0;
+    if let (Some(denoiser), Some(features)) = (job.denoise, &features) {
+        (image, dropped) =
+            denoise_picture(backend, denoiser, &acc, features, &image, wall.as_ref())?;
     }
     if let Some(wc) = &wall {
         wc.blank_unshown(&mut image);
@@ -275,5 +281,6 @@ pub fn render_guided(
         accumulated,
         eye_restarts: run.eye_restarts,
         eyes_refused: run.eyes_refused,
+        denoise_dropped: dropped,
     })
 }

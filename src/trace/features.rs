@@ -48,6 +48,7 @@ use super::path::{
     slot, v3,
 };
 use super::shading::offset_ray;
+use super::wall::WallCamera;
 
 /// The points inside a pixel (in pixels from its top-left corner) that its features look
 /// through: a 4-point rotated grid.
@@ -185,15 +186,32 @@ fn feature_ray(
 }
 
 /// The features of `pixel` (row-major index in `s.width` × `s.height`) as the module docs
-/// define them: `([r, g, b, 0], [n.x, n.y, n.z, depth])`.
+/// define them, through `wall`'s primary ray when given (0 everywhere for a pixel no tile of
+/// its display shows): `([r, g, b, 0], [n.x, n.y, n.z, depth])`.
 #[must_use]
-pub fn pixel_features(sc: &PackedScene, s: &TraceSettings, pixel: u32) -> ([f32; 4], [f32; 4]) {
+pub fn pixel_features(
+    sc: &PackedScene,
+    s: &TraceSettings,
+    wall: Option<&WallCamera>,
+    pixel: u32,
+) -> ([f32; 4], [f32; 4]) {
     let (x, y) = (pixel % s.width, pixel / s.width);
+    let tile = match wall {
+        Some(wc) => match wc.tile_of(x, y) {
+            Some(t) => Some(t),
+            // A pixel no tile shows sees nothing: the miss's features.
+            None => return ([0.0; 4], [0.0; 4]),
+        },
+        None => None,
+    };
     let (mut albedo, mut normal, mut depth) = (Vec3::ZERO, Vec3::ZERO, 0.0f32);
     for (k, [px, py]) in FEATURE_POSITIONS.into_iter().enumerate() {
-        let (o, d) = s
-            .camera
-            .ray(x as f32 + px, y as f32 + py, s.width, s.height);
+        let (o, d) = match (wall, tile) {
+            (Some(wc), Some(t)) => wc.ray(t, x, y, px, py),
+            _ => s
+                .camera
+                .ray(x as f32 + px, y as f32 + py, s.width, s.height),
+        };
         let (a, n, z) = feature_ray(sc, pixel, k as u32, o, d);
         albedo += a;
         normal += n;
@@ -208,14 +226,18 @@ pub fn pixel_features(sc: &PackedScene, s: &TraceSettings, pixel: u32) -> ([f32;
     )
 }
 
-/// Every pixel's features ([`pixel_features`]) on all cores: the CPU twin of the features
-/// kernel.
+/// Every pixel's features ([`pixel_features`]) on all cores, through `wall`'s primary rays
+/// when given: the CPU twin of the features kernel.
 #[must_use]
-pub fn features_cpu(sc: &PackedScene, s: &TraceSettings) -> FeatureBuffers {
+pub fn features_cpu(
+    sc: &PackedScene,
+    s: &TraceSettings,
+    wall: Option<&WallCamera>,
+) -> FeatureBuffers {
     let n = s.width * s.height;
     let (albedo, normal_depth) = (0..n)
         .into_par_iter()
-        .map(|p| pixel_features(sc, s, p))
+        .map(|p| pixel_features(sc, s, wall, p))
         .unzip();
     FeatureBuffers {
         albedo,
@@ -296,7 +318,7 @@ mod tests {
             ..Default::default()
         });
         let s = settings(8, 6, Vec3::new(0.0, 0.0, 3.0), Vec3::ZERO, 40.0);
-        let f = features_cpu(&sc, &s);
+        let f = features_cpu(&sc, &s, None);
         assert_eq!(f.albedo.len(), 48);
         for p in 0..48 {
             let a = f.albedo[p];
@@ -329,7 +351,7 @@ mod tests {
         });
         // Looking away from the quad.
         let s = settings(4, 4, Vec3::ZERO, Vec3::new(0.0, 0.0, 1.0), 40.0);
-        let f = features_cpu(&sc, &s);
+        let f = features_cpu(&sc, &s, None);
         for p in 0..16 {
             assert_eq!(f.albedo[p], [0.0; 4]);
             assert_eq!(f.normal_depth[p], [0.0; 4]);
@@ -359,7 +381,7 @@ mod tests {
             ..Default::default()
         });
         let s = settings(6, 4, Vec3::new(0.0, 0.0, 3.0), Vec3::ZERO, 30.0);
-        let f = features_cpu(&sc, &s);
+        let f = features_cpu(&sc, &s, None);
         for p in 0..24 {
             let a = f.albedo[p];
             let nd = f.normal_depth[p];
@@ -384,7 +406,7 @@ mod tests {
         let mut rough = sc.clone();
         let mb = 0;
         rough.materials[mb + 2][1] = 0.25;
-        let f = features_cpu(&rough, &s);
+        let f = features_cpu(&rough, &s, None);
         assert!((Vec4::from_array(f.albedo[0]) - Vec4::new(0.9, 0.9, 0.9, 0.0)).length() < 1e-6);
     }
 
@@ -402,7 +424,7 @@ mod tests {
         });
         // 2 × 1 pixels: the boundary between them is at x = 0 exactly (the view's centre).
         let s = settings(2, 1, Vec3::new(0.0, 0.0, 3.0), Vec3::ZERO, 10.0);
-        let f = features_cpu(&sc, &s);
+        let f = features_cpu(&sc, &s, None);
         assert!((f.albedo[0][0] - 0.5).abs() < 1e-6, "{:?}", f.albedo);
         assert_eq!(f.albedo[1], [0.0; 4]);
         assert_eq!(f.normal_depth[1], [0.0; 4]);

@@ -310,3 +310,104 @@ fn raygun_max_binding_splits_a_render_and_changes_none_of_its_files() {
     assert!(err.contains("RAYGUN_MAX_BINDING=\"lots\""), "{err}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// The renderer's feature buffers (DESIGN.md §8) through the wall camera: in bands they are the
+/// whole frame's bit for bit, the GPU's agree with the CPU twin's (the kernel's own twin test
+/// names the tolerance: 1e-3, ≥ 98 % of pixels), pixels no tile shows have none (at this size
+/// every pixel is some tile's: `bezel_pixels_have_no_features` looks at a larger one), and a
+/// moved eye changes them.
+#[test]
+fn wall_features_in_bands_are_the_whole_frames_and_the_cpu_twins() {
+    let model = DisplayModel::open("hornet").unwrap().0;
+    let scene = Scene::builtin("cornell").unwrap();
+    let s = settings(&scene);
+    let c = &s.camera;
+    let camera = (c.position.as_dvec3(), c.forward.as_dvec3(), c.up.as_dvec3());
+    let wall_at =
+        |eye: DVec3| WallCamera::new(&model, SIZE, eye, &WorldFromRoom::Auto, camera).unwrap();
+    let features = |backend: &Backend, eye: DVec3| {
+        let r = Renderer::guided_wall(
+            backend,
+            &scene,
+            s,
+            &model,
+            GuideConfig::default(),
+            Some(wall_at(eye)),
+        )
+        .unwrap();
+        r.features().unwrap()
+    };
+    let eye = DVec3::new(0.0, 0.0, 1.0);
+    let banded = features(&small_device(), eye);
+    let whole = features(&Backend::Gpu(Box::new(GpuContext::for_tests())), eye);
+    let cpu = features(&Backend::Cpu, eye);
+    assert!(
+        banded.albedo == whole.albedo && banded.normal_depth == whole.normal_depth,
+        "the banded features differ from the whole frame's"
+    );
+    let wall = wall_at(eye);
+    let n = (SIZE[0] * SIZE[1]) as usize;
+    let (mut close, mut hits) = (0, 0);
+    for p in 0..n {
+        let (ga, gn) = (whole.albedo[p], whole.normal_depth[p]);
+        let (ca, cn) = (cpu.albedo[p], cpu.normal_depth[p]);
+        if !wall.is_shown(p as u32) {
+            assert_eq!(
+                (ga, gn, ca, cn),
+                ([0.0; 4], [0.0; 4], [0.0; 4], [0.0; 4]),
+                "pixel {p}"
+            );
+            continue;
+        }
+        hits += usize::from(cn[3] > 0.0);
+        let tol = 1e-3 * cn[3].abs().max(1.0);
+        let near =
+            |a: [f32; 4], b: [f32; 4], t: f32| a.iter().zip(b).all(|(x, y)| (x - y).abs() <= t);
+        close += usize::from(near(ga, ca, 1e-3) && near(gn, cn, tol));
+    }
+    let shown = wall.shown_count() as usize;
+    // The wall's wide view shows the box in its middle (63 pixels at this size).
+    assert!(hits > 50, "{hits} of {shown} shown pixels hit the scene");
+    assert!(
+        close as f64 >= 0.98 * shown as f64,
+        "{close} of {shown} shown pixels agree with the CPU twin"
+    );
+    let moved = features(&Backend::Cpu, DVec3::new(0.1, 0.05, 1.2));
+    assert_ne!(
+        moved.normal_depth, cpu.normal_depth,
+        "a moved eye sees other depths"
+    );
+}
+
+/// At 1352×546 some pixels of HORNET's canvas are on bezels: their features are those of a
+/// miss (0), a shown pixel's come from its wall point.
+#[test]
+fn bezel_pixels_have_no_features() {
+    let model = DisplayModel::open("hornet").unwrap().0;
+    let scene = Scene::builtin("cornell").unwrap();
+    let size = [1352, 546];
+    let mut s = settings(&scene);
+    (s.width, s.height) = (size[0], size[1]);
+    let c = &s.camera;
+    let camera = (c.position.as_dvec3(), c.forward.as_dvec3(), c.up.as_dvec3());
+    let wall = WallCamera::new(
+        &model,
+        size,
+        DVec3::new(0.0, 0.0, 1.0),
+        &WorldFromRoom::Auto,
+        camera,
+    )
+    .unwrap();
+    let packed = raygun::trace::pack::PackedScene::new(&scene);
+    let at = |p: u32| raygun::trace::features::pixel_features(&packed, &s, Some(&wall), p);
+    let n = size[0] * size[1];
+    let bezel = (0..n).find(|&p| !wall.is_shown(p)).expect("a bezel pixel");
+    assert_eq!(at(bezel), ([0.0; 4], [0.0; 4]), "pixel {bezel}");
+    let centre = size[1] / 2 * size[0] + size[0] / 2;
+    assert!(wall.is_shown(centre));
+    let (albedo, nd) = at(centre);
+    assert!(
+        nd[3] > 0.0 && albedo[..3].iter().any(|&a| a > 0.0),
+        "{albedo:?} {nd:?}"
+    );
+}

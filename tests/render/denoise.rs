@@ -1,5 +1,6 @@
-//! `render --denoise oidn`: Intel Open Image Denoise through the command line, against a
-//! converged reference of the same view (the library itself is tested in `src/filter/oidn.rs`).
+//! `render --denoise interactive|oidn`: raygun's own denoiser and Intel Open Image Denoise
+//! through the command line, against a converged reference of the same view (the denoiser is
+//! tested in `src/filter/denoise/`, the library in `src/filter/oidn.rs`).
 
 use std::path::Path;
 use std::process::Command;
@@ -48,41 +49,48 @@ fn mse(a: &[f32], b: &[f32]) -> f64 {
 }
 
 #[test]
-fn oidn_brings_a_noisy_picture_closer_to_the_reference_and_says_what_ran() {
+fn both_denoisers_bring_a_noisy_picture_closer_to_the_reference_and_say_what_ran() {
     let dir = tmp_dir("denoise-oidn");
     ok(&render(&dir, "ref.exr", &["--spp", "512"]).output().unwrap());
     let reference = values(&dir.join("ref.exr"));
     // A full frame of 4 samples a pixel, and a guided render whose periphery is sparse (the
-    // filter fills what OIDN then sees where a pixel has no sample).
+    // filter fills what the denoisers cannot reach or OIDN sees where a pixel has no sample).
     let cases: [&[&str]; 2] = [
         &["--spp", "4"],
         &["--guide", "mouse:32,18:8,8", "--iterations", "8"],
     ];
+    let denoisers = [
+        (
+            "oidn",
+            "denoise: Intel Open Image Denoise 2.5.1 on its CPU device",
+        ),
+        (
+            "interactive",
+            "denoise: raygun's interactive denoiser on the CPU",
+        ),
+    ];
     for (k, case) in cases.iter().enumerate() {
         let off = format!("off-{k}.exr");
-        let on = format!("oidn-{k}.exr");
         ok(&render(&dir, &off, case)
             .args(["--denoise", "off"])
             .output()
             .unwrap());
-        let o = render(&dir, &on, case)
-            .args(["--denoise", "oidn"])
-            .output()
-            .unwrap();
-        ok(&o);
-        let err = stderr(&o);
-        assert!(
-            err.contains("denoise: Intel Open Image Denoise 2.5.1 on its CPU device"),
-            "{err}"
-        );
-        let (raw, denoised) = (
-            mse(&values(&dir.join(&off)), &reference),
-            mse(&values(&dir.join(&on)), &reference),
-        );
-        assert!(
-            denoised < 0.5 * raw,
-            "{case:?}: MSE {denoised} denoised against {raw} without"
-        );
+        let raw = mse(&values(&dir.join(&off)), &reference);
+        for (name, says) in denoisers {
+            let on = format!("{name}-{k}.exr");
+            let o = render(&dir, &on, case)
+                .args(["--denoise", name])
+                .output()
+                .unwrap();
+            ok(&o);
+            let err = stderr(&o);
+            assert!(err.contains(says), "{err}");
+            let denoised = mse(&values(&dir.join(&on)), &reference);
+            assert!(
+                denoised < 0.5 * raw,
+                "{case:?} {name}: MSE {denoised} denoised against {raw} without"
+            );
+        }
     }
 }
 

@@ -243,6 +243,7 @@ fn work(c: &mut Cluster, args: &RenderArgs, mut p: Prepared) -> anyhow::Result<(
                 accumulated: run.accumulated,
                 eye_restarts: run.eye_restarts.clone(),
                 eyes_refused: run.eyes_refused,
+                denoise_dropped: 0,
             };
             super::guided::write_outputs(args, plan, &res, tiles_written, &device, &summary)
         }

@@ -224,7 +224,7 @@ pub fn run(
     settings: TraceSettings,
     wall: Option<WallCamera>,
     backend: &Backend,
-    denoise: Option<&crate::filter::oidn::Device>,
+    denoise: Option<crate::filter::Denoiser<'_>>,
 ) -> anyhow::Result<()> {
     crate::cli::say(args.quiet, format_args!("display: {}", plan.display_note));
     let mut bar = Progress::new(
@@ -309,6 +309,7 @@ pub fn write_outputs(
         crate::cli::render::write_wall_tiles(args, &plan.model, &res.image)?;
     }
     res.write_guides(plan.dgi_out.as_deref(), plan.counts_out.as_deref())?;
+    super::say_dropped(args.quiet, res.denoise_dropped);
     if !res.eye_restarts.is_empty() || res.eyes_refused > 0 {
         crate::cli::say(
             args.quiet,

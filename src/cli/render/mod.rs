@@ -252,11 +252,26 @@ fn check_args(args: &RenderArgs) -> anyhow::Result<()> {
     }
     if args.cluster.cluster && args.denoise.denoise != crate::filter::DenoiseKind::Off {
         anyhow::bail!(
-            "--denoise oidn denoises one process's picture: with --cluster the ranks write their \
-             tiles as filtered; leave out one of the two"
+            "--denoise {} denoises one process's picture: with --cluster the ranks write their \
+             tiles as filtered; leave out one of the two",
+            clap::ValueEnum::to_possible_value(&args.denoise.denoise)
+                .map_or_else(String::new, |v| v.get_name().to_owned())
         );
     }
     Ok(())
+}
+
+/// Says how many pixels the denoiser dropped for a NaN or infinite sum (nothing when none).
+pub fn say_dropped(quiet: bool, dropped: u64) {
+    if dropped > 0 {
+        crate::cli::say(
+            quiet,
+            format_args!(
+                "denoise: {} with a NaN or infinite sum dropped (filled from their neighbours)",
+                crate::messages::count(dropped as usize, "pixel")
+            ),
+        );
+    }
 }
 
 /// Every output the render will write, checked before any work.
@@ -312,23 +327,20 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
         }
     };
     check_memory(work, args.size, &backend)?;
-    let denoiser = args.denoise.device(&backend)?;
-    if let Some(d) = &denoiser {
-        crate::cli::say(args.quiet, format_args!("denoise: {}", d.describe()));
+    let oidn_device = args.denoise.device(&backend)?;
+    if let Some(note) = args.denoise.describe(oidn_device.as_ref(), &backend) {
+        crate::cli::say(args.quiet, note);
     }
+    let denoiser = args.denoise.denoiser(
+        oidn_device.as_ref(),
+        &filter,
+        crate::filter::oidn::Quality::High,
+    );
     if let Some(plan) = &plan {
         let scene = load_scene(&args.scene, args.env.as_deref(), args.access)?;
         let settings = settings(args, &scene)?;
         let wall = wall_camera(wall.as_ref(), &settings)?;
-        return guided::run(
-            args,
-            plan,
-            &scene,
-            settings,
-            wall,
-            &backend,
-            denoiser.as_ref(),
-        );
+        return guided::run(args, plan, &scene, settings, wall, &backend, denoiser);
     }
     // A full frame: --display matters only for the tiles and the wall camera.
     let tiles_model = match &args.tiles {
@@ -371,17 +383,13 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     bar.finish();
     let acc = renderer.accumulation()?;
     let mut image = acc.mean_image();
-    if let Some(d) = &denoiser {
-        image = crate::filter::oidn::denoise_picture(
-            d,
-            &acc,
-            &image,
-            crate::filter::oidn::Quality::High,
-        )?;
-        // Pixels no tile shows stay black, as without it.
-        if let Some(wc) = crate::frame::Render::wall(&renderer) {
-            wc.blank_unshown(&mut image);
-        }
+    if let Some(d) = denoiser {
+        let features = renderer.features()?;
+        let wall = crate::frame::Render::wall(&renderer);
+        let dropped;
+        (image, dropped) =
+            crate::frame::denoise_picture(&backend, d, &acc, &features, &image, wall)?;
+        say_dropped(args.quiet, dropped);
     }
     drop(acc);
     for out in &args.out {

@@ -4,11 +4,13 @@
 
 use wgpu::util::DeviceExt;
 
+use super::params::wall_table_buffer;
 use super::{FEATURES_WGSL, GpuScene, GpuTraceParams, TraceKernel, entry};
 use crate::gpu::{Band, GpuContext, GpuError};
 use crate::trace::features::{FEATURE_SEED, FeatureBuffers};
 use crate::trace::pack::PackedScene;
 use crate::trace::path::TraceSettings;
+use crate::trace::wall::WallCamera;
 
 /// Threads per workgroup of the features kernel (`@workgroup_size` in features.wgsl).
 const FEATURES_WORKGROUP: u32 = 64;
@@ -31,6 +33,8 @@ pub struct FeatureInputs<'a> {
     pub scene_gpu: &'a GpuScene,
     pub scene: &'a PackedScene,
     pub settings: &'a TraceSettings,
+    /// The wall camera whose rays the features look along, when the frames trace through one.
+    pub wall: Option<&'a WallCamera>,
 }
 
 /// The compiled features kernel.
@@ -110,8 +114,9 @@ impl FeaturesKernel {
             scene_gpu,
             scene,
             settings,
+            wall,
         } = inputs;
-        let mut params = GpuTraceParams::for_band(trace, scene, settings, None, false, out.band);
+        let mut params = GpuTraceParams::for_band(trace, scene, settings, wall, false, out.band);
         params.seed = FEATURE_SEED;
         let params = ctx
             .device
@@ -120,6 +125,7 @@ impl FeaturesKernel {
                 contents: bytemuck::bytes_of(&params),
                 usage: wgpu::BufferUsages::UNIFORM,
             });
+        let wall_table = wall_table_buffer(ctx, "features wall tiles", wall);
         let scene_entries: Vec<_> = SCENE_BINDINGS
             .iter()
             .map(|&b| entry(b, &scene_gpu.buffers[b as usize]))
@@ -134,6 +140,7 @@ impl FeaturesKernel {
             layout: &self.pipeline.get_bind_group_layout(1),
             entries: &[
                 entry(0, &params),
+                entry(6, &wall_table),
                 entry(7, &out.albedo),
                 entry(8, &out.normal_depth),
             ],
@@ -189,12 +196,12 @@ mod tests {
             max_depth: 8,
             camera: cam,
         };
-        let cpu = features_cpu(&packed, &s);
+        let cpu = features_cpu(&packed, &s, None);
         // The test means something: most pixels hit, and the mirror and the glass change what
         // some pixels see (their chains are followed).
         let hits = cpu.normal_depth.iter().filter(|nd| nd[3] > 0.0).count();
         assert!(hits > (w * h / 2) as usize, "{hits} hits");
-        let before = features_cpu(&PackedScene::new(&plain), &s);
+        let before = features_cpu(&PackedScene::new(&plain), &s, None);
         let changed = (0..(w * h) as usize)
             .filter(|&p| before.albedo[p] != cpu.albedo[p])
             .count();
@@ -214,6 +221,7 @@ mod tests {
                 scene_gpu: &gs,
                 scene: &packed,
                 settings: &s,
+                wall: None,
             };
             kernel.record(&ctx, &mut enc, inputs, &out);
             ctx.queue.submit([enc.finish()]);

@@ -1,0 +1,116 @@
+//! The denoised picture (DESIGN.md §8): the feature buffers of the renderer's view — albedo,
+//! shading normal and depth for every pixel, sampled or not, from the features kernel on the
+//! GPU (per band of rows) or its CPU twin — and the picture denoised with them by raygun's own
+//! denoiser or by OIDN.
+
+use glam::Vec3;
+
+use super::{Engine, FrameError, Renderer};
+use crate::filter::denoise::{self, DenoiseInput, Features};
+use crate::filter::{Denoiser, oidn};
+use crate::gpu::Backend;
+use crate::trace::accum::Accumulation;
+use crate::trace::features::features_cpu;
+use crate::trace::gpu::{FeatureInputs, FeaturesKernel, GpuFeatures, TraceKernel};
+use crate::trace::wall::WallCamera;
+
+/// Rows of a band of the CPU denoiser: its working set stays a band's (the picture is the
+/// unbanded one bit for bit).
+const CPU_DENOISE_ROWS: u32 = 256;
+
+impl Renderer<'_> {
+    /// The feature buffers of the current view (camera or wall camera's eye): every pixel's, on
+    /// this renderer's backend (the GPU kernel in the frame's bands, read back, or the CPU
+    /// twin). They do not depend on the samples, only on the view.
+    pub fn features(&self) -> Result<Features, FrameError> {
+        let (w, h) = (self.settings.width, self.settings.height);
+        let buffers = match &self.engine {
+            Engine::Gpu {
+                ctx, scene, bands, ..
+            } => {
+                let trace = TraceKernel::new(ctx);
+                let kernel = FeaturesKernel::new(ctx);
+                let mut albedo = Vec::with_capacity(w as usize * h as usize);
+                let mut normal_depth = Vec::with_capacity(w as usize * h as usize);
+                // One band at a time: its buffers are freed before the next one's.
+                for b in bands {
+                    let out = GpuFeatures::new(ctx, w, b.band)?;
+                    let mut enc = ctx.device.create_command_encoder(&Default::default());
+                    let inputs = FeatureInputs {
+                        trace: &trace,
+                        scene_gpu: scene,
+                        scene: &self.packed,
+                        settings: &self.settings,
+                        wall: self.wall.as_ref(),
+                    };
+                    kernel.record(ctx, &mut enc, inputs, &out);
+                    ctx.queue.submit([enc.finish()]);
+                    let part = out.read(ctx)?;
+                    albedo.extend(part.albedo);
+                    normal_depth.extend(part.normal_depth);
+                }
+                crate::trace::features::FeatureBuffers {
+                    albedo,
+                    normal_depth,
+                }
+            }
+            Engine::Cpu { .. } => features_cpu(&self.packed, &self.settings, self.wall.as_ref()),
+        };
+        Ok(Features {
+            width: w,
+            height: h,
+            albedo: buffers.albedo,
+            normal_depth: buffers.normal_depth,
+        })
+    }
+}
+
+/// `filled` (the filter's picture of `acc`) denoised by `denoiser` with `features` on
+/// `backend`; pixels `wall` does not show stay black. Returns the picture and how many pixels
+/// raygun's denoiser dropped for a NaN or infinite sum (0 with OIDN, which never sees one).
+///
+/// raygun's denoiser fills unsampled pixels from similar neighbours within its reach (62
+/// pixels); one with no similar sampled neighbour in reach keeps the filter's value, as does
+/// one OIDN gets no mean for ([`oidn::colour_input`]).
+pub fn denoise_picture(
+    backend: &Backend,
+    denoiser: Denoiser<'_>,
+    acc: &Accumulation,
+    features: &Features,
+    filled: &[Vec3],
+    wall: Option<&WallCamera>,
+) -> Result<(Vec<Vec3>, u64), FrameError> {
+    let mut dropped = 0;
+    let mut image = match denoiser {
+        Denoiser::Interactive(params) => {
+            let input = DenoiseInput::new(acc, features)?;
+            let out = match backend {
+                Backend::Gpu(ctx) => {
+                    denoise::gpu::DenoiseKernels::new(ctx).denoise_banded(ctx, &params, &input)?
+                }
+                Backend::Cpu => denoise::denoise_cpu_banded(&params, &input, CPU_DENOISE_ROWS)?,
+            };
+            dropped = out.dropped;
+            out.image
+                .iter()
+                .zip(&acc.sum)
+                .zip(&acc.count)
+                .zip(filled)
+                .map(|(((o, s), &n), f)| {
+                    let v = Vec3::new(o[0], o[1], o[2]);
+                    let usable = n > 0 && s.iter().all(|c| c.is_finite());
+                    // No usable mean and out of every similar source's reach: the filter's
+                    // fill.
+                    if !usable && v == Vec3::ZERO { *f } else { v }
+                })
+                .collect()
+        }
+        Denoiser::Oidn(device, quality) => {
+            oidn::denoise_picture(device, acc, filled, Some(features), quality)?
+        }
+    };
+    if let Some(wc) = wall {
+        wc.blank_unshown(&mut image);
+    }
+    Ok((image, dropped))
+}
