@@ -8,7 +8,7 @@
 //! `tests/memory.rs` measures the host's peak heap of real runs with a counting allocator and
 //! holds these figures to it.
 
-use crate::filter::FilterKind;
+use crate::filter::{DenoiseKind, FilterKind};
 
 /// Host bytes per pixel of the accumulation: RGB sum and Σ luminance² (4 × f32), count (u32).
 pub const ACCUMULATION_BPP: u64 = 20;
@@ -32,6 +32,14 @@ pub const ENCODE_BPP_PER_CHANNEL: u64 = 4;
 /// The GPU's buffers: accumulation (16), counts (4), the frame's DGI (4) and the DGI kernel's
 /// output (4), the pixel list (4), and the filter's output (16) and pyramid (22).
 pub const DEVICE_BPP: u64 = 70;
+/// The feature buffers (DESIGN.md §8): albedo and normal/depth, an f32 vec4 each, on the host
+/// (computed there, or read back) and, while the kernel writes them, per band on the GPU.
+pub const FEATURES_BPP: u64 = 32;
+/// raygun's denoiser's output as it comes back (f32 RGBA) and the picture made from it (RGB).
+pub const DENOISED_BPP: u64 = 28;
+/// OIDN's images a pixel: colour, albedo, normal and its output, f32 RGB each, and the picture
+/// made from its output (OIDN's own scratch memory is allocated by the library, not counted).
+pub const OIDN_BPP: u64 = 60;
 /// Host memory that does not grow with the image (scene, BVH and libraries are counted apart):
 /// allocator slack, thread stacks, small tables.
 pub const FIXED_BYTES: u64 = 64 << 20;
@@ -150,6 +158,39 @@ impl Budget {
             .map(|b| crate::trace::gpu::split_bytes(variant, w, b.rows, max_binding))
             .sum();
         self.device.push(("trace split paths", split));
+        self
+    }
+
+    /// The budget with the denoiser `kind` of the picture (DESIGN.md §8): the feature buffers,
+    /// the denoiser's working set (raygun's on the backend, `gpu` or its CPU twin; OIDN on the
+    /// host) and the picture it makes.
+    #[must_use]
+    pub fn with_denoise(mut self, kind: DenoiseKind, gpu: bool) -> Self {
+        let px = self.pixels();
+        match kind {
+            DenoiseKind::Off => return self,
+            DenoiseKind::Interactive => {
+                self.host.push(("features", FEATURES_BPP * px));
+                self.host.push(("denoised picture", DENOISED_BPP * px));
+                if gpu {
+                    self.device.push(("features", FEATURES_BPP * px));
+                    self.device
+                        .push(("denoiser", crate::filter::denoise::DEVICE_BPP * px));
+                } else {
+                    // Its classes and two (x, c) images, and a band's output before it joins
+                    // the picture.
+                    self.host
+                        .push(("denoiser", (crate::filter::denoise::HOST_BPP + 16) * px));
+                }
+            }
+            DenoiseKind::Oidn => {
+                self.host.push(("features", FEATURES_BPP * px));
+                self.host.push(("OIDN images", OIDN_BPP * px));
+                if gpu {
+                    self.device.push(("features", FEATURES_BPP * px));
+                }
+            }
+        }
         self
     }
 

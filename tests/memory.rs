@@ -9,7 +9,7 @@ use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use clap::Parser;
-use raygun::filter::FilterKind;
+use raygun::filter::{DenoiseKind, FilterKind};
 use raygun::frame::Render;
 use raygun::memory::{Budget, FIXED_BYTES, Work};
 
@@ -86,6 +86,14 @@ fn run(args: &[String]) {
 
 /// Growth of the peak heap per pixel between two sizes, and the budget's per-pixel figure.
 fn per_pixel(work: Work, args: impl Fn([u32; 2], &std::path::Path) -> Vec<String>) -> (f64, f64) {
+    per_pixel_of(|s| Budget::of(work, s), args)
+}
+
+/// [`per_pixel`] against the budget `budget` gives a size.
+fn per_pixel_of(
+    budget: impl Fn([u32; 2]) -> Budget,
+    args: impl Fn([u32; 2], &std::path::Path) -> Vec<String>,
+) -> (f64, f64) {
     let _guard = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let dir = std::env::temp_dir().join(format!("raygun-memory-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -96,7 +104,7 @@ fn per_pixel(work: Work, args: impl Fn([u32; 2], &std::path::Path) -> Vec<String
     let p_large = peak_of(|| run(&args(large, &dir)));
     let px = |s: [u32; 2]| f64::from(s[0]) * f64::from(s[1]);
     let measured = (p_large as f64 - p_small as f64) / (px(large) - px(small));
-    let b = |s| (Budget::of(work, s).host_bytes() - FIXED_BYTES) as f64;
+    let b = |s| (budget(s).host_bytes() - FIXED_BYTES) as f64;
     let stated = (b(large) - b(small)) / (px(large) - px(small));
     // (Its files are megabytes; a failed run above leaves them for a look.)
     let _ = std::fs::remove_dir_all(&dir);
@@ -145,6 +153,32 @@ fn a_guided_render_on_the_cpu_stays_within_its_budget() {
             }),
         );
     }
+}
+
+/// With the interactive denoiser, the features and the denoiser's working set come on top of
+/// the filter's (each phase's buffers are counted as if all were held at once).
+#[test]
+fn a_denoised_guided_render_on_the_cpu_stays_within_its_budget() {
+    let work = Work::Render {
+        gpu: false,
+        filter: FilterKind::Fast,
+    };
+    check(
+        "guided render, interactive denoiser",
+        per_pixel_of(
+            |s| Budget::of(work, s).with_denoise(DenoiseKind::Interactive, false),
+            |[w, h], dir| {
+                words(&format!(
+                    "render --scene builtin:cornell --backend cpu --quiet --size {w},{h} --guide mouse:{},{}:{},{} --iterations 2 --denoise interactive --out {}/d.exr",
+                    w / 2,
+                    h / 2,
+                    w / 8,
+                    h / 8,
+                    dir.display()
+                ))
+            },
+        ),
+    );
 }
 
 /// On the GPU (lavapipe here) the host holds the read-backs and the picture; the driver's own

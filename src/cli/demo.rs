@@ -11,7 +11,7 @@ use anyhow::Context;
 use crate::cli::progress::Progress;
 use crate::cli::view::{ViewArgs, has_display};
 use crate::display::DisplayModel;
-use crate::filter::FilterParams;
+use crate::filter::{DenoiseKind, FilterParams};
 use crate::frame::GuideConfig;
 use crate::gpu::Backend;
 use crate::output::OutputSet;
@@ -64,6 +64,12 @@ pub struct DemoArgs {
     pub camera: Option<String>,
     #[command(flatten)]
     pub wall: crate::cli::wall::WallArgs,
+    /// Denoise the written picture (headless): interactive (raygun's own edge-avoiding
+    /// denoiser, steered by each pixel's albedo, normal and depth), oidn (Intel Open Image
+    /// Denoise 2 with the same albedo and normal; install it with `bash tools/oidn.sh install`,
+    /// or set OIDN_DIR) or off (the filter's picture).
+    #[arg(long, value_enum, default_value_t = DenoiseKind::Interactive)]
+    pub denoise: DenoiseKind,
 }
 
 /// Writes the embedded display model and replay under `<out>/inputs/`, counted in `set`;
@@ -155,9 +161,23 @@ pub fn run_headless(args: &DemoArgs) -> anyhow::Result<DemoOutput> {
             gpu: backend.is_gpu(),
             filter: filter.kind,
         },
+        args.denoise,
         args.size,
         &backend,
     )?;
+    let denoise_args = crate::cli::filter::DenoiseArgs {
+        denoise: args.denoise,
+    };
+    let oidn_device = denoise_args.device(&backend)?;
+    let denoise_note = denoise_args.describe(oidn_device.as_ref(), &backend);
+    if let Some(note) = &denoise_note {
+        crate::cli::say(args.quiet, note);
+    }
+    let denoiser = denoise_args.denoiser(
+        oidn_device.as_ref(),
+        &filter,
+        crate::filter::oidn::Quality::High,
+    );
     let (display_path, replay_path) = write_inputs(&args.out, &mut set)?;
     let model = DisplayModel::load(&display_path)?;
     if args.tiles {
@@ -199,7 +219,7 @@ pub fn run_headless(args: &DemoArgs) -> anyhow::Result<DemoOutput> {
             wall,
             config,
             filter,
-            denoise: None,
+            denoise: denoiser,
         },
         &source,
         &Stopping {
@@ -225,10 +245,11 @@ pub fn run_headless(args: &DemoArgs) -> anyhow::Result<DemoOutput> {
         set.add(&p);
         files.push(FileNote::new(
             p,
-            if name.ends_with("png") {
-                "the filtered image, sRGB 8-bit"
-            } else {
-                "the filtered image, linear RGB, 32-bit float"
+            match (name.ends_with("png"), denoiser.is_some()) {
+                (true, false) => "the filtered image, sRGB 8-bit",
+                (false, false) => "the filtered image, linear RGB, 32-bit float",
+                (true, true) => "the filtered and denoised image, sRGB 8-bit",
+                (false, true) => "the filtered and denoised image, linear RGB, 32-bit float",
             },
         ));
     }
@@ -268,9 +289,14 @@ pub fn run_headless(args: &DemoArgs) -> anyhow::Result<DemoOutput> {
         ));
     }
     let report = args.out.join("report.md");
-    let text = report_text(
-        &backend, &model, &config, &filter, &result, &args.out, &files,
-    );
+    let how = HowRendered {
+        config: &config,
+        filter: &filter,
+        denoise: denoise_note
+            .as_deref()
+            .map(|n| n.trim_start_matches("denoise: ")),
+    };
+    let text = report_text(&backend, &model, &how, &result, &args.out, &files);
     set.write_bytes(&report, text.as_bytes())?;
     set.finish();
     Ok(DemoOutput {
@@ -311,16 +337,24 @@ fn name_of<T: clap::ValueEnum>(v: &T) -> String {
         .map_or_else(|| "?".into(), |p| p.get_name().to_owned())
 }
 
+/// How the demo's picture was made: the guide's settings, the filter and the denoiser (what
+/// the command said about it; `None`: off).
+struct HowRendered<'a> {
+    config: &'a GuideConfig,
+    filter: &'a FilterParams,
+    denoise: Option<&'a str>,
+}
+
 fn report_text(
     backend: &Backend,
     model: &DisplayModel,
-    config: &GuideConfig,
-    filter: &FilterParams,
+    how: &HowRendered<'_>,
     r: &GuidedResult,
     out: &Path,
     files: &[FileNote],
 ) -> String {
     let [w, h] = r.size;
+    let (config, filter) = (how.config, how.filter);
     let samples = r.samples();
     let mut s = String::new();
     // Writing to a String cannot fail.
@@ -361,6 +395,7 @@ fn report_text(
         filter.k_max,
         filter.c
     );
+    let _ = writeln!(s, "| denoiser | {} |", how.denoise.unwrap_or("off"));
     let _ = writeln!(s, "\n## Results\n");
     let _ = writeln!(s, "| measure | value |\n|---|---|");
     let _ = writeln!(s, "| render time (iterations) | {:.3} s |", r.seconds);

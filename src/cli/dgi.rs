@@ -134,6 +134,7 @@ pub fn run(args: &DgiArgs) -> anyhow::Result<()> {
         crate::memory::Work::Dgi {
             gpu: backend.is_gpu(),
         },
+        crate::filter::DenoiseKind::Off,
         args.size,
         &backend,
     )?;

@@ -349,6 +349,7 @@ fn setup(args: &ViewArgs, root: bool) -> anyhow::Result<Setup> {
             gpu: backend.is_gpu(),
             filter: filter.kind,
         },
+        crate::filter::DenoiseKind::Off,
         args.size,
         &backend,
     )?;

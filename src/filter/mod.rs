@@ -87,7 +87,7 @@ pub enum DenoiseKind {
     /// None: the filter's picture.
     #[default]
     Off,
-    /// raygun's own edge-avoiding à-trous denoiser ([`denoise`]), on the render's backend.
+    /// raygun's own edge-avoiding à-trous denoiser, on the render's backend.
     Interactive,
     /// Intel Open Image Denoise 2, opened at run time.
     Oidn,

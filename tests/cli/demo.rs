@@ -42,5 +42,10 @@ fn headless_demo_writes_images_and_a_report() {
     assert!(total > 0.0 && total < full, "{total} of {full}");
     assert!(report.contains("| iterations | 8 |"));
     assert!(report.contains("`builtin:cornell-light`"));
+    // The demo's picture is denoised by default, and the report says by what.
+    assert!(
+        report.contains("| denoiser | raygun's interactive denoiser on the CPU |"),
+        "{report}"
+    );
     std::fs::remove_dir_all(&out).ok();
 }

@@ -77,7 +77,7 @@ fn prepare(args: &RenderArgs, c: &Cluster) -> anyhow::Result<Prepared> {
     } else {
         Work::FullFrame { gpu: false }
     };
-    super::check_memory(work, args.size, &Backend::Cpu)?;
+    super::check_memory(work, args.denoise.denoise, args.size, &Backend::Cpu)?;
     let tiles_model = match (&args.tiles, &wall, &plan) {
         (Some(_), Some(w), None) => Some(w.model.clone()),
         (Some(_), None, None) => {

@@ -220,8 +220,13 @@ pub fn warn_if_resampled(size: [u32; 2], model: &DisplayModel, origin: &str) {
 
 /// Checks the memory a render of `size` needs against this machine and the backend, printing
 /// the note for a large run.
-pub fn check_memory(work: Work, size: [u32; 2], backend: &Backend) -> anyhow::Result<()> {
-    let budget = Budget::of(work, size);
+pub fn check_memory(
+    work: Work,
+    denoise: crate::filter::DenoiseKind,
+    size: [u32; 2],
+    backend: &Backend,
+) -> anyhow::Result<()> {
+    let budget = Budget::of(work, size).with_denoise(denoise, backend.is_gpu());
     // A kernel-lab build's trace kernel may hold buffers of its own (the wavefront split's).
     #[cfg(feature = "kernel-lab")]
     let budget = match backend {
@@ -326,7 +331,7 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
             gpu: backend.is_gpu(),
         }
     };
-    check_memory(work, args.size, &backend)?;
+    check_memory(work, args.denoise.denoise, args.size, &backend)?;
     let oidn_device = args.denoise.device(&backend)?;
     if let Some(note) = args.denoise.describe(oidn_device.as_ref(), &backend) {
         crate::cli::say(args.quiet, note);
