@@ -64,10 +64,10 @@ pub struct DemoArgs {
     pub camera: Option<String>,
     #[command(flatten)]
     pub wall: crate::cli::wall::WallArgs,
-    /// Denoise the written picture (headless): interactive (raygun's own edge-avoiding
-    /// denoiser, steered by each pixel's albedo, normal and depth), oidn (Intel Open Image
-    /// Denoise 2 with the same albedo and normal; install it with `bash tools/oidn.sh install`,
-    /// or set OIDN_DIR) or off (the filter's picture).
+    /// Denoise the picture: interactive (raygun's own edge-avoiding denoiser, steered by each
+    /// pixel's albedo, normal and depth), oidn (headless: Intel Open Image Denoise 2 with the
+    /// same albedo and normal; in the viewer: once the ROI and the eye are still; install it
+    /// with `bash tools/oidn.sh install`, or set OIDN_DIR) or off (the filter's picture).
     #[arg(long, value_enum, default_value_t = DenoiseKind::Interactive)]
     pub denoise: DenoiseKind,
 }
@@ -465,6 +465,7 @@ pub fn view_args(args: &DemoArgs, display: &Path, replay: &Path) -> ViewArgs {
             c: crate::filter::FilterParams::DEFAULT_C,
             variance_threshold: crate::filter::FilterParams::DEFAULT_VARIANCE_THRESHOLD,
         },
+        denoise: args.denoise,
         save_dir: args.out.clone(),
         screenshot_after: None,
         show_tiles: false,

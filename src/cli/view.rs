@@ -128,6 +128,13 @@ pub struct ViewArgs {
     /// Initial filter settings (also in the panel).
     #[command(flatten)]
     pub filter: crate::cli::filter::FilterArgs,
+    /// Denoise the shown picture (also in the panel): interactive (raygun's own edge-avoiding
+    /// denoiser, steered by each pixel's albedo, normal and depth), oidn (the same while the ROI
+    /// or the eye moves, and Intel Open Image Denoise's picture once both have been still for a
+    /// second; install it with `bash tools/oidn.sh install`, or set OIDN_DIR) or off (the
+    /// filter's picture). One process only: across ranks the picture is the filter's.
+    #[arg(long, value_enum, default_value_t = crate::filter::DenoiseKind::Interactive)]
+    pub denoise: crate::filter::DenoiseKind,
     /// Where the save button writes (image EXR/PNG, DGI, counts, the picture as shown).
     #[arg(long, value_name = "DIR", default_value = "raygun-view")]
     pub save_dir: PathBuf,
@@ -156,6 +163,8 @@ struct Setup {
     state: ViewerState,
     timeline: Option<Timeline>,
     live: Option<LiveTracking>,
+    /// OIDN, opened for `--denoise oidn`.
+    oidn: Option<crate::filter::oidn::Device>,
 }
 
 /// Whether a window can be opened: an X11 or Wayland display is named in the environment.
@@ -175,6 +184,11 @@ pub fn run(args: &ViewArgs) -> anyhow::Result<()> {
     args.size = crate::cli::args::resolve_size(args.size, &args.display)?;
     let args = &args;
     if args.cluster.cluster {
+        if args.denoise == crate::filter::DenoiseKind::Oidn {
+            anyhow::bail!(
+                "--denoise oidn denoises one process's picture: across ranks the viewer shows the filter's"
+            );
+        }
         return run_cluster(args);
     }
     if !has_display() {
@@ -184,7 +198,10 @@ pub fn run(args: &ViewArgs) -> anyhow::Result<()> {
         anyhow::bail!("--show-tiles needs --cluster: the owners' windows are ranks' windows");
     }
     let s = setup(args, true)?;
-    let core = ViewerCore::with_wall(&s.backend, &s.scene, &s.model, s.base, s.state, s.wall)?;
+    let mut core = ViewerCore::with_wall(&s.backend, &s.scene, &s.model, s.base, s.state, s.wall)?;
+    if let Some(device) = s.oidn {
+        core.set_oidn(device);
+    }
     open_window(core, s.timeline, s.live, args)
 }
 
@@ -344,15 +361,22 @@ fn setup(args: &ViewArgs, root: bool) -> anyhow::Result<Setup> {
         interaction.validate()?;
     }
     let backend = args.backend.select()?;
+    // Across ranks the picture is the filter's (the denoisers need one process's features).
+    let denoise = if args.cluster.cluster {
+        crate::filter::DenoiseKind::Off
+    } else {
+        args.denoise
+    };
     crate::cli::render::check_memory(
         crate::memory::Work::Render {
             gpu: backend.is_gpu(),
             filter: filter.kind,
         },
-        crate::filter::DenoiseKind::Off,
+        denoise,
         args.size,
         &backend,
     )?;
+    let oidn = crate::cli::filter::DenoiseArgs { denoise }.device(&backend)?;
     let scene = crate::cli::scene::load_scene(&args.scene, args.env.as_deref(), args.access)?;
     let [w, h] = args.size;
     let look = args.look.viewpoint();
@@ -442,6 +466,7 @@ fn setup(args: &ViewArgs, root: bool) -> anyhow::Result<Setup> {
     };
     let mut state = ViewerState::new(source, args.max_depth);
     state.filter = filter;
+    state.denoise = denoise;
     state.mouse_radius_px = args.roi_radius;
     state.p_min = args.p_min;
     state.target_se = args.target_se;
@@ -463,6 +488,7 @@ fn setup(args: &ViewArgs, root: bool) -> anyhow::Result<Setup> {
         state,
         timeline,
         live,
+        oidn,
     })
 }
 

@@ -206,6 +206,8 @@ impl<'a> Renderer<'a> {
             resident: std::cell::RefCell::new(None),
             stats: roi_stats::Stats::new(),
             wall,
+            features: OnceCell::new(),
+            denoise_kernels: OnceCell::new(),
         })
     }
 

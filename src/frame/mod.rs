@@ -266,4 +266,9 @@ pub struct Renderer<'a> {
     /// The wall camera (DESIGN.md §11): primary rays from its eye through each pixel's wall
     /// point, and only the pixels its display shows are scheduled and traced.
     wall: Option<WallCamera>,
+    /// The current view's feature buffers, made on the first denoised picture and dropped when
+    /// the view changes ([`Renderer::restart`]).
+    features: OnceCell<crate::filter::denoise::Features>,
+    /// raygun's denoiser's kernels, made on the first denoised picture on the GPU.
+    denoise_kernels: OnceCell<crate::filter::denoise::gpu::DenoiseKernels>,
 }

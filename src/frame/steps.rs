@@ -399,6 +399,8 @@ impl Renderer<'_> {
             }
         }
         self.iteration = 0;
+        // The view may have changed (a camera, an eye): its features are made again.
+        self.features = std::cell::OnceCell::new();
     }
 
     /// Moves the wall camera's eye to `eye` (room frame; the room's placement in the scene

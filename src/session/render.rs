@@ -258,7 +258,7 @@ pub fn render_guided(
     let accumulated = r.iteration();
     let wall = r.wall().cloned();
     // The features depend on the view alone: taken before the accumulation leaves the renderer.
-    let features = job.denoise.map(|_| r.features()).transpose()?;
+    let features = job.denoise.map(|_| r.take_features()).transpose()?;
     let (acc, dgi) = r.finish()?;
     let mut image = Filter::new(backend).image(&job.filter, &acc, &dgi)?;
     let mut dropped = 0;

@@ -13,7 +13,7 @@ use glam::DVec2;
 use super::core::{ViewerCore, save_picture};
 use super::orbit::{Gesture, ViewKey, key_gesture, wall_plan};
 use super::state::{Overlay, RoiSource};
-use crate::filter::{Blend, FilterKind};
+use crate::filter::{Blend, DenoiseKind, FilterKind};
 use crate::interaction::CursorMark;
 use crate::session::live::LiveTracking;
 use crate::session::timeline::Timeline;
@@ -213,6 +213,21 @@ impl<'a> ViewerApp<'a> {
             };
             ui.label(format!("picture {:.1} ms{way}", took.as_secs_f64() * 1e3));
         }
+        match st.denoised_by {
+            Some(super::core::ShownDenoiser::Interactive) => {
+                ui.label("denoised by raygun's interactive denoiser");
+            }
+            Some(super::core::ShownDenoiser::Oidn) => {
+                ui.label("denoised by Intel Open Image Denoise (still)");
+            }
+            None => {}
+        }
+        if st.denoise_dropped > 0 {
+            ui.label(format!(
+                "denoiser: {} with NaN or infinite samples dropped",
+                crate::messages::count(st.denoise_dropped as usize, "pixel")
+            ));
+        }
         if st.console_every > 1 {
             let k = st.console_every;
             ui.label(format!(
@@ -267,6 +282,7 @@ impl<'a> ViewerApp<'a> {
     }
 
     fn controls(&mut self, ui: &mut egui::Ui) -> bool {
+        let has_oidn = self.core.has_oidn();
         let s = &mut self.core.state;
         let mut save = false;
         ui.heading("ROI");
@@ -369,6 +385,18 @@ impl<'a> ViewerApp<'a> {
                 .logarithmic(true)
                 .text("variance threshold"),
         );
+        ui.separator();
+        ui.heading("Denoise");
+        ui.horizontal(|ui| {
+            ui.radio_value(&mut s.denoise, DenoiseKind::Off, "off");
+            ui.radio_value(&mut s.denoise, DenoiseKind::Interactive, "interactive");
+            ui.add_enabled_ui(has_oidn, |ui| {
+                ui.radio_value(&mut s.denoise, DenoiseKind::Oidn, "OIDN when still")
+                    .on_disabled_hover_text(
+                        "start the viewer with --denoise oidn (Intel Open Image Denoise installed)",
+                    );
+            });
+        });
         ui.separator();
         ui.heading("View");
         ui.horizontal(|ui| {

@@ -14,7 +14,7 @@ use glam::{DVec3, Vec3};
 
 use crate::cluster::{CONSOLE_PIXELS, reduction_for};
 use crate::display::DisplayModel;
-use crate::filter::Filter;
+use crate::filter::{Denoiser, Filter};
 use crate::frame::{EyeFollow, FrameStats, GuideConfig, Render, Renderer};
 use crate::gpu::Backend;
 use crate::output::stats::RoiStats;
@@ -61,6 +61,10 @@ pub struct Stats {
     /// fewest samples), and the seconds the current ROI has been sampled for.
     pub roi_progress: Option<crate::frame::stop::RoiProgress>,
     pub seconds_on_roi: f64,
+    /// The denoiser of the last picture with the image (`None`: none).
+    pub denoised_by: Option<ShownDenoiser>,
+    /// Pixels with a NaN or infinite sum raygun's denoiser dropped from the last picture.
+    pub denoise_dropped: u64,
 }
 
 impl Stats {
@@ -203,6 +207,9 @@ pub struct ViewerCore<'a> {
     /// When the last window picture was done, what it took, and the look it showed
     /// ([`Self::picture_due`]).
     last_picture: Option<(Instant, Duration, Look)>,
+    /// Intel Open Image Denoise, where it was opened (`view --denoise oidn`): the picture once
+    /// the ROI and the eye are still.
+    oidn: Option<crate::filter::oidn::Device>,
 }
 
 /// What a window picture shows besides the accumulation: a change is shown at once.
@@ -211,8 +218,19 @@ struct Look {
     overlay: Overlay,
     exposure: f32,
     filter: crate::filter::FilterParams,
+    /// The denoiser the picture gets (`None`: off).
+    denoiser: Option<ShownDenoiser>,
     roi_outline: bool,
     wall_view: bool,
+}
+
+/// Which denoiser made a shown picture.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ShownDenoiser {
+    /// raygun's interactive denoiser.
+    Interactive,
+    /// Intel Open Image Denoise (the ROI and the eye still).
+    Oidn,
 }
 
 /// What the window shows: RGBA8, row-major, `size` (see [`ViewerCore::window_picture`]).
@@ -329,6 +347,40 @@ impl<'a> ViewerCore<'a> {
             console_pixels: CONSOLE_PIXELS,
             stats_at: None,
             last_picture: None,
+            oidn: None,
+        }
+    }
+
+    /// Hands the viewer an OIDN device for `denoise` = `oidn` (DESIGN.md §8).
+    pub fn set_oidn(&mut self, device: crate::filter::oidn::Device) {
+        self.oidn = Some(device);
+    }
+
+    /// Whether OIDN was opened (the panel offers it then).
+    #[must_use]
+    pub fn has_oidn(&self) -> bool {
+        self.oidn.is_some()
+    }
+
+    /// The denoiser the next picture gets: none when off, or across ranks (their pictures are
+    /// gathered accumulations without features); OIDN where asked for and opened once the ROI
+    /// and the eye have been still for [`STILL_SECONDS`](super::state::STILL_SECONDS);
+    /// otherwise raygun's interactive denoiser.
+    #[must_use]
+    pub fn shown_denoiser(&self) -> Option<ShownDenoiser> {
+        use crate::filter::DenoiseKind;
+        if matches!(self.engine, Engine::Cluster(_)) {
+            return None;
+        }
+        match self.state.denoise {
+            DenoiseKind::Off => None,
+            DenoiseKind::Oidn
+                if self.oidn.is_some()
+                    && self.roi_since.elapsed().as_secs_f64() >= super::state::STILL_SECONDS =>
+            {
+                Some(ShownDenoiser::Oidn)
+            }
+            DenoiseKind::Interactive | DenoiseKind::Oidn => Some(ShownDenoiser::Interactive),
         }
     }
 
@@ -596,7 +648,13 @@ impl<'a> ViewerCore<'a> {
     /// the image overlay (the others show no filtered picture).
     fn picture_stays_on_gpu(&self, params: &crate::filter::FilterParams) -> bool {
         match &self.engine {
-            Engine::Local(r) => self.state.overlay == Overlay::Image && r.shows_on_gpu(params),
+            // A denoised picture takes the host path (the features and the denoiser's buffers
+            // are not bound to the renderer's).
+            Engine::Local(r) => {
+                self.state.overlay == Overlay::Image
+                    && self.shown_denoiser().is_none()
+                    && r.shows_on_gpu(params)
+            }
             Engine::Cluster(_) => false,
         }
     }
@@ -640,6 +698,7 @@ impl<'a> ViewerCore<'a> {
             overlay: s.overlay,
             exposure: s.exposure,
             filter: s.filter_params(),
+            denoiser: self.shown_denoiser(),
             roi_outline: s.roi_outline,
             wall_view: s.wall_view,
         }
@@ -743,9 +802,28 @@ impl<'a> ViewerCore<'a> {
         let wall = self.wall();
         let shown = |i: usize| wall.is_none_or(|w| w.is_shown(pixel(i)));
         let params = self.state.filter_params();
+        let denoised_by = self.shown_denoiser().filter(|_| with_image);
+        let mut dropped = 0;
         let image = match &self.engine {
             _ if !with_image => Vec::new(),
-            Engine::Local(r) => r.picture_of(&params, &acc, &dgi)?,
+            Engine::Local(r) => match denoised_by {
+                None => r.picture_of(&params, &acc, &dgi)?,
+                Some(by) => {
+                    let denoiser = match (by, &self.oidn) {
+                        (ShownDenoiser::Oidn, Some(device)) => {
+                            Denoiser::Oidn(device, crate::filter::oidn::Quality::Fast)
+                        }
+                        _ => Denoiser::Interactive(crate::filter::denoise::DenoiseParams {
+                            variance_threshold: params.variance_threshold,
+                            ..Default::default()
+                        }),
+                    };
+                    let image;
+                    (image, dropped) =
+                        r.denoised_picture_of(&params, denoiser, &acc, &dgi, every)?;
+                    image
+                }
+            },
             Engine::Cluster(_) => {
                 // Across ranks on rank 0's backend (a reduced picture at its own size), the
                 // wall camera's unshown pixels black.
@@ -763,6 +841,10 @@ impl<'a> ViewerCore<'a> {
         };
         let noise = noise_image(&acc);
         self.measure_stats(&acc, &dgi, &noise, every);
+        if with_image {
+            self.stats.denoised_by = denoised_by;
+            self.stats.denoise_dropped = dropped;
+        }
         let size = [acc.width, acc.height];
         let mut rgba = match self.state.overlay {
             Overlay::Image => crate::output::srgb8::display_rgba(&image, self.state.exposure),

@@ -3,7 +3,7 @@
 use glam::{DVec2, DVec3};
 
 use crate::display::DisplayModel;
-use crate::filter::{FilterKind, FilterParams};
+use crate::filter::{DenoiseKind, FilterKind, FilterParams};
 use crate::frame::GuideConfig;
 use crate::interaction::{CursorMark, CursorSmoother, RoiState};
 use crate::roi::dgi::{Falloff, Metric, Roi};
@@ -39,6 +39,10 @@ pub enum Overlay {
     Noise,
 }
 
+/// How long the ROI and the eye stay still before the viewer shows OIDN's picture (with
+/// `denoise` = `oidn`): the paper's "static viewpoint".
+pub const STILL_SECONDS: f64 = 1.0;
+
 /// Every setting of the panel.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ViewerState {
@@ -53,6 +57,10 @@ pub struct ViewerState {
     pub metric: Metric,
     pub order: Order,
     pub filter: FilterParams,
+    /// What denoises the shown picture (DESIGN.md §8): off, raygun's interactive denoiser, or
+    /// `oidn` — the interactive denoiser while anything moves and OIDN's picture once the ROI
+    /// and the eye have been still for [`STILL_SECONDS`] (where OIDN was opened).
+    pub denoise: DenoiseKind,
     pub max_depth: u32,
     pub overlay: Overlay,
     pub roi_outline: bool,
@@ -104,6 +112,7 @@ impl ViewerState {
             metric: Metric::Exact,
             order: Order::Coherent,
             filter: FilterParams::default(),
+            denoise: DenoiseKind::Off,
             max_depth,
             overlay: Overlay::Image,
             roi_outline: true,

@@ -335,7 +335,7 @@ fn wall_features_in_bands_are_the_whole_frames_and_the_cpu_twins() {
             Some(wall_at(eye)),
         )
         .unwrap();
-        r.features().unwrap()
+        r.features().unwrap().clone()
     };
     let eye = DVec3::new(0.0, 0.0, 1.0);
     let banded = features(&small_device(), eye);

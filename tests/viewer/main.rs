@@ -1,5 +1,6 @@
 //! The viewer: its logic without a screen, and the real window under Xvfb.
 
+mod denoise;
 mod viewer;
 mod viewer_xvfb;
 

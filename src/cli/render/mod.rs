@@ -393,7 +393,7 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
         let wall = crate::frame::Render::wall(&renderer);
         let dropped;
         (image, dropped) =
-            crate::frame::denoise_picture(&backend, d, &acc, &features, &image, wall)?;
+            crate::frame::denoise_picture(&backend, d, &acc, features, &image, wall)?;
         say_dropped(args.quiet, dropped);
     }
     drop(acc);
