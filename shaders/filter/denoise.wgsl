@@ -36,6 +36,7 @@ const ALBEDO_CUT: f32 = 0.1;
 const NORMAL_CUT: f32 = 0.9;
 const SIGMA_Z: f32 = 0.05;
 const DEPTH_CUT: f32 = 0.1;
+const MIN_VARIANCE_SAMPLES: u32 = 4u;
 
 const UNSAMPLED: u32 = 0u;
 const DROPPED: u32 = 1u;
@@ -74,7 +75,7 @@ fn own(i: u32) -> Own {
     }
     let nf = f32(n);
     let mean = a.xyz / nf;
-    if n < 2u {
+    if n < MIN_VARIANCE_SAMPLES {
         return Own(mean, nf, SPARSE, 0.0);
     }
     let mean_l = luminance(a.xyz) / nf;

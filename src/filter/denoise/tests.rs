@@ -227,12 +227,13 @@ fn unsampled_pixels_are_filled() {
          worst error {worst:.3}"
     );
     assert!(filled > 500, "{filled}");
-    // Each within 35 % of the truth (the sources are noisy: 1.2 samples a pixel), their mean
-    // within 5 % of the samples' mean. Measured: 3.4 % low (seed 5), 1.7 % without the
-    // luminance weight: with one or two exponential samples a pixel's variance estimate tracks
-    // its value, so a dark source rejects bright neighbours more often than the reverse.
-    assert!(worst < 0.35, "{worst}");
-    assert!((mean / sampled - 1.0).abs() < 0.05, "{mean} vs {sampled}");
+    // Each within 15 % of the truth (the sources are noisy: 1.2 samples a pixel), their mean
+    // within 1 % of the samples' mean. Measured: 0.06 % (seed 5), worst 7.9 %. (With the
+    // variance trusted from 2 samples: 3.4 % low, worst 32 % — two exponential samples' variance
+    // estimate tracks their value, so dark sources rejected bright neighbours more often than
+    // the reverse: `MIN_VARIANCE_SAMPLES`.)
+    assert!(worst < 0.15, "{worst}");
+    assert!((mean / sampled - 1.0).abs() < 0.01, "{mean} vs {sampled}");
 }
 
 /// NaN and infinite sums are counted and treated as unsampled: the picture is what it is with
