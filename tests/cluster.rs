@@ -281,6 +281,24 @@ mod mpi {
         same_files_as_one_process("wall", full_wall, &[]);
     }
 
+    /// `--denoise interactive`: rank 0 denoises the whole picture and every owner its tiles
+    /// (with the margin the denoiser reaches), the one process's files byte for byte.
+    #[test]
+    fn denoised_renders_and_their_tiles_match_too() {
+        fn guided_denoised(dir: &Path) -> Vec<String> {
+            let tiles = dir.join("tiles");
+            with(
+                guided(dir),
+                &["--denoise", "interactive", "--tiles", s(&tiles)],
+            )
+        }
+        fn wall_denoised(dir: &Path) -> Vec<String> {
+            with(full_wall(dir), &["--denoise", "interactive"])
+        }
+        same_files_as_one_process("denoised", guided_denoised, &[]);
+        same_files_as_one_process("denoised-wall", wall_denoised, &[]);
+    }
+
     /// `view --cluster`: rank 0 opens the one window (Xvfb here) and follows the mouse ROI,
     /// every rank traces — GPU ranks (lavapipe) through the wall camera — and the whole job ends
     /// when the window closes (`--screenshot-after`), every ROI pixel of the saved picture

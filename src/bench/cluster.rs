@@ -346,7 +346,7 @@ pub fn scaling(
         let tile_map = TileOwners::columns(display, ranks);
         let before = r.cluster().traffic();
         let t = Instant::now();
-        r.tile_pictures(display, &tile_map, &params)?;
+        r.tile_pictures(display, &tile_map, &params, None)?;
         let ms_tile_pictures = t.elapsed().as_secs_f64() * 1e3;
         let moved = r.cluster().traffic();
         // Rank 0 filters where it traces, as `render --cluster` and `view --cluster` do.

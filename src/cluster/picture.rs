@@ -20,10 +20,12 @@ use super::exchange::ExchangeError;
 use super::owners::{BlockOwners, TileOwners, block_of};
 use super::{ClusterError, ClusterRenderer};
 use crate::display::DisplayModel;
-use crate::filter::{Filter, FilterParams};
+use crate::filter::denoise::{DenoiseParams, Features};
+use crate::filter::{Denoiser, Filter, FilterParams};
 use crate::gpu::Backend;
 use crate::schedule::TILE_EDGE;
 use crate::trace::accum::Accumulation;
+use crate::trace::features::pixel_features;
 
 /// Image pixels `[x0, x1) × [y0, y1)`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -173,13 +175,24 @@ impl ClusterRenderer<'_> {
     /// owners were made from, so that a tile's own pixels are mostly its owner's; the sums come
     /// from whichever rank owns each block). The pictures are the whole image's, filtered by
     /// one process, cut as [`crate::output::tiles::cut_tile`] cuts it.
+    ///
+    /// With `denoise`, each tile's picture is then denoised by raygun's interactive denoiser
+    /// (DESIGN.md §8) with the features of its rectangle (the CPU twin's, pixel by pixel), the
+    /// margin grown to the denoiser's reach too: the one process's denoised picture on the CPU,
+    /// bit for bit.
     pub fn tile_pictures(
         &mut self,
         model: &DisplayModel,
         tiles: &TileOwners,
         params: &FilterParams,
+        denoise: Option<&DenoiseParams>,
     ) -> Result<Vec<TilePicture>, ClusterError> {
-        self.tile_pictures_with(model, tiles, params, crate::filter::halo(params))
+        let (mut halo, align) = crate::filter::halo(params);
+        if let Some(d) = denoise {
+            d.validate().map_err(crate::frame::FrameError::from)?;
+            halo = halo.max(crate::filter::denoise::halo(d));
+        }
+        self.tile_pictures_with(model, tiles, params, denoise, (halo, align))
     }
 
     /// [`Self::tile_pictures`] with the margin given (the tests cut it to show it matters).
@@ -188,6 +201,7 @@ impl ClusterRenderer<'_> {
         model: &DisplayModel,
         tiles: &TileOwners,
         params: &FilterParams,
+        denoise: Option<&DenoiseParams>,
         halo: (u32, u32),
     ) -> Result<Vec<TilePicture>, ClusterError> {
         self.collect()?;
@@ -245,12 +259,17 @@ impl ClusterRenderer<'_> {
                     k += 1;
                 }
             }
-            let image = filter.image(params, &acc, &dgi)?;
+            let mut image = filter.image(params, &acc, &dgi)?;
+            if let Some(d) = denoise {
+                image = self.denoised_region(r, d, &acc, &image)?;
+            }
+            // A denoised full frame too: the denoiser fills bezel pixels from their neighbours.
+            let blank = guided || denoise.is_some();
             let pixels = crate::output::tiles::tile_source_indices(model, region.tile, size)
                 .into_iter()
                 .map(|i| {
                     let (x, y) = (i as u32 % size[0], i as u32 / size[0]);
-                    let shown = !guided || self.wall.as_ref().is_none_or(|w| w.is_shown(i as u32));
+                    let shown = !blank || self.wall.as_ref().is_none_or(|w| w.is_shown(i as u32));
                     if shown {
                         image[((y - r.y0) * r.width() + x - r.x0) as usize]
                     } else {
@@ -264,6 +283,39 @@ impl ClusterRenderer<'_> {
             });
         }
         Ok(out)
+    }
+}
+
+impl ClusterRenderer<'_> {
+    /// `filled` (the filter's picture of `acc`, the image pixels of `r`) denoised with the
+    /// features of those pixels, as one process denoises them on the CPU.
+    fn denoised_region(
+        &self,
+        r: Rect,
+        params: &DenoiseParams,
+        acc: &Accumulation,
+        filled: &[Vec3],
+    ) -> Result<Vec<Vec3>, ClusterError> {
+        let width = self.settings.width;
+        let (albedo, normal_depth) = (r.y0..r.y1)
+            .flat_map(|y| (r.x0..r.x1).map(move |x| y * width + x))
+            .map(|p| pixel_features(&self.packed, &self.settings, self.wall.as_ref(), p))
+            .unzip();
+        let features = Features {
+            width: r.width(),
+            height: r.height(),
+            albedo,
+            normal_depth,
+        };
+        let (image, _dropped) = crate::frame::denoise_picture(
+            &Backend::Cpu,
+            Denoiser::Interactive(*params),
+            acc,
+            &features,
+            filled,
+            None,
+        )?;
+        Ok(image)
     }
 }
 

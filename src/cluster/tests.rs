@@ -14,6 +14,7 @@ use super::owners::{TileOwners, block_pixels};
 use super::*;
 use crate::display::DisplayModel;
 use crate::filter::FilterParams;
+use crate::filter::denoise::DenoiseParams;
 use crate::frame::stop::RoiProgress;
 use crate::frame::{EyeFollow, GuideConfig, Render, Renderer};
 use crate::gpu::{Backend, GpuContext};
@@ -592,6 +593,7 @@ fn owners_pictures_match(
     params: &FilterParams,
     map: &(dyn Fn(usize) -> TileOwners + Sync),
     halo: Option<(u32, u32)>,
+    denoise: Option<&DenoiseParams>,
 ) -> Result<(), TileDiffers> {
     let m = hornet();
     let order = guided.then_some(Order::Coherent);
@@ -599,6 +601,32 @@ fn owners_pictures_match(
     let mut image = crate::filter::Filter::new(&Backend::Cpu)
         .image(params, &one.0, &one.1)
         .unwrap();
+    if let Some(d) = denoise {
+        // One process's denoised picture: the render's features on the CPU.
+        let s = scene();
+        let w = with_wall.then(|| wall(&s));
+        let f = crate::trace::features::features_cpu(
+            &crate::trace::pack::PackedScene::new(&s),
+            &settings(&s),
+            w.as_ref(),
+        );
+        let features = crate::filter::denoise::Features {
+            width: SIZE[0],
+            height: SIZE[1],
+            albedo: f.albedo,
+            normal_depth: f.normal_depth,
+        };
+        let denoiser = crate::filter::Denoiser::Interactive(*d);
+        (image, _) = crate::frame::denoise_picture(
+            &Backend::Cpu,
+            denoiser,
+            &one.0,
+            &features,
+            &image,
+            w.as_ref(),
+        )
+        .unwrap();
+    }
     if guided && with_wall {
         wall(&scene()).blank_unshown(&mut image);
     }
@@ -612,8 +640,10 @@ fn owners_pictures_match(
         |r, _| {
             let before = r.cluster().traffic();
             let pictures = match halo {
-                Some(h) => r.tile_pictures_with(&m, &map(n), params, h).unwrap(),
-                None => r.tile_pictures(&m, &map(n), params).unwrap(),
+                Some(h) => r
+                    .tile_pictures_with(&m, &map(n), params, denoise, h)
+                    .unwrap(),
+                None => r.tile_pictures(&m, &map(n), params, denoise).unwrap(),
             };
             let after = r.cluster().traffic();
             let traffic = (
@@ -624,7 +654,11 @@ fn owners_pictures_match(
         },
     );
     // The bytes counted from the geometry are the bytes that went.
-    let h = halo.unwrap_or_else(|| crate::filter::halo(params));
+    let h = halo.unwrap_or_else(|| {
+        let (h, align) = crate::filter::halo(params);
+        let d = denoise.map_or(0, crate::filter::denoise::halo);
+        (h.max(d), align)
+    });
     let counted =
         picture::margin_traffic(&m, &tiles, &BlockOwners::of_display(&m, &tiles, SIZE), h, n);
     let moved: Vec<(u64, u64)> = pictures.iter().map(|p| p.1).collect();
@@ -685,13 +719,77 @@ fn owners_filter_their_own_tiles_as_one_process_filters_the_image() {
     let columns = |n| TileOwners::columns(&hornet(), n);
     for kind in [Fast, Exact] {
         for n in 1..=3 {
-            owners_pictures_match(n, true, false, &filter_params(kind), &columns, None).unwrap();
+            owners_pictures_match(n, true, false, &filter_params(kind), &columns, None, None)
+                .unwrap();
         }
-        owners_pictures_match(3, true, false, &filter_params(kind), &round_robin, None).unwrap();
+        owners_pictures_match(
+            3,
+            true,
+            false,
+            &filter_params(kind),
+            &round_robin,
+            None,
+            None,
+        )
+        .unwrap();
     }
     // Through the wall camera (pixels no tile shows stay black) and a full frame's mean image.
-    owners_pictures_match(2, true, true, &filter_params(Fast), &round_robin, None).unwrap();
-    owners_pictures_match(3, false, true, &filter_params(Off), &columns, None).unwrap();
+    owners_pictures_match(
+        2,
+        true,
+        true,
+        &filter_params(Fast),
+        &round_robin,
+        None,
+        None,
+    )
+    .unwrap();
+    owners_pictures_match(3, false, true, &filter_params(Off), &columns, None, None).unwrap();
+}
+
+/// With `--denoise interactive` every owner denoises its tiles with the features of their
+/// rectangles, the margin grown to the denoiser's reach (62 pixels): the one process's denoised
+/// picture, bit for bit — guided, through the wall camera (its bezel pixels black) and a full
+/// frame; with only the filter's margin the tiles beside another owner's differ.
+#[test]
+fn owners_denoise_their_own_tiles_as_one_process_denoises_the_image() {
+    use crate::filter::FilterKind::{Exact, Fast, Off};
+    let columns = |n| TileOwners::columns(&hornet(), n);
+    let d = DenoiseParams::default();
+    owners_pictures_match(
+        2,
+        true,
+        false,
+        &filter_params(Fast),
+        &columns,
+        None,
+        Some(&d),
+    )
+    .unwrap();
+    owners_pictures_match(
+        3,
+        true,
+        true,
+        &filter_params(Fast),
+        &round_robin,
+        None,
+        Some(&d),
+    )
+    .unwrap();
+    owners_pictures_match(
+        2,
+        false,
+        true,
+        &filter_params(Off),
+        &columns,
+        None,
+        Some(&d),
+    )
+    .unwrap();
+    let params = filter_params(Exact);
+    let short = Some(crate::filter::halo(&params));
+    let e = owners_pictures_match(3, true, false, &params, &round_robin, short, Some(&d));
+    assert!(e.unwrap_err().to_string().contains("differs"));
 }
 
 /// The margin is what makes them equal: cut to a third, or off the pyramid's grid, the tiles
@@ -703,14 +801,15 @@ fn a_margin_cut_short_changes_the_owners_tiles() {
         let params = filter_params(kind);
         let (halo, align) = crate::filter::halo(&params);
         let cut = Some((halo / 3, align));
-        let e = owners_pictures_match(3, true, false, &params, &round_robin, cut).unwrap_err();
+        let e =
+            owners_pictures_match(3, true, false, &params, &round_robin, cut, None).unwrap_err();
         assert!(e.to_string().contains("differs"), "{e}");
     }
     // The fast filter's regions must also start on its coarsest level's grid.
     let params = filter_params(crate::filter::FilterKind::Fast);
     let (halo, align) = crate::filter::halo(&params);
     assert!(align > 1);
-    let e = owners_pictures_match(3, true, false, &params, &round_robin, Some((halo, 1)));
+    let e = owners_pictures_match(3, true, false, &params, &round_robin, Some((halo, 1)), None);
     assert!(e.unwrap_err().to_string().contains("differs"));
 }
 

@@ -578,7 +578,7 @@ impl<'a> ClusterView<'a> {
                 let tiles = self.tiles.as_ref().ok_or_else(|| {
                     ClusterError::Rejected("the owners' pictures need the tile map".into())
                 })?;
-                let pictures = self.r.tile_pictures(self.model, tiles, &filter)?;
+                let pictures = self.r.tile_pictures(self.model, tiles, &filter, None)?;
                 return Ok(Applied::Tiles(pictures, exposure));
             }
         }

@@ -14,7 +14,8 @@ use crate::cluster::handshake::scene_hash;
 use crate::cluster::owners::{BlockOwners, TileOwners};
 use crate::cluster::{Cluster, ClusterRenderer, ClusterSetup};
 use crate::display::DisplayModel;
-use crate::filter::Filter;
+use crate::filter::denoise::DenoiseParams;
+use crate::filter::{Filter, FilterParams};
 use crate::gpu::Backend;
 use crate::memory::Work;
 use crate::scene::Scene;
@@ -228,6 +229,11 @@ fn work(c: &mut Cluster, args: &RenderArgs, mut p: Prepared) -> anyhow::Result<(
                 None => Backend::Cpu,
             };
             let mut image = Filter::new(&filter_backend).image(&plan.filter, acc, dgi)?;
+            let mut dropped = 0;
+            if let Some(d) = interactive(args, &plan.filter) {
+                (image, dropped) =
+                    denoise_whole(&filter_backend, &r, d, acc, &image, p.wall.as_ref())?;
+            }
             if let Some(wc) = &p.wall {
                 wc.blank_unshown(&mut image);
             }
@@ -243,12 +249,18 @@ fn work(c: &mut Cluster, args: &RenderArgs, mut p: Prepared) -> anyhow::Result<(
                 accumulated: run.accumulated,
                 eye_restarts: run.eye_restarts.clone(),
                 eyes_refused: run.eyes_refused,
-                denoise_dropped: 0,
+                denoise_dropped: dropped,
             };
             super::guided::write_outputs(args, plan, &res, tiles_written, &device, &summary)
         }
         None => {
-            let image = acc.mean_image();
+            let mut image = acc.mean_image();
+            if let Some(d) = interactive(args, &off()) {
+                let dropped;
+                (image, dropped) =
+                    denoise_whole(&Backend::Cpu, &r, d, acc, &image, p.wall.as_ref())?;
+                super::say_dropped(args.quiet, dropped);
+            }
             for out in &args.out {
                 crate::output::write_rgb(out, w, h, &image, args.exposure)
                     .with_context(|| out.display().to_string())?;
@@ -315,6 +327,43 @@ fn tiles_only_note(
     Ok(())
 }
 
+/// The interactive denoiser's settings where `--denoise interactive` asks for it (the ranks
+/// denoise their tiles, and rank 0 the whole picture, with the filter's variance threshold as
+/// one process does).
+fn interactive(args: &RenderArgs, filter: &FilterParams) -> Option<DenoiseParams> {
+    (args.denoise.denoise == crate::filter::DenoiseKind::Interactive).then(|| DenoiseParams {
+        variance_threshold: filter.variance_threshold,
+        ..DenoiseParams::default()
+    })
+}
+
+/// Rank 0's whole picture denoised as one process denoises it on `backend`, with the features
+/// of the rank's own copy of the scene on the CPU.
+fn denoise_whole(
+    backend: &Backend,
+    r: &ClusterRenderer<'_>,
+    params: DenoiseParams,
+    acc: &crate::trace::accum::Accumulation,
+    filled: &[glam::Vec3],
+    wall: Option<&crate::trace::wall::WallCamera>,
+) -> anyhow::Result<(Vec<glam::Vec3>, u64)> {
+    let f = crate::trace::features::features_cpu(&r.packed, &r.settings, wall);
+    let features = crate::filter::denoise::Features {
+        width: r.settings.width,
+        height: r.settings.height,
+        albedo: f.albedo,
+        normal_depth: f.normal_depth,
+    };
+    Ok(crate::frame::denoise_picture(
+        backend,
+        crate::filter::Denoiser::Interactive(params),
+        acc,
+        &features,
+        filled,
+        wall,
+    )?)
+}
+
 /// `--tiles DIR`: every rank filters and writes the display tiles it owns
 /// ([`ClusterRenderer::tile_pictures`]), the files one process writes; rank 0 says how many
 /// each rank wrote. `false` (nothing written) without `--tiles` or a tile map.
@@ -338,7 +387,8 @@ fn write_owned_tiles(
         (None, None) => return Ok(false),
     };
     let format = super::tiles_format(args)?;
-    let pictures = r.tile_pictures(model, tiles, &params)?;
+    let denoise = interactive(args, &params);
+    let pictures = r.tile_pictures(model, tiles, &params, denoise.as_ref())?;
     for t in &pictures {
         crate::output::tiles::write_tile(dir, model, t.tile, &t.pixels, format, args.exposure)
             .with_context(|| format!("--tiles {}", dir.display()))?;

@@ -255,12 +255,10 @@ fn check_args(args: &RenderArgs) -> anyhow::Result<()> {
             crate::messages::number(f64::from(args.exposure))
         );
     }
-    if args.cluster.cluster && args.denoise.denoise != crate::filter::DenoiseKind::Off {
+    if args.cluster.cluster && args.denoise.denoise == crate::filter::DenoiseKind::Oidn {
         anyhow::bail!(
-            "--denoise {} denoises one process's picture: with --cluster the ranks write their \
-             tiles as filtered; leave out one of the two",
-            clap::ValueEnum::to_possible_value(&args.denoise.denoise)
-                .map_or_else(String::new, |v| v.get_name().to_owned())
+            "--denoise oidn denoises one process's picture: with --cluster the ranks denoise \
+             their tiles with --denoise interactive; leave out one of the two"
         );
     }
     Ok(())
@@ -484,7 +482,7 @@ mod tests {
     }
 
     #[test]
-    fn denoising_is_refused_with_the_cluster_and_taken_without_it() {
+    fn oidn_is_refused_with_the_cluster_and_the_interactive_denoiser_taken() {
         let e = super::check_args(&args(&["--cluster", "--denoise", "oidn"])).unwrap_err();
         assert!(
             e.to_string()
@@ -493,5 +491,6 @@ mod tests {
         );
         super::check_args(&args(&["--denoise", "oidn"])).unwrap();
         super::check_args(&args(&["--cluster", "--denoise", "off"])).unwrap();
+        super::check_args(&args(&["--cluster", "--denoise", "interactive"])).unwrap();
     }
 }
