@@ -1,4 +1,7 @@
-use super::*;
+use glam::{Vec2, Vec3};
+use gltf::mesh::Mode;
+
+use super::mesh::{triangle_indices, uv_tangents};
 
 #[test]
 fn strips_and_fans_unroll_with_the_specifications_winding() {
