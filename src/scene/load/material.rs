@@ -224,6 +224,9 @@ impl Loader<'_> {
         self.texture_ref(element, what, &tex, uv, srgb)
     }
 
+    /// A glTF material's scene material and extended features: the core factors, then each
+    /// extension and texture in turn (the order in which textures are added to the scene and
+    /// problems reported).
     fn convert_material(
         &mut self,
         m: &gltf::Material,
@@ -235,20 +238,8 @@ impl Loader<'_> {
             .map_or_else(|| format!("material {index}"), str::to_string);
         let pbr = m.pbr_metallic_roughness();
         let file = self.file;
-        let factor = |report: &mut Report, what: &str, v: f32| -> Result<f32, SceneError> {
-            if !v.is_finite() {
-                return Err(SceneError::Element {
-                    file: file.into(),
-                    element: element.clone(),
-                    problem: format!("{what} {v} is not finite"),
-                });
-            }
-            let c = v.clamp(0.0, 1.0);
-            if c != v {
-                report.warn(format!("{element}: {what} {v} clamped to [0, 1]"));
-            }
-            Ok(c)
-        };
+        let factor =
+            |report: &mut Report, what: &str, v: f32| unit_factor(file, &element, report, what, v);
         let r = &mut self.report;
         let bc = pbr.base_color_factor();
         let base_color = Vec4::new(
@@ -266,166 +257,11 @@ impl Loader<'_> {
             factor(r, "emissiveFactor", ef[2])?,
         );
         let mut ext = MaterialExt::default();
-        if let Some(c) = m.extension_value("KHR_materials_clearcoat") {
-            let get = |key: &str| c.get(key).and_then(serde_json::Value::as_f64);
-            ext.clearcoat = factor(
-                r,
-                "clearcoatFactor",
-                get("clearcoatFactor").unwrap_or(0.0) as f32,
-            )?;
-            ext.clearcoat_roughness = factor(
-                r,
-                "clearcoatRoughnessFactor",
-                get("clearcoatRoughnessFactor").unwrap_or(0.0) as f32,
-            )?;
-            ext.clearcoat_texture = self.json_texture_ref(
-                &element,
-                "clearcoatTexture",
-                c.get("clearcoatTexture"),
-                false,
-            )?;
-            ext.clearcoat_roughness_texture = self.json_texture_ref(
-                &element,
-                "clearcoatRoughnessTexture",
-                c.get("clearcoatRoughnessTexture"),
-                false,
-            )?;
-            let normal = c.get("clearcoatNormalTexture");
-            ext.clearcoat_normal_texture =
-                self.json_texture_ref(&element, "clearcoatNormalTexture", normal, false)?;
-            let scale = normal.and_then(|n| n.get("scale"));
-            ext.clearcoat_normal_scale = match scale {
-                None => 1.0,
-                Some(v) => match v.as_f64().map(|s| s as f32).filter(|s| s.is_finite()) {
-                    Some(s) => s,
-                    None => {
-                        return Err(self.element_error(
-                            element,
-                            format!("clearcoatNormalTexture: scale {v} is not a finite number"),
-                        ));
-                    }
-                },
-            };
-        }
-        if let Some(sh) = m.extension_value("KHR_materials_sheen") {
-            // (JSON to the gltf crate, as the clear coat is.)
-            let colour = self.json_rgb(&element, sh, "sheenColorFactor", [0.0; 3])?;
-            let roughness = self.json_number(&element, sh, "sheenRoughnessFactor", 0.0)?;
-            let r = &mut self.report;
-            ext.sheen_color = Vec3::new(
-                factor(r, "sheenColorFactor", colour[0] as f32)?,
-                factor(r, "sheenColorFactor", colour[1] as f32)?,
-                factor(r, "sheenColorFactor", colour[2] as f32)?,
-            );
-            ext.sheen_roughness = factor(r, "sheenRoughnessFactor", roughness as f32)?;
-            ext.sheen_color_texture = self.json_texture_ref(
-                &element,
-                "sheenColorTexture",
-                sh.get("sheenColorTexture"),
-                true,
-            )?;
-            ext.sheen_roughness_texture = self.json_texture_ref(
-                &element,
-                "sheenRoughnessTexture",
-                sh.get("sheenRoughnessTexture"),
-                false,
-            )?;
-        }
-        if let Some(dt) = m.extension_value("KHR_materials_diffuse_transmission") {
-            // (JSON to the gltf crate, as the clear coat is.)
-            let strength = self.json_number(&element, dt, "diffuseTransmissionFactor", 0.0)?;
-            let colour = self.json_rgb(&element, dt, "diffuseTransmissionColorFactor", [1.0; 3])?;
-            let r = &mut self.report;
-            ext.diffuse_transmission = factor(r, "diffuseTransmissionFactor", strength as f32)?;
-            ext.diffuse_transmission_color = Vec3::new(
-                factor(r, "diffuseTransmissionColorFactor", colour[0] as f32)?,
-                factor(r, "diffuseTransmissionColorFactor", colour[1] as f32)?,
-                factor(r, "diffuseTransmissionColorFactor", colour[2] as f32)?,
-            );
-            ext.diffuse_transmission_texture = self.json_texture_ref(
-                &element,
-                "diffuseTransmissionTexture",
-                dt.get("diffuseTransmissionTexture"),
-                false,
-            )?;
-            ext.diffuse_transmission_color_texture = self.json_texture_ref(
-                &element,
-                "diffuseTransmissionColorTexture",
-                dt.get("diffuseTransmissionColorTexture"),
-                true,
-            )?;
-        }
-        if let Some(an) = m.extension_value("KHR_materials_anisotropy") {
-            // (JSON to the gltf crate, as the clear coat is.)
-            let strength = self.json_number(&element, an, "anisotropyStrength", 0.0)?;
-            let rotation = self.json_number(&element, an, "anisotropyRotation", 0.0)? as f32;
-            if !rotation.is_finite() {
-                return Err(self.element_error(
-                    element,
-                    format!("anisotropyRotation {rotation} is not finite"),
-                ));
-            }
-            ext.anisotropy_strength =
-                factor(&mut self.report, "anisotropyStrength", strength as f32)?;
-            ext.anisotropy_rotation = rotation;
-            ext.anisotropy_texture = self.json_texture_ref(
-                &element,
-                "anisotropyTexture",
-                an.get("anisotropyTexture"),
-                false,
-            )?;
-        }
-        if let Some(t) = m.transmission() {
-            ext.transmission = factor(
-                &mut self.report,
-                "transmissionFactor",
-                t.transmission_factor(),
-            )?;
-            ext.transmission_texture = self.info_ref(
-                &element,
-                "transmissionTexture",
-                t.transmission_texture(),
-                false,
-            )?;
-        }
-        if let Some(ior) = m.ior() {
-            // glTF: ior ≥ 1, or 0 for "reflects like a metal" (F0 = 1); raygun needs a
-            // refracting interface, so 0 and values under 1 are clamped and said.
-            ext.ior = if ior.is_finite() && ior >= 1.0 {
-                ior.min(10.0)
-            } else {
-                self.report
-                    .warn(format!("{element}: ior {ior} replaced by 1.5"));
-                1.5
-            };
-        }
-        if let Some(v) = m.volume() {
-            ext.absorption = self.absorption(&element, &v)?;
-        }
-        if let Some(dp) = m.extension_value("KHR_materials_dispersion") {
-            // (JSON to the gltf crate, as the clear coat is.) raygun refracts every
-            // transmitting surface, with or without KHR_materials_volume, so the dispersion
-            // applies wherever light is transmitted.
-            let d = self.json_number(&element, dp, "dispersion", 0.0)? as f32;
-            if !(d.is_finite() && d >= 0.0) {
-                // (The file's own number: beyond f32's range it would read "inf".)
-                let given = &dp["dispersion"];
-                return Err(self.element_error(
-                    element,
-                    format!(
-                        "KHR_materials_dispersion: dispersion {given} is not a finite number ≥ 0"
-                    ),
-                ));
-            }
-            if d > 0.0 && ext.transmission == 0.0 {
-                self.report.note(format!(
-                    "{element}: KHR_materials_dispersion without transmission changes nothing \
-                     (only refracted light is dispersed)"
-                ));
-            } else {
-                ext.dispersion = d;
-            }
-        }
+        self.clearcoat(m, &element, &mut ext)?;
+        self.sheen(m, &element, &mut ext)?;
+        self.diffuse_transmission(m, &element, &mut ext)?;
+        self.anisotropy(m, &element, &mut ext)?;
+        self.transmission(m, &element, &mut ext)?;
         let strength = m.emissive_strength().unwrap_or(1.0);
         if !(strength >= 0.0 && strength.is_finite()) {
             return Err(self.element_error(
@@ -447,77 +283,8 @@ impl Loader<'_> {
                 AlphaMode::Mask(cutoff)
             }
         };
-        if let Some(t) = m.normal_texture() {
-            // The gltf crate has no typed transform for normal textures: read its JSON.
-            let uv = texture_transform(t.extension_value("KHR_texture_transform"), t.tex_coord());
-            ext.normal_texture =
-                self.texture_ref(&element, "normalTexture", &t.texture(), uv, false)?;
-            let s = t.scale();
-            ext.normal_scale = if s.is_finite() { s } else { 1.0 };
-        }
-        if m.occlusion_texture().is_some() {
-            self.report.note(format!(
-                "occlusionTexture ({element}) not used: the path tracer computes occlusion"
-            ));
-        }
-        if let Some(t) = m.emissive_texture() {
-            ext.emissive_texture =
-                self.texture_ref(&element, "emissiveTexture", &t.texture(), info_uv(&t), true)?;
-            if ext.emissive_texture.is_none() {
-                // The factor alone would turn the whole mesh into a lamp; what the texture
-                // leaves dark is the usual case (exporters write factor 1 beside the texture).
-                self.report.warn(format!(
-                    "{element}: its emissive texture cannot be used; the material does not emit"
-                ));
-            }
-        }
-        ext.metallic_roughness_texture = self.info_ref(
-            &element,
-            "metallicRoughnessTexture",
-            pbr.metallic_roughness_texture(),
-            false,
-        )?;
-        let base_color_texture = match pbr.base_color_texture() {
-            Some(info) => {
-                let r = self.texture_ref(
-                    &element,
-                    "baseColorTexture",
-                    &info.texture(),
-                    info_uv(&info),
-                    true,
-                )?;
-                if let Some(r) = r {
-                    ext.base_color_uv = r.uv;
-                }
-                r.map(|r| r.texture)
-            }
-            None => None,
-        };
-        // KHR_materials_specular: the factor scales the dielectric Fresnel term, the colour
-        // tints its F0 (the tracer's BSDF); its textures multiply them (A and RGB).
-        let mut specular = 1.0;
-        if let Some(sp) = m.specular() {
-            let f = sp.specular_factor();
-            specular = if f.is_finite() {
-                f.clamp(0.0, 1.0)
-            } else {
-                1.0
-            };
-            let c = Vec3::from_array(sp.specular_color_factor());
-            ext.specular_color = if c.is_finite() {
-                c.clamp(Vec3::ZERO, Vec3::splat(10.0))
-            } else {
-                Vec3::ONE
-            };
-            ext.specular_texture =
-                self.info_ref(&element, "specularTexture", sp.specular_texture(), false)?;
-            ext.specular_color_texture = self.info_ref(
-                &element,
-                "specularColorTexture",
-                sp.specular_color_texture(),
-                true,
-            )?;
-        }
+        let base_color_texture = self.core_textures(m, &element, &mut ext)?;
+        let specular = self.specular(m, &element, &mut ext)?;
         let emission = if m.emissive_texture().is_some() && ext.emissive_texture.is_none() {
             Vec3::ZERO
         } else {
@@ -536,6 +303,326 @@ impl Loader<'_> {
             },
             ext,
         ))
+    }
+
+    /// KHR_materials_clearcoat, given as JSON (the gltf crate has no typed form for it).
+    fn clearcoat(
+        &mut self,
+        m: &gltf::Material,
+        element: &str,
+        ext: &mut MaterialExt,
+    ) -> Result<(), SceneError> {
+        let Some(c) = m.extension_value("KHR_materials_clearcoat") else {
+            return Ok(());
+        };
+        let file = self.file;
+        let factor =
+            |report: &mut Report, what: &str, v: f32| unit_factor(file, element, report, what, v);
+        let r = &mut self.report;
+        let get = |key: &str| c.get(key).and_then(serde_json::Value::as_f64);
+        ext.clearcoat = factor(
+            r,
+            "clearcoatFactor",
+            get("clearcoatFactor").unwrap_or(0.0) as f32,
+        )?;
+        ext.clearcoat_roughness = factor(
+            r,
+            "clearcoatRoughnessFactor",
+            get("clearcoatRoughnessFactor").unwrap_or(0.0) as f32,
+        )?;
+        ext.clearcoat_texture = self.json_texture_ref(
+            element,
+            "clearcoatTexture",
+            c.get("clearcoatTexture"),
+            false,
+        )?;
+        ext.clearcoat_roughness_texture = self.json_texture_ref(
+            element,
+            "clearcoatRoughnessTexture",
+            c.get("clearcoatRoughnessTexture"),
+            false,
+        )?;
+        let normal = c.get("clearcoatNormalTexture");
+        ext.clearcoat_normal_texture =
+            self.json_texture_ref(element, "clearcoatNormalTexture", normal, false)?;
+        let scale = normal.and_then(|n| n.get("scale"));
+        ext.clearcoat_normal_scale = match scale {
+            None => 1.0,
+            Some(v) => match v.as_f64().map(|s| s as f32).filter(|s| s.is_finite()) {
+                Some(s) => s,
+                None => {
+                    return Err(self.element_error(
+                        element.to_owned(),
+                        format!("clearcoatNormalTexture: scale {v} is not a finite number"),
+                    ));
+                }
+            },
+        };
+        Ok(())
+    }
+
+    /// KHR_materials_sheen (JSON to the gltf crate, as the clear coat is).
+    fn sheen(
+        &mut self,
+        m: &gltf::Material,
+        element: &str,
+        ext: &mut MaterialExt,
+    ) -> Result<(), SceneError> {
+        let Some(sh) = m.extension_value("KHR_materials_sheen") else {
+            return Ok(());
+        };
+        let file = self.file;
+        let factor =
+            |report: &mut Report, what: &str, v: f32| unit_factor(file, element, report, what, v);
+        let colour = self.json_rgb(element, sh, "sheenColorFactor", [0.0; 3])?;
+        let roughness = self.json_number(element, sh, "sheenRoughnessFactor", 0.0)?;
+        let r = &mut self.report;
+        ext.sheen_color = Vec3::new(
+            factor(r, "sheenColorFactor", colour[0] as f32)?,
+            factor(r, "sheenColorFactor", colour[1] as f32)?,
+            factor(r, "sheenColorFactor", colour[2] as f32)?,
+        );
+        ext.sheen_roughness = factor(r, "sheenRoughnessFactor", roughness as f32)?;
+        ext.sheen_color_texture = self.json_texture_ref(
+            element,
+            "sheenColorTexture",
+            sh.get("sheenColorTexture"),
+            true,
+        )?;
+        ext.sheen_roughness_texture = self.json_texture_ref(
+            element,
+            "sheenRoughnessTexture",
+            sh.get("sheenRoughnessTexture"),
+            false,
+        )?;
+        Ok(())
+    }
+
+    /// KHR_materials_diffuse_transmission (JSON to the gltf crate, as the clear coat is).
+    fn diffuse_transmission(
+        &mut self,
+        m: &gltf::Material,
+        element: &str,
+        ext: &mut MaterialExt,
+    ) -> Result<(), SceneError> {
+        let Some(dt) = m.extension_value("KHR_materials_diffuse_transmission") else {
+            return Ok(());
+        };
+        let file = self.file;
+        let factor =
+            |report: &mut Report, what: &str, v: f32| unit_factor(file, element, report, what, v);
+        let strength = self.json_number(element, dt, "diffuseTransmissionFactor", 0.0)?;
+        let colour = self.json_rgb(element, dt, "diffuseTransmissionColorFactor", [1.0; 3])?;
+        let r = &mut self.report;
+        ext.diffuse_transmission = factor(r, "diffuseTransmissionFactor", strength as f32)?;
+        ext.diffuse_transmission_color = Vec3::new(
+            factor(r, "diffuseTransmissionColorFactor", colour[0] as f32)?,
+            factor(r, "diffuseTransmissionColorFactor", colour[1] as f32)?,
+            factor(r, "diffuseTransmissionColorFactor", colour[2] as f32)?,
+        );
+        ext.diffuse_transmission_texture = self.json_texture_ref(
+            element,
+            "diffuseTransmissionTexture",
+            dt.get("diffuseTransmissionTexture"),
+            false,
+        )?;
+        ext.diffuse_transmission_color_texture = self.json_texture_ref(
+            element,
+            "diffuseTransmissionColorTexture",
+            dt.get("diffuseTransmissionColorTexture"),
+            true,
+        )?;
+        Ok(())
+    }
+
+    /// KHR_materials_anisotropy (JSON to the gltf crate, as the clear coat is).
+    fn anisotropy(
+        &mut self,
+        m: &gltf::Material,
+        element: &str,
+        ext: &mut MaterialExt,
+    ) -> Result<(), SceneError> {
+        let Some(an) = m.extension_value("KHR_materials_anisotropy") else {
+            return Ok(());
+        };
+        let strength = self.json_number(element, an, "anisotropyStrength", 0.0)?;
+        let rotation = self.json_number(element, an, "anisotropyRotation", 0.0)? as f32;
+        if !rotation.is_finite() {
+            return Err(self.element_error(
+                element.to_owned(),
+                format!("anisotropyRotation {rotation} is not finite"),
+            ));
+        }
+        ext.anisotropy_strength = unit_factor(
+            self.file,
+            element,
+            &mut self.report,
+            "anisotropyStrength",
+            strength as f32,
+        )?;
+        ext.anisotropy_rotation = rotation;
+        ext.anisotropy_texture = self.json_texture_ref(
+            element,
+            "anisotropyTexture",
+            an.get("anisotropyTexture"),
+            false,
+        )?;
+        Ok(())
+    }
+
+    /// What light passing through the surface meets: KHR_materials_transmission, _ior,
+    /// _volume and _dispersion.
+    fn transmission(
+        &mut self,
+        m: &gltf::Material,
+        element: &str,
+        ext: &mut MaterialExt,
+    ) -> Result<(), SceneError> {
+        if let Some(t) = m.transmission() {
+            ext.transmission = unit_factor(
+                self.file,
+                element,
+                &mut self.report,
+                "transmissionFactor",
+                t.transmission_factor(),
+            )?;
+            ext.transmission_texture = self.info_ref(
+                element,
+                "transmissionTexture",
+                t.transmission_texture(),
+                false,
+            )?;
+        }
+        if let Some(ior) = m.ior() {
+            // glTF: ior ≥ 1, or 0 for "reflects like a metal" (F0 = 1); raygun needs a
+            // refracting interface, so 0 and values under 1 are clamped and said.
+            ext.ior = if ior.is_finite() && ior >= 1.0 {
+                ior.min(10.0)
+            } else {
+                self.report
+                    .warn(format!("{element}: ior {ior} replaced by 1.5"));
+                1.5
+            };
+        }
+        if let Some(v) = m.volume() {
+            ext.absorption = self.absorption(element, &v)?;
+        }
+        if let Some(dp) = m.extension_value("KHR_materials_dispersion") {
+            // (JSON to the gltf crate, as the clear coat is.) raygun refracts every
+            // transmitting surface, with or without KHR_materials_volume, so the dispersion
+            // applies wherever light is transmitted.
+            let d = self.json_number(element, dp, "dispersion", 0.0)? as f32;
+            if !(d.is_finite() && d >= 0.0) {
+                // (The file's own number: beyond f32's range it would read "inf".)
+                let given = &dp["dispersion"];
+                return Err(self.element_error(
+                    element.to_owned(),
+                    format!(
+                        "KHR_materials_dispersion: dispersion {given} is not a finite number ≥ 0"
+                    ),
+                ));
+            }
+            if d > 0.0 && ext.transmission == 0.0 {
+                self.report.note(format!(
+                    "{element}: KHR_materials_dispersion without transmission changes nothing \
+                     (only refracted light is dispersed)"
+                ));
+            } else {
+                ext.dispersion = d;
+            }
+        }
+        Ok(())
+    }
+
+    /// The core textures but the specular ones: normal, occlusion (not used, said), emissive,
+    /// metallic-roughness and base colour (returned; its UVs go to `ext`).
+    fn core_textures(
+        &mut self,
+        m: &gltf::Material,
+        element: &str,
+        ext: &mut MaterialExt,
+    ) -> Result<Option<u32>, SceneError> {
+        let pbr = m.pbr_metallic_roughness();
+        if let Some(t) = m.normal_texture() {
+            // The gltf crate has no typed transform for normal textures: read its JSON.
+            let uv = texture_transform(t.extension_value("KHR_texture_transform"), t.tex_coord());
+            ext.normal_texture =
+                self.texture_ref(element, "normalTexture", &t.texture(), uv, false)?;
+            let s = t.scale();
+            ext.normal_scale = if s.is_finite() { s } else { 1.0 };
+        }
+        if m.occlusion_texture().is_some() {
+            self.report.note(format!(
+                "occlusionTexture ({element}) not used: the path tracer computes occlusion"
+            ));
+        }
+        if let Some(t) = m.emissive_texture() {
+            ext.emissive_texture =
+                self.texture_ref(element, "emissiveTexture", &t.texture(), info_uv(&t), true)?;
+            if ext.emissive_texture.is_none() {
+                // The factor alone would turn the whole mesh into a lamp; what the texture
+                // leaves dark is the usual case (exporters write factor 1 beside the texture).
+                self.report.warn(format!(
+                    "{element}: its emissive texture cannot be used; the material does not emit"
+                ));
+            }
+        }
+        ext.metallic_roughness_texture = self.info_ref(
+            element,
+            "metallicRoughnessTexture",
+            pbr.metallic_roughness_texture(),
+            false,
+        )?;
+        Ok(match pbr.base_color_texture() {
+            Some(info) => {
+                let r = self.texture_ref(
+                    element,
+                    "baseColorTexture",
+                    &info.texture(),
+                    info_uv(&info),
+                    true,
+                )?;
+                if let Some(r) = r {
+                    ext.base_color_uv = r.uv;
+                }
+                r.map(|r| r.texture)
+            }
+            None => None,
+        })
+    }
+
+    /// KHR_materials_specular: the factor (returned) scales the dielectric Fresnel term, the
+    /// colour tints its F0 (the tracer's BSDF); its textures multiply them (A and RGB).
+    fn specular(
+        &mut self,
+        m: &gltf::Material,
+        element: &str,
+        ext: &mut MaterialExt,
+    ) -> Result<f32, SceneError> {
+        let mut specular = 1.0;
+        if let Some(sp) = m.specular() {
+            let f = sp.specular_factor();
+            specular = if f.is_finite() {
+                f.clamp(0.0, 1.0)
+            } else {
+                1.0
+            };
+            let c = Vec3::from_array(sp.specular_color_factor());
+            ext.specular_color = if c.is_finite() {
+                c.clamp(Vec3::ZERO, Vec3::splat(10.0))
+            } else {
+                Vec3::ONE
+            };
+            ext.specular_texture =
+                self.info_ref(element, "specularTexture", sp.specular_texture(), false)?;
+            ext.specular_color_texture = self.info_ref(
+                element,
+                "specularColorTexture",
+                sp.specular_color_texture(),
+                true,
+            )?;
+        }
+        Ok(specular)
     }
 }
 
@@ -603,4 +690,27 @@ fn texture_transform(ext: Option<&serde_json::Value>, tex_coord: u32) -> UvMap {
             scale: pair("scale", Vec2::ONE),
         },
     }
+}
+
+/// A factor of `element` that glTF bounds to [0, 1]: clamped (and the clamp reported) where
+/// outside, an error naming it where not finite.
+fn unit_factor(
+    file: &str,
+    element: &str,
+    report: &mut Report,
+    what: &str,
+    v: f32,
+) -> Result<f32, SceneError> {
+    if !v.is_finite() {
+        return Err(SceneError::Element {
+            file: file.into(),
+            element: element.to_owned(),
+            problem: format!("{what} {v} is not finite"),
+        });
+    }
+    let c = v.clamp(0.0, 1.0);
+    if c != v {
+        report.warn(format!("{element}: {what} {v} clamped to [0, 1]"));
+    }
+    Ok(c)
 }

@@ -7,7 +7,20 @@ use gltf::mesh::{Mode, Semantic};
 use super::super::accessor::{read_floats, read_indices};
 use super::super::report::{SceneError, label};
 use super::super::{Triangle, VertexExtras};
-use super::{Loader, MAX_COORDINATE, unit};
+use super::{Converted, Loader, MAX_COORDINATE, unit};
+
+/// A primitive's vertex attributes and indices ([`Loader::attributes`]): per vertex, 3
+/// floats of a position or normal, 2 of a UV, `color_n` (3 or 4) of a colour, 4 of a tangent.
+struct Attributes {
+    positions: Vec<f32>,
+    normals: Option<Vec<f32>>,
+    uvs: Option<Vec<f32>>,
+    uvs1: Option<Vec<f32>>,
+    colors: Option<Vec<f32>>,
+    color_n: usize,
+    tangents: Option<Vec<f32>>,
+    indices: Vec<u32>,
+}
 
 impl Loader<'_> {
     pub(super) fn mesh(&mut self, mesh: &gltf::Mesh, world: Mat4) -> Result<(), SceneError> {
@@ -35,67 +48,16 @@ impl Loader<'_> {
                     .unsupported(format!("morph targets ({mesh_label})"));
             }
             let converted = self.material(prim.material())?;
-            let buffers = &self.res.buffers;
-            let read = |semantic: Semantic, what: &str, dims: Dimensions| {
-                prim.get(&semantic)
-                    .map(|acc| {
-                        read_floats(&acc, buffers, dims).map_err(|e| {
-                            self.element_error(element.clone(), format!("{what}: {e}"))
-                        })
-                    })
-                    .transpose()
-            };
-            let positions = read(Semantic::Positions, "POSITION", Dimensions::Vec3)?
-                .expect("precheck: every primitive has POSITION");
-            let normals = read(Semantic::Normals, "NORMAL", Dimensions::Vec3)?;
-            let uvs = read(Semantic::TexCoords(0), "TEXCOORD_0", Dimensions::Vec2)?;
-            let uvs1 = read(Semantic::TexCoords(1), "TEXCOORD_1", Dimensions::Vec2)?;
-            let color_dims = prim
-                .get(&Semantic::Colors(0))
-                .map(|a| a.dimensions())
-                .filter(|d| *d == Dimensions::Vec3)
-                .map_or(Dimensions::Vec4, |d| d);
-            let colors = read(Semantic::Colors(0), "COLOR_0", color_dims)?;
-            let color_n = if color_dims == Dimensions::Vec3 { 3 } else { 4 };
-            let tangents = match converted.normal_uv {
-                Some(_) => read(Semantic::Tangents, "TANGENT", Dimensions::Vec4)?,
-                None => None,
-            };
-            let vertex_count = positions.len() / 3;
-            for (what, data, n) in [
-                ("NORMAL", &normals, 3),
-                ("TEXCOORD_0", &uvs, 2),
-                ("TEXCOORD_1", &uvs1, 2),
-                ("COLOR_0", &colors, color_n),
-                ("TANGENT", &tangents, 4),
-            ] {
-                if let Some(d) = data
-                    && d.len() / n != vertex_count
-                {
-                    return Err(self.element_error(
-                        element,
-                        format!(
-                            "{what} has {} elements, POSITION has {vertex_count}",
-                            d.len() / n
-                        ),
-                    ));
-                }
-            }
-            let indices = match prim.indices() {
-                Some(acc) => read_indices(&acc, &self.res.buffers)
-                    .map_err(|e| self.element_error(element.clone(), e))?,
-                None => (0..vertex_count as u32).collect(),
-            };
-            if let Some((k, &i)) = indices
-                .iter()
-                .enumerate()
-                .find(|&(_, &i)| i as usize >= vertex_count)
-            {
-                return Err(self.element_error(
-                    element,
-                    format!("index {i} at position {k} is past the {vertex_count} vertices"),
-                ));
-            }
+            let Attributes {
+                positions,
+                normals,
+                uvs,
+                uvs1,
+                colors,
+                color_n,
+                tangents,
+                indices,
+            } = self.attributes(&prim, &element, converted)?;
             if prim.mode() == Mode::Triangles && indices.len() % 3 != 0 {
                 self.report.warn(format!(
                     "{element}: {} indices are not a multiple of 3; the last {} are ignored",
@@ -206,6 +168,87 @@ impl Loader<'_> {
             }
         }
         Ok(())
+    }
+
+    /// A primitive's vertex attributes (tangents only for a material with a normal map) and
+    /// its indices (or 0, 1, 2, … without), checked: as many of each attribute as positions,
+    /// no index past the vertices.
+    fn attributes(
+        &self,
+        prim: &gltf::Primitive,
+        element: &str,
+        converted: Converted,
+    ) -> Result<Attributes, SceneError> {
+        let buffers = &self.res.buffers;
+        let read = |semantic: Semantic, what: &str, dims: Dimensions| {
+            prim.get(&semantic)
+                .map(|acc| {
+                    read_floats(&acc, buffers, dims)
+                        .map_err(|e| self.element_error(element.to_owned(), format!("{what}: {e}")))
+                })
+                .transpose()
+        };
+        let positions = read(Semantic::Positions, "POSITION", Dimensions::Vec3)?
+            .expect("precheck: every primitive has POSITION");
+        let normals = read(Semantic::Normals, "NORMAL", Dimensions::Vec3)?;
+        let uvs = read(Semantic::TexCoords(0), "TEXCOORD_0", Dimensions::Vec2)?;
+        let uvs1 = read(Semantic::TexCoords(1), "TEXCOORD_1", Dimensions::Vec2)?;
+        let color_dims = prim
+            .get(&Semantic::Colors(0))
+            .map(|a| a.dimensions())
+            .filter(|d| *d == Dimensions::Vec3)
+            .map_or(Dimensions::Vec4, |d| d);
+        let colors = read(Semantic::Colors(0), "COLOR_0", color_dims)?;
+        let color_n = if color_dims == Dimensions::Vec3 { 3 } else { 4 };
+        let tangents = match converted.normal_uv {
+            Some(_) => read(Semantic::Tangents, "TANGENT", Dimensions::Vec4)?,
+            None => None,
+        };
+        let vertex_count = positions.len() / 3;
+        for (what, data, n) in [
+            ("NORMAL", &normals, 3),
+            ("TEXCOORD_0", &uvs, 2),
+            ("TEXCOORD_1", &uvs1, 2),
+            ("COLOR_0", &colors, color_n),
+            ("TANGENT", &tangents, 4),
+        ] {
+            if let Some(d) = data
+                && d.len() / n != vertex_count
+            {
+                return Err(self.element_error(
+                    element.to_owned(),
+                    format!(
+                        "{what} has {} elements, POSITION has {vertex_count}",
+                        d.len() / n
+                    ),
+                ));
+            }
+        }
+        let indices = match prim.indices() {
+            Some(acc) => read_indices(&acc, &self.res.buffers)
+                .map_err(|e| self.element_error(element.to_owned(), e))?,
+            None => (0..vertex_count as u32).collect(),
+        };
+        if let Some((k, &i)) = indices
+            .iter()
+            .enumerate()
+            .find(|&(_, &i)| i as usize >= vertex_count)
+        {
+            return Err(self.element_error(
+                element.to_owned(),
+                format!("index {i} at position {k} is past the {vertex_count} vertices"),
+            ));
+        }
+        Ok(Attributes {
+            positions,
+            normals,
+            uvs,
+            uvs1,
+            colors,
+            color_n,
+            tangents,
+            indices,
+        })
     }
 }
 
