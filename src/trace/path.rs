@@ -656,6 +656,8 @@ fn trace(
 /// `FULL`: the scene may use every material feature; `false` only for a
 /// [`PackedScene::plain`] scene, where the alpha tests, normal and metallic-roughness maps,
 /// extension BSDFs, absorbing media and punctual lights it lacks are not even tested for.
+// Long: the CPU twin of path.wgsl's path loop, kept step for step in the kernel's order so that
+// the two stay bit-identical and can be read side by side.
 fn trace_path<const FULL: bool>(
     sc: &PackedScene,
     s: &TraceSettings,

@@ -169,118 +169,24 @@ fn batches<const FULL: bool>(
         .zip(samples.chunks(BATCH))
         .zip(out.chunks_mut(BATCH))
     {
-        let mut n_live = 0;
-        if wall.is_none() && s.camera.ortho_half_y == 0.0 {
-            // A pinhole's rays, sixteen at a time.
-            for (group, (pixels, samples)) in
-                pixels.chunks(LANES).zip(samples.chunks(LANES)).enumerate()
-            {
-                let lane = |v: &[u32], i: usize| v[i.min(v.len() - 1)];
-                let rays = pinhole(
-                    s,
-                    std::array::from_fn(|i| lane(pixels, i)),
-                    std::array::from_fn(|i| lane(samples, i)),
-                );
-                for (i, (&pixel, &sample)) in pixels.iter().zip(samples).enumerate() {
-                    let k = LANES * group + i;
-                    paths[k] = Path {
-                        pixel,
-                        sample,
-                        o: s.camera.position,
-                        d: rays[i],
-                        ..Path::START
-                    };
-                    out[k] = Some((Vec3::ZERO, 0));
-                    live[n_live] = k as Idx;
-                    n_live += 1;
-                }
-            }
-        } else {
-            for (k, (&pixel, &sample)) in pixels.iter().zip(samples).enumerate() {
-                out[k] = None;
-                let (x, y) = (pixel % s.width, pixel / s.width);
-                let r0 = rand4(pixel, sample, s.seed, 0);
-                let ray = match wall {
-                    None => {
-                        Some(
-                            s.camera
-                                .ray(x as f32 + r0[0], y as f32 + r0[1], s.width, s.height),
-                        )
-                    }
-                    Some(wall) => wall
-                        .tile_of(x, y)
-                        .map(|tile| wall.ray(tile, x, y, r0[0], r0[1])),
-                };
-                if let Some((o, d)) = ray {
-                    paths[k] = Path {
-                        pixel,
-                        sample,
-                        o,
-                        d,
-                        ..Path::START
-                    };
-                    out[k] = Some((Vec3::ZERO, 0));
-                    live[n_live] = k as Idx;
-                    n_live += 1;
-                }
-            }
-        }
+        let mut n_live = camera_paths(s, wall, pixels, samples, paths, live, out);
         for depth in 0..s.max_depth {
             if n_live == 0 {
                 break;
             }
             // Trace (the camera's rays eight at a time: they travel together), and let the
             // paths that leave the scene take the environment.
-            if alpha_scene {
-                // Alpha-tested triangles are asked per hit whether they are there, each ray
-                // with its own coverage seed.
-                for &k in &live[..n_live] {
-                    let path = &paths[k as usize];
-                    let seed = ray_seed(path.pixel, path.sample, s.seed, depth, 0);
-                    hits[k as usize] =
-                        sc.bvh
-                            .closest_hit_filtered(path.o, path.d, f32::INFINITY, |tri, u, v| {
-                                alpha_covered(sc, tri, u, v, seed)
-                            });
-                }
-            } else if packets {
-                // Sixteen neighbouring paths' rays at a time: they leave from nearby points
-                // (hybrid packets, in AVX-512 or AVX2 lanes); past the camera,
-                // those of one direction octant together (they cross the boxes' planes in one
-                // order).
-                let order = if depth == 0 {
-                    &live[..n_live]
-                } else {
-                    by_octant(&live[..n_live], |k| paths[k as usize].d, sorted)
-                };
-                for group in order.chunks(16) {
-                    let lane = |i: usize| &paths[group[i.min(group.len() - 1)] as usize];
-                    let origins = std::array::from_fn(|i| lane(i).o);
-                    let dirs = std::array::from_fn(|i| lane(i).d);
-                    let active = (1u32 << group.len()) - 1;
-                    let found = sc.bvh.closest_hits16(&origins, &dirs, active as u16);
-                    for (&k, hit) in group.iter().zip(found) {
-                        hits[k as usize] = hit;
-                    }
-                }
-            } else if depth == 0 {
-                for group in live[..n_live].chunks(8) {
-                    let lane = |i: usize| &paths[group[i.min(group.len() - 1)] as usize];
-                    let origins = std::array::from_fn(|i| lane(i).o);
-                    let dirs = std::array::from_fn(|i| lane(i).d);
-                    let found = sc
-                        .bvh
-                        .closest_hits8(&origins, &dirs, (1 << group.len()) - 1);
-                    for (&k, hit) in group.iter().zip(found) {
-                        hits[k as usize] = hit;
-                    }
-                }
-            } else {
-                for &k in &live[..n_live] {
-                    let path = &paths[k as usize];
-                    hits[k as usize] = sc.bvh.closest_hit(path.o, path.d, f32::INFINITY);
-                }
-            }
+            trace_live(
+                sc,
+                s,
+                depth,
+                alpha_scene,
+                packets,
+                paths,
+                &live[..n_live],
+                hits,
+                sorted,
+            );
             let mut n_shade = 0;
             for &k in &live[..n_live] {
                 let path = &mut paths[k as usize];
@@ -329,6 +235,141 @@ fn batches<const FULL: bool>(
                 };
                 *out = (radiance, p.rays);
             }
+        }
+    }
+}
+
+/// Starts a path for each of `pixels`' `samples` that has a camera ray (`out[k]` is `None` for
+/// the others): its index into `paths` goes to `live`; how many did.
+fn camera_paths(
+    s: &TraceSettings,
+    wall: Option<&WallCamera>,
+    pixels: &[u32],
+    samples: &[u32],
+    paths: &mut [Path; BATCH],
+    live: &mut [Idx; BATCH],
+    out: &mut [Option<(Vec3, u32)>],
+) -> usize {
+    let mut n_live = 0;
+    if wall.is_none() && s.camera.ortho_half_y == 0.0 {
+        // A pinhole's rays, sixteen at a time.
+        for (group, (pixels, samples)) in
+            pixels.chunks(LANES).zip(samples.chunks(LANES)).enumerate()
+        {
+            let lane = |v: &[u32], i: usize| v[i.min(v.len() - 1)];
+            let rays = pinhole(
+                s,
+                std::array::from_fn(|i| lane(pixels, i)),
+                std::array::from_fn(|i| lane(samples, i)),
+            );
+            for (i, (&pixel, &sample)) in pixels.iter().zip(samples).enumerate() {
+                let k = LANES * group + i;
+                paths[k] = Path {
+                    pixel,
+                    sample,
+                    o: s.camera.position,
+                    d: rays[i],
+                    ..Path::START
+                };
+                out[k] = Some((Vec3::ZERO, 0));
+                live[n_live] = k as Idx;
+                n_live += 1;
+            }
+        }
+    } else {
+        for (k, (&pixel, &sample)) in pixels.iter().zip(samples).enumerate() {
+            out[k] = None;
+            let (x, y) = (pixel % s.width, pixel / s.width);
+            let r0 = rand4(pixel, sample, s.seed, 0);
+            let ray = match wall {
+                None => Some(
+                    s.camera
+                        .ray(x as f32 + r0[0], y as f32 + r0[1], s.width, s.height),
+                ),
+                Some(wall) => wall
+                    .tile_of(x, y)
+                    .map(|tile| wall.ray(tile, x, y, r0[0], r0[1])),
+            };
+            if let Some((o, d)) = ray {
+                paths[k] = Path {
+                    pixel,
+                    sample,
+                    o,
+                    d,
+                    ..Path::START
+                };
+                out[k] = Some((Vec3::ZERO, 0));
+                live[n_live] = k as Idx;
+                n_live += 1;
+            }
+        }
+    }
+    n_live
+}
+
+/// The closest hit of each `live` path's ray into `hits`: with the alpha test per hit where the
+/// scene has alpha-tested triangles, else sixteen at a time where `packets` (the walks take
+/// packets), else the camera's rays eight at a time and later rays one at a time.
+#[allow(clippy::too_many_arguments)]
+fn trace_live(
+    sc: &PackedScene,
+    s: &TraceSettings,
+    depth: u32,
+    alpha_scene: bool,
+    packets: bool,
+    paths: &[Path; BATCH],
+    live: &[Idx],
+    hits: &mut [Option<TraceHit>; BATCH],
+    sorted: &mut [Idx; BATCH],
+) {
+    if alpha_scene {
+        // Alpha-tested triangles are asked per hit whether they are there, each ray
+        // with its own coverage seed.
+        for &k in live {
+            let path = &paths[k as usize];
+            let seed = ray_seed(path.pixel, path.sample, s.seed, depth, 0);
+            hits[k as usize] =
+                sc.bvh
+                    .closest_hit_filtered(path.o, path.d, f32::INFINITY, |tri, u, v| {
+                        alpha_covered(sc, tri, u, v, seed)
+                    });
+        }
+    } else if packets {
+        // Sixteen neighbouring paths' rays at a time: they leave from nearby points
+        // (hybrid packets, in AVX-512 or AVX2 lanes); past the camera,
+        // those of one direction octant together (they cross the boxes' planes in one
+        // order).
+        let order = if depth == 0 {
+            live
+        } else {
+            by_octant(live, |k| paths[k as usize].d, sorted)
+        };
+        for group in order.chunks(16) {
+            let lane = |i: usize| &paths[group[i.min(group.len() - 1)] as usize];
+            let origins = std::array::from_fn(|i| lane(i).o);
+            let dirs = std::array::from_fn(|i| lane(i).d);
+            let active = (1u32 << group.len()) - 1;
+            let found = sc.bvh.closest_hits16(&origins, &dirs, active as u16);
+            for (&k, hit) in group.iter().zip(found) {
+                hits[k as usize] = hit;
+            }
+        }
+    } else if depth == 0 {
+        for group in live.chunks(8) {
+            let lane = |i: usize| &paths[group[i.min(group.len() - 1)] as usize];
+            let origins = std::array::from_fn(|i| lane(i).o);
+            let dirs = std::array::from_fn(|i| lane(i).d);
+            let found = sc
+                .bvh
+                .closest_hits8(&origins, &dirs, (1 << group.len()) - 1);
+            for (&k, hit) in group.iter().zip(found) {
+                hits[k as usize] = hit;
+            }
+        }
+    } else {
+        for &k in live {
+            let path = &paths[k as usize];
+            hits[k as usize] = sc.bvh.closest_hit(path.o, path.d, f32::INFINITY);
         }
     }
 }
@@ -533,6 +574,8 @@ struct Shaded<'a> {
 /// lights, cut-out emitters, alpha-tested shadow rays — is `trace_path`'s own code, run for
 /// the lanes that need it. Lanes past the group's end repeat its last path: they compute along
 /// and are never written back. The survivors are appended to `shaded.live`.
+// Long: the CPU renderer's hot loop, trace_path's loop body in SIMD lanes step for step in its
+// order (the two must give the same bits), kept whole to be read against trace_path.
 #[inline(never)]
 fn shade_lanes<const FULL: bool>(
     sc: &PackedScene,
