@@ -652,16 +652,7 @@ impl eframe::App for ViewerApp<'_> {
                 self.fail(ui.ctx(), save_failed(&e));
                 return;
             }
-            let slot = Arc::new(Mutex::new(None));
-            let (s, ctx) = (Arc::clone(&slot), ui.ctx().clone());
-            ui.ctx().request_screenshot(move |img| {
-                if let Ok(mut g) = s.lock() {
-                    *g = Some(img);
-                }
-                ctx.request_repaint();
-            });
-            self.window_shot = Some((slot, 0));
-            self.screenshot_after = None;
+            self.request_window_screenshot(ui);
         }
         self.poll_window_screenshot(ui);
         // The cursor at the display's frame time on the events' clock.
@@ -730,6 +721,21 @@ impl ViewerApp<'_> {
                 self.message = format!("recording stopped: {}", crate::messages::chain(&e));
             }
         }
+    }
+
+    /// Asks for a screenshot of the whole window (the picture's files are saved): it arrives
+    /// in a later UI frame ([`Self::poll_window_screenshot`]).
+    fn request_window_screenshot(&mut self, ui: &mut egui::Ui) {
+        let slot = Arc::new(Mutex::new(None));
+        let (s, ctx) = (Arc::clone(&slot), ui.ctx().clone());
+        ui.ctx().request_screenshot(move |img| {
+            if let Ok(mut g) = s.lock() {
+                *g = Some(img);
+            }
+            ctx.request_repaint();
+        });
+        self.window_shot = Some((slot, 0));
+        self.screenshot_after = None;
     }
 
     /// Waits for the window screenshot asked for with the picture's (up to 300 UI frames),
