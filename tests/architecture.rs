@@ -16,6 +16,11 @@
 //! `src/<stage>/mod.rs`, `shaders/<k>.wgsl` pairs with `src/<k>.rs`, each twin names its kernel
 //! file, and a stage's kernels are dispatched from its `gpu` module (`src/<stage>/gpu.rs` or
 //! `src/<stage>/gpu/mod.rs`).
+//!
+//! Sizes, for a newcomer's reading: no file of `src/` over [`MAX_FILE_LINES`] lines (its unit
+//! tests apart: they live in `<file>/tests.rs`), and no function over [`MAX_FN_LINES`] lines
+//! unless a `// Long:` comment directly above it says why it stays whole (a hot loop kept in
+//! one piece, a CPU twin that follows its kernel line for line).
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -961,4 +966,325 @@ fn heading_anchors_are_githubs() {
         slug("9. The paper's setup and numbers"),
         "9-the-papers-setup-and-numbers"
     );
+}
+
+// ---------------------------------------------------------------------------------------------
+// Sizes: no source file over `MAX_FILE_LINES` lines (tests apart), no function over
+// `MAX_FN_LINES` lines without a stated reason.
+
+/// The most lines a file of `src/` may have, not counting a `#[cfg(test)]` module written in it
+/// (the unit tests of a large file go to `<file>/tests.rs`, which is exempt).
+const MAX_FILE_LINES: usize = 1000;
+
+/// The most lines a function may span, from its `fn` to its closing brace, unless a `// Long:`
+/// comment directly above it (among its doc comments and attributes) says why it is longer.
+const MAX_FN_LINES: usize = 150;
+
+/// `text` with comments and the insides of string and char literals blanked (newlines kept, so
+/// that lines still count), leaving braces and keywords that are code.
+fn blank_non_code(text: &str) -> String {
+    let c: Vec<char> = text.chars().collect();
+    let at = |j: usize| c.get(j).copied().unwrap_or('\0');
+    let blank = |ch: char| if ch == '\n' { '\n' } else { ' ' };
+    let mut out = String::with_capacity(text.len());
+    let mut i = 0;
+    while i < c.len() {
+        let after_ident = i > 0 && (c[i - 1].is_alphanumeric() || c[i - 1] == '_');
+        // A raw string's prefix length (`r`, `br`) and its number of `#`s.
+        let raw = (!after_ident)
+            .then(|| match (at(i), at(i + 1)) {
+                ('r', _) => Some(1),
+                ('b', 'r') => Some(2),
+                _ => None,
+            })
+            .flatten()
+            .and_then(|p| {
+                let hashes = (i + p..).take_while(|&j| at(j) == '#').count();
+                (at(i + p + hashes) == '"').then_some((p, hashes))
+            });
+        if at(i) == '/' && at(i + 1) == '/' {
+            while i < c.len() && c[i] != '\n' {
+                out.push(' ');
+                i += 1;
+            }
+        } else if at(i) == '/' && at(i + 1) == '*' {
+            // Block comments nest.
+            let mut depth = 0;
+            while i < c.len() {
+                if at(i) == '/' && at(i + 1) == '*' {
+                    depth += 1;
+                    out.push_str("  ");
+                    i += 2;
+                } else if at(i) == '*' && at(i + 1) == '/' {
+                    depth -= 1;
+                    out.push_str("  ");
+                    i += 2;
+                    if depth == 0 {
+                        break;
+                    }
+                } else {
+                    out.push(blank(c[i]));
+                    i += 1;
+                }
+            }
+        } else if let Some((prefix, hashes)) = raw {
+            let open = prefix + hashes + 1;
+            out.extend(&c[i..i + open]);
+            i += open;
+            while i < c.len() && !(c[i] == '"' && (1..=hashes).all(|k| at(i + k) == '#')) {
+                out.push(blank(c[i]));
+                i += 1;
+            }
+            let close = (hashes + 1).min(c.len() - i);
+            out.extend(&c[i..i + close]);
+            i += close;
+        } else if at(i) == '"' {
+            out.push('"');
+            i += 1;
+            while i < c.len() && c[i] != '"' {
+                let len = if c[i] == '\\' { 2 } else { 1 };
+                for &ch in &c[i..(i + len).min(c.len())] {
+                    out.push(blank(ch));
+                }
+                i += len;
+            }
+            if i < c.len() {
+                out.push('"');
+                i += 1;
+            }
+        } else if at(i) == '\'' && (at(i + 1) == '\\' || at(i + 2) == '\'') {
+            // A char literal ('x', '\n', '\u{7f}'); a lifetime ('a) has no closing quote.
+            out.push('\'');
+            i += 1;
+            while i < c.len() && c[i] != '\'' {
+                let len = if c[i] == '\\' { 2 } else { 1 };
+                for &ch in &c[i..(i + len).min(c.len())] {
+                    out.push(blank(ch));
+                }
+                i += len;
+            }
+            if i < c.len() {
+                out.push('\'');
+                i += 1;
+            }
+        } else {
+            out.push(c[i]);
+            i += 1;
+        }
+    }
+    out
+}
+
+/// The index of the `}` that closes the `{` at `open` in blanked code (the end where none does).
+fn closing_brace(code: &[u8], open: usize) -> usize {
+    let mut depth = 0usize;
+    for (k, &b) in code.iter().enumerate().skip(open) {
+        match b {
+            b'{' => depth += 1,
+            b'}' => {
+                depth -= 1;
+                if depth == 0 {
+                    return k;
+                }
+            }
+            _ => {}
+        }
+    }
+    code.len()
+}
+
+/// The 1-based line of byte `at`.
+fn line_at(code: &[u8], at: usize) -> usize {
+    code[..at].iter().filter(|&&b| b == b'\n').count() + 1
+}
+
+fn is_ident(b: u8) -> bool {
+    b.is_ascii_alphanumeric() || b == b'_'
+}
+
+/// The lines of a file, not counting those of `#[cfg(test)]` modules written inline.
+fn counted_lines(text: &str) -> usize {
+    let code = blank_non_code(text);
+    let b = code.as_bytes();
+    let mut test_lines = 0;
+    let mut from = 0;
+    while let Some(k) = code[from..].find("#[cfg(test)]") {
+        let at = from + k;
+        from = at + "#[cfg(test)]".len();
+        let rest = code[from..].trim_start();
+        let item = code.len() - rest.len();
+        let is_mod = rest.starts_with("mod ") || rest.starts_with("pub mod ");
+        let open = code[item..].find(['{', ';']).map(|o| item + o);
+        if let Some(open) = open.filter(|&o| is_mod && b[o] == b'{') {
+            let close = closing_brace(b, open);
+            test_lines += line_at(b, close) - line_at(b, at) + 1;
+            from = close;
+        }
+    }
+    text.lines().count() - test_lines
+}
+
+/// A function with a body: its name, the line of its `fn`, the lines it spans (from there to
+/// its closing brace), and whether a `// Long:` comment stands directly above it.
+#[derive(Debug, PartialEq)]
+struct Function {
+    name: String,
+    line: usize,
+    lines: usize,
+    reason: bool,
+}
+
+/// Every function with a body in `text` (methods and nested functions included; declarations
+/// without a body, `fn(…)` pointer types and macros' `fn $name` skipped).
+fn functions(text: &str) -> Vec<Function> {
+    let code = blank_non_code(text);
+    let b = code.as_bytes();
+    let lines: Vec<&str> = text.lines().collect();
+    let mut out = Vec::new();
+    let mut from = 0;
+    while let Some(k) = code[from..].find("fn") {
+        let at = from + k;
+        from = at + 2;
+        let keyword = !(at > 0 && is_ident(b[at - 1])) && b.get(at + 2) == Some(&b' ');
+        let name_at = at + 3;
+        let name_len = b[name_at.min(b.len())..]
+            .iter()
+            .take_while(|&&c| is_ident(c))
+            .count();
+        if !keyword || name_len == 0 {
+            continue;
+        }
+        // The body opens at the first `{` outside brackets; a `;` there first means none.
+        let mut depth = 0i32;
+        let mut open = None;
+        for (k, &c) in b.iter().enumerate().skip(name_at + name_len) {
+            match c {
+                b'(' | b'[' => depth += 1,
+                b')' | b']' => depth -= 1,
+                b'{' if depth == 0 => {
+                    open = Some(k);
+                    break;
+                }
+                b';' if depth == 0 => break,
+                _ => {}
+            }
+        }
+        let Some(open) = open else { continue };
+        let line = line_at(b, at);
+        out.push(Function {
+            name: code[name_at..name_at + name_len].to_owned(),
+            line,
+            lines: line_at(b, closing_brace(b, open)) - line + 1,
+            reason: reason_above(&lines, line - 1),
+        });
+    }
+    out
+}
+
+/// Whether the comments, doc comments and attributes directly above line `sig` (0-based) hold
+/// a `// Long:` comment.
+fn reason_above(lines: &[&str], sig: usize) -> bool {
+    let mut in_attribute = false;
+    for l in lines[..sig].iter().rev().map(|l| l.trim()) {
+        if l.starts_with("// Long:") {
+            return true;
+        }
+        if in_attribute {
+            // Inside an attribute spread over lines, up to its `#[`.
+            in_attribute = !l.starts_with("#[");
+        } else if l.ends_with(']') && !l.starts_with("#[") && !l.starts_with("//") {
+            in_attribute = true;
+        } else if !(l.starts_with("//") || l.starts_with("#[")) {
+            return false;
+        }
+    }
+    false
+}
+
+#[test]
+fn source_files_stay_short_and_functions_long_only_for_a_stated_reason() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let mut files = Vec::new();
+    rust_files(&src, &mut files);
+    files.sort();
+    let (mut long_files, mut long_fns) = (Vec::new(), Vec::new());
+    for f in &files {
+        let text = std::fs::read_to_string(f).unwrap();
+        let name = f
+            .strip_prefix(Path::new(env!("CARGO_MANIFEST_DIR")))
+            .unwrap();
+        let n = counted_lines(&text);
+        if n > MAX_FILE_LINES && f.file_name().is_none_or(|n| n != "tests.rs") {
+            long_files.push(format!("{}: {n} lines", name.display()));
+        }
+        for func in functions(&text) {
+            if func.lines > MAX_FN_LINES && !func.reason {
+                long_fns.push(format!(
+                    "{}:{}: fn {}: {} lines",
+                    name.display(),
+                    func.line,
+                    func.name,
+                    func.lines
+                ));
+            }
+        }
+    }
+    let mut report = Vec::new();
+    if !long_files.is_empty() {
+        report.push(format!(
+            "files over {MAX_FILE_LINES} lines (apart from inline #[cfg(test)] modules: move \
+             those to <file>/tests.rs, or split the file by job):\n{}",
+            long_files.join("\n")
+        ));
+    }
+    if !long_fns.is_empty() {
+        report.push(format!(
+            "functions over {MAX_FN_LINES} lines without a `// Long:` reason directly above \
+             them (split them, or say why not):\n{}",
+            long_fns.join("\n")
+        ));
+    }
+    assert!(report.is_empty(), "{}", report.join("\n"));
+}
+
+/// The size scanner itself, on code whose answer is known.
+#[test]
+fn the_size_scanner_measures_functions_and_skips_literals_comments_and_tests() {
+    let body = |n: usize| "    let x = 1;\n".repeat(n);
+    // Braces in strings, raw strings, chars, comments; a lifetime; a declaration without a
+    // body; a function pointer type.
+    let tricky = "fn tricky<'a>(s: &'a str, f: fn(u32) -> u32) -> [u8; 2] {\n    \
+                  let _ = (\"{\", r#\"}\"#, '{', '}', '\\'', b'{');\n    \
+                  // }\n    /* { /* } */ { */\n    [0; 2]\n}\n";
+    let text = format!(
+        "trait T {{\n    fn declared(&self);\n}}\n\
+         /// Docs.\n#[inline]\nfn short() {{\n{}}}\n\
+         fn long() {{\n{}}}\n\
+         /// Docs.\n// Long: a reason.\n#[allow(\n    dead_code\n)]\nfn excused() {{\n{}}}\n\
+         {tricky}\
+         #[cfg(test)]\nmod tests {{\n    fn in_tests() {{\n{}    }}\n}}\n",
+        body(148),
+        body(149),
+        body(300),
+        body(10),
+    );
+    let found = functions(&text);
+    let summary: Vec<(&str, usize, bool)> = found
+        .iter()
+        .map(|f| (f.name.as_str(), f.lines, f.reason))
+        .collect();
+    assert_eq!(
+        summary,
+        [
+            ("short", 150, false),
+            ("long", 151, false),
+            ("excused", 302, true),
+            ("tricky", 6, false),
+            ("in_tests", 12, false),
+        ]
+    );
+    assert_eq!(found[0].line, 6);
+    // The inline test module's 15 lines are not counted.
+    assert_eq!(counted_lines(&text), text.lines().count() - 15);
+    assert_eq!(counted_lines("#[cfg(test)]\nmod tests;\nfn a() {}\n"), 3);
 }

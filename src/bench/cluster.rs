@@ -234,6 +234,7 @@ pub struct ClusterBenchReport {
 /// every rank must reach in the same order (frames, the DGI's broadcast and split, the owners'
 /// pictures, the gathers, the numbers to rank 0); read top to bottom, the function is that
 /// order.
+// Long: the collectives every rank must reach in one order, top to bottom (see above).
 pub fn scaling(
     c: &mut Cluster,
     scene: &Scene,

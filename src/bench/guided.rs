@@ -20,7 +20,7 @@ use crate::scene::Scene;
 use crate::schedule::Order;
 use crate::trace::camera::CameraError;
 use crate::trace::path::TraceSettings;
-use crate::trace::wall::{WallCameraError, WallSpec};
+use crate::trace::wall::{WallCamera, WallCameraError, WallSpec};
 
 /// What to measure.
 #[derive(Clone, Debug, Serialize)]
@@ -213,26 +213,16 @@ pub fn run(
                 scene: name.clone(),
                 source,
             })?;
-        progress(&format!("{name}: full-frame baseline"), 0);
-        let mut full = match &wc {
-            Some(c) => Renderer::full_wall(backend, scene, settings(cfg.seed), c.clone())?,
-            None => Renderer::full(backend, scene, settings(cfg.seed))?,
-        };
-        full.iterate(2)?;
-        let timed = full.timed_iterations(cfg.full_frames.max(1))?;
-        progress(
-            &format!("{name}: full-frame baseline"),
-            2 + cfg.full_frames.max(1),
-        );
-        let ms_full = median(timed.ms.clone());
-        let full_row = FullFrameRow {
-            scene: name.clone(),
-            ms_per_frame: ms_full,
-            ms_per_megasample: ms_full / megapixels,
-            rays_per_sample: (timed.rays_per_iteration > 0.0)
-                .then(|| timed.rays_per_iteration / (megapixels * 1e6)),
-        };
-        drop(full);
+        let full_row = full_frame_baseline(
+            backend,
+            name,
+            scene,
+            cfg,
+            settings(cfg.seed),
+            wc.as_ref(),
+            &mut progress,
+        )?;
+        let ms_full = full_row.ms_per_frame;
         let step = format!("{name}: reference ({} spp)", cfg.reference_spp);
         progress(&step, 0);
         let reference = paper::reference_image_wall(
@@ -342,6 +332,39 @@ pub fn run(
         config: cfg.clone(),
         full_frame,
         rows,
+    })
+}
+
+/// The full frame's time on `scene` (`cfg.full_frames` frames timed after two of warm-up),
+/// rendered with `settings` (through the wall camera `wc` where there is one).
+fn full_frame_baseline(
+    backend: &Backend,
+    name: &str,
+    scene: &Scene,
+    cfg: &GuidedBenchConfig,
+    settings: TraceSettings,
+    wc: Option<&WallCamera>,
+    progress: &mut impl FnMut(&str, u32),
+) -> Result<FullFrameRow, GuidedBenchError> {
+    let megapixels = f64::from(cfg.size[0]) * f64::from(cfg.size[1]) / 1e6;
+    progress(&format!("{name}: full-frame baseline"), 0);
+    let mut full = match wc {
+        Some(c) => Renderer::full_wall(backend, scene, settings, c.clone())?,
+        None => Renderer::full(backend, scene, settings)?,
+    };
+    full.iterate(2)?;
+    let timed = full.timed_iterations(cfg.full_frames.max(1))?;
+    progress(
+        &format!("{name}: full-frame baseline"),
+        2 + cfg.full_frames.max(1),
+    );
+    let ms_full = median(timed.ms.clone());
+    Ok(FullFrameRow {
+        scene: name.to_owned(),
+        ms_per_frame: ms_full,
+        ms_per_megasample: ms_full / megapixels,
+        rays_per_sample: (timed.rays_per_iteration > 0.0)
+            .then(|| timed.rays_per_iteration / (megapixels * 1e6)),
     })
 }
 

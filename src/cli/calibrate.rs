@@ -151,91 +151,7 @@ pub fn run(args: &CalibrateArgs, stop: &AtomicBool) -> anyhow::Result<Calibratio
         crate::messages::count(targets.len(), "target")
     );
     let mut collector = PressCollector::new(args.device, args.button);
-    // A person holds the device for a live source; a recording's presses are already there.
-    let live = args.replay.is_none();
-    let prompt = |n: usize| {
-        if live && let Some(t) = targets.get(n) {
-            eprintln!(
-                "raygun calibrate: target {}/{}: hold {} at the {} (room {:.3}, {:.3}, {:.3} m) and press button {}",
-                n + 1,
-                targets.len(),
-                args.device,
-                t.name,
-                t.room.x,
-                t.room.y,
-                t.room.z,
-                args.button
-            );
-        }
-    };
-    prompt(0);
-    let mut ingest = raw_ingest();
-    let feed = |events: &[TrackingEvent], collector: &mut PressCollector| {
-        for e in events {
-            if collector.event(e) {
-                let n = collector.positions.len();
-                let name = targets.get(n - 1).map_or("", |t| t.name.as_str());
-                if live {
-                    eprintln!("raygun calibrate: target {n} ({name}) recorded");
-                } else {
-                    eprintln!("raygun calibrate: target {n} ({name}): press {n} of the recording");
-                }
-                prompt(n);
-            }
-        }
-    };
-    if let Some(file) = &args.replay {
-        let mut reader = ReplayReader::open(file)?;
-        while let Some(item) = reader.next_item() {
-            if collector.positions.len() >= targets.len() {
-                break;
-            }
-            match &item.payload {
-                ReplayPayload::Datagram(protocol, bytes) => {
-                    let events = ingest.datagram(*protocol, bytes, item.t).to_vec();
-                    feed(&events, &mut collector);
-                }
-                ReplayPayload::Event(e) => {
-                    if let Some(e) = ingest.event(e.clone()) {
-                        feed(&[e], &mut collector);
-                    }
-                }
-            }
-        }
-    } else {
-        let (port, protocol) = match (args.dtrack, args.osc) {
-            (Some(p), _) => (p, Protocol::Dtrack),
-            (_, Some(p)) => (p, Protocol::Osc),
-            _ => unreachable!("clap requires one input"),
-        };
-        let mut source = UdpSource::bind(ListenerConfig::loopback(port))?;
-        let addr: SocketAddr = source.local_addr()?;
-        eprintln!("raygun calibrate: listening on {addr} for {protocol}");
-        let start = Instant::now();
-        let limit = Duration::from_secs_f64(args.seconds);
-        while collector.positions.len() < targets.len() {
-            if stop.load(Ordering::Relaxed) {
-                bail!(
-                    "stopped after {} of {} targets",
-                    collector.positions.len(),
-                    targets.len()
-                );
-            }
-            if start.elapsed() > limit {
-                bail!(
-                    "no more presses within --seconds {}: {} of {} targets recorded",
-                    args.seconds,
-                    collector.positions.len(),
-                    targets.len()
-                );
-            }
-            if let Received::Datagram(bytes, _) = source.recv()? {
-                let t = start.elapsed().as_secs_f64();
-                let events = ingest.datagram(protocol, bytes, t).to_vec();
-                feed(&events, &mut collector);
-            }
-        }
-    }
+    collect_presses(args, stop, &targets, &mut collector)?;
     if collector.untracked_presses > 0 {
         eprintln!(
             "raygun calibrate: {} while {} was not tracked {} ignored",
@@ -297,6 +213,102 @@ pub fn run(args: &CalibrateArgs, stop: &AtomicBool) -> anyhow::Result<Calibratio
     crate::output::write_bytes(&args.out, calibration.to_json_pretty().as_bytes())?;
     eprintln!("raygun calibrate: wrote {}", args.out.display());
     Ok(calibration)
+}
+
+/// The presses of `collector`'s button, one for each of `targets` in turn: from the recording,
+/// or from the live source within `--seconds` (naming each target as it is due).
+fn collect_presses(
+    args: &CalibrateArgs,
+    stop: &AtomicBool,
+    targets: &[Target],
+    collector: &mut PressCollector,
+) -> anyhow::Result<()> {
+    // A person holds the device for a live source; a recording's presses are already there.
+    let live = args.replay.is_none();
+    let prompt = |n: usize| {
+        if live && let Some(t) = targets.get(n) {
+            eprintln!(
+                "raygun calibrate: target {}/{}: hold {} at the {} (room {:.3}, {:.3}, {:.3} m) and press button {}",
+                n + 1,
+                targets.len(),
+                args.device,
+                t.name,
+                t.room.x,
+                t.room.y,
+                t.room.z,
+                args.button
+            );
+        }
+    };
+    prompt(0);
+    let mut ingest = raw_ingest();
+    let feed = |events: &[TrackingEvent], collector: &mut PressCollector| {
+        for e in events {
+            if collector.event(e) {
+                let n = collector.positions.len();
+                let name = targets.get(n - 1).map_or("", |t| t.name.as_str());
+                if live {
+                    eprintln!("raygun calibrate: target {n} ({name}) recorded");
+                } else {
+                    eprintln!("raygun calibrate: target {n} ({name}): press {n} of the recording");
+                }
+                prompt(n);
+            }
+        }
+    };
+    if let Some(file) = &args.replay {
+        let mut reader = ReplayReader::open(file)?;
+        while let Some(item) = reader.next_item() {
+            if collector.positions.len() >= targets.len() {
+                break;
+            }
+            match &item.payload {
+                ReplayPayload::Datagram(protocol, bytes) => {
+                    let events = ingest.datagram(*protocol, bytes, item.t).to_vec();
+                    feed(&events, collector);
+                }
+                ReplayPayload::Event(e) => {
+                    if let Some(e) = ingest.event(e.clone()) {
+                        feed(&[e], collector);
+                    }
+                }
+            }
+        }
+    } else {
+        let (port, protocol) = match (args.dtrack, args.osc) {
+            (Some(p), _) => (p, Protocol::Dtrack),
+            (_, Some(p)) => (p, Protocol::Osc),
+            _ => unreachable!("clap requires one input"),
+        };
+        let mut source = UdpSource::bind(ListenerConfig::loopback(port))?;
+        let addr: SocketAddr = source.local_addr()?;
+        eprintln!("raygun calibrate: listening on {addr} for {protocol}");
+        let start = Instant::now();
+        let limit = Duration::from_secs_f64(args.seconds);
+        while collector.positions.len() < targets.len() {
+            if stop.load(Ordering::Relaxed) {
+                bail!(
+                    "stopped after {} of {} targets",
+                    collector.positions.len(),
+                    targets.len()
+                );
+            }
+            if start.elapsed() > limit {
+                bail!(
+                    "no more presses within --seconds {}: {} of {} targets recorded",
+                    args.seconds,
+                    collector.positions.len(),
+                    targets.len()
+                );
+            }
+            if let Received::Datagram(bytes, _) = source.recv()? {
+                let t = start.elapsed().as_secs_f64();
+                let events = ingest.datagram(protocol, bytes, t).to_vec();
+                feed(&events, collector);
+            }
+        }
+    }
+    Ok(())
 }
 
 /// The unit a recording's positions are in: DTrack's millimetres if it holds DTrack

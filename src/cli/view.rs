@@ -320,20 +320,7 @@ fn run_cluster(args: &ViewArgs) -> anyhow::Result<()> {
 /// Everything `view` loads, checks and starts before the renderer exists; `root`: this process
 /// shows the window (it alone listens for tracking).
 fn setup(args: &ViewArgs, root: bool) -> anyhow::Result<Setup> {
-    if !(args.roi_radius.is_finite() && args.roi_radius > 0.0) {
-        anyhow::bail!("--roi-radius must be a positive number of canvas pixels");
-    }
-    if !(0.0..=1.0).contains(&args.p_min) {
-        anyhow::bail!(
-            "--p-min must be a probability from 0 to 1, not {}",
-            crate::messages::number(f64::from(args.p_min))
-        );
-    }
-    if let Some(t) = args.target_se
-        && !(t.is_finite() && t > 0.0)
-    {
-        anyhow::bail!("--target-se must be a positive number, not {t}");
-    }
+    check_numbers(args)?;
     if root || (args.show_tiles && args.screenshot_after.is_some()) {
         // Only the windows save.
         crate::output::check_folder(&args.save_dir).context("--save-dir")?;
@@ -418,41 +405,7 @@ fn setup(args: &ViewArgs, root: bool) -> anyhow::Result<Setup> {
     .map(|spec| spec.camera(args.size, &camera))
     .transpose()
     .context("--camera wall")?;
-    let protocol = match (args.dtrack, args.osc) {
-        (Some(p), _) => Some((p, Protocol::Dtrack)),
-        (_, Some(p)) => Some((p, Protocol::Osc)),
-        _ => None,
-    };
-    // Only the window's process listens: the other ranks follow its steps.
-    let live = match (protocol, &args.vrpn) {
-        _ if !root => None,
-        (_, Some(address)) => {
-            let l = LiveTracking::start_vrpn(
-                address.clone(),
-                args.allow_network,
-                interaction.clone(),
-                model.clone(),
-                calibration.as_ref(),
-            )?;
-            eprintln!("raygun view: following VRPN {address}");
-            Some(l)
-        }
-        (Some((port, protocol)), None) => {
-            let l = LiveTracking::start_calibrated(
-                port,
-                protocol,
-                interaction.clone(),
-                model.clone(),
-                calibration.as_ref(),
-            )?;
-            eprintln!(
-                "raygun view: listening on 127.0.0.1:{} for {protocol}",
-                l.port
-            );
-            Some(l)
-        }
-        (None, None) => None,
-    };
+    let live = live_tracking(args, root, &interaction, &model, calibration.as_ref())?;
     if let (Some(l), Some(h)) = (&live, head) {
         l.follow_head(h);
         eprintln!("raygun view: the wall camera's eye follows {}", h.device);
@@ -489,6 +442,71 @@ fn setup(args: &ViewArgs, root: bool) -> anyhow::Result<Setup> {
         timeline,
         live,
         oidn,
+    })
+}
+
+/// An error naming the first of `--roi-radius`, `--p-min` and `--target-se` out of its range.
+fn check_numbers(args: &ViewArgs) -> anyhow::Result<()> {
+    if !(args.roi_radius.is_finite() && args.roi_radius > 0.0) {
+        anyhow::bail!("--roi-radius must be a positive number of canvas pixels");
+    }
+    if !(0.0..=1.0).contains(&args.p_min) {
+        anyhow::bail!(
+            "--p-min must be a probability from 0 to 1, not {}",
+            crate::messages::number(f64::from(args.p_min))
+        );
+    }
+    if let Some(t) = args.target_se
+        && !(t.is_finite() && t > 0.0)
+    {
+        anyhow::bail!("--target-se must be a positive number, not {t}");
+    }
+    Ok(())
+}
+
+/// The live tracking source of `--vrpn`, `--dtrack` or `--osc`, started (on the `root` process
+/// only).
+fn live_tracking(
+    args: &ViewArgs,
+    root: bool,
+    interaction: &InteractionConfig,
+    model: &DisplayModel,
+    calibration: Option<&Calibration>,
+) -> anyhow::Result<Option<LiveTracking>> {
+    let protocol = match (args.dtrack, args.osc) {
+        (Some(p), _) => Some((p, Protocol::Dtrack)),
+        (_, Some(p)) => Some((p, Protocol::Osc)),
+        _ => None,
+    };
+    // Only the window's process listens: the other ranks follow its steps.
+    Ok(match (protocol, &args.vrpn) {
+        _ if !root => None,
+        (_, Some(address)) => {
+            let l = LiveTracking::start_vrpn(
+                address.clone(),
+                args.allow_network,
+                interaction.clone(),
+                model.clone(),
+                calibration,
+            )?;
+            eprintln!("raygun view: following VRPN {address}");
+            Some(l)
+        }
+        (Some((port, protocol)), None) => {
+            let l = LiveTracking::start_calibrated(
+                port,
+                protocol,
+                interaction.clone(),
+                model.clone(),
+                calibration,
+            )?;
+            eprintln!(
+                "raygun view: listening on 127.0.0.1:{} for {protocol}",
+                l.port
+            );
+            Some(l)
+        }
+        (None, None) => None,
     })
 }
 

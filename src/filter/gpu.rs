@@ -371,21 +371,7 @@ impl FilterKernels {
         params.validate().map_err(FilterInputError::from)?;
         let (w, h) = (inputs.width, inputs.height);
         let n = u64::from(w) * u64::from(h);
-        for (what, buffer, need) in [
-            ("accum", inputs.accum, n * 16),
-            ("counts", inputs.counts, n * 4),
-            ("dgi", inputs.dgi, n * 4),
-        ] {
-            if buffer.size() < need {
-                return Err(FilterGpuError::InputBuffer {
-                    what,
-                    bytes: buffer.size(),
-                    need,
-                    width: w,
-                    height: h,
-                });
-            }
-        }
+        check_input_sizes(inputs)?;
         ctx.check_binding("filter output", n * 16)?;
         let output = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("filter output"),
@@ -397,28 +383,7 @@ impl FilterKernels {
             FilterKind::Fast => Plan::new(w, h, params.k_max),
             FilterKind::Off | FilterKind::Exact => Plan::new(w, h, 0.0),
         };
-        let mut gpu_params = GpuParams {
-            size: [w, h],
-            mode: u32::from(params.kind != FilterKind::Off),
-            blend: match params.blend {
-                Blend::Count => 0,
-                Blend::Variance => 1,
-            },
-            level_count: plan.levels.len() as u32,
-            k_max: params.k_max,
-            c: params.c,
-            variance_threshold: params.variance_threshold,
-            levels: [GpuLevel::zeroed(); MAX_LEVELS],
-        };
-        for (g, l) in gpu_params.levels.iter_mut().zip(&plan.levels) {
-            *g = GpuLevel {
-                size: l.size,
-                origin: l.origin as f32,
-                step: l.step as f32,
-                sigma2: l.sigma2 as f32,
-                _pad: [0.0; 3],
-            };
-        }
+        let gpu_params = gpu_params(params, &plan, [w, h]);
         let uniform = |label: &str, bytes: &[u8]| {
             ctx.device
                 .create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -531,6 +496,55 @@ impl FilterKernels {
         });
         Ok(FilterRun { dispatches, output })
     }
+}
+
+/// An error where one of `inputs`' buffers is smaller than its `width × height` entries.
+fn check_input_sizes(inputs: &GpuFilterInputs<'_>) -> Result<(), FilterGpuError> {
+    let (w, h) = (inputs.width, inputs.height);
+    let n = u64::from(w) * u64::from(h);
+    for (what, buffer, need) in [
+        ("accum", inputs.accum, n * 16),
+        ("counts", inputs.counts, n * 4),
+        ("dgi", inputs.dgi, n * 4),
+    ] {
+        if buffer.size() < need {
+            return Err(FilterGpuError::InputBuffer {
+                what,
+                bytes: buffer.size(),
+                need,
+                width: w,
+                height: h,
+            });
+        }
+    }
+    Ok(())
+}
+
+/// The filter's uniform: `params` and the pyramid's levels of `plan`, for a picture of `size`.
+fn gpu_params(params: &FilterParams, plan: &Plan, size: [u32; 2]) -> GpuParams {
+    let mut gpu_params = GpuParams {
+        size,
+        mode: u32::from(params.kind != FilterKind::Off),
+        blend: match params.blend {
+            Blend::Count => 0,
+            Blend::Variance => 1,
+        },
+        level_count: plan.levels.len() as u32,
+        k_max: params.k_max,
+        c: params.c,
+        variance_threshold: params.variance_threshold,
+        levels: [GpuLevel::zeroed(); MAX_LEVELS],
+    };
+    for (g, l) in gpu_params.levels.iter_mut().zip(&plan.levels) {
+        *g = GpuLevel {
+            size: l.size,
+            origin: l.origin as f32,
+            step: l.step as f32,
+            sigma2: l.sigma2 as f32,
+            _pad: [0.0; 3],
+        };
+    }
+    gpu_params
 }
 
 #[cfg(test)]

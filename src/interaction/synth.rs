@@ -311,6 +311,8 @@ struct Press {
 /// in one fixed order — the targets, the presses, then frame by frame the motion, tremor, noise
 /// and stick — and the shipped files depend on that order byte for byte; read top to bottom,
 /// the function is that order.
+// Long: one fixed order of draws from the session's generator, which the shipped files depend
+// on byte for byte (see above).
 #[must_use]
 pub fn simulate(spec: &SessionSpec) -> Vec<Sample> {
     let mut rng = Rng::new(spec.seed.wrapping_mul(0x2545_F491_4F6C_DD1D) ^ 0x5EED);

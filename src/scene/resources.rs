@@ -2,8 +2,8 @@
 //!
 //! Resolved here rather than with `gltf::import`, which is all-or-nothing: one undecodable
 //! image would fail the whole scene, where raygun falls back to the material's factor and says
-//! so. A missing file, though, is an error naming its URI. The scene walk (nodes, meshes,
-//! materials, cameras, lights) is in `load.rs`.
+//! so. A missing file, though, is an error naming its URI. The scene walk (nodes, cameras,
+//! lights) is in `load.rs`, its meshes in `load/mesh.rs` and materials in `load/material.rs`.
 
 use std::collections::HashMap;
 use std::io::Cursor;

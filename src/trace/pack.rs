@@ -173,209 +173,18 @@ impl PackedScene {
     #[must_use]
     pub fn new(scene: &Scene) -> Self {
         let tris = &scene.triangles;
-        // Emitters: next-event estimation picks one in proportion to its power (area × luminance
-        // × the faces it emits from).
-        let mut light_tris = Vec::new();
-        let mut light_weights = Vec::new();
-        for (i, t) in tris.iter().enumerate() {
-            let m = &scene.materials[t.material as usize];
-            let area = 0.5 * (t.p[1] - t.p[0]).cross(t.p[2] - t.p[0]).length();
-            let sides = if m.double_sided { 2.0 } else { 1.0 };
-            // An emissive texture scales the power by its mean over the triangle (black parts
-            // of a texture are no lamps: a triangle that is black all over is not sampled).
-            let power = f64::from(area)
-                * f64::from(luminance(m.emission))
-                * f64::from(scene.emission_scale(i))
-                * sides;
-            if power > 0.0 && area > 0.0 {
-                light_tris.push(i);
-                light_weights.push(power);
-            }
-        }
-        let (light_cdf, _) = cdf(&light_weights);
-        let mut light_density = vec![0f32; tris.len()];
-        let mut lights = Vec::new();
-        for (k, &i) in light_tris.iter().enumerate() {
-            let t = &tris[i];
-            let area = 0.5 * (t.p[1] - t.p[0]).cross(t.p[2] - t.p[0]).length();
-            light_density[i] = (light_cdf[k + 1] - light_cdf[k]) / area;
-            let double_sided = scene.materials[t.material as usize].double_sided;
-            push3(
-                &mut lights,
-                t.p[0],
-                f32::from_bits(i as u32),
-                t.p[1] - t.p[0],
-                if double_sided { 1.0 } else { 0.0 },
-                t.p[2] - t.p[0],
-                0.0,
-            );
-        }
+        let (light_tris, light_cdf, light_density, mut lights) = emitters(scene);
         let positions: Vec<[Vec3; 3]> = tris.iter().map(|t| t.p).collect();
         let mut features = 0;
-        let flags: Vec<u32> = tris
-            .iter()
-            .map(|t| {
-                let m = &scene.materials[t.material as usize];
-                let ext = scene.material_ext(t.material);
-                let mut f = 0;
-                // A transmitting surface bounds a volume: a ray inside must be able to leave,
-                // so glass is never culled (nor, as KHR_materials_volume says, a medium's
-                // boundary).
-                if !m.double_sided && ext.transmission == 0.0 && ext.absorption == Vec3::ZERO {
-                    f |= PRIM_CULL;
-                }
-                if ext.alpha != AlphaMode::Opaque {
-                    f |= PRIM_ALPHA;
-                    features |= FEAT_ALPHA;
-                }
-                f
-            })
-            .collect();
+        let flags = primitive_flags(scene, &mut features);
         let bvh = SceneBvh::build_flagged(&positions, &light_density, &flags);
+        let (shade, extras_offset) = shade_rows(scene, &mut features);
+        let materials = material_rows(scene);
+        let texels = texel_words(scene);
 
-        let mut shade = Vec::with_capacity(tris.len() * 4);
-        for t in tris {
-            shade.push([t.n[0].x, t.n[0].y, t.n[0].z, t.uv[0].x]);
-            shade.push([t.n[1].x, t.n[1].y, t.n[1].z, t.uv[0].y]);
-            shade.push([t.n[2].x, t.n[2].y, t.n[2].z, t.uv[1].x]);
-            shade.push([t.uv[1].y, t.uv[2].x, t.uv[2].y, f32::from_bits(t.material)]);
-        }
-        let extras_offset = shade.len() as u32;
-        if !scene.vertex_extras.is_empty() {
-            features |= FEAT_EXTRAS;
-            shade.reserve(tris.len() * EXTRAS_STRIDE);
-            for i in 0..tris.len() {
-                let e = scene.vertex_extras(i);
-                for c in e.color {
-                    shade.push(c.to_array());
-                }
-                shade.push([e.uv1[0].x, e.uv1[0].y, e.uv1[1].x, e.uv1[1].y]);
-                shade.push([e.uv1[2].x, e.uv1[2].y, 0.0, 0.0]);
-                for t in e.tangent {
-                    shade.push(t.to_array());
-                }
-            }
-        }
-
-        let mut materials = Vec::with_capacity(scene.materials.len() * MATERIAL_STRIDE);
-        for (i, m) in scene.materials.iter().enumerate() {
-            let ext = scene.material_ext(i as u32);
-            let b: Vec4 = m.base_color;
-            let base_ref = m.base_color_texture.map(|texture| TextureRef {
-                texture,
-                uv: ext.base_color_uv,
-            });
-            let ext_textures = ext.extension_textures().iter().any(Option::is_some);
-            let mut flags = 0;
-            for (on, bit) in [
-                (m.double_sided, MAT_DOUBLE_SIDED),
-                (base_ref.is_some(), MAT_BASE_TEX),
-                (ext.metallic_roughness_texture.is_some(), MAT_MR_TEX),
-                (ext.normal_texture.is_some(), MAT_NORMAL_TEX),
-                (ext.emissive_texture.is_some(), MAT_EMISSIVE_TEX),
-                (matches!(ext.alpha, AlphaMode::Mask(_)), MAT_MASK),
-                (ext.alpha == AlphaMode::Blend, MAT_BLEND),
-                (
-                    ext.transmission > 0.0
-                        || ext.clearcoat > 0.0
-                        || ext.specular_color != Vec3::ONE
-                        || ext.ior != 1.5
-                        || ext.sheen_color != Vec3::ZERO
-                        || ext.anisotropy_strength > 0.0
-                        || ext.diffuse_transmission > 0.0
-                        || ext_textures,
-                    MAT_EXT_BSDF,
-                ),
-                (ext_textures, MAT_EXT_TEX),
-                (ext.absorption != Vec3::ZERO, MAT_VOLUME),
-                (
-                    ext.dispersion > 0.0 && ext.transmission > 0.0,
-                    MAT_DISPERSION,
-                ),
-            ] {
-                if on {
-                    flags |= bit;
-                }
-            }
-            let cutoff = match ext.alpha {
-                AlphaMode::Mask(c) => c,
-                _ => 0.0,
-            };
-            materials.push([b.x, b.y, b.z, b.w]);
-            materials.push([m.emission.x, m.emission.y, m.emission.z, flags as f32]);
-            let alpha = (m.roughness * m.roughness).max(MIN_ALPHA);
-            materials.push([m.metallic, alpha, m.specular, cutoff]);
-            let sc = ext.specular_color;
-            materials.push([sc.x, sc.y, sc.z, ext.transmission]);
-            let cc_alpha = (ext.clearcoat_roughness * ext.clearcoat_roughness).max(MIN_ALPHA);
-            materials.push([ext.ior, ext.clearcoat, cc_alpha, ext.normal_scale]);
-            slot(&mut materials, base_ref);
-            slot(&mut materials, ext.metallic_roughness_texture);
-            slot(&mut materials, ext.normal_texture);
-            slot(&mut materials, ext.emissive_texture);
-            for t in ext.extension_textures() {
-                slot(&mut materials, t);
-            }
-            debug_assert_eq!(materials.len() % MATERIAL_STRIDE, MATERIAL_COAT_ROW);
-            let a = ext.absorption;
-            materials.push([ext.clearcoat_normal_scale, a.x, a.y, a.z]);
-            let sh = ext.sheen_color;
-            materials.push([sh.x, sh.y, sh.z, ext.sheen_roughness]);
-            let (sin, cos) = ext.anisotropy_rotation.sin_cos();
-            materials.push([ext.anisotropy_strength, cos, sin, ext.dispersion]);
-            let dt = ext.diffuse_transmission_color;
-            materials.push([dt.x, dt.y, dt.z, ext.diffuse_transmission]);
-        }
-
-        let mut texels = Vec::new();
-        let header = scene.textures.len() * 4;
-        let mut offset = header as u32;
-        for t in &scene.textures {
-            texels.extend_from_slice(&[offset, t.width, t.height, sampler_word(t)]);
-            offset += t.width * t.height;
-        }
-        for t in &scene.textures {
-            texels.extend(t.texels.iter().map(|&c| u32::from_le_bytes(c)));
-        }
-
-        // The environment: a constant, or an image sampled in proportion to luminance × sin θ
-        // (the Jacobian of the equirectangular map), piecewise constant per texel.
         let mut dist = light_cdf;
         let env_marginal = dist.len() as u32;
-        let (env, env_size, env_constant, env_power) = match &scene.environment {
-            Environment::Constant(c) => (Vec::new(), [0, 0], *c, f64::from(luminance(*c))),
-            Environment::Map(map) => {
-                let (w, h) = (map.width as usize, map.height as usize);
-                let mut rows = Vec::with_capacity(h);
-                let mut conditional = Vec::with_capacity(h * (w + 1));
-                let mut f = vec![0f64; w * h];
-                for j in 0..h {
-                    let sin_theta = (std::f64::consts::PI * (j as f64 + 0.5) / h as f64).sin();
-                    for i in 0..w {
-                        f[j * w + i] =
-                            f64::from(luminance(map.texels[j * w + i]).max(0.0)) * sin_theta;
-                    }
-                    let (row_cdf, row_total) = cdf(&f[j * w..(j + 1) * w]);
-                    conditional.extend(row_cdf);
-                    rows.push(row_total);
-                }
-                let (marginal, total) = cdf(&rows);
-                dist.extend(marginal);
-                dist.extend(conditional);
-                let scale = if total > 0.0 {
-                    (w * h) as f64 / total
-                } else {
-                    0.0
-                };
-                let env: Vec<[f32; 4]> = map
-                    .texels
-                    .iter()
-                    .zip(&f)
-                    .map(|(c, fi)| [c.x, c.y, c.z, (fi * scale) as f32])
-                    .collect();
-                (env, [map.width, map.height], Vec3::ZERO, total)
-            }
-        };
+        let (env, env_size, env_constant, env_power) = environment(scene, &mut dist);
         let env_conditional = env_marginal + env_size[1] + 1;
         // Next-event estimation picks the environment, a punctual light or an emissive
         // triangle, each kind the scene has equally likely.
@@ -388,27 +197,7 @@ impl PackedScene {
         let env_select = if kinds[0] { share } else { 0.0 };
         let punct_select = if kinds[1] { share } else { 0.0 };
         let light_count = light_tris.len() as u32;
-        for l in &scene.lights {
-            let (kind, cos_outer, cos_inner) = match l.kind {
-                LightKind::Point => (LIGHT_POINT, -1.0, -1.0),
-                LightKind::Spot { inner, outer } => (LIGHT_SPOT, outer.cos(), inner.cos()),
-                LightKind::Directional => (LIGHT_DIRECTIONAL, -1.0, -1.0),
-            };
-            let p = if kind == LIGHT_DIRECTIONAL {
-                -l.direction
-            } else {
-                l.position
-            };
-            push3(
-                &mut lights,
-                p,
-                kind as f32,
-                l.intensity,
-                cos_outer,
-                l.direction,
-                cos_inner,
-            );
-        }
+        push_punctual(scene, &mut lights);
 
         let mut packed = Self {
             bvh,
@@ -482,5 +271,259 @@ impl PackedScene {
         if self.dist.is_empty() {
             self.dist.push(0.0);
         }
+    }
+}
+
+/// The emissive triangles next-event estimation samples, in proportion to their power: their
+/// indices, the CDF over them, each triangle's sampling density per unit area (0 for the
+/// others) and their rows of `lights`.
+fn emitters(scene: &Scene) -> (Vec<usize>, Vec<f32>, Vec<f32>, Vec<[f32; 4]>) {
+    let tris = &scene.triangles;
+    // Emitters: next-event estimation picks one in proportion to its power (area × luminance
+    // × the faces it emits from).
+    let mut light_tris = Vec::new();
+    let mut light_weights = Vec::new();
+    for (i, t) in tris.iter().enumerate() {
+        let m = &scene.materials[t.material as usize];
+        let area = 0.5 * (t.p[1] - t.p[0]).cross(t.p[2] - t.p[0]).length();
+        let sides = if m.double_sided { 2.0 } else { 1.0 };
+        // An emissive texture scales the power by its mean over the triangle (black parts
+        // of a texture are no lamps: a triangle that is black all over is not sampled).
+        let power = f64::from(area)
+            * f64::from(luminance(m.emission))
+            * f64::from(scene.emission_scale(i))
+            * sides;
+        if power > 0.0 && area > 0.0 {
+            light_tris.push(i);
+            light_weights.push(power);
+        }
+    }
+    let (light_cdf, _) = cdf(&light_weights);
+    let mut light_density = vec![0f32; tris.len()];
+    let mut lights = Vec::new();
+    for (k, &i) in light_tris.iter().enumerate() {
+        let t = &tris[i];
+        let area = 0.5 * (t.p[1] - t.p[0]).cross(t.p[2] - t.p[0]).length();
+        light_density[i] = (light_cdf[k + 1] - light_cdf[k]) / area;
+        let double_sided = scene.materials[t.material as usize].double_sided;
+        push3(
+            &mut lights,
+            t.p[0],
+            f32::from_bits(i as u32),
+            t.p[1] - t.p[0],
+            if double_sided { 1.0 } else { 0.0 },
+            t.p[2] - t.p[0],
+            0.0,
+        );
+    }
+    (light_tris, light_cdf, light_density, lights)
+}
+
+/// Each triangle's primitive flags ([`PRIM_CULL`], [`PRIM_ALPHA`]); sets [`FEAT_ALPHA`] in
+/// `features` where a triangle is alpha-tested.
+fn primitive_flags(scene: &Scene, features: &mut u32) -> Vec<u32> {
+    let tris = &scene.triangles;
+    tris.iter()
+        .map(|t| {
+            let m = &scene.materials[t.material as usize];
+            let ext = scene.material_ext(t.material);
+            let mut f = 0;
+            // A transmitting surface bounds a volume: a ray inside must be able to leave,
+            // so glass is never culled (nor, as KHR_materials_volume says, a medium's
+            // boundary).
+            if !m.double_sided && ext.transmission == 0.0 && ext.absorption == Vec3::ZERO {
+                f |= PRIM_CULL;
+            }
+            if ext.alpha != AlphaMode::Opaque {
+                f |= PRIM_ALPHA;
+                *features |= FEAT_ALPHA;
+            }
+            f
+        })
+        .collect()
+}
+
+/// The shading rows: four per triangle (normals, UVs, material), then the vertex extras
+/// where the scene has any (setting [`FEAT_EXTRAS`] in `features`), and where they start.
+fn shade_rows(scene: &Scene, features: &mut u32) -> (Vec<[f32; 4]>, u32) {
+    let tris = &scene.triangles;
+    let mut shade = Vec::with_capacity(tris.len() * 4);
+    for t in tris {
+        shade.push([t.n[0].x, t.n[0].y, t.n[0].z, t.uv[0].x]);
+        shade.push([t.n[1].x, t.n[1].y, t.n[1].z, t.uv[0].y]);
+        shade.push([t.n[2].x, t.n[2].y, t.n[2].z, t.uv[1].x]);
+        shade.push([t.uv[1].y, t.uv[2].x, t.uv[2].y, f32::from_bits(t.material)]);
+    }
+    let extras_offset = shade.len() as u32;
+    if !scene.vertex_extras.is_empty() {
+        *features |= FEAT_EXTRAS;
+        shade.reserve(tris.len() * EXTRAS_STRIDE);
+        for i in 0..tris.len() {
+            let e = scene.vertex_extras(i);
+            for c in e.color {
+                shade.push(c.to_array());
+            }
+            shade.push([e.uv1[0].x, e.uv1[0].y, e.uv1[1].x, e.uv1[1].y]);
+            shade.push([e.uv1[2].x, e.uv1[2].y, 0.0, 0.0]);
+            for t in e.tangent {
+                shade.push(t.to_array());
+            }
+        }
+    }
+    (shade, extras_offset)
+}
+
+/// The materials' rows, [`MATERIAL_STRIDE`] each.
+fn material_rows(scene: &Scene) -> Vec<[f32; 4]> {
+    let mut materials = Vec::with_capacity(scene.materials.len() * MATERIAL_STRIDE);
+    for (i, m) in scene.materials.iter().enumerate() {
+        let ext = scene.material_ext(i as u32);
+        let b: Vec4 = m.base_color;
+        let base_ref = m.base_color_texture.map(|texture| TextureRef {
+            texture,
+            uv: ext.base_color_uv,
+        });
+        let ext_textures = ext.extension_textures().iter().any(Option::is_some);
+        let mut flags = 0;
+        for (on, bit) in [
+            (m.double_sided, MAT_DOUBLE_SIDED),
+            (base_ref.is_some(), MAT_BASE_TEX),
+            (ext.metallic_roughness_texture.is_some(), MAT_MR_TEX),
+            (ext.normal_texture.is_some(), MAT_NORMAL_TEX),
+            (ext.emissive_texture.is_some(), MAT_EMISSIVE_TEX),
+            (matches!(ext.alpha, AlphaMode::Mask(_)), MAT_MASK),
+            (ext.alpha == AlphaMode::Blend, MAT_BLEND),
+            (
+                ext.transmission > 0.0
+                    || ext.clearcoat > 0.0
+                    || ext.specular_color != Vec3::ONE
+                    || ext.ior != 1.5
+                    || ext.sheen_color != Vec3::ZERO
+                    || ext.anisotropy_strength > 0.0
+                    || ext.diffuse_transmission > 0.0
+                    || ext_textures,
+                MAT_EXT_BSDF,
+            ),
+            (ext_textures, MAT_EXT_TEX),
+            (ext.absorption != Vec3::ZERO, MAT_VOLUME),
+            (
+                ext.dispersion > 0.0 && ext.transmission > 0.0,
+                MAT_DISPERSION,
+            ),
+        ] {
+            if on {
+                flags |= bit;
+            }
+        }
+        let cutoff = match ext.alpha {
+            AlphaMode::Mask(c) => c,
+            _ => 0.0,
+        };
+        materials.push([b.x, b.y, b.z, b.w]);
+        materials.push([m.emission.x, m.emission.y, m.emission.z, flags as f32]);
+        let alpha = (m.roughness * m.roughness).max(MIN_ALPHA);
+        materials.push([m.metallic, alpha, m.specular, cutoff]);
+        let sc = ext.specular_color;
+        materials.push([sc.x, sc.y, sc.z, ext.transmission]);
+        let cc_alpha = (ext.clearcoat_roughness * ext.clearcoat_roughness).max(MIN_ALPHA);
+        materials.push([ext.ior, ext.clearcoat, cc_alpha, ext.normal_scale]);
+        slot(&mut materials, base_ref);
+        slot(&mut materials, ext.metallic_roughness_texture);
+        slot(&mut materials, ext.normal_texture);
+        slot(&mut materials, ext.emissive_texture);
+        for t in ext.extension_textures() {
+            slot(&mut materials, t);
+        }
+        debug_assert_eq!(materials.len() % MATERIAL_STRIDE, MATERIAL_COAT_ROW);
+        let a = ext.absorption;
+        materials.push([ext.clearcoat_normal_scale, a.x, a.y, a.z]);
+        let sh = ext.sheen_color;
+        materials.push([sh.x, sh.y, sh.z, ext.sheen_roughness]);
+        let (sin, cos) = ext.anisotropy_rotation.sin_cos();
+        materials.push([ext.anisotropy_strength, cos, sin, ext.dispersion]);
+        let dt = ext.diffuse_transmission_color;
+        materials.push([dt.x, dt.y, dt.z, ext.diffuse_transmission]);
+    }
+    materials
+}
+
+/// The textures: a header of four words each (offset, width, height, sampler), then their
+/// texels.
+fn texel_words(scene: &Scene) -> Vec<u32> {
+    let mut texels = Vec::new();
+    let header = scene.textures.len() * 4;
+    let mut offset = header as u32;
+    for t in &scene.textures {
+        texels.extend_from_slice(&[offset, t.width, t.height, sampler_word(t)]);
+        offset += t.width * t.height;
+    }
+    for t in &scene.textures {
+        texels.extend(t.texels.iter().map(|&c| u32::from_le_bytes(c)));
+    }
+    texels
+}
+
+/// The environment's texels (with their sampling weights), size, constant colour and power;
+/// a map's marginal and conditional CDFs are appended to `dist`.
+fn environment(scene: &Scene, dist: &mut Vec<f32>) -> (Vec<[f32; 4]>, [u32; 2], Vec3, f64) {
+    // The environment: a constant, or an image sampled in proportion to luminance × sin θ
+    // (the Jacobian of the equirectangular map), piecewise constant per texel.
+    match &scene.environment {
+        Environment::Constant(c) => (Vec::new(), [0, 0], *c, f64::from(luminance(*c))),
+        Environment::Map(map) => {
+            let (w, h) = (map.width as usize, map.height as usize);
+            let mut rows = Vec::with_capacity(h);
+            let mut conditional = Vec::with_capacity(h * (w + 1));
+            let mut f = vec![0f64; w * h];
+            for j in 0..h {
+                let sin_theta = (std::f64::consts::PI * (j as f64 + 0.5) / h as f64).sin();
+                for i in 0..w {
+                    f[j * w + i] = f64::from(luminance(map.texels[j * w + i]).max(0.0)) * sin_theta;
+                }
+                let (row_cdf, row_total) = cdf(&f[j * w..(j + 1) * w]);
+                conditional.extend(row_cdf);
+                rows.push(row_total);
+            }
+            let (marginal, total) = cdf(&rows);
+            dist.extend(marginal);
+            dist.extend(conditional);
+            let scale = if total > 0.0 {
+                (w * h) as f64 / total
+            } else {
+                0.0
+            };
+            let env: Vec<[f32; 4]> = map
+                .texels
+                .iter()
+                .zip(&f)
+                .map(|(c, fi)| [c.x, c.y, c.z, (fi * scale) as f32])
+                .collect();
+            (env, [map.width, map.height], Vec3::ZERO, total)
+        }
+    }
+}
+
+/// The punctual lights' rows of `lights`.
+fn push_punctual(scene: &Scene, lights: &mut Vec<[f32; 4]>) {
+    for l in &scene.lights {
+        let (kind, cos_outer, cos_inner) = match l.kind {
+            LightKind::Point => (LIGHT_POINT, -1.0, -1.0),
+            LightKind::Spot { inner, outer } => (LIGHT_SPOT, outer.cos(), inner.cos()),
+            LightKind::Directional => (LIGHT_DIRECTIONAL, -1.0, -1.0),
+        };
+        let p = if kind == LIGHT_DIRECTIONAL {
+            -l.direction
+        } else {
+            l.position
+        };
+        push3(
+            lights,
+            p,
+            kind as f32,
+            l.intensity,
+            cos_outer,
+            l.direction,
+            cos_inner,
+        );
     }
 }

@@ -10,7 +10,7 @@ use std::time::{Duration, Instant};
 use eframe::egui;
 use glam::DVec2;
 
-use super::core::{ViewerCore, save_picture};
+use super::core::{Picture, ViewerCore, WindowPicture, save_picture};
 use super::orbit::{Gesture, ViewKey, key_gesture, wall_plan};
 use super::state::{Overlay, RoiSource};
 use crate::filter::{Blend, DenoiseKind, FilterKind};
@@ -568,26 +568,7 @@ impl eframe::App for ViewerApp<'_> {
         {
             self.core.state.apply_live(l.update());
         }
-        let save = egui::Panel::left("controls")
-            .show(ui, |ui| {
-                // A scroll bar that is always drawn, not one that appears on hover only: the
-                // panel is taller than a 700-pixel window.
-                let mut scroll = egui::style::ScrollStyle::solid();
-                scroll.dormant_handle_opacity = scroll.active_handle_opacity;
-                scroll.dormant_background_opacity = scroll.active_background_opacity;
-                ui.style_mut().spacing.scroll = scroll;
-                egui::ScrollArea::vertical()
-                    .auto_shrink([false, false])
-                    .scroll_bar_visibility(egui::scroll_area::ScrollBarVisibility::AlwaysVisible)
-                    .show(ui, |ui| {
-                        self.statistics(ui);
-                        ui.separator();
-                        self.eye_panel(ui);
-                        self.controls(ui)
-                    })
-                    .inner
-            })
-            .inner;
+        let save = self.side_panel(ui);
         let stepped = self.core.step(FRAME_BUDGET);
         // Across ranks, no more of the picture than the window shows (at least a small
         // window's, at most a 4K monitor's): the owners send those pixels only.
@@ -666,7 +647,6 @@ impl eframe::App for ViewerApp<'_> {
             }
             self.picture_size = picture.size;
         }
-        let [w, h] = self.picture_size;
         let whole_view = self.core.console_every() == 1;
         let whole = if save || shot_due || (self.recording && !whole_view) {
             match self.core.whole_picture() {
@@ -682,29 +662,7 @@ impl eframe::App for ViewerApp<'_> {
         };
         // Recording makes a picture every UI frame (`wanted` above).
         if let Some(picture) = picture.as_ref().filter(|_| self.recording) {
-            let dir = self.save_dir.join("recording");
-            let path = dir.join(format!("frame-{:05}.png", self.recorded));
-            let (size, rgba) = match &whole {
-                Some(p) => (p.size, &p.rgba),
-                None => (picture.size, &picture.rgba),
-            };
-            let saved = std::fs::create_dir_all(&dir)
-                .map_err(|error| super::ViewerError::CreateDir {
-                    dir: dir.clone(),
-                    error,
-                })
-                .and_then(|()| super::core::save_rgba_png(&path, size, rgba));
-            match saved {
-                Ok(()) => {
-                    self.recorded += 1;
-                    self.message =
-                        format!("recording: {} frames in {}", self.recorded, dir.display());
-                }
-                Err(e) => {
-                    self.recording = false;
-                    self.message = format!("recording stopped: {}", crate::messages::chain(&e));
-                }
-            }
+            self.record(picture, whole.as_ref());
         }
         if let (true, Some(whole)) = (save, &whole) {
             self.saves += 1;
@@ -722,17 +680,95 @@ impl eframe::App for ViewerApp<'_> {
                 self.fail(ui.ctx(), save_failed(&e));
                 return;
             }
-            let slot = Arc::new(Mutex::new(None));
-            let (s, ctx) = (Arc::clone(&slot), ui.ctx().clone());
-            ui.ctx().request_screenshot(move |img| {
-                if let Ok(mut g) = s.lock() {
-                    *g = Some(img);
-                }
-                ctx.request_repaint();
-            });
-            self.window_shot = Some((slot, 0));
-            self.screenshot_after = None;
+            self.request_window_screenshot(ui);
         }
+        self.poll_window_screenshot(ui);
+        // The cursor at the display's frame time on the events' clock.
+        let cursor = match self.core.state.source {
+            RoiSource::Mouse => None,
+            RoiSource::Replay => self.core.state.cursor_mark(self.core.state.replay_t),
+            RoiSource::Live => self
+                .live
+                .as_ref()
+                .and_then(LiveTracking::now)
+                .and_then(|t| self.core.state.cursor_mark(t)),
+        };
+        egui::CentralPanel::default_margins().show(ui, |ui| self.picture_panel(ui, cursor));
+        ui.ctx().request_repaint();
+    }
+}
+
+impl ViewerApp<'_> {
+    /// The panel of statistics, eye and controls on the left, scrolled; whether a save was
+    /// asked for.
+    fn side_panel(&mut self, ui: &mut egui::Ui) -> bool {
+        egui::Panel::left("controls")
+            .show(ui, |ui| {
+                // A scroll bar that is always drawn, not one that appears on hover only: the
+                // panel is taller than a 700-pixel window.
+                let mut scroll = egui::style::ScrollStyle::solid();
+                scroll.dormant_handle_opacity = scroll.active_handle_opacity;
+                scroll.dormant_background_opacity = scroll.active_background_opacity;
+                ui.style_mut().spacing.scroll = scroll;
+                egui::ScrollArea::vertical()
+                    .auto_shrink([false, false])
+                    .scroll_bar_visibility(egui::scroll_area::ScrollBarVisibility::AlwaysVisible)
+                    .show(ui, |ui| {
+                        self.statistics(ui);
+                        ui.separator();
+                        self.eye_panel(ui);
+                        self.controls(ui)
+                    })
+                    .inner
+            })
+            .inner
+    }
+
+    /// The next frame of the recording: `whole` where the picture was taken whole, else the
+    /// window's `picture`.
+    fn record(&mut self, picture: &WindowPicture, whole: Option<&Picture>) {
+        let dir = self.save_dir.join("recording");
+        let path = dir.join(format!("frame-{:05}.png", self.recorded));
+        let (size, rgba) = match whole {
+            Some(p) => (p.size, &p.rgba),
+            None => (picture.size, &picture.rgba),
+        };
+        let saved = std::fs::create_dir_all(&dir)
+            .map_err(|error| super::ViewerError::CreateDir {
+                dir: dir.clone(),
+                error,
+            })
+            .and_then(|()| super::core::save_rgba_png(&path, size, rgba));
+        match saved {
+            Ok(()) => {
+                self.recorded += 1;
+                self.message = format!("recording: {} frames in {}", self.recorded, dir.display());
+            }
+            Err(e) => {
+                self.recording = false;
+                self.message = format!("recording stopped: {}", crate::messages::chain(&e));
+            }
+        }
+    }
+
+    /// Asks for a screenshot of the whole window (the picture's files are saved): it arrives
+    /// in a later UI frame ([`Self::poll_window_screenshot`]).
+    fn request_window_screenshot(&mut self, ui: &mut egui::Ui) {
+        let slot = Arc::new(Mutex::new(None));
+        let (s, ctx) = (Arc::clone(&slot), ui.ctx().clone());
+        ui.ctx().request_screenshot(move |img| {
+            if let Ok(mut g) = s.lock() {
+                *g = Some(img);
+            }
+            ctx.request_repaint();
+        });
+        self.window_shot = Some((slot, 0));
+        self.screenshot_after = None;
+    }
+
+    /// Waits for the window screenshot asked for with the picture's (up to 300 UI frames),
+    /// saves it and closes the window.
+    fn poll_window_screenshot(&mut self, ui: &mut egui::Ui) {
         if let Some((slot, waited)) = &mut self.window_shot {
             *waited += 1;
             let shot = slot.lock().ok().and_then(|mut g| g.take());
@@ -764,109 +800,102 @@ impl eframe::App for ViewerApp<'_> {
                 ui.ctx().send_viewport_cmd(egui::ViewportCommand::Close);
             }
         }
+    }
+
+    /// The picture, fitted to the panel, with the camera's gestures, the clicks that move the
+    /// region of interest and the ray gun's `cursor` drawn over it.
+    fn picture_panel(&mut self, ui: &mut egui::Ui, cursor: Option<CursorMark>) {
         let model = self.core.model;
         // The window shows the window's picture (a reduced one across ranks: clicks map by it).
+        let [w, h] = self.picture_size;
         let size = [w, h];
-        // The cursor at the display's frame time on the events' clock.
-        let cursor = match self.core.state.source {
-            RoiSource::Mouse => None,
-            RoiSource::Replay => self.core.state.cursor_mark(self.core.state.replay_t),
-            RoiSource::Live => self
-                .live
+        let tex = if self.showing_gpu {
+            self.gpu_picture
                 .as_ref()
-                .and_then(LiveTracking::now)
-                .and_then(|t| self.core.state.cursor_mark(t)),
+                .map(|g| egui::load::SizedTexture::new(g.id, [g.size[0] as f32, g.size[1] as f32]))
+        } else {
+            self.texture
+                .as_ref()
+                .map(egui::load::SizedTexture::from_handle)
         };
-        egui::CentralPanel::default_margins().show(ui, |ui| {
-            let tex = if self.showing_gpu {
-                self.gpu_picture.as_ref().map(|g| {
-                    egui::load::SizedTexture::new(g.id, [g.size[0] as f32, g.size[1] as f32])
-                })
-            } else {
-                self.texture
-                    .as_ref()
-                    .map(egui::load::SizedTexture::from_handle)
-            };
-            let Some(tex) = tex else { return };
-            let avail = ui.available_size();
-            let aspect = w as f32 / h as f32;
-            let fit = if avail.x / aspect <= avail.y {
-                egui::vec2(avail.x, avail.x / aspect)
-            } else {
-                egui::vec2(avail.y * aspect, avail.y)
-            };
-            let ppp = ui.ctx().pixels_per_point();
-            self.shown_pixels = (fit.x * ppp).max(0.0) as u64 * (fit.y * ppp).max(0.0) as u64;
-            let r = ui.add(
-                egui::Image::new(tex)
-                    .fit_to_exact_size(fit)
-                    .sense(egui::Sense::click_and_drag()),
-            );
-            // Orbit (drag), pan (shift- or middle-drag, or the right button), dolly (wheel),
-            // and the keys: the eye of a wall camera or the pinhole camera, under the restart
-            // rule (applied by the core's next sync).
-            let d = r.drag_delta();
-            if d != egui::Vec2::ZERO {
-                let px = DVec2::new(f64::from(d.x), f64::from(d.y));
-                let shift = ui.input(|i| i.modifiers.shift);
-                if r.dragged_by(egui::PointerButton::Middle)
-                    || r.dragged_by(egui::PointerButton::Secondary)
-                    || (shift && r.dragged_by(egui::PointerButton::Primary))
-                {
-                    self.core.state.gesture(Gesture::Pan(px));
-                } else if r.dragged_by(egui::PointerButton::Primary) {
-                    self.core.state.gesture(Gesture::Orbit(px));
-                }
-            }
-            if r.hovered() {
-                let wheel = ui.input(|i| i.smooth_scroll_delta.y);
-                if wheel != 0.0 {
-                    self.core.state.gesture(Gesture::Dolly(f64::from(wheel)));
-                }
-            }
-            for g in view_keys(ui) {
-                self.core.state.gesture(g);
-            }
-            let to_image = |p: egui::Pos2| {
-                DVec2::new(
-                    f64::from((p.x - r.rect.min.x) / r.rect.width() * w as f32),
-                    f64::from((p.y - r.rect.min.y) / r.rect.height() * h as f32),
-                )
-            };
-            let to_screen = |canvas: DVec2| {
-                let px = model.canvas_to_image(canvas, size);
-                egui::pos2(
-                    r.rect.min.x + px.x as f32 / w as f32 * r.rect.width(),
-                    r.rect.min.y + px.y as f32 / h as f32 * r.rect.height(),
-                )
-            };
-            if r.clicked()
-                && let Some(p) = r.interact_pointer_pos()
+        let Some(tex) = tex else { return };
+        let avail = ui.available_size();
+        let aspect = w as f32 / h as f32;
+        let fit = if avail.x / aspect <= avail.y {
+            egui::vec2(avail.x, avail.x / aspect)
+        } else {
+            egui::vec2(avail.y * aspect, avail.y)
+        };
+        let ppp = ui.ctx().pixels_per_point();
+        self.shown_pixels = (fit.x * ppp).max(0.0) as u64 * (fit.y * ppp).max(0.0) as u64;
+        let r = ui.add(
+            egui::Image::new(tex)
+                .fit_to_exact_size(fit)
+                .sense(egui::Sense::click_and_drag()),
+        );
+        // Orbit (drag), pan (shift- or middle-drag, or the right button), dolly (wheel),
+        // and the keys: the eye of a wall camera or the pinhole camera, under the restart
+        // rule (applied by the core's next sync).
+        let d = r.drag_delta();
+        if d != egui::Vec2::ZERO {
+            let px = DVec2::new(f64::from(d.x), f64::from(d.y));
+            let shift = ui.input(|i| i.modifiers.shift);
+            if r.dragged_by(egui::PointerButton::Middle)
+                || r.dragged_by(egui::PointerButton::Secondary)
+                || (shift && r.dragged_by(egui::PointerButton::Primary))
             {
-                self.core.state.click(model, to_image(p), size);
+                self.core.state.gesture(Gesture::Pan(px));
+            } else if r.dragged_by(egui::PointerButton::Primary) {
+                self.core.state.gesture(Gesture::Orbit(px));
             }
-            let painter = ui.painter_at(r.rect);
-            let cross = |c: egui::Pos2, colour: egui::Color32| {
-                let stroke = egui::Stroke::new(2.0, colour);
-                painter.line_segment(
-                    [c - egui::vec2(10.0, 0.0), c + egui::vec2(10.0, 0.0)],
-                    stroke,
-                );
-                painter.line_segment(
-                    [c - egui::vec2(0.0, 10.0), c + egui::vec2(0.0, 10.0)],
-                    stroke,
-                );
-                painter.circle_stroke(c, 6.0, stroke);
-            };
-            // The ray gun's aim (tracked sources): cyan while tracked, grey where it was last
-            // seen while untracked, off the wall or silent.
-            match cursor {
-                Some(CursorMark::Live(a)) => cross(to_screen(a), CURSOR_LIVE),
-                Some(CursorMark::Stale(a)) => cross(to_screen(a), CURSOR_STALE),
-                None => {}
+        }
+        if r.hovered() {
+            let wheel = ui.input(|i| i.smooth_scroll_delta.y);
+            if wheel != 0.0 {
+                self.core.state.gesture(Gesture::Dolly(f64::from(wheel)));
             }
-        });
-        ui.ctx().request_repaint();
+        }
+        for g in view_keys(ui) {
+            self.core.state.gesture(g);
+        }
+        let to_image = |p: egui::Pos2| {
+            DVec2::new(
+                f64::from((p.x - r.rect.min.x) / r.rect.width() * w as f32),
+                f64::from((p.y - r.rect.min.y) / r.rect.height() * h as f32),
+            )
+        };
+        let to_screen = |canvas: DVec2| {
+            let px = model.canvas_to_image(canvas, size);
+            egui::pos2(
+                r.rect.min.x + px.x as f32 / w as f32 * r.rect.width(),
+                r.rect.min.y + px.y as f32 / h as f32 * r.rect.height(),
+            )
+        };
+        if r.clicked()
+            && let Some(p) = r.interact_pointer_pos()
+        {
+            self.core.state.click(model, to_image(p), size);
+        }
+        let painter = ui.painter_at(r.rect);
+        let cross = |c: egui::Pos2, colour: egui::Color32| {
+            let stroke = egui::Stroke::new(2.0, colour);
+            painter.line_segment(
+                [c - egui::vec2(10.0, 0.0), c + egui::vec2(10.0, 0.0)],
+                stroke,
+            );
+            painter.line_segment(
+                [c - egui::vec2(0.0, 10.0), c + egui::vec2(0.0, 10.0)],
+                stroke,
+            );
+            painter.circle_stroke(c, 6.0, stroke);
+        };
+        // The ray gun's aim (tracked sources): cyan while tracked, grey where it was last
+        // seen while untracked, off the wall or silent.
+        match cursor {
+            Some(CursorMark::Live(a)) => cross(to_screen(a), CURSOR_LIVE),
+            Some(CursorMark::Stale(a)) => cross(to_screen(a), CURSOR_STALE),
+            None => {}
+        }
     }
 }
 

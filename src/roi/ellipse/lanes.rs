@@ -157,6 +157,8 @@ pub(super) struct Axes {
 /// multiply-add), branches become per-lane selects, and a lane that has stopped computes along
 /// but keeps its root, so a lane's answer never depends on its neighbours
 /// (`lanes_are_bit_identical_to_one_at_a_time`). The one-query solver is lane 0 of this one.
+// Long: the solver's steps 2–8 (module docs) as one chain of per-lane f64x4 operations and
+// selects in the one-query order (lane 0 is that solver, bit for bit), read against those steps.
 #[inline(always)]
 pub(super) fn first_quadrant_lanes(
     axes: Axes,

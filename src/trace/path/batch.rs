@@ -169,118 +169,24 @@ fn batches<const FULL: bool>(
         .zip(samples.chunks(BATCH))
         .zip(out.chunks_mut(BATCH))
     {
-        let mut n_live = 0;
-        if wall.is_none() && s.camera.ortho_half_y == 0.0 {
-            // A pinhole's rays, sixteen at a time.
-            for (group, (pixels, samples)) in
-                pixels.chunks(LANES).zip(samples.chunks(LANES)).enumerate()
-            {
-                let lane = |v: &[u32], i: usize| v[i.min(v.len() - 1)];
-                let rays = pinhole(
-                    s,
-                    std::array::from_fn(|i| lane(pixels, i)),
-                    std::array::from_fn(|i| lane(samples, i)),
-                );
-                for (i, (&pixel, &sample)) in pixels.iter().zip(samples).enumerate() {
-                    let k = LANES * group + i;
-                    paths[k] = Path {
-                        pixel,
-                        sample,
-                        o: s.camera.position,
-                        d: rays[i],
-                        ..Path::START
-                    };
-                    out[k] = Some((Vec3::ZERO, 0));
-                    live[n_live] = k as Idx;
-                    n_live += 1;
-                }
-            }
-        } else {
-            for (k, (&pixel, &sample)) in pixels.iter().zip(samples).enumerate() {
-                out[k] = None;
-                let (x, y) = (pixel % s.width, pixel / s.width);
-                let r0 = rand4(pixel, sample, s.seed, 0);
-                let ray = match wall {
-                    None => {
-                        Some(
-                            s.camera
-                                .ray(x as f32 + r0[0], y as f32 + r0[1], s.width, s.height),
-                        )
-                    }
-                    Some(wall) => wall
-                        .tile_of(x, y)
-                        .map(|tile| wall.ray(tile, x, y, r0[0], r0[1])),
-                };
-                if let Some((o, d)) = ray {
-                    paths[k] = Path {
-                        pixel,
-                        sample,
-                        o,
-                        d,
-                        ..Path::START
-                    };
-                    out[k] = Some((Vec3::ZERO, 0));
-                    live[n_live] = k as Idx;
-                    n_live += 1;
-                }
-            }
-        }
+        let mut n_live = camera_paths(s, wall, pixels, samples, paths, live, out);
         for depth in 0..s.max_depth {
             if n_live == 0 {
                 break;
             }
             // Trace (the camera's rays eight at a time: they travel together), and let the
             // paths that leave the scene take the environment.
-            if alpha_scene {
-                // Alpha-tested triangles are asked per hit whether they are there, each ray
-                // with its own coverage seed.
-                for &k in &live[..n_live] {
-                    let path = &paths[k as usize];
-                    let seed = ray_seed(path.pixel, path.sample, s.seed, depth, 0);
-                    hits[k as usize] =
-                        sc.bvh
-                            .closest_hit_filtered(path.o, path.d, f32::INFINITY, |tri, u, v| {
-                                alpha_covered(sc, tri, u, v, seed)
-                            });
-                }
-            } else if packets {
-                // Sixteen neighbouring paths' rays at a time: they leave from nearby points
-                // (hybrid packets, in AVX-512 or AVX2 lanes); past the camera,
-                // those of one direction octant together (they cross the boxes' planes in one
-                // order).
-                let order = if depth == 0 {
-                    &live[..n_live]
-                } else {
-                    by_octant(&live[..n_live], |k| paths[k as usize].d, sorted)
-                };
-                for group in order.chunks(16) {
-                    let lane = |i: usize| &paths[group[i.min(group.len() - 1)] as usize];
-                    let origins = std::array::from_fn(|i| lane(i).o);
-                    let dirs = std::array::from_fn(|i| lane(i).d);
-                    let active = (1u32 << group.len()) - 1;
-                    let found = sc.bvh.closest_hits16(&origins, &dirs, active as u16);
-                    for (&k, hit) in group.iter().zip(found) {
-                        hits[k as usize] = hit;
-                    }
-                }
-            } else if depth == 0 {
-                for group in live[..n_live].chunks(8) {
-                    let lane = |i: usize| &paths[group[i.min(group.len() - 1)] as usize];
-                    let origins = std::array::from_fn(|i| lane(i).o);
-                    let dirs = std::array::from_fn(|i| lane(i).d);
-                    let found = sc
-                        .bvh
-                        .closest_hits8(&origins, &dirs, (1 << group.len()) - 1);
-                    for (&k, hit) in group.iter().zip(found) {
-                        hits[k as usize] = hit;
-                    }
-                }
-            } else {
-                for &k in &live[..n_live] {
-                    let path = &paths[k as usize];
-                    hits[k as usize] = sc.bvh.closest_hit(path.o, path.d, f32::INFINITY);
-                }
-            }
+            trace_live(
+                sc,
+                s,
+                depth,
+                alpha_scene,
+                packets,
+                paths,
+                &live[..n_live],
+                hits,
+                sorted,
+            );
             let mut n_shade = 0;
             for &k in &live[..n_live] {
                 let path = &mut paths[k as usize];
@@ -329,6 +235,141 @@ fn batches<const FULL: bool>(
                 };
                 *out = (radiance, p.rays);
             }
+        }
+    }
+}
+
+/// Starts a path for each of `pixels`' `samples` that has a camera ray (`out[k]` is `None` for
+/// the others): its index into `paths` goes to `live`; how many did.
+fn camera_paths(
+    s: &TraceSettings,
+    wall: Option<&WallCamera>,
+    pixels: &[u32],
+    samples: &[u32],
+    paths: &mut [Path; BATCH],
+    live: &mut [Idx; BATCH],
+    out: &mut [Option<(Vec3, u32)>],
+) -> usize {
+    let mut n_live = 0;
+    if wall.is_none() && s.camera.ortho_half_y == 0.0 {
+        // A pinhole's rays, sixteen at a time.
+        for (group, (pixels, samples)) in
+            pixels.chunks(LANES).zip(samples.chunks(LANES)).enumerate()
+        {
+            let lane = |v: &[u32], i: usize| v[i.min(v.len() - 1)];
+            let rays = pinhole(
+                s,
+                std::array::from_fn(|i| lane(pixels, i)),
+                std::array::from_fn(|i| lane(samples, i)),
+            );
+            for (i, (&pixel, &sample)) in pixels.iter().zip(samples).enumerate() {
+                let k = LANES * group + i;
+                paths[k] = Path {
+                    pixel,
+                    sample,
+                    o: s.camera.position,
+                    d: rays[i],
+                    ..Path::START
+                };
+                out[k] = Some((Vec3::ZERO, 0));
+                live[n_live] = k as Idx;
+                n_live += 1;
+            }
+        }
+    } else {
+        for (k, (&pixel, &sample)) in pixels.iter().zip(samples).enumerate() {
+            out[k] = None;
+            let (x, y) = (pixel % s.width, pixel / s.width);
+            let r0 = rand4(pixel, sample, s.seed, 0);
+            let ray = match wall {
+                None => Some(
+                    s.camera
+                        .ray(x as f32 + r0[0], y as f32 + r0[1], s.width, s.height),
+                ),
+                Some(wall) => wall
+                    .tile_of(x, y)
+                    .map(|tile| wall.ray(tile, x, y, r0[0], r0[1])),
+            };
+            if let Some((o, d)) = ray {
+                paths[k] = Path {
+                    pixel,
+                    sample,
+                    o,
+                    d,
+                    ..Path::START
+                };
+                out[k] = Some((Vec3::ZERO, 0));
+                live[n_live] = k as Idx;
+                n_live += 1;
+            }
+        }
+    }
+    n_live
+}
+
+/// The closest hit of each `live` path's ray into `hits`: with the alpha test per hit where the
+/// scene has alpha-tested triangles, else sixteen at a time where `packets` (the walks take
+/// packets), else the camera's rays eight at a time and later rays one at a time.
+#[allow(clippy::too_many_arguments)]
+fn trace_live(
+    sc: &PackedScene,
+    s: &TraceSettings,
+    depth: u32,
+    alpha_scene: bool,
+    packets: bool,
+    paths: &[Path; BATCH],
+    live: &[Idx],
+    hits: &mut [Option<TraceHit>; BATCH],
+    sorted: &mut [Idx; BATCH],
+) {
+    if alpha_scene {
+        // Alpha-tested triangles are asked per hit whether they are there, each ray
+        // with its own coverage seed.
+        for &k in live {
+            let path = &paths[k as usize];
+            let seed = ray_seed(path.pixel, path.sample, s.seed, depth, 0);
+            hits[k as usize] =
+                sc.bvh
+                    .closest_hit_filtered(path.o, path.d, f32::INFINITY, |tri, u, v| {
+                        alpha_covered(sc, tri, u, v, seed)
+                    });
+        }
+    } else if packets {
+        // Sixteen neighbouring paths' rays at a time: they leave from nearby points
+        // (hybrid packets, in AVX-512 or AVX2 lanes); past the camera,
+        // those of one direction octant together (they cross the boxes' planes in one
+        // order).
+        let order = if depth == 0 {
+            live
+        } else {
+            by_octant(live, |k| paths[k as usize].d, sorted)
+        };
+        for group in order.chunks(16) {
+            let lane = |i: usize| &paths[group[i.min(group.len() - 1)] as usize];
+            let origins = std::array::from_fn(|i| lane(i).o);
+            let dirs = std::array::from_fn(|i| lane(i).d);
+            let active = (1u32 << group.len()) - 1;
+            let found = sc.bvh.closest_hits16(&origins, &dirs, active as u16);
+            for (&k, hit) in group.iter().zip(found) {
+                hits[k as usize] = hit;
+            }
+        }
+    } else if depth == 0 {
+        for group in live.chunks(8) {
+            let lane = |i: usize| &paths[group[i.min(group.len() - 1)] as usize];
+            let origins = std::array::from_fn(|i| lane(i).o);
+            let dirs = std::array::from_fn(|i| lane(i).d);
+            let found = sc
+                .bvh
+                .closest_hits8(&origins, &dirs, (1 << group.len()) - 1);
+            for (&k, hit) in group.iter().zip(found) {
+                hits[k as usize] = hit;
+            }
+        }
+    } else {
+        for &k in live {
+            let path = &paths[k as usize];
+            hits[k as usize] = sc.bvh.closest_hit(path.o, path.d, f32::INFINITY);
         }
     }
 }
@@ -533,6 +574,8 @@ struct Shaded<'a> {
 /// lights, cut-out emitters, alpha-tested shadow rays — is `trace_path`'s own code, run for
 /// the lanes that need it. Lanes past the group's end repeat its last path: they compute along
 /// and are never written back. The survivors are appended to `shaded.live`.
+// Long: the CPU renderer's hot loop, trace_path's loop body in SIMD lanes step for step in its
+// order (the two must give the same bits), kept whole to be read against trace_path.
 #[inline(never)]
 fn shade_lanes<const FULL: bool>(
     sc: &PackedScene,
@@ -953,93 +996,4 @@ fn shade_lanes<const FULL: bool>(
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::scene::Scene;
-    use crate::trace::bvh::CpuPackets;
-
-    /// The octant order is a permutation of its items, grouped by their direction's octant
-    /// (x's sign the lowest bit, z's the highest), each octant's in their order (a stable
-    /// sort's); a zero component, of either sign, counts as not negative.
-    #[test]
-    fn by_octant_groups_in_order() {
-        let dirs: Vec<Vec3> = (0..3000u32)
-            .map(|k| {
-                let c = |shift: u32| match k.wrapping_mul(2_654_435_761) >> shift & 3 {
-                    0 => -1.0,
-                    1 => 0.5,
-                    2 => 0.0,
-                    _ => -0.0,
-                };
-                Vec3::new(c(3), c(9), c(17))
-            })
-            .collect();
-        let items: Vec<Idx> = (0..3000).map(|k| (2999 - k) as Idx).collect();
-        let mut out = [0 as Idx; BATCH];
-        let order = by_octant(&items, |k| dirs[k as usize], &mut out);
-        let octant = |k: Idx| {
-            let d = dirs[k as usize];
-            (d.x < 0.0) as u8 | ((d.y < 0.0) as u8) << 1 | ((d.z < 0.0) as u8) << 2
-        };
-        let mut want = items.clone();
-        want.sort_by_key(|&k| octant(k));
-        assert_eq!(order, &want[..]);
-        assert!((0..8).all(|o| items.iter().any(|&k| octant(k) == o)));
-    }
-
-    /// Every path of a batch is `trace_counted_with`'s to the bit — radiance and rays — on the
-    /// builtin plain scenes (area light, environment, textures), through the pinhole and the
-    /// wall camera, over several depths (the last vertex's MIS, Russian roulette) and sample
-    /// indices; and the batches see light, so the comparison means something.
-    #[test]
-    fn batches_equal_the_scalar_paths() {
-        for (name, max_depth) in [
-            ("cornell-light", 8),
-            ("cornell", 3),
-            ("city-small", 5),
-            ("cornell-light", 1),
-        ] {
-            let scene = Scene::builtin(name).unwrap();
-            let sc = PackedScene::new(&scene);
-            assert!(sc.plain, "builtin:{name}");
-            // The first case over a batch's paths, so that a second batch starts from fresh
-            // paths in the same arrays.
-            let (width, height) = if (name, max_depth) == ("cornell-light", 8) {
-                (80, 52)
-            } else {
-                (40, 24)
-            };
-            let camera = RenderCamera::choose(&scene, None, width, height).unwrap();
-            let s = TraceSettings {
-                width,
-                height,
-                seed: 11,
-                max_depth,
-                camera,
-            };
-            // Pixels in an order that is not the image's, some twice with other samples.
-            let n = width * height;
-            let pixels: Vec<u32> = (0..n + 100).map(|i| (i * 7919) % n).collect();
-            assert!(width != 80 || pixels.len() > BATCH, "two batches");
-            let samples: Vec<u32> = (0..n + 100).map(|i| i % 5).collect();
-            // Every walk this processor runs: one ray at a time, packets in AVX2, in AVX-512.
-            let walks = [CpuPackets::One, CpuPackets::Avx2, CpuPackets::Avx512];
-            for walks in walks.into_iter().filter(|&w| w <= CpuPackets::widest()) {
-                let mut out = vec![None; pixels.len()];
-                walks.during(|| trace_batch(&sc, &s, None, &pixels, &samples, &mut out));
-                let mut lit = 0;
-                for (i, (&p, &k)) in pixels.iter().zip(&samples).enumerate() {
-                    let want = trace_counted_with(&sc, &s, None, p, k).unwrap();
-                    let got = out[i].unwrap();
-                    assert_eq!(
-                        (got.0.to_array().map(f32::to_bits), got.1),
-                        (want.0.to_array().map(f32::to_bits), want.1),
-                        "builtin:{name}, {walks:?}: pixel {p} sample {k}: {got:?} against {want:?}"
-                    );
-                    lit += usize::from(got.0 != Vec3::ZERO);
-                }
-                assert!(lit > pixels.len() / 4, "builtin:{name}: {lit} lit samples");
-            }
-        }
-    }
-}
+mod tests;
