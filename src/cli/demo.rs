@@ -156,23 +156,10 @@ pub fn run_headless(args: &DemoArgs) -> anyhow::Result<DemoOutput> {
         crate::cli::say(args.quiet, note);
     }
     let filter = FilterParams::default();
-    crate::cli::render::check_memory(
-        crate::memory::Work::Render {
-            gpu: backend.is_gpu(),
-            filter: filter.kind,
-        },
-        args.denoise,
-        args.size,
-        &backend,
-    )?;
+    let (oidn_device, denoise_note) = check_and_open(args, &backend, &filter)?;
     let denoise_args = crate::cli::filter::DenoiseArgs {
         denoise: args.denoise,
     };
-    let oidn_device = denoise_args.device(&backend)?;
-    let denoise_note = denoise_args.describe(oidn_device.as_ref(), &backend);
-    if let Some(note) = &denoise_note {
-        crate::cli::say(args.quiet, note);
-    }
     let denoiser = denoise_args.denoiser(
         oidn_device.as_ref(),
         &filter,
@@ -183,17 +170,8 @@ pub fn run_headless(args: &DemoArgs) -> anyhow::Result<DemoOutput> {
     if args.tiles {
         crate::cli::render::warn_if_resampled(args.size, &model, "HORNET");
     }
-    let scene =
-        crate::cli::scene::load_scene(SCENE, Some(ENV), crate::cli::scene::SceneAccess::default())?;
+    let (scene, settings) = scene_and_settings(args.size)?;
     let [w, h] = args.size;
-    let camera = RenderCamera::choose(&scene, None, w, h).context("demo scene camera")?;
-    let settings = TraceSettings {
-        width: w,
-        height: h,
-        seed: 1,
-        max_depth: DEFAULT_MAX_DEPTH,
-        camera,
-    };
     let (plan, _) = ReplayPlan::new(&ReplayOptions {
         display: Some(display_path.display().to_string()),
         ..ReplayOptions::of(replay_path.clone())
@@ -304,6 +282,49 @@ pub fn run_headless(args: &DemoArgs) -> anyhow::Result<DemoOutput> {
         files: files.into_iter().map(|f| f.path).collect(),
         report,
     })
+}
+
+/// The demo's scene and what it is traced with at `size`.
+fn scene_and_settings(size: [u32; 2]) -> anyhow::Result<(crate::scene::Scene, TraceSettings)> {
+    let scene =
+        crate::cli::scene::load_scene(SCENE, Some(ENV), crate::cli::scene::SceneAccess::default())?;
+    let [w, h] = size;
+    let camera = RenderCamera::choose(&scene, None, w, h).context("demo scene camera")?;
+    let settings = TraceSettings {
+        width: w,
+        height: h,
+        seed: 1,
+        max_depth: DEFAULT_MAX_DEPTH,
+        camera,
+    };
+    Ok((scene, settings))
+}
+
+/// Checks the render's memory (with its denoiser's) and opens OIDN for `--denoise oidn`;
+/// returns the device and what the demo says about its denoiser.
+fn check_and_open(
+    args: &DemoArgs,
+    backend: &Backend,
+    filter: &FilterParams,
+) -> anyhow::Result<(Option<crate::filter::oidn::Device>, Option<String>)> {
+    crate::cli::render::check_memory(
+        crate::memory::Work::Render {
+            gpu: backend.is_gpu(),
+            filter: filter.kind,
+        },
+        args.denoise,
+        args.size,
+        backend,
+    )?;
+    let denoise_args = crate::cli::filter::DenoiseArgs {
+        denoise: args.denoise,
+    };
+    let device = denoise_args.device(backend)?;
+    let note = denoise_args.describe(device.as_ref(), backend);
+    if let Some(note) = &note {
+        crate::cli::say(args.quiet, note);
+    }
+    Ok((device, note))
 }
 
 /// The demo's scene camera, or `--camera wall`.
