@@ -99,37 +99,38 @@ fn init(@builtin(global_invocation_id) gid: vec3<u32>) {
     dst[i] = vec4<f32>(o.mean, o.count);
 }
 
-// w_a · w_n · w_z of the pair (p, q).
-fn feature_weight(p: u32, q: u32) -> f32 {
+// The albedo, normal and depth terms of the pair (p, q) (twin: `feature_terms`): x = w_n and
+// y = the exponent e, or x < 0 where the tap is cut.
+fn feature_terms(p: u32, q: u32) -> vec2<f32> {
     let d = abs(albedo[p].xyz - albedo[q].xyz);
     let da = max(d.x, max(d.y, d.z));
     if da > ALBEDO_CUT {
-        return 0.0;
+        return vec2<f32>(-1.0, 0.0);
     }
-    var w = exp(-da / SIGMA_A);
     let fp = normal_depth[p];
     let fq = normal_depth[q];
     let hit_p = fp.w > 0.0;
     if hit_p != (fq.w > 0.0) {
-        return 0.0;
+        return vec2<f32>(-1.0, 0.0);
     }
-    if hit_p {
-        let c = fp.x * fq.x + fp.y * fq.y + fp.z * fq.z;
-        if c < NORMAL_CUT {
-            return 0.0;
-        }
-        // c^64 by six squarings.
-        var wn = c;
-        for (var k = 0; k < 6; k++) {
-            wn = wn * wn;
-        }
-        let rel = abs(fp.w - fq.w) / max(fp.w, fq.w);
-        if rel > DEPTH_CUT {
-            return 0.0;
-        }
-        w = w * wn * exp(-rel / SIGMA_Z);
+    let ea = da / SIGMA_A;
+    if !hit_p {
+        return vec2<f32>(1.0, ea);
     }
-    return w;
+    let c = fp.x * fq.x + fp.y * fq.y + fp.z * fq.z;
+    if c < NORMAL_CUT {
+        return vec2<f32>(-1.0, 0.0);
+    }
+    let rel = abs(fp.w - fq.w) / max(fp.w, fq.w);
+    if rel > DEPTH_CUT {
+        return vec2<f32>(-1.0, 0.0);
+    }
+    // c^64 by six squarings.
+    var wn = c;
+    for (var k = 0; k < 6; k++) {
+        wn = wn * wn;
+    }
+    return vec2<f32>(wn, ea + rel / SIGMA_Z);
 }
 
 @compute @workgroup_size(16, 16)
@@ -162,11 +163,16 @@ fn atrous(@builtin(global_invocation_id) gid: vec3<u32>) {
                 let t = src[q];
                 var w = TAPS[ty] * TAPS[tx];
                 if q != i {
-                    w = w * feature_weight(i, q);
+                    let f = feature_terms(i, q);
+                    if f.x < 0.0 {
+                        continue;
+                    }
+                    var e = f.y;
                     if me.kind == NOISY {
                         let sd = sqrt(me.v + own(q).v);
-                        w = w * exp(-abs(lp - luminance(t.xyz)) / (SIGMA_L * sd));
+                        e = e + abs(lp - luminance(t.xyz)) / (SIGMA_L * sd);
                     }
+                    w = w * f.x * exp(-e);
                 }
                 let wc = w * t.w;
                 num = num + wc * t.xyz;

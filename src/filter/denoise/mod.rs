@@ -49,18 +49,20 @@
 //! those outside the image, with
 //!
 //! * h = h_u · h_v, h = (1, 4, 6, 4, 1)/16 (the cubic B-spline);
-//! * w = h for q = p; otherwise w = h · f(p, q) · w_l, where
-//! * f(p, q) = 0 if Δa = max_channel |a_p − a_q| > 0.1 (hard: albedo edges do not bleed);
-//!   0 if exactly one of p, q is a miss; else, both misses: exp(−Δa/0.05); both hits: with
-//!   d = N_p.x·N_q.x + N_p.y·N_q.y + N_p.z·N_q.z and r = |z_p − z_q| / max(z_p, z_q), 0 if
-//!   d < 0.9 (≈ 25.8°) or r > 0.1, else exp(−Δa/0.05) · d^64 · exp(−r/0.05), d^64 by six
-//!   squarings, the product in that order;
-//! * w_l = exp(−|L(x_p) − L(x_q)| / (4·√(v_p + v_q))) for a noisy p — the difference measured
-//!   in standard deviations of the difference of the two means; 1 otherwise (a sparse or
-//!   unsampled pixel has no variance to scale it with and relies on the features). Scaling by
-//!   σ_p alone (SVGF) biases the picture dark under heavy-tailed noise: a dark pixel's variance
-//!   estimate is small too, so it rejects bright neighbours (9 % on a flat plane at 4 samples a
-//!   pixel, against 0.1 % with the pair's variance).
+//! * w = h for q = p; otherwise the tap is **cut** (skipped: it adds nothing) if
+//!   Δa = max_channel |a_p − a_q| > 0.1 (hard: albedo edges do not bleed), or exactly one of
+//!   p, q is a miss, or both hit and d < 0.9 (≈ 25.8°) or r > 0.1, with
+//!   d = N_p.x·N_q.x + N_p.y·N_q.y + N_p.z·N_q.z and r = |z_p − z_q| / max(z_p, z_q);
+//!   else w = (h · w_n) · exp(−e) with one exponential for all the terms
+//!   ([`feature_terms`]):
+//!   * w_n = d^64 (six squarings) for two hits, 1 for two misses;
+//!   * e = Δa/0.05 + r/0.05 for two hits, Δa/0.05 for two misses, in that order;
+//!   * for a noisy p, then e += |L(x_p) − L(x_q)| / (4·√(v_p + v_q)) — the difference measured
+//!     in standard deviations of the difference of the two means; nothing otherwise (a sparse
+//!     or unsampled pixel has no variance to scale it with and relies on the features).
+//!     Scaling by σ_p alone (SVGF) biases the picture dark under heavy-tailed noise: a dark
+//!     pixel's variance estimate is small too, so it rejects bright neighbours (9 % on a flat
+//!     plane at 4 samples a pixel, against 0.1 % with the pair's variance).
 //!
 //! Accumulating over the taps in order: num += (w·c_q)·x_q, den += w·c_q, W += w. If den > 0:
 //! x'_p = num/den (per channel) and c'_p = den/W — the weighted mean of the sources' weights, so
@@ -383,9 +385,11 @@ pub fn own(tau: f32, sum: [f32; 4], n: u32) -> ([f32; 4], Class) {
     (x, Class::Noisy(v))
 }
 
-/// f(p, q): the albedo, normal and depth weights of a pair (module docs).
+/// The albedo, normal and depth terms of a pair (module docs): `None` where the tap is cut,
+/// else `(w_n, e)` — the normal weight and the exponent the albedo and depth weights add up to.
+#[inline]
 #[must_use]
-pub fn feature_weight(ap: [f32; 4], aq: [f32; 4], fp: [f32; 4], fq: [f32; 4]) -> f32 {
+pub fn feature_terms(ap: [f32; 4], aq: [f32; 4], fp: [f32; 4], fq: [f32; 4]) -> Option<(f32, f32)> {
     let d = [
         (ap[0] - aq[0]).abs(),
         (ap[1] - aq[1]).abs(),
@@ -393,29 +397,36 @@ pub fn feature_weight(ap: [f32; 4], aq: [f32; 4], fp: [f32; 4], fq: [f32; 4]) ->
     ];
     let da = d[0].max(d[1].max(d[2]));
     if da > ALBEDO_CUT {
-        return 0.0;
+        return None;
     }
-    let mut w = (-da / SIGMA_A).exp();
     let hit_p = fp[3] > 0.0;
     if hit_p != (fq[3] > 0.0) {
-        return 0.0;
+        return None;
     }
-    if hit_p {
-        let c = fp[0] * fq[0] + fp[1] * fq[1] + fp[2] * fq[2];
-        if c < NORMAL_CUT {
-            return 0.0;
-        }
-        let mut wn = c;
-        for _ in 0..6 {
-            wn = wn * wn;
-        }
-        let rel = (fp[3] - fq[3]).abs() / fp[3].max(fq[3]);
-        if rel > DEPTH_CUT {
-            return 0.0;
-        }
-        w = w * wn * (-rel / SIGMA_Z).exp();
+    let ea = da / SIGMA_A;
+    if !hit_p {
+        return Some((1.0, ea));
     }
-    w
+    let c = fp[0] * fq[0] + fp[1] * fq[1] + fp[2] * fq[2];
+    if c < NORMAL_CUT {
+        return None;
+    }
+    let rel = (fp[3] - fq[3]).abs() / fp[3].max(fq[3]);
+    if rel > DEPTH_CUT {
+        return None;
+    }
+    let mut wn = c;
+    for _ in 0..6 {
+        wn = wn * wn;
+    }
+    Some((wn, ea + rel / SIGMA_Z))
+}
+
+/// f(p, q) = w_n · exp(−e) of [`feature_terms`], 0 where the tap is cut: how much the features
+/// let q count for p.
+#[must_use]
+pub fn feature_weight(ap: [f32; 4], aq: [f32; 4], fp: [f32; 4], fq: [f32; 4]) -> f32 {
+    feature_terms(ap, aq, fp, fq).map_or(0.0, |(wn, e)| wn * (-e).exp())
 }
 
 /// The pixels the output at a pixel depends on along each axis: 2·(2^P − 1).
@@ -476,16 +487,19 @@ fn atrous_pixel(
             let t = src[q];
             let mut wt = hy * hx;
             if q != i {
-                wt *= feature_weight(
+                let Some((wn, mut e)) = feature_terms(
                     input.albedo[i],
                     input.albedo[q],
                     input.normal_depth[i],
                     input.normal_depth[q],
-                );
+                ) else {
+                    continue;
+                };
                 if let Class::Noisy(v) = class[i] {
                     let sd = (v + class[q].variance()).sqrt();
-                    wt *= (-(lp - luminance([t[0], t[1], t[2]])).abs() / (SIGMA_L * sd)).exp();
+                    e += (lp - luminance([t[0], t[1], t[2]])).abs() / (SIGMA_L * sd);
                 }
+                wt = wt * wn * (-e).exp();
             }
             let wc = wt * t[3];
             num[0] += wc * t[0];
