@@ -33,9 +33,9 @@
 //!
 //! **Timings**: ms per picture of `interactive` (CPU twin; the kernels on a GPU backend) and
 //! `oidn` on the synthetic scene ([`crate::filter::denoise::synth_scene`], one round at p = ½)
-//! at the bench size and each `--timing-sizes` size; the median of the runs after one warm-up
-//! (OIDN's warm-up at the first size; it builds its filter for every picture, as `render` calls
-//! it).
+//! at the bench size and each `--timing-sizes` size; the median of the runs, after one warm-up
+//! run at the first size (threads, pipelines and OIDN's weights are warm for the others). OIDN
+//! builds its filter for every picture, as `render` calls it.
 
 use std::path::Path;
 use std::time::Instant;
@@ -699,11 +699,7 @@ pub fn run(
     for (i, &[tw, th]) in sizes.iter().enumerate() {
         let step = format!("timing {tw}×{th}");
         progress(&step, 0);
-        let ctx = match backend {
-            Backend::Gpu(ctx) => Some(&**ctx),
-            Backend::Cpu => None,
-        };
-        let t = denoise::gpu::bench(ctx, tw, th, cfg.timing_runs)?;
+        let t = time_interactive(backend, m.kernels.as_ref(), tw, th, cfg.timing_runs, i == 0)?;
         let oidn_ms = match &m.oidn {
             Some(device) => Some(time_oidn(device, tw, th, cfg.timing_runs, i == 0)?),
             None => None,
@@ -744,6 +740,56 @@ pub fn run(
         timings,
         targets,
         crops,
+    })
+}
+
+/// What [`time_interactive`] measured.
+struct InteractiveTiming {
+    cpu_ms: f64,
+    gpu_ms: Option<f64>,
+    gpu_timestamps: bool,
+}
+
+/// The denoiser's ms per picture on the synthetic scene at `width × height`: the CPU twin's
+/// wall clock and, on a GPU backend, the kernels' time ([`interactive_gpu`]); medians of `runs`
+/// after a warm-up run of each when `warm_up` (the first size: later ones find the threads and
+/// pipelines warm).
+fn time_interactive(
+    backend: &Backend,
+    kernels: Option<&DenoiseKernels>,
+    width: u32,
+    height: u32,
+    runs: u32,
+    warm_up: bool,
+) -> Result<InteractiveTiming, DenoiseBenchError> {
+    let s = denoise::synth_scene(width, height, 1, 0.5, 1);
+    let input = DenoiseInput::new(&s.acc, &s.features)?;
+    let params = DenoiseParams::default();
+    let skip = u32::from(warm_up);
+    let mut cpu = Vec::new();
+    for r in 0..runs + skip {
+        let t = Instant::now();
+        std::hint::black_box(denoise::denoise_cpu(&params, &input)?);
+        if r >= skip {
+            cpu.push(t.elapsed().as_secs_f64() * 1e3);
+        }
+    }
+    let (mut gpu_ms, mut gpu_timestamps) = (None, false);
+    if let (Backend::Gpu(ctx), Some(k)) = (backend, kernels) {
+        let mut gpu = Vec::new();
+        for r in 0..runs + skip {
+            let (_, ms) = interactive_gpu(ctx, k, &params, &input)?;
+            if r >= skip {
+                gpu.push(ms);
+            }
+        }
+        gpu_ms = Some(median(gpu));
+        gpu_timestamps = ctx.timestamps && denoise::gpu::fits_one_binding(ctx, [width, height]);
+    }
+    Ok(InteractiveTiming {
+        cpu_ms: median(cpu),
+        gpu_ms,
+        gpu_timestamps,
     })
 }
 
