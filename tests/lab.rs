@@ -1472,6 +1472,7 @@ fn help_speaks_to_users() {
         &["bench", "guided"],
         &["bench", "trace"],
         &["bench", "filter"],
+        &["bench", "denoise"],
         &["bench", "schedule"],
         &["bench", "all"],
         &["display", "expand"],

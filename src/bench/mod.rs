@@ -3,6 +3,7 @@
 
 pub mod all;
 pub mod cluster;
+pub mod denoise;
 pub mod dgi;
 pub mod filter;
 pub mod font;

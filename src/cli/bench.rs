@@ -21,6 +21,11 @@ pub enum BenchCommand {
     Dgi(DgiBenchArgs),
     /// Filter time (exact and fast) and error against a reference inside and outside the ROI.
     Filter(crate::cli::filter::FilterBenchArgs),
+    /// The denoisers measured against a high-spp reference of a guided render: off, the
+    /// paper's filter, raygun's interactive denoiser and Intel Open Image Denoise, by relative
+    /// MSE and FLIP inside and outside the ROI at equal iterations and equal time, and their
+    /// time per picture up to 4K.
+    Denoise(crate::cli::denoise_bench::DenoiseBenchArgs),
     /// Scheduling (mask, compaction, indirect arguments) per FOV, GPU and CPU twin.
     Schedule(ScheduleBenchArgs),
     /// Full-frame path tracing: ms per frame, ms per megasample and rays per second.
@@ -821,6 +826,21 @@ fn check_before(cmd: &BenchCommand) -> anyhow::Result<()> {
         BenchCommand::Adapter(a) => a.out.as_deref(),
         BenchCommand::Dgi(a) => a.out.as_deref(),
         BenchCommand::Filter(a) => a.out.as_deref(),
+        BenchCommand::Denoise(a) => {
+            if let Some(p) = &a.crops
+                && crate::output::check_image_path(p).context("--crops")?
+                    != crate::output::Format::Png
+            {
+                anyhow::bail!("--crops {}: the crops are a PNG", p.display());
+            }
+            if let Some(p) = &a.crops {
+                crate::output::check_writable(p).context("--crops")?;
+            }
+            if let Some(p) = &a.json {
+                crate::output::check_writable(p).context("--json")?;
+            }
+            a.out.as_deref()
+        }
         BenchCommand::Schedule(a) => a.out.as_deref(),
         BenchCommand::Trace(a) => a.out.as_deref(),
         BenchCommand::Guided(a) => a.out.as_deref(),
@@ -859,6 +879,7 @@ pub fn run(cmd: &BenchCommand) -> anyhow::Result<()> {
     match cmd {
         BenchCommand::Adapter(args) => run_adapter(args),
         BenchCommand::Filter(args) => crate::cli::filter::run_bench(args),
+        BenchCommand::Denoise(args) => crate::cli::denoise_bench::run(args),
         BenchCommand::Schedule(args) => run_schedule(args),
         BenchCommand::Trace(args) => run_trace_bench(args),
         BenchCommand::Guided(args) => run_guided_bench(args),

@@ -6,6 +6,7 @@ pub mod bench;
 pub mod calibrate;
 pub mod cluster;
 pub mod demo;
+pub mod denoise_bench;
 pub mod dgi;
 pub mod display;
 pub mod ellipse_distance;

@@ -1,7 +1,8 @@
-//! The benchmarks' commands: `bench all`, `bench schedule`, `bench filter`, and the GPU
+//! The benchmarks' commands: `bench all`, `bench schedule`, `bench filter`, `bench denoise`, and the GPU
 //! benchmark script.
 
 mod bench_all;
+mod denoise_cli;
 mod filter_cli;
 mod gpu_bench_script;
 mod schedule_bench;
