@@ -191,19 +191,7 @@ fn run_denoiser(
                 Backend::Cpu => denoise::denoise_cpu_banded(&params, &input, CPU_DENOISE_ROWS)?,
             };
             dropped = out.dropped;
-            out.image
-                .iter()
-                .zip(&acc.sum)
-                .zip(&acc.count)
-                .zip(filled)
-                .map(|(((o, s), &n), f)| {
-                    let v = Vec3::new(o[0], o[1], o[2]);
-                    let usable = n > 0 && s.iter().all(|c| c.is_finite());
-                    // No usable mean and out of every similar source's reach: the filter's
-                    // fill.
-                    if !usable && v == Vec3::ZERO { *f } else { v }
-                })
-                .collect()
+            filled_where_unreached(&out.image, acc, filled)
         }
         Denoiser::Oidn(device, quality) => {
             oidn::denoise_picture(device, acc, filled, Some(features), quality)?
@@ -213,4 +201,21 @@ fn run_denoiser(
         wc.blank_unshown(&mut image);
     }
     Ok((image, dropped))
+}
+
+/// raygun's denoiser's output as the picture shows it: where a pixel has no usable mean of its
+/// own (unsampled, or a non-finite sum) and no similar source reached it (its output is 0), the
+/// filter's value `filled`; elsewhere the denoiser's.
+#[must_use]
+pub fn filled_where_unreached(out: &[[f32; 4]], acc: &Accumulation, filled: &[Vec3]) -> Vec<Vec3> {
+    out.iter()
+        .zip(&acc.sum)
+        .zip(&acc.count)
+        .zip(filled)
+        .map(|(((o, s), &n), f)| {
+            let v = Vec3::new(o[0], o[1], o[2]);
+            let usable = n > 0 && s.iter().all(|c| c.is_finite());
+            if !usable && v == Vec3::ZERO { *f } else { v }
+        })
+        .collect()
 }

@@ -56,7 +56,7 @@ use crate::trace::pack::PackedScene;
 use crate::trace::path::TraceSettings;
 use crate::trace::wall::{WallCamera, WallCameraError};
 
-pub use denoise::denoise_picture;
+pub use denoise::{denoise_picture, filled_where_unreached};
 pub use dgi::{dgi_cpu, dgi_cpu_bands, prepare_dgi};
 pub use render::Render;
 

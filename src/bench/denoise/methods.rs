@@ -19,7 +19,7 @@ pub(super) fn oidn_features(f: &Features) -> (Vec<f32>, Vec<f32>) {
     (three(&f.albedo), three(&f.normal_depth))
 }
 
-/// The denoiser's kernels on one picture: the picture and the kernels' time (timestamps where
+/// The denoiser's kernels on one picture: its output (RGBA) and the kernels' time (timestamps where
 /// the adapter has them, else the wall clock around submit-and-wait; a picture larger than one
 /// binding is denoised in bands, timed by the wall clock around them all).
 pub(super) fn interactive_gpu(
@@ -27,12 +27,11 @@ pub(super) fn interactive_gpu(
     kernels: &DenoiseKernels,
     params: &DenoiseParams,
     input: &DenoiseInput<'_>,
-) -> Result<(Vec<Vec3>, f64), DenoiseBenchError> {
-    let to_rgb = |image: &[[f32; 4]]| image.iter().map(|p| Vec3::new(p[0], p[1], p[2])).collect();
+) -> Result<(Vec<[f32; 4]>, f64), DenoiseBenchError> {
     if !denoise::gpu::fits_one_binding(ctx, [input.width, input.height]) {
         let t = Instant::now();
         let d = kernels.denoise_banded(ctx, params, input)?;
-        return Ok((to_rgb(&d.image), t.elapsed().as_secs_f64() * 1e3));
+        return Ok((d.image, t.elapsed().as_secs_f64() * 1e3));
     }
     let uploaded = UploadedDenoiseInputs::new(ctx, input)?;
     let run = kernels.prepare(ctx, params, &uploaded.inputs(), [0, input.height])?;
@@ -51,7 +50,7 @@ pub(super) fn interactive_gpu(
         None => wall,
     };
     let out = run.read(ctx)?;
-    Ok((to_rgb(&out.image), ms))
+    Ok((out.image, ms))
 }
 
 /// One listed iteration count of one FOV: the count, the render's time to it, each method's
@@ -84,7 +83,11 @@ impl<'a> Methods<'a> {
         oidn: Option<oidn::Device>,
     ) -> (Self, f64) {
         let t = Instant::now();
-        let f = crate::trace::features::features_cpu(&g.packed, &g.settings);
+        let f = crate::trace::features::features_cpu(
+            &g.packed,
+            &g.settings,
+            crate::frame::Render::wall(g),
+        );
         let features_ms = t.elapsed().as_secs_f64() * 1e3;
         let features = Features {
             width: g.settings.width,
@@ -122,20 +125,17 @@ impl<'a> Methods<'a> {
         let t = Instant::now();
         let cpu = denoise::denoise_cpu(&params, &input)?;
         let cpu_ms = t.elapsed().as_secs_f64() * 1e3;
-        let (interactive, interactive_ms, twin) = match (self.backend, &self.kernels) {
+        let (raw, interactive_ms, twin) = match (self.backend, &self.kernels) {
             (Backend::Gpu(ctx), Some(k)) => {
                 let (image, ms) = interactive_gpu(ctx, k, &params, &input)?;
                 (image, ms, Some(cpu_ms))
             }
-            _ => (
-                cpu.image
-                    .iter()
-                    .map(|p| Vec3::new(p[0], p[1], p[2]))
-                    .collect(),
-                cpu_ms,
-                None,
-            ),
+            _ => (cpu.image, cpu_ms, None),
         };
+        // As the picture shows it: the filter's value where no similar source reached a pixel
+        // without a sample (the filter's time is not counted: it is the picture without a
+        // denoiser).
+        let interactive = crate::frame::filled_where_unreached(&raw, acc, &filtered);
         let (oidn_image, oidn_ms) = match &self.oidn {
             Some(device) => {
                 let (colour, _) = oidn::colour_input(acc, &filtered);

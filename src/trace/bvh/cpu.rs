@@ -7,8 +7,8 @@
 //! preset: spatial pre-splits, PLOC, reinsertion) of one triangle a leaf, collapsed into
 //! eight-wide nodes and leaves of up to eight triangles by the collapse of least surface-area
 //! cost ([`Collapse`](build::Collapse); it replaced taking apart the largest child until eight
-//! over obvhs' own leaves: the small city's ms per sample ×0.935–0.95, BENCHMARKS.md, *CPU
-//! traversal*), each node's boxes as f32 in lanes (building it: `build.rs`). A leaf's
+//! over obvhs' own leaves: the small city's ms per sample ×0.935–0.95,
+//! BENCHMARKS.md, *CPU traversal*), each node's boxes as f32 in lanes (building it: `build.rs`). A leaf's
 //! triangles are contiguous in the tree's own arrays (`prims`, and [`PrimLanes`] for the 8-wide test), so a leaf of up to
 //! eight is one test. Measured against walking the GPU's tree with the same code: 15–20 %
 //! fewer nanoseconds a ray in the cities (BENCHMARKS.md, *CPU traversal*).
