@@ -1530,6 +1530,7 @@ fn the_demo_report_lists_and_explains_every_file_in_words() {
         "image.exr",
         "dgi.png",
         "counts.exr",
+        "denoisers.png",
         "report.md",
     ] {
         let line = report

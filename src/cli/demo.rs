@@ -188,6 +188,7 @@ pub fn run_headless(args: &DemoArgs) -> anyhow::Result<DemoOutput> {
         .map(|w| w.camera(args.size, &settings.camera))
         .transpose()
         .context("--camera wall")?;
+    let crop_wall = wall.clone();
     let result = render_guided(
         &backend,
         &scene,
@@ -198,6 +199,7 @@ pub fn run_headless(args: &DemoArgs) -> anyhow::Result<DemoOutput> {
             config,
             filter,
             denoise: denoiser,
+            keep_sums: true,
         },
         &source,
         &Stopping {
@@ -217,20 +219,7 @@ pub fn run_headless(args: &DemoArgs) -> anyhow::Result<DemoOutput> {
             "the FlyStick session that guides the render (synthetic), built in likewise",
         ),
     ];
-    for name in ["image.png", "image.exr"] {
-        let p = args.out.join(name);
-        crate::output::write_rgb(&p, w, h, &result.image, 0.0)?;
-        set.add(&p);
-        files.push(FileNote::new(
-            p,
-            match (name.ends_with("png"), denoiser.is_some()) {
-                (true, false) => "the filtered image, sRGB 8-bit",
-                (false, false) => "the filtered image, linear RGB, 32-bit float",
-                (true, true) => "the filtered and denoised image, sRGB 8-bit",
-                (false, true) => "the filtered and denoised image, linear RGB, 32-bit float",
-            },
-        ));
-    }
+    write_images(args, &result, denoiser.is_some(), &mut set, &mut files)?;
     let (dgi, counts) = (args.out.join("dgi.png"), args.out.join("counts.exr"));
     set.add(&dgi);
     set.add(&counts);
@@ -243,6 +232,21 @@ pub fn run_headless(args: &DemoArgs) -> anyhow::Result<DemoOutput> {
         counts,
         "samples per pixel over the whole session (one float channel `samples`)",
     ));
+    if u64::from(w) * u64::from(h) <= CROPS_MAX_PIXELS {
+        let crops = args.out.join("denoisers.png");
+        set.add(&crops);
+        let view = CropView {
+            scene: &scene,
+            settings,
+            wall: crop_wall.as_ref(),
+            filter: &filter,
+        };
+        write_denoiser_crops(&crops, &backend, &view, &result, oidn_device.as_ref())?;
+        files.push(FileNote::new(
+            crops,
+            "the denoisers side by side at the ROI's edge (top) and in the periphery (bottom): the raw mean (unsampled pixels black), the paper's filter, raygun's interactive denoiser and Intel Open Image Denoise (grey where it is not installed)",
+        ));
+    }
     if args.tiles {
         let dir = args.out.join("tiles");
         set.folder(&dir)?;
@@ -282,6 +286,115 @@ pub fn run_headless(args: &DemoArgs) -> anyhow::Result<DemoOutput> {
         files: files.into_iter().map(|f| f.path).collect(),
         report,
     })
+}
+
+/// Writes `image.png` and `image.exr` into `--out`, each counted in `set` and listed in `files`.
+fn write_images(
+    args: &DemoArgs,
+    result: &GuidedResult,
+    denoised: bool,
+    set: &mut OutputSet,
+    files: &mut Vec<FileNote>,
+) -> anyhow::Result<()> {
+    let [w, h] = result.size;
+    for name in ["image.png", "image.exr"] {
+        let p = args.out.join(name);
+        crate::output::write_rgb(&p, w, h, &result.image, 0.0)?;
+        set.add(&p);
+        files.push(FileNote::new(
+            p,
+            match (name.ends_with("png"), denoised) {
+                (true, false) => "the filtered image, sRGB 8-bit",
+                (false, false) => "the filtered image, linear RGB, 32-bit float",
+                (true, true) => "the filtered and denoised image, sRGB 8-bit",
+                (false, true) => "the filtered and denoised image, linear RGB, 32-bit float",
+            },
+        ));
+    }
+    Ok(())
+}
+
+/// The largest picture the demo makes its denoisers' crops for (1920×1080): they denoise the
+/// whole accumulation three more ways, about 230 bytes a pixel more than the render holds.
+pub const CROPS_MAX_PIXELS: u64 = 1920 * 1080;
+
+/// What the demo's picture shows: the scene, its settings, the wall camera and the filter.
+struct CropView<'a> {
+    scene: &'a crate::scene::Scene,
+    settings: TraceSettings,
+    wall: Option<&'a crate::trace::wall::WallCamera>,
+    filter: &'a FilterParams,
+}
+
+/// `path`: the demo's accumulation as each denoiser shows it, crops side by side
+/// (`bench denoise`'s crops, without a reference): the raw mean, the paper's filter, raygun's
+/// interactive denoiser and OIDN (on its CPU device unless `oidn` was opened for the render;
+/// grey where the library is not installed).
+fn write_denoiser_crops(
+    path: &Path,
+    backend: &Backend,
+    view: &CropView<'_>,
+    result: &GuidedResult,
+    oidn: Option<&crate::filter::oidn::Device>,
+) -> anyhow::Result<()> {
+    use crate::filter::{Denoiser, denoise::DenoiseParams, oidn};
+    let [w, h] = result.size;
+    let acc = crate::trace::accum::Accumulation {
+        width: w,
+        height: h,
+        sum: result.sums.clone(),
+        count: result.counts.clone(),
+    };
+    let f = crate::trace::features::features_cpu(
+        &crate::trace::pack::PackedScene::new(view.scene),
+        &view.settings,
+        view.wall,
+    );
+    let features = crate::filter::denoise::Features {
+        width: w,
+        height: h,
+        albedo: f.albedo,
+        normal_depth: f.normal_depth,
+    };
+    let mut raw = acc.mean_image();
+    let mut filtered = crate::filter::Filter::new(backend).image(view.filter, &acc, &result.dgi)?;
+    if let Some(wc) = view.wall {
+        wc.blank_unshown(&mut raw);
+        wc.blank_unshown(&mut filtered);
+    }
+    let denoise = |d: Denoiser<'_>| -> anyhow::Result<Vec<glam::Vec3>> {
+        let (image, _) =
+            crate::frame::denoise_picture(backend, d, &acc, &features, &filtered, view.wall)?;
+        Ok(image)
+    };
+    let interactive = denoise(Denoiser::Interactive(DenoiseParams {
+        variance_threshold: view.filter.variance_threshold,
+        ..DenoiseParams::default()
+    }))?;
+    // The render's device, else OIDN's CPU device where the library is installed.
+    let opened = match oidn {
+        Some(_) => None,
+        None => oidn::Oidn::load()
+            .and_then(|o| o.device(oidn::DeviceChoice::Cpu))
+            .ok(),
+    };
+    let oidn_image = match oidn.or(opened.as_ref()) {
+        Some(device) => Some(denoise(Denoiser::Oidn(device, oidn::Quality::High))?),
+        None => None,
+    };
+    let oidn_label = if oidn_image.is_some() {
+        "OIDN"
+    } else {
+        "OIDN (not installed)"
+    };
+    let columns = vec![
+        ("raw mean".to_owned(), Some(raw)),
+        ("paper's filter".to_owned(), Some(filtered.clone())),
+        ("interactive".to_owned(), Some(interactive)),
+        (oidn_label.to_owned(), oidn_image),
+    ];
+    crate::bench::denoise::write_crop_columns(path, result.size, &columns, &result.dgi)?;
+    Ok(())
 }
 
 /// The demo's scene and what it is traced with at `size`.

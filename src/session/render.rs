@@ -104,6 +104,9 @@ pub struct GuidedResult {
     pub dgi: Vec<f32>,
     /// Samples per pixel.
     pub counts: Vec<u32>,
+    /// The accumulation's sums (RGB and Σ luminance²) where [`GuidedRender::keep_sums`] asked
+    /// for them (with `counts`, the whole accumulation), else empty.
+    pub sums: Vec<[f32; 4]>,
     /// Wall-clock seconds of the iterations (read-back and filter excluded).
     pub seconds: f64,
     pub stop: StopReason,
@@ -233,6 +236,8 @@ pub struct GuidedRender<'a> {
     /// What denoises the filtered picture (`--denoise`; DESIGN.md §8), steered by the view's
     /// features.
     pub denoise: Option<Denoiser<'a>>,
+    /// Whether the result keeps the accumulation's sums (the demo's side-by-side crops).
+    pub keep_sums: bool,
 }
 
 /// One process's guided render of `scene` on `backend`: the render loop ([`run_guided`]), then
@@ -275,6 +280,7 @@ pub fn render_guided(
         image,
         dgi,
         counts: acc.count,
+        sums: if job.keep_sums { acc.sum } else { Vec::new() },
         seconds: run.seconds,
         stop: run.stop,
         progress: run.progress,

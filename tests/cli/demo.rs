@@ -20,9 +20,14 @@ fn headless_demo_writes_images_and_a_report() {
         "dgi.png",
         "counts.exr",
         "report.md",
+        "denoisers.png",
     ] {
         assert!(out.join(f).is_file(), "{f} missing");
     }
+    // The denoisers' crops: four columns (raw, filter, interactive, OIDN) of two crops each.
+    let crops = image::open(out.join("denoisers.png")).unwrap();
+    let want = raygun::bench::denoise::crops_png_size([62, 25], 4);
+    assert_eq!([crops.width(), crops.height()], want);
     let img = image::open(out.join("image.png")).unwrap().to_rgb8();
     assert_eq!(img.dimensions(), (62, 25));
     assert!(img.pixels().any(|p| p.0 != [0, 0, 0]), "blank image");

@@ -81,6 +81,7 @@ fn render(replay: &str) -> (GuidedResult, GuideSource) {
             },
             filter: FilterParams::default(),
             denoise: None,
+            keep_sums: false,
         },
         &source,
         &Stopping {

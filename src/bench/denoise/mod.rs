@@ -60,7 +60,7 @@ use crate::trace::camera::CameraError;
 use crate::trace::path::TraceSettings;
 
 use crops::write_crops;
-pub use crops::{crop_geometry, crops_png_size};
+pub use crops::{CropColumn, CropsGeometry, crop_geometry, crops_png_size, write_crop_columns};
 use methods::{Measured, Methods, Pictures, time_interactive, time_oidn};
 pub use report::markdown;
 use report::targets;

@@ -243,6 +243,7 @@ fn work(c: &mut Cluster, args: &RenderArgs, mut p: Prepared) -> anyhow::Result<(
                 image,
                 dgi: dgi.clone(),
                 counts: acc.count.clone(),
+                sums: Vec::new(),
                 seconds: run.seconds,
                 stop: run.stop,
                 progress: run.progress,

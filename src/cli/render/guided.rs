@@ -248,6 +248,7 @@ pub fn run(
             config: plan.config,
             filter: plan.filter,
             denoise,
+            keep_sums: false,
         },
         &plan.source,
         &plan.stopping,
