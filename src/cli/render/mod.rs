@@ -62,8 +62,9 @@ pub struct RenderArgs {
     pub head: crate::cli::head::HeadArgs,
     #[command(flatten)]
     pub look: crate::cli::args::LookArgs,
-    /// Image size, or `native`: the display canvas's own pixel size (13519×5457 for HORNET),
-    /// at which --tiles writes every tile at its own resolution without resampling.
+    /// Image size in pixels, W,H, or `native`: the display canvas's own pixel size.
+    /// At `native` (13519×5457 for HORNET) --tiles writes every tile at its own resolution
+    /// without resampling.
     #[arg(allow_hyphen_values = true, long, value_name = "W,H|native", value_parser = crate::cli::args::parse_size_or_native, default_value = "1280,720")]
     pub size: [u32; 2],
     /// Samples per pixel of a full-frame render (default 64; guided renders take
