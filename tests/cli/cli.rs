@@ -606,11 +606,16 @@ fn size_reads_the_same_everywhere() {
         let o = raygun(&[command, &["--help"]].concat());
         assert!(o.status.success(), "{command:?}");
         let help = String::from_utf8_lossy(&o.stdout);
-        let size = help
-            .split("\n\n")
-            .find(|p| p.trim_start().starts_with("--size"))
-            .unwrap_or_else(|| panic!("{command:?} has no --size: {help}"))
-            .split_whitespace()
+        // The flag's line and the lines of its text, up to the next flag.
+        let mut lines = help
+            .lines()
+            .skip_while(|l| !l.trim_start().starts_with("--size"));
+        let first = lines
+            .next()
+            .unwrap_or_else(|| panic!("{command:?} has no --size: {help}"));
+        let size = std::iter::once(first)
+            .chain(lines.take_while(|l| !l.trim_start().starts_with('-')))
+            .flat_map(str::split_whitespace)
             .collect::<Vec<_>>()
             .join(" ");
         assert!(
