@@ -211,3 +211,42 @@ impl ViewerSetupBuilder {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn model() -> DisplayModel {
+        DisplayModel::open(crate::display::DEFAULT_MODEL).unwrap().0
+    }
+
+    #[test]
+    fn without_files_or_sources_the_setup_is_the_mouse_viewers() {
+        let b = ViewerSetup::builder(model(), [64, 26])
+            .interaction(None, None, None)
+            .unwrap()
+            .replay(None)
+            .unwrap();
+        assert_eq!(b.first_eye(), None);
+        let b = b.live(None).unwrap();
+        assert!(b.timeline.is_none() && b.live.is_none() && b.calibration.is_none());
+        assert_eq!(b.interaction.device, InteractionConfig::default().device);
+    }
+
+    #[test]
+    fn a_missing_calibration_or_replay_names_its_file() {
+        let Err(e) = ViewerSetup::builder(model(), [64, 26]).interaction(
+            None,
+            None,
+            Some(Path::new("no/such/calibration.json")),
+        ) else {
+            panic!("a missing calibration was taken");
+        };
+        assert!(e.to_string().contains("no/such/calibration.json"), "{e}");
+        let replay = ReplayOptions::of("no/such/replay.jsonl".into());
+        let Err(e) = ViewerSetup::builder(model(), [64, 26]).replay(Some(&replay)) else {
+            panic!("a missing replay was taken");
+        };
+        assert!(e.to_string().contains("no/such/replay.jsonl"), "{e}");
+    }
+}

@@ -549,4 +549,44 @@ mod tests {
         super::check_args(&args(&["--cluster", "--denoise", "off"])).unwrap();
         super::check_args(&args(&["--cluster", "--denoise", "interactive"])).unwrap();
     }
+
+    #[test]
+    fn the_configuration_checks_the_numbers_first_and_knows_its_work() {
+        // A bad number is named before a missing guide file is looked for.
+        let e = super::RenderConfig::new(&args(&["--spp", "0"]))
+            .err()
+            .unwrap();
+        assert_eq!(e.to_string(), "--spp must be at least 1");
+        let e = super::RenderConfig::new(&args(&[
+            "--max-depth",
+            "0",
+            "--guide",
+            "no/such/replay.jsonl",
+        ]))
+        .err()
+        .unwrap();
+        assert_eq!(e.to_string(), "--max-depth must be at least 1");
+        let full = super::RenderConfig::new(&args(&[])).unwrap();
+        assert!(full.plan.is_none() && full.wall.is_none() && full.tiles_model.is_none());
+        assert!(matches!(
+            full.work(false),
+            crate::memory::Work::FullFrame { gpu: false }
+        ));
+        let guided = super::RenderConfig::new(&args(&[
+            "--size",
+            "64,26",
+            "--guide",
+            "mouse:32,13:8,4",
+            "--iterations",
+            "2",
+        ]))
+        .unwrap();
+        assert!(guided.plan.is_some());
+        assert!(matches!(
+            guided.work(true),
+            crate::memory::Work::Render { gpu: true, .. }
+        ));
+        let native = super::RenderConfig::new(&args(&["--size", "native"])).unwrap();
+        assert_ne!(native.args.size, crate::cli::args::NATIVE_SIZE);
+    }
 }
