@@ -61,7 +61,7 @@ pub struct PictureArgs {
     /// Display model (the paper's setup: HORNET).
     #[arg(long, value_name = "MODEL", default_value = crate::display::DEFAULT_MODEL)]
     pub display: String,
-    /// Image size.
+    /// Image size in pixels, W,H.
     #[arg(allow_hyphen_values = true, long, value_name = "W,H", default_value = "3840,2160", value_parser = crate::cli::args::parse_size)]
     pub size: [u32; 2],
     /// The ROI's field of view, degrees (a square cone).
@@ -122,7 +122,7 @@ fn run_picture(args: &PictureArgs) -> anyhow::Result<()> {
 
 #[derive(Clone, Debug, clap::Args)]
 pub struct ReadbackArgs {
-    /// Image size whose accumulation is read back.
+    /// Image size in pixels, W,H. Its accumulation is read back.
     #[arg(allow_hyphen_values = true, long, value_name = "W,H", default_value = "3840,2160", value_parser = crate::cli::args::parse_size)]
     pub size: [u32; 2],
     /// Rounds (each reads back both ways).
@@ -210,7 +210,7 @@ pub struct AllBenchArgs {
     /// Output directory (created).
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
-    /// Image size, overriding the mode's (quick 160×90, full 3840×2160).
+    /// Image size in pixels, W,H. Default: the mode's (quick 160×90, full 3840×2160).
     #[arg(allow_hyphen_values = true, long, value_name = "W,H", value_parser = crate::cli::args::parse_size)]
     pub size: Option<[u32; 2]>,
     /// Scene (file or builtin:NAME).
@@ -276,7 +276,7 @@ pub struct GuidedBenchArgs {
     /// Display model (the paper's setup: HORNET).
     #[arg(long, value_name = "MODEL", default_value = crate::display::DEFAULT_MODEL)]
     pub display: String,
-    /// Image size, or `native`: the display canvas's own pixel size.
+    /// Image size in pixels, W,H, or `native`: the display canvas's own pixel size.
     #[arg(allow_hyphen_values = true, long, value_name = "W,H|native", value_parser = crate::cli::args::parse_size_or_native, default_value = "3840,2160")]
     pub size: [u32; 2],
     /// Fields of view, degrees.
@@ -651,7 +651,7 @@ pub struct TraceBenchArgs {
     pub scene: Vec<String>,
     #[command(flatten)]
     pub access: crate::cli::scene::SceneAccess,
-    /// Image size.
+    /// Image size in pixels, W,H.
     #[arg(allow_hyphen_values = true, long, value_name = "W,H", value_parser = crate::cli::args::parse_size, default_value = "3840,2160")]
     pub size: [u32; 2],
     /// Timed frames of one sample per pixel (median reported).
@@ -792,7 +792,7 @@ pub struct DgiBenchArgs {
     /// Display model (the paper's setup: HORNET).
     #[arg(long, value_name = "MODEL", default_value = crate::display::DEFAULT_MODEL)]
     pub display: String,
-    /// Image size.
+    /// Image size in pixels, W,H.
     #[arg(allow_hyphen_values = true, long, value_name = "W,H", value_parser = crate::cli::args::parse_size, default_value = "3840,2160")]
     pub size: [u32; 2],
     /// Fields of view to measure, degrees (square cones).
@@ -918,7 +918,7 @@ pub struct ScheduleBenchArgs {
     /// Display model (the paper's setup: HORNET).
     #[arg(long, value_name = "MODEL", default_value = crate::display::DEFAULT_MODEL)]
     pub display: String,
-    /// Image size.
+    /// Image size in pixels, W,H.
     #[arg(allow_hyphen_values = true, long, value_name = "W,H", value_parser = crate::cli::args::parse_size, default_value = "3840,2160")]
     pub size: [u32; 2],
     /// Fields of view, degrees (square cones).

@@ -42,8 +42,8 @@ pub struct DgiArgs {
     /// Distance measure.
     #[arg(long, value_enum, default_value_t = Metric::Exact)]
     pub metric: Metric,
-    /// Image size (the image covers the display's canvas), or `native`: the canvas's own
-    /// pixel size.
+    /// Image size in pixels, W,H, or `native`: the display canvas's own pixel size.
+    /// The image covers the canvas.
     #[arg(allow_hyphen_values = true, long, value_name = "W,H|native", value_parser = crate::cli::args::parse_size_or_native, default_value = "3840,2160")]
     pub size: [u32; 2],
     /// Falloff L = BASE + SCALE × ROI radius: the base, metres along the wall.

@@ -18,7 +18,7 @@ pub struct PickArgs {
     /// Ray direction in the room frame (any length but zero).
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
     pub dir: DVec3,
-    /// Rendered image size, for `image_px`.
+    /// Image size in pixels, W,H. `image_px` is a pixel of this image.
     #[arg(allow_hyphen_values = true, long, value_name = "W,H", value_parser = parse_size, default_value = "3840,2160")]
     pub size: [u32; 2],
 }

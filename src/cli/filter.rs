@@ -128,7 +128,7 @@ pub struct FilterBenchArgs {
     /// Display model (the paper's setup: HORNET).
     #[arg(long, value_name = "MODEL", default_value = crate::display::DEFAULT_MODEL)]
     pub display: String,
-    /// Image size.
+    /// Image size in pixels, W,H.
     #[arg(allow_hyphen_values = true, long, value_name = "W,H", value_parser = crate::cli::args::parse_size, default_value = "3840,2160")]
     pub size: [u32; 2],
     /// Fields of view, degrees (square cones).

@@ -8,13 +8,13 @@ use anyhow::Context;
 use crate::cluster::{ClusterRenderer, ClusterSetup};
 use crate::display::DisplayModel;
 use crate::gpu::Backend;
-use crate::interaction::{CursorSmoother, InteractionConfig};
+use crate::interaction::CursorSmoother;
 use crate::session::live::LiveTracking;
 use crate::session::replay::ReplayOptions;
 use crate::session::timeline::Timeline;
+use crate::session::viewer_setup::{LiveInput, ViewerSetup};
 use crate::trace::camera::RenderCamera;
 use crate::trace::path::{DEFAULT_MAX_DEPTH, TraceSettings};
-use crate::tracking::calibration::Calibration;
 use crate::tracking::event::DeviceId;
 use crate::tracking::ingest::Protocol;
 use crate::tracking::vrpn::VrpnAddress;
@@ -48,8 +48,8 @@ pub struct ViewArgs {
     /// desktop-27in-4k, projection-4m-4k).
     #[arg(long, value_name = "MODEL", default_value = crate::display::DEFAULT_MODEL)]
     pub display: String,
-    /// Image size (the renderer's; the window scales it to fit), or `native`: the display
-    /// canvas's own pixel size.
+    /// Image size in pixels, W,H, or `native`: the display canvas's own pixel size.
+    /// The renderer's: the window scales it to fit.
     #[arg(allow_hyphen_values = true, long, value_name = "W,H|native", value_parser = crate::cli::args::parse_size_or_native, default_value = "992,400")]
     pub size: [u32; 2],
     /// Environment light: linear radiance R,G,B or an equirectangular .hdr/.exr image.
@@ -318,7 +318,9 @@ fn run_cluster(args: &ViewArgs) -> anyhow::Result<()> {
 }
 
 /// Everything `view` loads, checks and starts before the renderer exists; `root`: this process
-/// shows the window (it alone listens for tracking).
+/// shows the window (it alone listens for tracking). The display, the mapping, the replay, the
+/// wall camera and the live source are built by the session's [`ViewerSetup`] builder in the
+/// order their errors come; the backend, the memory check and the scene between them.
 fn setup(args: &ViewArgs, root: bool) -> anyhow::Result<Setup> {
     check_numbers(args)?;
     if root || (args.show_tiles && args.screenshot_after.is_some()) {
@@ -328,25 +330,11 @@ fn setup(args: &ViewArgs, root: bool) -> anyhow::Result<Setup> {
     let filter = args.filter.params()?;
     let head = args.head.head()?;
     let (model, _) = DisplayModel::open(&args.display)?;
-    let mut interaction = match &args.config {
-        Some(p) => InteractionConfig::load(p)?,
-        None => InteractionConfig::default(),
-    };
-    if let Some(d) = args.device {
-        interaction.device = d;
-    }
-    let calibration = match args
-        .calibration
-        .as_ref()
-        .or(interaction.calibration.as_ref())
-    {
-        Some(p) => Some(Calibration::load(p)?),
-        None => None,
-    };
-    if let Some(c) = &calibration {
-        interaction.use_calibrated_axes(c);
-        interaction.validate()?;
-    }
+    let builder = ViewerSetup::builder(model, args.size).interaction(
+        args.config.as_deref(),
+        args.device,
+        args.calibration.as_deref(),
+    )?;
     let backend = args.backend.select()?;
     // Across ranks the picture is the filter's (the denoisers need one process's features).
     let denoise = if args.cluster.cluster {
@@ -376,6 +364,28 @@ fn setup(args: &ViewArgs, root: bool) -> anyhow::Result<Setup> {
     if root {
         eprintln!("raygun view: rendering on {}", backend.describe());
     }
+    let replay = args.replay.as_ref().map(|file| ReplayOptions {
+        display: Some(args.display.clone()),
+        config: args.config.clone(),
+        device: args.device,
+        calibration: args.calibration.clone(),
+        head: args.head.overrides(),
+        ..ReplayOptions::of(file.clone())
+    });
+    let builder = builder.replay(replay.as_ref())?;
+    // The wall camera: --eye, else the tracked head's first eye in the replay.
+    let spec = crate::cli::wall::wall_spec_or_eye(
+        args.camera.as_deref(),
+        &args.wall,
+        Some(builder.model()),
+        builder.first_eye(),
+    )?;
+    let builder = builder
+        .wall(spec.as_ref(), &camera)
+        .context("--camera wall")?;
+    // Only the window's process listens: the other ranks follow its steps.
+    let input = if root { live_input(args) } else { None };
+    let builder = builder.live(input.clone())?;
     let base = TraceSettings {
         width: w,
         height: h,
@@ -383,36 +393,26 @@ fn setup(args: &ViewArgs, root: bool) -> anyhow::Result<Setup> {
         max_depth: args.max_depth,
         camera,
     };
-    let timeline = match &args.replay {
-        Some(file) => Some(Timeline::collect(&ReplayOptions {
-            display: Some(args.display.clone()),
-            config: args.config.clone(),
-            device: args.device,
-            calibration: args.calibration.clone(),
-            head: args.head.overrides(),
-            ..ReplayOptions::of(file.clone())
-        })?),
-        None => None,
-    };
-    // The wall camera: --eye, else the tracked head's first eye in the replay.
-    let first_eye = timeline.as_ref().and_then(|t| t.eyes.first().map(|e| e.1));
-    let wall = crate::cli::wall::wall_spec_or_eye(
-        args.camera.as_deref(),
-        &args.wall,
-        Some(&model),
-        first_eye,
-    )?
-    .map(|spec| spec.camera(args.size, &camera))
-    .transpose()
-    .context("--camera wall")?;
-    let live = live_tracking(args, root, &interaction, &model, calibration.as_ref())?;
-    if let (Some(l), Some(h)) = (&live, head) {
+    let v = builder.build(scene, base);
+    match (&input, &v.live) {
+        (Some(LiveInput::Vrpn { address, .. }), Some(_)) => {
+            eprintln!("raygun view: following VRPN {address}");
+        }
+        (Some(LiveInput::Udp { protocol, .. }), Some(l)) => {
+            eprintln!(
+                "raygun view: listening on 127.0.0.1:{} for {protocol}",
+                l.port
+            );
+        }
+        _ => {}
+    }
+    if let (Some(l), Some(h)) = (&v.live, head) {
         l.follow_head(h);
         eprintln!("raygun view: the wall camera's eye follows {}", h.device);
     }
-    let source = if timeline.is_some() {
+    let source = if v.timeline.is_some() {
         RoiSource::Replay
-    } else if live.is_some() {
+    } else if v.live.is_some() {
         RoiSource::Live
     } else {
         RoiSource::Mouse
@@ -423,24 +423,24 @@ fn setup(args: &ViewArgs, root: bool) -> anyhow::Result<Setup> {
     state.mouse_radius_px = args.roi_radius;
     state.p_min = args.p_min;
     state.target_se = args.target_se;
-    state.cursor = CursorSmoother::new(interaction.cursor.clone());
+    state.cursor = CursorSmoother::new(v.interaction.cursor.clone());
     state.eye_threshold_m = args
         .head
         .eye_threshold
         .or(head.map(|h| h.eye_threshold_m))
         .unwrap_or_else(|| args.head.threshold_m());
     if let Some(c) = args.roi_at {
-        state.click(&model, c, args.size);
+        state.click(&v.model, c, args.size);
     }
     Ok(Setup {
         backend,
-        scene,
-        model,
-        base,
-        wall,
+        scene: v.scene,
+        model: v.model,
+        base: v.base,
+        wall: v.wall,
         state,
-        timeline,
-        live,
+        timeline: v.timeline,
+        live: v.live,
         oidn,
     })
 }
@@ -464,50 +464,23 @@ fn check_numbers(args: &ViewArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The live tracking source of `--vrpn`, `--dtrack` or `--osc`, started (on the `root` process
-/// only).
-fn live_tracking(
-    args: &ViewArgs,
-    root: bool,
-    interaction: &InteractionConfig,
-    model: &DisplayModel,
-    calibration: Option<&Calibration>,
-) -> anyhow::Result<Option<LiveTracking>> {
-    let protocol = match (args.dtrack, args.osc) {
-        (Some(p), _) => Some((p, Protocol::Dtrack)),
-        (_, Some(p)) => Some((p, Protocol::Osc)),
-        _ => None,
-    };
-    // Only the window's process listens: the other ranks follow its steps.
-    Ok(match (protocol, &args.vrpn) {
-        _ if !root => None,
-        (_, Some(address)) => {
-            let l = LiveTracking::start_vrpn(
-                address.clone(),
-                args.allow_network,
-                interaction.clone(),
-                model.clone(),
-                calibration,
-            )?;
-            eprintln!("raygun view: following VRPN {address}");
-            Some(l)
-        }
-        (Some((port, protocol)), None) => {
-            let l = LiveTracking::start_calibrated(
-                port,
-                protocol,
-                interaction.clone(),
-                model.clone(),
-                calibration,
-            )?;
-            eprintln!(
-                "raygun view: listening on 127.0.0.1:{} for {protocol}",
-                l.port
-            );
-            Some(l)
-        }
-        (None, None) => None,
-    })
+/// The live tracking source `--vrpn`, `--dtrack` or `--osc` names.
+fn live_input(args: &ViewArgs) -> Option<LiveInput> {
+    match (&args.vrpn, args.dtrack, args.osc) {
+        (Some(address), _, _) => Some(LiveInput::Vrpn {
+            address: address.clone(),
+            allow_network: args.allow_network,
+        }),
+        (None, Some(port), _) => Some(LiveInput::Udp {
+            port,
+            protocol: Protocol::Dtrack,
+        }),
+        (None, None, Some(port)) => Some(LiveInput::Udp {
+            port,
+            protocol: Protocol::Osc,
+        }),
+        (None, None, None) => None,
+    }
 }
 
 /// What `raygun view` says where no window can be opened.

@@ -20,7 +20,8 @@
 //! recorder), [`vrpn`] (the VRPN client), [`live`] (live tracking for the viewer), [`replay`]
 //! (replay plans and their ROI changes), [`timeline`] (a replay collected for the viewer),
 //! [`guide`] (a guided render's ROI over its iterations), [`render`] (the shared render loop),
-//! [`calibrate`] (calibration presses).
+//! [`calibrate`] (calibration presses), [`viewer_setup`] (the viewer's display, mapping,
+//! timeline, wall camera and live source, built step by step).
 
 pub mod calibrate;
 pub mod cluster;
@@ -31,4 +32,5 @@ pub mod render;
 pub mod replay;
 pub mod timeline;
 pub mod udp;
+pub mod viewer_setup;
 pub mod vrpn;

@@ -583,3 +583,50 @@ fn cpu_packet_widths_render_the_same_files() {
         );
     }
 }
+
+/// `--size` reads the same in every command that takes an image size (a command's own default
+/// and its own remark follow the shared sentence).
+#[test]
+fn size_reads_the_same_everywhere() {
+    let commands: [&[&str]; 12] = [
+        &["render"],
+        &["view"],
+        &["dgi"],
+        &["pick"],
+        &["bench", "dgi"],
+        &["bench", "filter"],
+        &["bench", "schedule"],
+        &["bench", "trace"],
+        &["bench", "guided"],
+        &["bench", "all"],
+        &["bench", "readback"],
+        &["bench", "picture"],
+    ];
+    for command in commands {
+        let o = raygun(&[command, &["--help"]].concat());
+        assert!(o.status.success(), "{command:?}");
+        let help = String::from_utf8_lossy(&o.stdout);
+        // The flag's line and the lines of its text, up to the next flag.
+        let mut lines = help
+            .lines()
+            .skip_while(|l| !l.trim_start().starts_with("--size"));
+        let first = lines
+            .next()
+            .unwrap_or_else(|| panic!("{command:?} has no --size: {help}"));
+        let size = std::iter::once(first)
+            .chain(lines.take_while(|l| !l.trim_start().starts_with('-')))
+            .flat_map(str::split_whitespace)
+            .collect::<Vec<_>>()
+            .join(" ");
+        assert!(
+            size.contains("Image size in pixels, W,H"),
+            "{command:?}: {size}"
+        );
+        let native = size.contains("<W,H|native>");
+        assert_eq!(
+            native,
+            size.contains("or `native`: the display canvas's own pixel size"),
+            "{command:?}: {size}"
+        );
+    }
+}

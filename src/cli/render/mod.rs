@@ -62,8 +62,9 @@ pub struct RenderArgs {
     pub head: crate::cli::head::HeadArgs,
     #[command(flatten)]
     pub look: crate::cli::args::LookArgs,
-    /// Image size, or `native`: the display canvas's own pixel size (13519×5457 for HORNET),
-    /// at which --tiles writes every tile at its own resolution without resampling.
+    /// Image size in pixels, W,H, or `native`: the display canvas's own pixel size.
+    /// At `native` (13519×5457 for HORNET) --tiles writes every tile at its own resolution
+    /// without resampling.
     #[arg(allow_hyphen_values = true, long, value_name = "W,H|native", value_parser = crate::cli::args::parse_size_or_native, default_value = "1280,720")]
     pub size: [u32; 2],
     /// Samples per pixel of a full-frame render (default 64; guided renders take
@@ -294,78 +295,134 @@ fn check_outputs(args: &RenderArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
+/// `render`'s validated configuration: every check that needs neither the GPU nor the scene —
+/// the numbers, every output, the filter, the guide with its display and calibration, the wall
+/// camera's flags and the denoiser's kind — done once, before any work, in the order the
+/// errors are reported.
+pub struct RenderConfig {
+    /// The arguments with `--size native` replaced by the display canvas's pixel size.
+    pub args: RenderArgs,
+    pub filter: crate::filter::FilterParams,
+    /// A guided render's inputs (`--guide`); `None` for a full frame.
+    pub plan: Option<guided::GuidedPlan>,
+    /// `--camera wall` checked against the display.
+    pub wall: Option<WallSpec>,
+    /// The display a full frame's `--tiles` are cut for (a guided render's is its plan's).
+    pub tiles_model: Option<DisplayModel>,
+}
+
+impl RenderConfig {
+    /// Checks `args` and resolves the display, the guide and the wall spec; a full frame's
+    /// `--tiles` display warns here when the image will be resampled.
+    pub fn new(args: &RenderArgs) -> anyhow::Result<Self> {
+        let args = with_native_size(args)?;
+        check_args(&args)?;
+        check_outputs(&args)?;
+        let filter = args.filter.params()?;
+        let plan = match &args.guide {
+            Some(guide) => Some(guided::GuidedPlan::new(&args, guide)?),
+            None => None,
+        };
+        let wall = resolve_wall(&args, plan.as_ref())?;
+        // A full frame: --display matters only for the tiles and the wall camera.
+        let tiles_model = match (&args.tiles, &plan, &wall) {
+            (None, _, _) | (Some(_), Some(_), _) => None,
+            (Some(_), None, Some(w)) => Some(w.model.clone()),
+            (Some(_), None, None) => {
+                let spec = args
+                    .display
+                    .as_deref()
+                    .unwrap_or(crate::display::DEFAULT_MODEL);
+                let (model, origin) = DisplayModel::open(spec)?;
+                warn_if_resampled(args.size, &model, &origin.to_string());
+                Some(model)
+            }
+        };
+        Ok(Self {
+            args,
+            filter,
+            plan,
+            wall,
+            tiles_model,
+        })
+    }
+
+    /// What the memory check counts for this render on a GPU (`gpu`) or the CPU.
+    pub fn work(&self, gpu: bool) -> Work {
+        if self.plan.is_some() {
+            Work::Render {
+                gpu,
+                filter: self.filter.kind,
+            }
+        } else {
+            Work::FullFrame { gpu }
+        }
+    }
+}
+
+/// `args` with `--size native` replaced by the pixel size of the canvas of `--display` (or the
+/// default model).
+fn with_native_size(args: &RenderArgs) -> anyhow::Result<RenderArgs> {
     let mut args = args.clone();
     let display = args
         .display
         .as_deref()
         .unwrap_or(crate::display::DEFAULT_MODEL);
     args.size = crate::cli::args::resolve_size(args.size, display)?;
-    let args = &args;
+    Ok(args)
+}
+
+/// `raygun render`: the configuration, then the backend and the memory it needs, then the
+/// scene, then the work.
+pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     if args.cluster.cluster {
-        return cluster::run(args);
+        return cluster::run(&with_native_size(args)?);
     }
-    check_args(args)?;
-    check_outputs(args)?;
-    let filter = args.filter.params()?;
-    // Guide, display and calibration are validated before the GPU is looked for and the scene
-    // loads.
-    let plan = match &args.guide {
-        Some(guide) => Some(guided::GuidedPlan::new(args, guide)?),
-        None => None,
-    };
-    let wall = resolve_wall(args, plan.as_ref())?;
+    let config = RenderConfig::new(args)?;
+    let args = &config.args;
     let (backend, note) = args.backend.choose()?;
     if let Some(note) = note {
         crate::cli::say(args.quiet, note);
     }
-    let work = if plan.is_some() {
-        Work::Render {
-            gpu: backend.is_gpu(),
-            filter: filter.kind,
-        }
-    } else {
-        Work::FullFrame {
-            gpu: backend.is_gpu(),
-        }
-    };
-    check_memory(work, args.denoise.denoise, args.size, &backend)?;
+    check_memory(
+        config.work(backend.is_gpu()),
+        args.denoise.denoise,
+        args.size,
+        &backend,
+    )?;
     let oidn_device = args.denoise.device(&backend)?;
     if let Some(note) = args.denoise.describe(oidn_device.as_ref(), &backend) {
         crate::cli::say(args.quiet, note);
     }
     let denoiser = args.denoise.denoiser(
         oidn_device.as_ref(),
-        &filter,
+        &config.filter,
         crate::filter::oidn::Quality::High,
     );
-    if let Some(plan) = &plan {
-        let scene = load_scene(&args.scene, args.env.as_deref(), args.access)?;
-        let settings = settings(args, &scene)?;
-        let wall = wall_camera(wall.as_ref(), &settings)?;
-        return guided::run(args, plan, &scene, settings, wall, &backend, denoiser);
-    }
-    // A full frame: --display matters only for the tiles and the wall camera.
-    let tiles_model = match &args.tiles {
-        Some(_) if wall.is_some() => wall.as_ref().map(|w| w.model.clone()),
-        Some(_) => {
-            let spec = args
-                .display
-                .as_deref()
-                .unwrap_or(crate::display::DEFAULT_MODEL);
-            let (model, origin) = DisplayModel::open(spec)?;
-            warn_if_resampled(args.size, &model, &origin.to_string());
-            Some(model)
-        }
-        None => None,
-    };
     let scene = load_scene(&args.scene, args.env.as_deref(), args.access)?;
     let settings = settings(args, &scene)?;
+    let wall = wall_camera(config.wall.as_ref(), &settings)?;
+    match &config.plan {
+        Some(plan) => guided::run(args, plan, &scene, settings, wall, &backend, denoiser),
+        None => full_frame(&config, &scene, settings, wall, &backend, denoiser),
+    }
+}
+
+/// A full-frame render of `--spp` samples per pixel, denoised when asked, and its files.
+fn full_frame(
+    config: &RenderConfig,
+    scene: &Scene,
+    settings: TraceSettings,
+    wall: Option<WallCamera>,
+    backend: &Backend,
+    denoiser: Option<crate::filter::Denoiser<'_>>,
+) -> anyhow::Result<()> {
+    let args = &config.args;
     let [w, h] = args.size;
     let spp = args.spp.unwrap_or(DEFAULT_SPP);
-    let mut renderer = match wall_camera(wall.as_ref(), &settings)? {
-        Some(wc) => Renderer::full_wall(&backend, &scene, settings, wc)?,
-        None => Renderer::full(&backend, &scene, settings)?,
+    let mut renderer = match wall {
+        Some(wc) => Renderer::full_wall(backend, scene, settings, wc)?,
+        None => Renderer::full(backend, scene, settings)?,
     };
     let mut bar = Progress::new(args.quiet, "rendering", Some(u64::from(spp)), "spp");
     // Batches of about a quarter second keep the bar moving without starving the GPU.
@@ -390,15 +447,14 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
         let features = renderer.features()?;
         let wall = crate::frame::Render::wall(&renderer);
         let dropped;
-        (image, dropped) =
-            crate::frame::denoise_picture(&backend, d, &acc, features, &image, wall)?;
+        (image, dropped) = crate::frame::denoise_picture(backend, d, &acc, features, &image, wall)?;
         say_dropped(args.quiet, dropped);
     }
     drop(acc);
     for out in &args.out {
         write_rgb(out, w, h, &image, args.exposure)?;
     }
-    if let Some(model) = &tiles_model {
+    if let Some(model) = &config.tiles_model {
         write_wall_tiles(args, model, &image)?;
     }
     let megasamples = f64::from(w) * f64::from(h) * f64::from(spp) / 1e6;
@@ -492,5 +548,45 @@ mod tests {
         super::check_args(&args(&["--denoise", "oidn"])).unwrap();
         super::check_args(&args(&["--cluster", "--denoise", "off"])).unwrap();
         super::check_args(&args(&["--cluster", "--denoise", "interactive"])).unwrap();
+    }
+
+    #[test]
+    fn the_configuration_checks_the_numbers_first_and_knows_its_work() {
+        // A bad number is named before a missing guide file is looked for.
+        let e = super::RenderConfig::new(&args(&["--spp", "0"]))
+            .err()
+            .unwrap();
+        assert_eq!(e.to_string(), "--spp must be at least 1");
+        let e = super::RenderConfig::new(&args(&[
+            "--max-depth",
+            "0",
+            "--guide",
+            "no/such/replay.jsonl",
+        ]))
+        .err()
+        .unwrap();
+        assert_eq!(e.to_string(), "--max-depth must be at least 1");
+        let full = super::RenderConfig::new(&args(&[])).unwrap();
+        assert!(full.plan.is_none() && full.wall.is_none() && full.tiles_model.is_none());
+        assert!(matches!(
+            full.work(false),
+            crate::memory::Work::FullFrame { gpu: false }
+        ));
+        let guided = super::RenderConfig::new(&args(&[
+            "--size",
+            "64,26",
+            "--guide",
+            "mouse:32,13:8,4",
+            "--iterations",
+            "2",
+        ]))
+        .unwrap();
+        assert!(guided.plan.is_some());
+        assert!(matches!(
+            guided.work(true),
+            crate::memory::Work::Render { gpu: true, .. }
+        ));
+        let native = super::RenderConfig::new(&args(&["--size", "native"])).unwrap();
+        assert_ne!(native.args.size, crate::cli::args::NATIVE_SIZE);
     }
 }
