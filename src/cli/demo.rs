@@ -46,8 +46,8 @@ pub struct DemoArgs {
     /// Guided iterations (the replay is spread evenly over them).
     #[arg(long, value_name = "N", default_value_t = 64)]
     pub iterations: u32,
-    /// Image size; the image covers HORNET's canvas (aspect about 2.48:1); `native`: its own
-    /// 13519×5457 pixels.
+    /// Image size in pixels, W,H, or `native`: the display canvas's own pixel size (HORNET's
+    /// 13519×5457). The image covers HORNET's canvas (aspect about 2.48:1).
     #[arg(allow_hyphen_values = true, long, value_name = "W,H|native", value_parser = crate::cli::args::parse_size_or_native, default_value = "992,400")]
     pub size: [u32; 2],
     #[command(flatten)]

@@ -588,8 +588,9 @@ fn cpu_packet_widths_render_the_same_files() {
 /// and its own remark follow the shared sentence).
 #[test]
 fn size_reads_the_same_everywhere() {
-    let commands: [&[&str]; 12] = [
+    let commands: [&[&str]; 13] = [
         &["render"],
+        &["demo"],
         &["view"],
         &["dgi"],
         &["pick"],
