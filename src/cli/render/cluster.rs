@@ -6,7 +6,7 @@
 use anyhow::Context;
 
 use super::guided::GuidedPlan;
-use super::{RenderArgs, check_args, check_outputs, resolve_wall, settings, wall_camera};
+use super::{RenderArgs, settings, wall_camera};
 use crate::cli::cluster::{block_owners, check, identity, model_field, or_abort, trace_backend};
 use crate::cli::progress::Progress;
 use crate::cli::scene::load_scene;
@@ -17,7 +17,6 @@ use crate::display::DisplayModel;
 use crate::filter::denoise::DenoiseParams;
 use crate::filter::{Filter, FilterParams};
 use crate::gpu::Backend;
-use crate::memory::Work;
 use crate::scene::Scene;
 use crate::session::cluster::{ClusterRun, run_cluster};
 use crate::session::render::{GuidedResult, Stopping};
@@ -58,42 +57,20 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
 }
 
 fn prepare(args: &RenderArgs, c: &Cluster) -> anyhow::Result<Prepared> {
-    check_args(args)?;
-    if c.is_root() {
-        check_outputs(args)?;
-    } else if let Some(dir) = &args.tiles {
-        // Every owner writes its own tiles there (on its own machine's disk, or a shared one).
-        crate::output::check_folder(dir).context("--tiles")?;
-    }
-    let plan = match &args.guide {
-        Some(guide) => Some(GuidedPlan::new(args, guide)?),
-        None => None,
-    };
-    let wall = resolve_wall(args, plan.as_ref())?;
-    let work = if plan.is_some() {
-        Work::Render {
-            gpu: false,
-            filter: args.filter.params()?.kind,
-        }
-    } else {
-        Work::FullFrame { gpu: false }
-    };
-    super::check_memory(work, args.denoise.denoise, args.size, &Backend::Cpu)?;
-    let tiles_model = match (&args.tiles, &wall, &plan) {
-        (Some(_), Some(w), None) => Some(w.model.clone()),
-        (Some(_), None, None) => {
-            let spec = args
-                .display
-                .as_deref()
-                .unwrap_or(crate::display::DEFAULT_MODEL);
-            let (model, origin) = DisplayModel::open(spec)?;
-            if c.is_root() {
-                super::warn_if_resampled(args.size, &model, &origin.to_string());
-            }
-            Some(model)
-        }
-        _ => None,
-    };
+    let config = super::RenderConfig::for_rank(args, c.is_root())?;
+    // What a rank holds on its CPU (the picture's inputs and its filter on rank 0).
+    super::check_memory(
+        config.work(false),
+        args.denoise.denoise,
+        args.size,
+        &Backend::Cpu,
+    )?;
+    let super::RenderConfig {
+        plan,
+        wall,
+        tiles_model,
+        ..
+    } = config;
     // Each rank traces on its own GPU where it has one and computes the DGI there (as one GPU
     // process does); the schedule and the owners' tiles stay on the CPUs, and rank 0 filters
     // the whole picture where it traced.

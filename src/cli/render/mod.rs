@@ -315,9 +315,21 @@ impl RenderConfig {
     /// Checks `args` and resolves the display, the guide and the wall spec; a full frame's
     /// `--tiles` display warns here when the image will be resampled.
     pub fn new(args: &RenderArgs) -> anyhow::Result<Self> {
+        Self::for_rank(args, true)
+    }
+
+    /// [`Self::new`] on a rank of `--cluster`: rank 0 (`root`) writes the image and checks
+    /// every output, and says when tiles will be resampled; every other rank checks only the
+    /// `--tiles` folder it writes its own tiles into (on its own machine's disk, or a shared
+    /// one).
+    pub fn for_rank(args: &RenderArgs, root: bool) -> anyhow::Result<Self> {
         let args = with_native_size(args)?;
         check_args(&args)?;
-        check_outputs(&args)?;
+        if root {
+            check_outputs(&args)?;
+        } else if let Some(dir) = &args.tiles {
+            crate::output::check_folder(dir).context("--tiles")?;
+        }
         let filter = args.filter.params()?;
         let plan = match &args.guide {
             Some(guide) => Some(guided::GuidedPlan::new(&args, guide)?),
@@ -334,7 +346,9 @@ impl RenderConfig {
                     .as_deref()
                     .unwrap_or(crate::display::DEFAULT_MODEL);
                 let (model, origin) = DisplayModel::open(spec)?;
-                warn_if_resampled(args.size, &model, &origin.to_string());
+                if root {
+                    warn_if_resampled(args.size, &model, &origin.to_string());
+                }
                 Some(model)
             }
         };
