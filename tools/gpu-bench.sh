@@ -94,15 +94,15 @@ setup_device() {
 # The full report goes last: on an H200 it runs for minutes (its 4K convergence curves), and
 # takes what the others leave.
 BENCH_GROUPS=(adapter picture dgi schedule trace kernels kernels-guided guided native filter
-  all-quick wall cluster sizes readback all)
+  denoise all-quick wall cluster sizes readback all)
 declare -A BUDGET=([adapter]=20 [picture]=40 [dgi]=60 [schedule]=30 [trace]=90 [kernels]=150
-  [kernels-guided]=90 [guided]=120 [native]=60 [filter]=45 [all-quick]=60 [wall]=60 [cluster]=60
-  [sizes]=40 [readback]=30 [all]=300)
+  [kernels-guided]=90 [guided]=120 [native]=60 [filter]=45 [denoise]=90 [all-quick]=60 [wall]=60
+  [cluster]=60 [sizes]=40 [readback]=30 [all]=300)
 # Smoke: kernels' 150 s is lavapipe compiling four trace kernels with an empty shader cache
 # (119 s measured on a 2-vCPU Intel Xeon with the glTF extensions' BSDF in the kernel, 2026-12-05).
 declare -A SMOKE_BUDGET=([adapter]=10 [picture]=10 [dgi]=20 [schedule]=20 [trace]=20 [kernels]=150
-  [kernels-guided]=40 [guided]=40 [native]=20 [filter]=30 [all-quick]=60 [wall]=20 [cluster]=20
-  [sizes]=20 [readback]=10 [all]=60)
+  [kernels-guided]=40 [guided]=40 [native]=20 [filter]=30 [denoise]=30 [all-quick]=60 [wall]=20
+  [cluster]=20 [sizes]=20 [readback]=10 [all]=60)
 
 # The trace kernel's variants the `kernels` group times (`raygun bench trace --help`).
 KERNEL_VARIANTS=function,private,workgroup,function+unchecked,private+unchecked
@@ -169,6 +169,9 @@ group_command() {
       echo "$BIN bench native --backend gpu --camera wall --eye 0,0,1 --fov 10,60 --iterations $NATIVE_ITERATIONS $NATIVE_DISPLAY --out $d/native.md"
       ;;
     filter) echo "$BIN bench filter --backend gpu --size $s --fov 10,60 --time-k-max 8,16,32 --reps $REPS --out $d/filter.md" ;;
+    # The denoisers' error and time (the kernel at 1080p and 4K beside OIDN where the run
+    # finds its library: OIDN_DIR).
+    denoise) echo "$BIN bench denoise --backend gpu $DENOISE_ARGS --json $d/denoise.json --crops $d/denoise-crops.png --out $d/denoise.md" ;;
     all-quick) echo "$BIN bench all --quick --backend gpu $ALL_QUICK_SIZE --out $d" ;;
     all) echo "$BIN bench all --backend gpu $ALL_SIZE --out $d" ;;
     wall)
@@ -284,7 +287,7 @@ main() {
       SIZE=3840,2160 REPS=20 SPP=4 ITERATIONS=100 REFERENCE_SPP=256 CITY=builtin:city
       ALL_QUICK_SIZE="" ALL_SIZE="" WALL_SIZE=native NATIVE_ITERATIONS=20 NATIVE_DISPLAY=""
       CLUSTER_ITERATIONS=20 CLUSTER_MODEL="" TRACE_SIZES="1920,1080 960,540 480,270"
-      READBACK_ROUNDS=9
+      READBACK_ROUNDS=9 DENOISE_ARGS="--size 1920,1080 --reference-spp 1024"
       declare -gA BUDGETS
       for g in "${BENCH_GROUPS[@]}"; do BUDGETS[$g]=${BUDGET[$g]}; done
       ;;
@@ -301,6 +304,7 @@ main() {
       WALL_SIZE=64,26 NATIVE_ITERATIONS=2 NATIVE_DISPLAY=tiny
       CLUSTER_ITERATIONS=2 CLUSTER_MODEL="--model-size 64,26 --model-ranks 3"
       TRACE_SIZES="16,9 8,4" READBACK_ROUNDS=2
+      DENOISE_ARGS="--size 32,18 --iterations 1,4 --reference-spp 8 --timing-sizes none"
       # One of each kind (one over lavapipe's workgroup memory: named, not run). Few, as
       # lavapipe compiles each new kernel in about 20 s; the regeneration's cap is not in the
       # kernel, so the guided run reuses the regenerating kernel compiled before it.

@@ -7,7 +7,7 @@
 use std::path::Path;
 use std::process::Command;
 
-const GROUPS: [&str; 16] = [
+const GROUPS: [&str; 17] = [
     "adapter",
     "picture",
     "dgi",
@@ -18,6 +18,7 @@ const GROUPS: [&str; 16] = [
     "guided",
     "native",
     "filter",
+    "denoise",
     "all-quick",
     "wall",
     "cluster",
