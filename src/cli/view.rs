@@ -132,7 +132,8 @@ pub struct ViewArgs {
     /// denoiser, steered by each pixel's albedo, normal and depth), oidn (the same while the ROI
     /// or the eye moves, and Intel Open Image Denoise's picture once both have been still for a
     /// second; install it with `bash tools/oidn.sh install`, or set OIDN_DIR) or off (the
-    /// filter's picture). One process only: across ranks the picture is the filter's.
+    /// filter's picture). With --cluster: off or interactive (rank 0 denoises its picture, the
+    /// owners their tiles).
     #[arg(long, value_enum, default_value_t = crate::filter::DenoiseKind::Interactive)]
     pub denoise: crate::filter::DenoiseKind,
     /// Where the save button writes (image EXR/PNG, DGI, counts, the picture as shown).
@@ -186,7 +187,7 @@ pub fn run(args: &ViewArgs) -> anyhow::Result<()> {
     if args.cluster.cluster {
         if args.denoise == crate::filter::DenoiseKind::Oidn {
             anyhow::bail!(
-                "--denoise oidn denoises one process's picture: across ranks the viewer shows the filter's"
+                "--denoise oidn denoises one process's picture: across ranks the viewer denoises with --denoise interactive"
             );
         }
         return run_cluster(args);
@@ -336,12 +337,8 @@ fn setup(args: &ViewArgs, root: bool) -> anyhow::Result<Setup> {
         args.calibration.as_deref(),
     )?;
     let backend = args.backend.select()?;
-    // Across ranks the picture is the filter's (the denoisers need one process's features).
-    let denoise = if args.cluster.cluster {
-        crate::filter::DenoiseKind::Off
-    } else {
-        args.denoise
-    };
+    // (`--cluster --denoise oidn` was refused before: the interactive denoiser across ranks.)
+    let denoise = args.denoise;
     crate::cli::render::check_memory(
         crate::memory::Work::Render {
             gpu: backend.is_gpu(),

@@ -222,8 +222,13 @@ pub enum ViewStep {
     /// The window closed: the render ends on every rank.
     Stop,
     /// Every owner makes the pictures of the display tiles it owns, filtered where they are
-    /// owned (`view --show-tiles`: each shows its own), at this exposure (stops).
-    Tiles { filter: FilterParams, exposure: f32 },
+    /// owned (`view --show-tiles`: each shows its own), at this exposure (stops), and with
+    /// `denoise` denoised by the interactive denoiser (the filter's variance threshold).
+    Tiles {
+        filter: FilterParams,
+        exposure: f32,
+        denoise: bool,
+    },
 }
 
 impl ViewStep {
@@ -278,8 +283,13 @@ impl ViewStep {
                 b.extend(max_depth.to_le_bytes());
             }
             Self::Stop => b.push(8),
-            Self::Tiles { filter, exposure } => {
+            Self::Tiles {
+                filter,
+                exposure,
+                denoise,
+            } => {
                 b.push(9);
+                b.push(u8::from(denoise));
                 b.push(match filter.kind {
                     FilterKind::Off => 0,
                     FilterKind::Exact => 1,
@@ -393,6 +403,12 @@ impl ViewStep {
             }
             8 => none(Self::Stop)?,
             9 => {
+                let (&denoise, rest) = rest.split_first()?;
+                let denoise = match denoise {
+                    0 => false,
+                    1 => true,
+                    _ => return None,
+                };
                 let (&kind, rest) = rest.split_first()?;
                 let (&blend, rest) = rest.split_first()?;
                 let f = f32s(rest, 4)?;
@@ -414,6 +430,7 @@ impl ViewStep {
                         variance_threshold: f[2],
                     },
                     exposure: f[3],
+                    denoise,
                 }
             }
             _ => return None,
@@ -574,11 +591,21 @@ impl<'a> ClusterView<'a> {
                 self.r.finish()?;
                 self.stopped = true;
             }
-            ViewStep::Tiles { filter, exposure } => {
+            ViewStep::Tiles {
+                filter,
+                exposure,
+                denoise,
+            } => {
                 let tiles = self.tiles.as_ref().ok_or_else(|| {
                     ClusterError::Rejected("the owners' pictures need the tile map".into())
                 })?;
-                let pictures = self.r.tile_pictures(self.model, tiles, &filter, None)?;
+                let denoise = denoise.then(|| crate::filter::denoise::DenoiseParams {
+                    variance_threshold: filter.variance_threshold,
+                    ..Default::default()
+                });
+                let pictures =
+                    self.r
+                        .tile_pictures(self.model, tiles, &filter, denoise.as_ref())?;
                 return Ok(Applied::Tiles(pictures, exposure));
             }
         }
@@ -678,6 +705,7 @@ mod tests {
                     variance_threshold: 1e-5,
                 },
                 exposure: -1.5,
+                denoise: true,
             },
         ];
         for s in steps {

@@ -24,6 +24,7 @@ use crate::scene::Scene;
 use crate::session::cluster::{Applied, ClusterView, ViewStep};
 use crate::trace::accum::Accumulation;
 use crate::trace::camera::RenderCamera;
+use crate::trace::features::pixel_features;
 use crate::trace::path::TraceSettings;
 use crate::trace::wall::WallCamera;
 
@@ -351,6 +352,19 @@ impl<'a> ViewerCore<'a> {
         }
     }
 
+    /// The denoiser `by` names, with the filter's variance threshold from `params`.
+    fn denoiser(&self, by: ShownDenoiser, params: &crate::filter::FilterParams) -> Denoiser<'_> {
+        match (by, &self.oidn) {
+            (ShownDenoiser::Oidn, Some(device)) => {
+                Denoiser::Oidn(device, crate::filter::oidn::Quality::Fast)
+            }
+            _ => Denoiser::Interactive(crate::filter::denoise::DenoiseParams {
+                variance_threshold: params.variance_threshold,
+                ..Default::default()
+            }),
+        }
+    }
+
     /// Hands the viewer an OIDN device for `denoise` = `oidn` (DESIGN.md §8).
     pub fn set_oidn(&mut self, device: crate::filter::oidn::Device) {
         self.oidn = Some(device);
@@ -362,16 +376,13 @@ impl<'a> ViewerCore<'a> {
         self.oidn.is_some()
     }
 
-    /// The denoiser the next picture gets: none when off, or across ranks (their pictures are
-    /// gathered accumulations without features); OIDN where asked for and opened once the ROI
-    /// and the eye have been still for [`STILL_SECONDS`](super::state::STILL_SECONDS);
-    /// otherwise raygun's interactive denoiser.
+    /// The denoiser the next picture gets: none when off; OIDN where asked for and opened once
+    /// the ROI and the eye have been still for [`STILL_SECONDS`](super::state::STILL_SECONDS);
+    /// otherwise raygun's interactive denoiser. Across ranks rank 0 denoises its gathered
+    /// picture with its own copy of the scene's features, and the owners their tiles.
     #[must_use]
     pub fn shown_denoiser(&self) -> Option<ShownDenoiser> {
         use crate::filter::DenoiseKind;
-        if matches!(self.engine, Engine::Cluster(_)) {
-            return None;
-        }
         match self.state.denoise {
             DenoiseKind::Off => None,
             DenoiseKind::Oidn
@@ -797,6 +808,7 @@ impl<'a> ViewerCore<'a> {
             v.send(ViewStep::Tiles {
                 filter: self.state.filter_params(),
                 exposure: self.state.exposure,
+                denoise: self.state.denoise != crate::filter::DenoiseKind::Off,
             })?;
         }
         let wall = self.wall();
@@ -809,15 +821,7 @@ impl<'a> ViewerCore<'a> {
             Engine::Local(r) => match denoised_by {
                 None => r.picture_of(&params, &acc, &dgi)?,
                 Some(by) => {
-                    let denoiser = match (by, &self.oidn) {
-                        (ShownDenoiser::Oidn, Some(device)) => {
-                            Denoiser::Oidn(device, crate::filter::oidn::Quality::Fast)
-                        }
-                        _ => Denoiser::Interactive(crate::filter::denoise::DenoiseParams {
-                            variance_threshold: params.variance_threshold,
-                            ..Default::default()
-                        }),
-                    };
+                    let denoiser = self.denoiser(by, &params);
                     let image;
                     (image, dropped) =
                         r.denoised_picture_of(&params, denoiser, &acc, &dgi, every)?;
@@ -834,6 +838,33 @@ impl<'a> ViewerCore<'a> {
                 for (i, v) in image.iter_mut().enumerate() {
                     if !shown(i) {
                         *v = Vec3::ZERO;
+                    }
+                }
+                if let (Some(by), Engine::Cluster(v)) = (denoised_by, &self.engine) {
+                    // The features of the picture's pixels, from rank 0's copy of the scene.
+                    let r = v.renderer();
+                    let (albedo, normal_depth) = (0..image.len())
+                        .map(|i| pixel_features(&r.packed, &r.settings, r.wall(), pixel(i)))
+                        .unzip();
+                    let features = crate::filter::denoise::Features {
+                        width: acc.width,
+                        height: acc.height,
+                        albedo,
+                        normal_depth,
+                    };
+                    let denoiser = self.denoiser(by, &params);
+                    (image, dropped) = crate::frame::denoise_picture(
+                        self.backend,
+                        denoiser,
+                        &acc,
+                        &features,
+                        &image,
+                        None,
+                    )?;
+                    for (i, v) in image.iter_mut().enumerate() {
+                        if !shown(i) {
+                            *v = Vec3::ZERO;
+                        }
                     }
                 }
                 image

@@ -971,8 +971,15 @@ fn the_viewer_across_ranks_shows_the_one_process_pictures_bit_for_bit() {
             .collect()
     };
     let (model, scene, backend) = (hornet(), scene(), Backend::Cpu);
-    for with_wall in [false, true] {
-        let state = || ViewerState::new(RoiSource::Mouse, 4);
+    // With the interactive denoiser too: rank 0 denoises its gathered picture, the owners their
+    // tiles (with the denoiser's margin), the one process's bits.
+    use raygun::filter::DenoiseKind::{Interactive, Off};
+    for (with_wall, denoise) in [(false, Off), (true, Off), (true, Interactive)] {
+        let state = || {
+            let mut s = ViewerState::new(RoiSource::Mouse, 4);
+            s.denoise = denoise;
+            s
+        };
         let wall = || with_wall.then(|| wall_camera(&model, &scene));
         let mut one =
             ViewerCore::with_wall(&backend, &scene, &model, base(&scene), state(), wall()).unwrap();
@@ -1056,12 +1063,12 @@ fn the_viewer_across_ranks_shows_the_one_process_pictures_bit_for_bit() {
             let cut = raygun::output::tiles::cut_tile(&model, p.tile, &last.image, [W, H]);
             assert!(
                 p.pixels == cut,
-                "wall camera: {with_wall}, tile {}",
+                "wall camera: {with_wall}, {denoise:?}, tile {}",
                 model.tiles()[p.tile].id()
             );
         }
         for (k, (g, w)) in got.iter().zip(&want).enumerate() {
-            let what = format!("wall camera: {with_wall}, picture {k}");
+            let what = format!("wall camera: {with_wall}, {denoise:?}, picture {k}");
             assert_eq!(g.counts, w.counts, "{what}: counts");
             assert!(g.dgi == w.dgi, "{what}: DGI");
             assert!(bits(g) == bits(w), "{what}: image");
