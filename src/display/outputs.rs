@@ -102,7 +102,8 @@ pub enum OutputMapError {
         tile: Option<String>,
         /// The JSON path, e.g. `desktops[1].tiles[0].rect`.
         field: String,
-        problem: OutputProblem,
+        /// Boxed: the rectangles it names would make every `Result` of the map large.
+        problem: Box<OutputProblem>,
     },
 }
 
@@ -228,7 +229,7 @@ impl OutputMap {
                 desktop: desktop.map(str::to_owned),
                 tile: tile.map(str::to_owned),
                 field,
-                problem,
+                problem: Box::new(problem),
             }
         };
         if spec.desktops.is_empty() {
