@@ -15,7 +15,7 @@
 set -euo pipefail
 secs="${1:-60}"
 cd "$(dirname "$0")/.."
-for target in dtrack osc vrpn replay display_model ellipse_lines gltf calibration ktx2 tile_owners; do
+for target in dtrack osc vrpn replay display_model ellipse_lines gltf calibration ktx2 tile_owners outputs; do
     mkdir -p "fuzz/corpus/$target"
     RUSTC_BOOTSTRAP=1 cargo fuzz run -s none --dev "$target" "fuzz/corpus/$target" "fuzz/seeds/$target" -- \
         -max_total_time="$secs" -max_len=65536 -rss_limit_mb=2048

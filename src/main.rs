@@ -63,6 +63,8 @@ enum Command {
 enum DisplayCommand {
     /// Print the model's explicit form (generators expanded), as the loader sees it.
     Expand(cli::display::ExpandArgs),
+    /// Write the output map: which tile each desktop shows where (docs/screens.md).
+    Outputs(cli::display::OutputsArgs),
 }
 
 fn main() {
@@ -108,6 +110,9 @@ fn main() {
         Command::Pick(args) => cli::display::pick(args).and_then(|v| cli::print_out(&v)),
         Command::Display(DisplayCommand::Expand(args)) => {
             cli::display::expand(args).and_then(|text| cli::print_out(&text))
+        }
+        Command::Display(DisplayCommand::Outputs(args)) => {
+            cli::display::outputs(args).and_then(|text| cli::print_out(&text))
         }
         Command::Replay(args) => replay(args),
         Command::Record(args) => record(args),

@@ -1476,6 +1476,7 @@ fn help_speaks_to_users() {
         &["bench", "schedule"],
         &["bench", "all"],
         &["display", "expand"],
+        &["display", "outputs"],
         &["synth-replays"],
     ];
     for c in commands {

@@ -1,10 +1,12 @@
-//! `raygun pick` and `raygun display expand`: arguments and command logic.
+//! `raygun pick`, `raygun display expand` and `raygun display outputs`: arguments and command
+//! logic.
 
 use glam::{DVec2, DVec3};
 use serde_json::{Value, json};
 
 use crate::cli::args::{parse_size, parse_vec3};
 use crate::display::DisplayModel;
+use crate::display::outputs::OutputMap;
 
 /// `raygun pick`: where does a ray meet the display?
 #[derive(Clone, Debug, clap::Args)]
@@ -79,6 +81,69 @@ pub fn expand(args: &ExpandArgs) -> anyhow::Result<String> {
     Ok(DisplayModel::open(&args.model)?.0.to_json_pretty())
 }
 
+/// `raygun display outputs`: write the output map of a regular grid of screens.
+#[derive(Clone, Debug, clap::Args)]
+pub struct OutputsArgs {
+    /// Display model: a file, or a built-in model (hornet, desktop-27in-4k, projection-4m-4k).
+    #[arg(value_name = "MODEL")]
+    pub model: String,
+    /// The model's tiles as a grid of COLSxROWS (by their column and row). Without it: one
+    /// desktop spanning the whole canvas, each tile at its canvas position, bezels as gaps.
+    #[arg(long, value_name = "COLSxROWS", value_parser = parse_grid)]
+    pub grid: Option<[u32; 2]>,
+    /// Tiles per desktop, COLSxROWS, side by side without gaps; blocks at the right and bottom
+    /// edges hold the tiles that remain. Default: the whole grid on one desktop.
+    #[arg(long, value_name = "COLSxROWS", value_parser = parse_grid, requires = "grid")]
+    pub per_desktop: Option<[u32; 2]>,
+    /// The map file to write (replaced atomically).
+    #[arg(long, value_name = "FILE")]
+    pub out: std::path::PathBuf,
+}
+
+/// `COLSxROWS`, each at least 1 (`7x5`).
+pub fn parse_grid(s: &str) -> Result<[u32; 2], String> {
+    let parse = |v: &str| v.trim().parse::<u32>().ok().filter(|&n| n >= 1);
+    match s.split_once(['x', 'X']) {
+        Some((c, r)) => match (parse(c), parse(r)) {
+            (Some(c), Some(r)) => Ok([c, r]),
+            _ => Err(format!(
+                "expected COLSxROWS, two whole numbers from 1 (e.g. 7x5), got {s:?}"
+            )),
+        },
+        None => Err(format!("expected COLSxROWS (e.g. 7x5), got {s:?}")),
+    }
+}
+
+/// `raygun display outputs`: builds the map (the grid's, or the model's default), writes it to
+/// `--out` through a temporary name, and returns what it wrote, a line per desktop.
+pub fn outputs(args: &OutputsArgs) -> anyhow::Result<String> {
+    let (model, _) = DisplayModel::open(&args.model)?;
+    let map = match args.grid {
+        Some(grid) => OutputMap::grid(&model, grid, args.per_desktop.unwrap_or(grid))?,
+        None => OutputMap::default_for(&model)?,
+    };
+    crate::output::file::write_bytes(&args.out, map.to_json_pretty().as_bytes())?;
+    let mut lines = vec![format!(
+        "{}: {} desktop(s) showing {} of the {} tiles of {}",
+        args.out.display(),
+        map.desktops().len(),
+        map.desktops().iter().map(|d| d.tiles.len()).sum::<usize>(),
+        model.tiles().len(),
+        model.name()
+    )];
+    for d in map.desktops() {
+        let ids: Vec<&str> = d.tiles.iter().map(|t| t.id.as_str()).collect();
+        lines.push(format!(
+            "  {}: {}×{}: {}",
+            d.name,
+            d.size[0],
+            d.size[1],
+            ids.join(" ")
+        ));
+    }
+    Ok(lines.join("\n"))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -118,5 +183,15 @@ mod tests {
         .unwrap()
         .to_string();
         assert!(err.contains("expected 3 comma-separated numbers"), "{err}");
+    }
+
+    #[test]
+    fn grids_parse_and_bad_ones_are_named() {
+        assert_eq!(parse_grid("7x5"), Ok([7, 5]));
+        assert_eq!(parse_grid("1X5"), Ok([1, 5]));
+        for bad in ["7", "0x5", "7x", "-1x5", "7x5x1", "axb"] {
+            let e = parse_grid(bad).unwrap_err();
+            assert!(e.contains("COLSxROWS") && e.contains(bad), "{e}");
+        }
     }
 }

@@ -77,6 +77,7 @@ pub mod cut;
 mod error;
 mod generator;
 mod intersect;
+pub mod outputs;
 mod overlap;
 mod rect;
 mod spec;
