@@ -10,8 +10,9 @@ use std::time::{Duration, Instant};
 use eframe::egui;
 use glam::DVec2;
 
-use super::core::{Picture, ViewerCore, WindowPicture, save_picture};
+use super::core::{Picture, ViewerCore, WindowPicture};
 use super::orbit::{Gesture, ViewKey, key_gesture, wall_plan};
+use super::save::save_picture;
 use super::state::{Overlay, RoiSource};
 use crate::filter::{Blend, DenoiseKind, FilterKind};
 use crate::interaction::CursorMark;
@@ -738,7 +739,7 @@ impl ViewerApp<'_> {
                 dir: dir.clone(),
                 error,
             })
-            .and_then(|()| super::core::save_rgba_png(&path, size, rgba));
+            .and_then(|()| super::save::save_rgba_png(&path, size, rgba));
         match saved {
             Ok(()) => {
                 self.recorded += 1;

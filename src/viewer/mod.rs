@@ -6,6 +6,7 @@
 //!   screen;
 //! * [`diagnostics`]: the images that explain a render (ROI outline, heat map, noise);
 //! * [`orbit`]: the desktop user's orbit, pan and dolly of the eye or the pinhole camera;
+//! * [`save`]: the picture and its data written to files;
 //! * `app`: the eframe front end (with the `viewer` feature, on by default);
 //! * `tiles`: the window of an owner's own tiles (`view --cluster --show-tiles`).
 
@@ -14,6 +15,7 @@ pub mod app;
 pub mod core;
 pub mod diagnostics;
 pub mod orbit;
+pub mod save;
 pub mod state;
 #[cfg(feature = "viewer")]
 pub mod tiles;

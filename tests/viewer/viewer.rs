@@ -17,11 +17,12 @@ use raygun::session::timeline::Timeline;
 use raygun::trace::accum::Accumulation;
 use raygun::trace::camera::RenderCamera;
 use raygun::trace::path::TraceSettings;
-use raygun::viewer::core::{ViewerCore, save_picture};
+use raygun::viewer::core::ViewerCore;
 use raygun::viewer::diagnostics::{
     NOISE_UNDEFINED, NoiseContrast, NoiseRegions, OUTLINE, heat_map, median_finite, noise_image,
     noise_map, predicted_noise_ratio, roi_outline,
 };
+use raygun::viewer::save::save_picture;
 use raygun::viewer::state::{Overlay, RoiSource, ViewerState};
 
 use crate::xvfb;
