@@ -70,8 +70,13 @@ pub struct DenoiseBenchArgs {
 #[derive(Clone, Debug, PartialEq)]
 pub struct TimingSizes(pub Vec<[u32; 2]>);
 
+/// A `--timing-sizes` item that is no size.
+#[derive(Debug, thiserror::Error)]
+#[error("'{0}': expected WxH with positive integers (e.g. 1920x1080), or none")]
+pub struct TimingSizesError(String);
+
 /// `WxH,…` or `none`.
-fn parse_timing_sizes(text: &str) -> Result<TimingSizes, String> {
+fn parse_timing_sizes(text: &str) -> Result<TimingSizes, TimingSizesError> {
     if text.trim() == "none" {
         return Ok(TimingSizes(Vec::new()));
     }
@@ -81,11 +86,7 @@ fn parse_timing_sizes(text: &str) -> Result<TimingSizes, String> {
             item.split_once('x')
                 .and_then(|(w, h)| Some([w.parse::<u32>().ok()?, h.parse::<u32>().ok()?]))
                 .filter(|[w, h]| *w > 0 && *h > 0)
-                .ok_or_else(|| {
-                    format!(
-                        "'{item}': expected WxH with positive integers (e.g. 1920x1080), or none"
-                    )
-                })
+                .ok_or_else(|| TimingSizesError(item.to_owned()))
         })
         .collect::<Result<_, _>>()
         .map(TimingSizes)

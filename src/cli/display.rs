@@ -100,17 +100,24 @@ pub struct OutputsArgs {
     pub out: std::path::PathBuf,
 }
 
+/// A `COLSxROWS` value that is not one.
+#[derive(Debug, PartialEq, thiserror::Error)]
+pub enum GridParseError {
+    #[error("expected COLSxROWS, two whole numbers from 1 (e.g. 7x5), got {0:?}")]
+    Numbers(String),
+    #[error("expected COLSxROWS (e.g. 7x5), got {0:?}")]
+    Form(String),
+}
+
 /// `COLSxROWS`, each at least 1 (`7x5`).
-pub fn parse_grid(s: &str) -> Result<[u32; 2], String> {
+pub fn parse_grid(s: &str) -> Result<[u32; 2], GridParseError> {
     let parse = |v: &str| v.trim().parse::<u32>().ok().filter(|&n| n >= 1);
     match s.split_once(['x', 'X']) {
         Some((c, r)) => match (parse(c), parse(r)) {
             (Some(c), Some(r)) => Ok([c, r]),
-            _ => Err(format!(
-                "expected COLSxROWS, two whole numbers from 1 (e.g. 7x5), got {s:?}"
-            )),
+            _ => Err(GridParseError::Numbers(s.to_owned())),
         },
-        None => Err(format!("expected COLSxROWS (e.g. 7x5), got {s:?}")),
+        None => Err(GridParseError::Form(s.to_owned())),
     }
 }
 
@@ -190,7 +197,7 @@ mod tests {
         assert_eq!(parse_grid("7x5"), Ok([7, 5]));
         assert_eq!(parse_grid("1X5"), Ok([1, 5]));
         for bad in ["7", "0x5", "7x", "-1x5", "7x5x1", "axb"] {
-            let e = parse_grid(bad).unwrap_err();
+            let e = parse_grid(bad).unwrap_err().to_string();
             assert!(e.contains("COLSxROWS") && e.contains(bad), "{e}");
         }
     }
