@@ -178,17 +178,3 @@ fn shader_constants_match_rust() {
     );
     assert!(DENOISE_WGSL.contains(&taps), "{taps}");
 }
-
-/// The benchmark entry point runs both sides on its scene and reports what it used (its times
-/// are for `bench`, not checked here).
-#[test]
-fn the_benchmark_runs_both_sides() {
-    let ctx = GpuContext::for_tests();
-    let t = bench(Some(&ctx), 40, 24, 1).unwrap();
-    assert_eq!((t.width, t.height, t.passes), (40, 24, 5));
-    assert!(
-        t.cpu_ms > 0.0 && t.gpu_ms.is_some_and(|ms| ms > 0.0),
-        "{t:?}"
-    );
-    assert!(bench(None, 8, 8, 1).unwrap().gpu_ms.is_none());
-}
