@@ -542,6 +542,13 @@ pub fn colour_input(acc: &Accumulation, filled: &[Vec3]) -> (Vec<f32>, usize) {
     (out, fills)
 }
 
+/// OIDN's albedo and normal images from the denoiser's features: three floats a pixel each.
+#[must_use]
+pub fn auxiliary(features: &super::denoise::Features) -> (Vec<f32>, Vec<f32>) {
+    let rgb = |v: &[[f32; 4]]| v.iter().flat_map(|a| [a[0], a[1], a[2]]).collect();
+    (rgb(&features.albedo), rgb(&features.normal_depth))
+}
+
 /// A render's picture denoised by OIDN: `filled` is the filter's picture (DESIGN.md §8), whose
 /// values OIDN sees only where a pixel has no usable mean of its own ([`colour_input`]); with
 /// `features`, their albedo and shading normal guide it (OIDN keeps the edges and textures they
@@ -554,9 +561,7 @@ pub fn denoise_picture(
     quality: Quality,
 ) -> Result<Vec<Vec3>, OidnError> {
     let (color, _) = colour_input(acc, filled);
-    let rgb = |v: &[[f32; 4]]| -> Vec<f32> { v.iter().flat_map(|a| [a[0], a[1], a[2]]).collect() };
-    let albedo = features.map(|f| rgb(&f.albedo));
-    let normal = features.map(|f| rgb(&f.normal_depth));
+    let (albedo, normal) = features.map(auxiliary).unzip();
     let out = device.denoise(
         Images {
             size: [acc.width, acc.height],

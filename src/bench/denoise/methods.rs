@@ -13,12 +13,6 @@ use crate::filter::{Filter, FilterParams, oidn};
 use crate::gpu::{Backend, GpuContext, PassTimer};
 use crate::trace::accum::Accumulation;
 
-/// OIDN's albedo and normal inputs from the features: three floats a pixel each.
-pub(super) fn oidn_features(f: &Features) -> (Vec<f32>, Vec<f32>) {
-    let three = |v: &[[f32; 4]]| v.iter().flat_map(|p| [p[0], p[1], p[2]]).collect();
-    (three(&f.albedo), three(&f.normal_depth))
-}
-
 /// The denoiser's kernels on one picture: its output (RGBA) and the kernels' time (timestamps where
 /// the adapter has them, else the wall clock around submit-and-wait; a picture larger than one
 /// binding is denoised in bands, timed by the wall clock around them all).
@@ -95,7 +89,7 @@ impl<'a> Methods<'a> {
             albedo: f.albedo,
             normal_depth: f.normal_depth,
         };
-        let (albedo3, normal3) = oidn_features(&features);
+        let (albedo3, normal3) = oidn::auxiliary(&features);
         let methods = Self {
             backend,
             filter: Filter::new(backend),
@@ -228,7 +222,7 @@ pub(super) fn time_oidn(
 ) -> Result<f64, DenoiseBenchError> {
     let s = denoise::synth_scene(width, height, 1, 0.5, 1);
     let (colour, _) = oidn::colour_input(&s.acc, &s.acc.mean_image());
-    let (albedo, normal) = oidn_features(&s.features);
+    let (albedo, normal) = oidn::auxiliary(&s.features);
     let images = oidn::Images {
         size: [width, height],
         color: &colour,
