@@ -74,12 +74,13 @@ impl Render for ClusterRenderer<'_> {
         }
     }
 
-    fn set_camera(&mut self, camera: RenderCamera) {
+    fn set_camera(&mut self, camera: RenderCamera) -> Result<(), ClusterError> {
         self.settings.camera = camera;
         if let Some(g) = &self.gpu {
             g.run.set_settings(&g.ctx, &self.packed, &self.settings);
         }
         self.restart();
+        Ok(())
     }
 
     /// One frame on this rank, in step with the others: the DGI of a changed ROI, the

@@ -68,7 +68,8 @@ impl<'a> Renderer<'a> {
     /// A guided renderer of this one's scene with other settings, guide or wall camera
     /// ([`Self::guided_wall`]'s arguments less the scene), starting from nothing: the scene
     /// is not packed and its BVH not built again (the viewer's rebuild when its settings
-    /// change or a reset is asked for: seconds for a large scene).
+    /// change or a reset is asked for: seconds for a large scene). What a move does
+    /// ([`super::EyeMove`]) is kept.
     pub fn rebuilt_guided(
         &self,
         settings: TraceSettings,
@@ -78,14 +79,16 @@ impl<'a> Renderer<'a> {
     ) -> Result<Renderer<'a>, FrameError> {
         Self::check_wall(&settings, wall.as_ref())?;
         let guidance = Guidance::new(display, config)?;
-        Renderer::with_packed(
+        let mut r = Renderer::with_packed(
             self.backend,
             std::sync::Arc::clone(&self.packed),
             self.build_seconds,
             settings,
             Some(guidance),
             wall,
-        )
+        )?;
+        r.on_eye_move = self.on_eye_move;
+        Ok(r)
     }
 
     /// Packs the scene, builds its BVH and prepares every stage (on the GPU: uploads and
@@ -208,6 +211,9 @@ impl<'a> Renderer<'a> {
             wall,
             features: OnceCell::new(),
             denoise_kernels: OnceCell::new(),
+            on_eye_move: super::EyeMove::default(),
+            hits: None,
+            last_reuse: None,
         })
     }
 

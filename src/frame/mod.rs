@@ -36,6 +36,7 @@ mod dgi;
 mod engine;
 mod picture;
 mod render;
+mod reuse;
 pub mod roi_stats;
 pub mod shown;
 mod steps;
@@ -59,6 +60,7 @@ use crate::trace::wall::{WallCamera, WallCameraError};
 pub use denoise::{denoise_picture, filled_where_unreached};
 pub use dgi::{dgi_cpu, dgi_cpu_bands, prepare_dgi};
 pub use render::Render;
+pub use reuse::EyeMove;
 
 /// How the ROI steers sampling.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
@@ -134,6 +136,9 @@ pub enum EyeFollow {
     /// Moved past the threshold: the wall camera was rebuilt at the new eye and the
     /// accumulation restarted (the ROI and its DGI kept).
     Restarted,
+    /// Moved past the threshold: the wall camera was rebuilt at the new eye and the
+    /// accumulation carried over where the surfaces allow ([`EyeMove::Reuse`]).
+    Reused(crate::trace::reuse::ReuseStats),
     /// Moved past the threshold to where no wall camera can be (on or behind a tile's plane):
     /// nothing changed.
     Refused(WallCameraError),
@@ -271,4 +276,10 @@ pub struct Renderer<'a> {
     features: OnceCell<crate::filter::denoise::Features>,
     /// raygun's denoiser's kernels, made on the first denoised picture on the GPU.
     denoise_kernels: OnceCell<crate::filter::denoise::gpu::DenoiseKernels>,
+    /// What a move of the eye or the camera does to the accumulation ([`EyeMove`]).
+    on_eye_move: EyeMove,
+    /// The current view's primary-hit records (motion reuse): made at the first move.
+    hits: Option<reuse::Hits>,
+    /// What the last move carried over.
+    last_reuse: Option<crate::trace::reuse::ReuseStats>,
 }

@@ -55,9 +55,10 @@ pub trait Render {
     /// restarts, the ROI and its DGI kept; otherwise nothing changes.
     fn follow_eye(&mut self, eye: DVec3, threshold_m: f64) -> Result<EyeFollow, Self::Error>;
 
-    /// Replaces the pinhole (or orthographic) camera and restarts the accumulation; the ROI
-    /// stays. (With a wall camera the primary rays come from its eye: [`Self::follow_eye`].)
-    fn set_camera(&mut self, camera: RenderCamera);
+    /// Replaces the pinhole (or orthographic) camera and restarts the accumulation (or, where
+    /// the renderer reuses it on a move, carries it over); the ROI stays. (With a wall camera
+    /// the primary rays come from its eye: [`Self::follow_eye`].)
+    fn set_camera(&mut self, camera: RenderCamera) -> Result<(), Self::Error>;
 
     /// One iteration: the DGI of a changed ROI, the schedule, and one path for each scheduled
     /// pixel. With `timed`, stage times are measured and counts read back where that makes the

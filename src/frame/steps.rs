@@ -116,20 +116,23 @@ impl Render for Renderer<'_> {
             return Ok(EyeFollow::Kept);
         }
         match self.set_wall_eye(eye) {
-            Ok(()) => Ok(EyeFollow::Restarted),
+            Ok(Some(stats)) => Ok(EyeFollow::Reused(stats)),
+            Ok(None) => Ok(EyeFollow::Restarted),
             Err(FrameError::Wall(e)) => Ok(EyeFollow::Refused(e)),
             Err(e) => Err(e),
         }
     }
 
-    fn set_camera(&mut self, camera: RenderCamera) {
-        self.settings.camera = camera;
-        if let Engine::Gpu { ctx, bands, .. } = &self.engine {
-            for b in bands {
-                b.trace.set_settings(ctx, &self.packed, &self.settings);
+    fn set_camera(&mut self, camera: RenderCamera) -> Result<(), FrameError> {
+        self.move_view(|r| {
+            r.settings.camera = camera;
+            if let Engine::Gpu { ctx, bands, .. } = &r.engine {
+                for b in bands {
+                    b.trace.set_settings(ctx, &r.packed, &r.settings);
+                }
             }
-        }
-        self.restart();
+        })?;
+        Ok(())
     }
 
     /// One frame: the DGI if the ROI changed, the schedule, and one path for each scheduled
@@ -404,22 +407,26 @@ impl Renderer<'_> {
     }
 
     /// Moves the wall camera's eye to `eye` (room frame; the room's placement in the scene
-    /// kept, [`WallCamera::with_eye`]) and restarts the accumulation ([`Self::restart`]).
-    pub fn set_wall_eye(&mut self, eye: glam::DVec3) -> Result<(), FrameError> {
+    /// kept, [`WallCamera::with_eye`]) and restarts the accumulation ([`Self::restart`]) or,
+    /// with [`super::EyeMove::Reuse`], carries it over: then what it carried.
+    pub fn set_wall_eye(
+        &mut self,
+        eye: glam::DVec3,
+    ) -> Result<Option<crate::trace::reuse::ReuseStats>, FrameError> {
         let wall = self
             .wall
             .as_ref()
             .ok_or(FrameError::NoWall)?
             .with_eye(eye)?;
-        if let Engine::Gpu { ctx, bands, .. } = &mut self.engine {
-            for b in bands.iter_mut() {
-                let done = b.trace.set_wall(ctx, &self.packed, &self.settings, &wall);
-                debug_assert!(done, "a moved wall camera keeps its tiles");
+        self.move_view(|r| {
+            if let Engine::Gpu { ctx, bands, .. } = &mut r.engine {
+                for b in bands.iter_mut() {
+                    let done = b.trace.set_wall(ctx, &r.packed, &r.settings, &wall);
+                    debug_assert!(done, "a moved wall camera keeps its tiles");
+                }
             }
-        }
-        self.wall = Some(wall);
-        self.restart();
-        Ok(())
+            r.wall = Some(wall);
+        })
     }
 
     /// Runs `n` frames and waits for them.

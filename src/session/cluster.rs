@@ -579,7 +579,7 @@ impl<'a> ClusterView<'a> {
             }
             ViewStep::Roi(roi) => self.r.set_roi(roi)?,
             ViewStep::Eye(e) => self.r.move_eye(e)?,
-            ViewStep::Camera(camera) => self.r.set_camera(camera),
+            ViewStep::Camera(camera) => self.r.set_camera(camera)?,
             ViewStep::Rebuild { config, max_depth } => {
                 let settings = TraceSettings {
                     max_depth,

@@ -20,6 +20,7 @@ use crate::output::OutputError;
 use crate::roi::dgi::Roi;
 use crate::scene::Scene;
 use crate::trace::path::TraceSettings;
+use crate::trace::reuse::ReuseStats;
 use crate::trace::wall::WallCamera;
 
 /// When a guided render stops.
@@ -45,6 +46,9 @@ pub struct Steering<'s> {
     current: Option<Roi>,
     /// (iteration, eye): where the eye restarted the accumulation.
     pub eye_restarts: Vec<(u32, DVec3)>,
+    /// (iteration, eye, what it carried): where the eye moved and the accumulation was
+    /// carried over ([`crate::frame::EyeMove::Reuse`]).
+    pub eye_reuses: Vec<(u32, DVec3, ReuseStats)>,
     /// Eyes refused (on or behind a tile's plane: the eye stayed where it was).
     pub eyes_refused: u32,
 }
@@ -58,6 +62,7 @@ impl<'s> Steering<'s> {
             spread: stopping.iterations.unwrap_or(1),
             current: None,
             eye_restarts: Vec::new(),
+            eye_reuses: Vec::new(),
             eyes_refused: 0,
         }
     }
@@ -84,6 +89,10 @@ impl<'s> Steering<'s> {
             EyeFollow::Kept => None,
             EyeFollow::Restarted => {
                 self.eye_restarts.push((k, eye));
+                Some(eye)
+            }
+            EyeFollow::Reused(stats) => {
+                self.eye_reuses.push((k, eye, stats));
                 Some(eye)
             }
             EyeFollow::Refused(_) => {
@@ -118,6 +127,9 @@ pub struct GuidedResult {
     /// (iteration, eye): where a tracked head's eye restarted the accumulation (the wall
     /// camera only; the ROI and its DGI are kept).
     pub eye_restarts: Vec<(u32, glam::DVec3)>,
+    /// (iteration, eye, what it carried): where a tracked head's eye moved and the
+    /// accumulation was carried over.
+    pub eye_reuses: Vec<(u32, glam::DVec3, ReuseStats)>,
     /// Head eyes refused (on or behind a tile's plane: the eye stayed where it was).
     pub eyes_refused: u32,
     /// Pixels the denoiser dropped for a NaN or infinite sum (DESIGN.md §8).
@@ -167,6 +179,8 @@ pub struct Steered {
     pub progress: Option<RoiProgress>,
     /// (iteration, eye): where a tracked head's eye restarted the accumulation.
     pub eye_restarts: Vec<(u32, DVec3)>,
+    /// (iteration, eye, what it carried): where it moved and the accumulation was carried.
+    pub eye_reuses: Vec<(u32, DVec3, ReuseStats)>,
     /// Head eyes refused (on or behind a tile's plane).
     pub eyes_refused: u32,
 }
@@ -217,6 +231,7 @@ pub fn run_guided<R: Render>(
         stop,
         progress,
         eye_restarts: steering.eye_restarts,
+        eye_reuses: steering.eye_reuses,
         eyes_refused: steering.eyes_refused,
     })
 }
@@ -286,6 +301,7 @@ pub fn render_guided(
         progress: run.progress,
         accumulated,
         eye_restarts: run.eye_restarts,
+        eye_reuses: run.eye_reuses,
         eyes_refused: run.eyes_refused,
         denoise_dropped: dropped,
     })

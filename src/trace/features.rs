@@ -47,7 +47,9 @@ use super::path::{
     SurfacePoint, TraceSettings, alpha_covered, base_color, env_eval, normal_mapped, ray_seed,
     slot, v3,
 };
+use super::bvh::TraceHit;
 use super::shading::offset_ray;
+use super::reuse;
 use super::wall::WallCamera;
 
 /// The points inside a pixel (in pixels from its top-left corner) that its features look
@@ -91,6 +93,81 @@ fn refract(i: Vec3, n: Vec3, eta: f32) -> Vec3 {
     }
 }
 
+/// What the features and the primary-hit record read where a ray along `d` hits (the
+/// module docs' definition): the point, the geometric normal and the shading normal both
+/// turned to the ray's side, whether the ray hit the front face, the material (its row in
+/// `materials` and flags) and its α, metallic and transmission at that point.
+pub(super) struct SurfaceAt {
+    pub p: Vec3,
+    pub ng: Vec3,
+    pub ns: Vec3,
+    pub front: bool,
+    pub mb: usize,
+    pub flags: u32,
+    pub sp: SurfacePoint,
+    pub alpha: f32,
+    pub metallic: f32,
+    pub transmission: f32,
+}
+
+/// [`SurfaceAt`] of `hit` on a ray along `d` (the twin of `surface_at` in features.wgsl).
+pub(super) fn surface_at(sc: &PackedScene, hit: &TraceHit, d: Vec3) -> SurfaceAt {
+    let prim = sc.bvh.hit_prim(hit.prim);
+    let (v0, e1, e2) = (v3(prim[0]), v3(prim[1]), v3(prim[2]));
+    let mut ng = e1.cross(e2).normalize();
+    let p = v0 + e1 * hit.u + e2 * hit.v;
+    let ti = 4 * hit.triangle as usize;
+    let sh = &sc.shade[ti..ti + 4];
+    let b0 = 1.0 - hit.u - hit.v;
+    let sp = SurfacePoint {
+        tri: hit.triangle,
+        u: hit.u,
+        v: hit.v,
+    };
+    let mut ns = (v3(sh[0]) * b0 + v3(sh[1]) * hit.u + v3(sh[2]) * hit.v).normalize();
+    if !ns.is_finite() {
+        ns = ng;
+    }
+    let mb = MATERIAL_STRIDE * sh[3][3].to_bits() as usize;
+    let (m1, m2) = (sc.materials[mb + 1], sc.materials[mb + 2]);
+    let flags = m1[3] as u32;
+    let front = ng.dot(d) <= 0.0;
+    if !front {
+        ng = -ng;
+    }
+    if flags & MAT_NORMAL_TEX != 0 {
+        ns = normal_mapped(sc, mb, sp, ns);
+    }
+    if ns.dot(ng) < 0.0 {
+        ns = -ns;
+    }
+    let (mut metallic, mut alpha) = (m2[0], m2[1]);
+    if flags & MAT_MR_TEX != 0 {
+        let mr = slot(sc, mb, 1, sp);
+        alpha = (alpha * mr.y * mr.y).max(MIN_ALPHA);
+        metallic *= mr.z;
+    }
+    let mut transmission = 0.0;
+    if flags & MAT_EXT_BSDF != 0 {
+        transmission = sc.materials[mb + 3][3];
+        if flags & MAT_EXT_TEX != 0 && sc.materials[mb + 5 + 2 * 4][3].to_bits() != NO_TEXTURE {
+            transmission *= slot(sc, mb, 4, sp).x;
+        }
+    }
+    SurfaceAt {
+        p,
+        ng,
+        ns,
+        front,
+        mb,
+        flags,
+        sp,
+        alpha,
+        metallic,
+        transmission,
+    }
+}
+
 /// One feature ray from `o` along unit `d` (position `k` of `pixel`): albedo, shading normal
 /// and depth, as the module docs define them.
 fn feature_ray(
@@ -117,48 +194,18 @@ fn feature_ray(
         if v == 0 {
             depth = hit.t;
         }
-        let prim = bvh.hit_prim(hit.prim);
-        let (v0, e1, e2) = (v3(prim[0]), v3(prim[1]), v3(prim[2]));
-        let mut ng = e1.cross(e2).normalize();
-        let p = v0 + e1 * hit.u + e2 * hit.v;
-        let ti = 4 * hit.triangle as usize;
-        let sh = &sc.shade[ti..ti + 4];
-        let b0 = 1.0 - hit.u - hit.v;
-        let sp = SurfacePoint {
-            tri: hit.triangle,
-            u: hit.u,
-            v: hit.v,
-        };
-        let mut ns = (v3(sh[0]) * b0 + v3(sh[1]) * hit.u + v3(sh[2]) * hit.v).normalize();
-        if !ns.is_finite() {
-            ns = ng;
-        }
-        let mb = MATERIAL_STRIDE * sh[3][3].to_bits() as usize;
-        let (m1, m2) = (sc.materials[mb + 1], sc.materials[mb + 2]);
-        let flags = m1[3] as u32;
-        let front = ng.dot(d) <= 0.0;
-        if !front {
-            ng = -ng;
-        }
-        if flags & MAT_NORMAL_TEX != 0 {
-            ns = normal_mapped(sc, mb, sp, ns);
-        }
-        if ns.dot(ng) < 0.0 {
-            ns = -ns;
-        }
-        let (mut metallic, mut alpha) = (m2[0], m2[1]);
-        if flags & MAT_MR_TEX != 0 {
-            let mr = slot(sc, mb, 1, sp);
-            alpha = (alpha * mr.y * mr.y).max(MIN_ALPHA);
-            metallic *= mr.z;
-        }
-        let mut transmission = 0.0;
-        if flags & MAT_EXT_BSDF != 0 {
-            transmission = sc.materials[mb + 3][3];
-            if flags & MAT_EXT_TEX != 0 && sc.materials[mb + 5 + 2 * 4][3].to_bits() != NO_TEXTURE {
-                transmission *= slot(sc, mb, 4, sp).x;
-            }
-        }
+        let SurfaceAt {
+            p,
+            ng,
+            ns,
+            front,
+            mb,
+            flags,
+            sp,
+            alpha,
+            metallic,
+            transmission,
+        } = surface_at(sc, &hit, d);
         let specular = alpha <= SPECULAR_ALPHA && (metallic >= 0.5 || transmission >= 0.5);
         if !specular || v + 1 == FEATURE_DEPTH {
             let base = base_color(sc, mb, flags, sp).truncate();
@@ -243,6 +290,64 @@ pub fn features_cpu(
         albedo,
         normal_depth,
     }
+}
+
+/// The index of the centre ray among a pixel's feature rays (its alpha coverage seeds).
+pub const HIT_POSITION: u32 = 4;
+
+/// The primary-hit record of `pixel` (layout and meaning: [`crate::trace::reuse`]) from the
+/// ray through its centre, through `wall`'s primary ray when given: the twin of
+/// `primary_hits` in features.wgsl.
+#[must_use]
+pub fn hit_record(
+    sc: &PackedScene,
+    s: &TraceSettings,
+    wall: Option<&WallCamera>,
+    pixel: u32,
+) -> [[f32; 4]; 2] {
+    let (x, y) = (pixel % s.width, pixel / s.width);
+    let (o, d) = match wall {
+        Some(wc) => match wc.tile_of(x, y) {
+            Some(t) => wc.ray(t, x, y, 0.5, 0.5),
+            None => return [[0.0; 4], [0.0, 0.0, 0.0, f32::from_bits(reuse::NOTHING)]],
+        },
+        None => s
+            .camera
+            .ray(x as f32 + 0.5, y as f32 + 0.5, s.width, s.height),
+    };
+    let seed = ray_seed(pixel, HIT_POSITION, FEATURE_SEED, 0, 0);
+    let hit = sc
+        .bvh
+        .closest_hit_filtered(o, d, f32::INFINITY, |tri, u, w| {
+            alpha_covered(sc, tri, u, w, seed)
+        });
+    let Some(hit) = hit else {
+        return [[d.x, d.y, d.z, 0.0], [0.0, 0.0, 0.0, f32::from_bits(reuse::MISS)]];
+    };
+    let sf = surface_at(sc, &hit, d);
+    let mut word = (sf.mb / MATERIAL_STRIDE) as u32;
+    if sf.transmission >= 0.5 || (sf.metallic >= 0.5 && sf.alpha <= SPECULAR_ALPHA) {
+        word |= reuse::NEVER_REUSE;
+    }
+    let a = o + d * hit.t;
+    [
+        [a.x, a.y, a.z, sf.alpha],
+        [sf.ng.x, sf.ng.y, sf.ng.z, f32::from_bits(word)],
+    ]
+}
+
+/// Every pixel's primary-hit record ([`hit_record`]) on all cores: the CPU twin of the
+/// `primary_hits` kernel.
+#[must_use]
+pub fn hit_records_cpu(
+    sc: &PackedScene,
+    s: &TraceSettings,
+    wall: Option<&WallCamera>,
+) -> Vec<[[f32; 4]; 2]> {
+    (0..s.width * s.height)
+        .into_par_iter()
+        .map(|p| hit_record(sc, s, wall, p))
+        .collect()
 }
 
 #[cfg(test)]

@@ -8,6 +8,7 @@ pub mod gpu;
 pub mod lanes;
 pub mod pack;
 pub mod path;
+pub mod reuse;
 pub mod shading;
 pub mod wall;
 

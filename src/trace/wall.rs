@@ -481,6 +481,28 @@ impl WallCamera {
         (self.eye, d.normalize())
     }
 
+    /// The image point (pixels, y down) whose primary ray runs along `toward` from the eye,
+    /// and the shown pixel that holds it, traced through the entry whose map gives it
+    /// ([`Self::tile_of`]); `None` where no pixel's ray does. The inverse of [`Self::ray`]
+    /// (motion reuse, [`crate::trace::reuse`]); the twin of `project_wall` in reuse.wgsl.
+    #[must_use]
+    pub fn project(&self, toward: Vec3) -> Option<([f32; 2], u32)> {
+        for (i, t) in self.tiles.iter().enumerate() {
+            let Some([fx, fy]) = tile_point(t.origin, t.step_x, t.step_y, toward) else {
+                continue;
+            };
+            let (w, h) = ((t.x1 - t.x0) as f32, (t.y1 - t.y0) as f32);
+            if !(fx >= 0.0 && fy >= 0.0 && fx < w && fy < h) {
+                continue;
+            }
+            let (x, y) = (t.x0 + fx as u32, t.y0 + fy as u32);
+            if self.tile_of(x, y) == Some(i) {
+                return Some(([t.x0 as f32 + fx, t.y0 as f32 + fy], y * self.width + x));
+            }
+        }
+        None
+    }
+
     /// Sets every pixel no tile shows to black (a filtered picture spreads neighbours' light
     /// into unsampled pixels; those on bezels must stay dark).
     pub fn blank_unshown<T: Copy + Default>(&self, image: &mut [T]) {
@@ -504,6 +526,24 @@ impl WallCamera {
         }
         out
     }
+}
+
+/// Where the line from the eye along `toward` crosses the plane of a tile entry whose map is
+/// `origin + step_x·fx + step_y·fy` (relative to the eye): `(fx, fy)`, or `None` where it
+/// runs parallel to the plane or crosses it behind the eye. The twin of `tile_point` in
+/// reuse.wgsl (the same f32 operations).
+#[inline]
+#[must_use]
+pub fn tile_point(origin: Vec3, step_x: Vec3, step_y: Vec3, toward: Vec3) -> Option<[f32; 2]> {
+    let n = step_x.cross(step_y);
+    let denom = toward.dot(n);
+    let s = origin.dot(n) / denom;
+    if !(s > 0.0 && s <= f32::MAX) {
+        return None;
+    }
+    let p = toward * s - origin;
+    let (bx, by) = (step_y.cross(n), n.cross(step_x));
+    Some([p.dot(bx) / step_x.dot(bx), p.dot(by) / step_y.dot(by)])
 }
 
 /// The room point at the centre of `model`'s canvas (on the nearest tile's plane where the

@@ -142,9 +142,17 @@ impl Engine<'_> {
         })
     }
 
+    /// What the last move carried over (across ranks: every move restarts).
+    fn last_reuse(&self) -> Option<crate::trace::reuse::ReuseStats> {
+        match self {
+            Self::Local(r) => r.last_reuse(),
+            Self::Cluster(_) => None,
+        }
+    }
+
     fn set_camera(&mut self, camera: RenderCamera) -> Result<(), ViewerError> {
         match self {
-            Self::Local(r) => r.set_camera(camera),
+            Self::Local(r) => r.set_camera(camera)?,
             Self::Cluster(v) => {
                 v.send(ViewStep::Camera(camera))?;
             }
@@ -196,6 +204,10 @@ pub struct ViewerCore<'a> {
     pub eye_refused: Option<String>,
     /// Accumulation restarts since the start because the eye or the camera moved.
     pub restarts: u32,
+    /// Moves of the eye or the camera that carried the accumulation over.
+    pub moves_reused: u32,
+    /// What the last move carried over (`None`: it restarted, or none yet).
+    pub last_reuse: Option<crate::trace::reuse::ReuseStats>,
     /// Across ranks, the filter of rank 0's pictures (on `backend`), made once.
     filter: std::cell::OnceCell<Filter<'a>>,
     /// The most pixels of the window's picture across ranks ([`CONSOLE_PIXELS`] unless set;
@@ -343,6 +355,8 @@ impl<'a> ViewerCore<'a> {
             stats: Stats::default(),
             eye_refused: None,
             restarts: 0,
+            moves_reused: 0,
+            last_reuse: None,
             filter: std::cell::OnceCell::new(),
             console_pixels: CONSOLE_PIXELS,
             stats_at: None,
@@ -521,7 +535,13 @@ impl<'a> ViewerCore<'a> {
                 EyeFollow::Restarted => {
                     self.eye_refused = None;
                     self.restarts += 1;
+                    self.last_reuse = None;
                     self.restarted();
+                }
+                EyeFollow::Reused(stats) => {
+                    self.eye_refused = None;
+                    self.moves_reused += 1;
+                    self.last_reuse = Some(stats);
                 }
                 EyeFollow::Refused(e) => {
                     self.eye_refused = Some(e.to_string());
@@ -536,8 +556,13 @@ impl<'a> ViewerCore<'a> {
             let camera = v.camera(&now);
             if camera_moved(&now, &camera, threshold) {
                 self.engine.set_camera(camera)?;
-                self.restarts += 1;
-                self.restarted();
+                self.last_reuse = self.engine.last_reuse();
+                if self.last_reuse.is_some() {
+                    self.moves_reused += 1;
+                } else {
+                    self.restarts += 1;
+                    self.restarted();
+                }
             }
         }
         Ok(())

@@ -226,6 +226,7 @@ fn work(c: &mut Cluster, args: &RenderArgs, mut p: Prepared) -> anyhow::Result<(
                 progress: run.progress,
                 accumulated: run.accumulated,
                 eye_restarts: run.eye_restarts.clone(),
+                eye_reuses: Vec::new(),
                 eyes_refused: run.eyes_refused,
                 denoise_dropped: dropped,
             };

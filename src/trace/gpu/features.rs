@@ -25,6 +25,10 @@ pub const FEATURE_BYTES_PER_PIXEL: u64 = 32;
 /// primitives, shading data, materials, textures, the environment map).
 const SCENE_BINDINGS: [u32; 6] = [0, 1, 2, 3, 4, 7];
 
+/// The scene arrays the primary-hit kernel reads (no environment: a miss records its
+/// direction).
+const HIT_SCENE_BINDINGS: [u32; 5] = [0, 1, 2, 3, 4];
+
 /// What a features pass looks at: the scene (packed, and uploaded for `trace`, the trace
 /// kernel) and the settings whose camera it sees through (their seed and depth are not used).
 #[derive(Clone, Copy)]
@@ -41,6 +45,46 @@ pub struct FeatureInputs<'a> {
 #[derive(Clone)]
 pub struct FeaturesKernel {
     pipeline: wgpu::ComputePipeline,
+    /// `primary_hits`: motion reuse's primary-hit records ([`GpuHits`]).
+    hits: wgpu::ComputePipeline,
+}
+
+/// Bytes a pixel of the primary-hit records (two vec4s, [`crate::trace::reuse`]).
+pub const HIT_BYTES_PER_PIXEL: u64 = 32;
+
+/// The primary-hit records of one band of rows: two vec4s a pixel, row-major from `band.row0`.
+pub struct GpuHits {
+    pub width: u32,
+    pub band: Band,
+    pub records: wgpu::Buffer,
+}
+
+impl GpuHits {
+    /// A buffer for `width × band.rows` pixels; a clear error where it exceeds the adapter's
+    /// binding limit.
+    pub fn new(ctx: &GpuContext, width: u32, band: Band) -> Result<Self, GpuError> {
+        let bytes = u64::from(width) * u64::from(band.rows) * HIT_BYTES_PER_PIXEL;
+        ctx.check_binding("primary-hit records", bytes)?;
+        Ok(Self {
+            width,
+            band,
+            records: ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("primary-hit records"),
+                size: bytes.max(32),
+                usage: wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::COPY_SRC
+                    | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+        })
+    }
+
+    /// The records read back, one `[[f32; 4]; 2]` a pixel.
+    pub fn read(&self, ctx: &GpuContext) -> Result<Vec<[[f32; 4]; 2]>, GpuError> {
+        let mut r: Vec<[[f32; 4]; 2]> = ctx.read_buffer(&self.records)?;
+        r.truncate((self.width * self.band.rows) as usize);
+        Ok(r)
+    }
 }
 
 /// The feature buffers of one band of rows: `albedo` (`[r, g, b, 0]`) and `normal_depth`
@@ -97,6 +141,7 @@ impl FeaturesKernel {
             let module = ctx.shader_module("trace/features", FEATURES_WGSL);
             Self {
                 pipeline: ctx.compute_pipeline_in(&module, "trace/features", "features"),
+                hits: ctx.compute_pipeline_in(&module, "trace/primary_hits", "primary_hits"),
             }
         })
     }
@@ -109,6 +154,34 @@ impl FeaturesKernel {
         inputs: FeatureInputs<'_>,
         out: &GpuFeatures,
     ) {
+        let outputs = [entry(7, &out.albedo), entry(8, &out.normal_depth)];
+        let kernel = (&self.pipeline, "trace/features", &SCENE_BINDINGS[..]);
+        Self::dispatch(ctx, enc, inputs, kernel, out.band, &outputs);
+    }
+
+    /// Records the primary-hit records of `out`'s band as `inputs` see them.
+    pub fn record_hits(
+        &self,
+        ctx: &GpuContext,
+        enc: &mut wgpu::CommandEncoder,
+        inputs: FeatureInputs<'_>,
+        out: &GpuHits,
+    ) {
+        let outputs = [entry(9, &out.records)];
+        let kernel = (&self.hits, "trace/primary_hits", &HIT_SCENE_BINDINGS[..]);
+        Self::dispatch(ctx, enc, inputs, kernel, out.band, &outputs);
+    }
+
+    /// One thread a pixel of `band` in `pipeline` (with its label and the scene arrays it
+    /// reads), writing `outputs`.
+    fn dispatch(
+        ctx: &GpuContext,
+        enc: &mut wgpu::CommandEncoder,
+        inputs: FeatureInputs<'_>,
+        (pipeline, label, scene_bindings): (&wgpu::ComputePipeline, &str, &[u32]),
+        band: Band,
+        outputs: &[wgpu::BindGroupEntry<'_>],
+    ) {
         let FeatureInputs {
             trace,
             scene_gpu,
@@ -116,7 +189,7 @@ impl FeaturesKernel {
             settings,
             wall,
         } = inputs;
-        let mut params = GpuTraceParams::for_band(trace, scene, settings, wall, false, out.band);
+        let mut params = GpuTraceParams::for_band(trace, scene, settings, wall, false, band);
         params.seed = FEATURE_SEED;
         let params = ctx
             .device
@@ -126,32 +199,29 @@ impl FeaturesKernel {
                 usage: wgpu::BufferUsages::UNIFORM,
             });
         let wall_table = wall_table_buffer(ctx, "features wall tiles", wall);
-        let scene_entries: Vec<_> = SCENE_BINDINGS
+        let scene_entries: Vec<_> = scene_bindings
             .iter()
             .map(|&b| entry(b, &scene_gpu.buffers[b as usize]))
             .collect();
         let scene_bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("features scene"),
-            layout: &self.pipeline.get_bind_group_layout(0),
+            layout: &pipeline.get_bind_group_layout(0),
             entries: &scene_entries,
         });
+        let mut entries = vec![entry(0, &params), entry(6, &wall_table)];
+        entries.extend(outputs.iter().cloned());
         let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("features frame"),
-            layout: &self.pipeline.get_bind_group_layout(1),
-            entries: &[
-                entry(0, &params),
-                entry(6, &wall_table),
-                entry(7, &out.albedo),
-                entry(8, &out.normal_depth),
-            ],
+            layout: &pipeline.get_bind_group_layout(1),
+            entries: &entries,
         });
-        let groups = (out.width * out.band.rows).div_ceil(FEATURES_WORKGROUP);
+        let groups = (settings.width * band.rows).div_ceil(FEATURES_WORKGROUP);
         let gx = groups.clamp(1, MAX_GROUPS_X);
         let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("trace/features"),
+            label: Some(label),
             timestamp_writes: None,
         });
-        pass.set_pipeline(&self.pipeline);
+        pass.set_pipeline(pipeline);
         pass.set_bind_group(0, &scene_bind, &[]);
         pass.set_bind_group(1, &bind, &[]);
         pass.dispatch_workgroups(gx, groups.div_ceil(gx).max(1), 1);

@@ -7,6 +7,9 @@
 //! * `accumulation`: the accumulation buffers ([`GpuAccum`]);
 //! * `features`: the denoiser's feature buffers ([`FeaturesKernel`], [`GpuFeatures`];
 //!   `shaders/trace/features.wgsl`, CPU twin [`crate::trace::features`]);
+//! * `reuse`: motion reuse when the eye moves ([`ReuseKernel`], `shaders/trace/reuse.wgsl`,
+//!   CPU twin [`crate::trace::reuse`]; its primary-hit records come from the features
+//!   kernel's `primary_hits`, [`GpuHits`]);
 //! * `run`: the runs over one accumulation ([`TraceRun`]) — full frames, the scheduler's
 //!   lists, bands of rows;
 //! * `samples` and `owned`: a cluster rank's runs — its samples returned ([`SampleRun`]) and
@@ -27,6 +30,7 @@ mod features;
 mod lab;
 mod owned;
 mod params;
+mod reuse;
 mod run;
 mod samples;
 mod scene;
@@ -34,7 +38,8 @@ mod scene;
 mod split;
 
 pub use accumulation::GpuAccum;
-pub use features::{FeatureInputs, FeaturesKernel, GpuFeatures};
+pub use features::{FeatureInputs, FeaturesKernel, GpuFeatures, GpuHits, HIT_BYTES_PER_PIXEL};
+pub use reuse::{GpuReuseParams, GpuView, REUSE_WGSL, ReuseInputs, ReuseKernel};
 pub use owned::{GpuOwnedParams, OwnedSums};
 pub use params::{GpuTraceParams, full_frame_grid};
 pub use run::{RunInputs, TraceRun};
