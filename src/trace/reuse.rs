@@ -64,7 +64,7 @@ pub const DIFFUSE_ALPHA: f32 = 0.25;
 /// The most samples a partly view-dependent pixel carries through a move.
 pub const HISTORY_LENGTH: u32 = 32;
 /// The most an old anchor may lie from the new pixel's centre, in new pixels (Chebyshev).
-pub const MAX_MISREGISTRATION_PX: f32 = 1.0;
+pub const MAX_MISREGISTRATION_PX: f32 = 0.75;
 /// The eye may move at most this fraction of the distance to a pixel's surface.
 pub const MAX_JUMP: f32 = 0.25;
 
@@ -280,3 +280,6 @@ pub fn reuse_cpu(
     }
     (acc, stats)
 }
+
+#[cfg(test)]
+mod tests;
