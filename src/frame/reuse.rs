@@ -10,11 +10,12 @@
 //! binding) is read back, carried by the CPU twin and written back.
 
 use super::{Engine, FrameError, Renderer};
-use crate::gpu::GpuContext;
+use crate::gpu::{Band, GpuContext};
 use crate::trace::accum::Accumulation;
 use crate::trace::camera::RenderCamera;
 use crate::trace::features::hit_records_cpu;
-use crate::trace::gpu::{FeatureInputs, FeaturesKernel, GpuAccum, GpuHits, ReuseInputs};
+use crate::trace::gpu::{FeatureInputs, FeaturesKernel, GpuAccum, GpuHits, HIT_BYTES_PER_PIXEL};
+use crate::trace::gpu::ReuseInputs;
 use crate::trace::gpu::{ReuseKernel, TraceKernel};
 use crate::trace::reuse::{ReuseStats, View, reuse_cpu};
 use crate::trace::wall::WallCamera;
@@ -117,7 +118,9 @@ impl Renderer<'_> {
                 *accum = carried;
                 stats
             }
-            (Engine::Gpu { ctx, bands, .. }, Hits::Gpu(old), Hits::Gpu(new)) if bands.len() == 1 => {
+            (Engine::Gpu { ctx, bands, .. }, Hits::Gpu(old), Hits::Gpu(new))
+                if bands.len() == 1 && old.len() == 1 && new.len() == 1 =>
+            {
                 let accum = &bands[0].accum;
                 let old_accum = copy_accum(ctx, accum)?;
                 ReuseKernel::new(ctx).run(
@@ -152,13 +155,15 @@ impl Renderer<'_> {
                     acc.count.extend(part.count);
                 }
                 let (carried, stats) = reuse_cpu(&nv, &ov, &mut new_r, &old_r, &acc);
-                for (b, hits) in bands.iter().zip(new.iter()) {
-                    let (first, n) = ((b.band.row0 * w) as usize, (b.band.rows * w) as usize);
-                    let range = first..first + n;
-                    let q = &ctx.queue;
+                let rows = |b: Band| (b.row0 * w) as usize..((b.row0 + b.rows) * w) as usize;
+                let q = &ctx.queue;
+                for b in bands.iter() {
+                    let range = rows(b.band);
                     q.write_buffer(&b.accum.accum, 0, bytemuck::cast_slice(&carried.sum[range.clone()]));
-                    q.write_buffer(&b.accum.counts, 0, bytemuck::cast_slice(&carried.count[range.clone()]));
-                    q.write_buffer(&hits.records, 0, bytemuck::cast_slice(&new_r[range]));
+                    q.write_buffer(&b.accum.counts, 0, bytemuck::cast_slice(&carried.count[range]));
+                }
+                for hits in new.iter() {
+                    q.write_buffer(&hits.records, 0, bytemuck::cast_slice(&new_r[rows(hits.band)]));
                 }
                 stats
             }
@@ -174,15 +179,21 @@ impl Renderer<'_> {
     /// The primary-hit records of the current view on this renderer's backend.
     fn compute_hits(&self) -> Result<Hits, FrameError> {
         match &self.engine {
-            Engine::Gpu {
-                ctx, scene, bands, ..
-            } => {
+            Engine::Gpu { ctx, scene, .. } => {
                 let trace = TraceKernel::new(ctx);
                 let kernel = FeaturesKernel::new(ctx);
-                let mut out = Vec::with_capacity(bands.len());
+                let (w, h) = (self.settings.width, self.settings.height);
+                // Bands of their own: a record is twice an accumulation pixel's bytes.
+                let rows = (ctx.max_binding() / (u64::from(w) * HIT_BYTES_PER_PIXEL)).max(1);
+                let rows = rows.min(u64::from(h)) as u32;
+                let mut out = Vec::new();
                 let mut enc = ctx.device.create_command_encoder(&Default::default());
-                for b in bands {
-                    let hits = GpuHits::new(ctx, self.settings.width, b.band)?;
+                for row0 in (0..h).step_by(rows as usize) {
+                    let band = Band {
+                        row0,
+                        rows: rows.min(h - row0),
+                    };
+                    let hits = GpuHits::new(ctx, w, band)?;
                     let inputs = FeatureInputs {
                         trace: &trace,
                         scene_gpu: scene,

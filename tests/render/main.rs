@@ -5,6 +5,7 @@
 mod bands;
 mod denoise;
 mod eye_restart;
+mod eye_reuse;
 mod filter_fast;
 mod filter_properties;
 mod guided;
