@@ -200,6 +200,7 @@ pub fn run_headless(args: &DemoArgs) -> anyhow::Result<DemoOutput> {
             filter,
             denoise: denoiser,
             keep_sums: true,
+            on_eye_move: crate::frame::EyeMove::Reuse,
         },
         &source,
         &Stopping {

@@ -1,4 +1,5 @@
-//! `--head KIND:N [--eye-offset X,Y,Z] [--eye-threshold METRES]`: the tracked head that moves
+//! `--head KIND:N [--eye-offset X,Y,Z] [--eye-threshold METRES] [--on-eye-move reuse|restart]`:
+//! the tracked head that moves
 //! the wall camera's eye ([`crate::tracking::head`], DESIGN.md §11), shared by `view`, `record`,
 //! `replay` and `render --guide`.
 //!
@@ -11,6 +12,7 @@
 use anyhow::Context;
 use glam::DVec3;
 
+use crate::frame::EyeMove;
 use crate::tracking::event::DeviceId;
 use crate::tracking::head::{DEFAULT_EYE_THRESHOLD_M, HeadConfig, HeadOverride};
 
@@ -30,6 +32,12 @@ pub struct HeadArgs {
     /// this many metres from where it started (default 0.01).
     #[arg(long, value_name = "METRES", allow_hyphen_values = true)]
     pub eye_threshold: Option<f64>,
+    /// What a move past --eye-threshold does to the accumulation: `reuse` carries each
+    /// pixel's samples over from the old pixel that saw the same surface (mirrors, glass,
+    /// disoccluded surfaces and pixels newly in view start again; DESIGN.md §11); `restart`
+    /// starts every pixel again. Default: reuse (with --cluster: restart, the only one it has).
+    #[arg(long, value_name = "reuse|restart")]
+    pub on_eye_move: Option<EyeMove>,
 }
 
 impl HeadArgs {
@@ -60,6 +68,23 @@ impl HeadArgs {
     #[must_use]
     pub fn threshold_m(&self) -> f64 {
         self.eye_threshold.unwrap_or(DEFAULT_EYE_THRESHOLD_M)
+    }
+
+    /// What a move does (`--on-eye-move`; reuse unless asked otherwise).
+    #[must_use]
+    pub fn on_eye_move(&self) -> EyeMove {
+        self.on_eye_move.unwrap_or(EyeMove::Reuse)
+    }
+
+    /// `--on-eye-move` for a render across ranks: restart (they carry nothing yet); reuse
+    /// asked for is an error.
+    pub fn cluster_on_eye_move(&self) -> anyhow::Result<EyeMove> {
+        match self.on_eye_move {
+            Some(EyeMove::Reuse) => anyhow::bail!(
+                "--on-eye-move reuse: a render across ranks (--cluster) restarts the accumulation when the eye moves; leave --on-eye-move out or say restart"
+            ),
+            _ => Ok(EyeMove::Restart),
+        }
     }
 
     /// Checks the numbers before any work.

@@ -190,6 +190,7 @@ pub fn run(args: &ViewArgs) -> anyhow::Result<()> {
                 "--denoise oidn denoises one process's picture: across ranks the viewer denoises with --denoise interactive"
             );
         }
+        args.head.cluster_on_eye_move()?;
         return run_cluster(args);
     }
     if !has_display() {
@@ -426,6 +427,7 @@ fn setup(args: &ViewArgs, root: bool) -> anyhow::Result<Setup> {
         .eye_threshold
         .or(head.map(|h| h.eye_threshold_m))
         .unwrap_or_else(|| args.head.threshold_m());
+    state.on_eye_move = args.head.on_eye_move();
     if let Some(c) = args.roi_at {
         state.click(&v.model, c, args.size);
     }

@@ -1022,7 +1022,7 @@ fn samples_in_flight_arrive_with_the_next_frame_and_a_restart_drops_them() {
             one.set_roi(roi).unwrap();
         }
         if k == MOVE_AT {
-            one.set_camera(moved);
+            one.set_camera(moved).unwrap();
         }
         one.run_frame(false).unwrap();
     }
@@ -1051,7 +1051,7 @@ fn samples_in_flight_arrive_with_the_next_frame_and_a_restart_drops_them() {
                                     r.set_roi(roi).unwrap();
                                 }
                                 if k == MOVE_AT {
-                                    r.set_camera(moved);
+                                    r.set_camera(moved).unwrap();
                                 }
                                 r.run_frame(false).unwrap();
                                 assert_eq!(r.in_flight.is_some(), overlap, "after frame {k}");

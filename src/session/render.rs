@@ -14,7 +14,8 @@ use super::guide::GuideSource;
 use crate::display::DisplayModel;
 use crate::filter::{Denoiser, Filter, FilterParams};
 use crate::frame::stop::{RoiProgress, StopCondition, StopReason, reached};
-use crate::frame::{EyeFollow, FrameError, GuideConfig, Render, Renderer, denoise_picture};
+use crate::frame::{EyeFollow, EyeMove, FrameError, GuideConfig, Render, Renderer};
+use crate::frame::denoise_picture;
 use crate::gpu::Backend;
 use crate::output::OutputError;
 use crate::roi::dgi::Roi;
@@ -253,6 +254,8 @@ pub struct GuidedRender<'a> {
     pub denoise: Option<Denoiser<'a>>,
     /// Whether the result keeps the accumulation's sums (the demo's side-by-side crops).
     pub keep_sums: bool,
+    /// What a tracked head's move does to the accumulation (`--on-eye-move`).
+    pub on_eye_move: EyeMove,
 }
 
 /// One process's guided render of `scene` on `backend`: the render loop ([`run_guided`]), then
@@ -274,6 +277,7 @@ pub fn render_guided(
         job.config,
         job.wall,
     )?;
+    r.set_on_eye_move(job.on_eye_move);
     let run = run_guided(&mut r, source, stopping, on_iteration)?;
     let accumulated = r.iteration();
     let wall = r.wall().cloned();

@@ -294,7 +294,8 @@ impl<'a> ViewerCore<'a> {
                 None => camera_orbit(&base.camera, focus_distance(scene, &base)),
             };
         }
-        let renderer = Renderer::guided_wall(backend, scene, settings, model, config, wall)?;
+        let mut renderer = Renderer::guided_wall(backend, scene, settings, model, config, wall)?;
+        renderer.set_on_eye_move(state.on_eye_move);
         Ok(Self::with_engine(
             backend,
             model,

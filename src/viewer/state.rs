@@ -94,6 +94,8 @@ pub struct ViewerState {
     /// eye (or the pinhole) moves more than this many metres from where it started (a pinhole
     /// also when it turns by more than this many radians).
     pub eye_threshold_m: f64,
+    /// What a move past the threshold does to the accumulation (`--on-eye-move`).
+    pub on_eye_move: crate::frame::EyeMove,
 }
 
 impl ViewerState {
@@ -131,6 +133,7 @@ impl ViewerState {
             head: None,
             follow_head: true,
             eye_threshold_m: crate::tracking::head::DEFAULT_EYE_THRESHOLD_M,
+            on_eye_move: crate::frame::EyeMove::Restart,
         }
     }
 

@@ -14,7 +14,7 @@ use std::time::{Duration, Instant};
 use glam::DVec3;
 use raygun::display::DisplayModel;
 use raygun::filter::FilterParams;
-use raygun::frame::GuideConfig;
+use raygun::frame::{EyeMove, GuideConfig};
 use raygun::gpu::Backend;
 use raygun::scene::Scene;
 use raygun::session::guide::GuideSource;
@@ -45,6 +45,10 @@ fn path(rel: &str) -> PathBuf {
 /// The guided render of a head replay through the wall camera (CPU twin), from the head's
 /// first eye with `auto` placement.
 fn render(replay: &str) -> (GuidedResult, GuideSource) {
+    render_with(replay, EyeMove::Restart)
+}
+
+fn render_with(replay: &str, on_eye_move: EyeMove) -> (GuidedResult, GuideSource) {
     let file = path(replay);
     let (plan, _) = ReplayPlan::new(&ReplayOptions::of(file.clone())).unwrap();
     assert!(plan.head.is_some(), "{replay} names its head");
@@ -82,6 +86,7 @@ fn render(replay: &str) -> (GuidedResult, GuideSource) {
             filter: FilterParams::default(),
             denoise: None,
             keep_sums: false,
+            on_eye_move,
         },
         &source,
         &Stopping {
@@ -148,6 +153,23 @@ fn render_guide_moves_the_eye_deterministically_and_keeps_the_roi() {
     assert!(a.dgi.contains(&0.0), "the last ROI is in the DGI");
 }
 
+/// The same walk with reuse: the eye moves at the same iterations, each move carries most of
+/// the picture (the walk's 1–2 cm steps), the iterations go on, and more samples are in the
+/// picture at the end than after the last restart.
+#[test]
+fn render_guide_with_reuse_carries_the_picture_through_the_walk() {
+    let (a, _) = render(HEAD_DTRACK);
+    let (b, _) = render_with(HEAD_DTRACK, EyeMove::Reuse);
+    assert!(b.eye_restarts.is_empty());
+    let its = b.eye_reuses.iter().map(|x| x.0).collect::<Vec<_>>();
+    assert_eq!(its, a.eye_restarts.iter().map(|x| x.0).collect::<Vec<_>>());
+    let mean = b.eye_reuses.iter().map(|x| x.2.share()).sum::<f64>() / its.len() as f64;
+    assert!(mean > 0.5, "{:?}", b.eye_reuses);
+    assert_eq!(b.accumulated, ITERATIONS);
+    let total = |r: &GuidedResult| r.counts.iter().map(|&c| u64::from(c)).sum::<u64>();
+    assert!(total(&b) > total(&a), "{} vs {}", total(&b), total(&a));
+}
+
 #[test]
 fn render_with_a_head_replay_needs_no_eye_and_says_how_often_it_moved() {
     let dir = tmp_dir("head-render");
@@ -174,6 +196,7 @@ fn render_with_a_head_replay_needs_no_eye_and_says_how_often_it_moved() {
     ok(&o);
     let err = stderr(&o);
     assert!(err.contains("the tracked head moved the eye"), "{err}");
+    assert!(err.contains("carried the accumulation of"), "{err}");
     assert!(out.exists());
     // A threshold past every step of the walk: no restart.
     let o = raygun(&[

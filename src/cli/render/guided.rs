@@ -249,6 +249,7 @@ pub fn run(
             filter: plan.filter,
             denoise,
             keep_sums: false,
+            on_eye_move: args.head.on_eye_move(),
         },
         &plan.source,
         &plan.stopping,
@@ -311,25 +312,7 @@ pub fn write_outputs(
     }
     res.write_guides(plan.dgi_out.as_deref(), plan.counts_out.as_deref())?;
     super::say_dropped(args.quiet, res.denoise_dropped);
-    if !res.eye_restarts.is_empty() || res.eyes_refused > 0 {
-        crate::cli::say(
-            args.quiet,
-            format_args!(
-                "the tracked head moved the eye {} (the accumulation restarted each time, the ROI kept; the picture holds the last {}){}",
-                crate::messages::count(res.eye_restarts.len(), "time"),
-                crate::messages::count(res.accumulated as usize, "iteration"),
-                if res.eyes_refused > 0 {
-                    format!(
-                        "; {} on or behind a tile's plane {} refused",
-                        crate::messages::count(res.eyes_refused as usize, "eye"),
-                        if res.eyes_refused == 1 { "was" } else { "were" }
-                    )
-                } else {
-                    String::new()
-                }
-            ),
-        );
-    }
+    say_eye_moves(args.quiet, res);
     let roi = res.progress.map_or(String::new(), |p| {
         format!(
             "; ROI: {} pixels, median SE {:.4}, fewest samples {}",
@@ -354,4 +337,39 @@ pub fn write_outputs(
         crate::cli::say(args.quiet, extra);
     }
     Ok(())
+}
+
+/// Says how often a tracked head moved the eye and what each move did to the accumulation
+/// (nothing when it never moved and no eye was refused).
+fn say_eye_moves(quiet: bool, res: &crate::session::render::GuidedResult) {
+    let refused = if res.eyes_refused > 0 {
+        format!(
+            "; {} on or behind a tile's plane {} refused",
+            crate::messages::count(res.eyes_refused as usize, "eye"),
+            if res.eyes_refused == 1 { "was" } else { "were" }
+        )
+    } else {
+        String::new()
+    };
+    let what = if !res.eye_reuses.is_empty() {
+        let share = res.eye_reuses.iter().map(|(_, _, s)| s.share()).sum::<f64>()
+            / res.eye_reuses.len() as f64;
+        format!(
+            "{} (each move carried the accumulation of {:.0} % of the shown pixels on average, the ROI kept)",
+            crate::messages::count(res.eye_reuses.len(), "time"),
+            100.0 * share
+        )
+    } else if !res.eye_restarts.is_empty() || res.eyes_refused > 0 {
+        format!(
+            "{} (the accumulation restarted each time, the ROI kept; the picture holds the last {})",
+            crate::messages::count(res.eye_restarts.len(), "time"),
+            crate::messages::count(res.accumulated as usize, "iteration"),
+        )
+    } else {
+        return;
+    };
+    crate::cli::say(
+        quiet,
+        format_args!("the tracked head moved the eye {what}{refused}"),
+    );
 }

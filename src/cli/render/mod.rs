@@ -262,6 +262,9 @@ fn check_args(args: &RenderArgs) -> anyhow::Result<()> {
              their tiles with --denoise interactive; leave out one of the two"
         );
     }
+    if args.cluster.cluster {
+        args.head.cluster_on_eye_move()?;
+    }
     Ok(())
 }
 
@@ -562,6 +565,20 @@ mod tests {
         super::check_args(&args(&["--denoise", "oidn"])).unwrap();
         super::check_args(&args(&["--cluster", "--denoise", "off"])).unwrap();
         super::check_args(&args(&["--cluster", "--denoise", "interactive"])).unwrap();
+    }
+
+    #[test]
+    fn reuse_on_an_eye_move_is_the_default_and_refused_across_ranks() {
+        assert_eq!(args(&[]).head.on_eye_move(), crate::frame::EyeMove::Reuse);
+        let restart = args(&["--on-eye-move", "restart"]);
+        assert_eq!(restart.head.on_eye_move(), crate::frame::EyeMove::Restart);
+        let e = super::check_args(&args(&["--cluster", "--on-eye-move", "reuse"])).unwrap_err();
+        assert!(e.to_string().starts_with("--on-eye-move reuse: a render across ranks"), "{e}");
+        super::check_args(&args(&["--cluster"])).unwrap();
+        super::check_args(&args(&["--cluster", "--on-eye-move", "restart"])).unwrap();
+        let argv = ["render", "--scene", "builtin:cornell", "--on-eye-move", "sometimes"];
+        let e = Cli::try_parse_from(argv).err().unwrap();
+        assert!(e.to_string().contains("expected reuse or restart"), "{e}");
     }
 
     #[test]
