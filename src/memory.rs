@@ -40,6 +40,12 @@ pub const DENOISED_BPP: u64 = 28;
 /// OIDN's images a pixel: colour, albedo, normal and its output, f32 RGB each, and the picture
 /// made from its output (OIDN's own scratch memory is allocated by the library, not counted).
 pub const OIDN_BPP: u64 = 60;
+/// Motion reuse at a move of the eye (DESIGN.md §11): the old and the new view's primary-hit
+/// records (32 bytes each) and the old accumulation kept beside the new one (20).
+pub const REUSE_BPP: u64 = 2 * 32 + 20;
+/// Motion reuse of a GPU frame in bands, which carries through the host: both views' records,
+/// the accumulation read back and the one carried.
+pub const REUSE_BANDS_HOST_BPP: u64 = 2 * 32 + 2 * 20;
 /// Host memory that does not grow with the image (scene, BVH and libraries are counted apart):
 /// allocator slack, thread stacks, small tables.
 pub const FIXED_BYTES: u64 = 64 << 20;
@@ -194,6 +200,24 @@ impl Budget {
         self
     }
 
+    /// The budget with motion reuse's working set at a move of the eye (DESIGN.md §11): on the
+    /// GPU whose largest storage binding is `gpu_binding` (a frame larger than one binding
+    /// carries through the host), else on the host.
+    #[must_use]
+    pub fn with_reuse(mut self, gpu_binding: Option<u64>) -> Self {
+        let px = self.pixels();
+        match gpu_binding {
+            Some(max) => {
+                self.device.push(("motion reuse", REUSE_BPP * px));
+                if px * 16 > max {
+                    self.host.push(("motion reuse (frame in bands)", REUSE_BANDS_HOST_BPP * px));
+                }
+            }
+            None => self.host.push(("motion reuse", REUSE_BPP * px)),
+        }
+        self
+    }
+
     /// "accumulation 20 GB, DGI 4 GB, …" (largest first).
     #[must_use]
     pub fn breakdown(&self) -> String {
@@ -322,6 +346,27 @@ mod tests {
     /// frame's threads (8 × 8 tiles) where the frame has fewer than a chunk, of what one
     /// binding holds of path states where that is less; nothing for the default kernel, a
     /// guided render (lists), the DGI or the CPU.
+    /// Motion reuse adds its working set where it runs: on the GPU, and on the host too for a
+    /// frame larger than one binding (it carries through the host); on the CPU, on the host.
+    #[test]
+    fn motion_reuse_is_counted_where_it_runs() {
+        let work = Work::Render {
+            gpu: true,
+            filter: FilterKind::Exact,
+        };
+        let size = [1000, 500];
+        let px = 500_000;
+        let base = Budget::of(work, size);
+        let gpu = base.clone().with_reuse(Some(1 << 30));
+        assert_eq!(gpu.device_bytes(), base.device_bytes() + REUSE_BPP * px);
+        assert_eq!(gpu.host_bytes(), base.host_bytes());
+        let banded = base.clone().with_reuse(Some(px * 16 - 1));
+        assert_eq!(banded.host_bytes(), base.host_bytes() + REUSE_BANDS_HOST_BPP * px);
+        let cpu = base.clone().with_reuse(None);
+        assert_eq!(cpu.host_bytes(), base.host_bytes() + REUSE_BPP * px);
+        assert!(cpu.breakdown().contains("motion reuse"));
+    }
+
     #[cfg(feature = "kernel-lab")]
     #[test]
     fn the_split_kernels_paths_are_in_the_gpu_budget() {

@@ -426,7 +426,7 @@ fn check_and_open(
             gpu: backend.is_gpu(),
             filter: filter.kind,
         },
-        args.denoise,
+        (args.denoise, crate::frame::EyeMove::Reuse),
         args.size,
         backend,
     )?;

@@ -134,7 +134,10 @@ pub fn run(args: &DgiArgs) -> anyhow::Result<()> {
         crate::memory::Work::Dgi {
             gpu: backend.is_gpu(),
         },
-        crate::filter::DenoiseKind::Off,
+        (
+            crate::filter::DenoiseKind::Off,
+            crate::frame::EyeMove::Restart,
+        ),
         args.size,
         &backend,
     )?;

@@ -345,7 +345,7 @@ fn setup(args: &ViewArgs, root: bool) -> anyhow::Result<Setup> {
             gpu: backend.is_gpu(),
             filter: filter.kind,
         },
-        denoise,
+        (denoise, args.head.on_eye_move()),
         args.size,
         &backend,
     )?;

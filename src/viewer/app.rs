@@ -15,6 +15,7 @@ use super::orbit::{Gesture, ViewKey, key_gesture, wall_plan};
 use super::save::save_picture;
 use super::state::{Overlay, RoiSource};
 use crate::filter::{Blend, DenoiseKind, FilterKind};
+use crate::frame::EyeMove;
 use crate::interaction::CursorMark;
 use crate::session::live::LiveTracking;
 use crate::session::timeline::Timeline;
@@ -422,6 +423,9 @@ impl<'a> ViewerApp<'a> {
     fn eye_panel(&mut self, ui: &mut egui::Ui) {
         let eye = self.core.eye();
         let restarts = self.core.restarts;
+        let (reused, last_reuse) = (self.core.moves_reused, self.core.last_reuse);
+        let mut policy = self.core.state.on_eye_move;
+        let local = self.core.is_local();
         let refused = self.core.eye_refused.clone();
         let camera_at = self.core.settings().camera.position;
         let model = self.core.model;
@@ -456,9 +460,22 @@ impl<'a> ViewerApp<'a> {
         let mut mm = s.eye_threshold_m * 1e3;
         ui.add(egui::Slider::new(&mut mm, 0.0..=100.0).text("restart when moved (mm)"));
         s.eye_threshold_m = mm * 1e-3;
+        ui.add_enabled_ui(local, |ui| {
+            ui.horizontal(|ui| {
+                ui.label("on a move:");
+                ui.radio_value(&mut policy, EyeMove::Reuse, "reuse the picture");
+                ui.radio_value(&mut policy, EyeMove::Restart, "restart");
+            });
+        });
         ui.label(format!(
-            "restarts {restarts} · drag: orbit · shift/middle drag: pan · wheel: dolly (or arrows, shift+arrows, +/−)"
+            "moves carried {reused} · restarts {restarts} · drag: orbit · shift/middle drag: pan · wheel: dolly (or arrows, shift+arrows, +/−)"
         ));
+        if let Some(r) = last_reuse {
+            ui.label(format!(
+                "the last move carried {:.0} % of the shown pixels",
+                100.0 * r.share()
+            ));
+        }
         if let Some(r) = refused {
             ui.colored_label(egui::Color32::YELLOW, format!("eye refused: {r}"));
         }
@@ -527,6 +544,9 @@ impl<'a> ViewerApp<'a> {
             );
         }
         ui.separator();
+        if policy != self.core.state.on_eye_move {
+            self.core.set_on_eye_move(policy);
+        }
     }
 }
 

@@ -507,6 +507,21 @@ impl<'a> ViewerCore<'a> {
         Ok(changed)
     }
 
+    /// What a move of the eye or the camera does from now on (one process: across ranks every
+    /// move restarts).
+    pub fn set_on_eye_move(&mut self, policy: crate::frame::EyeMove) {
+        self.state.on_eye_move = policy;
+        if let Engine::Local(r) = &mut self.engine {
+            r.set_on_eye_move(policy);
+        }
+    }
+
+    /// Whether one process renders (not ranks across a cluster).
+    #[must_use]
+    pub fn is_local(&self) -> bool {
+        matches!(self.engine, Engine::Local(_))
+    }
+
     /// The frame counter and the statistics start again (the accumulation did).
     fn restarted(&mut self) {
         self.window = (0, Instant::now());

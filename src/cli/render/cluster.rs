@@ -61,7 +61,7 @@ fn prepare(args: &RenderArgs, c: &Cluster) -> anyhow::Result<Prepared> {
     // What a rank holds on its CPU (the picture's inputs and its filter on rank 0).
     super::check_memory(
         config.work(false),
-        args.denoise.denoise,
+        (args.denoise.denoise, crate::frame::EyeMove::Restart),
         args.size,
         &Backend::Cpu,
     )?;

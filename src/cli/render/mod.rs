@@ -223,11 +223,14 @@ pub fn warn_if_resampled(size: [u32; 2], model: &DisplayModel, origin: &str) {
 /// the note for a large run.
 pub fn check_memory(
     work: Work,
-    denoise: crate::filter::DenoiseKind,
+    (denoise, on_eye_move): (crate::filter::DenoiseKind, crate::frame::EyeMove),
     size: [u32; 2],
     backend: &Backend,
 ) -> anyhow::Result<()> {
-    let budget = Budget::of(work, size).with_denoise(denoise, backend.is_gpu());
+    let mut budget = Budget::of(work, size).with_denoise(denoise, backend.is_gpu());
+    if on_eye_move == crate::frame::EyeMove::Reuse {
+        budget = budget.with_reuse(backend.max_binding());
+    }
     // A kernel-lab build's trace kernel may hold buffers of its own (the wavefront split's).
     #[cfg(feature = "kernel-lab")]
     let budget = match backend {
@@ -401,9 +404,15 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     if let Some(note) = note {
         crate::cli::say(args.quiet, note);
     }
+    // A moving eye is a wall camera's.
+    let moves = if args.camera.as_deref() == Some("wall") {
+        args.head.on_eye_move()
+    } else {
+        crate::frame::EyeMove::Restart
+    };
     check_memory(
         config.work(backend.is_gpu()),
-        args.denoise.denoise,
+        (args.denoise.denoise, moves),
         args.size,
         &backend,
     )?;
