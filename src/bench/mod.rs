@@ -8,6 +8,7 @@ pub mod dgi;
 pub mod filter;
 pub mod font;
 pub mod guided;
+pub mod motion;
 pub mod native;
 pub mod paper;
 pub mod picture;

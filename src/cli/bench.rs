@@ -26,6 +26,10 @@ pub enum BenchCommand {
     /// MSE and FLIP inside and outside the ROI at equal iterations and equal time, and their
     /// time per picture up to 4K.
     Denoise(crate::cli::denoise_bench::DenoiseBenchArgs),
+    /// A moving eye on the wall (a tracked head's walk, a sway, a 2 cm step) with the
+    /// accumulation reused and restarted at each move: the ROI's and the periphery's error
+    /// against a reference at each eye, the share carried and the cost of a move.
+    Motion(crate::cli::motion_bench::MotionBenchArgs),
     /// Scheduling (mask, compaction, indirect arguments) per FOV, GPU and CPU twin.
     Schedule(ScheduleBenchArgs),
     /// Full-frame path tracing: ms per frame, ms per megasample and rays per second.
@@ -841,6 +845,7 @@ fn check_before(cmd: &BenchCommand) -> anyhow::Result<()> {
             }
             a.out.as_deref()
         }
+        BenchCommand::Motion(a) => a.out.as_deref(),
         BenchCommand::Schedule(a) => a.out.as_deref(),
         BenchCommand::Trace(a) => a.out.as_deref(),
         BenchCommand::Guided(a) => a.out.as_deref(),
@@ -880,6 +885,7 @@ pub fn run(cmd: &BenchCommand) -> anyhow::Result<()> {
         BenchCommand::Adapter(args) => run_adapter(args),
         BenchCommand::Filter(args) => crate::cli::filter::run_bench(args),
         BenchCommand::Denoise(args) => crate::cli::denoise_bench::run(args),
+        BenchCommand::Motion(args) => crate::cli::motion_bench::run(args),
         BenchCommand::Schedule(args) => run_schedule(args),
         BenchCommand::Trace(args) => run_trace_bench(args),
         BenchCommand::Guided(args) => run_guided_bench(args),

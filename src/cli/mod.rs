@@ -12,6 +12,7 @@ pub mod display;
 pub mod ellipse_distance;
 pub mod filter;
 pub mod head;
+pub mod motion_bench;
 pub mod progress;
 pub mod render;
 pub mod scene;

@@ -402,8 +402,10 @@ impl Renderer<'_> {
             }
         }
         self.iteration = 0;
-        // The view may have changed (a camera, an eye): its features are made again.
+        // The view may have changed (a camera, an eye): its features are made again, and its
+        // records (whose anchors were the old accumulation's) at the next move.
         self.features = std::cell::OnceCell::new();
+        self.hits = None;
     }
 
     /// Moves the wall camera's eye to `eye` (room frame; the room's placement in the scene

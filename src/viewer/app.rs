@@ -424,8 +424,13 @@ impl<'a> ViewerApp<'a> {
         let eye = self.core.eye();
         let restarts = self.core.restarts;
         let (reused, last_reuse) = (self.core.moves_reused, self.core.last_reuse);
-        let mut policy = self.core.state.on_eye_move;
         let local = self.core.is_local();
+        // Across ranks every move restarts.
+        let mut policy = if local {
+            self.core.state.on_eye_move
+        } else {
+            EyeMove::Restart
+        };
         let refused = self.core.eye_refused.clone();
         let camera_at = self.core.settings().camera.position;
         let model = self.core.model;
@@ -544,7 +549,7 @@ impl<'a> ViewerApp<'a> {
             );
         }
         ui.separator();
-        if policy != self.core.state.on_eye_move {
+        if local && policy != self.core.state.on_eye_move {
             self.core.set_on_eye_move(policy);
         }
     }

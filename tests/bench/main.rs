@@ -3,6 +3,7 @@
 
 mod bench_all;
 mod denoise_cli;
+mod motion_cli;
 mod filter_cli;
 mod gpu_bench_script;
 mod schedule_bench;
