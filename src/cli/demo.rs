@@ -251,27 +251,7 @@ pub fn run_headless(args: &DemoArgs) -> anyhow::Result<DemoOutput> {
         ));
     }
     if args.tiles {
-        let dir = args.out.join("tiles");
-        set.folder(&dir)?;
-        for t in 0..model.tiles().len() {
-            let format = crate::output::Format::Png;
-            set.add(&crate::output::tiles::tile_path(&dir, &model, t, format));
-        }
-        let n = crate::output::tiles::write_tiles(
-            &dir,
-            &model,
-            &result.image,
-            args.size,
-            crate::output::Format::Png,
-            0.0,
-        )?
-        .len();
-        files.push(FileNote::new(
-            dir,
-            &format!(
-                "{n} PNGs, one per wall tile (`<tile id>.png`, 1920×1080), cut from the image and resampled (nearest neighbour) from {w}×{h}"
-            ),
-        ));
+        files.push(write_tiles(args, &model, &result, &mut set)?);
     }
     let report = args.out.join("report.md");
     let one_time = OneTime {
@@ -296,6 +276,37 @@ pub fn run_headless(args: &DemoArgs) -> anyhow::Result<DemoOutput> {
         files: files.into_iter().map(|f| f.path).collect(),
         report,
     })
+}
+
+/// Writes `--tiles`' PNGs, one per wall tile, into `--out`'s `tiles` folder, counted in `set`.
+fn write_tiles(
+    args: &DemoArgs,
+    model: &DisplayModel,
+    result: &GuidedResult,
+    set: &mut OutputSet,
+) -> anyhow::Result<FileNote> {
+    let [w, h] = args.size;
+    let dir = args.out.join("tiles");
+    set.folder(&dir)?;
+    for t in 0..model.tiles().len() {
+        let format = crate::output::Format::Png;
+        set.add(&crate::output::tiles::tile_path(&dir, model, t, format));
+    }
+    let n = crate::output::tiles::write_tiles(
+        &dir,
+        model,
+        &result.image,
+        args.size,
+        crate::output::Format::Png,
+        0.0,
+    )?
+    .len();
+    Ok(FileNote::new(
+        dir,
+        &format!(
+            "{n} PNGs, one per wall tile (`<tile id>.png`, 1920×1080), cut from the image and resampled (nearest neighbour) from {w}×{h}"
+        ),
+    ))
 }
 
 /// Writes `image.png` and `image.exr` into `--out`, each counted in `set` and listed in `files`.
