@@ -284,9 +284,15 @@ fn run_cluster(args: &ViewArgs) -> anyhow::Result<()> {
             dgi_mode: args.cluster.cluster_dgi,
         };
         let mut r = ClusterRenderer::new(&mut c, &s.scene, setup)?;
+        let t0 = std::time::Instant::now();
         if let Some(ctx) = gpu {
             r.trace_on_gpu(ctx)?;
         }
+        let one_time = crate::cli::progress::OneTime {
+            load_seconds: s.load_seconds,
+            build_seconds: r.build_seconds,
+            upload_seconds: t0.elapsed().as_secs_f64(),
+        };
         let view = crate::session::cluster::ClusterView::new(r, &s.model)?;
         let view = match tile_owners {
             Some(t) if args.show_tiles => view.with_tiles(t),
@@ -295,6 +301,7 @@ fn run_cluster(args: &ViewArgs) -> anyhow::Result<()> {
         .with_fault(args.cluster.cluster_fault);
         if root {
             eprintln!("raygun view: {}", view.describe());
+            eprintln!("raygun view: rank 0: {one_time}");
             let core = ViewerCore::over_cluster(
                 &filter_backend,
                 &s.scene,
