@@ -20,6 +20,12 @@ enum Command {
     /// a report).
     Demo(cli::demo::DemoArgs),
     /// Path-trace a glTF scene progressively and write EXR (linear) and/or PNG (sRGB).
+    ///
+    /// The one-time work before the first frame — the scene's load, the BVH's build, the
+    /// upload (on a GPU: the kernels, the scene and the first buffers) — is reported on a line
+    /// of its own, `one-time work (not in the sampling time): scene load S s, BVH build S s,
+    /// upload S s`; the closing line's time and its ms per megasample, and the progress line's
+    /// time left, count from the first frame and leave it out.
     Render(cli::render::RenderArgs),
     /// An interactive window showing the guided render as it converges (mouse, replay or live
     /// DTrack, OSC or VRPN steering).

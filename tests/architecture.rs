@@ -1288,3 +1288,102 @@ fn the_size_scanner_measures_functions_and_skips_literals_comments_and_tests() {
     assert_eq!(counted_lines(&text), text.lines().count() - 15);
     assert_eq!(counted_lines("#[cfg(test)]\nmod tests;\nfn a() {}\n"), 3);
 }
+
+/// The 1-based lines of `text` where a `Result<…, String>` type starts: an error that is a bare
+/// string, which callers can only print or search. Its generic arguments are read across
+/// lines, with whitespace and comments ignored; `io::Result<String>` (one argument, the string
+/// is the value) is fine.
+fn string_error_results(text: &str) -> Vec<usize> {
+    let code = blank_non_code(text);
+    let b = code.as_bytes();
+    let mut out = Vec::new();
+    let mut from = 0;
+    while let Some(k) = code[from..].find("Result") {
+        let at = from + k;
+        from = at + "Result".len();
+        if (at > 0 && is_ident(b[at - 1])) || b.get(from).is_some_and(|&c| is_ident(c)) {
+            continue;
+        }
+        // The arguments, whitespace removed, split at the commas between them (a turbofish's
+        // `::` is allowed before the `<`).
+        let rest: Vec<u8> = b[from..]
+            .iter()
+            .copied()
+            .filter(|c| !c.is_ascii_whitespace())
+            .collect();
+        let rest = rest.strip_prefix(b"::").unwrap_or(&rest);
+        if rest.first() != Some(&b'<') {
+            continue;
+        }
+        let (mut angle, mut brackets) = (0i32, 0i32);
+        let mut args = vec![String::new()];
+        for (k, &c) in rest.iter().enumerate() {
+            match c {
+                b'<' => angle += 1,
+                b'>' if k > 0 && rest[k - 1] == b'-' => {}
+                b'>' => angle -= 1,
+                b'(' | b'[' | b'{' => brackets += 1,
+                b')' | b']' | b'}' => brackets -= 1,
+                b',' if angle == 1 && brackets == 0 => {
+                    args.push(String::new());
+                    continue;
+                }
+                b';' => break,
+                _ => {}
+            }
+            if angle == 0 {
+                break;
+            }
+            if !(k == 0 && c == b'<') {
+                args.last_mut().unwrap().push(c as char);
+            }
+        }
+        args.retain(|a| !a.is_empty());
+        let string = |a: &str| a == "String" || a.ends_with("::String");
+        if args.len() == 2 && string(&args[1]) {
+            out.push(line_at(b, at));
+        }
+    }
+    out
+}
+
+/// Errors are typed (an enum or struct per module, `thiserror`), never `Result<_, String>`:
+/// a caller can match a typed error, and its message text stays in one place.
+#[test]
+fn errors_are_typed_not_strings() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut files = Vec::new();
+    rust_files(&root.join("src"), &mut files);
+    files.sort();
+    let mut found = Vec::new();
+    for f in &files {
+        let text = std::fs::read_to_string(f).unwrap();
+        for line in string_error_results(&text) {
+            let name = f.strip_prefix(root).unwrap().display().to_string();
+            found.push(format!("{name}:{line}"));
+        }
+    }
+    assert!(
+        found.is_empty(),
+        "Result<_, String> (give the error a type, e.g. a thiserror enum, with the same \
+         messages):\n{}",
+        found.join("\n")
+    );
+}
+
+/// The string-error scanner itself, on code whose answer is known.
+#[test]
+fn the_string_error_scanner_reads_signatures_across_lines_and_skips_comments() {
+    let text = "fn a() -> Result<u32, String> {}\n\
+                fn b(\n    x: u8,\n) -> Result<\n    Vec<(u8, u16)>,\n    String,\n> {}\n\
+                fn c() -> io::Result<String> {}\n\
+                fn d() -> Result<String, Error> {}\n\
+                // fn e() -> Result<(), String>\n\
+                fn f() -> \"Result<(), String>\" {}\n\
+                fn g(h: impl Fn(u8) -> u8) -> std::result::Result<HashMap<u8, u8>, std::string::String> {}\n\
+                fn i() -> MyResult<u8, String> {}\n\
+                let j = x.parse::<u8>().map_err(|e| e.to_string())?;\n\
+                let k = Result::<(), String>::Ok(());\n\
+                fn l() -> Result<u8, Box<dyn Fn() -> String>> {}\n";
+    assert_eq!(string_error_results(text), [1, 4, 12, 15]);
+}

@@ -58,6 +58,9 @@ pub struct TraceBenchRow {
     pub bvh_nodes: usize,
     /// BVH build and packing, seconds (CPU, once per scene).
     pub build_s: f64,
+    /// Preparing the backend for the scene, seconds (once per renderer, before its first
+    /// frame: on a GPU the kernels' compilation, the scene's upload and the first buffers).
+    pub upload_s: f64,
     pub size: [u32; 2],
     pub ms_per_frame_median: f64,
     pub ms_per_frame_min: f64,
@@ -220,6 +223,7 @@ fn measure(
                 triangles: scene.triangles.len(),
                 bvh_nodes: r.packed.bvh.cwbvh.nodes.len(),
                 build_s: r.build_seconds,
+                upload_s: r.upload_seconds,
                 size: cfg.size,
                 ms_per_frame_median: med,
                 ms_per_frame_min: ms_min,

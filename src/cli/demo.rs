@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 
-use crate::cli::progress::Progress;
+use crate::cli::progress::{OneTime, Progress};
 use crate::cli::view::{ViewArgs, has_display};
 use crate::display::DisplayModel;
 use crate::filter::{DenoiseKind, FilterParams};
@@ -87,6 +87,8 @@ pub fn write_inputs(out: &Path, set: &mut OutputSet) -> anyhow::Result<(PathBuf,
 /// What a headless demo wrote.
 pub struct DemoOutput {
     pub result: GuidedResult,
+    /// The one-time work before the first iteration (not in `result.seconds`).
+    pub one_time: OneTime,
     pub files: Vec<PathBuf>,
     pub report: PathBuf,
 }
@@ -124,6 +126,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         }
     }
     let out = run_headless(args)?;
+    crate::cli::say(args.quiet, out.one_time);
     crate::cli::say(
         args.quiet,
         format_args!(
@@ -170,7 +173,7 @@ pub fn run_headless(args: &DemoArgs) -> anyhow::Result<DemoOutput> {
     if args.tiles {
         crate::cli::render::warn_if_resampled(args.size, &model, "HORNET");
     }
-    let (scene, settings) = scene_and_settings(args.size)?;
+    let (scene, settings, load_seconds) = scene_and_settings(args.size)?;
     let [w, h] = args.size;
     let (plan, _) = ReplayPlan::new(&ReplayOptions {
         display: Some(display_path.display().to_string()),
@@ -249,30 +252,16 @@ pub fn run_headless(args: &DemoArgs) -> anyhow::Result<DemoOutput> {
         ));
     }
     if args.tiles {
-        let dir = args.out.join("tiles");
-        set.folder(&dir)?;
-        for t in 0..model.tiles().len() {
-            let format = crate::output::Format::Png;
-            set.add(&crate::output::tiles::tile_path(&dir, &model, t, format));
-        }
-        let n = crate::output::tiles::write_tiles(
-            &dir,
-            &model,
-            &result.image,
-            args.size,
-            crate::output::Format::Png,
-            0.0,
-        )?
-        .len();
-        files.push(FileNote::new(
-            dir,
-            &format!(
-                "{n} PNGs, one per wall tile (`<tile id>.png`, 1920×1080), cut from the image and resampled (nearest neighbour) from {w}×{h}"
-            ),
-        ));
+        files.push(write_tiles(args, &model, &result, &mut set)?);
     }
     let report = args.out.join("report.md");
+    let one_time = OneTime {
+        load_seconds,
+        build_seconds: result.build_seconds,
+        upload_seconds: result.upload_seconds,
+    };
     let how = HowRendered {
+        one_time,
         config: &config,
         filter: &filter,
         denoise: denoise_note
@@ -284,9 +273,41 @@ pub fn run_headless(args: &DemoArgs) -> anyhow::Result<DemoOutput> {
     set.finish();
     Ok(DemoOutput {
         result,
+        one_time,
         files: files.into_iter().map(|f| f.path).collect(),
         report,
     })
+}
+
+/// Writes `--tiles`' PNGs, one per wall tile, into `--out`'s `tiles` folder, counted in `set`.
+fn write_tiles(
+    args: &DemoArgs,
+    model: &DisplayModel,
+    result: &GuidedResult,
+    set: &mut OutputSet,
+) -> anyhow::Result<FileNote> {
+    let [w, h] = args.size;
+    let dir = args.out.join("tiles");
+    set.folder(&dir)?;
+    for t in 0..model.tiles().len() {
+        let format = crate::output::Format::Png;
+        set.add(&crate::output::tiles::tile_path(&dir, model, t, format));
+    }
+    let n = crate::output::tiles::write_tiles(
+        &dir,
+        model,
+        &result.image,
+        args.size,
+        crate::output::Format::Png,
+        0.0,
+    )?
+    .len();
+    Ok(FileNote::new(
+        dir,
+        &format!(
+            "{n} PNGs, one per wall tile (`<tile id>.png`, 1920×1080), cut from the image and resampled (nearest neighbour) from {w}×{h}"
+        ),
+    ))
 }
 
 /// Writes `image.png` and `image.exr` into `--out`, each counted in `set` and listed in `files`.
@@ -398,10 +419,13 @@ fn write_denoiser_crops(
     Ok(())
 }
 
-/// The demo's scene and what it is traced with at `size`.
-fn scene_and_settings(size: [u32; 2]) -> anyhow::Result<(crate::scene::Scene, TraceSettings)> {
-    let scene =
-        crate::cli::scene::load_scene(SCENE, Some(ENV), crate::cli::scene::SceneAccess::default())?;
+/// The demo's scene, what it is traced with at `size`, and the seconds its load took.
+fn scene_and_settings(size: [u32; 2]) -> anyhow::Result<(crate::scene::Scene, TraceSettings, f64)> {
+    let (scene, load_seconds) = crate::cli::scene::load_scene_timed(
+        SCENE,
+        Some(ENV),
+        crate::cli::scene::SceneAccess::default(),
+    )?;
     let [w, h] = size;
     let camera = RenderCamera::choose(&scene, None, w, h).context("demo scene camera")?;
     let settings = TraceSettings {
@@ -411,7 +435,7 @@ fn scene_and_settings(size: [u32; 2]) -> anyhow::Result<(crate::scene::Scene, Tr
         max_depth: DEFAULT_MAX_DEPTH,
         camera,
     };
-    Ok((scene, settings))
+    Ok((scene, settings, load_seconds))
 }
 
 /// Checks the render's memory (with its denoiser's) and opens OIDN for `--denoise oidn`;
@@ -473,11 +497,13 @@ fn name_of<T: clap::ValueEnum>(v: &T) -> String {
 }
 
 /// How the demo's picture was made: the guide's settings, the filter and the denoiser (what
-/// the command said about it; `None`: off).
+/// the command said about it; `None`: off) and the one-time work before its first iteration.
 struct HowRendered<'a> {
     config: &'a GuideConfig,
     filter: &'a FilterParams,
     denoise: Option<&'a str>,
+    /// The one-time work before the first iteration.
+    one_time: OneTime,
 }
 
 fn report_text(
@@ -534,6 +560,10 @@ fn report_text(
     let _ = writeln!(s, "\n## Results\n");
     let _ = writeln!(s, "| measure | value |\n|---|---|");
     let _ = writeln!(s, "| render time (iterations) | {:.3} s |", r.seconds);
+    let t = &how.one_time;
+    let _ = writeln!(s, "| scene load (one-time) | {:.3} s |", t.load_seconds);
+    let _ = writeln!(s, "| BVH build (one-time) | {:.3} s |", t.build_seconds);
+    let _ = writeln!(s, "| upload (one-time) | {:.3} s |", t.upload_seconds);
     let _ = writeln!(
         s,
         "| per iteration | {:.2} ms |",

@@ -1,6 +1,11 @@
 //! Progress of a long command: a bar on a terminal; off a terminal (a log file, CI, a pipe)
 //! where a bar draws nothing, a line at the first step and then one every [`LINE_INTERVAL`], so
 //! a render that takes minutes is never silent.
+//!
+//! The time left is estimated from the pace after the first step (a render's first frame):
+//! the one-time work before it — loading the scene, building the BVH, uploading to the GPU,
+//! the first frame's own warm-up — says nothing about how long the remaining steps take
+//! ([`seconds_left`]).
 
 use std::io::IsTerminal;
 use std::time::{Duration, Instant};
@@ -14,6 +19,54 @@ pub const LINE_INTERVAL: Duration = Duration::from_secs(10);
 pub struct Progress {
     bar: Option<ProgressBar>,
     lines: Option<Lines>,
+    /// When the first step was reported done, and how many units it brought.
+    first: Option<(Instant, u64)>,
+}
+
+/// Seconds left for `len` units at the pace measured since the first step: `first` is when
+/// the first step ended and the units done by then, `now` the time of `done` units (seconds on
+/// any one clock). What came before the first step's end (one-time work) does not count. `None`
+/// until a step after the first has ended, and once the work is done.
+#[must_use]
+pub fn seconds_left(first: (f64, u64), now: f64, done: u64, len: u64) -> Option<f64> {
+    let per_unit = seconds_per_unit(first, now, done)?;
+    (len > done).then(|| per_unit * (len - done) as f64)
+}
+
+/// The seconds `done` units take at the pace measured since the first step (see
+/// [`seconds_left`]): the time spent sampling, one-time work left out. `None` until a step
+/// after the first has ended.
+#[must_use]
+pub fn sampling_seconds(first: (f64, u64), now: f64, done: u64) -> Option<f64> {
+    Some(seconds_per_unit(first, now, done)? * done as f64)
+}
+
+/// The one-time work before a render's first frame, reported on a line of its own: the
+/// sampling times (the `… ms per megasample` figure, the time left) start at the first frame
+/// and leave it out.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OneTime {
+    /// Reading and decoding the scene (or generating a built-in), with `--env`'s image.
+    pub load_seconds: f64,
+    /// Packing the scene and building its BVH.
+    pub build_seconds: f64,
+    /// Preparing the backend: on a GPU compiling the kernels, uploading the scene and making
+    /// the first buffers; on the CPU allocating the accumulation.
+    pub upload_seconds: f64,
+}
+
+impl std::fmt::Display for OneTime {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "one-time work (not in the sampling time): scene load {:.2} s, BVH build {:.2} s, upload {:.2} s",
+            self.load_seconds, self.build_seconds, self.upload_seconds
+        )
+    }
+}
+
+fn seconds_per_unit((at, first_done): (f64, u64), now: f64, done: u64) -> Option<f64> {
+    (done > first_done && now >= at).then(|| (now - at) / (done - first_done) as f64)
 }
 
 struct Lines {
@@ -35,6 +88,7 @@ impl Progress {
             return Self {
                 bar: None,
                 lines: None,
+                first: None,
             };
         }
         if std::io::stderr().is_terminal() {
@@ -55,6 +109,7 @@ impl Progress {
             return Self {
                 bar: Some(bar),
                 lines: None,
+                first: None,
             };
         }
         let now = Instant::now();
@@ -68,13 +123,21 @@ impl Progress {
                 last: None,
                 message: String::new(),
             }),
+            first: None,
         }
     }
 
-    /// `done` units so far.
+    /// `done` units so far. The first call marks the end of the first step: the estimate of
+    /// the time left starts there.
     pub fn set(&mut self, done: u64) {
+        let is_first = self.first.is_none();
+        let first = *self.first.get_or_insert_with(|| (Instant::now(), done));
         if let Some(bar) = &self.bar {
             bar.set_position(done);
+            if is_first {
+                // The bar's own estimate, too, from the pace after the first step.
+                bar.reset_eta();
+            }
         }
         if let Some(l) = &mut self.lines
             && l.last.is_none_or(|t| t.elapsed() >= LINE_INTERVAL)
@@ -82,13 +145,11 @@ impl Progress {
             l.last = Some(Instant::now());
             let elapsed = l.start.elapsed().as_secs_f64();
             let of = l.len.map_or(String::new(), |n| format!("/{n}"));
-            let eta = match l.len {
-                Some(n) if done > 0 && n > done => format!(
-                    ", about {:.0} s left",
-                    elapsed * (n - done) as f64 / done as f64
-                ),
-                _ => String::new(),
-            };
+            let first_at = first.0.duration_since(l.start).as_secs_f64();
+            let eta = l
+                .len
+                .and_then(|n| seconds_left((first_at, first.1), elapsed, done, n))
+                .map_or(String::new(), |s| format!(", about {s:.0} s left"));
             let extra = if l.message.is_empty() {
                 String::new()
             } else {
@@ -99,6 +160,14 @@ impl Progress {
                 l.what, l.unit
             );
         }
+    }
+
+    /// The seconds `done` units take at the pace since the first step ([`sampling_seconds`]);
+    /// `None` before a second step has ended.
+    #[must_use]
+    pub fn sampling_seconds(&self, done: u64) -> Option<f64> {
+        let (at, first_done) = self.first?;
+        sampling_seconds((0.0, first_done), at.elapsed().as_secs_f64(), done)
     }
 
     /// Lengthens the run to `len` units where it turns out longer than first said.
@@ -171,4 +240,29 @@ pub fn print_and_save(text: &str, out: Option<&std::path::Path>) -> anyhow::Resu
         crate::output::write_bytes(path, text.as_bytes())?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{sampling_seconds, seconds_left};
+
+    /// A render whose one-time work took 250 s and whose steps take 1 s each: the time before
+    /// the first step's end does not enter the estimate.
+    #[test]
+    fn the_estimate_ignores_the_time_before_the_first_step() {
+        // First step (1 spp of 256) done at 251 s; 10 s later 11 spp are done.
+        let first = (251.0, 1);
+        assert_eq!(seconds_left(first, 261.0, 11, 256), Some(245.0));
+        assert_eq!(sampling_seconds(first, 261.0, 11), Some(11.0));
+        // One step from the end: about a second, not the 255 s that counting the one-time work
+        // as sampling would give.
+        assert_eq!(seconds_left(first, 505.0, 255, 256), Some(1.0));
+        // Only the first step so far: no pace yet.
+        assert_eq!(seconds_left(first, 251.0, 1, 256), None);
+        assert_eq!(sampling_seconds(first, 251.0, 1), None);
+        // Done: nothing left to estimate.
+        assert_eq!(seconds_left(first, 506.0, 256, 256), None);
+        // A first step of several units (a batch) counts from its end too.
+        assert_eq!(seconds_left((5.0, 4), 9.0, 8, 16), Some(8.0));
+    }
 }

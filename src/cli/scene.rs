@@ -16,7 +16,9 @@ pub enum SceneCommand {
     /// Write the procedural city (about 350 000 triangles at the default size).
     City(CityArgs),
     /// Summarise a scene: counts, bounds, cameras, the material features understood (by
-    /// material), unsupported features and warnings.
+    /// material), unsupported features and warnings, and the one-time work a render of it
+    /// starts with (`timing`: `load_seconds` to read and decode it, `build_seconds` to pack it
+    /// and build its BVH).
     Info(InfoArgs),
 }
 
@@ -65,8 +67,18 @@ pub fn run(cmd: &SceneCommand) -> anyhow::Result<String> {
             &a.out,
         ),
         SceneCommand::Info(a) => {
+            let t0 = std::time::Instant::now();
             let scene = Scene::open_with(&a.scene, a.access.uris())?;
-            let summary = info(&a.scene, &scene);
+            let load_seconds = t0.elapsed().as_secs_f64();
+            let t0 = std::time::Instant::now();
+            let packed = crate::trace::pack::PackedScene::new(&scene);
+            let build_seconds = t0.elapsed().as_secs_f64();
+            drop(packed);
+            let mut summary = info(&a.scene, &scene);
+            summary["timing"] = json!({
+                "load_seconds": load_seconds,
+                "build_seconds": build_seconds,
+            });
             return Ok(if a.json {
                 summary.to_string()
             } else {
@@ -261,6 +273,14 @@ fn info_text(s: &Value) -> String {
             out += &format!("{title}: {}\n", item.as_str().unwrap_or(""));
         }
     }
+    if let Some(t) = s["timing"].as_object() {
+        let secs = |key: &str| t[key].as_f64().unwrap_or(f64::NAN);
+        out += &format!(
+            "one-time work: scene load {:.3} s, BVH build {:.3} s\n",
+            secs("load_seconds"),
+            secs("build_seconds")
+        );
+    }
     out.trim_end().to_string()
 }
 
@@ -288,14 +308,27 @@ impl SceneAccess {
 /// Loads the scene named by `--scene`, with `--env` applied and its unsupported features
 /// reported on standard error.
 pub fn load_scene(scene: &str, env: Option<&str>, access: SceneAccess) -> anyhow::Result<Scene> {
+    Ok(load_scene_timed(scene, env, access)?.0)
+}
+
+/// [`load_scene`] and the seconds it took (reading and decoding the file or generating the
+/// built-in, its textures and the environment image): one-time work, reported apart from
+/// the sampling time.
+pub fn load_scene_timed(
+    scene: &str,
+    env: Option<&str>,
+    access: SceneAccess,
+) -> anyhow::Result<(Scene, f64)> {
+    let t0 = std::time::Instant::now();
     let mut s = Scene::open_with(scene, access.uris())?;
     if let Some(env) = env {
         s.environment = Environment::parse(env)?;
     }
+    let seconds = t0.elapsed().as_secs_f64();
     for u in &s.unsupported {
         eprintln!("raygun: {scene}: not supported, ignored: {u}");
     }
-    Ok(s)
+    Ok((s, seconds))
 }
 
 /// Loads each of `scenes` with [`load_scene`], named by its argument without `builtin:`.

@@ -166,6 +166,8 @@ struct Setup {
     live: Option<LiveTracking>,
     /// OIDN, opened for `--denoise oidn`.
     oidn: Option<crate::filter::oidn::Device>,
+    /// Seconds the scene's load took (one-time work).
+    load_seconds: f64,
 }
 
 /// Whether a window can be opened: an X11 or Wayland display is named in the environment.
@@ -201,6 +203,14 @@ pub fn run(args: &ViewArgs) -> anyhow::Result<()> {
     }
     let s = setup(args, true)?;
     let mut core = ViewerCore::with_wall(&s.backend, &s.scene, &s.model, s.base, s.state, s.wall)?;
+    if let Some((build_seconds, upload_seconds)) = core.set_up_seconds() {
+        let one_time = crate::cli::progress::OneTime {
+            load_seconds: s.load_seconds,
+            build_seconds,
+            upload_seconds,
+        };
+        eprintln!("raygun view: {one_time}");
+    }
     if let Some(device) = s.oidn {
         core.set_oidn(device);
     }
@@ -275,9 +285,15 @@ fn run_cluster(args: &ViewArgs) -> anyhow::Result<()> {
             dgi_mode: args.cluster.cluster_dgi,
         };
         let mut r = ClusterRenderer::new(&mut c, &s.scene, setup)?;
+        let t0 = std::time::Instant::now();
         if let Some(ctx) = gpu {
             r.trace_on_gpu(ctx)?;
         }
+        let one_time = crate::cli::progress::OneTime {
+            load_seconds: s.load_seconds,
+            build_seconds: r.build_seconds,
+            upload_seconds: t0.elapsed().as_secs_f64(),
+        };
         let view = crate::session::cluster::ClusterView::new(r, &s.model)?;
         let view = match tile_owners {
             Some(t) if args.show_tiles => view.with_tiles(t),
@@ -286,6 +302,7 @@ fn run_cluster(args: &ViewArgs) -> anyhow::Result<()> {
         .with_fault(args.cluster.cluster_fault);
         if root {
             eprintln!("raygun view: {}", view.describe());
+            eprintln!("raygun view: rank 0: {one_time}");
             let core = ViewerCore::over_cluster(
                 &filter_backend,
                 &s.scene,
@@ -350,7 +367,8 @@ fn setup(args: &ViewArgs, root: bool) -> anyhow::Result<Setup> {
         &backend,
     )?;
     let oidn = crate::cli::filter::DenoiseArgs { denoise }.device(&backend)?;
-    let scene = crate::cli::scene::load_scene(&args.scene, args.env.as_deref(), args.access)?;
+    let (scene, load_seconds) =
+        crate::cli::scene::load_scene_timed(&args.scene, args.env.as_deref(), args.access)?;
     let [w, h] = args.size;
     let look = args.look.viewpoint();
     let name = args
@@ -441,6 +459,7 @@ fn setup(args: &ViewArgs, root: bool) -> anyhow::Result<Setup> {
         timeline: v.timeline,
         live: v.live,
         oidn,
+        load_seconds,
     })
 }
 

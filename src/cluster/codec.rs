@@ -115,8 +115,29 @@ pub(super) fn encode_masks(masks: &[SlotMask]) -> Vec<u8> {
     b
 }
 
+/// What is wrong with bytes that should hold blocks' slot masks ([`decode_masks`]).
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub(super) enum MaskBytesError {
+    #[error("block {block} of {blocks}: its mask is cut short")]
+    CutShort { block: usize, blocks: usize },
+    #[error("block {block} of {blocks}: flag {flag}, not 0 or 1")]
+    Flag {
+        block: usize,
+        blocks: usize,
+        flag: u8,
+    },
+    #[error("{len} bytes for {blocks} blocks")]
+    TooFew { len: usize, blocks: usize },
+    #[error("{len} bytes for {blocks} blocks, {extra} past them")]
+    TooMany {
+        len: usize,
+        blocks: usize,
+        extra: usize,
+    },
+}
+
 /// The inverse of [`encode_masks`] for `blocks` blocks, or what is wrong with the bytes.
-pub(super) fn decode_masks(b: &[u8], blocks: usize) -> Result<Vec<SlotMask>, String> {
+pub(super) fn decode_masks(b: &[u8], blocks: usize) -> Result<Vec<SlotMask>, MaskBytesError> {
     let mut out = Vec::with_capacity(blocks);
     let mut at = 0;
     for k in 0..blocks {
@@ -128,7 +149,7 @@ pub(super) fn decode_masks(b: &[u8], blocks: usize) -> Result<Vec<SlotMask>, Str
             Some(1) => {
                 let words = b
                     .get(at + 1..at + 129)
-                    .ok_or_else(|| format!("block {k} of {blocks}: its mask is cut short"))?;
+                    .ok_or(MaskBytesError::CutShort { block: k, blocks })?;
                 let mut m = [0u32; 32];
                 for (w, c) in m.iter_mut().zip(words.chunks_exact(4)) {
                     *w = u32::from_le_bytes(c.try_into().expect("4 bytes"));
@@ -136,16 +157,27 @@ pub(super) fn decode_masks(b: &[u8], blocks: usize) -> Result<Vec<SlotMask>, Str
                 out.push(m);
                 at += 129;
             }
-            Some(f) => return Err(format!("block {k} of {blocks}: flag {f}, not 0 or 1")),
-            None => return Err(format!("{} bytes for {blocks} blocks", b.len())),
+            Some(&flag) => {
+                return Err(MaskBytesError::Flag {
+                    block: k,
+                    blocks,
+                    flag,
+                });
+            }
+            None => {
+                return Err(MaskBytesError::TooFew {
+                    len: b.len(),
+                    blocks,
+                });
+            }
         }
     }
     if at != b.len() {
-        return Err(format!(
-            "{} bytes for {blocks} blocks, {} past them",
-            b.len(),
-            b.len() - at
-        ));
+        return Err(MaskBytesError::TooMany {
+            len: b.len(),
+            blocks,
+            extra: b.len() - at,
+        });
     }
     Ok(out)
 }

@@ -271,11 +271,11 @@ impl ClusterRenderer<'_> {
                 let mut all = vec![[0u32; 32]; n as usize];
                 for (src, bytes) in got.iter().enumerate() {
                     let theirs: Vec<u32> = (src as u32..n).step_by(self.ranks).collect();
-                    let masks = decode_masks(bytes, theirs.len()).map_err(|reason| {
+                    let masks = decode_masks(bytes, theirs.len()).map_err(|e| {
                         ExchangeError::Malformed {
                             rank: src,
                             what: what.clone(),
-                            reason,
+                            reason: e.to_string(),
                         }
                     })?;
                     for (b, m) in theirs.into_iter().zip(masks) {

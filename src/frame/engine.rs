@@ -136,6 +136,7 @@ impl<'a> Renderer<'a> {
     ) -> Result<Self, FrameError> {
         let (w, h) = (settings.width, settings.height);
         let n = w as usize * h as usize;
+        let t0 = Instant::now();
         let engine = match backend {
             Backend::Gpu(ctx) => {
                 let ctx: &GpuContext = ctx;
@@ -180,6 +181,8 @@ impl<'a> Renderer<'a> {
                     });
                 }
                 ctx.queue.submit([enc.finish()]);
+                // Waited for, so that the upload's time is its own and not the first frame's.
+                ctx.wait()?;
                 Engine::Gpu {
                     ctx,
                     scene: gscene,
@@ -196,10 +199,12 @@ impl<'a> Renderer<'a> {
                 }),
             },
         };
+        let upload_seconds = t0.elapsed().as_secs_f64();
         Ok(Self {
             packed,
             settings,
             build_seconds,
+            upload_seconds,
             backend,
             guidance,
             engine,

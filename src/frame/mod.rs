@@ -256,6 +256,11 @@ pub struct Renderer<'a> {
     pub settings: TraceSettings,
     /// Seconds spent building the BVH and packing the scene.
     pub build_seconds: f64,
+    /// Seconds spent preparing the backend for the packed scene, once, before the first
+    /// frame: on a GPU compiling the kernels, uploading the scene and making and clearing the
+    /// first buffers (waited for until the GPU has done them); on the CPU allocating the
+    /// accumulation.
+    pub upload_seconds: f64,
     backend: &'a Backend,
     guidance: Option<Guidance>,
     engine: Engine<'a>,

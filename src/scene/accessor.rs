@@ -20,21 +20,17 @@ pub(super) fn read_floats(
     acc: &gltf::Accessor,
     buffers: &[Vec<u8>],
     dims: Dimensions,
-) -> Result<Vec<f32>, String> {
+) -> Result<Vec<f32>, AccessorError> {
     if acc.dimensions() != dims {
-        return Err(format!(
-            "accessor {} has type {:?}, expected {:?}",
-            acc.index(),
-            acc.dimensions(),
-            dims
-        ));
+        return Err(AccessorError::Type {
+            accessor: acc.index(),
+            found: acc.dimensions(),
+            expected: dims,
+        });
     }
     let ty = acc.data_type();
     if ty == DataType::U32 {
-        return Err(format!(
-            "accessor {} has component type UNSIGNED_INT, which vertex attributes may not use",
-            acc.index()
-        ));
+        return Err(AccessorError::UnsignedIntAttribute(acc.index()));
     }
     let n = dims.multiplicity();
     let csize = ty.size();
@@ -53,19 +49,19 @@ pub(super) fn read_floats(
 }
 
 /// Reads a SCALAR unsigned index accessor.
-pub(super) fn read_indices(acc: &gltf::Accessor, buffers: &[Vec<u8>]) -> Result<Vec<u32>, String> {
+pub(super) fn read_indices(
+    acc: &gltf::Accessor,
+    buffers: &[Vec<u8>],
+) -> Result<Vec<u32>, AccessorError> {
     if acc.dimensions() != Dimensions::Scalar || acc.normalized() {
-        return Err(format!(
-            "index accessor {} must be an unnormalized SCALAR",
-            acc.index()
-        ));
+        return Err(AccessorError::IndexNotScalar(acc.index()));
     }
     let ty = acc.data_type();
     if !matches!(ty, DataType::U8 | DataType::U16 | DataType::U32) {
-        return Err(format!(
-            "index accessor {} has component type {ty:?}; indices must be unsigned",
-            acc.index()
-        ));
+        return Err(AccessorError::IndexSigned {
+            accessor: acc.index(),
+            component: ty,
+        });
     }
     read_elements(acc, buffers, |bytes| uint(bytes, ty.size()))
 }
@@ -104,30 +100,36 @@ fn read_elements<T: Copy + Default>(
     acc: &gltf::Accessor,
     buffers: &[Vec<u8>],
     decode: impl Fn(&[u8]) -> T,
-) -> Result<Vec<T>, String> {
+) -> Result<Vec<T>, AccessorError> {
     let count = acc.count();
     let elem = acc.size();
     let mut out: Vec<T> = match acc.view() {
         Some(view) => {
             let stride = view.stride().unwrap_or(elem);
             if stride < elem {
-                return Err(format!(
-                    "accessor {}: buffer view {} has byteStride {stride}, less than the {elem}-byte element",
-                    acc.index(),
-                    view.index()
-                ));
+                return Err(AccessorError::Stride {
+                    accessor: acc.index(),
+                    view: view.index(),
+                    stride,
+                    elem,
+                });
             }
-            let bytes = strided_bytes(&view, acc.offset(), count, stride, elem, buffers)
-                .map_err(|e| format!("accessor {}: {e}", acc.index()))?;
+            let bytes = strided_bytes(&view, acc.offset(), count, stride, elem, buffers).map_err(
+                |range| AccessorError::Range {
+                    accessor: acc.index(),
+                    part: "",
+                    range,
+                },
+            )?;
             (0..count)
                 .map(|i| decode(&bytes[i * stride..i * stride + elem]))
                 .collect()
         }
         None if count > MAX_ZERO_FILLED => {
-            return Err(format!(
-                "accessor {} has no buffer view and declares {count} elements (at most {MAX_ZERO_FILLED})",
-                acc.index()
-            ));
+            return Err(AccessorError::ZeroFilled {
+                accessor: acc.index(),
+                count,
+            });
         }
         None => vec![T::default(); count],
     };
@@ -137,17 +139,25 @@ fn read_elements<T: Copy + Default>(
         let isize = indices.index_type().size();
         // Sparse index and value views are tightly packed (glTF 2.0 §5.1.7: no byteStride).
         let ib = strided_bytes(&indices.view(), indices.offset(), n, isize, isize, buffers)
-            .map_err(|e| format!("accessor {} sparse indices: {e}", acc.index()))?;
+            .map_err(|range| AccessorError::Range {
+                accessor: acc.index(),
+                part: " sparse indices",
+                range,
+            })?;
         let values = sparse.values();
-        let vb = strided_bytes(&values.view(), values.offset(), n, elem, elem, buffers)
-            .map_err(|e| format!("accessor {} sparse values: {e}", acc.index()))?;
+        let vb = strided_bytes(&values.view(), values.offset(), n, elem, elem, buffers).map_err(
+            |range| AccessorError::Range {
+                accessor: acc.index(),
+                part: " sparse values",
+                range,
+            },
+        )?;
         for k in 0..n {
             let i = uint(&ib[k * isize..(k + 1) * isize], isize) as usize;
-            let slot = out.get_mut(i).ok_or_else(|| {
-                format!(
-                    "accessor {}: sparse index {i} is past its {count} elements",
-                    acc.index()
-                )
+            let slot = out.get_mut(i).ok_or(AccessorError::SparseIndex {
+                accessor: acc.index(),
+                index: i,
+                count,
             })?;
             *slot = decode(&vb[k * elem..(k + 1) * elem]);
         }
@@ -155,9 +165,55 @@ fn read_elements<T: Copy + Default>(
     Ok(out)
 }
 
+/// Why an accessor cannot be read; the caller adds the mesh and primitive.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub(super) enum AccessorError {
+    #[error("accessor {accessor} has type {found:?}, expected {expected:?}")]
+    Type {
+        accessor: usize,
+        found: Dimensions,
+        expected: Dimensions,
+    },
+    #[error("accessor {0} has component type UNSIGNED_INT, which vertex attributes may not use")]
+    UnsignedIntAttribute(usize),
+    #[error("index accessor {0} must be an unnormalized SCALAR")]
+    IndexNotScalar(usize),
+    #[error("index accessor {accessor} has component type {component:?}; indices must be unsigned")]
+    IndexSigned {
+        accessor: usize,
+        component: DataType,
+    },
+    #[error(
+        "accessor {accessor}: buffer view {view} has byteStride {stride}, less than the {elem}-byte element"
+    )]
+    Stride {
+        accessor: usize,
+        view: usize,
+        stride: usize,
+        elem: usize,
+    },
+    /// `part` is empty for the dense elements, else " sparse indices" / " sparse values".
+    #[error("accessor {accessor}{part}: {range}")]
+    Range {
+        accessor: usize,
+        part: &'static str,
+        range: ByteRangeError,
+    },
+    #[error(
+        "accessor {accessor} has no buffer view and declares {count} elements (at most {MAX_ZERO_FILLED})"
+    )]
+    ZeroFilled { accessor: usize, count: usize },
+    #[error("accessor {accessor}: sparse index {index} is past its {count} elements")]
+    SparseIndex {
+        accessor: usize,
+        index: usize,
+        count: usize,
+    },
+}
+
 /// Why a strided byte range does not lie in its buffer view and buffer.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-enum ByteRangeError {
+pub(super) enum ByteRangeError {
     #[error("byte range overflows (count {count}, stride {stride})")]
     Overflow { count: usize, stride: usize },
     #[error("bytes {start}..{end} run past the end of buffer view {view} ({view_end})")]

@@ -97,7 +97,7 @@ impl EnvironmentMap {
                 let texels = img.pixels().map(|p| Vec3::from_array(p.0)).collect();
                 (img.width(), img.height(), texels)
             }
-            Some("exr") => read_exr(path).map_err(read)?,
+            Some("exr") => read_exr(path).map_err(|e| read(e.to_string()))?,
             _ => return Err(read("unsupported format (use .hdr or .exr)".into())),
         };
         if width == 0 || height == 0 {
@@ -135,8 +135,17 @@ impl EnvironmentMap {
     }
 }
 
+/// Why an OpenEXR file gives no environment image.
+#[derive(Debug, thiserror::Error)]
+enum ExrError {
+    #[error("{0}")]
+    Decode(#[from] exr::error::Error),
+    #[error("{width}×{height} texels is more than the {MAX_ENVIRONMENT_BYTES} bytes allowed")]
+    TooLarge { width: usize, height: usize },
+}
+
 /// The first RGB(A) layer of an OpenEXR file (alpha ignored).
-fn read_exr(path: &Path) -> Result<(u32, u32, Vec<Vec3>), String> {
+fn read_exr(path: &Path) -> Result<(u32, u32, Vec<Vec3>), ExrError> {
     use exr::prelude::*;
     struct Pixels {
         width: usize,
@@ -163,16 +172,14 @@ fn read_exr(path: &Path) -> Result<(u32, u32, Vec<Vec3>), String> {
                 px.texels[pos.y() * px.width + pos.x()] = Vec3::new(r, g, b);
             }
         },
-    )
-    .map_err(|e| e.to_string())?;
+    )?;
     let size = image.layer_data.size;
     let pixels = image.layer_data.channel_data.pixels;
     if pixels.texels.len() != size.width() * size.height() {
-        return Err(format!(
-            "{}×{} texels is more than the {MAX_ENVIRONMENT_BYTES} bytes allowed",
-            size.width(),
-            size.height()
-        ));
+        return Err(ExrError::TooLarge {
+            width: size.width(),
+            height: size.height(),
+        });
     }
     Ok((size.width() as u32, size.height() as u32, pixels.texels))
 }

@@ -117,8 +117,14 @@ pub struct GuidedResult {
     /// The accumulation's sums (RGB and Σ luminance²) where [`GuidedRender::keep_sums`] asked
     /// for them (with `counts`, the whole accumulation), else empty.
     pub sums: Vec<[f32; 4]>,
-    /// Wall-clock seconds of the iterations (read-back and filter excluded).
+    /// Wall-clock seconds of the iterations (read-back and filter excluded), from the first
+    /// frame on: the build and the upload before it are one-time work.
     pub seconds: f64,
+    /// Seconds spent packing the scene and building its BVH ([`Renderer::build_seconds`]).
+    pub build_seconds: f64,
+    /// Seconds spent preparing the backend before the first frame
+    /// ([`Renderer::upload_seconds`]).
+    pub upload_seconds: f64,
     pub stop: StopReason,
     /// The ROI's last measured progress (with stop conditions only).
     pub progress: Option<RoiProgress>,
@@ -278,6 +284,7 @@ pub fn render_guided(
         job.wall,
     )?;
     r.set_on_eye_move(job.on_eye_move);
+    let (build_seconds, upload_seconds) = (r.build_seconds, r.upload_seconds);
     let run = run_guided(&mut r, source, stopping, on_iteration)?;
     let accumulated = r.iteration();
     let wall = r.wall().cloned();
@@ -301,6 +308,8 @@ pub fn render_guided(
         counts: acc.count,
         sums: if job.keep_sums { acc.sum } else { Vec::new() },
         seconds: run.seconds,
+        build_seconds,
+        upload_seconds,
         stop: run.stop,
         progress: run.progress,
         accumulated,

@@ -420,6 +420,17 @@ impl<'a> ViewerCore<'a> {
         [self.base.width, self.base.height]
     }
 
+    /// The one-process renderer's one-time work before its first frame, in seconds: the BVH's
+    /// build and the upload ([`Renderer::build_seconds`], [`Renderer::upload_seconds`]);
+    /// `None` across ranks.
+    #[must_use]
+    pub fn set_up_seconds(&self) -> Option<(f64, f64)> {
+        match &self.engine {
+            Engine::Local(r) => Some((r.build_seconds, r.upload_seconds)),
+            Engine::Cluster(_) => None,
+        }
+    }
+
     /// The backend in words.
     #[must_use]
     pub fn backend_name(&self) -> String {

@@ -631,3 +631,90 @@ fn size_reads_the_same_everywhere() {
         );
     }
 }
+
+/// The seconds a `one-time work` line gives for each of the load, the build and the upload,
+/// read from a command's standard error.
+fn one_time_seconds(stderr: &str) -> [f64; 3] {
+    let line = stderr
+        .lines()
+        .find(|l| l.contains("one-time work (not in the sampling time): "))
+        .unwrap_or_else(|| panic!("no one-time line in:\n{stderr}"));
+    let seconds = |label: &str| -> f64 {
+        let from = line
+            .find(label)
+            .unwrap_or_else(|| panic!("{label}: {line}"))
+            + label.len();
+        let value = line[from..].trim_start().split(' ').next().unwrap();
+        value
+            .parse()
+            .unwrap_or_else(|_| panic!("{label} {value}: {line}"))
+    };
+    [
+        seconds("scene load"),
+        seconds("BVH build"),
+        seconds("upload"),
+    ]
+}
+
+/// A render says how long its one-time work took — the scene's load, the BVH's build, the
+/// upload — on a line of its own, apart from the sampling time (its `ms per megasample`
+/// figure), full frame and guided alike; `scene info` gives the load and the build, in its
+/// text and in its JSON.
+#[test]
+fn renders_report_their_one_time_work_apart_from_the_sampling_time() {
+    let dir = support::tmp_dir("one-time-work");
+    let out = dir.join("out.png");
+    let guided: [&str; 4] = ["--guide", "pose:0,0,1:0,0,-1:20", "--iterations", "2"];
+    for extra in [&["--spp", "2"][..], &guided[..]] {
+        let mut args = vec![
+            "render",
+            "--scene",
+            "builtin:cornell",
+            "--backend",
+            "cpu",
+            "--size",
+            "32,18",
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        let o = raygun(&args);
+        let err = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert!(o.status.success(), "{err}");
+        for s in one_time_seconds(&err) {
+            assert!(s.is_finite() && s >= 0.0, "{err}");
+        }
+        // The sampling figure stays on its own line, as before.
+        assert!(err.contains(" ms per megasample"), "{err}");
+    }
+    // `--quiet` says nothing of it.
+    let o = raygun(&[
+        "render",
+        "--scene",
+        "builtin:cornell",
+        "--backend",
+        "cpu",
+        "--size",
+        "8,8",
+        "--spp",
+        "1",
+        "--quiet",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success());
+    assert!(!String::from_utf8_lossy(&o.stderr).contains("one-time"));
+
+    let o = raygun(&["scene", "info", "builtin:cornell", "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    for key in ["load_seconds", "build_seconds"] {
+        let s = v["timing"][key].as_f64().unwrap_or(f64::NAN);
+        assert!(s.is_finite() && s >= 0.0, "{key}: {v}");
+    }
+    let text = String::from_utf8(raygun(&["scene", "info", "builtin:cornell"]).stdout).unwrap();
+    assert!(
+        text.contains("one-time work: scene load ") && text.contains(" s, BVH build "),
+        "{text}"
+    );
+}

@@ -46,6 +46,13 @@ fn headless_demo_writes_images_and_a_report() {
     let full = 62.0 * 25.0 * 8.0;
     assert!(total > 0.0 && total < full, "{total} of {full}");
     assert!(report.contains("| iterations | 8 |"));
+    // The one-time work is reported apart from the render time of the iterations.
+    for row in ["scene load", "BVH build", "upload"] {
+        assert!(
+            report.contains(&format!("| {row} (one-time) | ")),
+            "{report}"
+        );
+    }
     assert!(report.contains("`builtin:cornell-light`"));
     // The demo's picture is denoised by default, and the report says by what.
     assert!(

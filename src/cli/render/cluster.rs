@@ -9,7 +9,7 @@ use super::guided::GuidedPlan;
 use super::{RenderArgs, settings, wall_camera};
 use crate::cli::cluster::{block_owners, check, identity, model_field, or_abort, trace_backend};
 use crate::cli::progress::Progress;
-use crate::cli::scene::load_scene;
+use crate::cli::scene::load_scene_timed;
 use crate::cluster::handshake::scene_hash;
 use crate::cluster::owners::{BlockOwners, TileOwners};
 use crate::cluster::{Cluster, ClusterRenderer, ClusterSetup};
@@ -29,6 +29,8 @@ struct Prepared {
     /// Where this rank traces.
     backend: Backend,
     scene: Scene,
+    /// Seconds this rank's load of the scene took (one-time work).
+    load_seconds: f64,
     settings: TraceSettings,
     wall: Option<WallCamera>,
     /// The display of `--tiles` for a full frame.
@@ -78,7 +80,7 @@ fn prepare(args: &RenderArgs, c: &Cluster) -> anyhow::Result<Prepared> {
     if let Some(note) = note {
         crate::cli::say(args.quiet, note);
     }
-    let scene = load_scene(&args.scene, args.env.as_deref(), args.access)?;
+    let (scene, load_seconds) = load_scene_timed(&args.scene, args.env.as_deref(), args.access)?;
     let settings = settings(args, &scene)?;
     let wc = wall_camera(wall.as_ref(), &settings)?;
     let model = plan
@@ -125,6 +127,7 @@ fn prepare(args: &RenderArgs, c: &Cluster) -> anyhow::Result<Prepared> {
         plan,
         backend,
         scene,
+        load_seconds,
         settings,
         wall: wc,
         tiles_model,
@@ -145,9 +148,11 @@ fn work(c: &mut Cluster, args: &RenderArgs, mut p: Prepared) -> anyhow::Result<(
     };
     let mut r = ClusterRenderer::new(c, &p.scene, setup)?;
     let device = format!("{ranks} rank(s), {}", trace_backend(&p.backend));
+    let t0 = std::time::Instant::now();
     if let Backend::Gpu(ctx) = std::mem::replace(&mut p.backend, Backend::Cpu) {
         r.trace_on_gpu(ctx.into())?;
     }
+    let upload_seconds = t0.elapsed().as_secs_f64();
     let stopping = match &p.plan {
         Some(plan) => plan.stopping.clone(),
         None => Stopping {
@@ -189,6 +194,14 @@ fn work(c: &mut Cluster, args: &RenderArgs, mut p: Prepared) -> anyhow::Result<(
         },
     )?;
     bar.finish();
+    if root {
+        let one_time = crate::cli::progress::OneTime {
+            load_seconds: p.load_seconds,
+            build_seconds: r.build_seconds,
+            upload_seconds,
+        };
+        crate::cli::say(args.quiet, format_args!("rank 0: {one_time}"));
+    }
     let tiles_written = write_owned_tiles(args, &p, &mut r)?;
     let summary = summary(&run, ranks);
     let Some((acc, dgi)) = run.gathered.as_ref() else {
@@ -222,6 +235,8 @@ fn work(c: &mut Cluster, args: &RenderArgs, mut p: Prepared) -> anyhow::Result<(
                 counts: acc.count.clone(),
                 sums: Vec::new(),
                 seconds: run.seconds,
+                build_seconds: r.build_seconds,
+                upload_seconds,
                 stop: run.stop,
                 progress: run.progress,
                 accumulated: run.accumulated,

@@ -3,7 +3,6 @@
 //! pose or mouse ROI.
 
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
 use anyhow::{Context, bail};
 use glam::DVec2;
@@ -15,15 +14,11 @@ use crate::display::DisplayModel;
 use crate::filter::FilterParams;
 use crate::frame::GuideConfig;
 use crate::frame::stop::StopCondition;
-use crate::gpu::Backend;
 use crate::roi::cone::Cone;
 use crate::roi::dgi::{Falloff, Roi};
-use crate::scene::Scene;
 use crate::session::guide::GuideSource;
 use crate::session::render::{GuidedRender, Stopping, render_guided};
 use crate::session::replay::{ReplayOptions, ReplayPlan};
-use crate::trace::path::TraceSettings;
-use crate::trace::wall::WallCamera;
 
 /// Parses `pose:X,Y,Z:DX,DY,DZ:FOV[,FOV_V]` (room frame, metres, degrees; up is +Y) or
 /// `mouse:X,Y:A,B` (centre and semi-axes in image pixels) against `model`; `None` for
@@ -220,12 +215,16 @@ impl GuidedPlan {
 pub fn run(
     args: &RenderArgs,
     plan: &GuidedPlan,
-    scene: &Scene,
-    settings: TraceSettings,
-    wall: Option<WallCamera>,
-    backend: &Backend,
+    job: super::Job<'_>,
     denoise: Option<crate::filter::Denoiser<'_>>,
 ) -> anyhow::Result<()> {
+    let super::Job {
+        scene,
+        load_seconds,
+        settings,
+        wall,
+        backend,
+    } = job;
     crate::cli::say(args.quiet, format_args!("display: {}", plan.display_note));
     let mut bar = Progress::new(
         args.quiet,
@@ -237,7 +236,6 @@ pub fn run(
         StopCondition::RoiSe(x) => Some(*x),
         _ => None,
     });
-    let t0 = Instant::now();
     let res = render_guided(
         backend,
         scene,
@@ -254,9 +252,12 @@ pub fn run(
         &plan.source,
         &plan.stopping,
         |k, progress| {
+            // The time sampled so far at the pace after the first frame: the BVH build and
+            // the upload before it are not time spent on the ROI.
             if let Some(p) = progress {
                 let eta = target_se
-                    .and_then(|x| p.seconds_to_se(x, t0.elapsed().as_secs_f64()))
+                    .zip(bar.sampling_seconds(u64::from(k)))
+                    .and_then(|(x, sampled)| p.seconds_to_se(x, sampled))
                     .map_or(String::new(), |s| format!(", about {s:.0} s to the target"));
                 bar.note(&format!(
                     "ROI: median SE {:.4}, fewest samples {}{eta}",
@@ -267,6 +268,14 @@ pub fn run(
         },
     )?;
     bar.finish();
+    crate::cli::say(
+        args.quiet,
+        crate::cli::progress::OneTime {
+            load_seconds,
+            build_seconds: res.build_seconds,
+            upload_seconds: res.upload_seconds,
+        },
+    );
     write_outputs(args, plan, &res, false, &backend.describe(), "")
 }
 

@@ -14,8 +14,8 @@ use std::time::Instant;
 use anyhow::Context;
 use clap::ArgGroup;
 
-use crate::cli::progress::Progress;
-use crate::cli::scene::load_scene;
+use crate::cli::progress::{OneTime, Progress};
+use crate::cli::scene::load_scene_timed;
 use crate::cli::wall::WALL_CAMERA;
 use crate::display::DisplayModel;
 use crate::frame::Renderer;
@@ -425,24 +425,45 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
         &config.filter,
         crate::filter::oidn::Quality::High,
     );
-    let scene = load_scene(&args.scene, args.env.as_deref(), args.access)?;
+    let (scene, load_seconds) = load_scene_timed(&args.scene, args.env.as_deref(), args.access)?;
     let settings = settings(args, &scene)?;
     let wall = wall_camera(config.wall.as_ref(), &settings)?;
+    let job = Job {
+        scene: &scene,
+        load_seconds,
+        settings,
+        wall,
+        backend: &backend,
+    };
     match &config.plan {
-        Some(plan) => guided::run(args, plan, &scene, settings, wall, &backend, denoiser),
-        None => full_frame(&config, &scene, settings, wall, &backend, denoiser),
+        Some(plan) => guided::run(args, plan, job, denoiser),
+        None => full_frame(&config, job, denoiser),
     }
+}
+
+/// What a render traces, once the scene is loaded (`load_seconds`: one-time work, reported
+/// apart from the sampling time).
+pub struct Job<'a> {
+    pub scene: &'a Scene,
+    pub load_seconds: f64,
+    pub settings: TraceSettings,
+    pub wall: Option<WallCamera>,
+    pub backend: &'a Backend,
 }
 
 /// A full-frame render of `--spp` samples per pixel, denoised when asked, and its files.
 fn full_frame(
     config: &RenderConfig,
-    scene: &Scene,
-    settings: TraceSettings,
-    wall: Option<WallCamera>,
-    backend: &Backend,
+    job: Job<'_>,
     denoiser: Option<crate::filter::Denoiser<'_>>,
 ) -> anyhow::Result<()> {
+    let Job {
+        scene,
+        load_seconds,
+        settings,
+        wall,
+        backend,
+    } = job;
     let args = &config.args;
     let [w, h] = args.size;
     let spp = args.spp.unwrap_or(DEFAULT_SPP);
@@ -451,7 +472,9 @@ fn full_frame(
         None => Renderer::full(backend, scene, settings)?,
     };
     let mut bar = Progress::new(args.quiet, "rendering", Some(u64::from(spp)), "spp");
-    // Batches of about a quarter second keep the bar moving without starving the GPU.
+    // Batches of about a quarter second keep the bar moving without starving the GPU. The
+    // sampling time starts here, at the first frame: the load, the build and the upload are
+    // one-time work, reported apart.
     let t0 = Instant::now();
     let mut done = 0;
     let mut batch = 1;
@@ -485,6 +508,14 @@ fn full_frame(
     }
     let megasamples = f64::from(w) * f64::from(h) * f64::from(spp) / 1e6;
     let files: Vec<&std::path::Path> = args.out.iter().map(PathBuf::as_path).collect();
+    crate::cli::say(
+        args.quiet,
+        OneTime {
+            load_seconds,
+            build_seconds: renderer.build_seconds,
+            upload_seconds: renderer.upload_seconds,
+        },
+    );
     crate::cli::say(
         args.quiet,
         format_args!(

@@ -226,7 +226,7 @@ impl Loader<'_> {
         }
         let indices = match prim.indices() {
             Some(acc) => read_indices(&acc, &self.res.buffers)
-                .map_err(|e| self.element_error(element.to_owned(), e))?,
+                .map_err(|e| self.element_error(element.to_owned(), e.to_string()))?,
             None => (0..vertex_count as u32).collect(),
         };
         if let Some((k, &i)) = indices
