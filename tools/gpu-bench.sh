@@ -94,15 +94,15 @@ setup_device() {
 # The full report goes last: on an H200 it runs for minutes (its 4K convergence curves), and
 # takes what the others leave.
 BENCH_GROUPS=(adapter picture dgi schedule trace kernels kernels-guided guided native filter
-  denoise all-quick wall cluster sizes readback all)
+  denoise motion all-quick wall cluster sizes readback all)
 declare -A BUDGET=([adapter]=20 [picture]=40 [dgi]=60 [schedule]=30 [trace]=90 [kernels]=150
-  [kernels-guided]=90 [guided]=120 [native]=60 [filter]=45 [denoise]=90 [all-quick]=60 [wall]=60
-  [cluster]=60 [sizes]=40 [readback]=30 [all]=300)
+  [kernels-guided]=90 [guided]=120 [native]=60 [filter]=45 [denoise]=90 [motion]=90 [all-quick]=60
+  [wall]=60 [cluster]=60 [sizes]=40 [readback]=30 [all]=300)
 # Smoke: kernels' 150 s is lavapipe compiling four trace kernels with an empty shader cache
 # (119 s measured on a 2-vCPU Intel Xeon with the glTF extensions' BSDF in the kernel, 2026-12-05).
 declare -A SMOKE_BUDGET=([adapter]=10 [picture]=10 [dgi]=20 [schedule]=20 [trace]=20 [kernels]=150
-  [kernels-guided]=40 [guided]=40 [native]=20 [filter]=30 [denoise]=30 [all-quick]=60 [wall]=20
-  [cluster]=20 [sizes]=20 [readback]=10 [all]=60)
+  [kernels-guided]=40 [guided]=40 [native]=20 [filter]=30 [denoise]=30 [motion]=30 [all-quick]=60
+  [wall]=20 [cluster]=20 [sizes]=20 [readback]=10 [all]=60)
 
 # The trace kernel's variants the `kernels` group times (`raygun bench trace --help`).
 KERNEL_VARIANTS=function,private,workgroup,function+unchecked,private+unchecked
@@ -172,6 +172,8 @@ group_command() {
     # The denoisers' error and time (the kernel at 1080p and 4K beside OIDN where the run
     # finds its library: OIDN_DIR).
     denoise) echo "$BIN bench denoise --backend gpu $DENOISE_ARGS --json $d/denoise.json --crops $d/denoise-crops.png --out $d/denoise.md" ;;
+    # A moving eye with the accumulation reused and restarted (head walk, sway, step).
+    motion) echo "$BIN bench motion --backend gpu $MOTION_ARGS --json $d/motion.json --plot $d/motion.svg --out $d/motion.md" ;;
     all-quick) echo "$BIN bench all --quick --backend gpu $ALL_QUICK_SIZE --out $d" ;;
     all) echo "$BIN bench all --backend gpu $ALL_SIZE --out $d" ;;
     wall)
@@ -288,6 +290,7 @@ main() {
       ALL_QUICK_SIZE="" ALL_SIZE="" WALL_SIZE=native NATIVE_ITERATIONS=20 NATIVE_DISPLAY=""
       CLUSTER_ITERATIONS=20 CLUSTER_MODEL="" TRACE_SIZES="1920,1080 960,540 480,270"
       READBACK_ROUNDS=9 DENOISE_ARGS="--size 1920,1080 --reference-spp 1024"
+      MOTION_ARGS="--size 1352,546 --fps 30 --every 60 --reference-spp 256"
       declare -gA BUDGETS
       for g in "${BENCH_GROUPS[@]}"; do BUDGETS[$g]=${BUDGET[$g]}; done
       ;;
@@ -305,6 +308,7 @@ main() {
       CLUSTER_ITERATIONS=2 CLUSTER_MODEL="--model-size 64,26 --model-ranks 3"
       TRACE_SIZES="16,9 8,4" READBACK_ROUNDS=2
       DENOISE_ARGS="--size 32,18 --iterations 1,4 --reference-spp 8 --timing-sizes none"
+      MOTION_ARGS="--scene builtin:cornell --size 32,18 --fov 60 --fps 0.5 --every 5 --reference-spp 4 --max-depth 1"
       # One of each kind (one over lavapipe's workgroup memory: named, not run). Few, as
       # lavapipe compiles each new kernel in about 20 s; the regeneration's cap is not in the
       # kernel, so the guided run reuses the regenerating kernel compiled before it.

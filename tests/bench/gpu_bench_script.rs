@@ -7,7 +7,7 @@
 use std::path::Path;
 use std::process::Command;
 
-const GROUPS: [&str; 17] = [
+const GROUPS: [&str; 18] = [
     "adapter",
     "picture",
     "dgi",
@@ -19,6 +19,7 @@ const GROUPS: [&str; 17] = [
     "native",
     "filter",
     "denoise",
+    "motion",
     "all-quick",
     "wall",
     "cluster",
