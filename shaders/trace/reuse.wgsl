@@ -13,6 +13,8 @@ const ANGLE_PER_ALPHA: f32 = 0.5;
 const DIFFUSE_ALPHA: f32 = 0.25;
 const HISTORY_LENGTH: u32 = 32u;
 const MAX_MISREGISTRATION_PX: f32 = 0.75;
+const LOOSE_MISREGISTRATION_PX: f32 = 1.5;
+const LOOSE_HISTORY: u32 = 4u;
 const MAX_JUMP: f32 = 0.25;
 const F32_MAX: f32 = 3.40282347e38;
 const ALL: u32 = 0xffffffffu;
@@ -86,8 +88,35 @@ fn tile_of(old: bool, count: u32, x: u32, y: u32) -> u32 {
     return NOTHING;
 }
 
-// The view's image point along `toward` from its eye (twin: reuse.rs, View::project).
-fn project(old: bool, toward: vec3<f32>) -> Projected {
+// Wall entry i's image point along `toward` when its map gives one it traces (twin: the
+// closure in WallCamera::project).
+fn project_entry(old: bool, count: u32, i: u32, toward: vec3<f32>) -> Projected {
+    var e: array<vec4<f32>, 4>;
+    for (var k = 0u; k < 4u; k++) {
+        if old {
+            e[k] = old_wall[4u * i + k];
+        } else {
+            e[k] = new_wall[4u * i + k];
+        }
+    }
+    let b = bitcast<vec4<u32>>(e[0]);
+    let f = tile_point(e[1].xyz, e[2].xyz, e[3].xyz, toward);
+    let tw = f32(b.y - b.x);
+    let th = f32(b.w - b.z);
+    if !(f.x >= 0.0 && f.y >= 0.0 && f.x < tw && f.y < th) {
+        return Projected(vec2<f32>(0.0), NOTHING);
+    }
+    let x = b.x + u32(f.x);
+    let y = b.z + u32(f.y);
+    if tile_of(old, count, x, y) != i {
+        return Projected(vec2<f32>(0.0), NOTHING);
+    }
+    return Projected(vec2<f32>(f32(b.x) + f.x, f32(b.z) + f.y), y * params.size.x + x);
+}
+
+// The view's image point along `toward` from its eye; through the wall camera the entry of
+// pixel `near` first (twin: reuse.rs, View::project).
+fn project(old: bool, toward: vec3<f32>, near: u32) -> Projected {
     var v = params.new_view;
     if old {
         v = params.old_view;
@@ -95,26 +124,17 @@ fn project(old: bool, toward: vec3<f32>) -> Projected {
     let none = Projected(vec2<f32>(0.0), NOTHING);
     let w = params.size.x;
     if v.tiles > 0u {
+        let hint = tile_of(old, v.tiles, near % w, near / w);
+        if hint != NOTHING {
+            let at = project_entry(old, v.tiles, hint, toward);
+            if at.pixel != NOTHING {
+                return at;
+            }
+        }
         for (var i = 0u; i < v.tiles; i++) {
-            var e: array<vec4<f32>, 4>;
-            for (var k = 0u; k < 4u; k++) {
-                if old {
-                    e[k] = old_wall[4u * i + k];
-                } else {
-                    e[k] = new_wall[4u * i + k];
-                }
-            }
-            let b = bitcast<vec4<u32>>(e[0]);
-            let f = tile_point(e[1].xyz, e[2].xyz, e[3].xyz, toward);
-            let tw = f32(b.y - b.x);
-            let th = f32(b.w - b.z);
-            if !(f.x >= 0.0 && f.y >= 0.0 && f.x < tw && f.y < th) {
-                continue;
-            }
-            let x = b.x + u32(f.x);
-            let y = b.z + u32(f.y);
-            if tile_of(old, v.tiles, x, y) == i {
-                return Projected(vec2<f32>(f32(b.x) + f.x, f32(b.z) + f.y), y * w + x);
+            let at = project_entry(old, v.tiles, i, toward);
+            if at.pixel != NOTHING {
+                return at;
             }
         }
         return none;
@@ -154,7 +174,7 @@ fn reuse_source(p: u32, n0: vec4<f32>, n1: vec4<f32>) -> vec2<u32> {
     if miss {
         toward_old = a;
     }
-    let q0 = project(true, toward_old);
+    let q0 = project(true, toward_old, p);
     if q0.pixel == NOTHING {
         return none;
     }
@@ -181,12 +201,12 @@ fn reuse_source(p: u32, n0: vec4<f32>, n1: vec4<f32>) -> vec2<u32> {
             if miss {
                 toward_new = b;
             }
-            let pr = project(false, toward_new);
+            let pr = project(false, toward_new, p);
             if pr.pixel == NOTHING {
                 continue;
             }
             let dist = max(abs(pr.at.x - centre.x), abs(pr.at.y - centre.y));
-            if dist <= MAX_MISREGISTRATION_PX && (best == NOTHING || dist < best_d) {
+            if dist <= LOOSE_MISREGISTRATION_PX && (best == NOTHING || dist < best_d) {
                 best_d = dist;
                 best = q;
             }
@@ -195,8 +215,12 @@ fn reuse_source(p: u32, n0: vec4<f32>, n1: vec4<f32>) -> vec2<u32> {
     if best == NOTHING {
         return none;
     }
+    var loose = ALL;
+    if best_d > MAX_MISREGISTRATION_PX {
+        loose = LOOSE_HISTORY;
+    }
     if miss {
-        return vec2<u32>(best, ALL);
+        return vec2<u32>(best, loose);
     }
     let on = old_records[2u * best + 1u].xyz;
     let b = old_records[2u * best].xyz;
@@ -210,9 +234,9 @@ fn reuse_source(p: u32, n0: vec4<f32>, n1: vec4<f32>) -> vec2<u32> {
         return none;
     }
     if alpha < DIFFUSE_ALPHA {
-        return vec2<u32>(best, HISTORY_LENGTH);
+        return vec2<u32>(best, min(HISTORY_LENGTH, loose));
     }
-    return vec2<u32>(best, ALL);
+    return vec2<u32>(best, loose);
 }
 
 @compute @workgroup_size(64)

@@ -26,7 +26,7 @@
 //! 2. `q` is one of the 3 × 3 old pixels around the old view's pixel of `p`'s anchor (seen
 //!    from `e0`: the hit point, or for a miss the direction) — the one whose *old anchor*,
 //!    seen from `e1`, falls nearest `p`'s centre (Chebyshev, in new pixels; ties: the first in
-//!    row-major order), and at most [`MAX_MISREGISTRATION_PX`] from it;
+//!    row-major order), and at most [`LOOSE_MISREGISTRATION_PX`] from it;
 //! 3. `q`'s word is `p`'s (same material, or both misses); for a hit, the normals agree
 //!    (`n.ng · o.ng ≥` [`COS_NORMAL`]) and `q`'s anchor lies within
 //!    [`PLANE_TOLERANCE`] × `p`'s depth of `p`'s tangent plane;
@@ -36,8 +36,11 @@
 //!
 //! A carried pixel takes `q`'s sums and count and its anchor (`n.a ← o.a`). A surface with
 //! α < [`DIFFUSE_ALPHA`] is partly view-dependent: its count is capped at [`HISTORY_LENGTH`]
-//! (the sums scaled by cap / count, so the mean stays and new samples weigh more). Every other
-//! pixel starts again from nothing. The ROI and its DGI are not touched.
+//! (the sums scaled by cap / count, so the mean stays and new samples weigh more). A source
+//! further than [`MAX_MISREGISTRATION_PX`] is a loose match (a surface seen at a grazing angle,
+//! whose centre point moves far along it): it carries at most [`LOOSE_HISTORY`] samples, a
+//! first estimate in place of black that new samples soon replace. Every other pixel starts
+//! again from nothing. The ROI and its DGI are not touched.
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -65,6 +68,11 @@ pub const DIFFUSE_ALPHA: f32 = 0.25;
 pub const HISTORY_LENGTH: u32 = 32;
 /// The most an old anchor may lie from the new pixel's centre, in new pixels (Chebyshev).
 pub const MAX_MISREGISTRATION_PX: f32 = 0.75;
+/// An old anchor this far from the new pixel's centre (in new pixels, Chebyshev) still carries,
+/// but at most [`LOOSE_HISTORY`] samples: a rough first estimate that new samples soon replace.
+pub const LOOSE_MISREGISTRATION_PX: f32 = 1.5;
+/// The most samples a loosely registered pixel carries.
+pub const LOOSE_HISTORY: u32 = 4;
 /// The eye may move at most this fraction of the distance to a pixel's surface.
 pub const MAX_JUMP: f32 = 0.25;
 
@@ -92,11 +100,13 @@ impl View<'_> {
 
     /// The image point (in pixels, y down) whose primary ray runs along `toward` from the
     /// eye, with the pixel holding it; `None` where no shown pixel's ray does (behind the
-    /// camera, outside the image, on no tile). The twin of `project` in reuse.wgsl.
+    /// camera, outside the image, on no tile). Through the wall camera, the tile entry of
+    /// pixel `near` is tried first ([`WallCamera::project`]). The twin of `project` in
+    /// reuse.wgsl.
     #[must_use]
-    pub fn project(&self, toward: Vec3) -> Option<([f32; 2], u32)> {
+    pub fn project(&self, toward: Vec3, near: u32) -> Option<([f32; 2], u32)> {
         match *self {
-            Self::Wall(w) => w.project(toward),
+            Self::Wall(w) => w.project(toward, w.tile_of(near % w.width, near / w.width)),
             Self::Pinhole {
                 camera,
                 width,
@@ -157,7 +167,7 @@ pub fn reuse_source(
         return None;
     }
     let toward_old = if miss { a } else { a - e0 };
-    let (_, q0) = old_view.project(toward_old)?;
+    let (_, q0) = old_view.project(toward_old, p)?;
     let width = old_view.width();
     let (qx, qy) = (q0 % width, q0 / width);
     let height = old_view.height();
@@ -176,18 +186,19 @@ pub fn reuse_source(
                 continue;
             }
             let b = Vec3::new(o[0][0], o[0][1], o[0][2]);
-            let Some(([fx, fy], _)) = new_view.project(if miss { b } else { b - e1 }) else {
+            let Some(([fx, fy], _)) = new_view.project(if miss { b } else { b - e1 }, p) else {
                 continue;
             };
             let dist = (fx - centre[0]).abs().max((fy - centre[1]).abs());
-            if dist <= MAX_MISREGISTRATION_PX && best.is_none_or(|(d, _)| dist < d) {
+            if dist <= LOOSE_MISREGISTRATION_PX && best.is_none_or(|(d, _)| dist < d) {
                 best = Some((dist, q));
             }
         }
     }
-    let (_, q) = best?;
+    let (dist, q) = best?;
+    let loose = if dist > MAX_MISREGISTRATION_PX { LOOSE_HISTORY } else { u32::MAX };
     if miss {
-        return Some((q, u32::MAX));
+        return Some((q, loose));
     }
     let o = old(q);
     let (nn, on) = (
@@ -204,7 +215,8 @@ pub fn reuse_source(
     if cos.acos() > ANGLE_PER_ALPHA * alpha {
         return None;
     }
-    Some((q, if alpha < DIFFUSE_ALPHA { HISTORY_LENGTH } else { u32::MAX }))
+    let cap = if alpha < DIFFUSE_ALPHA { HISTORY_LENGTH } else { u32::MAX };
+    Some((q, cap.min(loose)))
 }
 
 impl View<'_> {

@@ -483,24 +483,26 @@ impl WallCamera {
 
     /// The image point (pixels, y down) whose primary ray runs along `toward` from the eye,
     /// and the shown pixel that holds it, traced through the entry whose map gives it
-    /// ([`Self::tile_of`]); `None` where no pixel's ray does. The inverse of [`Self::ray`]
-    /// (motion reuse, [`crate::trace::reuse`]); the twin of `project_wall` in reuse.wgsl.
+    /// ([`Self::tile_of`]): entry `hint` when it does (a neighbour's entry: most points fall on
+    /// it), else the first that does; `None` where no pixel's ray does. The inverse of
+    /// [`Self::ray`] (motion reuse, [`crate::trace::reuse`]); the twin of `project` in
+    /// reuse.wgsl.
     #[must_use]
-    pub fn project(&self, toward: Vec3) -> Option<([f32; 2], u32)> {
-        for (i, t) in self.tiles.iter().enumerate() {
-            let Some([fx, fy]) = tile_point(t.origin, t.step_x, t.step_y, toward) else {
-                continue;
-            };
+    pub fn project(&self, toward: Vec3, hint: Option<usize>) -> Option<([f32; 2], u32)> {
+        let at = |i: usize| {
+            let t = &self.tiles[i];
+            let [fx, fy] = tile_point(t.origin, t.step_x, t.step_y, toward)?;
             let (w, h) = ((t.x1 - t.x0) as f32, (t.y1 - t.y0) as f32);
             if !(fx >= 0.0 && fy >= 0.0 && fx < w && fy < h) {
-                continue;
+                return None;
             }
             let (x, y) = (t.x0 + fx as u32, t.y0 + fy as u32);
-            if self.tile_of(x, y) == Some(i) {
-                return Some(([t.x0 as f32 + fx, t.y0 as f32 + fy], y * self.width + x));
-            }
-        }
-        None
+            (self.tile_of(x, y) == Some(i))
+                .then(|| ([t.x0 as f32 + fx, t.y0 as f32 + fy], y * self.width + x))
+        };
+        hint.filter(|&h| h < self.tiles.len())
+            .and_then(at)
+            .or_else(|| (0..self.tiles.len()).find_map(at))
     }
 
     /// Sets every pixel no tile shows to black (a filtered picture spreads neighbours' light

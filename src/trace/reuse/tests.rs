@@ -248,7 +248,8 @@ fn the_wall_camera_projects_its_own_rays_back() {
         let (x, y) = (p % w, p / w);
         let Some(t) = wall.tile_of(x, y) else { continue };
         let (_, d) = wall.ray(t, x, y, 0.5, 0.5);
-        let (at, q) = wall.project(d).expect("a shown pixel's ray projects");
+        let (at, q) = wall.project(d, None).expect("a shown pixel's ray projects");
+        assert_eq!(wall.project(d, Some(t)), Some((at, q)), "the pixel's own entry first");
         assert_eq!(q, p, "pixel ({x}, {y}) at {at:?}");
         assert!((at[0] - x as f32 - 0.5).abs() < 1e-2 && (at[1] - y as f32 - 0.5).abs() < 1e-2);
         found += 1;
