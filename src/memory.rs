@@ -210,7 +210,8 @@ impl Budget {
             Some(max) => {
                 self.device.push(("motion reuse", REUSE_BPP * px));
                 if px * 16 > max {
-                    self.host.push(("motion reuse (frame in bands)", REUSE_BANDS_HOST_BPP * px));
+                    self.host
+                        .push(("motion reuse (frame in bands)", REUSE_BANDS_HOST_BPP * px));
                 }
             }
             None => self.host.push(("motion reuse", REUSE_BPP * px)),
@@ -361,7 +362,10 @@ mod tests {
         assert_eq!(gpu.device_bytes(), base.device_bytes() + REUSE_BPP * px);
         assert_eq!(gpu.host_bytes(), base.host_bytes());
         let banded = base.clone().with_reuse(Some(px * 16 - 1));
-        assert_eq!(banded.host_bytes(), base.host_bytes() + REUSE_BANDS_HOST_BPP * px);
+        assert_eq!(
+            banded.host_bytes(),
+            base.host_bytes() + REUSE_BANDS_HOST_BPP * px
+        );
         let cpu = base.clone().with_reuse(None);
         assert_eq!(cpu.host_bytes(), base.host_bytes() + REUSE_BPP * px);
         assert!(cpu.breakdown().contains("motion reuse"));

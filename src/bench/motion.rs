@@ -110,7 +110,10 @@ impl MotionBenchConfig {
     pub fn validate(&self) -> Result<(), MotionBenchError> {
         let bad = |m: String| Err(MotionBenchError::Config(m));
         if self.size[0] < 16 || self.size[1] < 16 {
-            return bad(format!("--size {}×{}: at least 16 a side", self.size[0], self.size[1]));
+            return bad(format!(
+                "--size {}×{}: at least 16 a side",
+                self.size[0], self.size[1]
+            ));
         }
         if self.fovs_deg.is_empty() || self.fovs_deg.iter().any(|f| !(*f > 0.0 && *f < 180.0)) {
             return bad("--fov: one or more angles between 0° and 180°".into());
@@ -126,7 +129,10 @@ impl MotionBenchConfig {
             ));
         }
         if self.every == 0 || self.every > n {
-            return bad(format!("--every {}: 1 to the walk's {n} iterations", self.every));
+            return bad(format!(
+                "--every {}: 1 to the walk's {n} iterations",
+                self.every
+            ));
         }
         if self.reference_spp == 0 {
             return bad("--reference-spp: at least 1".into());
@@ -273,7 +279,11 @@ fn regions(dgi: &[f32], wall: &WallCamera) -> (Vec<bool>, Vec<bool>) {
 }
 
 /// The filter's picture of `r` against the reference at its eye.
-fn compare(r: &Renderer<'_>, refs: &mut References<'_>, iteration: u32) -> Result<Point, FrameError> {
+fn compare(
+    r: &Renderer<'_>,
+    refs: &mut References<'_>,
+    iteration: u32,
+) -> Result<Point, FrameError> {
     let wall = r.wall().expect("a wall camera").clone();
     let picture = r.picture(&FilterParams::default())?;
     let (roi, periphery) = regions(&r.dgi()?, &wall);
@@ -339,7 +349,7 @@ fn run_walk(
         }
         r.run_frame(false)?;
         let done = k as u32 + 1;
-        if done % cfg.every == 0 {
+        if done.is_multiple_of(cfg.every) {
             r.wait()?;
             points.push(compare(&r, refs, done)?);
         }
@@ -461,9 +471,22 @@ pub fn run(
     for &fov in &cfg.fovs_deg {
         for policy in [EyeMove::Reuse, EyeMove::Restart] {
             for walk in [head_walk, &sway] {
-                series.push(run_walk(&setup, &mut refs, cfg, (fov, policy), walk, &mut progress)?);
+                series.push(run_walk(
+                    &setup,
+                    &mut refs,
+                    cfg,
+                    (fov, policy),
+                    walk,
+                    &mut progress,
+                )?);
             }
-            steps.push(run_step(&setup, &mut refs, cfg, (fov, policy), &mut progress)?);
+            steps.push(run_step(
+                &setup,
+                &mut refs,
+                cfg,
+                (fov, policy),
+                &mut progress,
+            )?);
         }
     }
     Ok(MotionReport {
@@ -532,7 +555,10 @@ pub fn markdown(reports: &[MotionReport]) -> String {
         "| scene | FOV | ROI relMSE before the step | right after: reuse / restart | back after (iterations): reuse / restart |"
     );
     let _ = writeln!(out, "|---|---|---|---|---|");
-    let it = |s: &Step| s.recovered_after.map_or("not within the run".into(), |k| k.to_string());
+    let it = |s: &Step| {
+        s.recovered_after
+            .map_or("not within the run".into(), |k| k.to_string())
+    };
     for rep in reports {
         for &fov in &rep.config.fovs_deg {
             let (Some(a), Some(b)) = (
@@ -569,10 +595,11 @@ pub fn plot_svg(reports: &[MotionReport]) -> String {
         let Some(&fov) = rep.config.fovs_deg.first() else {
             continue;
         };
-        let series: Vec<(&Series, &str)> = [(EyeMove::Reuse, "#1f77b4"), (EyeMove::Restart, "#d62728")]
-            .iter()
-            .filter_map(|&(p, colour)| find(rep, fov, "head walk", p).map(|s| (s, colour)))
-            .collect();
+        let series: Vec<(&Series, &str)> =
+            [(EyeMove::Reuse, "#1f77b4"), (EyeMove::Restart, "#d62728")]
+                .iter()
+                .filter_map(|&(p, colour)| find(rep, fov, "head walk", p).map(|s| (s, colour)))
+                .collect();
         let values: Vec<f64> = series
             .iter()
             .flat_map(|(s, _)| s.points.iter().map(|p| p.roi_rel_mse))
@@ -581,8 +608,19 @@ pub fn plot_svg(reports: &[MotionReport]) -> String {
         if values.is_empty() {
             continue;
         }
-        let lo = values.iter().copied().fold(f64::INFINITY, f64::min).log10().floor();
-        let hi = values.iter().copied().fold(0.0, f64::max).log10().ceil().max(lo + 1.0);
+        let lo = values
+            .iter()
+            .copied()
+            .fold(f64::INFINITY, f64::min)
+            .log10()
+            .floor();
+        let hi = values
+            .iter()
+            .copied()
+            .fold(0.0, f64::max)
+            .log10()
+            .ceil()
+            .max(lo + 1.0);
         let n = f64::from(rep.config.iterations());
         let y0 = ph * i as f64;
         let x = |k: f64| pad + (pw - 1.5 * pad) * k / n;
@@ -661,11 +699,26 @@ mod tests {
     fn the_config_names_bad_numbers() {
         let ok = MotionBenchConfig::default();
         ok.validate().unwrap();
-        let e = MotionBenchConfig { every: 0, ..ok.clone() }.validate().unwrap_err();
+        let e = MotionBenchConfig {
+            every: 0,
+            ..ok.clone()
+        }
+        .validate()
+        .unwrap_err();
         assert!(e.to_string().contains("--every 0"), "{e}");
-        let e = MotionBenchConfig { fps: 0.0, ..ok.clone() }.validate().unwrap_err();
+        let e = MotionBenchConfig {
+            fps: 0.0,
+            ..ok.clone()
+        }
+        .validate()
+        .unwrap_err();
         assert!(e.to_string().contains("--fps 0"), "{e}");
-        let e = MotionBenchConfig { step_m: f64::NAN, ..ok }.validate().unwrap_err();
+        let e = MotionBenchConfig {
+            step_m: f64::NAN,
+            ..ok
+        }
+        .validate()
+        .unwrap_err();
         assert!(e.to_string().contains("--step-cm"), "{e}");
     }
 }

@@ -36,7 +36,12 @@ pub struct MotionBenchArgs {
     #[arg(allow_hyphen_values = true, long, value_name = "W,H", value_parser = crate::cli::args::parse_size, default_value = "248,100")]
     pub size: [u32; 2],
     /// Fields of view of the ROI, degrees (square cones).
-    #[arg(long, value_name = "DEG,…", value_delimiter = ',', default_value = "10,60")]
+    #[arg(
+        long,
+        value_name = "DEG,…",
+        value_delimiter = ',',
+        default_value = "10,60"
+    )]
     pub fov: Vec<f64>,
     /// Iterations a second of the walk.
     #[arg(long, value_name = "N", default_value_t = 4.0)]
@@ -104,7 +109,11 @@ fn head_walk(file: &std::path::Path, fps: f64) -> anyhow::Result<(Walk, f64)> {
 
 /// `raygun bench motion` (`bench::motion`).
 pub fn run(args: &MotionBenchArgs) -> anyhow::Result<()> {
-    for (flag, path) in [("--json", &args.json), ("--plot", &args.plot), ("--out", &args.out)] {
+    for (flag, path) in [
+        ("--json", &args.json),
+        ("--plot", &args.plot),
+        ("--out", &args.out),
+    ] {
         if let Some(p) = path {
             crate::output::check_writable(p).with_context(|| flag.to_string())?;
         }
@@ -133,11 +142,18 @@ pub fn run(args: &MotionBenchArgs) -> anyhow::Result<()> {
     for name in &args.scene {
         let scene = crate::cli::scene::load_scene(name, None, args.access)?;
         let short = name.strip_prefix("builtin:").unwrap_or(name);
-        let report = motion::run(&backend, &display, (short, &scene), &cfg, &walk, |what, n| {
-            done += u64::from(n);
-            bar.note(&format!("{short}: {what}"));
-            bar.set(done.min(planned));
-        })?;
+        let report = motion::run(
+            &backend,
+            &display,
+            (short, &scene),
+            &cfg,
+            &walk,
+            |what, n| {
+                done += u64::from(n);
+                bar.note(&format!("{short}: {what}"));
+                bar.set(done.min(planned));
+            },
+        )?;
         reports.push(report);
     }
     bar.finish();

@@ -14,8 +14,8 @@ use crate::gpu::{Band, GpuContext};
 use crate::trace::accum::Accumulation;
 use crate::trace::camera::RenderCamera;
 use crate::trace::features::hit_records_cpu;
-use crate::trace::gpu::{FeatureInputs, FeaturesKernel, GpuAccum, GpuHits, HIT_BYTES_PER_PIXEL};
 use crate::trace::gpu::ReuseInputs;
+use crate::trace::gpu::{FeatureInputs, FeaturesKernel, GpuAccum, GpuHits, HIT_BYTES_PER_PIXEL};
 use crate::trace::gpu::{ReuseKernel, TraceKernel};
 use crate::trace::reuse::{ReuseStats, View, reuse_cpu};
 use crate::trace::wall::WallCamera;
@@ -159,11 +159,23 @@ impl Renderer<'_> {
                 let q = &ctx.queue;
                 for b in bands.iter() {
                     let range = rows(b.band);
-                    q.write_buffer(&b.accum.accum, 0, bytemuck::cast_slice(&carried.sum[range.clone()]));
-                    q.write_buffer(&b.accum.counts, 0, bytemuck::cast_slice(&carried.count[range]));
+                    q.write_buffer(
+                        &b.accum.accum,
+                        0,
+                        bytemuck::cast_slice(&carried.sum[range.clone()]),
+                    );
+                    q.write_buffer(
+                        &b.accum.counts,
+                        0,
+                        bytemuck::cast_slice(&carried.count[range]),
+                    );
                 }
                 for hits in new.iter() {
-                    q.write_buffer(&hits.records, 0, bytemuck::cast_slice(&new_r[rows(hits.band)]));
+                    q.write_buffer(
+                        &hits.records,
+                        0,
+                        bytemuck::cast_slice(&new_r[rows(hits.band)]),
+                    );
                 }
                 stats
             }

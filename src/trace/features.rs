@@ -41,15 +41,15 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
+use super::bvh::TraceHit;
 use super::pack::{MAT_EXT_BSDF, MAT_EXT_TEX, MAT_MR_TEX, MAT_NORMAL_TEX, MIN_ALPHA, NO_TEXTURE};
 use super::pack::{MATERIAL_STRIDE, PackedScene};
 use super::path::{
     SurfacePoint, TraceSettings, alpha_covered, base_color, env_eval, normal_mapped, ray_seed,
     slot, v3,
 };
-use super::bvh::TraceHit;
-use super::shading::offset_ray;
 use super::reuse;
+use super::shading::offset_ray;
 use super::wall::WallCamera;
 
 /// The points inside a pixel (in pixels from its top-left corner) that its features look
@@ -322,7 +322,10 @@ pub fn hit_record(
             alpha_covered(sc, tri, u, w, seed)
         });
     let Some(hit) = hit else {
-        return [[d.x, d.y, d.z, 0.0], [0.0, 0.0, 0.0, f32::from_bits(reuse::MISS)]];
+        return [
+            [d.x, d.y, d.z, 0.0],
+            [0.0, 0.0, 0.0, f32::from_bits(reuse::MISS)],
+        ];
     };
     let sf = surface_at(sc, &hit, d);
     let mut word = (sf.mb / MATERIAL_STRIDE) as u32;

@@ -196,7 +196,11 @@ pub fn reuse_source(
         }
     }
     let (dist, q) = best?;
-    let loose = if dist > MAX_MISREGISTRATION_PX { LOOSE_HISTORY } else { u32::MAX };
+    let loose = if dist > MAX_MISREGISTRATION_PX {
+        LOOSE_HISTORY
+    } else {
+        u32::MAX
+    };
     if miss {
         return Some((q, loose));
     }
@@ -211,11 +215,18 @@ pub fn reuse_source(
         return None;
     }
     let alpha = new[0][3];
-    let cos = (e0 - a).normalize().dot((e1 - a).normalize()).clamp(-1.0, 1.0);
+    let cos = (e0 - a)
+        .normalize()
+        .dot((e1 - a).normalize())
+        .clamp(-1.0, 1.0);
     if cos.acos() > ANGLE_PER_ALPHA * alpha {
         return None;
     }
-    let cap = if alpha < DIFFUSE_ALPHA { HISTORY_LENGTH } else { u32::MAX };
+    let cap = if alpha < DIFFUSE_ALPHA {
+        HISTORY_LENGTH
+    } else {
+        u32::MAX
+    };
     Some((q, cap.min(loose)))
 }
 

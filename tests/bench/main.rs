@@ -3,9 +3,9 @@
 
 mod bench_all;
 mod denoise_cli;
-mod motion_cli;
 mod filter_cli;
 mod gpu_bench_script;
+mod motion_cli;
 mod schedule_bench;
 
 // The helpers of tests/support/ that the files above use, each compiled once here.

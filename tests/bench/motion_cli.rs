@@ -9,7 +9,11 @@ use support::{fails_with, ok, raygun, s, tmp_dir};
 #[test]
 fn bench_motion_measures_both_policies_on_both_walks() {
     let dir = tmp_dir("bench-motion");
-    let (json, plot, md) = (dir.join("motion.json"), dir.join("motion.svg"), dir.join("motion.md"));
+    let (json, plot, md) = (
+        dir.join("motion.json"),
+        dir.join("motion.svg"),
+        dir.join("motion.md"),
+    );
     let o = raygun(&[
         "bench",
         "motion",

@@ -85,7 +85,10 @@ fn check(backend: &Backend, name: &str) {
     let carried = after.count.iter().filter(|&&c| c > 0).count() as u64;
     let total = |a: &Accumulation| a.count.iter().map(|&c| u64::from(c)).sum::<u64>();
     assert!(carried <= stats.carried, "{name}");
-    assert!(total(&after) * 10 >= total(&before) * 7, "{name}: most samples carried");
+    assert!(
+        total(&after) * 10 >= total(&before) * 7,
+        "{name}: most samples carried"
+    );
     r.iterate(2).unwrap();
     let EyeFollow::Reused(back) = r.follow_eye(start, DEFAULT_EYE_THRESHOLD_M).unwrap() else {
         panic!("{name}: the move back did not reuse");
@@ -120,8 +123,7 @@ fn a_frame_in_bands_carries_what_one_band_carries() {
         let mut r = Renderer::full_wall(backend, &scene, s, w0).unwrap();
         r.set_on_eye_move(EyeMove::Reuse);
         r.iterate(3).unwrap();
-        let EyeFollow::Reused(stats) = r.follow_eye(moved, DEFAULT_EYE_THRESHOLD_M).unwrap()
-        else {
+        let EyeFollow::Reused(stats) = r.follow_eye(moved, DEFAULT_EYE_THRESHOLD_M).unwrap() else {
             panic!("no reuse");
         };
         (r.accumulation().unwrap(), stats, r.gpu_bands())
@@ -129,7 +131,10 @@ fn a_frame_in_bands_carries_what_one_band_carries() {
     let (banded, bs, nb) = run(&Backend::Gpu(Box::new(small)));
     let (one, os, n1) = run(&Backend::Gpu(Box::new(GpuContext::for_tests())));
     assert!(nb.unwrap() > 1 && n1 == Some(1), "{nb:?} {n1:?}");
-    assert!(bs.carried.abs_diff(os.carried) * 100 <= os.carried, "{bs:?} vs {os:?}");
+    assert!(
+        bs.carried.abs_diff(os.carried) * 100 <= os.carried,
+        "{bs:?} vs {os:?}"
+    );
     let same = (0..banded.count.len())
         .filter(|&p| banded.count[p] == one.count[p])
         .count();
@@ -197,7 +202,9 @@ fn the_carried_picture_is_as_good_as_a_fresh_render_with_as_many_samples() {
         .collect();
     reused.iterate(1).unwrap();
     let mut restarted = full(9, start, 32);
-    restarted.follow_eye(moved, DEFAULT_EYE_THRESHOLD_M).unwrap();
+    restarted
+        .follow_eye(moved, DEFAULT_EYE_THRESHOLD_M)
+        .unwrap();
     restarted.iterate(1).unwrap();
     let (e_reuse, e_restart) = (
         rel_mse(&reused.accumulation().unwrap(), &reference, &shown),

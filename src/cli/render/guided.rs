@@ -361,7 +361,11 @@ fn say_eye_moves(quiet: bool, res: &crate::session::render::GuidedResult) {
         String::new()
     };
     let what = if !res.eye_reuses.is_empty() {
-        let share = res.eye_reuses.iter().map(|(_, _, s)| s.share()).sum::<f64>()
+        let share = res
+            .eye_reuses
+            .iter()
+            .map(|(_, _, s)| s.share())
+            .sum::<f64>()
             / res.eye_reuses.len() as f64;
         format!(
             "{} (each move carried the accumulation of {:.0} % of the shown pixels on average, the ROI kept)",

@@ -613,10 +613,20 @@ mod tests {
         let restart = args(&["--on-eye-move", "restart"]);
         assert_eq!(restart.head.on_eye_move(), crate::frame::EyeMove::Restart);
         let e = super::check_args(&args(&["--cluster", "--on-eye-move", "reuse"])).unwrap_err();
-        assert!(e.to_string().starts_with("--on-eye-move reuse: a render across ranks"), "{e}");
+        assert!(
+            e.to_string()
+                .starts_with("--on-eye-move reuse: a render across ranks"),
+            "{e}"
+        );
         super::check_args(&args(&["--cluster"])).unwrap();
         super::check_args(&args(&["--cluster", "--on-eye-move", "restart"])).unwrap();
-        let argv = ["render", "--scene", "builtin:cornell", "--on-eye-move", "sometimes"];
+        let argv = [
+            "render",
+            "--scene",
+            "builtin:cornell",
+            "--on-eye-move",
+            "sometimes",
+        ];
         let e = Cli::try_parse_from(argv).err().unwrap();
         assert!(e.to_string().contains("expected reuse or restart"), "{e}");
     }

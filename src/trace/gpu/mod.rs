@@ -39,9 +39,9 @@ mod split;
 
 pub use accumulation::GpuAccum;
 pub use features::{FeatureInputs, FeaturesKernel, GpuFeatures, GpuHits, HIT_BYTES_PER_PIXEL};
-pub use reuse::{GpuReuseParams, GpuView, REUSE_WGSL, ReuseInputs, ReuseKernel};
 pub use owned::{GpuOwnedParams, OwnedSums};
 pub use params::{GpuTraceParams, full_frame_grid};
+pub use reuse::{GpuReuseParams, GpuView, REUSE_WGSL, ReuseInputs, ReuseKernel};
 pub use run::{RunInputs, TraceRun};
 pub use samples::SampleRun;
 pub use scene::GpuScene;

@@ -200,7 +200,15 @@ mod tests {
         s: &TraceSettings,
         wall: Option<&WallCamera>,
     ) -> GpuHits {
-        let hits = GpuHits::new(ctx, s.width, Band { row0: 0, rows: s.height }).unwrap();
+        let hits = GpuHits::new(
+            ctx,
+            s.width,
+            Band {
+                row0: 0,
+                rows: s.height,
+            },
+        )
+        .unwrap();
         let mut enc = ctx.device.create_command_encoder(&Default::default());
         let inputs = FeatureInputs {
             trace: &TraceKernel::new(ctx),
@@ -258,7 +266,9 @@ mod tests {
                 && (0..3).all(|c| (a[1][c] - b[1][c]).abs() <= 1e-4)
         };
         let got = old_gpu.read(&ctx).unwrap();
-        let agree = (0..n).filter(|&p| same_record(&old_cpu[p], &got[p])).count();
+        let agree = (0..n)
+            .filter(|&p| same_record(&old_cpu[p], &got[p]))
+            .count();
         assert!(agree * 100 >= n * 99, "records: {agree} of {n} agree");
         // An accumulation to carry: pixel p holds p + 1 samples of a tagged sum.
         let mut acc = Accumulation::new(w, h);
@@ -267,8 +277,10 @@ mod tests {
             acc.count[p] = p as u32 % 50 + 1;
         }
         let old_accum = GpuAccum::new(&ctx, w, h).unwrap();
-        ctx.queue.write_buffer(&old_accum.accum, 0, bytemuck::cast_slice(&acc.sum));
-        ctx.queue.write_buffer(&old_accum.counts, 0, bytemuck::cast_slice(&acc.count));
+        ctx.queue
+            .write_buffer(&old_accum.accum, 0, bytemuck::cast_slice(&acc.sum));
+        ctx.queue
+            .write_buffer(&old_accum.counts, 0, bytemuck::cast_slice(&acc.count));
         let accum = GpuAccum::new(&ctx, w, h).unwrap();
         let (ov, nv) = (View::Wall(&old_wall), View::Wall(&new_wall));
         // The twin on the GPU's records, so that only the reuse step is compared.

@@ -1,3 +1,6 @@
+// A pixel indexes several parallel arrays (records, accumulations, references) at once.
+#![allow(clippy::needless_range_loop)]
+
 use glam::{DVec3, Vec2, Vec3};
 
 use super::*;
@@ -123,7 +126,8 @@ fn a_step_restarts_the_disoccluded_and_carries_the_rest_in_register() {
     for p in 0..(w * h) as usize {
         let r = fresh[p];
         let a = Vec3::new(r[0][0], r[0][1], r[0][2]);
-        let footprint = (a - s1.camera.position).length() * 2.0 * 20f32.to_radians().tan() / h as f32;
+        let footprint =
+            (a - s1.camera.position).length() * 2.0 * 20f32.to_radians().tan() / h as f32;
         let seen_old = sc.bvh.closest_hit(e0, (a - e0).normalize(), f32::INFINITY);
         if word(&r) == 0 && seen_old.is_some_and(|hit| hit.t < (a - e0).length() * 0.99) {
             disoccluded += 1;
@@ -142,8 +146,14 @@ fn a_step_restarts_the_disoccluded_and_carries_the_rest_in_register() {
             );
         }
     }
-    assert!(disoccluded > 40, "the step disoccludes {disoccluded} pixels");
-    assert!(restarted * 2 > disoccluded, "{restarted} of {disoccluded} disoccluded restarted");
+    assert!(
+        disoccluded > 40,
+        "the step disoccludes {disoccluded} pixels"
+    );
+    assert!(
+        restarted * 2 > disoccluded,
+        "{restarted} of {disoccluded} disoccluded restarted"
+    );
 }
 
 /// Forty steps of a third of a pixel each way: the anchors keep each carried pixel within a
@@ -182,12 +192,19 @@ fn many_small_steps_do_not_drift() {
             continue;
         }
         let dx = (acc.sum[p][0] - fresh[p][0][0]).abs();
-        assert!(dx <= 1.5 * footprint, "pixel {p} drifted {:.2} px", dx / footprint);
+        assert!(
+            dx <= 1.5 * footprint,
+            "pixel {p} drifted {:.2} px",
+            dx / footprint
+        );
         if acc.sum[p][0] != fresh[p][0][0] {
             carried_all_along += 1;
         }
     }
-    assert!(carried_all_along > (w * h / 2) as usize, "{carried_all_along}");
+    assert!(
+        carried_all_along > (w * h / 2) as usize,
+        "{carried_all_along}"
+    );
 }
 
 /// Mirrors and glass restart; a glossy surface carries at most HISTORY_LENGTH samples, the
@@ -230,7 +247,10 @@ fn mirrors_restart_and_glossy_surfaces_carry_a_capped_history() {
     let (carried, _) = reuse_cpu(&pinhole(&far), &pinhole(&s0), &mut new, &old, &acc);
     for p in 0..(w * h) as usize {
         if word(&new[p]) == 0 {
-            assert_eq!(carried.count[p], 0, "pixel {p}: background seen 14° round carried");
+            assert_eq!(
+                carried.count[p], 0,
+                "pixel {p}: background seen 14° round carried"
+            );
         }
     }
 }
@@ -242,14 +262,27 @@ fn the_wall_camera_projects_its_own_rays_back() {
     let model = DisplayModel::open("hornet").unwrap().0;
     let (w, h) = (331u32, 134u32);
     let cam = (DVec3::new(0.0, 1.0, 4.0), DVec3::NEG_Z, DVec3::Y);
-    let wall = WallCamera::new(&model, [w, h], DVec3::new(0.1, 0.0, 1.2), &WorldFromRoom::Auto, cam).unwrap();
+    let wall = WallCamera::new(
+        &model,
+        [w, h],
+        DVec3::new(0.1, 0.0, 1.2),
+        &WorldFromRoom::Auto,
+        cam,
+    )
+    .unwrap();
     let mut found = 0;
     for p in 0..w * h {
         let (x, y) = (p % w, p / w);
-        let Some(t) = wall.tile_of(x, y) else { continue };
+        let Some(t) = wall.tile_of(x, y) else {
+            continue;
+        };
         let (_, d) = wall.ray(t, x, y, 0.5, 0.5);
         let (at, q) = wall.project(d, None).expect("a shown pixel's ray projects");
-        assert_eq!(wall.project(d, Some(t)), Some((at, q)), "the pixel's own entry first");
+        assert_eq!(
+            wall.project(d, Some(t)),
+            Some((at, q)),
+            "the pixel's own entry first"
+        );
         assert_eq!(q, p, "pixel ({x}, {y}) at {at:?}");
         assert!((at[0] - x as f32 - 0.5).abs() < 1e-2 && (at[1] - y as f32 - 0.5).abs() < 1e-2);
         found += 1;
