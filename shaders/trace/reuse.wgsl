@@ -12,6 +12,7 @@ const PLANE_TOLERANCE: f32 = 0.01;
 const ANGLE_PER_ALPHA: f32 = 0.5;
 const DIFFUSE_ALPHA: f32 = 0.25;
 const HISTORY_LENGTH: u32 = 32u;
+const EDGE_HISTORY: u32 = 4u;
 const MAX_MISREGISTRATION_PX: f32 = 0.75;
 const LOOSE_MISREGISTRATION_PX: f32 = 1.5;
 const LOOSE_HISTORY: u32 = 4u;
@@ -156,6 +157,27 @@ fn project(old: bool, toward: vec3<f32>, near: u32) -> Projected {
     return Projected(vec2<f32>(fx, fy), u32(fy) * w + u32(fx));
 }
 
+// Whether one of the eight neighbours of pixel p has a word other than w (twin: reuse.rs,
+// `on_edge`). The kernel writes the records' anchors, never their words.
+fn on_edge(p: u32, w: u32) -> bool {
+    let width = params.size.x;
+    let x = i32(p % width);
+    let y = i32(p / width);
+    for (var dy = -1; dy <= 1; dy++) {
+        for (var dx = -1; dx <= 1; dx++) {
+            let nx = x + dx;
+            let ny = y + dy;
+            if (dx == 0 && dy == 0) || nx < 0 || ny < 0 || nx >= i32(width) || ny >= i32(params.size.y) {
+                continue;
+            }
+            if bitcast<u32>(new_records[2u * (u32(ny) * width + u32(nx)) + 1u].w) != w {
+                return true;
+            }
+        }
+    }
+    return false;
+}
+
 // The old pixel pixel p takes and its cap (twin: reuse.rs, `reuse_source`); x = NOTHING: none.
 fn reuse_source(p: u32, n0: vec4<f32>, n1: vec4<f32>) -> vec2<u32> {
     let none = vec2<u32>(NOTHING, 0u);
@@ -218,6 +240,9 @@ fn reuse_source(p: u32, n0: vec4<f32>, n1: vec4<f32>) -> vec2<u32> {
     var loose = ALL;
     if best_d > MAX_MISREGISTRATION_PX {
         loose = LOOSE_HISTORY;
+    }
+    if on_edge(p, w) {
+        loose = min(loose, EDGE_HISTORY);
     }
     if miss {
         return vec2<u32>(best, loose);

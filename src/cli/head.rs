@@ -34,7 +34,7 @@ pub struct HeadArgs {
     pub eye_threshold: Option<f64>,
     /// What a move past --eye-threshold does to the accumulation: `reuse` carries each
     /// pixel's samples over from the old pixel that saw the same surface (mirrors, glass,
-    /// disoccluded surfaces and pixels newly in view start again; DESIGN.md §11); `restart`
+    /// disoccluded surfaces and pixels newly in view start again; docs/wall-camera.md); `restart`
     /// starts every pixel again. Default: reuse (with --cluster: restart, the only one it has).
     #[arg(long, value_name = "reuse|restart")]
     pub on_eye_move: Option<EyeMove>,

@@ -39,8 +39,12 @@
 //! (the sums scaled by cap / count, so the mean stays and new samples weigh more). A source
 //! further than [`MAX_MISREGISTRATION_PX`] is a loose match (a surface seen at a grazing angle,
 //! whose centre point moves far along it): it carries at most [`LOOSE_HISTORY`] samples, a
-//! first estimate in place of black that new samples soon replace. Every other pixel starts
-//! again from nothing. The ROI and its DGI are not touched.
+//! first estimate in place of black that new samples soon replace. A pixel on an edge — one of
+//! its eight neighbours in the new view has another word — carries at most [`EDGE_HISTORY`]:
+//! its footprint straddles the edge, and the nearest old pixel covered it in another
+//! proportion (a sky-bright pixel would otherwise stay bright where a building's edge now
+//! is: a ghost). Every other pixel starts again from nothing. The ROI and its DGI are not
+//! touched.
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -66,6 +70,10 @@ pub const ANGLE_PER_ALPHA: f32 = 0.5;
 pub const DIFFUSE_ALPHA: f32 = 0.25;
 /// The most samples a partly view-dependent pixel carries through a move.
 pub const HISTORY_LENGTH: u32 = 32;
+/// The most samples a pixel on an edge carries through a move (a neighbour of another
+/// material, or a miss beside a hit): its footprint straddles the edge, and a shift of a
+/// fraction of a pixel changes what it covers.
+pub const EDGE_HISTORY: u32 = 4;
 /// The most an old anchor may lie from the new pixel's centre, in new pixels (Chebyshev).
 pub const MAX_MISREGISTRATION_PX: f32 = 0.75;
 /// An old anchor this far from the new pixel's centre (in new pixels, Chebyshev) still carries,
@@ -152,8 +160,7 @@ fn word(r: &[[f32; 4]; 2]) -> u32 {
 pub fn reuse_source(
     new_view: &View<'_>,
     old_view: &View<'_>,
-    new: &[[f32; 4]; 2],
-    p: u32,
+    (new, p, new_word): (&[[f32; 4]; 2], u32, impl Fn(u32) -> u32),
     old: impl Fn(u32) -> [[f32; 4]; 2],
 ) -> Option<(u32, u32)> {
     let w = word(new);
@@ -196,11 +203,14 @@ pub fn reuse_source(
         }
     }
     let (dist, q) = best?;
-    let loose = if dist > MAX_MISREGISTRATION_PX {
+    let mut loose = if dist > MAX_MISREGISTRATION_PX {
         LOOSE_HISTORY
     } else {
         u32::MAX
     };
+    if on_edge(p, w, nw, new_view.height(), &new_word) {
+        loose = loose.min(EDGE_HISTORY);
+    }
     if miss {
         return Some((q, loose));
     }
@@ -228,6 +238,24 @@ pub fn reuse_source(
         u32::MAX
     };
     Some((q, cap.min(loose)))
+}
+
+/// Whether one of the eight neighbours of pixel `p` (in a `width × height` view) has a word
+/// other than `w`: the twin of `on_edge` in reuse.wgsl.
+fn on_edge(p: u32, w: u32, width: u32, height: u32, word_of: &impl Fn(u32) -> u32) -> bool {
+    let (x, y) = ((p % width) as i32, (p / width) as i32);
+    for dy in -1i32..=1 {
+        for dx in -1i32..=1 {
+            let (nx, ny) = (x + dx, y + dy);
+            if (dx, dy) == (0, 0) || nx < 0 || ny < 0 || nx >= width as i32 || ny >= height as i32 {
+                continue;
+            }
+            if word_of(ny as u32 * width + nx as u32) != w {
+                return true;
+            }
+        }
+    }
+    false
 }
 
 impl View<'_> {
@@ -285,7 +313,12 @@ pub fn reuse_cpu(
     let sources: Vec<Option<(u32, u32)>> = new
         .par_iter()
         .enumerate()
-        .map(|(p, r)| reuse_source(new_view, old_view, r, p as u32, |q| old[q as usize]))
+        .map(|(p, r)| {
+            let new_word = |i: u32| word(&new[i as usize]);
+            reuse_source(new_view, old_view, (r, p as u32, new_word), |q| {
+                old[q as usize]
+            })
+        })
         .collect();
     let mut acc = Accumulation::new(old_acc.width, old_acc.height);
     let mut stats = ReuseStats::default();

@@ -657,7 +657,7 @@ impl eframe::App for ViewerApp<'_> {
         if let Some(picture) = &picture {
             let max_side = ui.ctx().input(|i| i.max_texture_side) as u32;
             let (texels, [tw, th]) =
-                super::core::fit_texture(&picture.rgba, picture.size, max_side);
+                super::texture::fit_texture(&picture.rgba, picture.size, max_side);
             let image =
                 egui::ColorImage::from_rgba_unmultiplied([tw as usize, th as usize], &texels);
             self.showing_gpu = false;

@@ -18,6 +18,7 @@ pub mod orbit;
 pub mod save;
 pub mod state;
 #[cfg(feature = "viewer")]
+pub mod texture;
 pub mod tiles;
 
 use std::path::PathBuf;

@@ -41,7 +41,7 @@ pub use accumulation::GpuAccum;
 pub use features::{FeatureInputs, FeaturesKernel, GpuFeatures, GpuHits, HIT_BYTES_PER_PIXEL};
 pub use owned::{GpuOwnedParams, OwnedSums};
 pub use params::{GpuTraceParams, full_frame_grid};
-pub use reuse::{GpuReuseParams, GpuView, REUSE_WGSL, ReuseInputs, ReuseKernel};
+pub use reuse::{GpuReuseParams, GpuView, ReuseInputs, ReuseKernel};
 pub use run::{RunInputs, TraceRun};
 pub use samples::SampleRun;
 pub use scene::GpuScene;
@@ -79,6 +79,9 @@ pub const FEATURES_WGSL: &str = concat!(
     "\n",
     include_str!("../../../shaders/trace/features.wgsl")
 );
+
+/// The reuse kernel's source (it traces nothing: no helpers of the trace kernel).
+pub const REUSE_WGSL: &str = include_str!("../../../shaders/trace/reuse.wgsl");
 
 /// Threads per workgroup of the trace kernel (the default of the override `WORKGROUP` in
 /// path.wgsl).

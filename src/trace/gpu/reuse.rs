@@ -5,12 +5,9 @@ use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt;
 
 use super::params::wall_table_buffer;
-use super::{GpuAccum, GpuHits, entry};
+use super::{GpuAccum, GpuHits, REUSE_WGSL, entry};
 use crate::gpu::{GpuContext, GpuError};
 use crate::trace::reuse::{ReuseStats, View};
-
-/// The kernel's source.
-pub const REUSE_WGSL: &str = include_str!("../../../shaders/trace/reuse.wgsl");
 
 /// Threads per workgroup (`@workgroup_size` in reuse.wgsl).
 const REUSE_WORKGROUP: u32 = 64;

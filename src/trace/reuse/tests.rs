@@ -88,17 +88,27 @@ fn tagged(records: &[[[f32; 4]; 2]], w: u32, h: u32) -> Accumulation {
 }
 
 /// Without a move, every shown pixel is its own source, with all its samples (the surfaces are
-/// rough): reuse is the identity.
+/// rough) but on the occluder's outline, whose history is an edge's: reuse is the identity.
 #[test]
 fn a_still_view_carries_every_pixel_onto_itself() {
     let sc = occluder_scene(material(0.0, 1.0));
     let s = settings(48, 32, Vec3::new(0.0, 0.0, 3.0));
     let records = hit_records_cpu(&sc, &s, None);
     let v = pinhole(&s);
+    let word_of = |i: u32| word(&records[i as usize]);
+    let mut edges = 0;
     for (p, r) in records.iter().enumerate() {
-        let got = reuse_source(&v, &v, r, p as u32, |q| records[q as usize]);
-        assert_eq!(got, Some((p as u32, u32::MAX)), "pixel {p}");
+        let got = reuse_source(&v, &v, (r, p as u32, word_of), |q| records[q as usize]);
+        let (q, cap) = got.unwrap_or_else(|| panic!("pixel {p} restarted"));
+        assert_eq!(q, p as u32, "pixel {p}");
+        // Around the occluder's outline the history is an edge's.
+        assert!(cap == u32::MAX || cap == EDGE_HISTORY, "pixel {p}: {cap}");
+        edges += usize::from(cap == EDGE_HISTORY);
     }
+    assert!(
+        edges > 0 && edges < records.len() / 4,
+        "{edges} edge pixels"
+    );
 }
 
 /// The camera steps sideways: the background the occluder hid from the old eye is
@@ -236,7 +246,8 @@ fn mirrors_restart_and_glossy_surfaces_carry_a_capped_history() {
     assert!(stats.carried > 0);
     for p in 0..(w * h) as usize {
         if carried.count[p] > 0 && word(&new[p]) == 0 {
-            assert_eq!(carried.count[p], HISTORY_LENGTH);
+            // Capped at the glossy history, or an edge's beside the occluder.
+            assert!([HISTORY_LENGTH, EDGE_HISTORY].contains(&carried.count[p]));
             let mean = carried.sum[p][0] / carried.count[p] as f32;
             assert!((mean - 1.0).abs() < 1e-6, "{mean}");
         }
@@ -299,8 +310,9 @@ fn the_wall_camera_projects_its_own_rays_back() {
     let records = hit_records_cpu(&sc, &s, Some(&wall));
     let v = View::Wall(&wall);
     let mut shown = 0;
+    let word_of = |i: u32| word(&records[i as usize]);
     for (p, r) in records.iter().enumerate() {
-        let got = reuse_source(&v, &v, r, p as u32, |q| records[q as usize]);
+        let got = reuse_source(&v, &v, (r, p as u32, word_of), |q| records[q as usize]);
         if wall.is_shown(p as u32) && wall.tile_of(p as u32 % w, p as u32 / w).is_some() {
             shown += 1;
             assert_eq!(got.map(|g| g.0), Some(p as u32), "pixel {p}");
