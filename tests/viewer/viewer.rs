@@ -747,6 +747,53 @@ fn wall_camera(
     .unwrap()
 }
 
+/// `view --camera wall --on-eye-move reuse` (the command line's default): an orbit past the
+/// threshold moves the eye and carries the picture — the iterations go on, the panel's share
+/// is the move's — and the pinhole camera's orbit does too; switched to restart, the next
+/// move restarts.
+#[test]
+fn a_move_past_the_threshold_carries_the_picture_with_reuse() {
+    use raygun::frame::EyeMove;
+    use raygun::viewer::orbit::Gesture;
+    let (model, scene, backend) = (hornet(), scene(), Backend::Cpu);
+    let mut state = ViewerState::new(RoiSource::Mouse, 2);
+    state.on_eye_move = EyeMove::Reuse;
+    state.click(&model, DVec2::new(32.5, 13.5), [W, H]);
+    let wall = wall_camera(&model, &scene);
+    let mut core = ViewerCore::with_wall(
+        &backend,
+        &scene,
+        &model,
+        base(&scene),
+        state.clone(),
+        Some(wall),
+    )
+    .unwrap();
+    for _ in 0..3 {
+        core.step(ONE).unwrap();
+    }
+    core.state.gesture(Gesture::Orbit(DVec2::new(4.0, 0.0)));
+    core.step(ONE).unwrap();
+    assert_eq!((core.restarts, core.moves_reused), (0, 1));
+    assert_eq!(core.iteration(), 4, "the iterations go on");
+    let share = core.last_reuse.unwrap().share();
+    assert!(share > 0.5, "{share}");
+    core.set_on_eye_move(EyeMove::Restart);
+    core.state.gesture(Gesture::Orbit(DVec2::new(4.0, 0.0)));
+    core.step(ONE).unwrap();
+    assert_eq!((core.restarts, core.moves_reused), (1, 1));
+    assert_eq!(core.last_reuse, None);
+    // The pinhole camera: its orbit past the threshold carries too.
+    let mut core = ViewerCore::new(&backend, &scene, &model, base(&scene), state).unwrap();
+    for _ in 0..3 {
+        core.step(ONE).unwrap();
+    }
+    core.state.gesture(Gesture::Orbit(DVec2::new(3.0, 0.0)));
+    core.step(ONE).unwrap();
+    assert_eq!((core.restarts, core.moves_reused), (0, 1));
+    assert!(core.last_reuse.unwrap().share() > 0.3);
+}
+
 /// `view --camera wall`: the eye follows the desktop user's orbit, pan and dolly and a tracked
 /// head under the restart rule — within the threshold the accumulation goes on, past it the
 /// accumulation restarts and the ROI stays; an eye on or behind the wall is refused.
