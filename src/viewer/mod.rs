@@ -17,8 +17,8 @@ pub mod diagnostics;
 pub mod orbit;
 pub mod save;
 pub mod state;
-#[cfg(feature = "viewer")]
 pub mod texture;
+#[cfg(feature = "viewer")]
 pub mod tiles;
 
 use std::path::PathBuf;
