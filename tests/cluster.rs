@@ -551,6 +551,9 @@ mod mpi {
             "2",
             "--guide",
             "tracking-replays/head-1-walk.dtrack.jsonl",
+            // Ranks restart at a move: the one process does too, to be compared byte for byte.
+            "--on-eye-move",
+            "restart",
             "--iterations",
             "20",
             "--p-min",
