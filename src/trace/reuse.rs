@@ -145,6 +145,13 @@ impl View<'_> {
             Self::Pinhole { width, .. } => *width,
         }
     }
+
+    fn height(&self) -> u32 {
+        match self {
+            Self::Wall(w) => w.height,
+            Self::Pinhole { height, .. } => *height,
+        }
+    }
 }
 
 /// The record's word.
@@ -256,15 +263,6 @@ fn on_edge(p: u32, w: u32, width: u32, height: u32, word_of: &impl Fn(u32) -> u3
         }
     }
     false
-}
-
-impl View<'_> {
-    fn height(&self) -> u32 {
-        match self {
-            Self::Wall(w) => w.height,
-            Self::Pinhole { height, .. } => *height,
-        }
-    }
 }
 
 /// A pixel's sums and count carried with at most `cap` samples (the sums scaled by
